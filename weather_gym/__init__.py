@@ -1,0 +1,28 @@
+"""weather-gym: repeatable bad weather for autonomous-racing perception.
+
+Importing the package registers the Gymnasium ids built from the scenario files in ``envs/``.
+
+Example:
+    >>> import gymnasium as gym, weather_gym  # doctest: +SKIP
+    >>> env = gym.make("WeatherGym/ConeTrack-v0")  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+__all__ = ["__version__", "register_envs"]
+
+
+def register_envs() -> list[str]:
+    """Register every scenario in ``envs/`` as a Gymnasium id; returns the ids (idempotent)."""
+    from weather_gym.envs.registration import register_envs as _register
+
+    return _register()
+
+
+try:  # registration must not make `import weather_gym` fail while the env layer is missing
+    register_envs()
+except ModuleNotFoundError as _exc:  # pragma: no cover
+    if not (_exc.name or "").startswith("weather_gym.envs"):
+        raise

@@ -1,0 +1,1 @@
+"""Benchmark targets for ``weather-gym bench``; ``benchmarks/*.py`` are thin scripts over these."""

@@ -1,0 +1,5 @@
+import sys
+
+from weather_gym.cli import main
+
+sys.exit(main())

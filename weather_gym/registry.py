@@ -1,0 +1,65 @@
+"""One registry per kind of thing (effects, agents, tracks, env ids).
+
+Example:
+    >>> from weather_gym.registry import Registry
+    >>> shapes = Registry("shape")
+    >>> @shapes.register("square")
+    ... def square(n): return n * n
+    >>> shapes.get("square")(3)
+    9
+    >>> shapes.get("circle")
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown shape 'circle'; valid names: square
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from typing import Generic, TypeVar
+
+T = TypeVar("T")
+
+
+class Registry(Generic[T]):
+    """A name -> object mapping whose lookup errors list the valid names."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self._items: dict[str, T] = {}
+
+    def register(self, name: str, obj: T | None = None) -> Callable[[T], T] | T:
+        """Register ``obj`` under ``name``; without ``obj`` acts as a decorator."""
+
+        def _add(o: T) -> T:
+            if name in self._items and self._items[name] is not o:
+                raise ValueError(f"{self.kind} {name!r} is already registered")
+            self._items[name] = o
+            return o
+
+        return _add if obj is None else _add(obj)
+
+    def get(self, name: str) -> T:
+        try:
+            return self._items[name]
+        except KeyError:
+            raise ValueError(
+                f"unknown {self.kind} {name!r}; valid names: {', '.join(sorted(self._items))}"
+            ) from None
+
+    __getitem__ = get
+
+    def names(self) -> list[str]:
+        return sorted(self._items)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._items
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(sorted(self._items))
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return f"Registry({self.kind!r}, {self.names()})"
