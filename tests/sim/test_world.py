@@ -1,0 +1,109 @@
+"""The PyBullet world and the camera sensor: images, metric depth, ground-truth boxes, cone hits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from weather_gym.camera import CameraConfig
+from weather_gym.sim.config import SimConfig
+from weather_gym.sim.look import DEFAULT_LOOK, sample_look
+from weather_gym.sim.world import World
+from weather_gym.tracks import load_track
+
+
+@pytest.fixture(scope="module")
+def world():
+    w = World(load_track("acceleration"), camera=CameraConfig(width=224, height=126))
+    yield w
+    w.close()
+
+
+def test_frame_shapes_and_types(world):
+    world.reset(world.track.start_pose)
+    f = world.render()
+    assert f.rgb.shape == (126, 224, 3) and f.rgb.dtype == np.uint8
+    assert f.depth.shape == (126, 224) and f.depth.dtype == np.float32
+    assert np.isfinite(f.depth).all() and f.depth.max() <= world.camera_config.far
+    assert f.segmentation.dtype == np.int32
+
+
+def test_sky_is_not_white(world):
+    world.reset(world.track.start_pose)
+    top = world.render().rgb[:10].reshape(-1, 3).astype(float)
+    assert top.mean(axis=0)[2] > top.mean(axis=0)[0] + 20  # blue sky, so white droplets stay visible
+
+
+def test_ground_truth_boxes_cover_their_cone_pixels_and_depth_is_metric(world):
+    world.reset(world.track.start_pose)
+    f = world.render()
+    gt = f.gt
+    assert len(gt["boxes"]) > 4
+    cam = world.camera_config
+    for box, cid, rng_m, bearing, pixels in zip(gt["boxes"], gt["cone_ids"], gt["ranges"], gt["bearings"], gt["pixels"]):
+        x1, y1, x2, y2 = box.astype(int)
+        mask = f.segmentation == cid
+        assert mask.sum() == pixels
+        ys, xs = np.nonzero(mask)
+        assert (xs.min(), ys.min(), xs.max() + 1, ys.max() + 1) == (x1, y1, x2, y2)
+        # bearing of the box centre agrees with the true bearing (pinhole model)
+        assert cam.bearing((x1 + x2) / 2) == pytest.approx(float(bearing), abs=0.03)
+        # the nearest depth inside the cone's mask is the z-distance to its near surface
+        z_true = rng_m * math.cos(bearing)
+        assert float(f.depth[mask].min()) == pytest.approx(z_true, rel=0.1, abs=0.3)
+
+
+def test_occluded_cones_have_fewer_pixels_than_their_box(world):
+    # Looking down the lane, far cones hide behind near ones only partly: boxes stay the visible part
+    world.reset(world.track.start_pose)
+    gt = world.render().gt
+    areas = (gt["boxes"][:, 2] - gt["boxes"][:, 0]) * (gt["boxes"][:, 3] - gt["boxes"][:, 1])
+    assert (gt["pixels"] <= areas).all()
+
+
+def test_look_changes_the_image_and_is_restored(world):
+    world.reset(world.track.start_pose)
+    a = world.render().rgb
+    world.set_look(sample_look(np.random.default_rng(4)))
+    b = world.render().rgb
+    world.set_look(DEFAULT_LOOK)
+    c = world.render().rgb
+    assert np.abs(a.astype(int) - b).mean() > 5
+    assert np.array_equal(a, c)
+
+
+def test_driving_into_a_cone_knocks_it_and_reset_restores_it(world):
+    track = world.track
+    idx = 5
+    cx, cy = track.cones_xy[idx]
+    world.reset((cx - 6.0, cy, 0.0), speed=6.0)
+    touched = set()
+    for _ in range(60):
+        touched |= world.step(0.0, 0.3)
+    assert idx in touched
+    assert world.cone_displacement()[idx] > 0.2
+    world.reset(track.start_pose)
+    assert world.cone_displacement().max() == 0.0
+
+
+def test_tiny_and_auto_renderers_are_each_deterministic():
+    track = load_track("hairpin")
+    for renderer in ("tiny", "auto"):
+        frames = []
+        for _ in range(2):
+            w = World(track, sim=SimConfig(renderer=renderer), camera=CameraConfig(width=128, height=72))
+            w.reset(track.start_pose)
+            for _ in range(5):
+                w.step(0.1, 0.5)
+            frames.append(w.render())
+            w.close()
+        assert np.array_equal(frames[0].rgb, frames[1].rgb), renderer
+        assert np.array_equal(frames[0].depth, frames[1].depth), renderer
+
+
+def test_gui_without_display_is_a_clear_error(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    with pytest.raises(RuntimeError, match="display"):
+        World(load_track("hairpin"), sim=SimConfig(gui=True))

@@ -1,0 +1,117 @@
+"""``weather-gym tracks list|show|export``: the shipped and generated cone tracks.
+
+Examples:
+    weather-gym tracks list
+    weather-gym tracks show peanut --out peanut.png
+    weather-gym tracks show random:7 --out random7.png
+    weather-gym tracks show --all --out docs/img/tracks.png --force
+    weather-gym tracks export random:7 --out my_track.csv
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+ALL_SEED = 7
+"""Seed of the random track drawn by ``show --all``."""
+
+
+def register(sub) -> None:
+    p = sub.add_parser("tracks", help="list, plot or export cone tracks",
+                       description="The cone tracks: EUFS layouts shipped in tracks/, 'oval', 'random:SEED', "
+                                   "or any cone CSV file.")
+    cmds = p.add_subparsers(dest="tracks_command", metavar="ACTION", required=True)
+
+    ls = cmds.add_parser("list", help="name, cones, length and event of every registered track")
+    ls.add_argument("--seed", type=int, default=ALL_SEED, help="seed of the random track row (default %(default)s)")
+    ls.set_defaults(func=_list)
+
+    show = cmds.add_parser("show", help="plot a track (cones, centerline, start pose) to a PNG")
+    show.add_argument("track", nargs="?", help="a track name, 'random:SEED' or a cone CSV path")
+    show.add_argument("--all", action="store_true", help="plot every registered track in a grid")
+    show.add_argument("--out", required=True, type=Path, help="PNG file to write")
+    show.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    show.add_argument("--seed", type=int, default=ALL_SEED, help="seed for 'random' (default %(default)s)")
+    show.set_defaults(func=_show)
+
+    exp = cmds.add_parser("export", help="write a track's cones as a CSV in the EUFS format")
+    exp.add_argument("track", help="a track name, 'random:SEED' or a cone CSV path")
+    exp.add_argument("--out", required=True, type=Path, help="CSV file to write (never overwritten)")
+    exp.add_argument("--seed", type=int, default=None, help="seed for 'random'")
+    exp.set_defaults(func=_export)
+
+
+def _list(args) -> int:
+    from weather_gym.tracks import TRACKS, load_track
+
+    print(f"{'name':<16}{'cones':>7}{'length m':>10}  {'event':<13}source")
+    for name in TRACKS.names():
+        t = load_track(name, seed=args.seed)
+        shown = f"random:{args.seed}" if name == "random" else name
+        print(f"{shown:<16}{len(t.cones_xy):>7}{t.length:>10.1f}  {t.event:<13}{_short(t.source)}")
+    return 0
+
+
+def _short(source: str) -> str:
+    try:
+        return str(Path(source).resolve().relative_to(Path.cwd()))
+    except ValueError:
+        return source
+
+
+def _check_out(path: Path, force: bool) -> None:
+    if path.exists() and not force:
+        raise FileExistsError(f"{path} already exists; pass --force to overwrite it")
+    if not path.parent.is_dir():
+        raise FileNotFoundError(f"folder {path.parent} does not exist")
+
+
+def _show(args) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from weather_gym.tracks import TRACKS, load_track
+
+    if args.all == (args.track is not None):
+        raise ValueError("give either a TRACK or --all")
+    _check_out(args.out, args.force)
+    if args.all:
+        names = TRACKS.names()
+        cols = 4
+        rows = -(-len(names) // cols)
+        fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.9 * rows))
+        for ax, name in zip(axes.flat, names, strict=False):
+            t = load_track(name, seed=args.seed)
+            shown = f"random:{args.seed}" if name == "random" else name
+            t.plot(ax, title=f"{shown}: {t.length:.0f} m, {len(t.cones_xy)} cones ({t.event})")
+        for ax in list(axes.flat)[len(names):]:
+            ax.axis("off")
+        fig.legend(*_legend(axes), loc="lower right", fontsize=10, ncol=2)
+    else:
+        fig, ax = plt.subplots(figsize=(8, 8))
+        load_track(args.track, seed=args.seed).plot(ax)
+        ax.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    fig.savefig(args.out, dpi=110)
+    plt.close(fig)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _legend(axes):
+    seen: dict[str, object] = {}
+    for ax in axes.flat:
+        for h, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            seen.setdefault(label, h)
+    return list(seen.values()), list(seen.keys())
+
+
+def _export(args) -> int:
+    from weather_gym.tracks import load_track
+
+    track = load_track(args.track, seed=args.seed)
+    track.to_csv(args.out)
+    print(f"wrote {args.out} ({len(track.cones_xy)} cones, {track.length:.1f} m centerline)")
+    return 0

@@ -1,0 +1,274 @@
+"""``ConeTrackEnv``: a Formula Student cone track with a camera car, as a Gymnasium environment.
+
+Observation: ``Dict(image, depth, state)``; action: ``Box(-1, 1, (2,))`` = (steering, throttle/brake).
+Ground truth (visible cones' boxes, true pose, ...) is only in ``info``.
+
+Example:
+    >>> from weather_gym.envs import ConeTrackEnv, EnvConfig
+    >>> env = ConeTrackEnv(EnvConfig(track="small_track"))           # doctest: +SKIP
+    >>> obs, info = env.reset(seed=0)                                 # doctest: +SKIP
+    >>> obs["image"].shape, obs["state"].shape                        # doctest: +SKIP
+    ((376, 672, 3), (5,))
+    >>> obs, reward, terminated, truncated, info = env.step([0.0, 0.5])  # doctest: +SKIP
+    >>> env.close()                                                   # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from weather_gym.envs.config import EnvConfig
+from weather_gym.sim.camera import CameraFrame
+from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
+from weather_gym.sim.world import World
+
+STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
+"""Names of ``obs["state"]``: wheel-speed odometry (m/s), gyro yaw rate (rad/s), odometry pose."""
+
+RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction")
+
+
+def _wrap_angle(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+class ConeTrackEnv(gym.Env):
+    """A camera car on a cone track. See the module docstring and ``docs/architecture.md``.
+
+    ``reset(options=...)`` accepts: ``look`` (a ``Look``, its dict, or ``"random"``),
+    ``start_pose`` (x, y, yaw), ``start_s`` (arc length along the centerline to start at),
+    ``start_speed`` (m/s) and ``friction`` (tyre-road mu for this episode, e.g. 0.6 for wet).
+    """
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 30}
+
+    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None, **overrides: Any) -> None:
+        from weather_gym.tracks import load_track  # tracks is below the env layer
+
+        config = config or EnvConfig()
+        if overrides:
+            config = replace(config, **overrides)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.config = config
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": config.sim.control_hz}
+        self.track = load_track(config.track, seed=config.track_seed)
+        sim = config.sim if render_mode != "human" else replace(config.sim, gui=True)
+        self._world = World(self.track, sim=sim, car=config.car, camera=config.camera)
+        cam = config.camera
+        self.observation_space = spaces.Dict(
+            {
+                "image": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
+                "depth": spaces.Box(0.0, float(cam.far), (cam.height, cam.width), np.float32),
+                "state": spaces.Box(-np.inf, np.inf, (len(STATE_FIELDS),), np.float32),
+            }
+        )
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self._frame_every = max(1, int(round(config.sim.control_hz / cam.fps)))
+        self._frame: CameraFrame | None = None
+        self._episode_started = False
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def world(self) -> World:
+        return self._world
+
+    @property
+    def renderer(self) -> str:
+        """The renderer in use: "egl" or "tiny"."""
+        return self._world.renderer_name
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - set(RESET_OPTIONS)
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
+        rng = self.np_random
+        look = self._resolve_look(options.get("look"), rng)
+        self._world.set_look(look)
+
+        track = self.track
+        if "start_pose" in options:
+            pose = tuple(float(v) for v in options["start_pose"])
+            if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
+                raise ValueError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
+        elif "start_s" in options:
+            x, y, h = track.point_at(float(options["start_s"]))
+            pose = (float(x), float(y), float(h))
+        else:
+            pose = tuple(float(v) for v in track.start_pose)
+        speed = float(options.get("start_speed", 0.0))
+        if not math.isfinite(speed) or speed < 0:
+            raise ValueError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
+        friction = options.get("friction", self.config.car.friction)
+        if not (isinstance(friction, (int, float)) and math.isfinite(friction) and friction > 0):
+            raise ValueError(f"reset option friction must be a finite number > 0, got {friction!r}")
+        self._friction = float(friction)
+        self._world.reset(pose, speed=speed)
+
+        # odometry errors of this episode
+        od = self.config.odometry
+        self._odo_scale = 1.0 + od.speed_scale_std * float(rng.standard_normal())
+        self._gyro_bias = od.gyro_bias_std * float(rng.standard_normal())
+        self._odom = np.array(pose, dtype=np.float64)
+
+        proj = track.project(pose[0], pose[1])
+        self._s = float(proj.s)
+        self._progress = 0.0
+        self._step = 0
+        self._time = 0.0
+        self._lap_start_time = 0.0
+        self._lap_times: list[float] = []
+        self._cones_hit: set[int] = set()
+        self._off_track = False
+        self._off_track_events = 0
+        self._finished = False
+        self._lateral = float(proj.lateral)
+        self._episode_started = True
+        self._frame = self._world.render()
+        meas = self._measure(0.0)
+        return self._observation(meas), self._info(proj, new_hits=0)
+
+    def _resolve_look(self, look: Any, rng: np.random.Generator) -> Look:
+        if look is None:
+            return sample_look(rng) if self.config.randomize_look else DEFAULT_LOOK
+        if isinstance(look, Look):
+            return look
+        if look == "random":
+            return sample_look(rng)
+        if isinstance(look, dict):
+            return Look.from_dict(look)
+        raise ValueError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
+
+    # ------------------------------------------------------------------ step
+    def step(self, action):
+        if not self._episode_started:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise ValueError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {a.tolist()}")
+        if np.any(np.abs(a) > 1.0 + 1e-6):
+            raise ValueError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
+        steer, pedal = float(np.clip(a[0], -1, 1)), float(np.clip(a[1], -1, 1))  # only float rounding is clipped
+
+        touched = self._world.step(steer, pedal, self._friction)
+        new_hits = len(touched - self._cones_hit)
+        self._cones_hit |= touched
+        dt = self.config.sim.dt
+        self._step += 1
+        self._time += dt
+
+        track = self.track
+        x, y, _ = self._world.car.pose
+        proj = track.project(x, y, s_hint=self._s)
+        ds = float(proj.s) - self._s
+        if track.closed:
+            ds = (ds + track.length / 2) % track.length - track.length / 2
+        self._s = float(proj.s)
+        self._progress += ds
+        self._lateral = float(proj.lateral)
+
+        lap_done = False
+        if track.closed:
+            while self._progress >= (len(self._lap_times) + 1) * track.length:
+                self._lap_times.append(self._time - self._lap_start_time)
+                self._lap_start_time = self._time
+                lap_done = True
+        elif not self._finished and self._s >= track.finish_s:
+            self._lap_times.append(self._time - self._lap_start_time)
+            self._finished = True
+            lap_done = True
+
+        i = int(proj.index)
+        limit_left = float(track.half_width_left[i]) + self.config.off_track_margin
+        limit_right = float(track.half_width_right[i]) + self.config.off_track_margin
+        off = self._lateral > limit_left or self._lateral < -limit_right
+        became_off = off and not self._off_track
+        self._off_track_events += int(became_off)
+        self._off_track = off
+
+        r = self.config.reward
+        reward = r.progress * ds + r.cone_hit * new_hits + r.off_track * float(became_off) + r.time
+
+        laps_needed = self.config.laps
+        terminated = bool(
+            (off and self.config.terminate_off_track)
+            or (laps_needed > 0 and len(self._lap_times) >= laps_needed)
+            or (lap_done and not track.closed)
+        )
+        truncated = bool(self._step >= self.config.max_episode_steps and not terminated)
+
+        if self._step % self._frame_every == 0:
+            self._frame = self._world.render()
+        meas = self._measure(dt)
+        return self._observation(meas), float(reward), terminated, truncated, self._info(proj, new_hits)
+
+    # ------------------------------------------------------------------ sensors
+    def _measure(self, dt: float) -> tuple[float, float]:
+        """Odometry as the car reports it: scaled, noisy wheel speed and biased, noisy gyro."""
+        od = self.config.odometry
+        rng = self.np_random
+        car = self._world.car
+        speed = car.state.vx * self._odo_scale + od.speed_noise_std * float(rng.standard_normal())
+        yaw_rate = car.state.yaw_rate + self._gyro_bias + od.gyro_noise_std * float(rng.standard_normal())
+        if dt > 0:
+            xo, yo, hyo = self._odom
+            self._odom = np.array(
+                [xo + speed * math.cos(hyo) * dt, yo + speed * math.sin(hyo) * dt, _wrap_angle(hyo + yaw_rate * dt)]
+            )
+        return speed, yaw_rate
+
+    def _observation(self, meas: tuple[float, float]) -> dict[str, np.ndarray]:
+        assert self._frame is not None
+        state = np.array([meas[0], meas[1], *self._odom], dtype=np.float32)
+        return {"image": self._frame.rgb.copy(), "depth": self._frame.depth.copy(), "state": state}
+
+    def _info(self, proj, new_hits: int) -> dict[str, Any]:
+        car = self._world.car
+        return {
+            "gt": self._frame.gt if self._frame is not None else None,
+            "pose": np.array(car.pose, dtype=np.float64),
+            "speed": float(car.speed),
+            "yaw_rate": float(car.state.yaw_rate),
+            "steer_angle": float(car.state.steer),
+            "s": self._s,
+            "progress": float(self._progress),
+            "lap": len(self._lap_times),
+            "lap_time": float(self._time - self._lap_start_time),
+            "lap_times": list(self._lap_times),
+            "cones_hit": len(self._cones_hit),
+            "new_cones_hit": int(new_hits),
+            "off_track": bool(self._off_track),
+            "off_track_events": int(self._off_track_events),
+            "cross_track_error": abs(self._lateral),
+            "lateral_offset": self._lateral,
+            "time": float(self._time),
+            "step": int(self._step),
+            "finished": bool(self._finished),
+            "camera": self.config.camera,
+            "track": self.track.name,
+            "renderer": self._world.renderer_name,
+        }
+
+    # ------------------------------------------------------------------ render / close
+    def render(self):
+        if self.render_mode == "rgb_array":
+            return self._world.render_chase()
+        return None  # "human": the PyBullet GUI window shows the scene live
+
+    def close(self) -> None:
+        world = getattr(self, "_world", None)
+        if world is not None:
+            world.close()
+        super().close()

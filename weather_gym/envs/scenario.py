@@ -1,0 +1,134 @@
+"""Declarative scenarios: TOML files in ``envs/`` describing track, car, camera, sim, weather, detector.
+
+A scenario file::
+
+    id = "WeatherGym/ConeTrack-v0"
+    description = "..."
+    [env]       # EnvConfig fields: track, laps, max_episode_steps, ...
+    [sim]       # SimConfig fields
+    [car]       # CarConfig fields
+    [camera]    # CameraConfig fields
+    [odometry]  # OdometryConfig fields
+    [reward]    # RewardConfig fields
+    [weather]   # optional: spec = "droplets@2" (any weather spec), or condition/severity
+    [detector]  # optional: enabled = true, plus DetectorWrapper keyword arguments
+
+Example:
+    >>> from weather_gym.envs.scenario import load_scenario, scenario_files
+    >>> sc = load_scenario(scenario_files()[0])
+    >>> sc.env_id.startswith("WeatherGym/")
+    True
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any
+
+from weather_gym.camera import CameraConfig
+from weather_gym.envs.config import EnvConfig, RewardConfig
+from weather_gym.paths import data_dir
+from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
+
+SECTIONS: dict[str, type] = {
+    "sim": SimConfig,
+    "car": CarConfig,
+    "camera": CameraConfig,
+    "odometry": OdometryConfig,
+    "reward": RewardConfig,
+}
+ENV_KEYS = tuple(f.name for f in fields(EnvConfig) if f.name not in SECTIONS)
+TOP_KEYS = ("id", "description", "env", "weather", "detector", *SECTIONS)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A parsed scenario file."""
+
+    env_id: str
+    path: str
+    description: str = ""
+    env: dict[str, Any] = field(default_factory=dict)
+    sections: dict[str, dict[str, Any]] = field(default_factory=dict)
+    weather: dict[str, Any] | None = None
+    detector: dict[str, Any] | None = None
+
+
+def scenario_files() -> list[Path]:
+    """The shipped scenario files, sorted."""
+    return sorted(data_dir("envs").glob("*.toml"))
+
+
+def _check_keys(where: str, got: dict, valid: tuple[str, ...] | set[str]) -> None:
+    unknown = sorted(set(got) - set(valid))
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {unknown}; valid keys: {sorted(valid)}")
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Parse and validate a scenario TOML file; errors name the file and the key."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"scenario file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: malformed TOML: {exc}") from None
+    _check_keys(str(path), data, TOP_KEYS)
+    env_id = data.get("id")
+    if not isinstance(env_id, str) or "/" not in env_id or not env_id.rsplit("-v", 1)[-1].isdigit():
+        raise ValueError(f"{path}: 'id' must be a Gymnasium id like 'WeatherGym/Name-v0', got {env_id!r}")
+    env = data.get("env", {})
+    _check_keys(f"{path} [env]", env, ENV_KEYS)
+    sections = {}
+    for name, cls in SECTIONS.items():
+        sec = data.get(name, {})
+        if not isinstance(sec, dict):
+            raise ValueError(f"{path}: [{name}] must be a table")
+        _check_keys(f"{path} [{name}]", sec, {f.name for f in fields(cls)})
+        sections[name] = sec
+    weather = data.get("weather")
+    if weather is not None:
+        _check_keys(f"{path} [weather]", weather, ("spec", "condition", "severity"))
+    detector = data.get("detector")
+    sc = Scenario(env_id=env_id, path=str(path), description=str(data.get("description", "")), env=env,
+                  sections=sections, weather=weather, detector=detector)
+    try:  # build once so that bad values fail at load time, naming the file
+        build_config(sc)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    return sc
+
+
+def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
+    if override is None:
+        return cls(**base)
+    if is_dataclass(override):
+        if not isinstance(override, cls):
+            raise ValueError(f"{name} must be a {cls.__name__} or a dict of its fields, got {type(override).__name__}")
+        return override
+    if isinstance(override, dict):
+        _check_keys(f"override {name}", override, {f.name for f in fields(cls)})
+        return cls(**{**base, **override})
+    raise ValueError(f"{name} must be a {cls.__name__} or a dict of its fields, got {override!r}")
+
+
+def build_config(scenario: Scenario, overrides: dict[str, Any] | None = None) -> EnvConfig:
+    """The ``EnvConfig`` of a scenario with keyword overrides (``gym.make`` kwargs) applied."""
+    overrides = dict(overrides or {})
+    _check_keys(f"overrides for {scenario.env_id}", overrides, (*ENV_KEYS, *SECTIONS))
+    kwargs: dict[str, Any] = dict(scenario.env)
+    for key in ENV_KEYS:
+        if key in overrides:
+            kwargs[key] = overrides[key]
+    for name, cls in SECTIONS.items():
+        kwargs[name] = _merge_section(cls, scenario.sections.get(name, {}), overrides.get(name), name)
+    return EnvConfig(**kwargs)
+
+
+def config_as_dict(config: EnvConfig) -> dict[str, Any]:
+    """JSON-friendly dict of an ``EnvConfig``."""
+    return dataclasses.asdict(config)

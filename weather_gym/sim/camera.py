@@ -1,0 +1,160 @@
+"""The car's camera as a sensor: RGB, metric depth, segmentation and per-cone ground truth.
+
+Example (needs PyBullet; see ``World.render``):
+    >>> from weather_gym.sim.camera import depth_from_zbuffer
+    >>> import numpy as np
+    >>> float(depth_from_zbuffer(np.array([1.0], np.float32), near=0.1, far=80.0)[0])
+    80.0
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import pybullet as p
+from scipy import ndimage
+
+from weather_gym.camera import CameraConfig
+from weather_gym.sim.look import Look
+
+
+@dataclass
+class CameraFrame:
+    """One frame: ``rgb`` (H,W,3) uint8, ``depth`` (H,W) float32 metres, ``segmentation`` (H,W)
+    int32 cone index or -1, and ``gt`` (dict of per-visible-cone arrays)."""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    segmentation: np.ndarray
+    gt: dict[str, np.ndarray]
+
+
+def depth_from_zbuffer(zbuf: np.ndarray, near: float, far: float) -> np.ndarray:
+    """Convert OpenGL's non-linear depth buffer (0..1) to metric z-depth in metres."""
+    z = np.asarray(zbuf, dtype=np.float32)
+    depth = np.float32(far * near) / (np.float32(far) - np.float32(far - near) * z)
+    return np.minimum(depth, np.float32(far), out=depth)  # float32 rounding at z=1 overshoots far by ~1e-3
+
+
+def empty_gt() -> dict[str, np.ndarray]:
+    return {
+        "boxes": np.zeros((0, 4), np.float32),
+        "classes": np.zeros((0,), np.int64),
+        "cone_ids": np.zeros((0,), np.int64),
+        "ranges": np.zeros((0,), np.float32),
+        "bearings": np.zeros((0,), np.float32),
+        "pixels": np.zeros((0,), np.int64),
+    }
+
+
+class CameraSensor:
+    """Renders what a camera mounted on the car sees; holds the per-episode sky and mount jitter."""
+
+    def __init__(self, config: CameraConfig, client: int, renderer: int, shadows: bool = False) -> None:
+        self.config = config
+        self.client = client
+        self.renderer = renderer
+        self.shadows = shadows
+        c = config
+        self._proj = p.computeProjectionMatrixFOV(c.vfov_deg, c.width / c.height, c.near, c.far)
+        self.look: Look | None = None
+        self._sky_rows: np.ndarray | None = None
+        self._pano: np.ndarray | None = None
+        self._col_angles = np.arctan2(c.cx - (np.arange(c.width) + 0.5), c.fx)  # rad, positive left
+
+    def set_look(self, look: Look, panorama: np.ndarray, max_elevation_deg: float = 60.0) -> None:
+        """Per-episode appearance: mount jitter and the sky panorama (rows = elevation)."""
+        self.look = look
+        self._pano = panorama
+        c = self.config
+        pitch = math.radians(c.pitch_deg + look.camera_pitch_offset_deg)
+        v = np.arange(c.height) + 0.5
+        elev = -pitch + np.arctan2(c.cy - v, c.fy)  # elevation of each image row, rad
+        h = panorama.shape[0]
+        rows = (math.radians(max_elevation_deg) - elev) / math.radians(max_elevation_deg + 10.0) * (h - 1)
+        self._sky_rows = np.clip(np.round(rows), 0, h - 1).astype(np.intp)
+
+    def mount_pose(self, car_pose: tuple[float, float, float]) -> tuple[np.ndarray, float, float]:
+        """Camera position (3,), heading yaw and downward pitch (rad) for the car's reference pose."""
+        x, y, yaw = car_pose
+        look = self.look
+        dz = look.camera_height_offset if look else 0.0
+        dyaw = math.radians(look.camera_yaw_offset_deg) if look else 0.0
+        dpitch = math.radians(look.camera_pitch_offset_deg) if look else 0.0
+        c = self.config
+        eye = np.array([x + c.mount_x * math.cos(yaw), y + c.mount_x * math.sin(yaw), c.mount_height + dz])
+        return eye, yaw + dyaw, math.radians(c.pitch_deg) + dpitch
+
+    def render(
+        self,
+        car_pose: tuple[float, float, float],
+        cone_lut: np.ndarray,
+        cone_xy: np.ndarray,
+        cone_classes: np.ndarray,
+        light: dict,
+    ) -> CameraFrame:
+        c = self.config
+        eye, heading, pitch = self.mount_pose(car_pose)
+        fwd = np.array([math.cos(heading) * math.cos(pitch), math.sin(heading) * math.cos(pitch), -math.sin(pitch)])
+        view = p.computeViewMatrix(eye.tolist(), (eye + fwd).tolist(), [0, 0, 1])
+        _, _, rgba, zbuf, seg = p.getCameraImage(
+            c.width,
+            c.height,
+            view,
+            self._proj,
+            renderer=self.renderer,
+            shadow=int(self.shadows),
+            physicsClientId=self.client,
+            **light,
+        )[:5]
+        rgba = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)
+        rgb = cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB)
+        depth = depth_from_zbuffer(np.asarray(zbuf).reshape(c.height, c.width), c.near, c.far)
+        seg = np.asarray(seg, dtype=np.int32).reshape(c.height, c.width)
+        self._composite_sky(rgb, seg < 0, heading)
+        # body id -> cone index; ids outside the table clip onto its last entry, which is -1
+        cone_seg = np.take(cone_lut, seg + 1, mode="clip")
+        gt = self._ground_truth(cone_seg, eye, heading, cone_xy, cone_classes)
+        return CameraFrame(rgb=rgb, depth=depth, segmentation=cone_seg, gt=gt)
+
+    def _composite_sky(self, rgb: np.ndarray, background: np.ndarray, heading: float) -> None:
+        """Fill pixels where no geometry was drawn with the sky panorama seen at ``heading``."""
+        if self._pano is None:
+            return
+        rows_with_sky = np.flatnonzero(background.any(axis=1))
+        if rows_with_sky.size == 0:
+            return
+        last = int(rows_with_sky[-1]) + 1
+        cols = np.round((heading + self._col_angles) / (2 * math.pi) * self._pano.shape[1]).astype(np.intp)
+        cols %= self._pano.shape[1]
+        sky = self._pano.take(self._sky_rows[:last], axis=0).take(cols, axis=1)
+        np.copyto(rgb[:last], sky, where=background[:last, :, None])
+
+    @staticmethod
+    def _ground_truth(cone_seg, eye, heading, cone_xy, cone_classes) -> dict[str, np.ndarray]:
+        n = cone_xy.shape[0]
+        labels = cone_seg + 1
+        counts = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+        visible = np.flatnonzero(counts)
+        if visible.size == 0:
+            return empty_gt()
+        slices = ndimage.find_objects(labels, max_label=n)
+        boxes = np.array(
+            [[slices[i][1].start, slices[i][0].start, slices[i][1].stop, slices[i][0].stop] for i in visible],
+            dtype=np.float32,
+        )
+        d = cone_xy[visible] - eye[:2]
+        ranges = np.hypot(d[:, 0], d[:, 1])
+        bearings = np.arctan2(d[:, 1], d[:, 0]) - heading
+        bearings = (bearings + np.pi) % (2 * np.pi) - np.pi
+        return {
+            "boxes": boxes,
+            "classes": cone_classes[visible].astype(np.int64),
+            "cone_ids": visible.astype(np.int64),
+            "ranges": ranges.astype(np.float32),
+            "bearings": bearings.astype(np.float32),
+            "pixels": counts[visible].astype(np.int64),
+        }

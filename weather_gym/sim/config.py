@@ -1,0 +1,128 @@
+"""Frozen configuration of the simulator: physics and control rates, the car, its odometry.
+
+No PyBullet import here, so any layer may read these.
+
+Example:
+    >>> from weather_gym.sim.config import SimConfig, CarConfig
+    >>> SimConfig(physics_hz=240, control_hz=30).substeps
+    8
+    >>> CarConfig(friction=0.6).friction
+    0.6
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+RENDERERS = ("auto", "egl", "tiny")
+
+
+def _check_finite_positive(obj, names: tuple[str, ...], allow_zero: bool = False) -> None:
+    for name in names:
+        v = getattr(obj, name)
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        ok = ok and (v >= 0 if allow_zero else v > 0)
+        if not ok:
+            kind = "a finite number >= 0" if allow_zero else "a finite number > 0"
+            raise ValueError(f"{type(obj).__name__}.{name} must be {kind}, got {v!r}")
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Rates and world settings.
+
+    Attributes:
+        physics_hz: fixed physics rate (car dynamics and PyBullet contacts).
+        control_hz: env step rate (actions and camera frames); must divide ``physics_hz``.
+        renderer: ``"auto"`` (EGL when it loads, else TinyRenderer), ``"egl"`` or ``"tiny"``.
+        gui: open the PyBullet GUI (needs a display) instead of DIRECT mode.
+        cone_mass: kg per small cone (big cones weigh 1.5x).
+        shadows: TinyRenderer shadows (about doubles the frame time).
+    """
+
+    physics_hz: float = 240.0
+    control_hz: float = 30.0
+    renderer: str = "auto"
+    gui: bool = False
+    cone_mass: float = 0.6
+    shadows: bool = False
+    gravity: float = 9.81
+
+    def __post_init__(self) -> None:
+        _check_finite_positive(self, ("physics_hz", "control_hz", "cone_mass", "gravity"))
+        if self.renderer not in RENDERERS:
+            raise ValueError(f"SimConfig.renderer must be one of {RENDERERS}, got {self.renderer!r}")
+        ratio = self.physics_hz / self.control_hz
+        if ratio < 1 or abs(ratio - round(ratio)) > 1e-9:
+            raise ValueError(
+                f"SimConfig.physics_hz ({self.physics_hz}) must be an integer multiple of control_hz ({self.control_hz})"
+            )
+
+    @property
+    def substeps(self) -> int:
+        return int(round(self.physics_hz / self.control_hz))
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.control_hz
+
+
+@dataclass(frozen=True)
+class CarConfig:
+    """A Formula Student car as a dynamic bicycle model with a friction-limited (Fiala) tyre.
+
+    The reference point is the centre of the rear axle. ``friction`` is the tyre-road friction
+    coefficient mu (dry asphalt ~1.0, wet ~0.6).
+    """
+
+    mass: float = 230.0
+    yaw_inertia: float = 110.0
+    wheelbase: float = 1.55
+    cg_to_rear: float = 0.80
+    width: float = 1.2
+    length: float = 2.6
+    body_height: float = 0.55
+    max_steer: float = 0.45
+    steer_rate: float = 4.0
+    max_accel: float = 6.0
+    max_brake: float = 10.0
+    max_power: float = 40_000.0
+    max_speed: float = 25.0
+    cornering_stiffness_front: float = 18_000.0
+    cornering_stiffness_rear: float = 22_000.0
+    drag: float = 0.55  # 0.5 * rho * Cd * A, N / (m/s)^2
+    rolling_resistance: float = 0.015
+    friction: float = 1.0
+
+    def __post_init__(self) -> None:
+        _check_finite_positive(self, tuple(f.name for f in fields(self) if f.name not in ("drag", "rolling_resistance")))
+        _check_finite_positive(self, ("drag", "rolling_resistance"), allow_zero=True)
+        if not 0 < self.cg_to_rear < self.wheelbase:
+            raise ValueError(f"CarConfig.cg_to_rear must lie inside the wheelbase (0, {self.wheelbase}), got {self.cg_to_rear}")
+        if self.max_steer >= math.pi / 2:
+            raise ValueError(f"CarConfig.max_steer must be below pi/2 rad, got {self.max_steer}")
+
+    @property
+    def cg_to_front(self) -> float:
+        return self.wheelbase - self.cg_to_rear
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """Noise of the car's own odometry (wheel-speed scale error and noise, gyro bias and noise).
+
+    Per-episode errors are drawn from the env's RNG at reset. Set all to 0 for perfect odometry.
+    """
+
+    speed_scale_std: float = 0.005
+    speed_noise_std: float = 0.02
+    gyro_bias_std: float = 0.002
+    gyro_noise_std: float = 0.005
+
+    def __post_init__(self) -> None:
+        _check_finite_positive(self, tuple(f.name for f in fields(self)), allow_zero=True)
+
+
+def config_to_dict(cfg) -> dict:
+    return asdict(cfg)

@@ -1,0 +1,331 @@
+"""The PyBullet world: textured ground and sky, knock-over-able cones, the car's body, the camera.
+
+A ``World`` owns one PyBullet physics client (DIRECT by default) and frees it in ``close()``.
+
+Example:
+    >>> from weather_gym.tracks import load_track
+    >>> from weather_gym.sim.world import World
+    >>> world = World(load_track("small_track"))           # doctest: +SKIP
+    >>> frame = world.render()                              # doctest: +SKIP
+    >>> frame.rgb.shape                                     # doctest: +SKIP
+    (376, 672, 3)
+    >>> world.close()                                       # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pybullet as p
+
+from weather_gym.camera import CameraConfig
+from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.sim.camera import CameraFrame, CameraSensor
+from weather_gym.sim.car import Car
+from weather_gym.sim.config import CarConfig, SimConfig
+from weather_gym.sim.look import DEFAULT_LOOK, Look
+from weather_gym.sim.meshes import box_obj, cone_obj, quad_obj
+from weather_gym.sim.renderer import renderer_flag, setup_renderer
+from weather_gym.sim.textures import cone_texture, ground_texture, sky_panorama
+
+GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
+GROUND_TEXTURE_PX = 2048
+REAR_OVERHANG_M = 0.45
+
+
+class World:
+    """Scene + car + camera for one track. Not thread-safe; one per env."""
+
+    def __init__(
+        self,
+        track,
+        *,
+        sim: SimConfig | None = None,
+        car: CarConfig | None = None,
+        camera: CameraConfig | None = None,
+        look: Look = DEFAULT_LOOK,
+    ) -> None:
+        self.track = track
+        self.sim = sim or SimConfig()
+        self.car_config = car or CarConfig()
+        self.camera_config = camera or CameraConfig()
+        self.car = Car(self.car_config, gravity=self.sim.gravity)
+        self._client: int | None = None
+        if self.sim.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+            # PyBullet's GUI calls exit() when it cannot reach an X server: refuse before that
+            raise RuntimeError(
+                "the PyBullet GUI (render_mode='human' / SimConfig(gui=True)) needs a display, and DISPLAY is "
+                "not set; use render_mode='rgb_array' (or run under xvfb-run)"
+            )
+        self._tmp = Path(tempfile.mkdtemp(prefix="weather_gym_"))
+        try:
+            self._client = p.connect(p.GUI if self.sim.gui else p.DIRECT)
+            if self._client < 0:
+                raise RuntimeError("PyBullet could not start a physics client")
+            self.renderer_name, self._plugin = setup_renderer(self._client, self.sim.renderer)
+            self._build()
+            self.camera = CameraSensor(self.camera_config, self._client, renderer_flag(self.renderer_name), self.sim.shadows)
+            self._look: Look | None = None
+            self.set_look(look)
+        except BaseException:
+            self.close()
+            raise
+
+    # ------------------------------------------------------------------ construction
+    def _build(self) -> None:
+        c = self._client
+        p.resetSimulation(physicsClientId=c)
+        p.setGravity(0, 0, -self.sim.gravity, physicsClientId=c)
+        p.setTimeStep(1.0 / self.sim.physics_hz, physicsClientId=c)
+        if self.sim.gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=c)
+        track = self.track
+        xy = np.asarray(track.cones_xy, dtype=np.float64)
+        lo = np.minimum(xy.min(axis=0), np.asarray(track.centerline).min(axis=0)) - GROUND_MARGIN_M
+        hi = np.maximum(xy.max(axis=0), np.asarray(track.centerline).max(axis=0)) + GROUND_MARGIN_M
+        side = float(max(hi - lo))
+        self._ground_extent = (float(lo[0]), float(lo[1]), float(lo[0]) + side, float(lo[1]) + side)
+        # Bodies without a visual shape make PyBullet draw their collision shape (and crash the EGL
+        # renderer for planes): physics-only bodies get this tiny visual buried under the ground.
+        self._hidden_visual = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=[0.01, 0.01, 0.01], visualFramePosition=[0, 0, -20], physicsClientId=c
+        )
+        ground_col = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
+        self._ground = p.createMultiBody(0, ground_col, self._hidden_visual, physicsClientId=c)  # physics only
+        p.changeDynamics(self._ground, -1, lateralFriction=0.8, physicsClientId=c)
+        # Textures: PyBullet's per-body texture switching is broken under EGL and changeTexture does
+        # nothing in DIRECT mode, so every texture comes with its mesh through an OBJ + MTL pair, and
+        # the ground's visual body is swapped when the look's ground changes (shapes cached per look).
+        self._ground_shapes: dict[tuple, int] = {}
+        self._ground_visual: int | None = None
+        self._ground_key: tuple | None = None
+
+        # cones: one textured visual/collision shape per class, one body per cone
+        shapes = []
+        for name in CONE_CLASSES:
+            self._write_textured_obj(f"cone_{name}", cone_obj(CONE_HEIGHT_M[name], CONE_BASE_M[name]), cone_texture(name))
+            f = str(self._tmp / f"cone_{name}.obj")
+            vis = p.createVisualShape(p.GEOM_MESH, fileName=f, physicsClientId=c)
+            col = p.createCollisionShape(p.GEOM_MESH, fileName=f, physicsClientId=c)
+            shapes.append((vis, col))
+        self.cone_classes = np.asarray(track.cone_classes, dtype=np.int64)
+        self._cone_home = xy.copy()
+        self._cone_bodies: list[int] = []
+        # Cones are static (mass 0) until the car touches one; then it becomes a dynamic body that
+        # can be knocked over. Resting cones therefore never drift, and a reset restores them exactly
+        # (same seed, same bytes, also for a reused env).
+        self._cone_com_z = np.empty(len(xy))
+        self._cone_dynamics: list[tuple[float, list[float]]] = []
+        for i, ((x, y), cls) in enumerate(zip(xy, self.cone_classes)):
+            name = CONE_CLASSES[cls]
+            vis, col = shapes[cls]
+            h, r = CONE_HEIGHT_M[name], 0.5 * CONE_BASE_M[name]
+            mass = self.sim.cone_mass * (1.5 if name == "big_orange" else 1.0)
+            com_z = 0.3 * h
+            inertia = [0.15 * mass * r * r + 0.0375 * mass * h * h] * 2 + [0.3 * mass * r * r]
+            b = p.createMultiBody(0, col, vis, [float(x), float(y), 0.0], baseInertialFramePosition=[0, 0, com_z],
+                                  physicsClientId=c)
+            p.changeDynamics(b, -1, lateralFriction=0.7, restitution=0.05, physicsClientId=c)
+            self._cone_bodies.append(b)
+            self._cone_com_z[i] = com_z
+            self._cone_dynamics.append((mass, inertia))
+        self._dynamic_cones: set[int] = set()
+
+        # the car's body: a dynamic box (collision only) that the bicycle model teleports every
+        # physics step, and a separate visual-only body shown in the chase view, never to the car camera
+        cfg = self.car_config
+        self._car_body_dx = cfg.length / 2 - REAR_OVERHANG_M
+        body_h = 0.35
+        self._car_body_z = 0.15 + body_h / 2
+        half = [cfg.length / 2, cfg.width / 2, body_h / 2]
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
+        self._car_body = p.createMultiBody(cfg.mass, col, self._hidden_visual, [0, 0, self._car_body_z],
+                                           physicsClientId=c)
+        (self._tmp / "car.obj").write_text(box_obj(cfg.length, cfg.width, body_h, z0=-body_h / 2))
+        vis = p.createVisualShape(p.GEOM_MESH, fileName=str(self._tmp / "car.obj"), rgbaColor=[0.6, 0.05, 0.08, 1],
+                                  physicsClientId=c)
+        self._car_visual = p.createMultiBody(0, -1, vis, [0, 0, -10], physicsClientId=c)
+
+        self._cone_lut = np.full(1, -1, dtype=np.int32)
+        self._grow_lut()
+        self._cone_xy = xy.copy()
+
+    def _grow_lut(self) -> None:
+        """Body id -> cone index lookup (-1 for ground, car, anything else), sized to every body id."""
+        c = self._client
+        n_ids = max(p.getBodyUniqueId(i, physicsClientId=c) for i in range(p.getNumBodies(physicsClientId=c))) + 2
+        lut = np.full(n_ids + 1, -1, dtype=np.int32)  # the last entry stays -1: unknown ids clip onto it
+        for i, b in enumerate(self._cone_bodies):
+            lut[b + 1] = i
+        self._cone_lut = lut
+
+    def _write_textured_obj(self, stem: str, obj_text: str, texture_rgb: np.ndarray) -> Path:
+        """Write ``stem.obj`` + ``stem.mtl`` + ``stem.png`` so the mesh loads with its texture."""
+        cv2.imwrite(str(self._tmp / f"{stem}.png"), cv2.cvtColor(texture_rgb, cv2.COLOR_RGB2BGR))
+        (self._tmp / f"{stem}.mtl").write_text(f"newmtl mat\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nmap_Kd {stem}.png\n")
+        path = self._tmp / f"{stem}.obj"
+        path.write_text(f"mtllib {stem}.mtl\nusemtl mat\n" + obj_text)
+        return path
+
+    # ------------------------------------------------------------------ appearance
+    def set_look(self, look: Look) -> None:
+        """Apply an appearance (textures are regenerated only when they change)."""
+        old = self._look
+        track = self.track
+        c = self._client
+        ground_key = (look.asphalt_rgb, look.grass_rgb, look.kerb_rgb, look.ground_seed)
+        if ground_key != self._ground_key:
+            shape = self._ground_shapes.get(ground_key)
+            if shape is None:
+                stem = f"ground_{len(self._ground_shapes)}"
+                tex = ground_texture(
+                    np.asarray(track.centerline), np.asarray(track.half_width_left), np.asarray(track.half_width_right),
+                    bool(track.closed), self._ground_extent, look, size=GROUND_TEXTURE_PX,
+                )
+                path = self._write_textured_obj(stem, quad_obj(*self._ground_extent), tex)
+                shape = p.createVisualShape(p.GEOM_MESH, fileName=str(path), physicsClientId=c)
+                self._ground_shapes[ground_key] = shape
+            if self._ground_visual is not None:
+                p.removeBody(self._ground_visual, physicsClientId=c)
+            self._ground_visual = p.createMultiBody(0, -1, shape, physicsClientId=c)
+            self._ground_key = ground_key
+            self._grow_lut()
+        if old is None or old.cone_shade != look.cone_shade:
+            for b, cls in zip(self._cone_bodies, self.cone_classes):
+                p.changeVisualShape(b, -1, rgbaColor=[*look.cone_shade[cls], 1.0], physicsClientId=c)
+        if old is None or (old.sky_top_rgb, old.sky_horizon_rgb, old.cloud_cover, old.sky_seed, old.grass_rgb) != (
+            look.sky_top_rgb, look.sky_horizon_rgb, look.cloud_cover, look.sky_seed, look.grass_rgb
+        ):
+            self._panorama = sky_panorama(look)
+        self.camera.set_look(look, self._panorama)
+        d = np.asarray(look.light_direction, dtype=np.float64)
+        self._light = {
+            "lightDirection": (d / np.linalg.norm(d)).tolist(),
+            "lightColor": list(look.light_color),
+            "lightAmbientCoeff": look.ambient,
+            "lightDiffuseCoeff": look.diffuse,
+            "lightSpecularCoeff": look.specular,
+        }
+        self._look = look
+
+    @property
+    def look(self) -> Look:
+        assert self._look is not None
+        return self._look
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, pose: tuple[float, float, float], speed: float = 0.0) -> None:
+        """Put every cone back at home, standing, and the car at ``pose`` (rear axle x, y, yaw)."""
+        c = self._client
+        for i in sorted(self._dynamic_cones):
+            b = self._cone_bodies[i]
+            p.changeDynamics(b, -1, mass=0, physicsClientId=c)
+            x, y = self._cone_home[i]
+            p.resetBasePositionAndOrientation(b, [float(x), float(y), float(self._cone_com_z[i])], [0, 0, 0, 1],
+                                              physicsClientId=c)
+            p.resetBaseVelocity(b, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+        self._dynamic_cones.clear()
+        self._cone_xy = self._cone_home.copy()
+        self.car.reset(*pose, speed=speed)
+        self._place_car_body()
+
+    def _place_car_body(self) -> None:
+        x, y, yaw = self.car.pose
+        bx = x + self._car_body_dx * math.cos(yaw)
+        by = y + self._car_body_dx * math.sin(yaw)
+        q = p.getQuaternionFromEuler([0, 0, yaw])
+        vx, vy = self.car.velocity_world
+        c = self._client
+        p.resetBasePositionAndOrientation(self._car_body, [bx, by, self._car_body_z], q, physicsClientId=c)
+        p.resetBaseVelocity(self._car_body, [vx, vy, 0], [0, 0, self.car.state.yaw_rate], physicsClientId=c)
+
+    def step(self, steer: float, pedal: float, friction: float | None = None) -> set[int]:
+        """Advance one control period (``substeps`` physics steps). Returns the indices of cones
+        the car's body touched."""
+        dt = 1.0 / self.sim.physics_hz
+        touched: set[int] = set()
+        c = self._client
+        lut = self._cone_lut
+        for _ in range(self.sim.substeps):
+            self.car.step(dt, steer, pedal, friction)
+            self._place_car_body()
+            p.stepSimulation(physicsClientId=c)
+            for contact in p.getContactPoints(bodyA=self._car_body, physicsClientId=c):
+                other = contact[2]
+                if 0 <= other + 1 < lut.shape[0] and lut[other + 1] >= 0:
+                    touched.add(int(lut[other + 1]))
+            for i in touched - self._dynamic_cones:  # knocked: from now on a dynamic body
+                mass, inertia = self._cone_dynamics[i]
+                p.changeDynamics(self._cone_bodies[i], -1, mass=mass, localInertiaDiagonal=inertia, physicsClientId=c)
+                self._dynamic_cones.add(i)
+        if self._dynamic_cones:
+            for i in self._dynamic_cones:
+                self._cone_xy[i] = p.getBasePositionAndOrientation(self._cone_bodies[i], physicsClientId=c)[0][:2]
+        return touched
+
+    @property
+    def cone_xy(self) -> np.ndarray:
+        """Current cone positions (N, 2); they move when knocked."""
+        return self._cone_xy
+
+    def cone_displacement(self) -> np.ndarray:
+        """Distance of each cone from where it was placed (m)."""
+        return np.hypot(*(self._cone_xy - self._cone_home).T)
+
+    # ------------------------------------------------------------------ sensors
+    def render(self) -> CameraFrame:
+        """The car camera's frame at the car's current pose."""
+        return self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light)
+
+    def render_chase(self, width: int = 640, height: int = 360, distance: float = 7.0, height_m: float = 3.5) -> np.ndarray:
+        """A third-person view from behind and above the car, for humans (videos, ``render()``)."""
+        x, y, yaw = self.car.pose
+        eye = [x - distance * math.cos(yaw), y - distance * math.sin(yaw), height_m]
+        target = [x + 6 * math.cos(yaw), y + 6 * math.sin(yaw), 0.0]
+        view = p.computeViewMatrix(eye, target, [0, 0, 1])
+        proj = p.computeProjectionMatrixFOV(60, width / height, 0.1, 150)
+        c = self._client
+        q = p.getQuaternionFromEuler([0, 0, yaw])
+        body = [x + self._car_body_dx * math.cos(yaw), y + self._car_body_dx * math.sin(yaw), self._car_body_z]
+        p.resetBasePositionAndOrientation(self._car_visual, body, q, physicsClientId=c)
+        try:
+            _, _, rgba, _, seg = p.getCameraImage(width, height, view, proj, renderer=renderer_flag(self.renderer_name),
+                                                  physicsClientId=c, **self._light)[:5]
+        finally:
+            p.resetBasePositionAndOrientation(self._car_visual, [0, 0, -10], [0, 0, 0, 1], physicsClientId=c)
+        rgb = cv2.cvtColor(np.asarray(rgba, np.uint8).reshape(height, width, 4), cv2.COLOR_RGBA2RGB)
+        bg = np.asarray(seg).reshape(height, width) < 0
+        rgb[bg] = np.asarray(self.look.sky_top_rgb, np.uint8)
+        return rgb
+
+    # ------------------------------------------------------------------ lifetime
+    @property
+    def client(self) -> int | None:
+        return self._client
+
+    def close(self) -> None:
+        """Free the physics client (and its renderer plugin) and the temporary mesh folder."""
+        if self._client is not None:
+            try:
+                if getattr(self, "_plugin", None) is not None:
+                    p.unloadPlugin(self._plugin, physicsClientId=self._client)
+                p.disconnect(physicsClientId=self._client)
+            except p.error:
+                pass
+            self._client = None
+        if self._tmp is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._tmp = None  # type: ignore[assignment]
+
+    def __del__(self) -> None:  # pragma: no cover - safety net
+        try:
+            self.close()
+        except Exception:
+            pass
