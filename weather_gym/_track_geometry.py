@@ -349,6 +349,7 @@ START_OFFSET_M = 6.0
 LEAD_M = 5.0
 """Open centerlines begin this far behind the start pose."""
 ACCEL_LENGTH_M = 75.0
+SKIDPAD_STOP_M = 3.0  # the skidpad run ends this far (rear axle) before the cones closing the exit lane
 SMOOTH_SIGMA_M = 2.0
 
 
@@ -502,8 +503,10 @@ def skidpad_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> di
     entry, exit_ = lane & (lon < 0), lane & (lon > 0)
     hwl = np.choose(seg, [lane_hw(entry, 1), fits["out_r"][1] - r_r, r_l - fits["in_l"][1], lane_hw(exit_, 1)])
     hwr = np.choose(seg, [lane_hw(entry, -1), r_r - fits["in_r"][1], fits["out_l"][1] - r_l, lane_hw(exit_, -1)])
+    # the run ends with the rear axle 3 m short of the last cone row: the nose (2.15 m ahead of the
+    # rear axle) stays clear of the cones that close the exit lane
     return dict(centerline=line, closed=False, event="skidpad", half_width_left=hwl.astype(float),
-                half_width_right=hwr.astype(float), start_line_s=entry_len, finish_s=length,
+                half_width_right=hwr.astype(float), start_line_s=entry_len, finish_s=length - SKIDPAD_STOP_M,
                 start_pose=_start_pose(line, False, start, entry_len, where))
 
 

@@ -1,0 +1,114 @@
+"""Render one simulator frame under every weather effect at k = 0.25, 0.5, 0.75 (a grid PNG).
+
+Run (writes docs/img/weather_grid.png):
+
+    python examples/weather_grid.py --force
+
+Rows are the effects of the registry (plus physical dim and persistent droplets), columns the
+clean frame and k = 0.25 / 0.5 / 0.75. The frame comes from ``WeatherGym/ConeTrack-v0`` after a
+few steps of driving (its depth map and state go to the effects); ``--image PATH`` uses an image
+file instead, ``--synthetic`` the synthetic scene of ``weather_gym.weather.sample``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from weather_gym.weather import EFFECTS, make
+
+KS = (0.25, 0.5, 0.75)
+ROWS = [(name, {}) for name in EFFECTS.names()] + [("dim", {"mode": "physical"}),
+                                                   ("droplets", {"persistent": True})]
+DEFAULT_OUT = Path(__file__).resolve().parents[1] / "docs" / "img" / "weather_grid.png"
+
+
+def simulator_frame(seed: int = 0, steps: int = 20):
+    """``(image, depth, state)`` from the simulator after ``steps`` steps at gentle throttle."""
+    import gymnasium as gym
+
+    import weather_gym  # noqa: F401  (registers the env ids)
+
+    env = gym.make("WeatherGym/ConeTrack-v0")
+    try:
+        obs, info = env.reset(seed=seed)
+        for _ in range(steps):
+            obs, *_, info = env.step(np.array([0.0, 0.4], np.float32))
+        cam = info.get("camera")
+        state = {"speed": float(obs["state"][0]), "yaw_rate": float(obs["state"][1])}
+        if cam is not None:
+            state["fx"] = 0.5 * cam.width / np.tan(np.radians(cam.hfov_deg) / 2)
+            state["exposure_s"] = cam.exposure_s
+        return obs["image"], obs["depth"], state
+    finally:
+        env.close()
+
+
+def grid(image: np.ndarray, depth: np.ndarray | None, state: dict, tile_w: int = 288, seed: int = 0) -> np.ndarray:
+    """The grid as one uint8 RGB image with row and column labels."""
+    h, w = image.shape[:2]
+    tile_h = int(round(tile_w * h / w))
+    label_w, head_h = 190, 28
+    font = cv2.FONT_HERSHEY_SIMPLEX
+
+    def tile(img):
+        return cv2.resize(img, (tile_w, tile_h), interpolation=cv2.INTER_AREA)
+
+    rows = []
+    head = np.full((head_h, label_w + tile_w * (1 + len(KS)), 3), 255, np.uint8)
+    for i, text in enumerate(["clean", *[f"k = {k}" for k in KS]]):
+        cv2.putText(head, text, (label_w + i * tile_w + 8, 20), font, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+    rows.append(head)
+    for name, params in ROWS:
+        label = np.full((tile_h, label_w, 3), 255, np.uint8)
+        cv2.putText(label, name, (8, tile_h // 2), font, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+        if params:
+            extra = ", ".join(f"{k}={v}" for k, v in params.items())
+            cv2.putText(label, extra, (8, tile_h // 2 + 22), font, 0.45, (60, 60, 60), 1, cv2.LINE_AA)
+        cells = [label, tile(image)]
+        for k in KS:
+            effect = make(name, k=k, **params)
+            effect.reset(seed)
+            cells.append(tile(effect(image, depth=depth, state=state)))
+        rows.append(np.hstack(cells))
+    return np.vstack(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--image", type=Path, help="use this image instead of a simulator frame")
+    src.add_argument("--synthetic", action="store_true", help="use the synthetic scene (no simulator)")
+    p.add_argument("--out", type=Path, default=DEFAULT_OUT, help="PNG to write (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    args = p.parse_args(argv)
+    if args.out.exists() and not args.force:
+        print(f"error: {args.out} exists (use --force to replace it)", file=sys.stderr)
+        return 2
+    if args.synthetic:
+        from weather_gym.weather.sample import sample_frame
+
+        image, depth = sample_frame(376, 672, seed=args.seed)
+        state = {"speed": 10.0, "yaw_rate": 0.2}
+    elif args.image is not None:
+        bgr = cv2.imread(str(args.image), cv2.IMREAD_COLOR)
+        if bgr is None:
+            print(f"error: {args.image}: not a readable image", file=sys.stderr)
+            return 2
+        image, depth, state = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), None, {}
+    else:
+        image, depth, state = simulator_frame(args.seed)
+    out = grid(image, depth, state, seed=args.seed)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(args.out), cv2.cvtColor(out, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    print(f"wrote {args.out} ({out.shape[1]}x{out.shape[0]})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,135 @@
+"""Behaviour of each effect beyond the shared contract: what its physics promises."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from weather_gym.weather import make
+from weather_gym.weather._common import gauss_lut, ground_depth, srgb_decode, srgb_encode
+
+
+def _sharpness(a):
+    return np.abs(np.diff(a.astype(int), axis=1)).mean() + np.abs(np.diff(a.astype(int), axis=0)).mean()
+
+
+def test_gaussian_table_is_a_unit_normal():
+    q = gauss_lut()
+    assert abs(q.mean()) < 1e-6 and q.std() == pytest.approx(1.0, abs=1e-6)
+    assert np.all(np.diff(q) > 0)
+
+
+def test_srgb_round_trip():
+    v = np.arange(256) / 255
+    np.testing.assert_allclose(srgb_encode(srgb_decode(v)), v, atol=1e-12)
+
+
+def test_fog_follows_koschmieder_with_depth():
+    img = np.zeros((10, 40, 3), np.uint8)
+    depth = np.tile(np.linspace(1, 60, 40, dtype=np.float32), (10, 1))
+    e = make("fog", k=0.5, min_visibility_m=20.0, airlight=1.0)
+    out = e(img, depth=depth, state={"fx": 1e6})  # huge fx: rays along the axis, range = depth
+    expected = 255 * (1 - np.exp(-e.beta * depth))
+    assert np.abs(out[..., 0].astype(float) - expected).max() <= 2.0
+    assert np.all(np.diff(out[5, :, 0].astype(int)) >= 0)  # farther, foggier
+
+
+def test_fog_without_depth_uses_the_ground_plane():
+    black = np.zeros((188, 336, 3), np.uint8)
+    fog = make("fog", k=0.6)(black)[:, 168, 0].astype(int)  # = airlight * (1 - transmittance)
+    assert fog[0] == fog[93] >= 215  # at and above the horizon: far_m away, fully fogged
+    assert np.all(np.diff(fog[94:]) <= 0) and fog[-1] < 0.4 * fog[0]  # the road ahead clears
+    z = ground_depth(100, 10, 50.0, 1.0, 0.5, 200.0)
+    assert z[0, 0] == 200.0 and z[-1, 0] < z[60, 0] < 200.0
+
+
+def test_fog_rejects_bad_depth():
+    img = np.zeros((4, 5, 3), np.uint8)
+    for bad in (np.nan, -1.0, np.inf):
+        depth = np.ones((4, 5), np.float32)
+        depth[1, 1] = bad
+        with pytest.raises(ValueError, match="finite metres >= 0"):
+            make("fog", k=0.5)(img, depth=depth)
+
+
+def test_motion_blur_uses_speed_and_yaw_rate(scene):
+    img, depth = scene
+    e = make("motion_blur", k=1.0)
+    still = e(img, depth=depth, state={"speed": 0.0, "yaw_rate": 0.0})
+    np.testing.assert_array_equal(still, img)
+    yaw = e(img, depth=depth, state={"speed": 0.0, "yaw_rate": 1.0})
+    dx = np.abs(np.diff(yaw.astype(int), axis=1)).mean() / np.abs(np.diff(img.astype(int), axis=1)).mean()
+    dy = np.abs(np.diff(yaw.astype(int), axis=0)).mean() / np.abs(np.diff(img.astype(int), axis=0)).mean()
+    assert dx < 0.8 and dx < dy  # a horizontal smear
+    fast = e(img, depth=depth, state={"speed": 30.0, "yaw_rate": 0.0})
+    h = img.shape[0]
+    near = np.abs(fast[-h // 5:].astype(int) - img[-h // 5:]).mean()
+    far = np.abs(fast[: h // 3].astype(int) - img[: h // 3]).mean()
+    assert near > far  # the road right ahead smears, the sky does not
+    short = e(img, depth=depth, state={"speed": 30.0, "yaw_rate": 0.0, "exposure_s": 0.002})
+    assert _sharpness(short) > _sharpness(fast)
+
+
+def test_blur_scales_with_image_width(scene):
+    img = scene[0]
+    soft = make("blur", k=1.0)(img)
+    assert _sharpness(soft) < 0.7 * _sharpness(img)
+    assert abs(float(soft.mean()) - float(img.mean())) < 1.0
+
+
+def test_noise_is_unbiased_and_grows_with_the_signal():
+    dark = np.full((64, 64, 3), 40, np.uint8)
+    mid = np.full((64, 64, 3), 160, np.uint8)
+    e = make("noise", k=1.0, read_noise_e=0.0)
+    a, b = e(dark, rng=np.random.default_rng(0)), e(mid, rng=np.random.default_rng(0))
+    assert abs(a.mean() - 40) < 0.5 and abs(b.mean() - 160) < 0.5
+    # shot noise: variance ~ signal in linear light; sigma in code values via the sRGB slope
+    assert b.std() > 5 and a.std() > 5
+    assert make("noise", k=0.25)(mid, rng=np.random.default_rng(0)).std() < b.std()
+
+
+def test_exposure_under_and_over(scene):
+    img = scene[0]
+    under = make("exposure", k=1.0)(img)
+    over = make("exposure", k=1.0, direction="over")(img)
+    assert under.mean() < img.mean() < over.mean()
+    assert (over == 255).mean() > (img == 255).mean()  # highlights clip
+    lifted = make("exposure", k=1.0, max_stops=0.25, flare=0.2)(np.zeros((2, 2, 3), np.uint8))
+    assert lifted.min() == 51
+
+
+def test_vignette_darkens_the_corners_only():
+    img = np.full((101, 151, 3), 200, np.uint8)
+    out = make("vignette", k=0.6)(img)
+    assert out[50, 75, 0] == 200 and out[0, 0, 0] < out[25, 37, 0] < 200
+
+
+def test_rain_density_and_veil_grow_with_k():
+    img = np.zeros((120, 200, 3), np.uint8)
+    light = make("rain", k=0.2, haze=0.0)(img, rng=np.random.default_rng(0))
+    heavy = make("rain", k=1.0, haze=0.0)(img, rng=np.random.default_rng(0))
+    assert (heavy > 0).mean() > 2 * (light > 0).mean()
+    veiled = make("rain", k=1.0, haze=0.5, density=0.1)(img, rng=np.random.default_rng(0))
+    assert np.median(veiled) == round(0.5 * 0.8 * 255)
+
+
+def test_glare_is_strongest_at_the_source():
+    img = np.full((90, 160, 3), 60, np.uint8)
+    out = make("glare", k=0.8, source_x=0.2, source_y=0.2, bloom=0.0)(img)
+    near, far = out[18, 32].astype(int).sum(), out[80, 150].astype(int).sum()
+    assert near > far > img[0, 0].astype(int).sum()  # the veil lifts everything a little
+
+
+def test_glare_bloom_spreads_light_from_bright_areas():
+    img = np.zeros((80, 160, 3), np.uint8)
+    img[30:50, 70:90] = 255
+    no = make("glare", k=1.0, bloom=0.0, veil=0.0, source_x=-1.0, source_y=-1.0)(img)
+    yes = make("glare", k=1.0, bloom=1.0, veil=0.0, source_x=-1.0, source_y=-1.0)(img)
+    assert yes[40, 60].sum() > no[40, 60].sum()
+
+
+def test_jpeg_quality_follows_k(scene):
+    img = scene[0]
+    assert make("jpeg", k=0.0).quality == 100 and make("jpeg", k=1.0).quality == 5
+    err = [np.abs(make("jpeg", k=k)(img).astype(int) - img).mean() for k in (0.2, 0.6, 1.0)]
+    assert err[0] < err[1] < err[2]

@@ -1,0 +1,166 @@
+"""Weather specs, their inverse, and the presets table."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from weather_gym.weather import (
+    CONDITIONS,
+    EFFECTS,
+    SEVERITIES,
+    Compose,
+    Ramp,
+    current_spec,
+    load_presets,
+    make,
+    parse_weather,
+    preset_entry,
+    preset_spec,
+    to_spec,
+)
+from weather_gym.weather.presets import DEFAULT_PRESETS
+
+
+def test_every_form_of_spec():
+    two = Compose([make("droplets", k=0.55), make("dim", k=0.3)])
+    assert parse_weather({"droplets": 0.55, "dim": 0.3}) == two
+    assert parse_weather("droplets:0.55, dim:0.3") == two
+    assert parse_weather([{"name": "droplets", "k": 0.55}, {"name": "dim", "k": 0.3}]) == two
+    assert parse_weather([make("droplets", k=0.55), "dim:0.3"]) == two
+    assert parse_weather(two) is two
+    one = parse_weather({"droplets": {"k": 0.55, "persistent": True}})
+    assert one == make("droplets", k=0.55, persistent=True)
+    assert parse_weather({"name": "dim", "k": 0.6, "mode": "physical"}) == make("dim", k=0.6, mode="physical")
+
+
+@pytest.mark.parametrize("clear", [None, "clear", "", " Clear ", {}, [], Compose([])])
+def test_clear_weather_is_the_identity(clear, noisy_image):
+    w = parse_weather(clear)
+    np.testing.assert_array_equal(w(noisy_image), noisy_image)
+    assert to_spec(w) == []
+
+
+def test_presets_in_every_spelling():
+    expected = make("dim", k=0.55)
+    for spec in ("low_light@2", ("low_light", 2), "dim@2", ("dim", 2), " low_light @ 2"):
+        assert parse_weather(spec) == expected, spec
+    assert parse_weather("droplets@3") == make("droplets", k=0.55)
+    assert parse_weather("droplets@0") == Compose([])
+    assert parse_weather("droplets@4,low_light@1") == Compose([make("droplets", k=0.8), make("dim", k=0.3)])
+
+
+@pytest.mark.parametrize(("spec", "message"), [
+    ("snow:0.5", "unknown weather effect 'snow'; valid names: blur"),
+    ("droplets:high", "k 'high' must be a number"),
+    ("droplets", "must be NAME:K"),
+    ("droplets:1.5", "parameter k=1.5 is outside"),
+    ("fog@2", "unknown weather condition 'fog'; valid conditions: droplets, low_light"),
+    ("droplets@7", "invalid severity 7; valid severities: 0, 1, 2, 3, 4"),
+    ("droplets@x", "severity 'x' must be an integer"),
+    ({"droplets": "wet"}, "expected k"),
+    ({"droplets": {"persistent": True}}, "need 'k'"),
+    ({"droplets": {"k": 0.5, "radius": 3}}, "unknown parameter(s) 'radius'"),
+    ([{"k": 0.5}], "needs a 'name'"),
+    ([{"name": "dim"}], "needs 'k'"),
+    ([{"name": "dim", "k": float("nan")}], "parameter k=nan"),
+    (3.5, "cannot read weather spec"),
+    ({"name": "ramp", "k_end": 0.5}, "a ramp needs 'effect'"),
+])
+def test_errors_name_the_bad_part(spec, message):
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        parse_weather(spec)
+
+
+_effect = st.builds(
+    lambda name, k: make(name, k=k),
+    st.sampled_from(EFFECTS.names()),
+    st.floats(0.0, 1.0),
+)
+
+
+@settings(max_examples=30, deadline=None)
+@given(effects=st.lists(_effect, min_size=0, max_size=4).filter(lambda e: len(e) != 1))
+def test_to_spec_round_trips_through_json(effects):
+    w = Compose(effects)
+    spec = to_spec(w)
+    assert parse_weather(json.loads(json.dumps(spec))) == w
+
+
+def test_round_trip_with_parameters_and_ramps():
+    w = Compose([make("droplets", k=0.2, persistent=True, fog_coef=0.3),
+                 Ramp("dim", k_start=0.1, k_end=0.9, steps=100, mode="physical", stops=8.0)])
+    spec = to_spec(w)
+    assert spec[1] == {"name": "ramp", "effect": "dim", "k_start": 0.1, "k_end": 0.9, "steps": 100,
+                       "mode": "physical", "stops": 8.0}
+    assert parse_weather(spec) == w
+    single = make("fog", k=0.3, airlight=0.9)
+    assert parse_weather(to_spec(single)) == single
+
+
+def test_current_spec_shows_the_ramps_k():
+    ramp = Ramp("dim", 0.0, 1.0, steps=4)
+    img = np.zeros((2, 2, 3), np.uint8)
+    ramp(img)
+    ramp(img)
+    assert current_spec(ramp)[0]["k"] == 0.25 and current_spec(ramp)[0]["name"] == "dim"
+
+
+def test_shipped_presets_are_complete_and_marked_uncalibrated():
+    data = load_presets()
+    assert data["calibrated"] is False
+    assert set(data["presets"]) == set(CONDITIONS)
+    for cond in CONDITIONS:
+        assert sorted(data["presets"][cond]) == list(SEVERITIES)
+        assert preset_spec(cond, 0) == []
+        ks = [preset_spec(cond, s)[0]["k"] for s in SEVERITIES[1:]]
+        assert ks == sorted(ks)
+    assert preset_spec("droplets", 3) == [{"name": "droplets", "k": 0.55}]
+    assert preset_spec("low_light", 3) == [{"name": "dim", "k": 0.78}]
+    entry = preset_entry("low_light", 2)
+    assert entry["measured_map"] == 0.273 and entry["description"] == "Sunset"
+    assert np.isnan(entry["achieved_relative"])
+
+
+def test_preset_lookup_errors():
+    with pytest.raises(ValueError, match="valid conditions: droplets, low_light"):
+        preset_spec("snow", 1)
+    with pytest.raises(ValueError, match="valid severities: 0, 1, 2, 3, 4"):
+        preset_spec("droplets", 5)
+    with pytest.raises(ValueError, match="valid severities"):
+        preset_spec("droplets", True)
+
+
+def test_a_rewritten_presets_file_is_read_without_code_changes(tmp_path):
+    text = DEFAULT_PRESETS.read_text().replace("calibrated = false", "calibrated = true")
+    text = text.replace('effects = [{ name = "droplets", k = 0.55 }]',
+                        'effects = [{ name = "droplets", k = 0.61, persistent = true }]\nnote = "fitted"')
+    path = tmp_path / "presets.toml"
+    path.write_text(text)
+    data = load_presets(path)
+    assert data["calibrated"] is True
+    assert preset_spec("droplets", 3, path) == [{"name": "droplets", "k": 0.61, "persistent": True}]
+    assert preset_entry("droplets", 3, path)["note"] == "fitted"
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda t: t.replace('condition = "low_light"\nseverity = 4', 'condition = "low_light"\nseverity = 3'),
+     "appears twice"),
+    (lambda t: t.replace('name = "dim", k = 0.92', 'name = "dimm", k = 0.92'), "unknown weather effect 'dimm'"),
+    (lambda t: t.replace('condition = "droplets"\nseverity = 2', 'condition = "fog"\nseverity = 2'),
+     "unknown weather condition 'fog'"),
+    (lambda t: t + "\n[[presets]]\ncondition = 'droplets'\n", "missing key 'severity'"),
+    (lambda t: t.replace("calibrated = false", "calibrated = 'no'"), "'calibrated' must be true or false"),
+    (lambda t: t.replace("calibrated = false", "calibrated = = false"), "not valid TOML"),
+])
+def test_a_broken_presets_file_is_a_clear_error(tmp_path, edit, message):
+    path = tmp_path / "presets.toml"
+    path.write_text(edit(DEFAULT_PRESETS.read_text()))
+    with pytest.raises(ValueError, match=message):
+        load_presets(path)
+    with pytest.raises(FileNotFoundError):
+        load_presets(tmp_path / "missing.toml")

@@ -1,0 +1,17 @@
+"""Effect cases shared by the weather tests: every registry entry plus variants with their own code path."""
+
+from __future__ import annotations
+
+from weather_gym.weather import EFFECTS, make
+
+#: Registry names plus the variants with a different code path.
+VARIANTS = [(name, {}) for name in EFFECTS.names()] + [
+    ("droplets", {"persistent": True}),
+    ("dim", {"mode": "physical"}),
+    ("exposure", {"direction": "over", "gamma_error": 0.3, "flare": 0.1}),
+]
+VARIANT_IDS = [n + ("-" + "-".join(f"{k}={v}" for k, v in p.items()) if p else "") for n, p in VARIANTS]
+
+
+def build(name: str, params: dict, k: float):
+    return make(name, k=k, **params)

@@ -1,0 +1,187 @@
+"""``weather-gym bench weather``: every weather effect against the study's own recipe.
+
+Times, on one core (``cv2.setNumThreads(1)`` for the run only), the median over many calls after a
+warm-up, at 608x352 (the study's detector input), 672x376 (its camera) and 1280x720:
+
+* every registered effect (droplets at the study's k = 0.55, dim at 0.78, the others at 0.5) and
+  the persistent-droplet and physical-dim variants, one frame per call, through the public call;
+* at 672x376, ``--batch`` different frames one call each (a loop) and in one batched call, per frame;
+* in the same run the study's recipe (:mod:`weather_gym.weather.reference`: the Albumentations-era
+  fog loop without blur, each disc on a full-image copy; Pillow brightness with its array
+  conversions) and a plain frame copy (``np.copyto``), the memory floor.
+
+The frame is :func:`weather_gym.weather.sample.sample_frame` (JPEG and bloom cost depend on content).
+
+Example:
+    weather-gym bench weather --repeats 200 --out bench_weather.md
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from weather_gym.bench._timing import machine_line, markdown_table, median_ms
+
+DEFAULT_SIZES = ((608, 352), (672, 376), (1280, 720))
+STUDY_K = {"droplets": 0.55, "dim": 0.78}
+REFERENCE_SIZE = (672, 376)
+STUDY_DROPLETS = "study droplets: Albumentations-era fog loop (k=0.55)"
+STUDY_DIM = "study dim: Pillow brightness (k=0.78)"
+
+
+def register(targets) -> None:
+    p = targets.add_parser("weather", help="time every weather effect against the study's recipe",
+                           description=__doc__.split("\n\n")[1])
+    p.add_argument("--sizes", default=",".join(f"{w}x{h}" for w, h in DEFAULT_SIZES),
+                   help="comma-separated WxH (default %(default)s)")
+    p.add_argument("--repeats", type=int, default=200, help="timed calls per row (default %(default)s)")
+    p.add_argument("--warmup", type=int, default=10, help="untimed calls first (default %(default)s)")
+    p.add_argument("--batch", type=int, default=8, help="batch size for the per-frame batch column (0: skip)")
+    p.add_argument("--effects", default="all", help="comma-separated effect names (default all)")
+    p.add_argument("--out", type=Path, help="also write the markdown table to this file")
+    p.set_defaults(func=_run)
+
+
+def _parse_sizes(text: str) -> list[tuple[int, int]]:
+    sizes = []
+    for item in text.split(","):
+        w, sep, h = item.strip().lower().partition("x")
+        if not sep or not w.isdigit() or not h.isdigit() or int(w) < 1 or int(h) < 1:
+            raise ValueError(f"--sizes: {item!r} must be WxH, e.g. 672x376")
+        sizes.append((int(w), int(h)))
+    return sizes
+
+
+def _cases(names: list[str]) -> list[tuple[str, Any]]:
+    from weather_gym.weather import make
+
+    cases = []
+    for name in names:
+        k = STUDY_K.get(name, 0.5)
+        cases.append((f"{name} (k={k})", make(name, k=k)))
+        if name == "droplets":
+            cases.append((f"droplets persistent (k={k})", make(name, k=k, persistent=True)))
+        if name == "dim":
+            cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
+    return cases
+
+
+def _repeats_for(fn, repeats: int) -> int:
+    t0 = time.perf_counter()
+    fn()
+    once = time.perf_counter() - t0
+    return max(min(repeats, int(1.5 / max(once, 1e-6))), 15)  # about 1.5 s per row at most
+
+
+def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batch: int,
+               rows: dict, batch_rows: dict) -> None:
+    """Time every row at one size (``batch`` > 0: also the loop-vs-batch columns)."""
+    from weather_gym.weather.reference import study_dim, study_droplets
+    from weather_gym.weather.sample import sample_frame
+
+    frame, depth = sample_frame(h, w, seed=0)
+    state = {"speed": 10.0, "yaw_rate": 0.3}
+    rng = np.random.default_rng(0)
+    out = np.empty_like(frame)
+
+    def timed(label, fn, into=rows, per=1):
+        ms = median_ms(fn, repeats=_repeats_for(fn, repeats), warmup=warmup) / per
+        into.setdefault(label, {})[(w, h)] = ms
+
+    timed("frame copy (np.copyto), the floor", lambda: np.copyto(out, frame))
+    if "droplets" in names:
+        timed(STUDY_DROPLETS, lambda: study_droplets(frame, STUDY_K["droplets"], rng))
+    if "dim" in names:
+        try:
+            study_dim(frame, 0.5)
+            timed(STUDY_DIM, lambda: study_dim(frame, STUDY_K["dim"]))
+        except ImportError:  # pragma: no cover - Pillow is a dev dependency
+            pass
+    frames = np.stack([sample_frame(h, w, seed=i)[0] for i in range(max(batch, 1))])
+    depths = np.repeat(depth[None], max(batch, 1), axis=0)
+    for label, effect in _cases(names):
+        effect.reset(0)
+        timed(label, lambda e=effect: e(frame, depth=depth, state=state, rng=rng))
+        if batch > 0:
+            def loop(e=effect):
+                for f, d in zip(frames, depths, strict=True):
+                    e(f, depth=d, state=state, rng=rng)
+
+            timed(label + " [loop]", loop, into=batch_rows, per=batch)
+            timed(label + " [batch]", lambda e=effect: e(frames, depth=depths, state=state, rng=rng),
+                  into=batch_rows, per=batch)
+
+
+def run_benchmark(sizes=DEFAULT_SIZES, repeats: int = 200, warmup: int = 10, batch: int = 8,
+                  effects: list[str] | None = None) -> dict[str, Any]:
+    """Time everything; returns ``{"sizes", "rows": {label: {size: ms}}, "batch": {...}, "machine"}``."""
+    import cv2
+
+    from weather_gym.weather import EFFECTS
+
+    names = EFFECTS.names() if effects is None else effects
+    for n in names:
+        EFFECTS.get(n)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    rows: dict[str, dict[tuple[int, int], float]] = {}
+    batch_rows: dict[str, dict[tuple[int, int], float]] = {}
+    try:
+        ref = REFERENCE_SIZE if REFERENCE_SIZE in sizes else sizes[0]
+        for w, h in sizes:
+            _time_size(w, h, names, repeats, warmup, batch if (w, h) == ref else 0, rows, batch_rows)
+    finally:
+        cv2.setNumThreads(threads)
+    return {"sizes": list(sizes), "rows": rows, "batch": batch_rows, "batch_size": batch,
+            "machine": machine_line(), "repeats": repeats}
+
+
+def format_table(res: dict[str, Any]) -> str:
+    """Markdown table: ms per size, batch ms/frame, ratio to the copy floor, speed-up vs the study."""
+    sizes = res["sizes"]
+    ref = REFERENCE_SIZE if REFERENCE_SIZE in sizes else sizes[0]
+    rows, brows = res["rows"], res["batch"]
+    copy_ms = rows["frame copy (np.copyto), the floor"][ref]
+    study = {"droplets": rows.get(STUDY_DROPLETS, {}).get(ref), "dim": rows.get(STUDY_DIM, {}).get(ref)}
+    rname = f"{ref[0]}x{ref[1]}"
+    header = ["", *[f"{w}x{h} ms" for w, h in sizes]]
+    if brows:
+        n = res["batch_size"]
+        header += [f"{rname} loop of {n} calls, ms/frame", f"{rname} one call on {n} frames, ms/frame"]
+    header += [f"x copy ({rname})", f"speed-up vs study ({rname})"]
+    table = []
+    for label, by_size in rows.items():
+        line: list[object] = [label, *[by_size.get(s, float("nan")) for s in sizes]]
+        if brows:
+            line += [brows.get(label + " [loop]", {}).get(ref, ""), brows.get(label + " [batch]", {}).get(ref, "")]
+        line.append(f"{by_size[ref] / copy_ms:.1f}")
+        name = label.split(" ")[0]
+        base = study.get(name) if label.startswith(f"{name} (k=") else None
+        line.append(f"{base / by_size[ref]:.1f}x" if base else "")
+        table.append(line)
+    return markdown_table(header, table)
+
+
+def _run(args) -> int:
+    from weather_gym.weather import EFFECTS
+
+    names = None if args.effects == "all" else [n.strip() for n in args.effects.split(",") if n.strip()]
+    if names is not None:
+        for n in names:
+            EFFECTS.get(n)
+    if args.repeats < 1 or args.warmup < 0 or args.batch < 0:
+        raise ValueError("--repeats must be >= 1, --warmup and --batch >= 0")
+    load0 = os.getloadavg()[0]
+    res = run_benchmark(_parse_sizes(args.sizes), args.repeats, args.warmup, args.batch, names)
+    text = (f"Machine: {res['machine']}; one OpenCV thread; median of up to {res['repeats']} calls "
+            f"after warm-up (`weather-gym bench weather`); 1-minute load average {load0:.1f} at the "
+            f"start, {os.getloadavg()[0]:.1f} at the end.\n\n{format_table(res)}\n")
+    print(text)
+    if args.out is not None:
+        args.out.write_text(text)
+    return 0

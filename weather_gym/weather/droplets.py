@@ -1,0 +1,217 @@
+"""Adherent water droplets on the lens: the study's effect, byte-exact and ~20x faster.
+
+**Meaning of k**: the opacity knob of the study (Albumentations ``alpha_coef``). Every droplet is a
+white disc blended with ``alpha = fog_coef * k`` (0.4 k with the study's ``fog_coef``), so a pixel
+under ``n`` droplets becomes ``255 (1 - (1 - alpha)^n) + I (1 - alpha)^n``. The layout (number, size
+and place of the discs) depends only on the image size, ``fog_coef`` and the random generator: discs
+of radius ``hw // 2`` with ``hw = max(int(W // 3 * fog_coef), 10)``, drawn uniformly in nested boxes
+around the image centre, so coverage is densest where the far cones are. Below about 75 px of
+image width the study's algorithm draws no disc at all.
+
+**Speed**: the study drew every disc on two full-image copies and blended the whole frame per disc.
+Here each disc is drawn and blended only inside its own bounding box, with the same OpenCV calls,
+so the output is identical to the study's recipe (:func:`weather_gym.weather.reference.study_droplets`)
+byte for byte, for the same layout.
+
+**Persistent mode** (``persistent=True``): real droplets stick to the lens. The first frame of an
+episode is the study's layout; from then on droplets stay where they are, grow slowly
+(``growth_per_s``), new small ones land (``spawn_per_s``, as a fraction of the study's count per
+second, placed with the study's distribution), overlapping ones merge (area-conserving) and those
+grown past ``run_radius`` times the study's radius run down the lens (``run_speed`` image heights per
+second) and off it. :meth:`Droplets.wipe` clears the lens. The defaults keep the count roughly
+around the study's.
+
+Example:
+    >>> import numpy as np
+    >>> from weather_gym.weather import make
+    >>> img = np.zeros((376, 672, 3), np.uint8)
+    >>> out = make("droplets", k=0.55)(img, rng=np.random.default_rng(0))
+    >>> out.shape, int(np.unique(out)[1])  # one droplet over black: 255 * 0.4 * 0.55 = 56.1
+    ((376, 672, 3), 56)
+    >>> rain = make("droplets", k=0.55, persistent=True)
+    >>> rain.reset(3); a = rain(img); b = rain(img); rain.wipe()
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import ClassVar
+
+import cv2
+import numpy as np
+
+from weather_gym.weather.base import KnobEffect
+from weather_gym.weather.reference import STUDY_FOG_COEF, fog_layout
+from weather_gym.weather.registry import register_effect
+
+__all__ = ["Droplets", "render_discs"]
+
+
+@lru_cache(maxsize=64)
+def _stencil(r: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(mask, white)``: a filled disc of radius ``r`` drawn by ``cv2.circle``, and a white patch."""
+    mask = np.zeros((2 * r + 1, 2 * r + 1), np.uint8)
+    cv2.circle(mask, (r, r), r, 1, -1)
+    white = np.full((2 * r + 1, 2 * r + 1, 3), 255, np.uint8)
+    mask.setflags(write=False)
+    white.setflags(write=False)
+    return mask, white
+
+
+def render_discs(img: np.ndarray, centres: np.ndarray, radii: np.ndarray, alpha: float) -> np.ndarray:
+    """Blend white discs one after another, each only inside its bounding box (new array).
+
+    Identical, pixel for pixel, to drawing each disc on a full-image copy and blending the whole
+    frame with ``cv2.addWeighted(overlay, alpha, frame, 1 - alpha, 0)`` as the study did: inside
+    a disc the same ``addWeighted`` of white and the pixel, outside it the pixel unchanged.
+    """
+    out = img.copy()
+    h, w = img.shape[:2]
+    beta = 1.0 - alpha
+    for (cx, cy), r in zip(np.asarray(centres).tolist(), np.asarray(radii).tolist(), strict=True):
+        x0, y0 = max(cx - r, 0), max(cy - r, 0)
+        x1, y1 = min(cx + r + 1, w), min(cy + r + 1, h)
+        if x0 >= x1 or y0 >= y1:
+            continue
+        mask, white = _stencil(r)
+        sy, sx = slice(y0 - cy + r, y1 - cy + r), slice(x0 - cx + r, x1 - cx + r)
+        roi = out[y0:y1, x0:x1]
+        cv2.copyTo(cv2.addWeighted(white[sy, sx], alpha, roi, beta, 0), mask[sy, sx], roi)
+    return out
+
+
+@dataclass
+class _Drops:
+    """Per-episode droplet state of the persistent mode (centres and radii in pixels)."""
+
+    shape: tuple[int, int]
+    base_radius: float
+    base_count: int
+    x: np.ndarray
+    y: np.ndarray
+    r: np.ndarray
+    frames: int = 0
+
+
+@register_effect
+@dataclass(frozen=True)
+class Droplets(KnobEffect):
+    """Adherent droplets; ``k`` = droplet opacity (the study's ``alpha_coef``). See module doc."""
+
+    name: ClassVar[str] = "droplets"
+    stateful: ClassVar[bool] = True
+
+    fog_coef: float = STUDY_FOG_COEF
+    persistent: bool = False
+    fps: float = 30.0
+    spawn_per_s: float = 0.03
+    growth_per_s: float = 0.02
+    run_radius: float = 1.6
+    run_speed: float = 0.5
+    merge_frac: float = 0.35
+
+    PARAM_BOUNDS: ClassVar = {"fog_coef": (0.05, 1.0)}
+    PARAM_LIMITS: ClassVar = {
+        "fps": (1.0, 1000.0),
+        "spawn_per_s": (0.0, 10.0),
+        "growth_per_s": (0.0, 10.0),
+        "run_radius": (1.0, 10.0),
+        "run_speed": (0.0, 100.0),
+        "merge_frac": (0.0, 1.0),
+    }
+
+    # -- persistent state -------------------------------------------------------------------
+    def _reset_state(self) -> None:
+        object.__setattr__(self, "_drops", None)
+
+    def _adopt_state(self, other: KnobEffect) -> None:
+        object.__setattr__(self, "_drops", getattr(other, "_drops", None))
+
+    def wipe(self) -> None:
+        """Wipe the lens: every droplet of the persistent mode is gone (new ones land later)."""
+        d = self._drops
+        if d is not None:
+            d.x, d.y, d.r = (np.empty(0) for _ in range(3))
+
+    @property
+    def drops(self) -> np.ndarray:
+        """Current droplets of the persistent mode as an ``(N, 3)`` array of ``x, y, radius`` (px)."""
+        d = self._drops
+        if d is None:
+            return np.empty((0, 3))
+        return np.stack([d.x, d.y, d.r], axis=1)
+
+    def _layout(self, h: int, w: int, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+        _, radius, centres = fog_layout(h, w, self.fog_coef, rng)
+        return np.asarray(centres, dtype=np.float64).reshape(-1, 2), radius
+
+    def _advance(self, shape: tuple[int, ...], rng: np.random.Generator) -> _Drops:
+        """Initialise (first frame, new size) or move the persistent droplets on by one frame."""
+        h, w = shape[:2]
+        d = self._drops
+        if d is None or d.shape != (h, w):
+            c, radius = self._layout(h, w, rng)
+            d = _Drops((h, w), float(radius), len(c), c[:, 0].copy(), c[:, 1].copy(),
+                       np.full(len(c), float(radius)))
+            object.__setattr__(self, "_drops", d)
+            return d
+        dt = 1.0 / self.fps
+        d.frames += 1
+        d.r = d.r * (1.0 + self.growth_per_s * dt)
+        n_new = int(rng.poisson(self.spawn_per_s * max(d.base_count, 1) * dt))
+        if n_new:
+            c, _ = self._layout(h, w, rng)
+            if len(c):
+                pick = c[rng.integers(0, len(c), size=n_new)]
+                d.x = np.concatenate([d.x, pick[:, 0]])
+                d.y = np.concatenate([d.y, pick[:, 1]])
+                d.r = np.concatenate([d.r, d.base_radius * rng.uniform(0.5, 1.0, size=n_new)])
+        running = d.r > self.run_radius * d.base_radius
+        d.y = d.y + running * (self.run_speed * h * dt)
+        keep = d.y - d.r <= h
+        d.x, d.y, d.r = d.x[keep], d.y[keep], d.r[keep]
+        self._merge(d)
+        cap = 4 * max(d.base_count, 1) + 16
+        if len(d.r) > cap:  # never reached with sensible parameters; bounds the cost
+            keep = np.argsort(d.r)[-cap:]
+            d.x, d.y, d.r = d.x[keep], d.y[keep], d.r[keep]
+        return d
+
+    def _merge(self, d: _Drops) -> None:
+        if self.merge_frac <= 0:
+            return
+        for _ in range(len(d.r)):
+            n = len(d.r)
+            if n < 2:
+                return
+            dist = np.hypot(d.x[:, None] - d.x[None, :], d.y[:, None] - d.y[None, :])
+            gap = dist - self.merge_frac * (d.r[:, None] + d.r[None, :])
+            gap[np.arange(n), np.arange(n)] = np.inf
+            i, j = np.unravel_index(int(np.argmin(gap)), gap.shape)
+            if gap[i, j] >= 0:
+                return
+            a_i, a_j = d.r[i] ** 2, d.r[j] ** 2
+            d.x[i] = (a_i * d.x[i] + a_j * d.x[j]) / (a_i + a_j)
+            d.y[i] = (a_i * d.y[i] + a_j * d.y[j]) / (a_i + a_j)
+            d.r[i] = math.sqrt(a_i + a_j)
+            keep = np.arange(n) != j
+            d.x, d.y, d.r = d.x[keep], d.y[keep], d.r[keep]
+
+    # -- rendering ---------------------------------------------------------------------------
+    def _idle(self, shape, rng):
+        if self.persistent:
+            self._advance(shape, rng)
+
+    def _apply(self, img, depth, state, rng):
+        alpha = self.k * self.fog_coef
+        if self.persistent:
+            d = self._advance(img.shape, rng)
+            centres = np.rint(np.stack([d.x, d.y], axis=1)).astype(np.int64)
+            radii = np.rint(d.r).astype(np.int64)
+        else:
+            c, radius = self._layout(img.shape[0], img.shape[1], rng)
+            centres = c.astype(np.int64)
+            radii = np.full(len(c), radius, dtype=np.int64)
+        return render_discs(img, centres, radii, alpha)

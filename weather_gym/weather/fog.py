@@ -1,0 +1,90 @@
+"""Fog and haze by Koschmieder's law: contrast fades with distance towards a bright airlight.
+
+``I = J * t + A * (1 - t)`` with transmittance ``t = exp(-beta * range)``, ``range`` the distance
+along each pixel's ray (z-depth times the ray's obliquity) and ``A = airlight * 255``.
+
+**Meaning of k**: the extinction coefficient as a fraction of the densest fog:
+``beta = k * 3.912 / min_visibility_m`` (meteorological visibility ``3.912 / beta``), so k = 1 is
+fog with ``min_visibility_m`` (15 m) visibility and k = 0.1 is 150 m.
+
+**Depth**: with a depth map (metres, z-depth) the fog is exact per pixel. Without one — the
+documented fallback — the scene is taken as a flat ground plane seen by a level camera
+``camera_height_m`` above it, horizon at ``horizon_frac`` of the image height and ``far_m`` above
+the horizon: right for the track surface and the cones' bases, approximate for the rest.
+``fx`` comes from ``state['fx']``, else from ``hfov_deg``.
+
+Example:
+    >>> import numpy as np
+    >>> from weather_gym.weather import make
+    >>> img = np.zeros((20, 30, 3), np.uint8)
+    >>> depth = np.full((20, 30), 15.0, np.float32)
+    >>> out = make("fog", k=1.0)(img, depth=depth)     # one visibility away: 1 - e^-3.912 = 98 %
+    >>> 200 <= int(out[10, 15, 0]) <= 217
+    True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import ClassVar
+
+import cv2
+import numpy as np
+
+from weather_gym.weather._common import (
+    focal_px,
+    ground_depth,
+    lerp_to_gray,
+    ray_factor,
+    readonly,
+    scene_depth,
+    weight3,
+)
+from weather_gym.weather.geometry import CameraGeometry
+from weather_gym.weather.registry import register_effect
+
+__all__ = ["Fog", "KOSCHMIEDER"]
+
+#: ``-ln(0.02)``: visibility = KOSCHMIEDER / extinction coefficient (2 % contrast threshold).
+KOSCHMIEDER = 3.912
+
+
+def _fog_weights(rng_m: np.ndarray, beta: float) -> np.ndarray:
+    """uint8 3-channel ``1 - exp(-beta * range)``."""
+    return weight3(1.0 - cv2.exp(rng_m * np.float32(-beta)))
+
+
+@lru_cache(maxsize=16)
+def _fallback_weights(h: int, w: int, fx: float, beta: float, camera_height_m: float,
+                      horizon_frac: float, far_m: float) -> np.ndarray:
+    rng_m = ground_depth(h, w, fx, camera_height_m, horizon_frac, far_m) * ray_factor(h, w, fx)
+    return readonly(_fog_weights(rng_m, beta))
+
+
+@register_effect
+@dataclass(frozen=True)
+class Fog(CameraGeometry):
+    """Koschmieder haze; ``k`` = extinction / that of ``min_visibility_m`` fog. See module doc."""
+
+    name: ClassVar[str] = "fog"
+
+    min_visibility_m: float = 15.0
+    airlight: float = 0.85
+
+    PARAM_BOUNDS: ClassVar = {"min_visibility_m": (2.0, 500.0), "airlight": (0.3, 1.0)}
+
+    @property
+    def beta(self) -> float:
+        """Extinction coefficient (1/m) at this k."""
+        return self.k * KOSCHMIEDER / self.min_visibility_m
+
+    def _apply(self, img, depth, state, rng):
+        h, w = img.shape[:2]
+        fx = focal_px(state, w, self.hfov_deg)
+        if depth is None:
+            wts = _fallback_weights(h, w, fx, self.beta, self.camera_height_m, self.horizon_frac, self.far_m)
+        else:
+            z = scene_depth(depth, h, w, fx, self.camera_height_m, self.horizon_frac, self.far_m, self.name)
+            wts = _fog_weights(cv2.multiply(z, ray_factor(h, w, fx)), self.beta)
+        return lerp_to_gray(img, 255.0 * self.airlight, wts)

@@ -1,0 +1,143 @@
+"""Camera geometry and the car's own motion, shared by the effects that need them.
+
+``CameraGeometry``: the pinhole camera and flat-ground fallback of effects that need depth when
+none is given (fog, motion blur, physical dim). ``EgoMotion`` adds the vehicle motion defaults and
+:meth:`EgoMotion.smear`, the motion blur of an exposure (see :mod:`weather_gym.weather.motion_blur`).
+
+Example:
+    >>> from weather_gym.weather import make
+    >>> make("fog", k=0.5).camera_height_m
+    1.0
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import cv2
+import numpy as np
+
+from weather_gym.weather._common import (
+    DEFAULT_HFOV_DEG,
+    focal_px,
+    lerp_u8,
+    readonly,
+    scene_depth,
+    weight3,
+)
+from weather_gym.weather.base import KnobEffect
+
+__all__ = ["CameraGeometry", "EgoMotion", "motion_smear"]
+
+
+def _zoom(img: np.ndarray, c: float) -> np.ndarray:
+    """Magnify ``img`` by ``c >= 1`` about its centre, same size."""
+    h, w = img.shape[:2]
+    bw, bh = max(int(round(w * c)), w), max(int(round(h * c)), h)
+    if (bw, bh) == (w, h):
+        return img
+    big = cv2.resize(img, (bw, bh), interpolation=cv2.INTER_LINEAR)
+    x0, y0 = (bw - w) // 2, (bh - h) // 2
+    return big[y0:y0 + h, x0:x0 + w]
+
+
+def _zoom_blur(img: np.ndarray, scale: float) -> np.ndarray:
+    """Average of the image magnified by factors from 1 to ``1 + scale``.
+
+    Computed at half resolution, or quarter resolution when the smear is long anyway (> 16 px).
+    """
+    h, w = img.shape[:2]
+    disp = scale * 0.5 * math.hypot(w, h)  # largest displacement, full-resolution pixels
+    f = 4 if disp > 16 and min(h, w) >= 16 else 2
+    small = cv2.resize(img, (max(w // f, 1), max(h // f, 1)), interpolation=cv2.INTER_AREA)
+    m = min(max(math.ceil(math.log2(disp / f + 1)), 1), 3)
+    c = (1.0 + scale) ** (1.0 / (2 ** m - 1))
+    acc = small
+    for j in range(m):  # 2**m taps: scales c**i, i = 0 .. 2**m - 1
+        acc = cv2.addWeighted(acc, 0.5, _zoom(acc, c ** (2 ** j)), 0.5, 0)
+    return cv2.resize(acc, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def _near_weights(depth: np.ndarray, near_m: float) -> np.ndarray:
+    return weight3(cv2.divide(near_m, cv2.max(depth, 1e-3)))
+
+
+_WEIGHT_CACHE: dict[tuple, np.ndarray] = {}
+
+
+def motion_smear(img: np.ndarray, depth: np.ndarray | None, state: dict[str, float], exposure_s: float, *,
+                 speed_mps: float, yaw_rate_rps: float, hfov_deg: float, camera_height_m: float,
+                 horizon_frac: float, near_depth_m: float, far_m: float, who: str) -> np.ndarray:
+    """Blur ``img`` by the car's motion during ``exposure_s`` seconds (may return ``img`` itself)."""
+    h, w = img.shape[:2]
+    fx = focal_px(state, w, hfov_deg)
+    speed = abs(state.get("speed", speed_mps))
+    yaw = abs(state.get("yaw_rate", yaw_rate_rps))
+    out = img
+    scale = speed * exposure_s / near_depth_m
+    if scale * 0.5 * math.hypot(w, h) >= 1.0:
+        key = (h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m)
+        if depth is None:
+            wts = _WEIGHT_CACHE.get(key)
+            if wts is None:
+                z = scene_depth(None, h, w, fx, camera_height_m, horizon_frac, far_m, who)
+                wts = _WEIGHT_CACHE.setdefault(key, readonly(_near_weights(z, near_depth_m)))
+                if len(_WEIGHT_CACHE) > 16:
+                    _WEIGHT_CACHE.pop(next(iter(_WEIGHT_CACHE)))
+        else:
+            z = scene_depth(depth, h, w, fx, camera_height_m, horizon_frac, far_m, who)
+            wts = _near_weights(z, near_depth_m)
+        out = lerp_u8(out, _zoom_blur(out, scale), wts)
+    length = fx * yaw * exposure_s
+    if length >= 1.5:
+        n = int(round(length))
+        out = cv2.blur(out, (n, 1), borderType=cv2.BORDER_REPLICATE)
+    return out
+
+
+@dataclass(frozen=True)
+class CameraGeometry(KnobEffect):
+    """Camera parameters used when the state or the depth map does not give them (not registered).
+
+    ``hfov_deg`` gives the focal length when ``state['fx']`` is absent; without a depth map the
+    scene is a flat ground plane ``camera_height_m`` below a level camera, horizon at
+    ``horizon_frac`` of the image height and ``far_m`` at and above the horizon.
+    """
+
+    hfov_deg: float = DEFAULT_HFOV_DEG
+    camera_height_m: float = 1.0
+    horizon_frac: float = 0.5
+    far_m: float = 200.0
+
+    PARAM_LIMITS: ClassVar = {
+        "hfov_deg": (5.0, 175.0),
+        "camera_height_m": (0.05, 20.0),
+        "horizon_frac": (0.0, 1.0),
+        "far_m": (1.0, 1e5),
+    }
+
+
+@dataclass(frozen=True)
+class EgoMotion(CameraGeometry):
+    """Vehicle motion defaults (used when the state lacks ``speed`` / ``yaw_rate``), not registered."""
+
+    speed_mps: float = 10.0
+    yaw_rate_rps: float = 0.3
+    near_depth_m: float = 2.0
+
+    PARAM_LIMITS: ClassVar = {
+        **CameraGeometry.PARAM_LIMITS,
+        "speed_mps": (0.0, 150.0),
+        "yaw_rate_rps": (0.0, 10.0),
+        "near_depth_m": (0.5, 20.0),
+    }
+
+    def smear(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
+              exposure_s: float) -> np.ndarray:
+        """Motion blur of ``exposure_s`` seconds (may return ``img`` itself when there is none)."""
+        return motion_smear(img, depth, state, exposure_s, speed_mps=self.speed_mps,
+                            yaw_rate_rps=self.yaw_rate_rps, hfov_deg=self.hfov_deg,
+                            camera_height_m=self.camera_height_m, horizon_frac=self.horizon_frac,
+                            near_depth_m=self.near_depth_m, far_m=self.far_m, who=self.name)

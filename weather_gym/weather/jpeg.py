@@ -1,0 +1,53 @@
+"""JPEG compression artefacts (a camera or a radio link squeezing its bandwidth).
+
+**Meaning of k**: the JPEG quality drops linearly from 100 at k = 0 to ``min_quality`` at k = 1:
+``quality = round(100 - k * (100 - min_quality))``. Encoded and decoded with OpenCV (libjpeg), in
+the colour order JPEG expects, with 4:2:0 chroma subsampling unless ``chroma_subsampling=False``.
+
+Example:
+    >>> import numpy as np
+    >>> from weather_gym.weather import make
+    >>> img = np.random.default_rng(0).integers(0, 256, (32, 32, 3), dtype=np.uint8)
+    >>> out = make("jpeg", k=1.0)(img)
+    >>> out.shape, bool((out != img).any())
+    ((32, 32, 3), True)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import cv2
+
+from weather_gym.weather.base import KnobEffect
+from weather_gym.weather.registry import register_effect
+
+__all__ = ["Jpeg"]
+
+
+@register_effect
+@dataclass(frozen=True)
+class Jpeg(KnobEffect):
+    """Compression; ``k`` lowers the quality from 100 to ``min_quality``. See module doc."""
+
+    name: ClassVar[str] = "jpeg"
+
+    min_quality: float = 5.0
+    chroma_subsampling: bool = True
+
+    PARAM_BOUNDS: ClassVar = {"min_quality": (1.0, 95.0)}
+
+    @property
+    def quality(self) -> int:
+        return int(round(100 - self.k * (100 - self.min_quality)))
+
+    def _apply(self, img, depth, state, rng):
+        sampling = (cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420 if self.chroma_subsampling
+                    else cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444)
+        ok, buf = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR),
+                               [cv2.IMWRITE_JPEG_QUALITY, self.quality,
+                                cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling])
+        if not ok:  # pragma: no cover - libjpeg does not fail on valid uint8 images
+            raise RuntimeError("jpeg: OpenCV could not encode the image")
+        return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)

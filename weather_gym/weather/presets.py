@@ -1,0 +1,125 @@
+"""Weather presets: a condition and a severity 0-4 name a list of effects (``presets.toml``).
+
+The table ships with the package (``weather_gym/weather/presets.toml``); calibration rewrites that
+file and nothing else changes. ``calibrated = false`` in it marks the initial, uncalibrated guesses.
+
+File format: top-level ``calibrated`` (bool) and free metadata, then one ``[[presets]]`` table per
+condition and severity with ``condition``, ``severity``, ``effects`` (a list of ``{name, k, ...}``
+tables as in model files) and optional fields (``description``, ``k_interval``, ``measured_map``,
+``measured_relative``, ``achieved_relative``, anything else) kept as they are.
+
+Example:
+    >>> from weather_gym.weather.presets import preset_spec, CONDITIONS
+    >>> CONDITIONS
+    ('droplets', 'low_light')
+    >>> preset_spec("droplets", 3)
+    [{'name': 'droplets', 'k': 0.55}]
+    >>> preset_spec("dim", 0)            # "dim" is an alias of low_light; severity 0 is clear
+    []
+"""
+
+from __future__ import annotations
+
+import copy
+import numbers
+from pathlib import Path
+from typing import Any
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "SEVERITIES", "canonical_condition",
+           "load_presets", "preset_entry", "preset_spec"]
+
+CONDITIONS = ("droplets", "low_light")
+SEVERITIES = (0, 1, 2, 3, 4)
+#: Other names accepted for a condition (the effect names of each condition).
+ALIASES = {"dim": "low_light", "droplets": "droplets"}
+#: The shipped table.
+DEFAULT_PRESETS = Path(__file__).with_name("presets.toml")
+
+_CACHE: dict[tuple[str, int], dict[str, Any]] = {}
+
+
+def canonical_condition(condition: str) -> str:
+    """``condition`` or its alias as one of :data:`CONDITIONS`; ValueError listing them otherwise."""
+    if isinstance(condition, str):
+        c = ALIASES.get(condition, condition)
+        if c in CONDITIONS:
+            return c
+    raise ValueError(f"unknown weather condition {condition!r}; valid conditions: {', '.join(CONDITIONS)} "
+                     f"(aliases: {', '.join(f'{a}={c}' for a, c in ALIASES.items() if a != c)})")
+
+
+def _check_severity(severity: Any) -> int:
+    if isinstance(severity, bool) or not isinstance(severity, numbers.Integral) or int(severity) not in SEVERITIES:
+        raise ValueError(f"invalid severity {severity!r}; valid severities: {', '.join(map(str, SEVERITIES))}")
+    return int(severity)
+
+
+def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
+    from weather_gym.weather.spec import parse_weather  # spec imports this module
+
+    tables = data.get("presets")
+    if not isinstance(tables, list):
+        raise ValueError(f"{path}: expected [[presets]] tables")
+    out: dict[str, dict[int, dict[str, Any]]] = {c: {} for c in CONDITIONS}
+    for i, t in enumerate(tables):
+        where = f"{path}: [[presets]] #{i + 1}"
+        if not isinstance(t, dict):
+            raise ValueError(f"{where}: expected a table")
+        for key in ("condition", "severity", "effects"):
+            if key not in t:
+                raise ValueError(f"{where}: missing key {key!r}")
+        try:
+            cond = canonical_condition(t["condition"])
+            sev = _check_severity(t["severity"])
+            if not isinstance(t["effects"], list):
+                raise ValueError(f"effects must be a list of {{name, k, ...}} tables, got {t['effects']!r}")
+            parse_weather(t["effects"])
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+        if sev in out[cond]:
+            raise ValueError(f"{where}: {cond} severity {sev} appears twice")
+        out[cond][sev] = t
+    for cond in CONDITIONS:
+        missing = [s for s in SEVERITIES if s not in out[cond]]
+        if missing:
+            raise ValueError(f"{path}: condition {cond!r} has no preset for severity {missing}")
+    meta = {k: v for k, v in data.items() if k != "presets"}
+    if not isinstance(meta.get("calibrated", False), bool):
+        raise ValueError(f"{path}: 'calibrated' must be true or false")
+    return {**meta, "calibrated": meta.get("calibrated", False), "presets": out}
+
+
+def load_presets(path: str | Path | None = None) -> dict[str, Any]:
+    """Read and validate a presets file (default: the shipped one).
+
+    Returns ``{"calibrated": bool, <other top-level keys>, "presets": {condition: {severity: table}}}``.
+    Re-read whenever the file changes.
+    """
+    p = Path(path) if path is not None else DEFAULT_PRESETS
+    if not p.is_file():
+        raise FileNotFoundError(f"presets file {p} not found")
+    key = (str(p.resolve()), p.stat().st_mtime_ns)
+    if key not in _CACHE:
+        try:
+            with p.open("rb") as f:
+                data = tomllib.load(f)
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"{p}: not valid TOML: {exc}") from None
+        _CACHE[key] = _validate(data, p)
+    return copy.deepcopy(_CACHE[key])
+
+
+def preset_entry(condition: str, severity: int, path: str | Path | None = None) -> dict[str, Any]:
+    """The whole ``[[presets]]`` table of a condition and severity (effects, measurements, ...)."""
+    cond, sev = canonical_condition(condition), _check_severity(severity)
+    return load_presets(path)["presets"][cond][sev]
+
+
+def preset_spec(condition: str, severity: int, path: str | Path | None = None) -> list[dict[str, Any]]:
+    """The effect list (``[{"name": ..., "k": ..., ...}]``) of a condition and severity."""
+    return preset_entry(condition, severity, path)["effects"]

@@ -1,0 +1,46 @@
+"""The registry of weather effects: ``EFFECTS`` and ``make(name, k=..., **params)``.
+
+Example:
+    >>> from weather_gym.weather import EFFECTS, make
+    >>> "droplets" in EFFECTS
+    True
+    >>> make("droplets", k=0.55).params()["k"]
+    0.55
+    >>> make("snow")
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown weather effect 'snow'; valid names: blur, dim, droplets, exposure, fog, glare, jpeg, motion_blur, noise, rain, vignette
+"""
+
+from __future__ import annotations
+
+from typing import Any, TypeVar
+
+from weather_gym.registry import Registry
+from weather_gym.weather.base import KnobEffect
+
+__all__ = ["EFFECTS", "make", "register_effect"]
+
+#: name -> effect class (each a :class:`~weather_gym.weather.base.KnobEffect`).
+EFFECTS: Registry[type[KnobEffect]] = Registry("weather effect")
+
+E = TypeVar("E", bound=type[KnobEffect])
+
+
+def register_effect(cls: E) -> E:
+    """Class decorator: register an effect class under its ``name``."""
+    if not cls.name:
+        raise TypeError(f"{cls.__name__} has no name")
+    EFFECTS.register(cls.name, cls)
+    return cls
+
+
+def make(name: str, k: float = 0.0, **params: Any) -> KnobEffect:
+    """Build the effect ``name`` with severity ``k`` and optional physical parameters."""
+    cls = EFFECTS.get(name)
+    valid = [p for p in cls.param_names() if p != "k"]
+    unknown = sorted(set(params) - set(valid))
+    if unknown:
+        raise ValueError(f"{name}: unknown parameter(s) {', '.join(map(repr, unknown))}; "
+                         f"valid parameters: k, {', '.join(valid)}")
+    return cls(k=k, **params)

@@ -1,0 +1,156 @@
+"""Weather specs: every way a user can write weather, parsed into one effect, and back.
+
+``parse_weather`` accepts
+
+* ``None``, ``"clear"``, ``""``, ``{}``, ``[]``: no weather (an empty :class:`Compose`);
+* an effect, a :class:`Compose` or a :class:`Ramp`: returned as is;
+* ``{"droplets": 0.55, "dim": 0.3}`` (name -> k) or ``{"droplets": {"k": 0.55, "persistent": True}}``;
+* ``"droplets:0.55,dim:0.3"``;
+* presets ``"droplets@3"``, ``"low_light@2"``, ``("low_light", 2)`` (see :mod:`.presets`);
+* the list of effect tables of model files, ``[{"name": "dim", "k": 0.6, ...}]`` (a TOML
+  ``[[effects]]`` array), where ``{"name": "ramp", "effect": "dim", "k_start": ..., ...}`` is a ramp;
+* a list mixing all of the above (applied in order).
+
+One effect comes back as itself, several as a ``Compose``. ``to_spec`` is the inverse: a list of
+plain tables, JSON/TOML serialisable, with every parameter.
+
+Example:
+    >>> from weather_gym.weather import parse_weather, to_spec
+    >>> w = parse_weather("droplets:0.55,dim:0.3")
+    >>> to_spec(w)[1]["name"], to_spec(w)[1]["k"]
+    ('dim', 0.3)
+    >>> parse_weather(to_spec(w)) == w
+    True
+    >>> to_spec(parse_weather("low_light@3"))[0]["k"]
+    0.78
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from weather_gym.weather.base import Effect, KnobEffect
+from weather_gym.weather.compose import Compose
+from weather_gym.weather.presets import preset_spec
+from weather_gym.weather.registry import EFFECTS, make
+from weather_gym.weather.schedule import Ramp
+
+__all__ = ["current_spec", "parse_weather", "to_spec"]
+
+_CLEAR = ("", "clear", "none")
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
+
+
+def _from_table(table: Mapping[str, Any]) -> Effect:
+    name = table.get("name")
+    if not isinstance(name, str):
+        raise ValueError(f"weather table {dict(table)!r} needs a 'name' (one of {', '.join(EFFECTS.names())}, ramp)")
+    rest = {k: v for k, v in table.items() if k != "name"}
+    if name == "ramp":
+        if "effect" not in rest:
+            raise ValueError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
+        return Ramp(**rest)
+    if name == "compose":
+        return Compose([_from_table(t) for t in rest.get("effects", [])])
+    if "k" not in rest:
+        raise ValueError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
+    return make(name, **rest)
+
+
+def _from_item(name: Any, value: Any) -> Effect:
+    if not isinstance(name, str):
+        raise ValueError(f"weather spec key {name!r} must be an effect name")
+    if _number(value):
+        return make(name, k=value)
+    if isinstance(value, Mapping):
+        if "k" not in value:
+            raise ValueError(f"weather spec {name!r}: parameters {dict(value)!r} need 'k'")
+        return make(name, **value)
+    raise ValueError(f"weather spec {name!r}: expected k (a number in [0, 1]) or a table of parameters, "
+                     f"got {value!r}")
+
+
+def _preset(condition: Any, severity: Any) -> list[Effect]:
+    return [_from_table(t) for t in preset_spec(condition, severity)]
+
+
+def _from_string(text: str) -> list[Effect]:
+    if text.strip().lower() in _CLEAR:
+        return []
+    out: list[Effect] = []
+    for raw in text.split(","):
+        item = raw.strip()
+        if "@" in item:
+            cond, _, sev = item.partition("@")
+            try:
+                severity = int(sev)
+            except ValueError:
+                raise ValueError(f"weather spec item {item!r}: severity {sev!r} must be an integer 0-4") from None
+            out += _preset(cond.strip(), severity)
+        elif ":" in item:
+            name, _, k = item.partition(":")
+            try:
+                kv = float(k)
+            except ValueError:
+                raise ValueError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1]") from None
+            out.append(make(name.strip(), k=kv))
+        else:
+            raise ValueError(f"weather spec item {item!r} must be NAME:K (e.g. droplets:0.55) or "
+                             f"CONDITION@SEVERITY (e.g. droplets@3), or 'clear'")
+    return out
+
+
+def _effects(spec: Any) -> list[Effect]:
+    if spec is None:
+        return []
+    if isinstance(spec, Compose):
+        return list(spec.effects)
+    if isinstance(spec, Effect):
+        return [spec]
+    if isinstance(spec, str):
+        return _from_string(spec)
+    if (isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str)
+            and isinstance(spec[1], numbers.Integral) and not isinstance(spec[1], bool)):
+        return _preset(spec[0], spec[1])
+    if isinstance(spec, Mapping):
+        if "name" in spec or "k" in spec:
+            return [_from_table(spec)]
+        return [_from_item(name, value) for name, value in spec.items()]
+    if isinstance(spec, Sequence):
+        out: list[Effect] = []
+        for item in spec:
+            out += _effects(item)
+        return out
+    raise ValueError(f"cannot read weather spec {spec!r}: expected None, 'clear', an effect, "
+                     f"{{name: k}}, 'name:k,...', 'condition@severity' or a list of {{name, k, ...}} tables")
+
+
+def parse_weather(spec: Any) -> Effect:
+    """Parse any weather spec (see module doc) into one effect; errors name the bad part."""
+    if isinstance(spec, Effect):
+        return spec
+    effects = _effects(spec)
+    return effects[0] if len(effects) == 1 else Compose(effects)
+
+
+def to_spec(effect: Effect) -> list[dict[str, Any]]:
+    """The list of effect tables that :func:`parse_weather` turns back into ``effect``."""
+    if isinstance(effect, Compose):
+        return [t for e in effect.effects for t in to_spec(e)]
+    if isinstance(effect, KnobEffect | Ramp):
+        return [{"name": effect.name, **effect.params()}]
+    raise ValueError(f"cannot write {type(effect).__name__} as a weather spec")
+
+
+def current_spec(effect: Effect) -> list[dict[str, Any]]:
+    """Like :func:`to_spec`, but a ramp appears as its effect with the k of the last frame it made."""
+    if isinstance(effect, Compose):
+        return [t for e in effect.effects for t in current_spec(e)]
+    if isinstance(effect, Ramp):
+        return to_spec(effect.current)
+    return to_spec(effect)

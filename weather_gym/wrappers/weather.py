@@ -1,0 +1,151 @@
+"""``WeatherWrapper``: weather on the image observations of any Gymnasium env.
+
+Works on an env whose observation is an image ``Box(0, 255, (H, W, 3), uint8)`` or a ``Dict`` with
+such an image under ``image_key``; with a ``depth_key`` entry (metres) it is passed to the effects
+(fog, motion blur), and a ``state_key`` vector is read as ``state_fields`` (speed, yaw rate, ...).
+The observation space is unchanged.
+
+The weather is anything :func:`~weather_gym.weather.parse_weather` accepts (an effect, a
+``Compose``, a ``Ramp`` for weather that changes over the episode, ``{"droplets": 0.55}``,
+``"low_light@2"``, ...) and can be changed for the next episode with
+``reset(options={"weather": spec})`` (the other options go to the wrapped env).
+
+Randomness: the wrapper's own generator, derived from the reset seed (a ``SeedSequence`` child
+of ``seed``, distinct from the env's own stream); ``reset(seed=None)`` continues the sequence, or
+on the first reset starts from the env's ``np_random_seed``. Same seeds, same frames: same bytes.
+
+``info["weather"]`` is the spec applied to the frame (a ramp's current k) and
+``info["weather_latency_ms"]`` the time the weather added to that step.
+
+Example:
+    >>> import gymnasium as gym, numpy as np
+    >>> from weather_gym.wrappers import WeatherWrapper
+    >>> class Camera(gym.Env):
+    ...     observation_space = gym.spaces.Box(0, 255, (48, 64, 3), np.uint8)
+    ...     action_space = gym.spaces.Discrete(1)
+    ...     def reset(self, *, seed=None, options=None):
+    ...         super().reset(seed=seed); return np.full((48, 64, 3), 150, np.uint8), {}
+    ...     def step(self, action):
+    ...         return np.full((48, 64, 3), 150, np.uint8), 0.0, False, False, {}
+    >>> env = WeatherWrapper(Camera(), weather={"dim": 0.5})
+    >>> obs, info = env.reset(seed=0)
+    >>> int(obs[0, 0, 0]), info["weather"][0]["name"]
+    (75, 'dim')
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from weather_gym.weather import Effect, current_spec, parse_weather
+
+__all__ = ["STATE_FIELDS", "WeatherWrapper"]
+
+#: Default meaning of the entries of the observation's state vector (``ConeTrackEnv``).
+STATE_FIELDS = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
+
+# spawn key that separates the weather's random stream from the env's own for the same seed
+_SPAWN_KEY = (0x57EA7E7,)
+
+
+def _check_image_space(space: Any, where: str) -> None:
+    if not (isinstance(space, spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3
+            and space.shape[2] == 3):
+        raise ValueError(f"WeatherWrapper: {where} must be an image Box(0, 255, (H, W, 3), uint8), got {space}")
+
+
+class WeatherWrapper(gym.ObservationWrapper):
+    """Apply weather to image observations; see the module doc."""
+
+    def __init__(self, env: gym.Env, weather: Any = None, *, image_key: str = "image",
+                 depth_key: str | None = "depth", state_key: str | None = "state",
+                 state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None) -> None:
+        super().__init__(env)
+        space = env.observation_space
+        self.image_key = image_key
+        if isinstance(space, spaces.Dict):
+            if image_key not in space.spaces:
+                raise ValueError(f"WeatherWrapper: observation Dict has no image key {image_key!r} "
+                                 f"(keys: {', '.join(space.spaces)}); pass image_key=...")
+            _check_image_space(space[image_key], f"observation[{image_key!r}]")
+            self._is_dict = True
+            self.depth_key = depth_key if depth_key in space.spaces else None
+            self.state_key = state_key if state_key in space.spaces else None
+        else:
+            _check_image_space(space, "the observation")
+            self._is_dict = False
+            self.depth_key = self.state_key = None
+        self.state_fields = tuple(state_fields)
+        if fx is not None and not (np.isfinite(fx) and fx > 0):
+            raise ValueError(f"WeatherWrapper: fx must be a positive focal length in pixels, got {fx!r}")
+        self.fx = fx
+        self._weather: Effect = parse_weather(weather)
+        self._ss: np.random.SeedSequence | None = None
+        self._rng: np.random.Generator | None = None
+        self._latency_ms = 0.0
+
+    @property
+    def weather(self) -> Effect:
+        """The weather effect applied to the observations."""
+        return self._weather
+
+    # -- episode -----------------------------------------------------------------------------
+    def _seed_episode(self, seed: int | None) -> None:
+        if seed is not None:
+            self._ss = np.random.SeedSequence(seed, spawn_key=_SPAWN_KEY)
+        elif self._ss is None:
+            base = getattr(self.env, "np_random_seed", None)
+            self._ss = (np.random.SeedSequence(int(base), spawn_key=_SPAWN_KEY)
+                        if isinstance(base, int | np.integer) and base >= 0 else np.random.SeedSequence())
+        rng_ss, effect_ss = self._ss.spawn(1)[0].spawn(2)
+        self._rng = np.random.default_rng(rng_ss)
+        self._weather.reset(effect_ss)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        options = dict(options or {})
+        if "weather" in options:
+            self._weather = parse_weather(options.pop("weather"))
+        obs, info = self.env.reset(seed=seed, options=options or None)
+        self._seed_episode(seed)
+        obs = self.observation(obs)
+        return obs, self._info(info)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        obs = self.observation(obs)
+        return obs, reward, terminated, truncated, self._info(info)
+
+    def _info(self, info: dict[str, Any]) -> dict[str, Any]:
+        return {**info, "weather": current_spec(self._weather), "weather_latency_ms": self._latency_ms}
+
+    # -- observation -------------------------------------------------------------------------
+    def _state(self, obs: Mapping[str, Any]) -> dict[str, float] | None:
+        state: dict[str, float] = {}
+        if self.state_key is not None:
+            raw = obs[self.state_key]
+            if isinstance(raw, Mapping):
+                state.update(raw)
+            else:
+                vec = np.asarray(raw, dtype=np.float64).ravel()
+                state.update({f: float(v) for f, v in zip(self.state_fields, vec, strict=False)})
+        if self.fx is not None:
+            state["fx"] = self.fx
+        return state or None
+
+    def observation(self, observation: Any) -> Any:
+        t0 = time.perf_counter()
+        if self._is_dict:
+            depth = observation[self.depth_key] if self.depth_key is not None else None
+            image = self._weather(observation[self.image_key], depth=depth, state=self._state(observation),
+                                  rng=self._rng)
+            out = {**observation, self.image_key: image}
+        else:
+            out = self._weather(observation, rng=self._rng)
+        self._latency_ms = 1000.0 * (time.perf_counter() - t0)
+        return out
