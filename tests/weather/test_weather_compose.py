@@ -66,3 +66,14 @@ def test_ramp_validation():
         Ramp("dim", 0.0, 1.0, radius=2)
     with pytest.raises(ValueError, match="not k"):
         Ramp("dim", k=0.3)
+
+
+def test_ramp_batch_of_a_random_effect_equals_the_loop(scene):
+    frames = np.stack([scene[0]] * 3)
+    a, b = Ramp("noise", 0.2, 1.0, steps=2), Ramp("noise", 0.2, 1.0, steps=2)
+    a.reset(4)
+    b.reset(4)
+    np.testing.assert_array_equal(a(frames), np.stack([b(f) for f in frames]))  # episode generators
+    rng = np.random.default_rng(1)
+    np.testing.assert_array_equal(a(frames, rng=np.random.default_rng(1)), np.stack([b(f, rng=rng) for f in frames]))
+    assert a.step == b.step == 6

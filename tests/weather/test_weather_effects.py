@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from weather_gym.weather import make
-from weather_gym.weather._common import gauss_lut, ground_depth, srgb_decode, srgb_encode
+from weather_gym.weather._common import gauss_lut, ground_depth, noise_bank, smooth, srgb_decode, srgb_encode
+from weather_gym.weather.dim import _physical_luts
+from weather_gym.weather.noise import noise_sigma_lut
 
 
 def _sharpness(a):
@@ -70,6 +72,27 @@ def test_motion_blur_uses_speed_and_yaw_rate(scene):
     assert _sharpness(short) > _sharpness(fast)
 
 
+@pytest.mark.parametrize("n_px", [2, 3, 4, 5, 7])
+def test_motion_blur_keeps_a_uniform_frame_uniform(n_px):
+    # OpenCV 5.0's 2-px box filter adds 1 to every value (255 wraps to 0): the yaw smear must not
+    for v in (0, 1, 128, 254, 255):
+        img = np.full((30, 50, 3), v, np.uint8)
+        out = make("motion_blur", k=1.0, exposure_s=0.01)(img, state={"speed": 0.0, "yaw_rate": n_px, "fx": 100.0})
+        np.testing.assert_array_equal(out, img)
+
+
+@pytest.mark.parametrize("sigma", [0.3, 0.5, 0.84, 1.0, 1.2, 1.68, 2.2, 2.6, 3.36, 6.72, 15.0])
+def test_smooth_has_the_asked_standard_deviation(sigma):
+    impulse = np.zeros((201, 201, 3), np.float32)
+    impulse[100, 100] = 1.0
+    psf = smooth(impulse, sigma)[..., 0].astype(np.float64)
+    x = np.arange(201)
+    assert psf.sum() == pytest.approx(1.0, abs=3e-3)
+    for profile in (psf.sum(axis=0), psf.sum(axis=1)):
+        mean = (profile * x).sum()
+        assert np.sqrt((profile * (x - mean) ** 2).sum()) == pytest.approx(sigma, rel=0.08)  # the old: 16 %
+
+
 def test_blur_scales_with_image_width(scene):
     img = scene[0]
     soft = make("blur", k=1.0)(img)
@@ -86,6 +109,56 @@ def test_noise_is_unbiased_and_grows_with_the_signal():
     # shot noise: variance ~ signal in linear light; sigma in code values via the sRGB slope
     assert b.std() > 5 and a.std() > 5
     assert make("noise", k=0.25)(mid, rng=np.random.default_rng(0)).std() < b.std()
+
+
+@pytest.mark.parametrize("level", [10, 60, 128, 230])
+def test_noise_has_the_model_sigma_and_no_bias(level):
+    e = make("noise", k=0.5)
+    rng = np.random.default_rng(level)
+    frames = e(np.full((16, 40, 60, 3), level, np.uint8), rng=rng).astype(np.float64) - level
+    sigma = float(noise_sigma_lut(0.5 * e.max_gain, e.full_well_e, e.read_noise_e)[level])
+    clipped = level - 2 * sigma < 0 or level + 2 * sigma > 255
+    if not clipped:  # clipping at 0 or 255 biases dark pixels under strong read noise, as in a camera
+        assert abs(frames.mean()) < 0.05 * sigma + 0.1
+        assert frames.std() == pytest.approx(np.sqrt(sigma ** 2 + 1 / 12), rel=0.04)
+    assert frames.var(axis=0, ddof=1).mean() == pytest.approx(frames.var(), rel=0.05)  # each pixel over time
+
+
+def test_noise_is_uncorrelated_in_space_and_between_frames():
+    rng = np.random.default_rng(7)
+    e = make("noise", k=1.0)
+    gray = np.full((120, 160, 3), 128, np.uint8)
+    a, b = (e(gray, rng=rng).astype(np.float64) - 128 for _ in range(2))
+
+    def corr(x, y):
+        x, y = x - x.mean(), y - y.mean()
+        return float((x * y).sum() / np.sqrt((x * x).sum() * (y * y).sum()))
+
+    assert abs(corr(a, b)) < 0.02  # same pixel, next frame
+    assert abs(corr(a[:, 1:], a[:, :-1])) < 0.02 and abs(corr(a[1:], a[:-1])) < 0.02  # neighbours
+    assert abs(corr(a[..., 0], a[..., 1])) < 0.02  # channels
+    # the next frame's signs are fresh: no shift of it matches this frame
+    worst = max(abs(corr(a[20:100, 20:140], b[20 + dy:100 + dy, 20 + dx:140 + dx]))
+                for dy in range(-8, 9) for dx in range(-8, 9))
+    assert worst < 0.03
+
+
+def test_noise_table_is_the_same_whatever_size_asked_first():
+    first = noise_bank(1000)[:1000].copy()
+    big = noise_bank(3 * 2**20)
+    np.testing.assert_array_equal(big[:1000], first)
+    z = big[: 2**20].astype(np.float64) / 64  # |z| of 128 equiprobable levels, 1/64 resolution
+    assert big.max() == round(64 * float(gauss_lut().max())) and len(np.unique(big)) > 100
+    assert (z ** 2).mean() == pytest.approx(1.0, abs=0.01) and z.mean() == pytest.approx(np.sqrt(2 / np.pi), abs=0.01)
+
+
+def test_physical_dim_noise_follows_its_tables():
+    e = make("dim", k=0.78, mode="physical", speed_mps=0.0, yaw_rate_rps=0.0)
+    _, gain, residual = e.exposure()
+    mean, sigma = _physical_luts(residual, gain, e.full_well_e, e.read_noise_e)
+    out = e(np.full((8, 60, 80, 3), 200, np.uint8), rng=np.random.default_rng(0)).astype(np.float64)
+    assert out.mean() == pytest.approx(round(float(mean[200])), abs=0.1)
+    assert out.std() == pytest.approx(np.sqrt(float(sigma[200]) ** 2 + 1 / 12), rel=0.04)
 
 
 def test_exposure_under_and_over(scene):

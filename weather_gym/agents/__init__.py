@@ -1,0 +1,87 @@
+"""Agents: anything with ``reset(seed, info)`` and ``act(obs, info) -> action`` drives the car.
+
+``AGENTS`` maps a name to a factory ``(track, camera, **kwargs) -> Agent``:
+
+* ``gt_pure_pursuit`` - ground-truth driver: pure pursuit on the track's centre line using the true
+  pose from ``info["pose"]`` and ``info["speed"]`` (laps, datasets, env tests).
+* ``mapper_pure_pursuit`` - the perception stack: ``ConeMapper`` + centre-line planner + pure
+  pursuit, reading only ``obs["cones"]``, ``obs["mask"]`` and ``obs["state"]``.
+* ``sb3`` - a stable-baselines3 model (``model=`` an instance or ``path=`` a saved zip).
+
+Callers always pass the step's ``info``; perception-driven agents never read ground truth from it.
+
+Example:
+    >>> import numpy as np
+    >>> from weather_gym.agents import AGENTS, Agent
+    >>> AGENTS.names()
+    ['gt_pure_pursuit', 'mapper_pure_pursuit', 'sb3']
+    >>> class Straight:                       # a user's own stack: two methods are enough
+    ...     def reset(self, seed=None, info=None): pass
+    ...     def act(self, obs, info=None): return np.array([0.0, 0.3], np.float32)
+    >>> isinstance(Straight(), Agent)
+    True
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from weather_gym.registry import Registry
+
+if TYPE_CHECKING:  # pragma: no cover
+    from weather_gym.camera import CameraConfig
+    from weather_gym.tracks import Track
+
+__all__ = ["Agent", "AGENTS", "make_agent", "check_action"]
+
+
+@runtime_checkable
+class Agent(Protocol):
+    """The one interface between an env loop and a driver (ours, a user's, or a trained policy)."""
+
+    def reset(self, seed: int | None = None, info: dict | None = None) -> None:
+        """Start a new episode (``info`` is the env's reset info)."""
+
+    def act(self, obs: Any, info: dict | None = None) -> np.ndarray:
+        """Float32 ``(steering, throttle/brake)`` in [-1, 1] for this step's observation."""
+
+
+AGENTS: Registry = Registry("agent")
+
+
+def check_action(action: Any, who: str = "agent") -> np.ndarray:
+    """Validate an agent's output: a finite float32 ``(2,)`` array in [-1, 1] (nothing is clamped)."""
+    a = np.asarray(action, dtype=np.float32)
+    if a.shape != (2,):
+        raise ValueError(f"{who} returned an action of shape {a.shape}; expected (2,) = (steering, throttle/brake)")
+    if not np.isfinite(a).all() or (np.abs(a) > 1.0).any():
+        raise ValueError(f"{who} returned {a.tolist()}; both components must be finite and in [-1, 1]")
+    return a
+
+
+def make_agent(name: str, track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
+    """Build the registered agent ``name`` (``ValueError`` lists the valid names)."""
+    return AGENTS.get(name)(track, camera, **kwargs)
+
+
+@AGENTS.register("gt_pure_pursuit")
+def _gt_pure_pursuit(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
+    from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
+
+    return GroundTruthPurePursuit(track, camera, **kwargs)
+
+
+@AGENTS.register("mapper_pure_pursuit")
+def _mapper_pure_pursuit(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
+    from weather_gym.agents.stack import MapperPurePursuit
+
+    return MapperPurePursuit(track, camera, **kwargs)
+
+
+@AGENTS.register("sb3")
+def _sb3(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
+    from weather_gym.agents.sb3 import SB3Agent
+
+    return SB3Agent(track, camera, **kwargs)

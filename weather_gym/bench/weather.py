@@ -1,16 +1,23 @@
 """``weather-gym bench weather``: every weather effect against the study's own recipe.
 
-Times, on one core (``cv2.setNumThreads(1)`` for the run only), the median over many calls after a
-warm-up, at 608x352 (the study's detector input), 672x376 (its camera) and 1280x720:
+Times, on one core (``cv2.setNumThreads(1)`` for the run only), at 608x352 (the study's detector
+input), 672x376 (its camera) and 1280x720:
 
 * every registered effect (droplets at the study's k = 0.55, dim at 0.78, the others at 0.5) and
   the persistent-droplet and physical-dim variants, one frame per call, through the public call;
-* at 672x376, ``--batch`` different frames one call each (a loop) and in one batched call, per frame;
+* at 672x376, ``--batch`` different frames as a loop of single calls that keeps its outputs (as a
+  caller that needs every frame does) and as one batched call, per frame;
 * in the same run the study's recipe (:mod:`weather_gym.weather.reference`: the Albumentations-era
   fog loop without blur, each disc on a full-image copy; Pillow brightness with its array
   conversions) and a plain frame copy (``np.copyto``), the memory floor.
 
-The frame is :func:`weather_gym.weather.sample.sample_frame` (JPEG and bloom cost depend on content).
+The rows take turns, after a warm-up: each turn one untimed call (the row's data back in the
+caches) and 4 timed calls back to back; each row reports the median of its timed calls. On a
+shared machine a change of load so hits every row alike, and the ratios within a run hold even
+when the absolute times do not. ``--cold`` times one call per row per turn instead, right after
+the other rows' (the frame and buffers as a pipeline leaves them, mostly out of the core's
+caches). The frame is :func:`weather_gym.weather.sample.sample_frame` (JPEG and bloom cost depend
+on content).
 
 Example:
     weather-gym bench weather --repeats 200 --out bench_weather.md
@@ -19,13 +26,14 @@ Example:
 from __future__ import annotations
 
 import os
+import statistics
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from weather_gym.bench._timing import machine_line, markdown_table, median_ms
+from weather_gym.bench._timing import machine_line, markdown_table
 
 DEFAULT_SIZES = ((608, 352), (672, 376), (1280, 720))
 STUDY_K = {"droplets": 0.55, "dim": 0.78}
@@ -39,10 +47,13 @@ def register(targets) -> None:
                            description=__doc__.split("\n\n")[1])
     p.add_argument("--sizes", default=",".join(f"{w}x{h}" for w, h in DEFAULT_SIZES),
                    help="comma-separated WxH (default %(default)s)")
-    p.add_argument("--repeats", type=int, default=200, help="timed calls per row (default %(default)s)")
+    p.add_argument("--repeats", type=int, default=200, help="rounds, i.e. timed calls per row, at most (default %(default)s)")
     p.add_argument("--warmup", type=int, default=10, help="untimed calls first (default %(default)s)")
     p.add_argument("--batch", type=int, default=8, help="batch size for the per-frame batch column (0: skip)")
     p.add_argument("--effects", default="all", help="comma-separated effect names (default all)")
+    p.add_argument("--cold", action="store_true",
+                   help="one timed call per row per turn, right after the other rows' (caches as a pipeline "
+                        "leaves them) instead of short back-to-back runs")
     p.add_argument("--out", type=Path, help="also write the markdown table to this file")
     p.set_defaults(func=_run)
 
@@ -71,15 +82,34 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
     return cases
 
 
-def _repeats_for(fn, repeats: int) -> int:
+def interleaved_ms(fns: dict[str, Any], repeats: int, warmup: int, budget_s: float, run: int = 4) -> dict[str, float]:
+    """Median milliseconds per call of each function, the functions taking turns.
+
+    Each round gives every function, in turn, one untimed call (its data back in the caches) and
+    ``run`` timed calls back to back; ``run=0``: one timed call per round and no untimed one
+    (caches as the other functions left them). ``repeats`` timed calls per function at most, fewer
+    when that takes much longer than ``budget_s`` (but at least 15 when ``repeats`` allows).
+    """
     t0 = time.perf_counter()
-    fn()
-    once = time.perf_counter() - t0
-    return max(min(repeats, int(1.5 / max(once, 1e-6))), 15)  # about 1.5 s per row at most
+    for _ in range(max(warmup, 1)):
+        for fn in fns.values():
+            fn()
+    per_call = (time.perf_counter() - t0) / max(warmup, 1)  # one call of each
+    calls = min(repeats, max(15, int(budget_s / max(per_call * (1 + 1 / max(run, 1)), 1e-9))))
+    times: dict[str, list[float]] = {k: [] for k in fns}
+    while len(next(iter(times.values()))) < calls:
+        for k, fn in fns.items():
+            if run:
+                fn()
+            for _ in range(max(run, 1)):
+                t = time.perf_counter()
+                fn()
+                times[k].append(time.perf_counter() - t)
+    return {k: 1000.0 * statistics.median(v) for k, v in times.items()}
 
 
 def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batch: int,
-               rows: dict, batch_rows: dict) -> None:
+               rows: dict, batch_rows: dict, run: int = 4) -> None:
     """Time every row at one size (``batch`` > 0: also the loop-vs-batch columns)."""
     from weather_gym.weather.reference import study_dim, study_droplets
     from weather_gym.weather.sample import sample_frame
@@ -89,36 +119,36 @@ def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batc
     rng = np.random.default_rng(0)
     out = np.empty_like(frame)
 
-    def timed(label, fn, into=rows, per=1):
-        ms = median_ms(fn, repeats=_repeats_for(fn, repeats), warmup=warmup) / per
-        into.setdefault(label, {})[(w, h)] = ms
-
-    timed("frame copy (np.copyto), the floor", lambda: np.copyto(out, frame))
+    singles: dict[str, Any] = {"frame copy (np.copyto), the floor": lambda: np.copyto(out, frame)}
     if "droplets" in names:
-        timed(STUDY_DROPLETS, lambda: study_droplets(frame, STUDY_K["droplets"], rng))
+        singles[STUDY_DROPLETS] = lambda: study_droplets(frame, STUDY_K["droplets"], rng)
     if "dim" in names:
         try:
             study_dim(frame, 0.5)
-            timed(STUDY_DIM, lambda: study_dim(frame, STUDY_K["dim"]))
+            singles[STUDY_DIM] = lambda: study_dim(frame, STUDY_K["dim"])
         except ImportError:  # pragma: no cover - Pillow is a dev dependency
             pass
     frames = np.stack([sample_frame(h, w, seed=i)[0] for i in range(max(batch, 1))])
     depths = np.repeat(depth[None], max(batch, 1), axis=0)
+    pairs: dict[str, Any] = {}
     for label, effect in _cases(names):
         effect.reset(0)
-        timed(label, lambda e=effect: e(frame, depth=depth, state=state, rng=rng))
+        singles[label] = lambda e=effect: e(frame, depth=depth, state=state, rng=rng)
         if batch > 0:
-            def loop(e=effect):
-                for f, d in zip(frames, depths, strict=True):
-                    e(f, depth=d, state=state, rng=rng)
+            def loop(e=effect):  # keeps its outputs, as the batch does
+                return [e(f, depth=d, state=state, rng=rng) for f, d in zip(frames, depths, strict=True)]
 
-            timed(label + " [loop]", loop, into=batch_rows, per=batch)
-            timed(label + " [batch]", lambda e=effect: e(frames, depth=depths, state=state, rng=rng),
-                  into=batch_rows, per=batch)
+            pairs[label + " [loop]"] = loop
+            pairs[label + " [batch]"] = lambda e=effect: e(frames, depth=depths, state=state, rng=rng)
+    for label, ms in interleaved_ms(singles, repeats, warmup, 20.0, run).items():
+        rows.setdefault(label, {})[(w, h)] = ms
+    if pairs:
+        for label, ms in interleaved_ms(pairs, repeats, warmup, 60.0, run).items():
+            batch_rows.setdefault(label, {})[(w, h)] = ms / batch
 
 
 def run_benchmark(sizes=DEFAULT_SIZES, repeats: int = 200, warmup: int = 10, batch: int = 8,
-                  effects: list[str] | None = None) -> dict[str, Any]:
+                  effects: list[str] | None = None, cold: bool = False) -> dict[str, Any]:
     """Time everything; returns ``{"sizes", "rows": {label: {size: ms}}, "batch": {...}, "machine"}``."""
     import cv2
 
@@ -134,11 +164,12 @@ def run_benchmark(sizes=DEFAULT_SIZES, repeats: int = 200, warmup: int = 10, bat
     try:
         ref = REFERENCE_SIZE if REFERENCE_SIZE in sizes else sizes[0]
         for w, h in sizes:
-            _time_size(w, h, names, repeats, warmup, batch if (w, h) == ref else 0, rows, batch_rows)
+            _time_size(w, h, names, repeats, warmup, batch if (w, h) == ref else 0, rows, batch_rows,
+                       run=0 if cold else 4)
     finally:
         cv2.setNumThreads(threads)
     return {"sizes": list(sizes), "rows": rows, "batch": batch_rows, "batch_size": batch,
-            "machine": machine_line(), "repeats": repeats}
+            "machine": machine_line(), "repeats": repeats, "cold": cold}
 
 
 def format_table(res: dict[str, Any]) -> str:
@@ -177,9 +208,11 @@ def _run(args) -> int:
     if args.repeats < 1 or args.warmup < 0 or args.batch < 0:
         raise ValueError("--repeats must be >= 1, --warmup and --batch >= 0")
     load0 = os.getloadavg()[0]
-    res = run_benchmark(_parse_sizes(args.sizes), args.repeats, args.warmup, args.batch, names)
-    text = (f"Machine: {res['machine']}; one OpenCV thread; median of up to {res['repeats']} calls "
-            f"after warm-up (`weather-gym bench weather`); 1-minute load average {load0:.1f} at the "
+    res = run_benchmark(_parse_sizes(args.sizes), args.repeats, args.warmup, args.batch, names, args.cold)
+    how = ("one call per row per turn, caches as the other rows left them (`--cold`)" if args.cold else
+           "rows taking turns, each turn an untimed call and 4 timed ones back to back")
+    text = (f"Machine: {res['machine']}; one OpenCV thread; median of up to {res['repeats']} calls per row "
+            f"after warm-up, {how} (`weather-gym bench weather`); 1-minute load average {load0:.1f} at the "
             f"start, {os.getloadavg()[0]:.1f} at the end.\n\n{format_table(res)}\n")
     print(text)
     if args.out is not None:

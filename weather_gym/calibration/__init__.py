@@ -1,0 +1,72 @@
+"""Calibration: sweep an effect's k, measure the detector, and read off k per measured severity.
+
+The reference study's method (Fursa et al., Sections 3.5 and 4) as a reusable tool:
+
+* :mod:`~weather_gym.calibration.sweep` - ``run_sweep``: mAP@0.5 (and per-class AP, recall by range)
+  of the detector at each (effect, k, seed) on a fixed rendered set, on the evaluation runner
+  (parallel, resumable, progress bar) -> a tidy ``curves.csv`` (``weather-gym sweep``);
+* :mod:`~weather_gym.calibration.curve` - ``load_curves``, ``invert``: the mean curve over seeds,
+  inverted by interpolation with an interval from the seed spread; unreachable targets reported;
+* :mod:`~weather_gym.calibration.measured` - measured levels from a CSV table or labelled image sets;
+* :mod:`~weather_gym.calibration.shapes` - the study's two shapes (linear, exponential) fitted, R^2;
+* :mod:`~weather_gym.calibration.calibrate` - ``calibrate``, ``remeasure``, ``write_presets``
+  (``weather-gym calibrate``), the format ``weather_gym.weather.presets`` reads;
+* :mod:`~weather_gym.calibration.report` - plots and the Markdown report.
+
+``PHYSICAL_PRESETS`` is the alternative presets file whose ``low_light`` uses the physical dim mode
+(pass it as ``path=`` to ``weather_gym.weather.preset_spec`` or ``--presets`` to ``weather-gym evaluate``).
+See ``docs/calibration.md``.
+
+Example:
+    >>> from weather_gym.calibration import invert
+    >>> round(invert([0.0, 1.0], [1.0, 0.0], 0.25).k, 3)
+    0.75
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from pathlib import Path
+from typing import Any
+
+PHYSICAL_PRESETS = Path(__file__).with_name("presets_physical.toml")
+"""Presets calibrated like the shipped ones, with ``low_light`` = ``dim`` in ``mode="physical"``."""
+
+_LAZY = {
+    "Curve": "weather_gym.calibration.curve",
+    "Inversion": "weather_gym.calibration.curve",
+    "invert": "weather_gym.calibration.curve",
+    "load_curves": "weather_gym.calibration.curve",
+    "monotone_decreasing": "weather_gym.calibration.curve",
+    "MeasuredLevel": "weather_gym.calibration.measured",
+    "load_measured": "weather_gym.calibration.measured",
+    "read_measured_table": "weather_gym.calibration.measured",
+    "measure_datasets": "weather_gym.calibration.measured",
+    "ShapeFit": "weather_gym.calibration.shapes",
+    "fit_shapes": "weather_gym.calibration.shapes",
+    "PresetCalibration": "weather_gym.calibration.calibrate",
+    "calibrate": "weather_gym.calibration.calibrate",
+    "remeasure": "weather_gym.calibration.calibrate",
+    "write_presets": "weather_gym.calibration.calibrate",
+    "SweepCell": "weather_gym.calibration.sweep",
+    "SweepEffect": "weather_gym.calibration.sweep",
+    "make_sweep_cells": "weather_gym.calibration.sweep",
+    "parse_effect": "weather_gym.calibration.sweep",
+    "parse_k_range": "weather_gym.calibration.sweep",
+    "run_sweep": "weather_gym.calibration.sweep",
+    "run_sweep_cell": "weather_gym.calibration.sweep",
+    "plot_curves": "weather_gym.calibration.report",
+    "write_report": "weather_gym.calibration.report",
+}
+
+__all__ = sorted([*_LAZY, "PHYSICAL_PRESETS"])
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'weather_gym.calibration' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

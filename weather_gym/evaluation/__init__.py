@@ -1,0 +1,27 @@
+"""Robustness evaluation: a generic resumable cell runner, the evaluation grid, and its reports.
+
+* :mod:`~weather_gym.evaluation.runner` - ``run_cells(cells, cell_fn, results_path, ...)``: parallel
+  (local processes or Ray), resumable, one tidy CSV row per cell; reused by the calibration sweep.
+* :mod:`~weather_gym.evaluation.evaluate` - ``EvalConfig``, ``make_cells``, ``run_cell``, ``evaluate``:
+  agents x tracks x effects x severities x seeds through weather presets.
+* :mod:`~weather_gym.evaluation.report` - ``write_report``: Markdown table and metric-vs-severity plots.
+
+See ``docs/evaluation.md``. The heavy layers (sim, detector, agents) are imported inside functions.
+
+Example:
+    >>> from weather_gym.evaluation import EvalConfig, make_cells
+    >>> len(make_cells(EvalConfig(effects=("dim",), severities=(0, 4), seeds=(0, 1))))
+    4
+"""
+
+from __future__ import annotations
+
+# (the function ``evaluate`` is not re-exported: it would shadow the module of the same name)
+from weather_gym.evaluation.evaluate import EvalCell, EvalConfig, make_cells, make_eval_env, run_cell
+from weather_gym.evaluation.report import aggregate, write_report
+from weather_gym.evaluation.runner import read_results, run_cells
+
+__all__ = [
+    "EvalCell", "EvalConfig", "aggregate", "make_cells", "make_eval_env", "read_results", "run_cell",
+    "run_cells", "write_report",
+]

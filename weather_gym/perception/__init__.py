@@ -1,0 +1,46 @@
+"""Perception: the ONNX cone detector, detections -> cones, and pycocotools scoring.
+
+Runtime needs onnxruntime only; ``model.py`` and ``train.py`` need the ``train`` extra (torch).
+
+Example:
+    >>> import numpy as np
+    >>> from weather_gym.perception import ConeDetector, detections_to_cones, evaluate
+    >>> from weather_gym.camera import CameraConfig
+    >>> det = ConeDetector()
+    >>> cones = detections_to_cones(det(np.zeros((376, 672, 3), np.uint8)), CameraConfig())
+    >>> cones["ranges"].shape
+    (0,)
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Any
+
+_LAZY = {
+    "ConeDetector": "weather_gym.perception.detector",
+    "Detections": "weather_gym.perception.detector",
+    "DEFAULT_MODEL": "weather_gym.perception.detector",
+    "detections_to_cones": "weather_gym.perception.ranging",
+    "cones_to_observation": "weather_gym.perception.ranging",
+    "evaluate": "weather_gym.perception.scoring",
+    "score_dataset": "weather_gym.perception.scoring",
+    "EvalResult": "weather_gym.perception.scoring",
+    "MIN_BOX_HEIGHT_PX": "weather_gym.perception.labels",
+    "CONE_FIELDS": "weather_gym.perception.cones",
+    "pack_cones": "weather_gym.perception.cones",
+    "unpack_cones": "weather_gym.perception.cones",
+    "cone_list_space": "weather_gym.perception.cones",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'weather_gym.perception' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

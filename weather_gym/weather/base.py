@@ -137,6 +137,7 @@ class Effect:
 
     Subclasses implement ``_run(img, depth, state, rng)`` for one frame (``img`` is a
     C-contiguous uint8 ``H x W x 3`` array that must not be modified) and may override
+    ``_run_into`` (one frame written into a given array: batches then need no extra copy) and
     ``_run_batch`` when frames can be processed together.
     """
 
@@ -192,8 +193,13 @@ class Effect:
                    rng: np.random.Generator) -> np.ndarray:
         out = np.empty_like(imgs)
         for i in range(imgs.shape[0]):
-            out[i] = self._run(imgs[i], None if depth is None else depth[i], states[i], rng)
+            self._run_into(imgs[i], None if depth is None else depth[i], states[i], rng, out[i])
         return out
+
+    def _run_into(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
+                  rng: np.random.Generator, out: np.ndarray) -> None:
+        """One frame written into ``out`` (a C-contiguous uint8 array of the image's shape)."""
+        np.copyto(out, self._run(img, depth, state, rng))
 
 
 def _is_real(v: Any) -> bool:
@@ -288,12 +294,29 @@ class KnobEffect(Effect):
             return img.copy()
         return self._apply(img, depth, state, rng)
 
+    def _run_into(self, img, depth, state, rng, out):
+        if self.k == 0.0:
+            self._idle(img.shape, rng)
+            np.copyto(out, img)
+        else:
+            self._apply_into(img, depth, state, rng, out)
+
     def _idle(self, shape: tuple[int, ...], rng: np.random.Generator) -> None:
         """Called instead of ``_apply`` when ``k == 0`` (stateful effects keep time going)."""
 
     def _apply(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
                rng: np.random.Generator) -> np.ndarray:
-        raise NotImplementedError
+        """The degraded frame (``k > 0``), a new array. Subclasses override this or :meth:`_apply_into`."""
+        if type(self)._apply_into is KnobEffect._apply_into:
+            raise NotImplementedError(f"{type(self).__name__} implements neither _apply nor _apply_into")
+        out = np.empty_like(img)
+        self._apply_into(img, depth, state, rng, out)
+        return out
+
+    def _apply_into(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
+                    rng: np.random.Generator, out: np.ndarray) -> None:
+        """:meth:`_apply` written into ``out``; batches call this frame by frame, with no extra copy."""
+        np.copyto(out, self._apply(img, depth, state, rng))
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.params().items())

@@ -40,6 +40,7 @@ import numpy as np
 from weather_gym.weather._common import (
     add_sensor_noise,
     flat,
+    into,
     linear_of_code,
     readonly,
     srgb_encode,
@@ -122,15 +123,15 @@ class Dim(EgoMotion):
     PARAM_LIMITS: ClassVar = {**EgoMotion.PARAM_LIMITS, "exposure_s": (1e-5, 0.1), "full_well_e": (100.0, 1e6)}
 
     # -- faithful ------------------------------------------------------------------------------
-    def _faithful(self, img: np.ndarray) -> np.ndarray:
+    def _faithful(self, img: np.ndarray, out: np.ndarray) -> np.ndarray:
         factor = 1.0 - self.k
         plan = _scale_plan(factor)
-        f = flat(img)
+        f, o = flat(img), flat(out)
         if plan is None:
-            out = cv2.LUT(f, brightness_lut(factor))
+            into(cv2.LUT(f, brightness_lut(factor), dst=o), o)
         else:
-            out = cv2.convertScaleAbs(f, alpha=plan[0], beta=plan[1])
-        return out.reshape(img.shape)
+            into(cv2.convertScaleAbs(f, dst=o, alpha=plan[0], beta=plan[1]), o)
+        return out
 
     # -- physical ------------------------------------------------------------------------------
     def exposure(self) -> tuple[float, float, float]:
@@ -138,18 +139,19 @@ class Dim(EgoMotion):
         return auto_exposure(2.0 ** (-self.k * self.stops), self.exposure_s, self.max_exposure_s,
                              self.max_gain)
 
-    def _physical(self, img, depth, state, rng) -> np.ndarray:
+    def _physical(self, img, depth, state, rng, out) -> None:
         t, gain, residual = self.exposure()
-        out = self.smear(img, depth, state, t - self.exposure_s)
+        smeared = self.smear(img, depth, state, t - self.exposure_s)  # img itself when there is no blur
         mean, sigma = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)
-        return add_sensor_noise(np.ascontiguousarray(out), mean, sigma, rng)
+        add_sensor_noise(smeared, mean, sigma, rng, out)
 
-    def _apply(self, img, depth, state, rng):
+    def _apply_into(self, img, depth, state, rng, out):
         if self.mode == "faithful":
-            return self._faithful(img)
-        return self._physical(img, depth, state, rng)
+            self._faithful(img, out)
+        else:
+            self._physical(img, depth, state, rng, out)
 
     def _run_batch(self, imgs, depth, states, rng):
         if self.mode == "faithful":
-            return imgs.copy() if self.k == 0.0 else self._faithful(imgs)
+            return imgs.copy() if self.k == 0.0 else self._faithful(imgs, np.empty_like(imgs))
         return super()._run_batch(imgs, depth, states, rng)

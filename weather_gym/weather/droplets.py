@@ -9,9 +9,9 @@ around the image centre, so coverage is densest where the far cones are. Below a
 image width the study's algorithm draws no disc at all.
 
 **Speed**: the study drew every disc on two full-image copies and blended the whole frame per disc.
-Here each disc is drawn and blended only inside its own bounding box, with the same OpenCV calls,
-so the output is identical to the study's recipe (:func:`weather_gym.weather.reference.study_droplets`)
-byte for byte, for the same layout.
+Here each disc is blended only inside its own bounding box, with the study's own ``addWeighted``
+(:func:`render_discs`), so the output is identical to the study's recipe
+(:func:`weather_gym.weather.reference.study_droplets`) byte for byte, for the same layout.
 
 **Persistent mode** (``persistent=True``): real droplets stick to the lens. The first frame of an
 episode is the study's layout; from then on droplets stay where they are, grow slowly
@@ -50,35 +50,47 @@ __all__ = ["Droplets", "render_discs"]
 
 
 @lru_cache(maxsize=64)
-def _stencil(r: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(mask, white)``: a filled disc of radius ``r`` drawn by ``cv2.circle``, and a white patch."""
+def _white_disc(r: int) -> np.ndarray:
+    """A filled white disc of radius ``r`` drawn by ``cv2.circle`` on black, RGB (read-only)."""
     mask = np.zeros((2 * r + 1, 2 * r + 1), np.uint8)
-    cv2.circle(mask, (r, r), r, 1, -1)
-    white = np.full((2 * r + 1, 2 * r + 1, 3), 255, np.uint8)
-    mask.setflags(write=False)
-    white.setflags(write=False)
-    return mask, white
+    cv2.circle(mask, (r, r), r, 255, -1)
+    disc = cv2.cvtColor(mask, cv2.COLOR_GRAY2RGB)
+    disc.setflags(write=False)
+    return disc
 
 
-def render_discs(img: np.ndarray, centres: np.ndarray, radii: np.ndarray, alpha: float) -> np.ndarray:
-    """Blend white discs one after another, each only inside its bounding box (new array).
+def render_discs(img: np.ndarray, centres, radii, alpha: float, out: np.ndarray | None = None) -> np.ndarray:
+    """Blend white discs one after another, each only inside its bounding box (into ``out`` or new).
 
-    Identical, pixel for pixel, to drawing each disc on a full-image copy and blending the whole
-    frame with ``cv2.addWeighted(overlay, alpha, frame, 1 - alpha, 0)`` as the study did: inside
-    a disc the same ``addWeighted`` of white and the pixel, outside it the pixel unchanged.
+    ``centres``: ``(x, y)`` pairs, ``radii``: one int per disc (arrays or lists). Identical, pixel
+    for pixel, to drawing each disc on a full-image copy and blending the whole frame with
+    ``cv2.addWeighted(overlay, alpha, frame, 1 - alpha, 0)`` as the study did. Per disc, two
+    OpenCV calls on its bounding box: the same ``addWeighted`` of the white disc (black around it)
+    and the pixels, then the maximum of that and the pixels. Inside the disc the blend towards
+    white is never below the pixel, so the maximum is the study's value; outside it the blend is
+    ``(1 - alpha) I <= I``, so the pixel stays as it was.
     """
-    out = img.copy()
+    if out is None:
+        out = img.copy()
+    else:
+        np.copyto(out, img)
     h, w = img.shape[:2]
     beta = 1.0 - alpha
-    for (cx, cy), r in zip(np.asarray(centres).tolist(), np.asarray(radii).tolist(), strict=True):
+    if isinstance(centres, np.ndarray):
+        centres = centres.tolist()
+    if isinstance(radii, np.ndarray):
+        radii = radii.tolist()
+    last_r, disc = -1, None
+    for (cx, cy), r in zip(centres, radii, strict=True):
         x0, y0 = max(cx - r, 0), max(cy - r, 0)
         x1, y1 = min(cx + r + 1, w), min(cy + r + 1, h)
         if x0 >= x1 or y0 >= y1:
             continue
-        mask, white = _stencil(r)
-        sy, sx = slice(y0 - cy + r, y1 - cy + r), slice(x0 - cx + r, x1 - cx + r)
+        if r != last_r:
+            disc, last_r = _white_disc(r), r
         roi = out[y0:y1, x0:x1]
-        cv2.copyTo(cv2.addWeighted(white[sy, sx], alpha, roi, beta, 0), mask[sy, sx], roi)
+        blend = cv2.addWeighted(disc[y0 - cy + r:y1 - cy + r, x0 - cx + r:x1 - cx + r], alpha, roi, beta, 0)
+        cv2.max(roi, blend, dst=roi)
     return out
 
 
@@ -204,14 +216,13 @@ class Droplets(KnobEffect):
         if self.persistent:
             self._advance(shape, rng)
 
-    def _apply(self, img, depth, state, rng):
+    def _apply_into(self, img, depth, state, rng, out):
         alpha = self.k * self.fog_coef
         if self.persistent:
             d = self._advance(img.shape, rng)
             centres = np.rint(np.stack([d.x, d.y], axis=1)).astype(np.int64)
             radii = np.rint(d.r).astype(np.int64)
         else:
-            c, radius = self._layout(img.shape[0], img.shape[1], rng)
-            centres = c.astype(np.int64)
-            radii = np.full(len(c), radius, dtype=np.int64)
-        return render_discs(img, centres, radii, alpha)
+            _, radius, centres = fog_layout(img.shape[0], img.shape[1], self.fog_coef, rng)
+            radii = [radius] * len(centres)
+        render_discs(img, centres, radii, alpha, out)

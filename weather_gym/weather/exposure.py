@@ -23,7 +23,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
-from weather_gym.weather._common import flat, linear_of_code, readonly, srgb_encode
+from weather_gym.weather._common import flat, into, linear_of_code, readonly, srgb_encode
 from weather_gym.weather.base import KnobEffect
 from weather_gym.weather.registry import register_effect
 
@@ -58,8 +58,8 @@ class Exposure(KnobEffect):
         sign = -1.0 if self.direction == "under" else 1.0
         return exposure_lut(sign * self.k * self.max_stops, self.k * self.gamma_error, self.k * self.flare)
 
-    def _apply(self, img, depth, state, rng):
-        return cv2.LUT(flat(img), self._lut()).reshape(img.shape)
+    def _apply_into(self, img, depth, state, rng, out):
+        into(cv2.LUT(flat(img), self._lut(), dst=flat(out)), flat(out))
 
     def _run_batch(self, imgs, depth, states, rng):
-        return imgs.copy() if self.k == 0.0 else self._apply(imgs, None, {}, rng)
+        return imgs.copy() if self.k == 0.0 else self._apply(imgs, None, {}, rng)  # one LUT pass

@@ -33,13 +33,13 @@ import cv2
 import numpy as np
 
 from weather_gym.weather._common import (
+    blend_into,
+    blend_terms,
     focal_px,
     ground_depth,
-    lerp_to_gray,
     ray_factor,
     readonly,
     scene_depth,
-    weight3,
 )
 from weather_gym.weather.geometry import CameraGeometry
 from weather_gym.weather.registry import register_effect
@@ -50,16 +50,17 @@ __all__ = ["Fog", "KOSCHMIEDER"]
 KOSCHMIEDER = 3.912
 
 
-def _fog_weights(rng_m: np.ndarray, beta: float) -> np.ndarray:
-    """uint8 3-channel ``1 - exp(-beta * range)``."""
-    return weight3(1.0 - cv2.exp(rng_m * np.float32(-beta)))
+def _fog_weights(z: np.ndarray, ray: np.ndarray, beta: float) -> np.ndarray:
+    """uint8 ``255 (1 - exp(-beta * z * ray))``, single channel."""
+    t = cv2.exp(cv2.multiply(z, ray, scale=-beta))
+    return cv2.convertScaleAbs(t, alpha=-255.0, beta=255.0)
 
 
 @lru_cache(maxsize=16)
-def _fallback_weights(h: int, w: int, fx: float, beta: float, camera_height_m: float,
-                      horizon_frac: float, far_m: float) -> np.ndarray:
-    rng_m = ground_depth(h, w, fx, camera_height_m, horizon_frac, far_m) * ray_factor(h, w, fx)
-    return readonly(_fog_weights(rng_m, beta))
+def _fallback_terms(h: int, w: int, fx: float, beta: float, camera_height_m: float,
+                    horizon_frac: float, far_m: float, gray: float) -> tuple[np.ndarray, np.ndarray]:
+    z = ground_depth(h, w, fx, camera_height_m, horizon_frac, far_m)
+    return tuple(readonly(a) for a in blend_terms(_fog_weights(z, ray_factor(h, w, fx), beta), gray))
 
 
 @register_effect
@@ -79,12 +80,14 @@ class Fog(CameraGeometry):
         """Extinction coefficient (1/m) at this k."""
         return self.k * KOSCHMIEDER / self.min_visibility_m
 
-    def _apply(self, img, depth, state, rng):
+    def _apply_into(self, img, depth, state, rng, out):
         h, w = img.shape[:2]
         fx = focal_px(state, w, self.hfov_deg)
-        if depth is None:
-            wts = _fallback_weights(h, w, fx, self.beta, self.camera_height_m, self.horizon_frac, self.far_m)
+        gray = 255.0 * self.airlight
+        if depth is None:  # cached per size and k
+            terms = _fallback_terms(h, w, fx, self.beta, self.camera_height_m, self.horizon_frac,
+                                    self.far_m, gray)
         else:
             z = scene_depth(depth, h, w, fx, self.camera_height_m, self.horizon_frac, self.far_m, self.name)
-            wts = _fog_weights(cv2.multiply(z, ray_factor(h, w, fx)), self.beta)
-        return lerp_to_gray(img, 255.0 * self.airlight, wts)
+            terms = blend_terms(_fog_weights(z, ray_factor(h, w, fx), self.beta), gray)
+        blend_into(img, terms, out)

@@ -21,11 +21,11 @@ import numpy as np
 
 from weather_gym.weather._common import (
     DEFAULT_HFOV_DEG,
+    depth_min,
     focal_px,
-    lerp_u8,
+    into,
     readonly,
     scene_depth,
-    weight3,
 )
 from weather_gym.weather.base import KnobEffect
 
@@ -43,15 +43,23 @@ def _zoom(img: np.ndarray, c: float) -> np.ndarray:
     return big[y0:y0 + h, x0:x0 + w]
 
 
+def _shrink(img: np.ndarray, f: int) -> np.ndarray:
+    """``img`` reduced ``f`` times (2 or 4) by area averaging, in halving steps (OpenCV's fast path)."""
+    for _ in range(f // 2):
+        h, w = img.shape[:2]
+        img = cv2.resize(img, (max(w // 2, 1), max(h // 2, 1)), interpolation=cv2.INTER_AREA)
+    return img
+
+
 def _zoom_blur(img: np.ndarray, scale: float) -> np.ndarray:
-    """Average of the image magnified by factors from 1 to ``1 + scale``.
+    """Average of the image magnified by factors from 1 to ``1 + scale`` (new array).
 
     Computed at half resolution, or quarter resolution when the smear is long anyway (> 16 px).
     """
     h, w = img.shape[:2]
     disp = scale * 0.5 * math.hypot(w, h)  # largest displacement, full-resolution pixels
     f = 4 if disp > 16 and min(h, w) >= 16 else 2
-    small = cv2.resize(img, (max(w // f, 1), max(h // f, 1)), interpolation=cv2.INTER_AREA)
+    small = _shrink(img, f)
     m = min(max(math.ceil(math.log2(disp / f + 1)), 1), 3)
     c = (1.0 + scale) ** (1.0 / (2 ** m - 1))
     acc = small
@@ -60,41 +68,73 @@ def _zoom_blur(img: np.ndarray, scale: float) -> np.ndarray:
     return cv2.resize(acc, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def _near_weights(depth: np.ndarray, near_m: float) -> np.ndarray:
-    return weight3(cv2.divide(near_m, cv2.max(depth, 1e-3)))
+def _near_weights(depth: np.ndarray, near_m: float, lo: float) -> tuple[np.ndarray, np.ndarray]:
+    """uint8 3-channel ``255 min(near / Z, 1)`` and its complement ``255 - that`` (``lo``: min depth)."""
+    z = depth if lo >= 1e-3 else cv2.max(depth, 1e-3)
+    w1 = cv2.convertScaleAbs(np.divide(np.float32(255.0 * near_m), z))  # saturates: min(near / Z, 1)
+    return cv2.cvtColor(w1, cv2.COLOR_GRAY2RGB), cv2.cvtColor(cv2.bitwise_not(w1), cv2.COLOR_GRAY2RGB)
 
 
-_WEIGHT_CACHE: dict[tuple, np.ndarray] = {}
+def _hbox(img: np.ndarray, n: int, out: np.ndarray) -> np.ndarray:
+    """Horizontal box of ``n`` px into ``out`` (``cv2.blur``, border replicated; its generic path is
+    3x slower than its 3- and 5-tap ones, so 2 taps are an average of two shifted views)."""
+    if n == 2 and img.shape[1] > 1:  # taps x - 1 and x, as cv2.blur anchors an even box
+        into(cv2.addWeighted(img[:, :-1], 0.5, img[:, 1:], 0.5, 0, dst=out[:, 1:]), out[:, 1:])
+        out[:, 0] = img[:, 0]
+        return out
+    return into(cv2.blur(img, (n, 1), dst=out, borderType=cv2.BORDER_REPLICATE), out)
+
+
+_WEIGHT_CACHE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _fallback_weights(key: tuple, who: str) -> tuple[np.ndarray, np.ndarray]:
+    wts = _WEIGHT_CACHE.get(key)
+    if wts is None:
+        h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m = key
+        z = scene_depth(None, h, w, fx, camera_height_m, horizon_frac, far_m, who)
+        wts = tuple(readonly(a) for a in _near_weights(z, near_depth_m, float(z.min())))
+        wts = _WEIGHT_CACHE.setdefault(key, wts)
+        if len(_WEIGHT_CACHE) > 16:
+            _WEIGHT_CACHE.pop(next(iter(_WEIGHT_CACHE)), None)
+    return wts
 
 
 def motion_smear(img: np.ndarray, depth: np.ndarray | None, state: dict[str, float], exposure_s: float, *,
                  speed_mps: float, yaw_rate_rps: float, hfov_deg: float, camera_height_m: float,
-                 horizon_frac: float, near_depth_m: float, far_m: float, who: str) -> np.ndarray:
-    """Blur ``img`` by the car's motion during ``exposure_s`` seconds (may return ``img`` itself)."""
+                 horizon_frac: float, near_depth_m: float, far_m: float, who: str,
+                 out: np.ndarray | None = None) -> np.ndarray:
+    """Blur ``img`` by the car's motion during ``exposure_s`` seconds.
+
+    The result goes to ``out`` when given (and is returned); without ``out`` it is a new array, or
+    ``img`` itself when there is no blur.
+    """
     h, w = img.shape[:2]
     fx = focal_px(state, w, hfov_deg)
     speed = abs(state.get("speed", speed_mps))
     yaw = abs(state.get("yaw_rate", yaw_rate_rps))
-    out = img
     scale = speed * exposure_s / near_depth_m
-    if scale * 0.5 * math.hypot(w, h) >= 1.0:
-        key = (h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m)
-        if depth is None:
-            wts = _WEIGHT_CACHE.get(key)
-            if wts is None:
-                z = scene_depth(None, h, w, fx, camera_height_m, horizon_frac, far_m, who)
-                wts = _WEIGHT_CACHE.setdefault(key, readonly(_near_weights(z, near_depth_m)))
-                if len(_WEIGHT_CACHE) > 16:
-                    _WEIGHT_CACHE.pop(next(iter(_WEIGHT_CACHE)))
-        else:
-            z = scene_depth(depth, h, w, fx, camera_height_m, horizon_frac, far_m, who)
-            wts = _near_weights(z, near_depth_m)
-        out = lerp_u8(out, _zoom_blur(out, scale), wts)
+    zoom = scale * 0.5 * math.hypot(w, h) >= 1.0
     length = fx * yaw * exposure_s
-    if length >= 1.5:
-        n = int(round(length))
-        out = cv2.blur(out, (n, 1), borderType=cv2.BORDER_REPLICATE)
-    return out
+    n = int(round(length)) if length >= 1.5 else 0
+    src = img
+    if zoom:
+        if depth is None:
+            w3, inv3 = _fallback_weights((h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m), who)
+        else:
+            w3, inv3 = _near_weights(depth, near_depth_m, depth_min(depth, who))
+        # img + (zoom blur - img) * w / 255, as two products and a sum
+        blurred = _zoom_blur(img, scale)
+        cv2.multiply(blurred, w3, dst=blurred, scale=1 / 255)
+        dst = out if out is not None and not n else np.empty_like(img)
+        src = into(cv2.add(cv2.multiply(img, inv3, scale=1 / 255), blurred, dst=dst), dst)
+    if n:
+        dst = out if out is not None else np.empty_like(img)
+        src = _hbox(src, n, dst)
+    if out is not None and src is not out:
+        np.copyto(out, src)
+        return out
+    return src
 
 
 @dataclass(frozen=True)
@@ -135,9 +175,9 @@ class EgoMotion(CameraGeometry):
     }
 
     def smear(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
-              exposure_s: float) -> np.ndarray:
-        """Motion blur of ``exposure_s`` seconds (may return ``img`` itself when there is none)."""
+              exposure_s: float, out: np.ndarray | None = None) -> np.ndarray:
+        """Motion blur of ``exposure_s`` seconds, into ``out`` when given (else may return ``img`` itself)."""
         return motion_smear(img, depth, state, exposure_s, speed_mps=self.speed_mps,
                             yaw_rate_rps=self.yaw_rate_rps, hfov_deg=self.hfov_deg,
                             camera_height_m=self.camera_height_m, horizon_frac=self.horizon_frac,
-                            near_depth_m=self.near_depth_m, far_m=self.far_m, who=self.name)
+                            near_depth_m=self.near_depth_m, far_m=self.far_m, who=self.name, out=out)

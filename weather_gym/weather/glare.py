@@ -10,7 +10,8 @@ per-pixel weight ``k * (flare + veil + bloom)``:
 * ``bloom``: light spread (Gaussian, ``bloom_spread`` of the width) from the frame's own bright
   areas (above ``bloom_threshold``).
 
-The flare pattern is cached per image size; bloom is computed at quarter resolution.
+The flare weights are cached per image size and k; bloom is computed at quarter resolution, all
+weights in 8 bits.
 
 Example:
     >>> import numpy as np
@@ -29,7 +30,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
-from weather_gym.weather._common import lerp_u8, readonly, weight3
+from weather_gym.weather._common import blend_into, blend_terms, readonly, smooth
 from weather_gym.weather.base import KnobEffect
 from weather_gym.weather.registry import register_effect
 
@@ -58,9 +59,20 @@ def flare_pattern(h: int, w: int, sx: float, sy: float, radius_frac: float, ghos
     return readonly(np.clip(pattern + canvas, 0.0, 1.0).astype(np.float32))
 
 
-@lru_cache(maxsize=8)
-def _color(h: int, w: int) -> np.ndarray:
-    return readonly(np.full((h, w, 3), _WARM_WHITE, np.uint8))
+@lru_cache(maxsize=16)
+def _flare_weights(h: int, w: int, sx: float, sy: float, radius_frac: float, ghosts: int, veil: float,
+                   k: float) -> np.ndarray:
+    """uint8 ``255 k (flare + veil)`` (saturated), single channel."""
+    pattern = flare_pattern(h, w, sx, sy, radius_frac, ghosts)
+    return readonly(cv2.convertScaleAbs(pattern, alpha=255.0 * k, beta=255.0 * k * veil))
+
+
+@lru_cache(maxsize=16)
+def _flare_terms(h: int, w: int, sx: float, sy: float, radius_frac: float, ghosts: int, veil: float,
+                 k: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`blend_terms` of the flare alone (no bloom), cached."""
+    w1 = _flare_weights(h, w, sx, sy, radius_frac, ghosts, veil, k)
+    return tuple(readonly(a) for a in blend_terms(w1, _WARM_WHITE))
 
 
 @register_effect
@@ -89,18 +101,20 @@ class Glare(KnobEffect):
     }
 
     def _bloom(self, img: np.ndarray) -> np.ndarray:
+        """uint8 ``255 k bloom spread`` at full size, single channel (computed at quarter size)."""
         h, w = img.shape[:2]
         small = cv2.resize(img, (max(w // 4, 1), max(h // 4, 1)), interpolation=cv2.INTER_LINEAR)
         gray = cv2.cvtColor(small, cv2.COLOR_RGB2GRAY)
         _, bright = cv2.threshold(gray, 255 * self.bloom_threshold, 255, cv2.THRESH_TOZERO)
-        sigma = max(self.bloom_spread * w / 4, 0.5)  # quarter resolution
-        spread = cv2.GaussianBlur(bright.astype(np.float32) / 255.0, (0, 0), sigma)
+        spread = smooth(bright, max(self.bloom_spread * w / 4, 0.5))  # quarter resolution
+        spread = cv2.convertScaleAbs(spread, alpha=self.k * self.bloom)
         return cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
 
-    def _apply(self, img, depth, state, rng):
+    def _apply_into(self, img, depth, state, rng, out):
         h, w = img.shape[:2]
-        wts = flare_pattern(h, w, self.source_x, self.source_y, self.radius_frac, self.ghosts) + np.float32(self.veil)
+        flare = (h, w, self.source_x, self.source_y, self.radius_frac, self.ghosts, self.veil, self.k)
         if self.bloom > 0:
-            wts = cv2.scaleAdd(self._bloom(img), self.bloom, wts)
-        wts = wts * np.float32(self.k)
-        return lerp_u8(img, _color(h, w), weight3(wts))
+            terms = blend_terms(cv2.add(_flare_weights(*flare), self._bloom(img)), _WARM_WHITE)
+        else:
+            terms = _flare_terms(*flare)
+        blend_into(img, terms, out)

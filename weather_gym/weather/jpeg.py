@@ -1,8 +1,9 @@
 """JPEG compression artefacts (a camera or a radio link squeezing its bandwidth).
 
 **Meaning of k**: the JPEG quality drops linearly from 100 at k = 0 to ``min_quality`` at k = 1:
-``quality = round(100 - k * (100 - min_quality))``. Encoded and decoded with OpenCV (libjpeg), in
-the colour order JPEG expects, with 4:2:0 chroma subsampling unless ``chroma_subsampling=False``.
+``quality = round(100 - k * (100 - min_quality))``. Encoded and decoded with OpenCV (libjpeg-turbo),
+in the colour order JPEG expects (decoded straight to RGB), with 4:2:0 chroma subsampling unless
+``chroma_subsampling=False``.
 
 Example:
     >>> import numpy as np
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import cv2
+import numpy as np
 
 from weather_gym.weather.base import KnobEffect
 from weather_gym.weather.registry import register_effect
@@ -42,12 +44,27 @@ class Jpeg(KnobEffect):
     def quality(self) -> int:
         return int(round(100 - self.k * (100 - self.min_quality)))
 
-    def _apply(self, img, depth, state, rng):
+    def _params(self) -> list[int]:
         sampling = (cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420 if self.chroma_subsampling
                     else cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444)
-        ok, buf = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR),
-                               [cv2.IMWRITE_JPEG_QUALITY, self.quality,
-                                cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling])
+        return [cv2.IMWRITE_JPEG_QUALITY, self.quality, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling]
+
+    def _code(self, bgr: np.ndarray, params: list[int]) -> np.ndarray:
+        """Encode a BGR frame, decode straight to RGB."""
+        ok, buf = cv2.imencode(".jpg", bgr, params)
         if not ok:  # pragma: no cover - libjpeg does not fail on valid uint8 images
             raise RuntimeError("jpeg: OpenCV could not encode the image")
-        return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        return cv2.imdecode(buf, cv2.IMREAD_COLOR_RGB)
+
+    def _apply(self, img, depth, state, rng):
+        return self._code(cv2.cvtColor(img, cv2.COLOR_RGB2BGR), self._params())
+
+    def _run_batch(self, imgs, depth, states, rng):
+        if self.k == 0.0:
+            return imgs.copy()
+        params = self._params()
+        out = np.empty_like(imgs)
+        bgr = np.empty_like(imgs[0])  # one reused (cache-warm) buffer
+        for i in range(imgs.shape[0]):
+            out[i] = self._code(cv2.cvtColor(imgs[i], cv2.COLOR_RGB2BGR, dst=bgr), params)
+        return out

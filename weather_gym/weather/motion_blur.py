@@ -47,6 +47,5 @@ class MotionBlur(EgoMotion):
 
     PARAM_BOUNDS: ClassVar = {"exposure_s": (0.001, 0.1), "near_depth_m": (0.5, 20.0)}
 
-    def _apply(self, img, depth, state, rng):
-        out = self.smear(img, depth, state, self.k * state.get("exposure_s", self.exposure_s))
-        return out if out is not img else img.copy()
+    def _apply_into(self, img, depth, state, rng, out):
+        self.smear(img, depth, state, self.k * state.get("exposure_s", self.exposure_s), out=out)

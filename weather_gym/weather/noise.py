@@ -4,7 +4,11 @@
 ``g`` a pixel of linear value ``x`` gets noise of variance ``g * x / full_well_e +
 (g * read_noise_e / full_well_e)^2`` (full scale = 1): shot noise grows with the signal, read noise
 is constant. The noise is added in linear light and carried to 8-bit sRGB values through the slope
-of the sRGB curve, per pixel and channel, independently every frame.
+of the sRGB curve, per pixel and channel, new every frame: a Gaussian with that signal-dependent
+sigma (no per-pixel Poisson draw), each value a fresh random sign times a standard-normal
+magnitude (256 equiprobable levels) read from a fixed table through a window the generator moves
+every frame (:func:`~weather_gym.weather._common.add_sensor_noise`): independent within a frame,
+uncorrelated between frames.
 
 Example:
     >>> import numpy as np
@@ -60,10 +64,10 @@ class Noise(KnobEffect):
     def _sigma(self) -> np.ndarray:
         return noise_sigma_lut(self.k * self.max_gain, self.full_well_e, self.read_noise_e)
 
-    def _apply(self, img, depth, state, rng):
-        return add_sensor_noise(img, None, self._sigma(), rng)
+    def _apply_into(self, img, depth, state, rng, out):
+        add_sensor_noise(img, None, self._sigma(), rng, out)
 
     def _run_batch(self, imgs, depth, states, rng):
         if self.k == 0.0:
             return imgs.copy()
-        return add_sensor_noise(imgs, None, self._sigma(), rng)
+        return add_sensor_noise(imgs, None, self._sigma(), rng)  # one draw, shared tables

@@ -23,7 +23,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
-from weather_gym.weather._common import lerp_to_gray
+from weather_gym.weather._common import blend_into, blend_terms
 from weather_gym.weather.base import KnobEffect
 from weather_gym.weather.registry import register_effect
 
@@ -69,8 +69,8 @@ class Rain(KnobEffect):
                       self.thickness, cv2.LINE_AA)
         return mask
 
-    def _apply(self, img, depth, state, rng):
+    def _apply_into(self, img, depth, state, rng, out):
         h, w = img.shape[:2]
         veil = self.k * self.haze
         w8 = cv2.convertScaleAbs(self.streaks(h, w, rng), alpha=self.streak_alpha * (1 - veil), beta=255 * veil)
-        return lerp_to_gray(img, 255.0 * self.brightness, cv2.cvtColor(w8, cv2.COLOR_GRAY2RGB))
+        blend_into(img, blend_terms(w8, 255.0 * self.brightness), out)

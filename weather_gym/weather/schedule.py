@@ -99,18 +99,24 @@ class Ramp(Effect):
         if not batched:
             return self._frame(img, depth, state, rng)
         out = np.empty_like(img)
-        for i in range(img.shape[0]):
-            out[i] = self._frame(img[i], None if depth is None else depth[i], state[i], rng)
+        for i in range(img.shape[0]):  # each frame written straight into the batch
+            cur = self._advance()
+            cur._run_into(img[i], None if depth is None else depth[i], state[i],
+                          rng if rng is not None else cur._episode_rng(), out[i])
         return out
 
-    def _frame(self, img, depth, state, rng):
+    def _advance(self) -> KnobEffect:
+        """The effect for the next frame (its k for this step); counts the frame."""
         if self._rng is None:
             self.reset(None)
         k = self.k_at(self._step)
         if not math.isclose(k, self._current.k, rel_tol=0, abs_tol=1e-12):
             object.__setattr__(self, "_current", self._current.with_params(k=k))
         object.__setattr__(self, "_step", self._step + 1)
-        return self._current._process(img, depth, state, rng, False)
+        return self._current
+
+    def _frame(self, img, depth, state, rng):
+        return self._advance()._process(img, depth, state, rng, False)
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.params().items())

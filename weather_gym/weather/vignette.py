@@ -22,7 +22,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
-from weather_gym.weather._common import readonly
+from weather_gym.weather._common import into, readonly
 from weather_gym.weather.base import KnobEffect
 from weather_gym.weather.registry import register_effect
 
@@ -53,7 +53,7 @@ class Vignette(KnobEffect):
     PARAM_BOUNDS: ClassVar = {"exponent": (0.5, 8.0)}
     PARAM_LIMITS: ClassVar = {"center_x": (0.0, 1.0), "center_y": (0.0, 1.0)}
 
-    def _apply(self, img, depth, state, rng):
+    def _apply_into(self, img, depth, state, rng, out):
         h, w = img.shape[:2]
         g = _gain_map(h, w, self.k, self.exponent, self.center_x, self.center_y)
-        return cv2.multiply(img, g, scale=1 / 255)
+        into(cv2.multiply(img, g, dst=out, scale=1 / 255), out)

@@ -1,0 +1,95 @@
+"""``weather-gym lap``: options, refusals, and short runs through the whole pipeline."""
+
+from __future__ import annotations
+
+import cv2
+import pytest
+
+from weather_gym.cli import main
+from weather_gym.cli.lap import parse_agent_args
+
+
+def test_help_explains_itself(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["lap", "--help"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    for needle in ("--track", "--agent", "--weather", "--perception", "--laps", "--video", "--strip",
+                   "--overwrite", "oracle", "droplets:0.55", "Exit status"):
+        assert needle in text, needle
+
+
+def test_agent_args_are_parsed():
+    assert parse_agent_args(["v_max=12", "a_lat_max=4.5", "path=runs/a.zip", "flag=true"]) == {
+        "v_max": 12, "a_lat_max": 4.5, "path": "runs/a.zip", "flag": True}
+    with pytest.raises(ValueError, match="KEY=VALUE"):
+        parse_agent_args(["v_max"])
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--laps", "0"], "--laps must be >= 1"),
+    (["--agent", "nope"], "unknown agent 'nope'"),
+    (["--video", "out.avi"], "expected a file ending in .mp4"),
+    (["--agent-arg", "oops"], "KEY=VALUE"),
+    (["--detector", "missing.onnx"], "missing.onnx not found"),
+])
+def test_bad_options_are_user_errors(args, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["lap", *args]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_existing_outputs_are_never_overwritten(tmp_path, capsys):
+    video = tmp_path / "lap.mp4"
+    video.write_bytes(b"precious")
+    assert main(["lap", "--video", str(video)]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert video.read_bytes() == b"precious"
+
+
+@pytest.mark.slow
+def test_short_run_writes_video_and_strip(tmp_path, capsys):
+    video, strip = tmp_path / "lap.mp4", tmp_path / "strip.png"
+    code = main(["lap", "--track", "small_track", "--max-steps", "45", "--video", str(video), "--strip", str(strip),
+                 "--strip-frames", "3", "--env", "WeatherGym/ConeTrackSmall-v0"])
+    out = capsys.readouterr().out
+    assert code == 1  # one lap was asked for and the step limit came first
+    assert "laps completed: 0/1 (step limit (45 steps))" in out and "cross-track error: mean" in out
+    cap = cv2.VideoCapture(str(video))
+    frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    ok, first = cap.read()
+    cap.release()
+    assert ok and frames == 46 and first.shape == (188, 336, 3)  # reset frame + 45 steps
+    grid = cv2.imread(str(strip))
+    assert grid is not None and grid.shape[1] == 3 * 336 + 2 * 2
+    # again, without --overwrite: refused; with it: replaced
+    assert main(["lap", "--max-steps", "5", "--video", str(video)]) == 2
+    assert main(["lap", "--max-steps", "5", "--video", str(video), "--overwrite",
+                 "--env", "WeatherGym/ConeTrackSmall-v0"]) == 1
+
+
+@pytest.mark.slow
+def test_mapper_stack_laps_with_oracle_perception(capsys):
+    code = main(["lap", "--track", "hairpin", "--agent", "mapper_pure_pursuit", "--perception", "oracle",
+                 "--env", "WeatherGym/ConeTrackSmall-v0"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "lap 1:" in out and "laps completed: 1/1" in out
+    assert "cones hit: 0   off-track events: 0" in out
+    assert "map:" in out and "confirmed cones" in out
+
+
+@pytest.mark.slow
+def test_weather_goes_into_the_pipeline(tmp_path, capsys):
+    strip = tmp_path / "wet.png"
+    clear = tmp_path / "clear.png"
+    base = ["lap", "--agent", "mapper_pure_pursuit", "--perception", "oracle", "--max-steps", "10",
+            "--env", "WeatherGym/ConeTrackSmall-v0", "--strip-frames", "1"]
+    assert main([*base, "--weather", "droplets:0.55", "--strip", str(strip)]) == 1
+    out = capsys.readouterr().out
+    assert "weather droplets:0.55" in out and "perception oracle" in out
+    assert main([*base, "--strip", str(clear)]) == 1
+    assert "weather clear" in capsys.readouterr().out
+    # the recorded camera view is the weathered one
+    wet, dry = cv2.imread(str(strip)), cv2.imread(str(clear))
+    assert wet.shape == dry.shape and float(cv2.absdiff(wet, dry).mean()) > 2.0

@@ -1,0 +1,55 @@
+"""``weather-gym evaluate``: clear errors before any cell runs; a tiny real run end to end, resumed."""
+
+from __future__ import annotations
+
+import csv
+
+import pytest
+
+from weather_gym.cli import main
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--agent", "nope"], "unknown agent 'nope'; valid names: gt_pure_pursuit, mapper_pure_pursuit"),
+        (["--effects", "droplets,snow"], "unknown weather condition 'snow'; valid conditions: droplets, low_light"),
+        (["--severities", "0,7"], "invalid severity 7; valid severities: 0, 1, 2, 3, 4"),
+        (["--severities", "0,x"], "--severities: 'x' is not an integer"),
+        (["--tracks", ","], "the list of tracks is empty"),
+        (["--seeds", "0"], "--seeds must be >= 1"),
+        (["--workers", "0"], "--workers must be >= 1"),
+        (["--agent-kwargs", "{v_max: 3}"], "--agent-kwargs: not valid JSON"),
+        (["--presets", "missing.toml"], "--presets: missing.toml not found"),
+    ],
+)
+def test_bad_input_is_refused_before_any_cell_runs(tmp_path, capsys, args, message):
+    out = tmp_path / "out"
+    assert main(["evaluate", *args, "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_unwritable_output_is_refused(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["evaluate", "--agent", "gt_pure_pursuit", "--out", str(blocker / "out")]) == 2
+    assert "cannot write results to" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_tiny_evaluation_end_to_end_and_resume(tmp_path, capsys):
+    out = tmp_path / "eval"
+    args = ["evaluate", "--agent", "gt_pure_pursuit", "--perception", "camera", "--effects", "dim",
+            "--severities", "0,4", "--seeds", "1", "--max-steps", "20", "--env-id", "WeatherGym/ConeTrackSmall-v0",
+            "--backend", "serial", "--no-progress", "--out", str(out)]
+    assert main(args) == 0
+    assert "2 ok, 0 failed" in capsys.readouterr().out
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert [(r["effect"], r["severity"], r["status"], r["steps"]) for r in rows] == [
+        ("dim", "0", "ok", "20"), ("dim", "4", "ok", "20")]
+    assert (out / "plots" / "progress.png").exists()
+    assert "| gt_pure_pursuit | small_track | dim | 4 | 1/0 |" in (out / "report.md").read_text()
+    before = (out / "results.csv").read_bytes()
+    assert main(args) == 0  # resumed: nothing left to run, the file is unchanged
+    assert (out / "results.csv").read_bytes() == before

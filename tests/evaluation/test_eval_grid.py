@@ -1,0 +1,97 @@
+"""The evaluation grid: cells from a config, validation before anything runs, map scoring, one real cell."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from weather_gym.evaluation.evaluate import (
+    CELL_KEY_FIELDS,
+    METRICS,
+    EvalCell,
+    EvalConfig,
+    make_cells,
+    map_precision_recall,
+    run_cell,
+)
+from weather_gym.weather.presets import preset_spec
+
+
+def test_cells_cover_the_grid_with_preset_weather():
+    cfg = EvalConfig(agents=("gt_pure_pursuit",), effects=("droplets", "dim"), severities=(0, 2, 4),
+                     seeds=(0, 1), tracks=("small_track", "peanut"))
+    cells = make_cells(cfg)
+    assert len(cells) == 1 * 2 * 2 * 3 * 2
+    assert len(set(cells)) == len(cells)
+    c = next(c for c in cells if (c.track, c.effect, c.severity, c.seed) == ("peanut", "dim", 4, 1))
+    assert json.loads(c.weather) == preset_spec("low_light", 4)  # dim is an alias of low_light
+    assert json.loads(next(c for c in cells if c.severity == 0).weather) == []
+    assert CELL_KEY_FIELDS[:5] == ("agent", "effect", "severity", "seed", "track")
+
+
+def test_other_presets_file_changes_the_cells(tmp_path):
+    from weather_gym.weather.presets import DEFAULT_PRESETS
+
+    text = DEFAULT_PRESETS.read_text().replace("k = 0.92", "k = 0.5")
+    assert text != DEFAULT_PRESETS.read_text()
+    custom = tmp_path / "presets.toml"
+    custom.write_text(text)
+    base = EvalConfig(effects=("dim",), severities=(4,), seeds=(0,))
+    a = make_cells(base)[0]
+    b = make_cells(EvalConfig(effects=("dim",), severities=(4,), seeds=(0,), presets=str(custom)))[0]
+    assert json.loads(b.weather) == [{"name": "dim", "k": 0.5}] and a.weather != b.weather
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"agents": ("nope",)}, r"unknown agent 'nope'; valid names: .*gt_pure_pursuit.*mapper_pure_pursuit"),
+        ({"effects": ("fog",)}, r"unknown weather condition 'fog'; valid conditions: droplets, low_light"),
+        ({"effects": ("dim", "low_light")}, "same condition twice"),
+        ({"severities": (0, 5)}, r"invalid severity 5; valid severities: 0, 1, 2, 3, 4"),
+        ({"severities": (-1,)}, "invalid severity -1"),
+        ({"tracks": ()}, "list of tracks is empty"),
+        ({"tracks": ("nowhere",)}, r"unknown track 'nowhere'; valid names"),
+        ({"seeds": ()}, "list of seeds is empty"),
+        ({"seeds": (0, 0)}, "seeds repeated: 0"),
+        ({"perception": "lidar"}, r"unknown perception 'lidar'; valid: detector, oracle, camera"),
+        ({"env_id": "CartPole-v1x"}, r"unknown env id 'CartPole-v1x'; weather-gym ids: .*WeatherGym/ConeTrack-v0"),
+        ({"laps": 0}, "laps must be an integer >= 1"),
+        ({"agent_kwargs": {"model": object()}}, "agent_kwargs must be JSON-serialisable"),
+        ({"env_kwargs": {"track": "peanut"}}, "env_kwargs may not set track"),
+    ],
+)
+def test_bad_config_is_refused_with_the_valid_choices(change, message):
+    base = {"agents": ("gt_pure_pursuit",), "effects": ("dim",), "severities": (0,), "seeds": (0,)}
+    with pytest.raises(ValueError, match=message):
+        make_cells(EvalConfig(**{**base, **change}))
+
+
+def test_map_precision_recall_counts_within_half_a_metre():
+    true = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [15.0, 0.0]])
+    mapped = np.array([[0.3, 0.3], [5.0, 0.49], [10.0, 0.51], [40.0, 40.0]])
+    p, r = map_precision_recall(mapped, true)
+    assert (p, r) == (0.5, 0.5)
+    assert map_precision_recall(true, true) == (1.0, 1.0)
+    p, r = map_precision_recall(np.zeros((0, 2)), true)
+    assert math.isnan(p) and r == 0.0
+
+
+@pytest.mark.slow
+def test_one_real_cell_drives_and_reports_every_metric():
+    cell = EvalCell(agent="gt_pure_pursuit", effect="dim", severity=2, seed=0, track="small_track",
+                    env_id="WeatherGym/ConeTrackSmall-v0", perception="camera", max_steps=45,
+                    weather=json.dumps(preset_spec("dim", 2)))
+    m = run_cell(cell)
+    assert set(m) == set(METRICS)
+    assert m["steps"] == 45 and m["end_reason"] == "time_limit" and m["completed"] == 0
+    assert 0.0 < m["progress"] < 0.2  # about 1.5 s of a 150 m lap
+    assert m["cones_hit"] == 0 and m["off_track_events"] == 0 and m["cte_max_m"] < 0.5
+    assert m["weather_latency_ms"] > 0 and m["detector_latency_ms"] == 0
+    assert m["map_precision"] is None and m["det_map50"] is None  # no mapper, no detector
+    again = run_cell(cell)  # same cell, same seed: same episode (only the timings differ)
+    timing = ("weather_latency_ms", "detector_latency_ms", "added_latency_ms")
+    assert {k: v for k, v in again.items() if k not in timing} == {k: v for k, v in m.items() if k not in timing}

@@ -1,0 +1,12 @@
+"""Constants shared by the gap tests (imported as ``gap_cases``, like ``weather_cases``)."""
+
+from __future__ import annotations
+
+from weather_gym.camera import CameraConfig
+
+GAP_CAMERA = CameraConfig().scaled(336, 188)
+CLEAN_FRAMES = 40
+#: a faster search than the defaults: 12 fitting frames, 500 bootstrap resamples
+FAST = dict(fit_frames=12, bootstrap=500)
+#: the "real world" draws other random numbers than the workflow (seed 0)
+MEASURED_SEED = 4242

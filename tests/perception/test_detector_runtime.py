@@ -1,0 +1,106 @@
+"""The shipped ONNX detector at run time: loading, bad files, inputs, batches."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from cone_synth import synth_frame
+
+from weather_gym.perception import DEFAULT_MODEL, ConeDetector, Detections
+
+
+@pytest.fixture(scope="module")
+def detector():
+    return ConeDetector(threads=1)
+
+
+def test_shipped_model_and_sidecar_exist_and_are_small():
+    assert DEFAULT_MODEL.is_file() and DEFAULT_MODEL.with_suffix(".json").is_file()
+    assert DEFAULT_MODEL.stat().st_size < 3_000_000
+    meta = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
+    assert meta["classes"] == ["blue", "yellow", "orange", "big_orange"]
+    assert meta["flops"] < 0.8e9
+
+
+def test_frame_without_cones_gives_an_empty_valid_result(detector):
+    d = detector(np.zeros((376, 672, 3), np.uint8))
+    assert isinstance(d, Detections) and len(d) == 0
+    assert d.boxes.shape == (0, 4) and d.scores.shape == (0,) and d.classes.shape == (0,)
+
+
+def test_batch_equals_single_frames_and_boxes_are_in_original_pixels(detector, rng):
+    frames = [synth_frame(rng)[0] for _ in range(3)]
+    single = [detector(f, score_threshold=0.05) for f in frames]
+    batch = detector(np.stack(frames), score_threshold=0.05)
+    assert len(batch) == 3
+    for a, b in zip(single, batch, strict=True):
+        np.testing.assert_allclose(a.boxes, b.boxes, atol=1e-3)
+        np.testing.assert_allclose(a.scores, b.scores, atol=1e-5)
+        assert (a.boxes[:, [0, 2]] <= 672).all() and (a.boxes[:, [1, 3]] <= 376).all()
+        assert (a.scores >= 0.05).all() and (np.diff(a.scores) <= 1e-7).all()
+    # another frame size works too (letterboxed): 1280x720
+    big = detector(np.zeros((720, 1280, 3), np.uint8))
+    assert len(big) == 0
+
+
+def test_score_threshold_filters(detector, rng):
+    frame = synth_frame(rng)[0]
+    lo = detector(frame, score_threshold=0.01)
+    hi = detector(frame, score_threshold=0.6)
+    assert len(hi) <= len(lo)
+    assert (hi.scores >= 0.6).all()
+
+
+def test_missing_model_names_the_file(tmp_path):
+    path = tmp_path / "nope.onnx"
+    with pytest.raises(FileNotFoundError, match="nope.onnx"):
+        ConeDetector(path)
+
+
+def test_corrupt_model_names_the_file(tmp_path):
+    path = tmp_path / "broken.onnx"
+    path.write_bytes(b"this is not a protobuf" * 10)
+    with pytest.raises(ValueError, match="broken.onnx"):
+        ConeDetector(path)
+
+
+def test_model_with_wrong_input_shape_is_rejected(tmp_path):
+    onnx = pytest.importorskip("onnx")
+    from onnx import TensorProto, helper
+
+    inp = helper.make_tensor_value_info("x", TensorProto.FLOAT, [1, 1, 32, 32])
+    out = helper.make_tensor_value_info("y", TensorProto.FLOAT, [1, 1, 32, 32])
+    graph = helper.make_graph([helper.make_node("Identity", ["x"], ["y"])], "g", [inp], [out])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    path = tmp_path / "gray.onnx"
+    onnx.save(model, str(path))
+    with pytest.raises(ValueError, match=r"gray\.onnx.*input shape"):
+        ConeDetector(path)
+
+
+def test_sidecar_input_size_mismatch_is_rejected(tmp_path):
+    import shutil
+
+    path = tmp_path / "m.onnx"
+    shutil.copy(DEFAULT_MODEL, path)
+    meta = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
+    meta["input_size"] = [640, 352]
+    path.with_suffix(".json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="640x352"):
+        ConeDetector(path)
+
+
+@pytest.mark.parametrize("bad", [np.zeros((376, 672), np.uint8), np.zeros((376, 672, 3), np.float32),
+                                 np.zeros((0, 672, 3), np.uint8)])
+def test_bad_images_raise(detector, bad):
+    with pytest.raises(ValueError):
+        detector(bad)
+
+
+def test_bad_arguments_raise():
+    with pytest.raises(ValueError, match="threads"):
+        ConeDetector(threads=0)
+    with pytest.raises(ValueError, match="score_threshold"):
+        ConeDetector(score_threshold=1.5)

@@ -1,0 +1,35 @@
+"""Validation shared by the agents' frozen config dataclasses (errors name the field and value).
+
+Example:
+    >>> from dataclasses import dataclass
+    >>> from weather_gym.agents._checks import check_fields
+    >>> @dataclass(frozen=True)
+    ... class C:
+    ...     gain: float = -1.0
+    ...     def __post_init__(self): check_fields(self, positive=("gain",))
+    >>> C()
+    Traceback (most recent call last):
+    ...
+    ValueError: C.gain must be a finite number > 0, got -1.0
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+
+def check_fields(obj, *, positive: Iterable[str] = (), non_negative: Iterable[str] = (),
+                 integers: Iterable[str] = ()) -> None:
+    """Raise ``ValueError`` unless the named fields are finite numbers > 0, >= 0, or integers >= 1."""
+    kind = type(obj).__name__
+    for names, ok, what in ((positive, lambda v: v > 0, "a finite number > 0"),
+                            (non_negative, lambda v: v >= 0, "a finite number >= 0")):
+        for name in names:
+            v = getattr(obj, name)
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and ok(v)):
+                raise ValueError(f"{kind}.{name} must be {what}, got {v!r}")
+    for name in integers:
+        v = getattr(obj, name)
+        if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
+            raise ValueError(f"{kind}.{name} must be an integer >= 1, got {v!r}")

@@ -1,0 +1,66 @@
+"""``sb3``: a stable-baselines3 policy behind the ``Agent`` protocol.
+
+Wraps a model instance (``model=``) or loads a saved zip (``path=``, with ``algo=`` naming the
+algorithm class, PPO by default). ``act`` calls ``model.predict(obs, deterministic=True)``; the
+observation is passed as the env gives it, so train and drive with the same wrappers.
+
+Example:
+    >>> from weather_gym.agents import AGENTS
+    >>> agent = AGENTS.get("sb3")(None, None, path="runs/ppo_cones.zip", algo="PPO")  # doctest: +SKIP
+    >>> agent.act(obs)                                                                # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from weather_gym.agents import check_action
+
+if TYPE_CHECKING:  # pragma: no cover
+    from weather_gym.camera import CameraConfig
+    from weather_gym.tracks import Track
+
+__all__ = ["SB3Agent", "SB3_ALGOS"]
+
+SB3_ALGOS = ("A2C", "DDPG", "PPO", "SAC", "TD3")
+"""stable-baselines3 algorithms with continuous (Box) actions."""
+
+
+class SB3Agent:
+    """Drive with a stable-baselines3 model.
+
+    Args:
+        track, camera: unused (factory signature).
+        model: a model with ``predict(obs, deterministic=True)``; or
+        path: a file saved by ``model.save(...)``, loaded with ``algo`` (one of ``SB3_ALGOS``).
+        device: torch device for loading (default ``"cpu"``).
+    """
+
+    def __init__(self, track: Track | None = None, camera: CameraConfig | None = None, *, model: Any = None,
+                 path: str | Path | None = None, algo: str = "PPO", device: str = "cpu") -> None:
+        if (model is None) == (path is None):
+            raise ValueError("sb3 agent: give exactly one of model= (a stable-baselines3 model) or path= (a saved .zip)")
+        if model is None:
+            p = Path(path)
+            if not p.exists() and p.with_suffix(".zip").exists():
+                p = p.with_suffix(".zip")
+            if not p.is_file():
+                raise FileNotFoundError(f"sb3 agent: model file {str(path)!r} not found")
+            if algo not in SB3_ALGOS:
+                raise ValueError(f"sb3 agent: unknown algo {algo!r}; expected one of {', '.join(SB3_ALGOS)}")
+            cls = getattr(importlib.import_module("stable_baselines3"), algo)
+            model = cls.load(str(p), device=device)
+        if not callable(getattr(model, "predict", None)):
+            raise ValueError(f"sb3 agent: model {type(model).__name__} has no predict(obs, deterministic=...) method")
+        self.model = model
+
+    def reset(self, seed: int | None = None, info: dict | None = None) -> None:
+        self._state = None  # recurrent policies keep a hidden state between steps
+
+    def act(self, obs: Any, info: dict | None = None) -> np.ndarray:
+        action, self._state = self.model.predict(obs, state=getattr(self, "_state", None), deterministic=True)
+        return check_action(np.asarray(action, dtype=np.float32).reshape(-1), "sb3 model")

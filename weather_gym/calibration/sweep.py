@@ -1,0 +1,332 @@
+"""The k sweep: the detector's mAP on a fixed rendered set at each k of an effect, per seed.
+
+One *cell* is (effect, k, seed): the effect at that k degrades every frame of the evaluation set
+(frame ``i`` gets the weather realisation of ``seed_i``, spawned from ``seed``; see
+:func:`weather_gym.perception.scoring.score_dataset`), the shipped detector runs on the result and
+pycocotools scores it. Cells run on :func:`weather_gym.evaluation.runner.run_cells` (parallel,
+resumable, a progress bar), which writes one tidy row per cell to ``OUT/curves.csv``:
+
+``effect, spec, k, seed, dataset_id, model_id, status, error, elapsed_s, map50, map, ap50_blue, ...,
+recall, recall_0_5m, ..., n_images, n_gt, n_detections``
+
+``effect`` is the curve's label (``dim_physical`` for ``dim`` with ``mode="physical"``), ``spec`` the
+effect's non-default parameters as JSON, ``dataset_id`` / ``model_id`` the first 12 hex digits of
+the SHA-256 of the set's ``annotations.json`` and of the ONNX model: a sweep resumed with another
+model or set runs its cells again instead of mixing results.
+
+Example:
+    >>> from weather_gym.calibration.sweep import parse_effect, parse_k_range
+    >>> parse_k_range("0:1:0.25")
+    (0.0, 0.25, 0.5, 0.75, 1.0)
+    >>> e = parse_effect("dim:mode=physical")
+    >>> e.label, e.name, e.params
+    ('dim_physical', 'dim', {'mode': 'physical'})
+    >>> e.table(0.5)
+    {'name': 'dim', 'k': 0.5, 'mode': 'physical'}
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "CURVE_FILE",
+    "KEY_FIELDS",
+    "SweepCell",
+    "SweepEffect",
+    "file_id",
+    "make_sweep_cells",
+    "parse_effect",
+    "parse_k_range",
+    "parse_seeds",
+    "run_sweep",
+    "run_sweep_cell",
+]
+
+CURVE_FILE = "curves.csv"
+META_FILE = "sweep.json"
+KEY_FIELDS = ("effect", "spec", "k", "seed", "dataset_id", "model_id")
+"""Key fields of a curve file (the first columns, the identity of a cell)."""
+
+
+# ------------------------------------------------------------------------------------------ parsing
+def _value(text: str) -> Any:
+    low = text.strip().lower()
+    if low in ("true", "false"):
+        return low == "true"
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text.strip()
+
+
+@dataclass(frozen=True)
+class SweepEffect:
+    """An effect to sweep: its registry ``name`` and fixed non-``k`` ``params`` (canonical: defaults dropped).
+
+    ``label`` names its curve: the name, then the values of the non-default parameters
+    (``dim`` + ``mode="physical"`` -> ``dim_physical``).
+    """
+
+    name: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        vals = [str(v) for _, v in sorted(self.params.items())]
+        return "_".join([self.name, *vals]).replace(" ", "")
+
+    @property
+    def spec(self) -> str:
+        """The non-default parameters as canonical JSON (a key field of the curve file)."""
+        return json.dumps(self.params, sort_keys=True)
+
+    def table(self, k: float) -> dict[str, Any]:
+        """The effect table at ``k`` (as in presets and model files), with choice parameters spelled out.
+
+        Example:
+            >>> parse_effect("dim").table(0.3)
+            {'name': 'dim', 'k': 0.3, 'mode': 'faithful'}
+        """
+        from weather_gym.weather import EFFECTS
+
+        cls = EFFECTS.get(self.name)
+        effect = cls(k=float(k), **self.params)
+        explicit = {p: getattr(effect, p) for p in getattr(cls, "CHOICES", {})}
+        return {"name": self.name, "k": float(k), **explicit, **self.params}
+
+    def make(self, k: float):
+        from weather_gym.weather import make
+
+        return make(self.name, k=float(k), **self.params)
+
+
+def parse_effect(text: str) -> SweepEffect:
+    """``NAME`` or ``NAME:PARAM=VALUE[,PARAM=VALUE...]`` -> :class:`SweepEffect` (validated).
+
+    Unknown effects raise ``ValueError`` listing the valid names; unknown or invalid parameters name
+    the parameter. ``k`` may not be fixed here (it is what the sweep varies).
+    """
+    from weather_gym.weather import EFFECTS, make
+
+    if not isinstance(text, str) or not text.strip():
+        raise ValueError(f"--effect must be NAME or NAME:PARAM=VALUE,..., got {text!r}")
+    name, _, rest = text.strip().partition(":")
+    name = name.strip()
+    EFFECTS.get(name)  # ValueError listing the valid names
+    params: dict[str, Any] = {}
+    for item in filter(None, (p.strip() for p in rest.split(","))):
+        key, eq, val = item.partition("=")
+        if not eq or not key.strip():
+            raise ValueError(f"effect {text!r}: parameter {item!r} must be PARAM=VALUE (e.g. dim:mode=physical)")
+        key = key.strip()
+        if key == "k":
+            raise ValueError(f"effect {text!r}: k is what the sweep varies; give it with --k, not in the effect")
+        params[key] = _value(val)
+    default = make(name, k=0.0)
+    try:
+        effect = make(name, k=0.0, **params)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"effect {text!r}: {exc}") from None
+    canonical = {p: getattr(effect, p) for p in params if getattr(effect, p) != getattr(default, p)}
+    return SweepEffect(name, canonical)
+
+
+def parse_k_range(text: str) -> tuple[float, ...]:
+    """``START:STOP:STEP`` (both ends included), ``K1,K2,...`` or one ``K``; every k in [0, 1].
+
+    Values are rounded to 10 decimals so ``0:1:0.05`` gives exactly 0.05, 0.1, ... (21 values).
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise ValueError("--k must be START:STOP:STEP (e.g. 0:1:0.05) or a comma-separated list of k values")
+    text = text.strip()
+    if ":" in text:
+        parts = text.split(":")
+        if len(parts) != 3:
+            raise ValueError(f"--k {text!r}: a range is START:STOP:STEP with three numbers, e.g. 0:1:0.05")
+        try:
+            start, stop, step = (float(p) for p in parts)
+        except ValueError:
+            raise ValueError(f"--k {text!r}: START, STOP and STEP must be numbers, e.g. 0:1:0.05") from None
+        if not all(math.isfinite(v) for v in (start, stop, step)):
+            raise ValueError(f"--k {text!r}: START, STOP and STEP must be finite numbers")
+        if step <= 0:
+            raise ValueError(f"--k {text!r}: STEP must be > 0, got {step:g}")
+        if stop < start:
+            raise ValueError(f"--k {text!r}: STOP ({stop:g}) is below START ({start:g})")
+        n = int(math.floor((stop - start) / step + 1e-9)) + 1
+        if n > 10_000:
+            raise ValueError(f"--k {text!r}: {n} values; use a larger STEP")
+        ks = [round(start + i * step, 10) for i in range(n)]
+    else:
+        try:
+            ks = [float(p) for p in text.split(",") if p.strip()]
+        except ValueError:
+            raise ValueError(f"--k {text!r}: expected numbers separated by commas, e.g. 0,0.25,0.5") from None
+        if not ks:
+            raise ValueError(f"--k {text!r}: no k values")
+    bad = [k for k in ks if not (0.0 <= k <= 1.0)]
+    if bad:
+        raise ValueError(f"--k {text!r}: k must lie in [0, 1], got {', '.join(f'{k:g}' for k in bad)}")
+    out = tuple(sorted(set(ks)))
+    if len(out) != len(ks):
+        raise ValueError(f"--k {text!r}: repeated k values")
+    return out
+
+
+def parse_seeds(n: int | None = None, seed_list: str | None = None) -> tuple[int, ...]:
+    """``n`` seeds 0..n-1, or an explicit comma-separated list (non-negative, distinct)."""
+    if seed_list is not None:
+        try:
+            seeds = [int(s) for s in seed_list.split(",") if s.strip()]
+        except ValueError:
+            raise ValueError(f"--seed-list {seed_list!r}: expected integers separated by commas") from None
+        if not seeds or any(s < 0 for s in seeds) or len(set(seeds)) != len(seeds):
+            raise ValueError(f"--seed-list {seed_list!r}: expected distinct non-negative integers")
+        return tuple(seeds)
+    if n is None or n < 1:
+        raise ValueError(f"--seeds must be >= 1, got {n}")
+    return tuple(range(int(n)))
+
+
+def file_id(path: str | os.PathLike) -> str:
+    """First 12 hex digits of the SHA-256 of a file (identifies a model or a dataset's annotations)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()[:12]
+
+
+# -------------------------------------------------------------------------------------------- cells
+@dataclass(frozen=True)
+class SweepCell:
+    """One (effect, k, seed) measurement. Key fields: :data:`KEY_FIELDS`; ``dataset``/``model`` are paths."""
+
+    effect: str
+    spec: str
+    k: float
+    seed: int
+    dataset_id: str
+    model_id: str
+    name: str = ""
+    dataset: str = ""
+    model: str = ""
+
+
+_CACHE: dict[tuple[str, str], tuple[Any, Any]] = {}
+
+
+def _dataset_and_detector(dataset: str, model: str) -> tuple[Any, Any]:
+    """Load once per worker process: the evaluation set (frames kept in memory) and the detector."""
+    key = (dataset, model)
+    if key not in _CACHE:
+        from weather_gym.datasets import load_coco
+        from weather_gym.perception import ConeDetector
+
+        _CACHE.clear()
+        _CACHE[key] = (load_coco(dataset, cache_images=True), ConeDetector(model, threads=1))
+    return _CACHE[key]
+
+
+def _metric_name(label: str) -> str:
+    return "recall_" + label.replace("+ m", "plus_m").replace(" m", "m").replace("-", "_")
+
+
+def run_sweep_cell(cell: SweepCell) -> dict[str, Any]:
+    """Score the detector on the evaluation set under ``cell``'s effect at ``cell.k`` (the cell function)."""
+    from weather_gym.perception import score_dataset
+    from weather_gym.weather import make
+
+    ds, det = _dataset_and_detector(cell.dataset, cell.model)
+    effect = make(cell.name, k=float(cell.k), **json.loads(cell.spec))
+    r = score_dataset(ds, det, effect, seed=int(cell.seed))
+    row: dict[str, Any] = {"map50": r.map50, "map": r.map}
+    row.update({f"ap50_{c}": v for c, v in r.ap50_per_class.items()})
+    row["recall"] = r.recall
+    row.update({_metric_name(b): rec for b, (rec, _) in r.recall_by_range.items()})
+    row.update(n_images=r.n_images, n_gt=r.n_gt, n_detections=r.n_detections)
+    return row
+
+
+def make_sweep_cells(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequence[int],
+                     dataset: str | os.PathLike, model: str | os.PathLike | None = None) -> list[SweepCell]:
+    """Every (effect, k, seed) cell, checking the dataset and model exist first."""
+    from weather_gym.datasets.coco import ANNOTATIONS, load_coco
+    from weather_gym.perception.detector import DEFAULT_MODEL
+
+    ds_path = Path(dataset)
+    load_coco(ds_path)  # validates (missing folder / annotations / images -> a clear error)
+    model_path = Path(model) if model is not None else DEFAULT_MODEL
+    if not model_path.is_file():
+        raise FileNotFoundError(f"detector model {model_path} not found")
+    labels = [e.label for e in effects]
+    dup = sorted({x for x in labels if labels.count(x) > 1})
+    if dup:
+        raise ValueError(f"effect(s) {', '.join(dup)} given twice")
+    dsid, mid = file_id(ds_path / ANNOTATIONS), file_id(model_path)
+    return [SweepCell(effect=e.label, spec=e.spec, k=float(k), seed=int(s), dataset_id=dsid, model_id=mid,
+                      name=e.name, dataset=str(ds_path.resolve()), model=str(model_path.resolve()))
+            for e in effects for k in ks for s in seeds]
+
+
+def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequence[int],
+              dataset: str | os.PathLike, out: str | os.PathLike, *, model: str | os.PathLike | None = None,
+              workers: int | None = None, backend: str = "process", progress: bool = True,
+              retry_failed: bool = True, ray_address: str | None = None, plot: bool = True,
+              command: str | None = None) -> list[dict[str, Any]]:
+    """Run the sweep into ``out/curves.csv`` (resumable), plot it, record ``out/sweep.json``; return the rows."""
+    from weather_gym.evaluation.runner import run_cells
+
+    cells = make_sweep_cells(effects, ks, seeds, dataset, model)
+    out = Path(out)
+    t0 = time.perf_counter()
+    rows = run_cells(cells, run_sweep_cell, out / CURVE_FILE, key_fields=KEY_FIELDS, workers=workers,
+                     backend=backend, progress=progress, retry_failed=retry_failed, ray_address=ray_address,
+                     desc="sweep")
+    wall = time.perf_counter() - t0
+    _write_meta(out, cells, effects, ks, seeds, dataset, model, wall, command)
+    if plot:
+        from weather_gym.calibration.curve import load_curves
+        from weather_gym.calibration.report import plot_curves
+
+        curves = load_curves(out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
+        plot_curves(curves, out / "curves.png", recall_out=out / "curves_recall.png")
+    return rows
+
+
+def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, model, wall: float,
+                command: str | None) -> None:
+    """Merge this run's description into ``out/sweep.json`` (per curve label)."""
+    path = out / META_FILE
+    meta: dict[str, Any] = {}
+    if path.is_file():
+        try:
+            meta = json.loads(path.read_text())
+        except json.JSONDecodeError:
+            meta = {}
+    c0 = cells[0]
+    from weather_gym.datasets.coco import load_coco
+
+    info = load_coco(dataset).data.get("info", {})
+    meta.setdefault("curves", {})
+    for e in effects:
+        meta["curves"][e.label] = {
+            "effect": e.name, "params": e.params, "ks": list(ks), "seeds": list(seeds),
+            "dataset": str(dataset), "dataset_id": c0.dataset_id, "dataset_info": info,
+            "model": str(model) if model is not None else "weather_gym/perception/models/cone_detector.onnx",
+            "model_id": c0.model_id, "command": command, "wall_s_of_run": round(wall, 1),
+        }
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+    os.replace(tmp, path)

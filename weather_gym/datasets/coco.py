@@ -1,0 +1,378 @@
+"""COCO datasets of rendered cone frames: validated reading (``load_coco``) and resumable writing.
+
+Layout (see ``docs/architecture.md``)::
+
+    DIR/annotations.json      COCO: images, annotations, categories (blue, yellow, orange, big_orange)
+    DIR/images/000000.png     RGB frames
+    DIR/depth/000000.png      z-depth, uint16 millimetres (saturates at 65.535 m = "far")
+
+Image records carry ``track``, ``pose`` [x, y, yaw], ``speed``, ``yaw_rate``, ``camera``
+(CameraConfig fields), ``depth_file``, ``look`` (so the view can be re-rendered) and ``seed``.
+Annotations carry ``bbox`` [x, y, w, h] (visible part, from the segmentation mask), ``area``
+(box area), ``category_id`` (class id + 1), ``iscrowd`` (1 = shorter than
+``MIN_BOX_HEIGHT_PX``, ignored in training and scoring), ``range``, ``bearing``, ``cone_id``,
+``pixels`` (visible pixel count).
+
+Example:
+    >>> import numpy as np, tempfile
+    >>> from weather_gym.datasets.coco import CocoWriter, load_coco
+    >>> d = tempfile.mkdtemp()
+    >>> with CocoWriter(d) as w:
+    ...     _ = w.add(np.zeros((8, 12, 3), np.uint8), {"track": "demo"},
+    ...               {"boxes": np.array([[1, 1, 5, 7.]]), "classes": np.array([0])})
+    >>> ds = load_coco(d)
+    >>> len(ds), ds.gt(0)["classes"].tolist(), ds.gt(0)["iscrowd"].tolist()
+    (1, [0], [1])
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xywh_to_xyxy
+
+__all__ = ["CocoDataset", "CocoWriter", "load_coco", "read_image", "read_depth_png", "write_depth_png"]
+
+ANNOTATIONS = "annotations.json"
+JOURNAL = "annotations.partial.jsonl"
+DEPTH_SCALE = 1000.0  # depth PNG units per metre (millimetres)
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an RGB uint8 image; clear errors for a missing, empty or undecodable file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"image file {path} not found")
+    if path.stat().st_size == 0:
+        raise ValueError(f"image file {path} is empty (0 bytes)")
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None or bgr.size == 0:
+        raise ValueError(f"image file {path} could not be decoded as an image")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def write_depth_png(path: str | os.PathLike, depth_m: np.ndarray) -> None:
+    """Write float metres as uint16 millimetres (values beyond 65.535 m saturate)."""
+    d = np.asarray(depth_m, dtype=np.float64)
+    mm = np.clip(np.rint(np.nan_to_num(d, nan=0.0, posinf=65.535) * DEPTH_SCALE), 0, 65535).astype(np.uint16)
+    if not cv2.imwrite(str(path), mm):
+        raise OSError(f"could not write depth file {path}")
+
+
+def read_depth_png(path: str | os.PathLike) -> np.ndarray:
+    """Read a uint16 millimetre depth PNG as float32 metres."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"depth file {path} not found")
+    if path.stat().st_size == 0:
+        raise ValueError(f"depth file {path} is empty (0 bytes)")
+    mm = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if mm is None or mm.ndim != 2 or mm.dtype != np.uint16:
+        raise ValueError(f"depth file {path} is not a single-channel 16-bit PNG of millimetres")
+    return mm.astype(np.float32) / np.float32(DEPTH_SCALE)
+
+
+def _atomic_write_json(path: Path, data: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w") as f:
+        json.dump(data, f)
+    os.replace(tmp, path)
+
+
+class CocoDataset:
+    """A validated COCO cone dataset. Index ``i`` is the position in ``images`` (not the COCO id).
+
+    ``image(i)``, ``depth(i)`` (None without a depth file), ``annotations(i)``, ``gt(i)`` (arrays:
+    ``boxes`` xyxy, ``classes``, ``iscrowd``, ``ranges``, ``bearings``, ``cone_ids``),
+    ``record(i)`` and ``render_view(i)`` (re-render the same pose with the same look).
+    """
+
+    def __init__(self, root: Path, data: dict, cache_images: bool = False) -> None:
+        self.root = Path(root)
+        self.cache_images = cache_images
+        self._image_cache: dict[int, np.ndarray] = {}
+        self.data = data
+        self.images: list[dict] = data["images"]
+        self.categories: list[dict] = data["categories"]
+        self._cat_to_class = {c["id"]: CONE_CLASSES.index(c["name"]) for c in self.categories}
+        self._anns: dict[int, list[dict]] = {im["id"]: [] for im in self.images}
+        for a in data["annotations"]:
+            self._anns[a["image_id"]].append(a)
+        self._renderer = None
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def __iter__(self) -> Iterator[dict]:
+        return iter(self.images)
+
+    def __repr__(self) -> str:
+        return f"CocoDataset({str(self.root)!r}, images={len(self)}, annotations={len(self.data['annotations'])})"
+
+    @property
+    def annotations_path(self) -> Path:
+        return self.root / ANNOTATIONS
+
+    def record(self, i: int) -> dict:
+        return self.images[i]
+
+    def image_path(self, i: int) -> Path:
+        return self.root / self.images[i]["file_name"]
+
+    def image(self, i: int) -> np.ndarray:
+        """RGB uint8 frame ``i`` (read-only when ``cache_images`` keeps decoded frames in memory)."""
+        if not self.cache_images:
+            return read_image(self.image_path(i))
+        img = self._image_cache.get(i)
+        if img is None:
+            img = read_image(self.image_path(i))
+            img.setflags(write=False)
+            self._image_cache[i] = img
+        return img
+
+    def depth(self, i: int) -> np.ndarray | None:
+        """Depth of frame ``i`` in metres (float32), or None when the record has no ``depth_file``."""
+        rel = self.images[i].get("depth_file")
+        return None if not rel else read_depth_png(self.root / rel)
+
+    def annotations(self, i: int) -> list[dict]:
+        return self._anns[self.images[i]["id"]]
+
+    def gt(self, i: int) -> dict[str, np.ndarray]:
+        """Ground truth of frame ``i`` as arrays (the in-memory format ``evaluate`` also takes)."""
+        anns = self.annotations(i)
+        boxes = xywh_to_xyxy(np.array([a["bbox"] for a in anns], dtype=np.float64).reshape(-1, 4))
+        return {
+            "boxes": boxes.astype(np.float32),
+            "classes": np.array([self._cat_to_class[a["category_id"]] for a in anns], dtype=np.int64),
+            "iscrowd": np.array([int(a.get("iscrowd", 0)) for a in anns], dtype=np.int64),
+            "ranges": np.array([a.get("range", np.nan) for a in anns], dtype=np.float32),
+            "bearings": np.array([a.get("bearing", np.nan) for a in anns], dtype=np.float32),
+            "cone_ids": np.array([a.get("cone_id", -1) for a in anns], dtype=np.int64),
+        }
+
+    def camera(self, i: int):
+        """The ``CameraConfig`` of frame ``i`` (default camera when the record has none)."""
+        from weather_gym.camera import CameraConfig
+
+        cam = self.images[i].get("camera")
+        return CameraConfig(**cam) if cam else CameraConfig().scaled(self.images[i]["width"], self.images[i]["height"])
+
+    def render_view(self, i: int | dict) -> dict[str, Any]:
+        """Re-render frame ``i`` (or an image record) at the same pose with the same look.
+
+        Returns ``{"image", "depth", "gt"}``. Needs the simulator (PyBullet); envs are cached per
+        (track, camera) until ``close()``.
+        """
+        from weather_gym.datasets.render import ViewRenderer
+
+        if self._renderer is None:
+            self._renderer = ViewRenderer()
+        rec = self.images[i] if not isinstance(i, dict) else i
+        return self._renderer.render(rec)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __enter__(self) -> CocoDataset:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _fail(path: Path, msg: str):
+    raise ValueError(f"{path}: {msg}")
+
+
+def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images: bool = False) -> CocoDataset:
+    """Open and validate a COCO cone dataset folder.
+
+    ``cache_images=True`` keeps decoded frames in memory (about 0.75 MB per 672x376 frame): for
+    repeated scoring of the same frames (calibration sweeps).
+
+    Raises ``FileNotFoundError`` for a missing folder, ``annotations.json`` or image file, and
+    ``ValueError`` (naming the file and the offending key/value) for malformed annotations or empty
+    image files.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"dataset folder {root} not found")
+    path = root / ANNOTATIONS
+    if not path.is_file():
+        extra = " (an interrupted render left annotations.partial.jsonl: rerun it with --resume)" if (
+            root / JOURNAL).exists() else ""
+        raise FileNotFoundError(f"{path} not found: a COCO dataset folder needs annotations.json{extra}")
+    try:
+        with open(path) as f:
+            data = json.load(f)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path} is not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        _fail(path, "expected a JSON object with images, annotations and categories")
+    for key in ("images", "annotations", "categories"):
+        if not isinstance(data.get(key), list):
+            _fail(path, f"missing or invalid key {key!r} (expected a list)")
+    for c in data["categories"]:
+        if not isinstance(c, dict) or c.get("name") not in CONE_CLASSES or not isinstance(c.get("id"), int):
+            _fail(path, f"category {c!r} is not one of {list(CONE_CLASSES)} with an integer id")
+    cat_ids = {c["id"] for c in data["categories"]}
+    ids = set()
+    for im in data["images"]:
+        for key in ("id", "file_name", "width", "height"):
+            if not isinstance(im, dict) or key not in im:
+                _fail(path, f"image record {im!r} has no {key!r}")
+        if im["id"] in ids:
+            _fail(path, f"duplicate image id {im['id']}")
+        ids.add(im["id"])
+        if check_files:
+            f = root / im["file_name"]
+            if not f.is_file():
+                raise FileNotFoundError(f"{path}: image {im['id']} points to {f}, which does not exist")
+            if f.stat().st_size == 0:
+                _fail(path, f"image {im['id']} file {f} is empty (0 bytes)")
+    for a in data["annotations"]:
+        if not isinstance(a, dict):
+            _fail(path, f"annotation {a!r} is not an object")
+        if a.get("image_id") not in ids:
+            _fail(path, f"annotation {a.get('id')} refers to unknown image_id {a.get('image_id')!r}")
+        if a.get("category_id") not in cat_ids:
+            _fail(path, f"annotation {a.get('id')} has unknown category_id {a.get('category_id')!r}")
+        b = a.get("bbox")
+        if (not isinstance(b, list) or len(b) != 4 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in b)
+                or b[2] < 0 or b[3] < 0):
+            _fail(path, f"annotation {a.get('id')} has an invalid bbox {b!r} (expected [x, y, w, h], w, h >= 0)")
+    return CocoDataset(root, data, cache_images=cache_images)
+
+
+class CocoWriter:
+    """Write frames into a COCO folder; resumable (a journal of finished frames is kept until ``close``).
+
+    ``add(image, record, gt, depth=None)`` writes ``images/NNNNNN.png`` (and ``depth/NNNNNN.png``)
+    and returns the image id. ``gt`` holds arrays ``boxes`` (xyxy), ``classes`` and optionally
+    ``ranges``, ``bearings``, ``cone_ids``, ``pixels``. ``close()`` writes ``annotations.json``
+    atomically and removes the journal. An existing ``annotations.json`` is never overwritten unless
+    ``overwrite=True``; with ``resume=True`` the journal of an interrupted run is read back and
+    ``done`` tells how many frames are already written.
+    """
+
+    def __init__(self, root: str | os.PathLike, *, overwrite: bool = False, resume: bool = False,
+                 min_box_height: float = MIN_BOX_HEIGHT_PX, info: dict | None = None) -> None:
+        self.root = Path(root)
+        self.min_box_height = float(min_box_height)
+        ann = self.root / ANNOTATIONS
+        if ann.exists() and not overwrite:
+            raise FileExistsError(f"{ann} already exists; choose another --out folder or pass --overwrite")
+        journal = self.root / JOURNAL
+        if journal.exists() and not (resume or overwrite):
+            raise FileExistsError(f"{journal} exists (an interrupted render): pass --resume to continue it "
+                                  "or --overwrite to start again")
+        (self.root / "images").mkdir(parents=True, exist_ok=True)
+        (self.root / "depth").mkdir(parents=True, exist_ok=True)
+        self.images: list[dict] = []
+        self.annotations: list[dict] = []
+        self.info = dict(info or {})
+        if resume and journal.exists():
+            with open(journal) as f:
+                for line in f:
+                    line = line.strip()
+                    if not line:
+                        continue
+                    try:
+                        entry = json.loads(line)
+                    except json.JSONDecodeError:
+                        break  # a line cut short by the interruption: that frame is redone
+                    self.images.append(entry["image"])
+                    self.annotations.extend(entry["annotations"])
+        elif journal.exists():
+            journal.unlink()
+        if ann.exists() and overwrite:
+            ann.unlink()
+        self._journal = open(journal, "a")
+        self._closed = False
+
+    @property
+    def done(self) -> int:
+        """Frames already written (from a resumed journal plus this run)."""
+        return len(self.images)
+
+    def add(self, image: np.ndarray, record: dict, gt: dict, depth: np.ndarray | None = None) -> int:
+        image = np.asarray(image)
+        if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+            raise ValueError(f"image must be uint8 (H, W, 3) RGB, got {image.dtype} {image.shape}")
+        idx = len(self.images)
+        name = f"{idx:06d}.png"
+        if not cv2.imwrite(str(self.root / "images" / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
+            raise OSError(f"could not write {self.root / 'images' / name}")
+        rec = {"id": idx, "file_name": f"images/{name}", "width": int(image.shape[1]), "height": int(image.shape[0])}
+        if depth is not None:
+            write_depth_png(self.root / "depth" / name, depth)
+            rec["depth_file"] = f"depth/{name}"
+        rec.update(record)
+        boxes = np.asarray(gt["boxes"], dtype=np.float64).reshape(-1, 4)
+        classes = np.asarray(gt["classes"], dtype=np.int64).reshape(-1)
+        tiny = tiny_mask(boxes, self.min_box_height)
+        anns = []
+        for k in range(boxes.shape[0]):
+            x1, y1, x2, y2 = (float(v) for v in boxes[k])
+            a = {
+                "id": len(self.annotations) + k + 1,
+                "image_id": idx,
+                "category_id": int(classes[k]) + 1,
+                "bbox": [x1, y1, x2 - x1, y2 - y1],
+                "area": (x2 - x1) * (y2 - y1),
+                "iscrowd": int(tiny[k]),
+            }
+            for key, out, conv in (("ranges", "range", float), ("bearings", "bearing", float),
+                                   ("cone_ids", "cone_id", int), ("pixels", "pixels", int)):
+                if key in gt:
+                    a[out] = conv(np.asarray(gt[key]).reshape(-1)[k])
+            anns.append(a)
+        self.images.append(rec)
+        self.annotations.extend(anns)
+        self._journal.write(json.dumps({"image": rec, "annotations": anns}) + "\n")
+        self._journal.flush()
+        return idx
+
+    def close(self) -> Path:
+        """Write ``annotations.json`` and remove the journal; returns the annotations path."""
+        if self._closed:
+            return self.root / ANNOTATIONS
+        self._journal.close()
+        data = {
+            "info": {"description": "weather-gym rendered cone frames", "min_box_height_px": self.min_box_height,
+                     **self.info},
+            "images": self.images,
+            "annotations": self.annotations,
+            "categories": CATEGORIES,
+        }
+        _atomic_write_json(self.root / ANNOTATIONS, data)
+        (self.root / JOURNAL).unlink(missing_ok=True)
+        self._closed = True
+        return self.root / ANNOTATIONS
+
+    def abort(self) -> None:
+        """Stop without writing annotations.json (the journal stays, for ``resume=True``)."""
+        if not self._closed:
+            self._journal.close()
+            self._closed = True
+
+    def __enter__(self) -> CocoWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()

@@ -1,0 +1,122 @@
+"""ConeNet: a small CenterNet-style cone detector in PyTorch (training only; the runtime uses ONNX).
+
+The network sees a letterboxed RGB image (default 512x288) and predicts, on a grid of stride 4:
+
+* ``heat``  - one sigmoid heatmap per cone class; a cone is a local peak at its box centre,
+* ``size``  - ``log(w / 4)``, ``log(h / 4)`` of the box (scale-free regression),
+* ``offset`` - the sub-cell position of the centre (0..1 in each axis).
+
+Backbone: a plain stride-2 3x3 conv at each scale (16-24-48-96-128 channels) followed by residual
+depthwise-separable blocks; a top-down feature pyramid brings the stride 8/16/32 features back to
+stride 4, where a depthwise-separable head predicts the 8 output channels. The exported ONNX graph
+also applies the sigmoid and a 3x3 max-pool peak filter (CenterNet's "NMS"), so the runtime only
+thresholds peaks.
+
+Example:
+    >>> import torch
+    >>> from weather_gym.perception.model import ConeNet
+    >>> net = ConeNet().eval()
+    >>> out = net(torch.zeros(1, 3, 288, 512))
+    >>> tuple(out.shape)  # (batch, 4 classes + 2 size + 2 offset, H/4, W/4)
+    (1, 8, 72, 128)
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+NUM_CLASSES = 4
+STRIDE = 4
+OUT_CHANNELS = NUM_CLASSES + 4
+HEAT_PRIOR = 0.01  # initial heatmap probability (focal-loss bias init, as in CenterNet/RetinaNet)
+
+
+def conv_bn(cin: int, cout: int, k: int = 3, s: int = 1, groups: int = 1, act: bool = True) -> nn.Sequential:
+    layers: list[nn.Module] = [
+        nn.Conv2d(cin, cout, k, s, k // 2, groups=groups, bias=False),
+        nn.BatchNorm2d(cout),
+    ]
+    if act:
+        layers.append(nn.ReLU(inplace=True))
+    return nn.Sequential(*layers)
+
+
+class DWBlock(nn.Module):
+    """Residual depthwise-separable block: dw 3x3 -> pw 1x1, plus the input."""
+
+    def __init__(self, ch: int) -> None:
+        super().__init__()
+        self.dw = conv_bn(ch, ch, 3, groups=ch)
+        self.pw = conv_bn(ch, ch, 1, act=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return F.relu(x + self.pw(self.dw(x)))
+
+
+def dw_sep(cin: int, cout: int) -> nn.Sequential:
+    return nn.Sequential(conv_bn(cin, cin, 3, groups=cin), conv_bn(cin, cout, 1))
+
+
+class ConeNet(nn.Module):
+    """CenterNet-lite for cones. ``widths`` are the channels at strides 2, 4, 8, 16, 32."""
+
+    def __init__(
+        self,
+        num_classes: int = NUM_CLASSES,
+        widths: tuple[int, int, int, int, int] = (16, 24, 48, 96, 128),
+        blocks: tuple[int, int, int, int] = (1, 2, 2, 1),
+        neck: int = 32,
+    ) -> None:
+        super().__init__()
+        self.num_classes = num_classes
+        w = widths
+        self.stem = conv_bn(3, w[0], 3, 2)
+        stages = []
+        for i in range(4):
+            stages.append(nn.Sequential(conv_bn(w[i], w[i + 1], 3, 2), *[DWBlock(w[i + 1]) for _ in range(blocks[i])]))
+        self.stages = nn.ModuleList(stages)
+        self.lateral = nn.ModuleList([conv_bn(c, neck, 1) for c in w[1:]])
+        self.smooth = nn.ModuleList([dw_sep(neck, neck) for _ in range(3)])
+        self.head = dw_sep(neck, neck)
+        self.out = nn.Conv2d(neck, num_classes + 4, 1)
+        nn.init.constant_(self.out.bias[:num_classes], float(torch.log(torch.tensor(HEAT_PRIOR / (1 - HEAT_PRIOR)))))
+        nn.init.zeros_(self.out.bias[num_classes:])
+        nn.init.normal_(self.out.weight, std=0.01)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Raw outputs ``(B, C+4, H/4, W/4)``: heat logits, log size, offset (pre-sigmoid)."""
+        feats = []
+        x = self.stem(x)
+        for stage in self.stages:
+            x = stage(x)
+            feats.append(x)
+        y = self.lateral[3](feats[3])
+        for i in (2, 1, 0):
+            lat = self.lateral[i](feats[i])
+            y = F.interpolate(y, size=lat.shape[-2:], mode="nearest") + lat
+            y = self.smooth[i](y)
+        return self.out(self.head(y))
+
+
+class ConeNetExport(nn.Module):
+    """The graph that is exported to ONNX: input uint8-range float ``(B,3,H,W)`` RGB in 0..255.
+
+    Output ``(B, C+4, H/4, W/4)``: peak-filtered class probabilities (0 where not a 3x3 local
+    maximum), box width/height in input pixels, centre offset in cells (0..1).
+    """
+
+    def __init__(self, net: ConeNet) -> None:
+        super().__init__()
+        self.net = net
+        self.num_classes = net.num_classes
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        raw = self.net(x * (1.0 / 255.0))
+        c = self.num_classes
+        heat = torch.sigmoid(raw[:, :c])
+        peaks = heat * (F.max_pool2d(heat, 3, 1, 1) == heat).to(heat.dtype)
+        size = torch.exp(raw[:, c : c + 2].clamp(max=6.0)) * STRIDE
+        offset = torch.sigmoid(raw[:, c + 2 :])
+        return torch.cat([peaks, size, offset], dim=1)

@@ -1,0 +1,415 @@
+"""Train ``ConeNet`` on rendered COCO datasets and export it to ONNX (needs the ``train`` extra: torch, onnx).
+
+Training is seeded and deterministic in its data order and augmentation (a ``numpy`` Generator per
+sample from ``(seed, epoch, index)``, ``torch.manual_seed(seed)``); it checkpoints every epoch and
+resumes from ``<out>.ckpt`` after an interruption. Augmentation is geometric (scale, shift,
+left-right flip: colours keep their meaning) and photometric (small hue, saturation and brightness
+jitter). The detector is trained on clean frames only - never on weather effects - so that, like the
+reference study's detector, its accuracy falls when the weather degrades the image.
+
+Example:
+    >>> from weather_gym.perception.train import TrainConfig, train_detector       # doctest: +SKIP
+    >>> train_detector(["scratch/data/train"], "model.onnx", TrainConfig(epochs=1))  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import time
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+
+from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.perception.model import NUM_CLASSES, STRIDE, ConeNet, ConeNetExport
+from weather_gym.perception.preprocess import PAD_VALUE, letterbox_params
+
+__all__ = ["TrainConfig", "train_detector", "export_onnx", "build_targets", "augment", "detection_loss"]
+
+MAX_OBJECTS = 128
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Hyper-parameters of ``train_detector`` (defaults = the shipped model's)."""
+
+    input_size: tuple[int, int] = (512, 288)
+    epochs: int = 30
+    batch_size: int = 16
+    lr: float = 3e-3
+    weight_decay: float = 5e-4
+    warmup_iters: int = 200
+    seed: int = 0
+    threads: int = 1  # torch threads: 1 is much faster than 2 on a busy 2-core machine (OpenMP spin-waits)
+    scale_range: tuple[float, float] = (0.75, 1.35)
+    shift: float = 0.12
+    flip: float = 0.5
+    hue: int = 3  # OpenCV hue units (2 degrees each)
+    saturation: float = 0.3
+    brightness: float = 0.25
+    crop_size: tuple[int, int] | None = (320, 192)  # train on random crops of the input (fully convolutional)
+    cache_images: bool = True  # keep decoded frames in memory (about 0.75 MB per 672x376 frame)
+    score_threshold: float = 0.3
+    repeat_threshold: float | None = 0.5  # repeat-factor sampling of frames with rare classes (LVIS); None = off
+    max_steps: int | None = None  # stop after this many optimizer steps (smoke tests)
+
+    def __post_init__(self) -> None:
+        w, h = self.input_size
+        if w % 32 or h % 32:
+            raise ValueError(f"input_size must be multiples of 32, got {self.input_size}")
+        if self.crop_size is not None:
+            cw, ch = self.crop_size
+            if cw % 32 or ch % 32 or cw > w or ch > h:
+                raise ValueError(f"crop_size must be multiples of 32 within input_size {self.input_size}, got {self.crop_size}")
+        if self.epochs < 1 or self.batch_size < 1:
+            raise ValueError("epochs and batch_size must be >= 1")
+
+
+# ----------------------------------------------------------------------------------- samples
+def augment(image: np.ndarray, boxes: np.ndarray, cfg: TrainConfig, rng: np.random.Generator | None):
+    """Letterbox ``image`` into the input size with a random scale/shift/flip and colour jitter,
+    then (with ``cfg.crop_size``) cut a random crop of it.
+
+    Returns (image uint8 (h, w, 3), boxes xyxy in its pixels, visible fraction of each box).
+    ``rng=None`` gives the plain letterbox (evaluation).
+    """
+    ih, iw = image.shape[:2]
+    W, H = cfg.input_size
+    lb = letterbox_params(iw, ih, cfg.input_size)
+    s, tx, ty = lb.scale, float(lb.pad[0]), float(lb.pad[1])
+    flip = False
+    if rng is not None:
+        k = float(rng.uniform(*cfg.scale_range))
+        s *= k
+        # zoom about the image centre, then shift
+        tx = W / 2 - k * (W / 2 - tx) + float(rng.uniform(-cfg.shift, cfg.shift)) * W
+        ty = H / 2 - k * (H / 2 - ty) + float(rng.uniform(-cfg.shift, cfg.shift)) * H
+        flip = bool(rng.random() < cfg.flip)
+    M = np.array([[s, 0, tx], [0, s, ty]], dtype=np.float64)
+    if flip:
+        M = np.array([[-1, 0, W], [0, 1, 0]], dtype=np.float64) @ np.vstack([M, [0, 0, 1]])
+    if rng is not None and cfg.crop_size is not None:
+        cw, ch = cfg.crop_size
+        M[0, 2] -= float(rng.integers(0, W - cw + 1))
+        M[1, 2] -= float(rng.integers(0, H - ch + 1))
+        W, H = cw, ch
+    out = cv2.warpAffine(image, M, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                         borderValue=(PAD_VALUE,) * 3)
+    b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    xs = b[:, [0, 2]] * M[0, 0] + M[0, 2]
+    ys = b[:, [1, 3]] * M[1, 1] + M[1, 2]
+    nb = np.c_[xs.min(1), ys.min(1), xs.max(1), ys.max(1)]
+    area = np.maximum((nb[:, 2] - nb[:, 0]) * (nb[:, 3] - nb[:, 1]), 1e-9)
+    nb[:, [0, 2]] = nb[:, [0, 2]].clip(0, W)
+    nb[:, [1, 3]] = nb[:, [1, 3]].clip(0, H)
+    visible = (nb[:, 2] - nb[:, 0]).clip(0) * (nb[:, 3] - nb[:, 1]).clip(0) / area
+    if rng is not None and (cfg.hue or cfg.saturation or cfg.brightness):
+        hsv = cv2.cvtColor(out, cv2.COLOR_RGB2HSV).astype(np.float32)
+        hsv[..., 0] = (hsv[..., 0] + float(rng.integers(-cfg.hue, cfg.hue + 1))) % 180
+        hsv[..., 1] *= float(rng.uniform(1 - cfg.saturation, 1 + cfg.saturation))
+        hsv[..., 2] *= float(rng.uniform(1 - cfg.brightness, 1 + cfg.brightness))
+        out = cv2.cvtColor(np.clip(hsv, 0, 255).astype(np.uint8), cv2.COLOR_HSV2RGB)
+    return out, nb, visible
+
+
+def _gaussian(heat: np.ndarray, cx: int, cy: int, sx: float, sy: float) -> None:
+    h, w = heat.shape
+    rx, ry = int(math.ceil(3 * sx)), int(math.ceil(3 * sy))
+    x0, x1 = max(0, cx - rx), min(w, cx + rx + 1)
+    y0, y1 = max(0, cy - ry), min(h, cy + ry + 1)
+    xs = np.arange(x0, x1) - cx
+    ys = np.arange(y0, y1) - cy
+    g = np.exp(-(ys[:, None] ** 2) / (2 * sy * sy) - (xs[None, :] ** 2) / (2 * sx * sx))
+    np.maximum(heat[y0:y1, x0:x1], g, out=heat[y0:y1, x0:x1])
+
+
+def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, input_size: tuple[int, int]):
+    """CenterNet targets at stride 4: heat (C, h, w), ignore map (h, w), and per-object
+    index / log-size / offset / mask arrays of length ``MAX_OBJECTS``."""
+    W, H = input_size
+    ow, oh = W // STRIDE, H // STRIDE
+    heat = np.zeros((NUM_CLASSES, oh, ow), np.float32)
+    ign = np.zeros((oh, ow), np.float32)
+    ind = np.zeros(MAX_OBJECTS, np.int64)
+    size = np.zeros((MAX_OBJECTS, 2), np.float32)
+    off = np.zeros((MAX_OBJECTS, 2), np.float32)
+    mask = np.zeros(MAX_OBJECTS, np.float32)
+    k = 0
+    for b, c, ig in zip(boxes, classes, ignore, strict=True):
+        bw, bh = b[2] - b[0], b[3] - b[1]
+        if bw <= 0 or bh <= 0:
+            continue
+        if ig:
+            x0, y0 = int(b[0] // STRIDE), int(b[1] // STRIDE)
+            x1, y1 = int(math.ceil(b[2] / STRIDE)), int(math.ceil(b[3] / STRIDE))
+            ign[max(0, y0 - 1) : min(oh, y1 + 1), max(0, x0 - 1) : min(ow, x1 + 1)] = 1.0
+            continue
+        if k >= MAX_OBJECTS:
+            continue
+        cx, cy = (b[0] + b[2]) / 2 / STRIDE, (b[1] + b[3]) / 2 / STRIDE
+        ix, iy = min(int(cx), ow - 1), min(int(cy), oh - 1)
+        sx = max(0.6, 0.15 * bw / STRIDE)
+        sy = max(0.6, 0.15 * bh / STRIDE)
+        _gaussian(heat[int(c)], ix, iy, sx, sy)
+        heat[int(c), iy, ix] = 1.0
+        ind[k] = iy * ow + ix
+        size[k] = (math.log(max(bw, 1.0) / STRIDE), math.log(max(bh, 1.0) / STRIDE))
+        off[k] = (cx - ix, cy - iy)
+        mask[k] = 1.0
+        k += 1
+    return heat, ign, ind, size, off, mask
+
+
+class _Frames(torch.utils.data.Dataset):
+    """(dataset, index) pairs of one or more ``CocoDataset``; augmentation seeded per (epoch, item)."""
+
+    def __init__(self, datasets: list, cfg: TrainConfig, train: bool) -> None:
+        self.items = [(d, i) for d in datasets for i in range(len(d))]
+        self.cfg = cfg
+        self.train = train
+        self.epoch = 0
+        self._cache: dict[int, np.ndarray] = {}
+        self.repeat = np.ones(len(self.items))
+        if train and cfg.repeat_threshold:
+            # repeat factor sampling (Gupta et al., LVIS 2019): a frame is seen max_c sqrt(t / f_c) times
+            # per epoch (at least once), f_c = fraction of frames showing a scorable cone of class c
+            present = np.zeros((len(self.items), NUM_CLASSES), bool)
+            for k, (d, i) in enumerate(self.items):
+                g = d.gt(i)
+                present[k, g["classes"][g["iscrowd"] == 0]] = True
+            freq = np.maximum(present.mean(axis=0), 1e-9)
+            per_class = np.maximum(1.0, np.sqrt(cfg.repeat_threshold / freq))
+            self.repeat = np.where(present, per_class[None, :], 1.0).max(axis=1)
+
+    def epoch_order(self, epoch: int) -> np.ndarray:
+        """Frame indices of one epoch: repeat factors rounded stochastically, then shuffled (seeded)."""
+        rng = np.random.default_rng([self.cfg.seed, epoch, 7])
+        counts = np.floor(self.repeat + rng.random(len(self.repeat))).astype(np.int64)
+        return rng.permutation(np.repeat(np.arange(len(self.repeat)), counts))
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, idx: int):
+        ds, i = self.items[idx]
+        image = self._cache.get(idx)
+        if image is None:
+            image = ds.image(i)
+            if self.cfg.cache_images:
+                self._cache[idx] = image
+        gt = ds.gt(i)
+        rng = np.random.default_rng([self.cfg.seed, self.epoch, idx]) if self.train else None
+        img, boxes, visible = augment(image, gt["boxes"], self.cfg, rng)
+        # crowd (tiny) cones and cones mostly pushed out of the frame are ignored, not negatives
+        ignore = (gt["iscrowd"] > 0) | (visible < 0.5)
+        targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]))
+        x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
+        return (x, *[torch.from_numpy(t) for t in targets])
+
+
+# ----------------------------------------------------------------------------------- loss
+def detection_loss(raw: torch.Tensor, heat, ign, ind, size, off, mask) -> tuple[torch.Tensor, dict[str, float]]:
+    """Penalty-reduced focal loss on the heatmaps (ignored cells carry no negative loss) + L1 on
+    log-size and offset at object centres."""
+    c = NUM_CLASSES
+    pred = torch.sigmoid(raw[:, :c]).clamp(1e-4, 1 - 1e-4)
+    pos = heat.eq(1.0).float()
+    neg_w = torch.pow(1 - heat, 4) * (1 - ign[:, None]) * (1 - pos)
+    pos_loss = (torch.log(pred) * torch.pow(1 - pred, 2) * pos).sum()
+    neg_loss = (torch.log(1 - pred) * torch.pow(pred, 2) * neg_w).sum()
+    n = mask.sum().clamp(min=1.0)
+    focal = -(pos_loss + neg_loss) / n
+    b, _, h, w = raw.shape
+    flat = raw[:, c:].reshape(b, 4, h * w)
+    g = torch.gather(flat, 2, ind[:, None, :].expand(b, 4, ind.shape[1]))  # (B, 4, M)
+    m = mask[:, None, :]
+    size_l = (torch.abs(g[:, :2] - size.transpose(1, 2)) * m).sum() / n
+    off_l = (torch.abs(torch.sigmoid(g[:, 2:]) - off.transpose(1, 2)) * m).sum() / n
+    total = focal + size_l + off_l
+    return total, {"focal": focal.item(), "size": size_l.item(), "offset": off_l.item()}
+
+
+# ----------------------------------------------------------------------------------- export
+def count_flops(net: ConeNet, input_size: tuple[int, int]) -> int:
+    """FLOPs (2 x multiply-adds) of one forward pass at ``input_size``, counted by torch."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    w, h = input_size
+    with torch.no_grad(), FlopCounterMode(display=False) as fc:
+        ConeNetExport(net).eval()(torch.zeros(1, 3, h, w))
+    return int(fc.get_total_flops())
+
+
+def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, int], meta: dict | None = None) -> Path:
+    """Export ``net`` (with sigmoid + peak filter) to ONNX with a dynamic batch, plus its JSON sidecar."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    w, h = input_size
+    model = ConeNetExport(net.eval()).eval()
+    tmp = path.with_name(path.name + ".tmp")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(model, torch.zeros(1, 3, h, w), str(tmp), input_names=["images"], output_names=["output"],
+                          dynamic_axes={"images": {0: "batch"}, "output": {0: "batch"}}, opset_version=17,
+                          dynamo=False)
+    import onnx
+
+    onnx.checker.check_model(str(tmp))
+    os.replace(tmp, path)
+    sidecar = {
+        "format": "weather-gym cone detector v1",
+        "architecture": "ConeNet (CenterNet-style, stride 4)",
+        "input_size": [w, h],
+        "input": "images: float32 (batch, 3, H, W) RGB 0..255, letterboxed (pad 114, centred)",
+        "output": "output: (batch, C+4, H/4, W/4) = peak-filtered class scores, box w/h (input px), centre offset",
+        "classes": list(CONE_CLASSES),
+        "stride": STRIDE,
+        "params": int(sum(p.numel() for p in net.parameters())),
+        "flops": count_flops(net, input_size),
+        **(meta or {}),
+    }
+    with open(path.with_suffix(".json"), "w") as f:
+        json.dump(sidecar, f, indent=2)
+    return path
+
+
+# ----------------------------------------------------------------------------------- training
+def _eval_map(net: ConeNet, val, cfg: TrainConfig, max_images: int = 200) -> float:
+    """mAP@0.5 of the torch model on (up to ``max_images`` frames of) ``val``, via the runtime decoder."""
+    from weather_gym.perception.detector import Detections
+    from weather_gym.perception.preprocess import decode, letterbox
+    from weather_gym.perception.scoring import evaluate
+
+    model = ConeNetExport(net).eval()
+    n = min(len(val), max_images)
+    dets, gts = [], []
+    with torch.no_grad():
+        for start in range(0, n, 16):
+            idx = range(start, min(n, start + 16))
+            ims = [val.image(i) for i in idx]
+            boxed = [letterbox(im, cfg.input_size) for im in ims]
+            x = torch.from_numpy(np.stack([b[0].transpose(2, 0, 1) for b in boxed])).float()
+            out = model(x).numpy()
+            for (boxes, scores, classes), (_, lb) in zip(decode(out, NUM_CLASSES, STRIDE, 0.05), boxed, strict=True):
+                dets.append(Detections(lb.to_original(boxes).astype(np.float32), scores, classes))
+            gts += [val.gt(i) for i in idx]
+    return evaluate(gts, dets).map50
+
+
+def train_detector(
+    data: list[str | os.PathLike],
+    out: str | os.PathLike,
+    cfg: TrainConfig = TrainConfig(),
+    *,
+    val: str | os.PathLike | None = None,
+    resume: bool = True,
+    progress: bool = True,
+    log=print,
+) -> dict[str, Any]:
+    """Train on the COCO folders ``data`` and write ``out`` (ONNX) + its sidecar; returns a summary.
+
+    A checkpoint ``<out>.ckpt`` is written after every epoch; when it exists (and ``resume``),
+    training continues from it. It is removed once the ONNX file is written.
+    """
+    from tqdm import tqdm
+
+    from weather_gym.datasets.coco import load_coco
+
+    if not data:
+        raise ValueError("no training data given")
+    out = Path(out)
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    train_sets = [load_coco(d) for d in data]
+    val_set = load_coco(val) if val is not None else None
+    frames = _Frames(train_sets, cfg, train=True)
+    if len(frames) == 0:
+        raise ValueError(f"the training data {', '.join(map(str, data))} has no images")
+    net = ConeNet().to(memory_format=torch.channels_last)  # much faster convolutions on CPU
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    steps_per_epoch = math.ceil(float(frames.repeat.sum()) / cfg.batch_size)
+    total_steps = steps_per_epoch * cfg.epochs if cfg.max_steps is None else min(cfg.max_steps, steps_per_epoch * cfg.epochs)
+
+    def lr_at(step: int) -> float:
+        if step < cfg.warmup_iters:
+            return cfg.lr * (step + 1) / cfg.warmup_iters
+        t = (step - cfg.warmup_iters) / max(1, total_steps - cfg.warmup_iters)
+        return cfg.lr * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * min(1.0, t))))
+
+    ckpt = out.with_name(out.name + ".ckpt")
+    start_epoch, step, history, elapsed = 0, 0, [], 0.0
+    if resume and ckpt.is_file():
+        state = torch.load(ckpt, map_location="cpu", weights_only=False)
+        if state.get("config") != asdict(cfg) or state.get("data") != [str(d) for d in data]:
+            raise ValueError(f"checkpoint {ckpt} was made with other settings or data; delete it to start again")
+        net.load_state_dict(state["model"])
+        opt.load_state_dict(state["optim"])
+        start_epoch, step, history, elapsed = state["epoch"], state["step"], state["history"], state["elapsed"]
+        log(f"resuming from {ckpt} at epoch {start_epoch}")
+    t_start = time.perf_counter() - elapsed
+    for epoch in range(start_epoch, cfg.epochs):
+        if step >= total_steps:
+            break
+        frames.epoch = epoch
+        order = frames.epoch_order(epoch)
+        net.train()
+        sums: dict[str, float] = {}
+        nb = 0
+        bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress,
+                   leave=False)
+        for start in bar:
+            batch = [frames[int(i)] for i in order[start : start + cfg.batch_size]]
+            x, heat, ign, ind, size, off, mask = (torch.stack(t) for t in zip(*batch, strict=True))
+            x = x.contiguous(memory_format=torch.channels_last)
+            for g in opt.param_groups:
+                g["lr"] = lr_at(step)
+            loss, parts = detection_loss(net(x), heat, ign, ind, size, off, mask)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(net.parameters(), 10.0)
+            opt.step()
+            step += 1
+            nb += 1
+            for k, v in {"loss": loss.item(), **parts}.items():
+                sums[k] = sums.get(k, 0.0) + v
+            bar.set_postfix(loss=f"{sums['loss'] / nb:.3f}")
+            if step >= total_steps:
+                break
+        entry = {"epoch": epoch + 1, "step": step, **{k: v / max(nb, 1) for k, v in sums.items()},
+                 "elapsed_s": time.perf_counter() - t_start}
+        if val_set is not None and ((epoch + 1) % 5 == 0 or epoch + 1 == cfg.epochs or step >= total_steps):
+            entry["val_map50"] = _eval_map(net, val_set, cfg)
+        history.append(entry)
+        tmp = ckpt.with_name(ckpt.name + ".tmp")
+        torch.save({"model": net.state_dict(), "optim": opt.state_dict(), "epoch": epoch + 1, "step": step,
+                    "history": history, "elapsed": time.perf_counter() - t_start, "config": asdict(cfg),
+                    "data": [str(d) for d in data]}, tmp)
+        os.replace(tmp, ckpt)
+        log(json.dumps(entry))
+    train_time = time.perf_counter() - t_start
+    meta = {
+        "score_threshold": cfg.score_threshold,
+        "training": {
+            "data": [str(d) for d in data],
+            "tracks": sorted({str(im.get("track")) for d in train_sets for im in d.images}),
+            "frames": len(frames),
+            "val": str(val) if val is not None else None,
+            "config": asdict(cfg),
+            "steps": step,
+            "train_time_s": round(train_time, 1),
+            "hardware": f"{platform.processor() or platform.machine()}, {cfg.threads} torch threads, CPU",
+            "torch": torch.__version__,
+            "history": history,
+        },
+    }
+    export_onnx(net.to(memory_format=torch.contiguous_format), out, cfg.input_size, meta)
+    ckpt.unlink(missing_ok=True)
+    return {"model": str(out), "steps": step, "train_time_s": train_time, "history": history}

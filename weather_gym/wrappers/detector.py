@@ -1,0 +1,147 @@
+"""``DetectorWrapper``: camera image in, fixed-size cone list out (what a real perception stack reports).
+
+Order: ``env -> WeatherWrapper -> DetectorWrapper``, so the detector sees the weathered image.
+The observation becomes ``Dict(cones=(N, 14) float32, mask=(N,) int8, state=...)`` (state passed
+through; see ``weather_gym.perception.cones.CONE_FIELDS``), which stable-baselines3 accepts. Range
+comes from the depth observation when the env has one (``use_depth=True``; the study used stereo
+depth) or else from the box height and the known cone height.
+
+``info["detections"]`` holds the raw detections (``boxes`` xyxy in original pixels, ``scores``,
+``classes``) and ``info["detector_latency_ms"]`` the inference time of that step (letterbox, ONNX
+run and decoding). With ``keep_image=True`` the (weathered) image stays in the observation.
+
+Example:
+    >>> import gymnasium as gym, numpy as np
+    >>> from weather_gym.wrappers import DetectorWrapper
+    >>> class Camera(gym.Env):
+    ...     observation_space = gym.spaces.Dict({"image": gym.spaces.Box(0, 255, (376, 672, 3), np.uint8)})
+    ...     action_space = gym.spaces.Discrete(1)
+    ...     def reset(self, *, seed=None, options=None):
+    ...         super().reset(seed=seed); return {"image": np.zeros((376, 672, 3), np.uint8)}, {}
+    ...     def step(self, action):
+    ...         return {"image": np.zeros((376, 672, 3), np.uint8)}, 0.0, False, False, {}
+    >>> env = DetectorWrapper(Camera(), max_cones=8)
+    >>> obs, info = env.reset(seed=0)
+    >>> obs["cones"].shape, int(obs["mask"].sum()), len(info["detections"]["scores"])
+    ((8, 14), 0, 0)
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from weather_gym.camera import CameraConfig
+from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
+from weather_gym.perception.ranging import cones_to_observation, detections_to_cones
+
+__all__ = ["DetectorWrapper"]
+
+
+class DetectorWrapper(gym.ObservationWrapper):
+    """Replace the image observation by the detector's cone list; see the module doc.
+
+    Args:
+        env: an env whose observation is an RGB image Box or a Dict with one under ``image_key``.
+        detector: a ``ConeDetector``, a path to an ONNX model, or None (the shipped model).
+        max_cones: rows of the cone list (nearest cones kept).
+        camera: the camera model for bearing/range (default: the env's ``config.camera``, else the
+            default camera scaled to the image size).
+        use_depth: take range from the ``depth_key`` observation when present.
+        keep_image: keep the image in the observation (for viewing; most policies do not need it).
+        score_threshold, threads: passed to a detector the wrapper creates.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        detector: Any = None,
+        *,
+        max_cones: int = DEFAULT_MAX_CONES,
+        camera: CameraConfig | None = None,
+        image_key: str = "image",
+        depth_key: str = "depth",
+        use_depth: bool = True,
+        keep_image: bool = False,
+        score_threshold: float | None = None,
+        threads: int = 1,
+    ) -> None:
+        super().__init__(env)
+        from weather_gym.perception.detector import ConeDetector
+
+        if not isinstance(max_cones, int) or max_cones < 1:
+            raise ValueError(f"DetectorWrapper: max_cones must be a positive integer, got {max_cones!r}")
+        space = env.observation_space
+        if isinstance(space, spaces.Dict):
+            if image_key not in space.spaces:
+                raise ValueError(f"DetectorWrapper: observation Dict has no image key {image_key!r} "
+                                 f"(keys: {', '.join(space.spaces)}); pass image_key=...")
+            image_space = space[image_key]
+            self._is_dict = True
+        else:
+            image_space = space
+            self._is_dict = False
+        if not (isinstance(image_space, spaces.Box) and image_space.dtype == np.uint8 and len(image_space.shape) == 3
+                and image_space.shape[2] == 3):
+            raise ValueError(f"DetectorWrapper: the image observation must be Box(0, 255, (H, W, 3), uint8), got {image_space}")
+        h, w = image_space.shape[:2]
+        if camera is None:
+            cfg = getattr(getattr(env, "unwrapped", env), "config", None)
+            camera = getattr(cfg, "camera", None) if cfg is not None else None
+            if not isinstance(camera, CameraConfig):
+                camera = CameraConfig().scaled(w, h)
+        if (camera.width, camera.height) != (w, h):
+            raise ValueError(f"DetectorWrapper: camera is {camera.width}x{camera.height} but the image observation is {w}x{h}")
+        self.camera = camera
+        if detector is None or isinstance(detector, (str, os.PathLike)):
+            detector = ConeDetector(detector, score_threshold=score_threshold, threads=threads)
+        self.detector = detector
+        self.image_key = image_key
+        self.depth_key = depth_key if (use_depth and self._is_dict and depth_key in space.spaces) else None
+        self.max_cones = max_cones
+        self.keep_image = keep_image
+        out = dict(cone_list_space(max_cones).spaces)
+        if self._is_dict:
+            for k, v in space.spaces.items():
+                if k not in (image_key, depth_key) or (k == image_key and keep_image):
+                    out[k] = v
+        elif keep_image:
+            out[image_key] = image_space
+        self.observation_space = spaces.Dict(out)
+        self._last_detections: dict[str, np.ndarray] | None = None
+        self._last_latency = 0.0
+
+    def observation(self, observation: Any) -> dict[str, np.ndarray]:
+        image = observation[self.image_key] if self._is_dict else observation
+        t0 = time.perf_counter()
+        det = self.detector(np.asarray(image))
+        self._last_latency = 1000.0 * (time.perf_counter() - t0)
+        depth = observation[self.depth_key] if self.depth_key is not None else None
+        cones = detections_to_cones(det, self.camera, depth)
+        packed, mask = cones_to_observation(cones, self.camera, self.max_cones)
+        self._last_detections = {**det.to_dict(), "ranges": cones["ranges"].astype(np.float32),
+                                 "bearings": cones["bearings"].astype(np.float32)}
+        out: dict[str, np.ndarray] = {"cones": packed, "mask": mask}
+        for k in self.observation_space.spaces:
+            if k not in out:
+                out[k] = observation[k] if self._is_dict else image
+        return out
+
+    def _add_info(self, info: dict) -> dict:
+        info = dict(info)
+        info["detections"] = self._last_detections
+        info["detector_latency_ms"] = self._last_latency
+        return info
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self.observation(obs), self._add_info(info)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self.observation(obs), reward, terminated, truncated, self._add_info(info)
