@@ -107,3 +107,44 @@ def test_gui_without_display_is_a_clear_error(monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
     with pytest.raises(RuntimeError, match="display"):
         World(load_track("hairpin"), sim=SimConfig(gui=True))
+
+
+def _renderer_in_forked_child(queue):
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        w = World(load_track("acceleration"), camera=CameraConfig(width=32, height=18))
+        try:
+            w.reset(w.track.start_pose)
+            w.render()
+            queue.put((w.renderer_name, [str(c.message) for c in caught]))
+        finally:
+            w.close()
+
+
+def test_a_child_forked_after_egl_renders_with_tinyrenderer_instead_of_hanging(world):
+    import multiprocessing as mp
+
+    if world.renderer_name != "egl":
+        pytest.skip("EGL is not available here")
+    ctx = mp.get_context("fork")
+    q = ctx.Queue()
+    proc = ctx.Process(target=_renderer_in_forked_child, args=(q,))
+    proc.start()
+    try:
+        name, warned = q.get(timeout=60)  # EGL in a forked child used to wait here forever
+    finally:
+        proc.join(timeout=10)
+        if proc.is_alive():
+            proc.kill()
+    assert name == "tiny"
+    assert any("spawn" in m for m in warned)
+
+
+def test_requesting_egl_in_a_forked_child_is_a_clear_error(world, monkeypatch):
+    from weather_gym.sim import renderer
+
+    monkeypatch.setattr(renderer, "_forked_after_egl", True)
+    with pytest.raises(RuntimeError, match="forked from one that already used.*spawn"):
+        World(load_track("acceleration"), sim=SimConfig(renderer="egl"), camera=CameraConfig(width=32, height=18))

@@ -1,6 +1,7 @@
 """Procedural meshes (Wavefront OBJ text) for the scene: traffic cones and textured ground quads.
 
-PyBullet loads meshes from files, so the sim writes these strings into a per-world temporary folder.
+PyBullet loads meshes from files, so the sim writes these strings to files named by their content
+(:mod:`weather_gym.sim.mesh_files`).
 
 Example:
     >>> from weather_gym.sim.meshes import cone_obj

@@ -1,14 +1,35 @@
 """Pick PyBullet's renderer: the EGL plugin (OpenGL, also on Mesa's software rasteriser) when it
 loads and renders, else TinyRenderer (pure CPU). Both are deterministic; they differ from each other.
+
+EGL and ``fork``: once a process has used EGL, a child forked from it (``multiprocessing``'s default
+start method on Linux before Python 3.14, e.g. ``gymnasium.vector.AsyncVectorEnv()``) inherits
+Mesa's state without its render threads, and its first EGL frame waits for them forever. Such a
+child therefore never loads EGL: ``"auto"`` falls back to TinyRenderer (with a warning), ``"egl"``
+raises. Start workers with ``spawn`` or ``forkserver`` (``AsyncVectorEnv(..., context="spawn")``)
+to keep EGL in them.
 """
 
 from __future__ import annotations
 
 import os
 import pkgutil
+import warnings
 
 import numpy as np
 import pybullet as p
+
+_egl_used = False
+"""This process has loaded the EGL plugin."""
+_forked_after_egl = False
+"""This process was forked from one that had loaded the EGL plugin (EGL would hang here)."""
+
+
+def _after_fork_in_child() -> None:
+    global _forked_after_egl
+    _forked_after_egl = _forked_after_egl or _egl_used
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
 def _egl_plugin_path() -> str | None:
@@ -45,15 +66,25 @@ def setup_renderer(client: int, requested: str) -> tuple[str, int | None]:
     ``requested`` "auto" tries EGL and falls back to TinyRenderer; "egl" raises if EGL fails.
     The env var ``WEATHER_GYM_RENDERER`` overrides "auto".
     """
+    global _egl_used
     if requested == "auto":
         requested = os.environ.get("WEATHER_GYM_RENDERER", "auto")
     if requested == "tiny":
+        return "tiny", None
+    if _forked_after_egl:
+        msg = ("this process was forked from one that already used PyBullet's EGL renderer, and EGL hangs "
+               "in such a child; start the worker processes with the 'spawn' or 'forkserver' method "
+               "(e.g. AsyncVectorEnv(..., context='spawn')) to render with EGL there")
+        if requested == "egl":
+            raise RuntimeError(msg)
+        warnings.warn(msg + "; using TinyRenderer in this process", RuntimeWarning, stacklevel=3)
         return "tiny", None
     path = _egl_plugin_path()
     plugin = -1
     if path is not None:
         with _quiet_fd():
             plugin = p.loadPlugin(path, "_eglRendererPlugin", physicsClientId=client)
+        _egl_used = _egl_used or plugin >= 0
     if plugin >= 0 and _egl_renders(client):
         return "egl", plugin
     if plugin >= 0:

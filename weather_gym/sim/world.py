@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 import cv2
@@ -31,6 +29,7 @@ from weather_gym.sim.camera import CameraFrame, CameraSensor
 from weather_gym.sim.car import Car
 from weather_gym.sim.config import CarConfig, SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK, Look
+from weather_gym.sim.mesh_files import mesh_file
 from weather_gym.sim.meshes import box_obj, cone_obj, quad_obj
 from weather_gym.sim.renderer import renderer_flag, setup_renderer
 from weather_gym.sim.textures import cone_texture, ground_texture, sky_panorama
@@ -38,6 +37,27 @@ from weather_gym.sim.textures import cone_texture, ground_texture, sky_panorama
 GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
 GROUND_TEXTURE_PX = 2048
 REAR_OVERHANG_M = 0.45
+
+
+_GROUND_FILES: dict[tuple, Path] = {}
+"""(track geometry, extent, ground look) -> ground mesh file: worlds of the same track share it."""
+
+
+def _ground_file(track, extent: tuple[float, float, float, float], look: Look) -> Path:
+    """The ground's textured mesh file for ``track`` under ``look`` (texture made once per process)."""
+    geometry = tuple(np.ascontiguousarray(a, dtype=np.float64).tobytes()
+                     for a in (track.centerline, track.half_width_left, track.half_width_right))
+    key = (geometry, bool(track.closed), extent, look.asphalt_rgb, look.grass_rgb, look.kerb_rgb, look.ground_seed)
+    path = _GROUND_FILES.get(key)
+    if path is None or not path.exists():
+        tex = ground_texture(np.asarray(track.centerline), np.asarray(track.half_width_left),
+                             np.asarray(track.half_width_right), bool(track.closed), extent, look,
+                             size=GROUND_TEXTURE_PX)
+        path = mesh_file("ground", quad_obj(*extent), tex)
+        if len(_GROUND_FILES) >= 64:
+            _GROUND_FILES.pop(next(iter(_GROUND_FILES)))
+        _GROUND_FILES[key] = path
+    return path
 
 
 class World:
@@ -64,7 +84,6 @@ class World:
                 "the PyBullet GUI (render_mode='human' / SimConfig(gui=True)) needs a display, and DISPLAY is "
                 "not set; use render_mode='rgb_array' (or run under xvfb-run)"
             )
-        self._tmp = Path(tempfile.mkdtemp(prefix="weather_gym_"))
         try:
             self._client = p.connect(p.GUI if self.sim.gui else p.DIRECT)
             if self._client < 0:
@@ -110,8 +129,7 @@ class World:
         # cones: one textured visual/collision shape per class, one body per cone
         shapes = []
         for name in CONE_CLASSES:
-            self._write_textured_obj(f"cone_{name}", cone_obj(CONE_HEIGHT_M[name], CONE_BASE_M[name]), cone_texture(name))
-            f = str(self._tmp / f"cone_{name}.obj")
+            f = str(mesh_file(f"cone_{name}", cone_obj(CONE_HEIGHT_M[name], CONE_BASE_M[name]), cone_texture(name)))
             vis = p.createVisualShape(p.GEOM_MESH, fileName=f, physicsClientId=c)
             col = p.createCollisionShape(p.GEOM_MESH, fileName=f, physicsClientId=c)
             shapes.append((vis, col))
@@ -148,8 +166,8 @@ class World:
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
         self._car_body = p.createMultiBody(cfg.mass, col, self._hidden_visual, [0, 0, self._car_body_z],
                                            physicsClientId=c)
-        (self._tmp / "car.obj").write_text(box_obj(cfg.length, cfg.width, body_h, z0=-body_h / 2))
-        vis = p.createVisualShape(p.GEOM_MESH, fileName=str(self._tmp / "car.obj"), rgbaColor=[0.6, 0.05, 0.08, 1],
+        car_obj = mesh_file("car", box_obj(cfg.length, cfg.width, body_h, z0=-body_h / 2))
+        vis = p.createVisualShape(p.GEOM_MESH, fileName=str(car_obj), rgbaColor=[0.6, 0.05, 0.08, 1],
                                   physicsClientId=c)
         self._car_visual = p.createMultiBody(0, -1, vis, [0, 0, -10], physicsClientId=c)
 
@@ -166,14 +184,6 @@ class World:
             lut[b + 1] = i
         self._cone_lut = lut
 
-    def _write_textured_obj(self, stem: str, obj_text: str, texture_rgb: np.ndarray) -> Path:
-        """Write ``stem.obj`` + ``stem.mtl`` + ``stem.png`` so the mesh loads with its texture."""
-        cv2.imwrite(str(self._tmp / f"{stem}.png"), cv2.cvtColor(texture_rgb, cv2.COLOR_RGB2BGR))
-        (self._tmp / f"{stem}.mtl").write_text(f"newmtl mat\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nmap_Kd {stem}.png\n")
-        path = self._tmp / f"{stem}.obj"
-        path.write_text(f"mtllib {stem}.mtl\nusemtl mat\n" + obj_text)
-        return path
-
     # ------------------------------------------------------------------ appearance
     def set_look(self, look: Look) -> None:
         """Apply an appearance (textures are regenerated only when they change)."""
@@ -184,12 +194,7 @@ class World:
         if ground_key != self._ground_key:
             shape = self._ground_shapes.get(ground_key)
             if shape is None:
-                stem = f"ground_{len(self._ground_shapes)}"
-                tex = ground_texture(
-                    np.asarray(track.centerline), np.asarray(track.half_width_left), np.asarray(track.half_width_right),
-                    bool(track.closed), self._ground_extent, look, size=GROUND_TEXTURE_PX,
-                )
-                path = self._write_textured_obj(stem, quad_obj(*self._ground_extent), tex)
+                path = _ground_file(track, self._ground_extent, look)
                 shape = p.createVisualShape(p.GEOM_MESH, fileName=str(path), physicsClientId=c)
                 self._ground_shapes[ground_key] = shape
             if self._ground_visual is not None:
@@ -311,7 +316,7 @@ class World:
         return self._client
 
     def close(self) -> None:
-        """Free the physics client (and its renderer plugin) and the temporary mesh folder."""
+        """Free the physics client (and its renderer plugin)."""
         if self._client is not None:
             try:
                 if getattr(self, "_plugin", None) is not None:
@@ -320,9 +325,6 @@ class World:
             except p.error:
                 pass
             self._client = None
-        if self._tmp is not None:
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            self._tmp = None  # type: ignore[assignment]
 
     def __del__(self) -> None:  # pragma: no cover - safety net
         try:
