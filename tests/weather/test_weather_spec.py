@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -45,13 +46,20 @@ def test_clear_weather_is_the_identity(clear, noisy_image):
     assert to_spec(w) == []
 
 
+def _preset_effect(condition, severity):
+    (table,) = preset_spec(condition, severity)
+    return make(**table)
+
+
 def test_presets_in_every_spelling():
-    expected = make("dim", k=0.55)
+    expected = _preset_effect("low_light", 2)
+    assert expected.name == "dim" and 0 < expected.k < 1
     for spec in ("low_light@2", ("low_light", 2), "dim@2", ("dim", 2), " low_light @ 2"):
         assert parse_weather(spec) == expected, spec
-    assert parse_weather("droplets@3") == make("droplets", k=0.55)
+    assert parse_weather("droplets@3") == _preset_effect("droplets", 3)
     assert parse_weather("droplets@0") == Compose([])
-    assert parse_weather("droplets@4,low_light@1") == Compose([make("droplets", k=0.8), make("dim", k=0.3)])
+    assert parse_weather("droplets@4,low_light@1") == Compose([_preset_effect("droplets", 4),
+                                                               _preset_effect("low_light", 1)])
 
 
 @pytest.mark.parametrize(("spec", "message"), [
@@ -110,20 +118,29 @@ def test_current_spec_shows_the_ramps_k():
     assert current_spec(ramp)[0]["k"] == 0.25 and current_spec(ramp)[0]["name"] == "dim"
 
 
-def test_shipped_presets_are_complete_and_marked_uncalibrated():
-    data = load_presets()
-    assert data["calibrated"] is False
+#: The first, uncalibrated table (k guesses), kept as a fixed input for the file-format tests.
+UNCALIBRATED = Path(__file__).with_name("data") / "presets_uncalibrated.toml"
+
+
+@pytest.mark.parametrize("path", [DEFAULT_PRESETS, UNCALIBRATED], ids=["shipped", "uncalibrated"])
+def test_presets_are_complete_and_grow_with_severity(path):
+    data = load_presets(path)
     assert set(data["presets"]) == set(CONDITIONS)
     for cond in CONDITIONS:
         assert sorted(data["presets"][cond]) == list(SEVERITIES)
-        assert preset_spec(cond, 0) == []
-        ks = [preset_spec(cond, s)[0]["k"] for s in SEVERITIES[1:]]
+        assert preset_spec(cond, 0, path) == []
+        ks = [preset_spec(cond, s, path)[0]["k"] for s in SEVERITIES[1:]]
         assert ks == sorted(ks)
-    assert preset_spec("droplets", 3) == [{"name": "droplets", "k": 0.55}]
-    assert preset_spec("low_light", 3) == [{"name": "dim", "k": 0.78}]
-    entry = preset_entry("low_light", 2)
+    entry = preset_entry("low_light", 2, path)
     assert entry["measured_map"] == 0.273 and entry["description"] == "Sunset"
-    assert np.isnan(entry["achieved_relative"])
+
+
+def test_an_uncalibrated_table_says_so():
+    data = load_presets(UNCALIBRATED)
+    assert data["calibrated"] is False
+    assert preset_spec("droplets", 3, UNCALIBRATED) == [{"name": "droplets", "k": 0.55}]
+    assert preset_spec("low_light", 3, UNCALIBRATED) == [{"name": "dim", "k": 0.78}]
+    assert np.isnan(preset_entry("low_light", 2, UNCALIBRATED)["achieved_relative"])
 
 
 def test_preset_lookup_errors():
@@ -136,7 +153,7 @@ def test_preset_lookup_errors():
 
 
 def test_a_rewritten_presets_file_is_read_without_code_changes(tmp_path):
-    text = DEFAULT_PRESETS.read_text().replace("calibrated = false", "calibrated = true")
+    text = UNCALIBRATED.read_text().replace("calibrated = false", "calibrated = true")
     text = text.replace('effects = [{ name = "droplets", k = 0.55 }]',
                         'effects = [{ name = "droplets", k = 0.61, persistent = true }]\nnote = "fitted"')
     path = tmp_path / "presets.toml"
@@ -159,7 +176,7 @@ def test_a_rewritten_presets_file_is_read_without_code_changes(tmp_path):
 ])
 def test_a_broken_presets_file_is_a_clear_error(tmp_path, edit, message):
     path = tmp_path / "presets.toml"
-    path.write_text(edit(DEFAULT_PRESETS.read_text()))
+    path.write_text(edit(UNCALIBRATED.read_text()))
     with pytest.raises(ValueError, match=message):
         load_presets(path)
     with pytest.raises(FileNotFoundError):

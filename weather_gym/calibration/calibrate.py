@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write
 from weather_gym.calibration.curve import Curve, invert
 from weather_gym.calibration.measured import MeasuredLevel, levels_by_condition
 
@@ -305,14 +306,6 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
             for k, v in fields.items():
                 lines.append(f"{k} = {_toml_value(v)}")
     text = "\n".join(lines) + "\n"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    try:
-        load_presets(tmp)  # the loader's own validation: a file it would refuse is never written
-    except Exception:
-        tmp.unlink(missing_ok=True)
-        raise
-    os.replace(tmp, path)
-    return path
+    # the loader's own validation: a file it would refuse is never written
+    return atomic_write(path, text, check=load_presets)
 

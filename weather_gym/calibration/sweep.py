@@ -37,6 +37,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from weather_gym._io import atomic_write_json
+
 __all__ = [
     "CURVE_FILE",
     "KEY_FIELDS",
@@ -327,6 +329,4 @@ def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, 
             "model": str(model) if model is not None else "weather_gym/perception/models/cone_detector.onnx",
             "model_id": c0.model_id, "command": command, "wall_s_of_run": round(wall, 1),
         }
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
-    os.replace(tmp, path)
+    atomic_write_json(path, meta, indent=2, sort_keys=True)

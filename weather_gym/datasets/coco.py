@@ -37,6 +37,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from weather_gym._io import atomic_write_json
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xywh_to_xyxy
 
@@ -79,13 +80,6 @@ def read_depth_png(path: str | os.PathLike) -> np.ndarray:
     if mm is None or mm.ndim != 2 or mm.dtype != np.uint16:
         raise ValueError(f"depth file {path} is not a single-channel 16-bit PNG of millimetres")
     return mm.astype(np.float32) / np.float32(DEPTH_SCALE)
-
-
-def _atomic_write_json(path: Path, data: Any) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w") as f:
-        json.dump(data, f)
-    os.replace(tmp, path)
 
 
 class CocoDataset:
@@ -357,7 +351,7 @@ class CocoWriter:
             "annotations": self.annotations,
             "categories": CATEGORIES,
         }
-        _atomic_write_json(self.root / ANNOTATIONS, data)
+        atomic_write_json(self.root / ANNOTATIONS, data)
         (self.root / JOURNAL).unlink(missing_ok=True)
         self._closed = True
         return self.root / ANNOTATIONS

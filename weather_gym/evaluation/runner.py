@@ -240,6 +240,7 @@ class ResultsFile:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
         try:
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it 0600; a results file is readable like any other
             with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
                 csv.writer(f, lineterminator="\n").writerow(self.columns)
                 for r in self.rows:
@@ -257,6 +258,12 @@ class ResultsFile:
                 os.fsync(dfd)
             finally:
                 os.close(dfd)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def read_results(path: str | os.PathLike) -> list[dict[str, Any]]:

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
 __all__ = ["CHAIN_ORDER", "read_model", "write_model", "model_tables", "insert_position", "apply_chain",
@@ -129,10 +130,7 @@ def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
             lines += [f"# {c}" for c in comments[i].splitlines()]
         lines.append("[[effects]]")
         lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines) + "\n")
-    os.replace(tmp, path)
+    atomic_write(path, "\n".join(lines) + "\n")
 
 
 def insert_position(effects: Sequence[KnobEffect], name: str) -> int:

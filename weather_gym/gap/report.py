@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write
+
 __all__ = ["write_plots", "write_markdown", "markdown"]
 
 
@@ -286,7 +288,4 @@ def markdown(report: dict[str, Any]) -> str:
 
 
 def write_markdown(report: dict[str, Any], path: str | os.PathLike) -> None:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(markdown(report))
-    os.replace(tmp, path)
+    atomic_write(path, markdown(report))

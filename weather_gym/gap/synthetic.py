@@ -21,6 +21,7 @@ from typing import Any
 
 import cv2
 
+from weather_gym._io import atomic_write_json
 from weather_gym.gap.model import apply_chain
 from weather_gym.gap.simulate import frame_state
 
@@ -71,7 +72,4 @@ def degrade_dataset(src: str | os.PathLike, dst: str | os.PathLike, weather: Any
             for key in ("pose", "look", "seed", "episode", "step"):
                 rec.pop(key, None)
     data.setdefault("info", {})["description"] = "weather-gym frames with weather applied (degrade_dataset)"
-    tmp = dst / (ANNOTATIONS + ".tmp")
-    tmp.write_text(json.dumps(data))
-    os.replace(tmp, dst / ANNOTATIONS)
-    return dst / ANNOTATIONS
+    return atomic_write_json(dst / ANNOTATIONS, data)

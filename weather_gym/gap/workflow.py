@@ -29,7 +29,6 @@ Example:
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -40,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write_json
 from weather_gym.gap.compare import (
     ALPHA,
     MIN_EFFECT,
@@ -530,8 +530,6 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
     session.timings["total_s"] = time.perf_counter() - t_start
     report["timings"] = {k: round(v, 2) for k, v in sorted(session.timings.items())}
     report = _jsonable(report)
-    tmp = out / "report.json.tmp"
-    tmp.write_text(json.dumps(report, indent=1) + "\n")
-    os.replace(tmp, out / "report.json")
+    atomic_write_json(out / "report.json", report, indent=1)
     write_markdown(report, out / "report.md")
     return report

@@ -19,6 +19,7 @@ from scipy import ndimage
 
 from weather_gym.camera import CameraConfig
 from weather_gym.sim.look import Look
+from weather_gym.sim.renderer import quiet_if_egl
 
 
 @dataclass
@@ -100,16 +101,17 @@ class CameraSensor:
         eye, heading, pitch = self.mount_pose(car_pose)
         fwd = np.array([math.cos(heading) * math.cos(pitch), math.sin(heading) * math.cos(pitch), -math.sin(pitch)])
         view = p.computeViewMatrix(eye.tolist(), (eye + fwd).tolist(), [0, 0, 1])
-        _, _, rgba, zbuf, seg = p.getCameraImage(
-            c.width,
-            c.height,
-            view,
-            self._proj,
-            renderer=self.renderer,
-            shadow=int(self.shadows),
-            physicsClientId=self.client,
-            **light,
-        )[:5]
+        with quiet_if_egl(self.renderer):
+            _, _, rgba, zbuf, seg = p.getCameraImage(
+                c.width,
+                c.height,
+                view,
+                self._proj,
+                renderer=self.renderer,
+                shadow=int(self.shadows),
+                physicsClientId=self.client,
+                **light,
+            )[:5]
         rgba = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)
         rgb = cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB)
         depth = depth_from_zbuffer(np.asarray(zbuf).reshape(c.height, c.width), c.near, c.far)

@@ -11,8 +11,11 @@ to keep EGL in them.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import os
 import pkgutil
+import sys
 import warnings
 
 import numpy as np
@@ -37,27 +40,38 @@ def _egl_plugin_path() -> str | None:
     return loader.get_filename() if loader is not None else None  # type: ignore[attr-defined]
 
 
-def _quiet_fd():
-    """Context manager silencing C-level stdout (the EGL plugin prints GL vendor lines)."""
-    import contextlib
+@contextlib.contextmanager
+def quiet_c_output():
+    """Silence what C code prints to stdout and stderr (the EGL plugin prints GL vendor lines).
 
-    @contextlib.contextmanager
-    def cm():
-        try:
-            fd = os.dup(1)
-        except OSError:
-            yield
-            return
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        try:
-            os.dup2(devnull, 1)
-            yield
-        finally:
-            os.dup2(fd, 1)
+    C's stdio buffers its output, so the buffers are flushed before the descriptors are restored;
+    otherwise the lines would come out later, interleaved with progress bars.
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    try:
+        saved = [os.dup(1), os.dup(2)]
+    except OSError:
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        _libc_fflush()
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, devnull):
             os.close(fd)
-            os.close(devnull)
 
-    return cm()
+
+def _libc_fflush() -> None:
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):  # pragma: no cover - no C library to flush
+        pass
 
 
 def setup_renderer(client: int, requested: str) -> tuple[str, int | None]:
@@ -82,13 +96,14 @@ def setup_renderer(client: int, requested: str) -> tuple[str, int | None]:
     path = _egl_plugin_path()
     plugin = -1
     if path is not None:
-        with _quiet_fd():
+        with quiet_c_output():
             plugin = p.loadPlugin(path, "_eglRendererPlugin", physicsClientId=client)
         _egl_used = _egl_used or plugin >= 0
     if plugin >= 0 and _egl_renders(client):
         return "egl", plugin
     if plugin >= 0:
-        p.unloadPlugin(plugin, physicsClientId=client)
+        with quiet_c_output():
+            p.unloadPlugin(plugin, physicsClientId=client)
     if requested == "egl":
         raise RuntimeError(
             "the EGL renderer was requested but did not load; install libegl1 and libgl1-mesa-dri, "
@@ -99,13 +114,18 @@ def setup_renderer(client: int, requested: str) -> tuple[str, int | None]:
 
 def _egl_renders(client: int) -> bool:
     try:
-        with _quiet_fd():
+        with quiet_c_output():
             _, _, rgba, _, _ = p.getCameraImage(
                 8, 8, renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=client
             )[:5]
         return np.asarray(rgba).size == 8 * 8 * 4
     except p.error:
         return False
+
+
+def quiet_if_egl(flag: int):
+    """:func:`quiet_c_output` around an EGL frame (the plugin prints vendor lines on some frames)."""
+    return quiet_c_output() if flag == p.ER_BULLET_HARDWARE_OPENGL else contextlib.nullcontext()
 
 
 def renderer_flag(name: str) -> int:

@@ -31,7 +31,7 @@ from weather_gym.sim.config import CarConfig, SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
 from weather_gym.sim.meshes import box_obj, cone_obj, quad_obj
-from weather_gym.sim.renderer import renderer_flag, setup_renderer
+from weather_gym.sim.renderer import quiet_c_output, quiet_if_egl, renderer_flag, setup_renderer
 from weather_gym.sim.textures import cone_texture, ground_texture, sky_panorama
 
 GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
@@ -301,8 +301,10 @@ class World:
         body = [x + self._car_body_dx * math.cos(yaw), y + self._car_body_dx * math.sin(yaw), self._car_body_z]
         p.resetBasePositionAndOrientation(self._car_visual, body, q, physicsClientId=c)
         try:
-            _, _, rgba, _, seg = p.getCameraImage(width, height, view, proj, renderer=renderer_flag(self.renderer_name),
-                                                  physicsClientId=c, **self._light)[:5]
+            flag = renderer_flag(self.renderer_name)
+            with quiet_if_egl(flag):
+                _, _, rgba, _, seg = p.getCameraImage(width, height, view, proj, renderer=flag, physicsClientId=c,
+                                                      **self._light)[:5]
         finally:
             p.resetBasePositionAndOrientation(self._car_visual, [0, 0, -10], [0, 0, 0, 1], physicsClientId=c)
         rgb = cv2.cvtColor(np.asarray(rgba, np.uint8).reshape(height, width, 4), cv2.COLOR_RGBA2RGB)
@@ -320,7 +322,8 @@ class World:
         if self._client is not None:
             try:
                 if getattr(self, "_plugin", None) is not None:
-                    p.unloadPlugin(self._plugin, physicsClientId=self._client)
+                    with quiet_c_output():
+                        p.unloadPlugin(self._plugin, physicsClientId=self._client)
                 p.disconnect(physicsClientId=self._client)
             except p.error:
                 pass

@@ -1,7 +1,8 @@
 """Weather presets: a condition and a severity 0-4 name a list of effects (``presets.toml``).
 
 The table ships with the package (``weather_gym/weather/presets.toml``); calibration rewrites that
-file and nothing else changes. ``calibrated = false`` in it marks the initial, uncalibrated guesses.
+file and nothing else changes (``calibrated = true`` and the calibration's provenance are in it;
+``calibrated = false`` would mark uncalibrated guesses).
 
 File format: top-level ``calibrated`` (bool) and free metadata, then one ``[[presets]]`` table per
 condition and severity with ``condition``, ``severity``, ``effects`` (a list of ``{name, k, ...}``
@@ -12,8 +13,8 @@ Example:
     >>> from weather_gym.weather.presets import preset_spec, CONDITIONS
     >>> CONDITIONS
     ('droplets', 'low_light')
-    >>> preset_spec("droplets", 3)
-    [{'name': 'droplets', 'k': 0.55}]
+    >>> preset_spec("droplets", 3)[0]["name"]
+    'droplets'
     >>> preset_spec("dim", 0)            # "dim" is an alias of low_light; severity 0 is clear
     []
 """

@@ -21,8 +21,8 @@ Example:
     ('dim', 0.3)
     >>> parse_weather(to_spec(w)) == w
     True
-    >>> to_spec(parse_weather("low_light@3"))[0]["k"]
-    0.78
+    >>> to_spec(parse_weather("low_light@3"))[0]["name"]   # a calibrated preset
+    'dim'
 """
 
 from __future__ import annotations
