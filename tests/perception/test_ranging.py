@@ -47,9 +47,21 @@ def test_range_from_depth_uses_the_median_inside_the_box():
 
 def test_depth_without_valid_pixels_falls_back_to_height():
     cam = CameraConfig()
+    depth = np.full((cam.height, cam.width), np.nan, np.float32)  # a stereo hole
+    depth[:, :100] = 0.0  # and nothing valid nearer than the near plane
+    c = detections_to_cones(_det([[330, 180, 342, 200], [10, 180, 22, 200]], [0, 1]), cam, depth)
+    assert c["ranges_source"].tolist() == ["height", "height"] and np.isfinite(c["ranges"]).all()
+
+
+def test_a_box_where_depth_sees_nothing_is_ranged_at_the_far_plane():
+    # a false detection in the sky: the box height would put it a few metres ahead; the depth says
+    # nothing is there, so its range is the far plane and the mapper's range gate drops it
+    cam = CameraConfig()
     depth = np.full((cam.height, cam.width), cam.far, np.float32)
-    c = detections_to_cones(_det([[330, 180, 342, 200]], [0]), cam, depth)
-    assert c["ranges_source"].tolist() == ["height"] and np.isfinite(c["ranges"]).all()
+    depth[170:210, 320:352] = 6.0
+    c = detections_to_cones(_det([[160, 40, 180, 70], [320, 170, 352, 210]], [0, 1]), cam, depth)
+    assert c["ranges_source"].tolist() == ["far", "depth"]
+    assert c["ranges"][0] == cam.far and c["ranges"][1] == pytest.approx(6.0, abs=0.1)
 
 
 def test_no_detections_give_an_empty_cone_list():

@@ -1,0 +1,68 @@
+"""The sim-versus-measured gap workflow: find where they disagree, name the missing effect, add it.
+
+The command is ``weather-gym gap MEASURED_DIR --model MODEL.toml --out OUT_DIR`` (:func:`run_gap`);
+the same steps one at a time, for a notebook (see ``docs/gap.md``)::
+
+    from weather_gym.gap import GapConfig, GapSession, read_model, simulate
+
+    data = simulate("data/measured", cache_dir="out/cache")   # clean renders of the same views
+    s = GapSession(data, read_model("model.toml"), GapConfig(seed=0))
+    s.compare().disagreements()   # perception and image signals, with bootstrap uncertainty
+    s.refit()                     # re-fit the k (and parameters) of the effects already in the model
+    found = s.diagnose()          # fit every candidate effect, best first
+    s.add(found[0])               # add it if it shrinks the held-out gap significantly
+    report = s.run()              # or the whole loop
+
+Modules: :mod:`.simulate` (paired / unpaired renders), :mod:`.signals` (image signals per frame),
+:mod:`.perception` (detector matches, bootstrappable mAP), :mod:`.compare` (gaps, bootstrap tests),
+:mod:`.fit` (parameter search), :mod:`.diagnose` (evidence), :mod:`.model` (model TOML files),
+:mod:`.report` (Markdown, plots), :mod:`.synthetic` (measured data with a hidden effect),
+:mod:`.workflow` (the session and the command).
+
+Example:
+    >>> from weather_gym.gap import GapConfig
+    >>> GapConfig(seed=3).max_steps
+    4
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Any
+
+_LAZY = {
+    "GapConfig": "weather_gym.gap.workflow",
+    "GapSession": "weather_gym.gap.workflow",
+    "Comparison": "weather_gym.gap.workflow",
+    "run_gap": "weather_gym.gap.workflow",
+    "simulate": "weather_gym.gap.simulate",
+    "GapData": "weather_gym.gap.simulate",
+    "split_indices": "weather_gym.gap.simulate",
+    "frame_signals": "weather_gym.gap.signals",
+    "signal_table": "weather_gym.gap.signals",
+    "SIGNALS": "weather_gym.gap.signals",
+    "compare_signals": "weather_gym.gap.compare",
+    "compare_perception": "weather_gym.gap.compare",
+    "gap_test": "weather_gym.gap.compare",
+    "candidates": "weather_gym.gap.fit",
+    "fit": "weather_gym.gap.fit",
+    "refit": "weather_gym.gap.fit",
+    "screen": "weather_gym.gap.fit",
+    "evidence": "weather_gym.gap.diagnose",
+    "read_model": "weather_gym.gap.model",
+    "write_model": "weather_gym.gap.model",
+    "apply_chain": "weather_gym.gap.model",
+    "degrade_dataset": "weather_gym.gap.synthetic",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'weather_gym.gap' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -8,9 +8,14 @@ Range, two ways (``ranges_source`` tells which one each cone used):
   (undoing the camera's pitch), then horizontal distance, plus the cone's mean radius (the
   surface seen is in front of the cone's axis). The median is robust to a few background pixels
   and to droplets over part of the cone.
-* **height** (no depth given, or no valid depth inside the box): ``fy * cone_height / box_height``
-  (z-distance of an upright cone of known height), divided by ``cos(bearing)``. This is biased for
-  cones cut by the image border or occluded (their box is shorter) - documented, not hidden.
+* **far**: the depth map says there is nothing inside the box closer than the camera's far plane
+  (every pixel of its central part is at ``camera.far``, e.g. a detection in the sky): the range is
+  ``camera.far``. A box height would put such a false detection a few metres in front of the car;
+  the depth map already says it is not there, so downstream range gates drop it.
+* **height** (no depth given, or no valid depth inside the box, e.g. stereo holes):
+  ``fy * cone_height / box_height`` (z-distance of an upright cone of known height), divided by
+  ``cos(bearing)``. This is biased for cones cut by the image border or occluded (their box is
+  shorter) - documented, not hidden.
 
 Bearing: ``atan2(cx - u, fx)`` at the box's horizontal centre (positive left), as in the env's
 ground truth.
@@ -52,7 +57,11 @@ def range_from_box_height(boxes: np.ndarray, classes: np.ndarray, camera: Camera
 
 
 def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, camera: CameraConfig) -> np.ndarray:
-    """Horizontal range (m) from the median depth inside each box; NaN where no valid depth."""
+    """Horizontal range (m) from the median depth inside each box.
+
+    ``camera.far`` where every finite depth in the box is at the far plane (nothing closer there);
+    NaN where the box has no usable depth at all (non-finite or nearer than ``camera.near``).
+    """
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     classes = np.asarray(classes, dtype=np.int64).reshape(-1)
     h, w = depth.shape
@@ -66,8 +75,12 @@ def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, 
         u0, v0 = max(0, u0), max(0, v0)
         u1, v1 = min(w, max(u1, u0 + 1)), min(h, max(v1, v0 + 1))
         patch = depth[v0:v1, u0:u1]
-        valid = patch[np.isfinite(patch) & (patch > camera.near) & (patch < camera.far * 0.999)]
+        finite = np.isfinite(patch) & (patch > camera.near)
+        beyond = finite & (patch >= camera.far * 0.999)
+        valid = patch[finite & ~beyond]
         if valid.size == 0:
+            if beyond.any():
+                out[k] = camera.far
             continue
         z = float(np.median(valid))
         u = (x1 + x2) / 2
@@ -81,7 +94,7 @@ def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, 
 
 def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Cones from detections: ``classes``, ``scores``, ``boxes`` (xyxy px), ``bearings`` (rad),
-    ``ranges`` (m) and ``ranges_source`` ("depth" or "height" per cone).
+    ``ranges`` (m) and ``ranges_source`` ("depth", "far" or "height" per cone; see the module doc).
 
     ``detections`` is a ``Detections`` or a dict with ``boxes``, ``scores``, ``classes``; ``depth``
     an optional (H, W) metric z-depth map of the same frame.
@@ -102,6 +115,7 @@ def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray
             raise ValueError(f"depth must be an (H, W) array of metres, got shape {depth.shape}")
         ranges = range_from_depth(boxes, classes, depth, camera)
         source[np.isfinite(ranges)] = "depth"
+        source[ranges == camera.far] = "far"
     missing = ~np.isfinite(ranges)
     if missing.any():
         ranges[missing] = range_from_box_height(boxes[missing], classes[missing], camera)
