@@ -467,6 +467,12 @@ def _perception_summary(rows: list[dict[str, Any]], sim: dict[str, float], meas:
     }
 
 
+def _changes(before: dict[str, Any], after: dict[str, Any]) -> str:
+    """``"k 0.3 -> 0.5329, ..."`` for the parameters that differ."""
+    return ", ".join(f"{p} {before[p]:.4g} -> {v:.4g}" if isinstance(v, float) else f"{p} {before[p]} -> {v}"
+                     for p, v in after.items() if p in before and before[p] != v)
+
+
 def _jsonable(x: Any) -> Any:
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}
@@ -508,17 +514,21 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
     report = session.run()
     model_path = out / "model.toml"
     comments = {}
-    for s in session.steps:
-        i = next(j for j, e in enumerate(session.model) if e.name == s["added"]["name"])
-        fixed = ", ".join(s["evidence"]["fixed"][:4]) or "-"
-        comments[i] = (f"added by weather-gym gap: held-out gap {s['gap_before']:.3g} -> {s['gap_after']:.3g}; "
-                       f"fixes {fixed}")
-    for r in session.refits:
-        i = next((j for j, e in enumerate(session.model) if e.name == r["name"]), None)
-        if i is not None and i not in comments:
-            changed = ", ".join(f"{p} {a:.4g} -> {b:.4g}" if isinstance(a, float) else f"{p} {a} -> {b}"
-                                for p, (a, b) in r["changed"].items())
-            comments[i] = f"re-fitted by weather-gym gap: {changed}"
+    for i, e in enumerate(session.model):
+        step = next((s for s in session.steps if s["added"]["name"] == e.name), None)
+        if step is not None:
+            fixed = ", ".join(step["evidence"]["fixed"][:4]) or "-"
+            comments[i] = (f"added by weather-gym gap: held-out gap {step['gap_before']:.3g} -> "
+                           f"{step['gap_after']:.3g}; fixes {fixed}")
+            first = step["added"]["params"]
+        else:
+            first = next((x.params() for x in session.input_model if x.name == e.name), None)
+            if first is None:
+                continue
+        changed = _changes(first, e.params())
+        if changed:
+            comments[i] = (comments[i] + f"; re-fitted since: {changed}" if i in comments
+                           else f"re-fitted by weather-gym gap: {changed}")
     write_model(model_path, session.model, comments,
                 header=f"weather model written by `weather-gym gap` from {model if model is not None else 'the clean simulator'}\n"
                        f"measured data: {data.meta['measured']} ({data.mode} mode)")
