@@ -35,14 +35,16 @@ def test_cells_cover_the_grid_with_preset_weather():
 def test_other_presets_file_changes_the_cells(tmp_path):
     from weather_gym.weather.presets import DEFAULT_PRESETS
 
-    text = DEFAULT_PRESETS.read_text().replace("k = 0.92", "k = 0.5")
-    assert text != DEFAULT_PRESETS.read_text()
+    (shipped,) = preset_spec("low_light", 4)
+    line = f'effects = [{{ name = "dim", k = {shipped["k"]}'
+    assert DEFAULT_PRESETS.read_text().count(line) == 1
     custom = tmp_path / "presets.toml"
-    custom.write_text(text)
+    custom.write_text(DEFAULT_PRESETS.read_text().replace(line, 'effects = [{ name = "dim", k = 0.5'))
     base = EvalConfig(effects=("dim",), severities=(4,), seeds=(0,))
     a = make_cells(base)[0]
     b = make_cells(EvalConfig(effects=("dim",), severities=(4,), seeds=(0,), presets=str(custom)))[0]
-    assert json.loads(b.weather) == [{"name": "dim", "k": 0.5}] and a.weather != b.weather
+    assert json.loads(a.weather) == [shipped]
+    assert json.loads(b.weather) == [{**shipped, "k": 0.5}] and a.weather != b.weather
 
 
 @pytest.mark.parametrize(

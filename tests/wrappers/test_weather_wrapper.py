@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from weather_gym.weather import Ramp, make
+from weather_gym.weather import Ramp, make, preset_spec
 from weather_gym.wrappers import WeatherWrapper
 
 H, W = 64, 96
@@ -144,8 +144,9 @@ def test_weather_changes_between_episodes_through_reset_options():
     assert inner.options_seen == {"other": 1} and info["weather"] == []
     wet, info = env.reset(seed=0, options={"weather": "low_light@3"})
     assert inner.options_seen is None  # the weather option is the wrapper's, not the env's
-    assert info["weather"][0]["name"] == "dim" and info["weather"][0]["k"] == 0.78
-    np.testing.assert_array_equal(wet, make("dim", k=0.78)(clean))
+    (preset,) = preset_spec("low_light", 3)
+    assert info["weather"][0]["name"] == "dim" and info["weather"][0]["k"] == preset["k"]
+    np.testing.assert_array_equal(wet, make(**preset)(clean))
     again, _ = env.reset(seed=0)  # the weather stays until changed
     np.testing.assert_array_equal(again, wet)
 

@@ -25,9 +25,9 @@ Example:
 
 from __future__ import annotations
 
-from importlib import import_module
 from pathlib import Path
-from typing import Any
+
+from weather_gym._lazy import lazy_exports
 
 PHYSICAL_PRESETS = Path(__file__).with_name("presets_physical.toml")
 """Presets calibrated like the shipped ones, with ``low_light`` = ``dim`` in ``mode="physical"``."""
@@ -60,13 +60,4 @@ _LAZY = {
 }
 
 __all__ = sorted([*_LAZY, "PHYSICAL_PRESETS"])
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'weather_gym.calibration' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -28,7 +28,6 @@ Example:
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -39,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym._io import atomic_write
+from weather_gym._toml import toml_value
 from weather_gym.calibration.curve import Curve, invert
 from weather_gym.calibration.measured import MeasuredLevel, levels_by_condition
 
@@ -167,7 +167,7 @@ def calibrate(curves: Mapping[str, Curve], levels: Sequence[MeasuredLevel], *, m
 def remeasure(calibs: Sequence[PresetCalibration], curves: Mapping[str, Curve], dataset: str | os.PathLike,
               results_path: str | os.PathLike, *, seeds: Sequence[int] = (0, 1, 2, 3, 4),
               model: str | os.PathLike | None = None, workers: int | None = None, backend: str = "process",
-              progress: bool = True) -> list[dict[str, Any]]:
+              ray_address: str | None = None, progress: bool = True) -> list[dict[str, Any]]:
     """Measure each preset's effect at its chosen k (and k = 0) on ``dataset`` over ``seeds``.
 
     Fills ``achieved_map``, ``achieved_relative`` (mean over seeds of mAP at k / mean mAP at k = 0 on the
@@ -186,7 +186,7 @@ def remeasure(calibs: Sequence[PresetCalibration], curves: Mapping[str, Curve], 
         eff = SweepEffect(cv.name or label, dict(cv.params))
         cells += make_sweep_cells([eff], sorted(ks), seeds, dataset, model)
     rows = run_cells(cells, run_sweep_cell, results_path, key_fields=KEY_FIELDS, workers=workers,
-                     backend=backend, progress=progress, desc="re-measure")
+                     backend=backend, ray_address=ray_address, progress=progress, desc="re-measure")
     failed = [r for r in rows if r["status"] != "ok"]
     if failed:
         raise RuntimeError(f"{len(failed)} re-measurement cell(s) failed, e.g. {failed[0]['error']} "
@@ -217,25 +217,8 @@ def fill_from_curves(calibs: Sequence[PresetCalibration], curves: Mapping[str, C
 
 # ------------------------------------------------------------------------------------------- TOML
 def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(round(v, 4)) if abs(v) >= 1e-4 or v == 0 else repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)  # a JSON string is a valid TOML basic string
-    if isinstance(v, Mapping):
-        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    if isinstance(v, list | tuple):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if v is None:
-        return '""'
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+    """Preset values: floats to 4 decimals, NaN and infinities as TOML's ``nan``/``inf``, None as ""."""
+    return toml_value(v, digits=4, none='""')
 
 
 HEADER = """\

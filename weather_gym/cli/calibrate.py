@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import shlex
 import sys
 from pathlib import Path
+
+from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 
 
 def register(sub) -> None:
@@ -59,9 +60,7 @@ def register(sub) -> None:
     p.add_argument("--study-points", type=Path, default=None,
                    help="the study's Figure-7 points (effect,k,map) to draw beside our curves in the report")
     p.add_argument("--source", default=None, help="text for the presets' 'source' field (default: this command)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="parallel cells when re-measuring")
-    p.add_argument("--backend", default="process", choices=("process", "ray", "serial"))
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_runner_args(p, what="re-measurement cells", resumable=False)
     p.set_defaults(func=_run)
 
 
@@ -95,6 +94,7 @@ def _run(args) -> int:
         raise ValueError(f"--out {args.out} is a folder; give a .toml file path")
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    check_runner_args(args)
     if args.dataset is not None and not args.dataset.exists():
         raise FileNotFoundError(f"--dataset {args.dataset} not found")
     curves = _merge_curves(args.curve, args.metric, args.dataset_id, args.model_id)
@@ -107,7 +107,8 @@ def _run(args) -> int:
     report_dir = args.report or args.out.with_name(args.out.stem + "_report")
     if args.dataset is not None:
         remeasure(calibs, curves, args.dataset, report_dir / "remeasured.csv", seeds=tuple(range(args.seeds)),
-                  model=args.model, workers=args.workers, backend=args.backend, progress=not args.no_progress)
+                  model=args.model, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
+                  progress=not args.no_progress)
     else:
         fill_from_curves(calibs, curves)
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "calibrate" in sys.argv[1:2] else None

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shlex
 import sys
 from pathlib import Path
+
+from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -77,12 +78,7 @@ def register(sub) -> None:
     e.add_argument("--presets", type=Path, default=None, help="presets TOML (default: the shipped one)")
     r = p.add_argument_group("run")
     r.add_argument("--out", type=Path, required=True, help="output folder (results.csv, report.md, plots/)")
-    r.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="cells in parallel")
-    r.add_argument("--backend", default="process", choices=("process", "ray", "serial"),
-                   help="process: local worker processes; ray: Ray tasks; serial: in this process (debugging)")
-    r.add_argument("--ray-address", default=None, help="Ray cluster address ('auto', 'ray://host:10001'); default: a local instance")
-    r.add_argument("--skip-failed", action="store_true", help="on resume, keep failed cells as they are instead of retrying them")
-    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_runner_args(r)
     p.set_defaults(func=_run)
 
 
@@ -110,18 +106,12 @@ def _run(args) -> int:
     from weather_gym.evaluation.evaluate import evaluate, make_cells
     from weather_gym.evaluation.runner import check_results_path
 
-    if args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+    check_runner_args(args)
     if args.presets is not None and not args.presets.is_file():
         raise FileNotFoundError(f"--presets: {args.presets} not found")
     config = build_config(args)
     cells = make_cells(config)  # every name and number checked before anything runs
     check_results_path(args.out / "results.csv")
-    if args.backend == "ray":
-        try:
-            import ray  # noqa: F401
-        except ModuleNotFoundError:
-            raise ValueError("--backend ray needs Ray: pip install 'weather-gym[ray]'") from None
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "evaluate" in sys.argv[1:2] else None
     print(f"{len(cells)} cells -> {args.out / 'results.csv'} ({args.backend}, {args.workers} workers)", file=sys.stderr)
     rows = evaluate(config, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,

@@ -14,10 +14,11 @@ command skips finished cells.
 from __future__ import annotations
 
 import argparse
-import os
 import shlex
 import sys
 from pathlib import Path
+
+from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 
 
 def register(sub) -> None:
@@ -39,13 +40,8 @@ def register(sub) -> None:
                    help="COCO evaluation set (weather-gym dataset render), e.g. a held-out track with the default look")
     p.add_argument("--model", type=Path, default=None, help="ONNX detector (default: the shipped model)")
     p.add_argument("--out", type=Path, required=True, help="output folder (curves.csv is resumed, never clobbered)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="cells in parallel")
-    p.add_argument("--backend", default="process", choices=("process", "ray", "serial"),
-                   help="process: local worker processes; ray: Ray tasks; serial: in this process")
-    p.add_argument("--ray-address", default=None, help="Ray cluster address; default: a local instance")
-    p.add_argument("--skip-failed", action="store_true", help="on resume, keep failed cells instead of retrying them")
     p.add_argument("--no-plot", action="store_true", help="do not draw curves.png")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_runner_args(p)
     p.set_defaults(func=_run)
 
 
@@ -66,8 +62,7 @@ def _run(args) -> int:
     effects = [parse_effect(e) for e in args.effect]
     ks = parse_k_range(args.k)
     seeds = parse_seeds(args.seeds, args.seed_list)
-    if args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+    check_runner_args(args)
     if not args.dataset.exists():
         raise FileNotFoundError(f"--dataset {args.dataset} not found (render one with `weather-gym dataset render`)")
     cells = make_sweep_cells(effects, ks, seeds, args.dataset, args.model)  # validates set and model first

@@ -6,8 +6,7 @@ PyBullet; it is loaded when an env is made.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from weather_gym._lazy import lazy_exports
 
 _LAZY = {
     "ConeTrackEnv": "weather_gym.envs.cone_track",
@@ -17,13 +16,4 @@ _LAZY = {
     "RewardConfig": "weather_gym.envs.config",
 }
 __all__ = sorted(_LAZY)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'weather_gym.envs' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return __all__
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

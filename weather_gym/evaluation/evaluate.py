@@ -16,10 +16,11 @@ ground-truth cone list; ``camera``: none, the agent gets the weathered image) ->
 ``AGENTS`` -> one episode from ``reset(seed=seed)``.
 
 Example:
+    >>> import json
     >>> from weather_gym.evaluation.evaluate import EvalConfig, make_cells
     >>> cells = make_cells(EvalConfig(effects=("droplets", "dim"), severities=(0, 3), seeds=(0,)))
-    >>> len(cells), cells[-1].effect, cells[-1].severity, cells[-1].weather
-    (4, 'dim', 3, '[{"k": 0.78, "name": "dim"}]')
+    >>> len(cells), cells[-1].effect, cells[-1].severity, json.loads(cells[-1].weather)[0]["name"]
+    (4, 'dim', 3, 'dim')
 """
 
 from __future__ import annotations

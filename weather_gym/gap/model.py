@@ -32,7 +32,6 @@ Example:
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import tomllib
 import zlib
@@ -43,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym._io import atomic_write
+from weather_gym._toml import toml_value
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
 __all__ = ["CHAIN_ORDER", "read_model", "write_model", "model_tables", "insert_position", "apply_chain",
@@ -102,21 +102,6 @@ def model_tables(effects: Sequence[KnobEffect]) -> list[dict[str, Any]]:
     return out
 
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise ValueError(f"cannot write the non-finite number {v!r} to a model file")
-        text = repr(v)
-        return text if any(c in text for c in ".en") else text + ".0"
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    raise ValueError(f"cannot write {type(v).__name__} {v!r} to a model file")
-
-
 def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
                 comments: Mapping[int, str] | None = None, header: str | None = None) -> None:
     """Write ``effects`` as a model file; ``comments[i]`` is written above effect ``i``."""
@@ -129,7 +114,7 @@ def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
         if comments and i in comments:
             lines += [f"# {c}" for c in comments[i].splitlines()]
         lines.append("[[effects]]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
+        lines += [f"{k} = {toml_value(v, finite=True)}" for k, v in table.items()]
     atomic_write(path, "\n".join(lines) + "\n")
 
 

@@ -21,14 +21,12 @@ Example:
     >>> gt = [{"boxes": np.array([[10, 10, 30, 50.]]), "classes": np.array([1]), "ranges": np.array([6.0])}]
     >>> det = [{"boxes": np.array([[11, 10, 30, 49.]]), "scores": np.array([0.9]), "classes": np.array([1])}]
     >>> m = match_frames(gt, det)
-    >>> perception_stats(m)["map50"], perception_stats(m)["recall.range.5-10 m"]
+    >>> round(perception_stats(m)["map50"], 6), perception_stats(m)["recall.range.5-10 m"]
     (1.0, 1.0)
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -37,7 +35,8 @@ from typing import Any
 import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xyxy_to_xywh
+from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
+from weather_gym.perception.scoring import coco_eval, coco_lists
 
 __all__ = ["FrameMatches", "match_frames", "perception_stats", "detect_frames", "RANGE_BINS", "SIZE_BINS"]
 
@@ -78,58 +77,16 @@ class FrameMatches:
     gt_match_score: np.ndarray
 
 
-def _arrays(d: Any) -> dict[str, np.ndarray]:
-    if hasattr(d, "to_dict") and not isinstance(d, dict):
-        d = d.to_dict()
-    return d
-
-
 def match_frames(gts: Sequence[dict], detections: Sequence[Any], *, score_threshold: float = 0.3,
                  min_box_height: float = MIN_BOX_HEIGHT_PX) -> FrameMatches:
     """Match ``detections[i]`` to ``gts[i]`` with pycocotools at IoU 0.5 (see module doc)."""
-    from pycocotools.coco import COCO
-    from pycocotools.cocoeval import COCOeval
-
-    if len(gts) != len(detections):
-        raise ValueError(f"got {len(gts)} ground-truth frames but {len(detections)} detection lists")
-    images, gt_anns, dt_anns = [], [], []
-    gt_info: dict[int, tuple[int, int, float, float]] = {}
-    dt_info: dict[int, tuple[int, int, float]] = {}
-    for i, (g, d) in enumerate(zip(gts, detections)):
-        g, d = _arrays(g), _arrays(d)
-        images.append({"id": i})
-        gb = np.asarray(g["boxes"], dtype=np.float64).reshape(-1, 4)
-        gc = np.asarray(g["classes"], dtype=np.int64).reshape(-1)
-        crowd = (np.asarray(g["iscrowd"], dtype=bool).reshape(-1) if "iscrowd" in g
-                 else tiny_mask(gb, min_box_height))
-        gr = np.asarray(g["ranges"], dtype=np.float64).reshape(-1) if "ranges" in g else np.full(len(gb), np.nan)
-        for b, c, cr, r in zip(xyxy_to_xywh(gb), gc, crowd, gr):
-            aid = len(gt_anns) + 1
-            gt_anns.append({"id": aid, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
-                            "area": float(b[2] * b[3]), "iscrowd": int(cr)})
-            gt_info[aid] = (i, int(c), float(r), float(b[3]))
-        db = xyxy_to_xywh(np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4))
-        for b, s, c in zip(db, np.asarray(d["scores"]).reshape(-1), np.asarray(d["classes"]).reshape(-1)):
-            did = len(dt_anns) + 1
-            dt_anns.append({"id": did, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
-                            "area": float(b[2] * b[3]), "score": float(s), "iscrowd": 0})
-            dt_info[did] = (i, int(c), float(s))
+    images, gt_anns, dt_anns = coco_lists(gts, detections, min_box_height=min_box_height)
+    gt_info = {a["id"]: (a["image_id"], a["category_id"] - 1, a["range"], a["height"]) for a in gt_anns}
+    dt_info = {a["id"]: (a["image_id"], a["category_id"] - 1, a["score"]) for a in dt_anns}
     det = {k: [] for k in ("frame", "class", "score", "tp", "ignore")}
     gtr = {k: [] for k in ("frame", "class", "range", "height", "match")}
     if images:
-        with contextlib.redirect_stdout(io.StringIO()):
-            coco_gt = COCO()
-            coco_gt.dataset = {"images": images, "annotations": gt_anns, "categories": CATEGORIES}
-            coco_gt.createIndex()
-            coco_dt = COCO()
-            coco_dt.dataset = {"images": images, "annotations": dt_anns, "categories": CATEGORIES}
-            coco_dt.createIndex()
-            ev = COCOeval(coco_gt, coco_dt, "bbox")
-            ev.params.iouThrs = np.array([0.5])
-            ev.params.areaRng = [[0.0, 1e10]]
-            ev.params.areaRngLbl = ["all"]
-            ev.params.maxDets = [100]
-            ev.evaluate()
+        ev = coco_eval(images, gt_anns, dt_anns, iou_50_only=True, accumulate=False)
         for e in ev.evalImgs:
             if e is None:
                 continue

@@ -12,8 +12,8 @@ Plots written next to ``report.json``:
 
 Example:
     >>> from weather_gym.gap.report import markdown
-    >>> print(markdown({"mode": "paired", "steps": [], "gap_before": 1.0, "gap_after": 1.0})[:22])
-    # Sim-versus-measured
+    >>> print(markdown({"mode": "paired", "steps": [], "gap_before": 1.0, "gap_after": 1.0}).splitlines()[0])
+    # Sim-versus-measured gap report
 """
 
 from __future__ import annotations

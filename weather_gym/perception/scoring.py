@@ -37,7 +37,7 @@ import numpy as np
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xyxy_to_xywh
 
-__all__ = ["EvalResult", "evaluate", "score_dataset", "DEFAULT_RANGE_BINS"]
+__all__ = ["EvalResult", "evaluate", "score_dataset", "coco_lists", "coco_eval", "DEFAULT_RANGE_BINS"]
 
 DEFAULT_RANGE_BINS: tuple[float, ...] = (0.0, 5.0, 10.0, 15.0, 20.0, math.inf)
 
@@ -106,28 +106,17 @@ def _label(lo: float, hi: float) -> str:
     return f"{lo:g}+ m" if math.isinf(hi) else f"{lo:g}-{hi:g} m"
 
 
-def evaluate(
-    gt: Any,
-    detections: Sequence[Any],
-    *,
-    score_threshold: float = 0.3,
-    range_bins: Sequence[float] = DEFAULT_RANGE_BINS,
-    min_box_height: float = MIN_BOX_HEIGHT_PX,
-) -> EvalResult:
-    """Score ``detections`` against ``gt`` (a ``CocoDataset`` or a list of per-frame dicts)."""
-    from pycocotools.coco import COCO
-    from pycocotools.cocoeval import COCOeval
+def coco_lists(frames: Sequence[Any], detections: Sequence[Any], *,
+               min_box_height: float = MIN_BOX_HEIGHT_PX) -> tuple[list[dict], list[dict], list[dict]]:
+    """``(images, gt_anns, dt_anns)`` in COCO form for per-frame ground truth and detections.
 
-    if hasattr(gt, "gt") and hasattr(gt, "images"):  # a CocoDataset
-        frames = [gt.gt(i) for i in range(len(gt))]
-    else:
-        frames = list(gt)
-    detections = list(detections)
+    Image ``i`` has id ``i``; annotation ids count from 1. A ground-truth annotation also carries
+    its cone's ``range`` (m, NaN unknown) and box ``height`` (px), which pycocotools ignores. Cones
+    without an ``iscrowd`` flag are crowd (ignored) when shorter than ``min_box_height``.
+    """
     if len(frames) != len(detections):
         raise ValueError(f"got {len(frames)} ground-truth frames but {len(detections)} detection lists")
     images, gt_anns, dt_anns = [], [], []
-    ranges: dict[int, float] = {}
-    n_ignored = 0
     for i, (g, d) in enumerate(zip(frames, detections, strict=True)):
         g = _as_arrays(g, ("boxes", "classes"), f"ground truth of frame {i}")
         d = _as_arrays(d, ("boxes", "scores", "classes"), f"detections of frame {i}")
@@ -137,15 +126,25 @@ def evaluate(
         crowd = np.asarray(g["iscrowd"], dtype=bool).reshape(-1) if "iscrowd" in g else tiny_mask(gb, min_box_height)
         gr = np.asarray(g["ranges"], dtype=np.float64).reshape(-1) if "ranges" in g else np.full(len(gb), np.nan)
         for b, c, cr, r in zip(xyxy_to_xywh(gb), gc, crowd, gr, strict=True):
-            aid = len(gt_anns) + 1
-            gt_anns.append({"id": aid, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
-                            "area": float(b[2] * b[3]), "iscrowd": int(cr)})
-            ranges[aid] = float(r)
-            n_ignored += int(cr)
+            gt_anns.append({"id": len(gt_anns) + 1, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
+                            "area": float(b[2] * b[3]), "iscrowd": int(cr), "range": float(r), "height": float(b[3])})
         db = xyxy_to_xywh(np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4))
-        for b, s, c in zip(db, np.asarray(d["scores"]).reshape(-1), np.asarray(d["classes"]).reshape(-1), strict=True):
+        for b, sc, c in zip(db, np.asarray(d["scores"]).reshape(-1), np.asarray(d["classes"]).reshape(-1), strict=True):
             dt_anns.append({"id": len(dt_anns) + 1, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
-                            "area": float(b[2] * b[3]), "score": float(s), "iscrowd": 0})
+                            "area": float(b[2] * b[3]), "score": float(sc), "iscrowd": 0})
+    return images, gt_anns, dt_anns
+
+
+def coco_eval(images: list[dict], gt_anns: list[dict], dt_anns: list[dict], *,
+              iou_50_only: bool = False, accumulate: bool = True):
+    """pycocotools' ``COCOeval`` (bbox) over these lists, evaluated (and accumulated), quietly.
+
+    ``iou_50_only``: match at IoU 0.5 only, one area range ("all") and 100 detections per image,
+    the matching the gap workflow bootstraps.
+    """
+    from pycocotools.coco import COCO
+    from pycocotools.cocoeval import COCOeval
+
     with contextlib.redirect_stdout(io.StringIO()):
         coco_gt = COCO()
         coco_gt.dataset = {"images": images, "annotations": gt_anns, "categories": CATEGORIES}
@@ -154,8 +153,34 @@ def evaluate(
         coco_dt.dataset = {"images": images, "annotations": dt_anns, "categories": CATEGORIES}
         coco_dt.createIndex()
         ev = COCOeval(coco_gt, coco_dt, "bbox")
+        if iou_50_only:
+            ev.params.iouThrs = np.array([0.5])
+            ev.params.areaRng = [[0.0, 1e10]]
+            ev.params.areaRngLbl = ["all"]
+            ev.params.maxDets = [100]
         ev.evaluate()
-        ev.accumulate()
+        if accumulate:
+            ev.accumulate()
+    return ev
+
+
+def evaluate(
+    gt: Any,
+    detections: Sequence[Any],
+    *,
+    score_threshold: float = 0.3,
+    range_bins: Sequence[float] = DEFAULT_RANGE_BINS,
+    min_box_height: float = MIN_BOX_HEIGHT_PX,
+) -> EvalResult:
+    """Score ``detections`` against ``gt`` (a ``CocoDataset`` or a list of per-frame dicts)."""
+    if hasattr(gt, "gt") and hasattr(gt, "images"):  # a CocoDataset
+        frames = [gt.gt(i) for i in range(len(gt))]
+    else:
+        frames = list(gt)
+    images, gt_anns, dt_anns = coco_lists(frames, list(detections), min_box_height=min_box_height)
+    ranges = {a["id"]: a["range"] for a in gt_anns}
+    n_ignored = sum(a["iscrowd"] for a in gt_anns)
+    ev = coco_eval(images, gt_anns, dt_anns)
     n_gt = len(gt_anns) - n_ignored
     # precision: [T iou, R recall, K class, A area, M maxDets]; area 0 = all, maxDets -1 = 100
     prec = ev.eval["precision"][:, :, :, 0, -1] if images else np.full((10, 101, len(CONE_CLASSES)), -1.0)

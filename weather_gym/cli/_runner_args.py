@@ -1,0 +1,33 @@
+"""The options of every command that runs cells on the evaluation runner (evaluate, sweep, calibrate).
+
+One definition, so that ``--workers``, ``--backend``, ``--ray-address``, ``--skip-failed`` and
+``--no-progress`` mean the same everywhere and are checked the same way before anything runs.
+"""
+
+from __future__ import annotations
+
+import os
+
+
+def add_runner_args(p, *, what: str = "cells", resumable: bool = True) -> None:
+    """Add the runner options to the parser (or argument group) ``p``."""
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1, help=f"{what} in parallel (one per CPU unless given)")
+    p.add_argument("--backend", default="process", choices=("process", "ray", "serial"),
+                   help="process: local worker processes; ray: Ray tasks; serial: in this process (debugging)")
+    p.add_argument("--ray-address", default=None,
+                   help="Ray cluster address ('auto', 'ray://host:10001'); default: a local instance")
+    if resumable:
+        p.add_argument("--skip-failed", action="store_true",
+                       help="on resume, keep failed cells as they are instead of retrying them")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def check_runner_args(args) -> None:
+    """Refuse bad runner options before any cell runs (``ValueError`` naming the option)."""
+    if args.workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+    if args.backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ModuleNotFoundError:
+            raise ValueError("--backend ray needs Ray: pip install 'weather-gym[ray]'") from None
