@@ -46,6 +46,15 @@ def _plt():
     return plt
 
 
+def _save(fig, out: str | os.PathLike) -> Path:
+    """Save ``fig`` to ``out`` (its folder made if needed) and close it."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out)
+    _plt().close(fig)
+    return out
+
+
 def _color(label: str, i: int = 0) -> str:
     return COLORS.get(label, f"C{i % 10}")
 
@@ -82,10 +91,7 @@ def plot_curves(curves: Mapping[str, Curve], out: str | os.PathLike, *, recall_o
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
-    plt.close(fig)
+    out = _save(fig, out)
     if recall_out is not None:
         plot_recall_by_range(curves, recall_out)
     return out
@@ -118,10 +124,7 @@ def plot_recall_by_range(curves: Mapping[str, Curve], out: str | os.PathLike) ->
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
-    out = Path(out)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return _save(fig, out)
 
 
 def plot_calibration(calibs: Sequence[Any], curves: Mapping[str, Curve], out: str | os.PathLike) -> Path:
@@ -157,11 +160,7 @@ def plot_calibration(calibs: Sequence[Any], curves: Mapping[str, Curve], out: st
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return _save(fig, out)
 
 
 def study_points(path: str | os.PathLike) -> dict[str, tuple[float, float]]:
@@ -232,11 +231,7 @@ def plot_study_comparison(curves: Mapping[str, Curve], points: Mapping[str, tupl
     fig.suptitle("ours (our detector, our rendered set) vs the study (YOLOv3-tiny; Table 2 real levels as dashed "
                  "lines, Figure 7 simulator points as stars)", fontsize=8.5)
     fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return _save(fig, out)
 
 
 # ------------------------------------------------------------------------------------------- report

@@ -48,13 +48,19 @@ JOURNAL = "annotations.partial.jsonl"
 DEPTH_SCALE = 1000.0  # depth PNG units per metre (millimetres)
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an RGB uint8 image; clear errors for a missing, empty or undecodable file."""
+def _nonempty_file(path: str | os.PathLike, kind: str) -> Path:
+    """``path`` as a Path; FileNotFoundError / ValueError naming it when it is missing or empty."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"image file {path} not found")
+        raise FileNotFoundError(f"{kind} file {path} not found")
     if path.stat().st_size == 0:
-        raise ValueError(f"image file {path} is empty (0 bytes)")
+        raise ValueError(f"{kind} file {path} is empty (0 bytes)")
+    return path
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an RGB uint8 image; clear errors for a missing, empty or undecodable file."""
+    path = _nonempty_file(path, "image")
     bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if bgr is None or bgr.size == 0:
         raise ValueError(f"image file {path} could not be decoded as an image")
@@ -71,11 +77,7 @@ def write_depth_png(path: str | os.PathLike, depth_m: np.ndarray) -> None:
 
 def read_depth_png(path: str | os.PathLike) -> np.ndarray:
     """Read a uint16 millimetre depth PNG as float32 metres."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"depth file {path} not found")
-    if path.stat().st_size == 0:
-        raise ValueError(f"depth file {path} is empty (0 bytes)")
+    path = _nonempty_file(path, "depth")
     mm = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if mm is None or mm.ndim != 2 or mm.dtype != np.uint16:
         raise ValueError(f"depth file {path} is not a single-channel 16-bit PNG of millimetres")
