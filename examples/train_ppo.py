@@ -1,7 +1,6 @@
 """Train a stable-baselines3 PPO policy on the cone-list observation, in randomized weather.
 
-Pipeline per env (the same one ``weather-gym evaluate`` drives, via
-``weather_gym.evaluation.evaluate.make_eval_env``):
+Pipeline per env (the same one ``weather-gym evaluate`` drives, via ``weather_gym.make_env``):
 
     ConeTrackEnv -> WeatherWrapper -> DetectorWrapper (or the ground-truth cone list) -> RandomPresetWeather
 
@@ -31,7 +30,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from weather_gym.evaluation.evaluate import DEFAULT_ENV_ID, DEFAULT_TRACK, PERCEPTIONS, make_eval_env
+from weather_gym.evaluation.evaluate import DEFAULT_ENV_ID, DEFAULT_TRACK
+from weather_gym.pipeline import make_env
 
 _SPAWN_KEY = (0x9E7A,)  # separates the preset draw from the env's own streams for the same seed
 
@@ -90,7 +90,8 @@ def make_training_env(env_id: str, track: str, perception: str, camera: dict | N
                       conditions: tuple[str, ...], severities: tuple[int, ...]) -> gym.Env:
     """One training env (module-level so vectorized workers can build it)."""
     env_kwargs = {"camera": camera} if camera else {}
-    env = make_eval_env(env_id, track=track, max_steps=max_steps, perception=perception, env_kwargs=env_kwargs)
+    env = make_env(env_id, track=track, max_episode_steps=max_steps, perception=perception, weather="clear",
+                   episode_statistics=False, **env_kwargs)
     return RandomPresetWeather(env, conditions, severities)
 
 
@@ -115,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--force", action="store_true", help="overwrite --out")
     p.add_argument("--env-id", default=DEFAULT_ENV_ID)
     p.add_argument("--track", default=DEFAULT_TRACK)
-    p.add_argument("--perception", choices=PERCEPTIONS[:2], default="detector",
+    p.add_argument("--perception", choices=("detector", "oracle"), default="detector",
                    help="detector: the ONNX detector's cone list; oracle: ground-truth cone list")
     p.add_argument("--camera", default=None, help="camera resolution WxH (default: the scenario's)")
     p.add_argument("--conditions", default="droplets,low_light", help="weather conditions drawn per episode")

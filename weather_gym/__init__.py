@@ -1,17 +1,24 @@
 """weather-gym: repeatable bad weather for autonomous-racing perception.
 
 Importing the package registers the Gymnasium ids built from the scenario files in ``envs/``.
+``make_env`` / ``make_vec_env`` (:mod:`weather_gym.pipeline`) build env -> weather -> perception.
 
 Example:
     >>> import gymnasium as gym, weather_gym  # doctest: +SKIP
     >>> env = gym.make("WeatherGym/ConeTrack-v0")  # doctest: +SKIP
+    >>> env = weather_gym.make_env(perception="detector", weather="droplets@3")  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "register_envs"]
+from weather_gym._lazy import lazy_exports
+
+_LAZY = {"make_env": "weather_gym.pipeline", "make_vec_env": "weather_gym.pipeline",
+         "PERCEPTION_MODES": "weather_gym.pipeline"}
+__all__ = ["__version__", "register_envs", *sorted(_LAZY)]
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 
 def register_envs() -> list[str]:

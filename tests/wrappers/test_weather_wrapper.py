@@ -73,9 +73,15 @@ def test_box_image_env_gets_weather_and_keeps_its_space():
     obs, info = env.reset(seed=3)
     np.testing.assert_array_equal(obs, make("dim", k=0.5)(clean))
     assert info["t"] == base.t and info["weather"] == [{"name": "dim", **make("dim", k=0.5).params()}]
-    assert info["weather_latency_ms"] >= 0.0
+    assert env.latency_ms >= 0.0 and "weather_latency_ms" not in info  # wall-clock times stay out of info
     obs, reward, term, trunc, info = env.step(0)
-    assert reward == 1.0 and obs.dtype == np.uint8 and "weather_latency_ms" in info
+    assert reward == 1.0 and obs.dtype == np.uint8
+
+
+def test_latency_goes_into_info_only_when_asked():
+    env = WeatherWrapper(PixelEnv(), weather={"dim": 0.5}, latency_in_info=True)
+    _, info = env.reset(seed=3)
+    assert info["weather_latency_ms"] == env.latency_ms >= 0.0
 
 
 def test_observations_stay_in_the_observation_space():

@@ -9,6 +9,7 @@
 * ``sb3`` - a stable-baselines3 model (``model=`` an instance or ``path=`` a saved zip).
 
 Callers always pass the step's ``info``; perception-driven agents never read ground truth from it.
+:func:`run_episode` is the one loop that drives an agent through an episode (``EpisodeResult``).
 
 Example:
     >>> import numpy as np
@@ -34,7 +35,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera import CameraConfig
     from weather_gym.tracks import Track
 
-__all__ = ["Agent", "AGENTS", "make_agent", "check_action"]
+__all__ = ["Agent", "AGENTS", "EpisodeResult", "check_action", "make_agent", "run_episode"]
 
 
 @runtime_checkable
@@ -85,3 +86,6 @@ def _sb3(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     from weather_gym.agents.sb3 import SB3Agent
 
     return SB3Agent(track, camera, **kwargs)
+
+
+from weather_gym.agents.episode import EpisodeResult, run_episode  # noqa: E402  (needs check_action above)

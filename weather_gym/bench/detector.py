@@ -44,9 +44,9 @@ def register(targets) -> None:
 def _frame() -> np.ndarray:
     """A 672x376 frame with cones: a rendered one when the simulator works, else a synthetic one."""
     try:
-        from weather_gym.envs import ConeTrackEnv, EnvConfig
+        from weather_gym.pipeline import make_env
 
-        env = ConeTrackEnv(EnvConfig(track="small_track"))
+        env = make_env(track="small_track", episode_statistics=False)
         try:
             return env.reset(seed=0)[0]["image"]
         finally:
@@ -150,15 +150,15 @@ def run_benchmark(model=None, repeats: int = 100, batch: int = 8, baseline: bool
 
 def _time_step(det1, det2, steps: int) -> dict[str, Any]:
     from weather_gym.agents import AGENTS
-    from weather_gym.envs import ConeTrackEnv, EnvConfig
     from weather_gym.perception.ranging import detections_to_cones
+    from weather_gym.pipeline import make_env
     from weather_gym.weather import make
-    from weather_gym.wrappers import DetectorWrapper, WeatherWrapper
 
-    cfg = EnvConfig(track="small_track", laps=0, max_episode_steps=10**6)
-    env = ConeTrackEnv(cfg)
+    settings = {"track": "small_track", "laps": 0, "max_episode_steps": 10**6, "episode_statistics": False}
+    env = make_env(**settings)
+    cfg = env.unwrapped.config
     eff = make("droplets", k=0.55)
-    agent = AGENTS.get("gt_pure_pursuit")(env.track, cfg.camera)
+    agent = AGENTS.get("gt_pure_pursuit")(env.unwrapped.track, cfg.camera)
     t_env, t_w, t_d = [], [], []
     try:
         obs, info = env.reset(seed=0)
@@ -181,7 +181,7 @@ def _time_step(det1, det2, steps: int) -> dict[str, Any]:
                 agent.reset(info=info)
     finally:
         env.close()
-    stack = DetectorWrapper(WeatherWrapper(ConeTrackEnv(cfg), weather={"droplets": 0.55}), det1)
+    stack = make_env(**settings, weather={"droplets": 0.55}, perception="detector", detector=det1)
     try:
         obs, info = stack.reset(seed=0)
         agent.reset(seed=0, info=info)

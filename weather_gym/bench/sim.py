@@ -25,7 +25,7 @@ def register(targets) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from weather_gym.camera import CameraConfig
-    from weather_gym.envs import ConeTrackEnv, EnvConfig
+    from weather_gym.pipeline import make_env
     from weather_gym.sim.config import SimConfig
     from weather_gym.sim.world import World
     from weather_gym.tracks import load_track
@@ -48,9 +48,8 @@ def run(args: argparse.Namespace) -> int:
                 frame_ms = median_ms(world.render, repeats=args.repeats)
             finally:
                 world.close()
-            env = ConeTrackEnv(EnvConfig(track=args.track, sim=SimConfig(renderer=renderer),
-                                         camera=CameraConfig(width=w, height=h), max_episode_steps=10**6,
-                                         terminate_off_track=False))
+            env = make_env(track=args.track, sim=SimConfig(renderer=renderer), camera=CameraConfig(width=w, height=h),
+                           max_episode_steps=10**6, terminate_off_track=False, episode_statistics=False)
             try:
                 env.reset(seed=0)
                 action = np.array([0.0, 0.1], np.float32)

@@ -6,36 +6,40 @@ Examples:
     weather-gym lap --track small_track --agent mapper_pure_pursuit --perception oracle --laps 2
     weather-gym lap --track small_track --weather droplets:0.55 --agent mapper_pure_pursuit --video out.mp4
     weather-gym lap --agent sb3 --agent-arg path=runs/ppo.zip --perception detector
+    weather-gym lap --agent mapper_pure_pursuit --perception gt_cones     # nothing rendered: fast
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import time
 from pathlib import Path
 from typing import Any
 
-PERCEPTION_MODES = ("auto", "detector", "oracle", "none")
+from weather_gym.pipeline import PERCEPTION_MODES
+
+PERCEPTION_CHOICES = ("auto", *PERCEPTION_MODES)
 PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit"})
 """Agents that read cone lists: ``--perception auto`` gives them the detector."""
 MIN_SPEED_FOR_LIMIT = 2.0
 """Default step limit: every lap may take up to length / 2 m/s (at least a minute)."""
 
 EPILOG = """\
-perception (what the agent sees):
-  auto      the detector for agents that read cone lists (mapper_pure_pursuit), else none
-  detector  DetectorWrapper: the ONNX cone detector on the (weathered) camera image
-  oracle    GroundTruthConeWrapper: the env's ground truth as a perfect cone list
-  none      the raw observation (image, depth, state); gt_pure_pursuit drives from info
+perception (what the agent sees; the modes of weather_gym.pipeline.PERCEPTION_MODES):
+  auto      detector for agents that read cone lists (mapper_pure_pursuit), else camera
+  camera    no perception: the (weathered) image, depth and state; gt_pure_pursuit drives from info
+  detector  the ONNX cone detector on the (weathered) camera image -> cone list
+  oracle    the rendered frame's ground truth as a perfect cone list
+  gt_cones  ground-truth cones from geometry; no frame is rendered (fast; no weather, no video)
 
 weather: a spec for weather_gym.weather.parse_weather, e.g. droplets:0.55, "droplets:0.55,dim:0.3",
   droplets@3 (a calibrated preset, severity 0-4), low_light@2, clear.
 
-output: per-lap times, cones hit, off-track events, mean/max cross-track error; --video writes an MP4
-  of the camera view (weathered) with the cone boxes the agent received and a top-down map inset;
-  --strip a PNG grid of frames. Existing files are never replaced without --overwrite.
-  Exit status 0 when every requested lap was completed, 1 when not (crash, time or step limit).
+output: per-lap times, cones hit, off-track events, mean/max cross-track error, why the run ended
+  (laps | off_track | time_limit) and the renderer; --video writes an MP4 of the camera view
+  (weathered) with the cone boxes the agent received and a top-down map inset; --strip a PNG grid of
+  frames. Existing files are never replaced without --overwrite.
+  Exit status 0 when every requested lap was completed, 1 when not (off track or time limit).
 
 examples:
   weather-gym lap --track peanut --laps 2 --video peanut.mp4
@@ -59,12 +63,13 @@ def register(sub) -> None:
     p.add_argument("--agent-arg", action="append", default=[], metavar="KEY=VALUE",
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
-    p.add_argument("--perception", choices=PERCEPTION_MODES, default="auto", help="what the agent sees (see below)")
+    p.add_argument("--perception", choices=PERCEPTION_CHOICES, default="auto", help="what the agent sees (see below)")
     p.add_argument("--detector", type=Path, metavar="MODEL.onnx",
                    help="ONNX detector for --perception detector (default: the shipped model)")
     p.add_argument("--laps", type=int, default=1, help="laps to drive (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default %(default)s)")
-    p.add_argument("--max-steps", type=int, help="step limit (default: laps x max(60 s, length / 2 m/s))")
+    p.add_argument("--max-steps", type=int,
+                   help="time limit in steps (TimeLimit; default: laps x max(60 s, length / 2 m/s))")
     p.add_argument("--video", type=Path, metavar="PATH.mp4", help="write an MP4 of the run")
     p.add_argument("--strip", type=Path, metavar="PATH.png", help="write a PNG strip of frames")
     p.add_argument("--strip-frames", type=int, default=8, help="frames in the strip (default %(default)s)")
@@ -121,116 +126,100 @@ def _run(args) -> int:
     return 0 if result["completed"] else 1
 
 
-def _make_env(env_id: str, track: str | None, weather: str | None, perception: str, detector: Path | None,
-              laps: int, keep_image: bool):
-    import gymnasium as gym
+def default_max_steps(env_id: str, track: str | None, laps: int) -> int:
+    """The lap command's time limit: every lap may take up to max(60 s, length / 2 m/s)."""
+    from weather_gym.envs.registration import scenario_of
+    from weather_gym.envs.scenario import build_config
+    from weather_gym.tracks import load_track
 
-    import weather_gym  # noqa: F401  (registers the env ids)
-
-    if env_id not in gym.registry:
-        ids = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
-        raise ValueError(f"unknown env id {env_id!r}; registered: {', '.join(ids)}")
-    kwargs: dict[str, Any] = {"laps": laps, "max_episode_steps": 10**9}  # the step limit is ours
-    if track is not None:
-        kwargs["track"] = track
-    if weather is not None:
-        from weather_gym.weather import parse_weather
-
-        parse_weather(weather)  # a bad spec fails here, with the parser's message
-        kwargs["weather"] = weather
-    if perception == "detector":
-        det: dict[str, Any] = {"keep_image": keep_image}
-        if detector is not None:
-            det["detector"] = str(detector)
-        kwargs["detector"] = det
-    else:
-        kwargs["detector"] = {"enabled": False}
-    env = gym.make(env_id, **kwargs)
-    if perception == "oracle":
-        from weather_gym.wrappers import GroundTruthConeWrapper
-
-        env = GroundTruthConeWrapper(env, keep_image=keep_image)
-    return env
+    cfg = build_config(scenario_of(env_id), {"track": track} if track is not None else None)
+    length = load_track(cfg.track, seed=cfg.track_seed).length
+    return int(math.ceil(laps * max(60.0, length / MIN_SPEED_FOR_LIMIT) * cfg.sim.control_hz))
 
 
 def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = None, agent: str = "gt_pure_pursuit",
              agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = "auto",
-             detector: Path | None = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
+             detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
              overwrite: bool = False, progress: bool = False) -> dict[str, Any]:
-    """Drive ``laps`` laps and return the measurements (see ``format_result``)."""
-    import numpy as np
+    """Drive ``laps`` laps and return the measurements (see ``format_result``).
+
+    The env comes from :func:`weather_gym.pipeline.make_env` and the episode from
+    :func:`weather_gym.agents.run_episode`.
+    """
     from tqdm import tqdm
 
-    from weather_gym.agents import AGENTS, check_action
+    from weather_gym.agents import AGENTS, run_episode
+    from weather_gym.pipeline import check_perception, make_env
 
-    if perception not in PERCEPTION_MODES:
-        raise ValueError(f"perception must be one of {', '.join(PERCEPTION_MODES)}, got {perception!r}")
+    if perception != "auto":
+        check_perception(perception)
     factory = AGENTS.get(agent)
-    mode = perception if perception != "auto" else ("detector" if agent in PERCEPTION_AGENTS else "none")
+    mode = perception if perception != "auto" else ("detector" if agent in PERCEPTION_AGENTS else "camera")
     recording = video is not None or strip is not None
-    env = _make_env(env_id, track, weather, mode, detector, laps, keep_image=recording)
+    if recording and mode == "gt_cones":
+        raise ValueError("--video/--strip record the camera, and perception gt_cones renders none; "
+                         "take --perception oracle for a video of ground-truth driving")
+    if max_steps is None:
+        max_steps = default_max_steps(env_id, track, laps)
+    env_kwargs: dict[str, Any] = {"laps": laps}
+    if track is not None:
+        env_kwargs["track"] = track
+    if weather is not None:
+        from weather_gym.weather import parse_weather
+
+        parse_weather(weather)  # a bad spec fails here, with the parser's message
+    perception_kwargs = {"keep_image": True} if recording and mode != "camera" else None
+    env = make_env(env_id, perception=mode, weather=weather, detector=detector if mode == "detector" else None,
+                   perception_kwargs=perception_kwargs, max_episode_steps=max_steps, **env_kwargs)
+    recorder = None
     try:
         base = env.unwrapped
         trk, camera = base.track, base.config.camera
         hz = float(base.config.sim.control_hz)
-        limit = max_steps or int(math.ceil(laps * max(60.0, trk.length / MIN_SPEED_FOR_LIMIT) * hz))
         driver = factory(trk, camera, **(agent_kwargs or {}))
-        obs, info = env.reset(seed=seed)
-        driver.reset(seed=seed, info=info)
-        weather_desc = weather or _describe_weather(info.get("weather"))
-        recorder = (_Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent, weather_desc)
-                    if recording else None)
-        cte, steps, wall0 = [], 0, time.perf_counter()
-        terminated = truncated = False
-        bar = tqdm(total=limit, unit="step", desc=f"{agent} on {trk.name}", disable=not progress or None,
+        bar = tqdm(total=max_steps, unit="step", desc=f"{agent} on {trk.name}", disable=not progress or None,
                    leave=False)
-        try:
+        state: dict[str, Any] = {}
+
+        def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
+            nonlocal recorder
+            state["info"] = info
+            if step == 0:
+                state["weather"] = weather or _describe_weather(info.get("weather"))
+                if recording:
+                    recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
+                                         state["weather"])
             if recorder is not None:
                 recorder.add(obs, info, laps)
-            while steps < limit:
-                action = check_action(driver.act(obs, info), agent)
-                obs, _, terminated, truncated, info = env.step(action)
-                steps += 1
-                cte.append(float(info["cross_track_error"]))
-                if recorder is not None:
-                    recorder.add(obs, info, laps)
-                if steps % 30 == 0:
-                    bar.update(30)
-                    bar.set_postfix(lap=info["lap"], v=f"{info['speed']:.1f}")
-                if terminated or truncated:
-                    break
+            if step and step % 30 == 0:
+                bar.update(30)
+                bar.set_postfix(lap=info["lap"], v=f"{info['speed']:.1f}")
+
+        try:
+            res = run_episode(env, driver, seed=seed, on_step=on_step, agent_name=agent)
         finally:
             bar.close()
             if recorder is not None:
                 recorder.close()
-        wall = time.perf_counter() - wall0
+        renderer = base.renderer
     finally:
         env.close()
-    lap_times = [float(t) for t in info["lap_times"]]
-    if terminated and len(lap_times) < laps:
-        reason = "off track" if info.get("off_track") else "terminated"
-    elif len(lap_times) >= laps:
-        reason = "laps completed"
-    elif truncated:
-        reason = "env time limit"
-    else:
-        reason = f"step limit ({limit} steps)"
     result = {
         "env": env_id, "track": track or trk.name, "event": trk.event, "track_length_m": float(trk.length), "agent": agent,
-        "perception": mode, "weather": weather_desc, "seed": seed, "laps_requested": laps,
-        "lap_times_s": lap_times, "completed": len(lap_times) >= laps, "end": reason, "steps": steps,
-        "sim_time_s": steps / hz, "wall_time_s": wall, "cones_hit": int(info["cones_hit"]),
-        "off_track_events": int(info.get("off_track_events", 0)),
-        "cte_mean_m": float(np.mean(cte)) if cte else float("nan"),
-        "cte_max_m": float(np.max(cte)) if cte else float("nan"),
+        "perception": mode, "weather": state["weather"], "seed": seed, "laps_requested": laps,
+        "lap_times_s": list(res.lap_times_s), "completed": res.completed, "end": res.end_reason,
+        "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,
+        "cones_hit": res.cones_hit, "off_track_events": res.off_track_events,
+        "cte_mean_m": res.cte_mean_m, "cte_max_m": res.cte_max_m, "max_steps": max_steps, "renderer": renderer,
+        "weather_latency_ms": res.weather_latency_ms, "detector_latency_ms": res.detector_latency_ms,
     }
     cone_map = getattr(driver, "last_map", None)
     if cone_map is not None:
         result["map"] = cone_map.summary()
     if recording:
         result["video"] = str(video) if video is not None else None
-        result["video_frames"] = recorder.video.frames if recorder.video is not None else 0
+        result["video_frames"] = recorder.video.frames if recorder is not None and recorder.video is not None else 0
         result["strip"] = str(strip) if strip is not None else None
     return result
 
@@ -250,8 +239,9 @@ def format_result(r: dict[str, Any]) -> str:
              f"perception {r['perception']} | weather {r['weather']} | seed {r['seed']}"]
     for i, t in enumerate(r["lap_times_s"], 1):
         lines.append(f"lap {i}: {t:.2f} s")
-    lines.append(f"laps completed: {len(r['lap_times_s'])}/{r['laps_requested']} ({r['end']}) in {r['steps']} steps, "
-                 f"{r['sim_time_s']:.1f} s simulated, {r['wall_time_s']:.1f} s wall")
+    end = r["end"] if r["end"] != "time_limit" else f"time_limit, {r['max_steps']} steps"
+    lines.append(f"laps completed: {len(r['lap_times_s'])}/{r['laps_requested']} ({end}) in {r['steps']} steps, "
+                 f"{r['sim_time_s']:.1f} s simulated, {r['wall_time_s']:.1f} s wall, renderer {r['renderer']}")
     lines.append(f"cones hit: {r['cones_hit']}   off-track events: {r['off_track_events']}")
     lines.append(f"cross-track error: mean {r['cte_mean_m']:.3f} m, max {r['cte_max_m']:.3f} m")
     if "map" in r:

@@ -46,10 +46,10 @@ def episode_plan(tracks: Sequence[str], frames: int, frames_per_episode: int) ->
 
 
 def _make_env(track: str, camera: CameraConfig, max_steps: int):
-    from weather_gym.envs import ConeTrackEnv, EnvConfig
+    from weather_gym.pipeline import make_env
 
-    return ConeTrackEnv(EnvConfig(track=track, camera=camera, laps=0, max_episode_steps=max_steps,
-                                  terminate_off_track=True))
+    return make_env(track=track, camera=camera, laps=0, terminate_off_track=True, max_episode_steps=max_steps,
+                    episode_statistics=False)
 
 
 def _start_pose(track, rng: np.random.Generator, lateral_max: float) -> tuple[float, float, float]:
@@ -118,10 +118,10 @@ def render_dataset(
                 env_track = track_spec
             rng = np.random.default_rng(ep_seed)
             look = sample_look(rng) if randomize else DEFAULT_LOOK
-            pose = _start_pose(env.track, rng, lateral_max)
+            pose = _start_pose(env.unwrapped.track, rng, lateral_max)
             speed = float(rng.uniform(0.0, 6.0))
             obs, info = env.reset(seed=int(ep_seed), options={"look": look, "start_pose": pose, "start_speed": speed})
-            agent = AGENTS.get("gt_pure_pursuit")(env.track, camera)
+            agent = AGENTS.get("gt_pure_pursuit")(env.unwrapped.track, camera)
             agent.reset(seed=int(ep_seed), info=info)
             saved = 0
             step = 0
@@ -149,7 +149,7 @@ def render_dataset(
                 step += 1
                 if terminated or truncated:
                     # left the track or ran out of steps: fill the rest of this episode's quota from a new start
-                    pose = _start_pose(env.track, rng, lateral_max)
+                    pose = _start_pose(env.unwrapped.track, rng, lateral_max)
                     obs, info = env.reset(options={"look": look, "start_pose": pose, "start_speed": 0.0})
                     agent.reset(seed=int(ep_seed), info=info)
                     step = 0

@@ -1,7 +1,14 @@
 """``ConeTrackEnv``: a Formula Student cone track with a camera car, as a Gymnasium environment.
 
-Observation: ``Dict(image, depth, state)``; action: ``Box(-1, 1, (2,))`` = (steering, throttle/brake).
-Ground truth (visible cones' boxes, true pose, ...) is only in ``info``.
+Observation: ``Dict(image, depth, state)`` (``Dict(state)`` when ``camera_images=False``); action:
+``Box(-1, 1, (2,))`` = (steering, throttle/brake). Ground truth (the visible cones, true pose, ...)
+is only in ``info``; every ``info`` value is a number, a fixed-shape array or one object, so
+Gymnasium's vector envs can stack it. The full reference (reward, termination, every ``info`` key,
+arguments, version history) is ``docs/envs.md``.
+
+The PyBullet world is created at the first ``reset()`` (an env that is only inspected - spaces,
+spec - starts no physics client and no renderer). Truncation belongs to Gymnasium's ``TimeLimit``
+(``gym.make(id, max_episode_steps=...)``); the env itself terminates only on ``END_REASONS``.
 
 Example:
     >>> from weather_gym.envs import ConeTrackEnv, EnvConfig
@@ -16,6 +23,9 @@ Example:
 from __future__ import annotations
 
 import math
+import os
+import sys
+import warnings
 from dataclasses import replace
 from typing import Any
 
@@ -23,8 +33,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
-from weather_gym.sim.camera import CameraFrame
 from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
 from weather_gym.sim.world import World
 
@@ -32,6 +42,11 @@ STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_
 """Names of ``obs["state"]``: wheel-speed odometry (m/s), gyro yaw rate (rad/s), odometry pose."""
 
 RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction")
+
+END_REASONS: tuple[str, ...] = ("laps", "off_track", "time_limit")
+"""Why an episode ends: ``laps`` (the requested laps driven, or an open event's finish line
+crossed), ``off_track`` (left the track, with ``terminate_off_track``), ``time_limit`` (truncated by
+``TimeLimit``). The env reports the first two as ``info["end_reason"]`` on the terminating step."""
 
 
 def _wrap_angle(a: float) -> float:
@@ -60,30 +75,40 @@ class ConeTrackEnv(gym.Env):
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": config.sim.control_hz}
         self.track = load_track(config.track, seed=config.track_seed)
-        sim = config.sim if render_mode != "human" else replace(config.sim, gui=True)
-        self._world = World(self.track, sim=sim, car=config.car, camera=config.camera)
+        sim = config.sim if config.camera_images else replace(config.sim, renderer="none")
+        if render_mode == "human":
+            if _display_available():
+                sim = replace(sim, gui=True)
+            else:
+                warnings.warn("render_mode='human' opens the PyBullet GUI, which needs a display (DISPLAY is not "
+                              "set): running without a window", RuntimeWarning, stacklevel=2)
+        self._sim = sim
+        self._world: World | None = None
         cam = config.camera
-        self.observation_space = spaces.Dict(
-            {
-                "image": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
-                "depth": spaces.Box(0.0, float(cam.far), (cam.height, cam.width), np.float32),
-                "state": spaces.Box(-np.inf, np.inf, (len(STATE_FIELDS),), np.float32),
-            }
-        )
+        obs = {"state": spaces.Box(-np.inf, np.inf, (len(STATE_FIELDS),), np.float32)}
+        if config.camera_images:
+            obs = {"image": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
+                   "depth": spaces.Box(0.0, float(cam.far), (cam.height, cam.width), np.float32), **obs}
+        self.observation_space = spaces.Dict(obs)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self._frame_every = max(1, int(round(config.sim.control_hz / cam.fps)))
-        self._frame: CameraFrame | None = None
+        self._image: np.ndarray | None = None
+        self._depth: np.ndarray | None = None
+        self._gt: ConeArrays | None = None
         self._episode_started = False
 
     # ------------------------------------------------------------------ properties
     @property
     def world(self) -> World:
+        """The PyBullet world (created on first use)."""
+        if self._world is None:
+            self._world = World(self.track, sim=self._sim, car=self.config.car, camera=self.config.camera)
         return self._world
 
     @property
     def renderer(self) -> str:
-        """The renderer in use: "egl" or "tiny"."""
-        return self._world.renderer_name
+        """The renderer in use: "egl", "tiny" or "none" (``camera_images=False``)."""
+        return self.world.renderer_name
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -92,13 +117,16 @@ class ConeTrackEnv(gym.Env):
         unknown = set(options) - set(RESET_OPTIONS)
         if unknown:
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
+        self._episode_started = False  # until this reset has succeeded
         rng = self.np_random
         look = self._resolve_look(options.get("look"), rng)
-        self._world.set_look(look)
 
         track = self.track
         if "start_pose" in options:
-            pose = tuple(float(v) for v in options["start_pose"])
+            try:
+                pose = tuple(float(v) for v in options["start_pose"])
+            except (TypeError, ValueError):
+                pose = ()
             if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
                 raise ValueError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
         elif "start_s" in options:
@@ -106,14 +134,17 @@ class ConeTrackEnv(gym.Env):
             pose = (float(x), float(y), float(h))
         else:
             pose = tuple(float(v) for v in track.start_pose)
-        speed = float(options.get("start_speed", 0.0))
-        if not math.isfinite(speed) or speed < 0:
+        speed = options.get("start_speed", 0.0)
+        if not (isinstance(speed, (int, float)) and math.isfinite(speed) and speed >= 0):
             raise ValueError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
+        speed = float(speed)
         friction = options.get("friction", self.config.car.friction)
         if not (isinstance(friction, (int, float)) and math.isfinite(friction) and friction > 0):
             raise ValueError(f"reset option friction must be a finite number > 0, got {friction!r}")
         self._friction = float(friction)
-        self._world.reset(pose, speed=speed)
+        world = self.world
+        world.set_look(look)
+        world.reset(pose, speed=speed)
 
         # odometry errors of this episode
         od = self.config.odometry
@@ -133,10 +164,10 @@ class ConeTrackEnv(gym.Env):
         self._off_track_events = 0
         self._finished = False
         self._lateral = float(proj.lateral)
-        self._episode_started = True
-        self._frame = self._world.render()
+        self._update_frame()
         meas = self._measure(0.0)
-        return self._observation(meas), self._info(proj, new_hits=0)
+        self._episode_started = True
+        return self._observation(meas), self._info(proj, new_hits=0, end_reason=None)
 
     def _resolve_look(self, look: Any, rng: np.random.Generator) -> Look:
         if look is None:
@@ -162,7 +193,7 @@ class ConeTrackEnv(gym.Env):
             raise ValueError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
         steer, pedal = float(np.clip(a[0], -1, 1)), float(np.clip(a[1], -1, 1))  # only float rounding is clipped
 
-        touched = self._world.step(steer, pedal, self._friction)
+        touched = self._world.step(steer, pedal, self._friction)  # reset() made the world
         new_hits = len(touched - self._cones_hit)
         self._cones_hit |= touched
         dt = self.config.sim.dt
@@ -170,7 +201,7 @@ class ConeTrackEnv(gym.Env):
         self._time += dt
 
         track = self.track
-        x, y, _ = self._world.car.pose
+        x, y, _ = self._world.car.pose  # type: ignore[union-attr]
         proj = track.project(x, y, s_hint=self._s)
         ds = float(proj.s) - self._s
         if track.closed:
@@ -202,17 +233,17 @@ class ConeTrackEnv(gym.Env):
         reward = r.progress * ds + r.cone_hit * new_hits + r.off_track * float(became_off) + r.time
 
         laps_needed = self.config.laps
-        terminated = bool(
-            (off and self.config.terminate_off_track)
-            or (laps_needed > 0 and len(self._lap_times) >= laps_needed)
-            or (lap_done and not track.closed)
-        )
-        truncated = bool(self._step >= self.config.max_episode_steps and not terminated)
+        end_reason = None
+        if (laps_needed > 0 and len(self._lap_times) >= laps_needed) or (lap_done and not track.closed):
+            end_reason = "laps"
+        elif off and self.config.terminate_off_track:
+            end_reason = "off_track"
+        terminated = end_reason is not None
 
         if self._step % self._frame_every == 0:
-            self._frame = self._world.render()
+            self._update_frame()
         meas = self._measure(dt)
-        return self._observation(meas), float(reward), terminated, truncated, self._info(proj, new_hits)
+        return self._observation(meas), float(reward), terminated, False, self._info(proj, new_hits, end_reason)
 
     # ------------------------------------------------------------------ sensors
     def _measure(self, dt: float) -> tuple[float, float]:
@@ -229,15 +260,29 @@ class ConeTrackEnv(gym.Env):
             )
         return speed, yaw_rate
 
-    def _observation(self, meas: tuple[float, float]) -> dict[str, np.ndarray]:
-        assert self._frame is not None
-        state = np.array([meas[0], meas[1], *self._odom], dtype=np.float32)
-        return {"image": self._frame.rgb.copy(), "depth": self._frame.depth.copy(), "state": state}
+    def _update_frame(self) -> None:
+        """Render the camera and/or compute the ground truth, as the config asks."""
+        world, cfg = self.world, self.config
+        if cfg.camera_images:
+            frame = world.render(segmentation=cfg.ground_truth == "segmentation")
+            self._image, self._depth, self._gt = frame.rgb, frame.depth, frame.gt
+        if cfg.ground_truth == "geometry":
+            self._gt = world.ground_truth()
 
-    def _info(self, proj, new_hits: int) -> dict[str, Any]:
-        car = self._world.car
-        return {
-            "gt": self._frame.gt if self._frame is not None else None,
+    def _observation(self, meas: tuple[float, float]) -> dict[str, np.ndarray]:
+        state = np.array([meas[0], meas[1], *self._odom], dtype=np.float32)
+        if not self.config.camera_images:
+            return {"state": state}
+        assert self._image is not None and self._depth is not None
+        return {"image": self._image.copy(), "depth": self._depth.copy(), "state": state}
+
+    def _info(self, proj, new_hits: int, end_reason: str | None) -> dict[str, Any]:
+        world = self.world
+        car = world.car
+        info: dict[str, Any] = {}
+        if self.config.ground_truth != "off":
+            info["gt"] = self._gt
+        info.update({
             "pose": np.array(car.pose, dtype=np.float64),
             "speed": float(car.speed),
             "yaw_rate": float(car.state.yaw_rate),
@@ -258,17 +303,25 @@ class ConeTrackEnv(gym.Env):
             "finished": bool(self._finished),
             "camera": self.config.camera,
             "track": self.track.name,
-            "renderer": self._world.renderer_name,
-        }
+            "renderer": world.renderer_name,
+        })
+        if end_reason is not None:
+            info["end_reason"] = end_reason
+        return info
 
     # ------------------------------------------------------------------ render / close
     def render(self):
         if self.render_mode == "rgb_array":
-            return self._world.render_chase()
+            return self.world.render_chase()
         return None  # "human": the PyBullet GUI window shows the scene live
 
     def close(self) -> None:
-        world = getattr(self, "_world", None)
+        world, self._world = getattr(self, "_world", None), None
+        self._episode_started = False
         if world is not None:
             world.close()
         super().close()
+
+
+def _display_available() -> bool:
+    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY"))

@@ -5,6 +5,8 @@ Example:
     >>> cfg = EnvConfig(track="peanut", laps=2)
     >>> cfg.camera.width, cfg.sim.control_hz
     (672, 30.0)
+    >>> EnvConfig(camera_images=False, ground_truth="geometry").ground_truth   # render-free
+    'geometry'
 """
 
 from __future__ import annotations
@@ -14,6 +16,10 @@ from dataclasses import dataclass, field
 
 from weather_gym.camera import CameraConfig
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
+
+GROUND_TRUTH_MODES = ("segmentation", "geometry", "off")
+"""Where ``info["gt"]`` comes from: the rendered segmentation (pixel exact), geometry (no rendering;
+:mod:`weather_gym.sim.visibility`), or nowhere (no ``info["gt"]``)."""
 
 
 @dataclass(frozen=True)
@@ -42,20 +48,27 @@ class EnvConfig:
         track_seed: seed for generated tracks when ``track`` is ``"random"``.
         laps: the episode terminates after this many laps (or when an open event is finished);
             0 = never terminate on laps.
-        max_episode_steps: truncation limit (time limit), in env steps.
         terminate_off_track: end the episode when the car leaves the track.
         off_track_margin: metres beyond the cone line the car's reference point may go before it
             counts as off track (0.6 m = all four wheels out for a 1.2 m wide car).
         randomize_look: draw a random appearance from the episode's RNG at every reset.
+        camera_images: render the camera (``obs["image"]``, ``obs["depth"]``); False = render nothing
+            (the observation is ``state`` only; pair with ``ground_truth="geometry"``).
+        ground_truth: ``info["gt"]`` from the rendered ``"segmentation"``, from ``"geometry"`` (the
+            segmentation pass is then skipped), or ``"off"``.
+
+    The episode's time limit is not here: Gymnasium's ``TimeLimit`` owns truncation
+    (``gym.make(id, max_episode_steps=...)``; each scenario registers its default).
     """
 
     track: str = "small_track"
     track_seed: int | None = None
     laps: int = 1
-    max_episode_steps: int = 3000
     terminate_off_track: bool = True
     off_track_margin: float = 0.6
     randomize_look: bool = False
+    camera_images: bool = True
+    ground_truth: str = "segmentation"
     sim: SimConfig = field(default_factory=SimConfig)
     car: CarConfig = field(default_factory=CarConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
@@ -67,8 +80,14 @@ class EnvConfig:
             raise ValueError(f"EnvConfig.track must be a non-empty string, got {self.track!r}")
         if not isinstance(self.laps, int) or isinstance(self.laps, bool) or self.laps < 0:
             raise ValueError(f"EnvConfig.laps must be an integer >= 0, got {self.laps!r}")
-        if not isinstance(self.max_episode_steps, int) or isinstance(self.max_episode_steps, bool) or self.max_episode_steps < 1:
-            raise ValueError(f"EnvConfig.max_episode_steps must be an integer >= 1, got {self.max_episode_steps!r}")
+        if not isinstance(self.camera_images, bool):
+            raise ValueError(f"EnvConfig.camera_images must be true or false, got {self.camera_images!r}")
+        if self.ground_truth not in GROUND_TRUTH_MODES:
+            raise ValueError(f"EnvConfig.ground_truth must be one of {', '.join(GROUND_TRUTH_MODES)}, "
+                             f"got {self.ground_truth!r}")
+        if not self.camera_images and self.ground_truth == "segmentation":
+            raise ValueError('EnvConfig.ground_truth="segmentation" needs rendered frames; with camera_images=False '
+                             'take ground_truth="geometry" (or "off")')
         if not (isinstance(self.off_track_margin, (int, float)) and math.isfinite(self.off_track_margin)
                 and self.off_track_margin >= 0):
             raise ValueError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
@@ -76,3 +95,6 @@ class EnvConfig:
                           ("odometry", OdometryConfig), ("reward", RewardConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+        if self.camera_images and self.sim.renderer == "none":
+            raise ValueError('EnvConfig: sim.renderer="none" renders no camera frames; set camera_images=False '
+                             '(or pick renderer "auto", "egl" or "tiny")')

@@ -1,24 +1,26 @@
-"""Register every scenario file in ``envs/`` as a Gymnasium id, and build envs from them.
+"""Register every scenario file in ``envs/`` as a Gymnasium id.
 
-``gym.make(id, **kwargs)``: kwargs override the scenario (``track="peanut"``,
-``camera={"width": 336, "height": 188}``, ``laps=2``...). ``weather=`` (any weather spec, or a
-condition name with ``severity=``) adds a ``WeatherWrapper``; ``detector=True`` (or a dict of
-``DetectorWrapper`` arguments) adds the detector.
+Each id's entry point is :func:`weather_gym.pipeline.make_scenario_env` (env -> weather ->
+perception; see :mod:`weather_gym.pipeline` for its keywords) and its ``max_episode_steps`` the
+scenario's: Gymnasium's ``TimeLimit`` owns truncation, so ``gym.make(id, max_episode_steps=N)``
+runs up to N steps. This module only stores the entry point's name, so the env layer imports
+nothing above it.
 
 Example:
     >>> import gymnasium as gym
     >>> import weather_gym
-    >>> "WeatherGym/ConeTrack-v0" in gym.registry
-    True
+    >>> spec = gym.spec("WeatherGym/ConeTrack-v0")
+    >>> spec.entry_point, spec.max_episode_steps
+    ('weather_gym.pipeline:make_scenario_env', 3000)
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import gymnasium as gym
 
-from weather_gym.envs.scenario import Scenario, build_config, load_scenario, scenario_files
+from weather_gym.envs.scenario import Scenario, load_scenario, scenario_files
+
+ENTRY_POINT = "weather_gym.pipeline:make_scenario_env"
 
 _SCENARIOS: dict[str, Scenario] = {}
 
@@ -32,48 +34,16 @@ def register_envs() -> list[str]:
             raise ValueError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
         _SCENARIOS[sc.env_id] = sc
         if sc.env_id not in gym.registry:
-            gym.register(id=sc.env_id, entry_point="weather_gym.envs.registration:make_scenario_env",
-                         kwargs={"scenario": str(path)})
+            gym.register(id=sc.env_id, entry_point=ENTRY_POINT, kwargs={"scenario": str(path)},
+                         max_episode_steps=sc.max_episode_steps)
         ids.append(sc.env_id)
     return ids
 
 
-def make_scenario_env(scenario: str, render_mode: str | None = None, weather: Any = None, severity: int | None = None,
-                      detector: Any = None, **overrides: Any) -> gym.Env:
-    """Entry point used by ``gym.make``: the scenario's env, wrapped as the scenario and kwargs say."""
-    from weather_gym.envs.cone_track import ConeTrackEnv
-
-    sc = load_scenario(scenario)
-    env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
+def scenario_of(env_id: str) -> Scenario:
+    """The scenario registered as ``env_id``."""
+    register_envs()
     try:
-        spec = _weather_spec(sc, weather, severity)
-        if spec is not None:
-            from weather_gym.wrappers import WeatherWrapper
-
-            env = WeatherWrapper(env, weather=spec)
-        det = sc.detector if detector is None else detector
-        if isinstance(det, dict) and det.get("enabled", True) is False:
-            det = None
-        if det:
-            from weather_gym.wrappers import DetectorWrapper
-
-            kwargs = {k: v for k, v in det.items() if k != "enabled"} if isinstance(det, dict) else {}
-            env = DetectorWrapper(env, **kwargs)
-    except BaseException:
-        env.close()
-        raise
-    return env
-
-
-def _weather_spec(sc: Scenario, weather: Any, severity: int | None) -> Any:
-    if weather is None and severity is None:
-        if not sc.weather:
-            return None
-        if "spec" in sc.weather:
-            return sc.weather["spec"]
-        return (sc.weather["condition"], int(sc.weather.get("severity", 0)))
-    if severity is not None:
-        if not isinstance(weather, str):
-            raise ValueError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
-        return (weather, int(severity))
-    return weather
+        return _SCENARIOS[env_id]
+    except KeyError:
+        raise ValueError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(sorted(_SCENARIOS))}") from None

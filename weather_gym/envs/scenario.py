@@ -1,17 +1,19 @@
-"""Declarative scenarios: TOML files in ``envs/`` describing track, car, camera, sim, weather, detector.
+"""Declarative scenarios: TOML files in ``envs/`` describing track, car, camera, sim, weather, perception.
 
 A scenario file::
 
     id = "WeatherGym/ConeTrack-v0"
     description = "..."
-    [env]       # EnvConfig fields: track, laps, max_episode_steps, ...
-    [sim]       # SimConfig fields
-    [car]       # CarConfig fields
-    [camera]    # CameraConfig fields
-    [odometry]  # OdometryConfig fields
-    [reward]    # RewardConfig fields
-    [weather]   # optional: spec = "droplets@2" (any weather spec), or condition/severity
-    [detector]  # optional: enabled = true, plus DetectorWrapper keyword arguments
+    [env]         # EnvConfig fields (track, laps, camera_images, ground_truth, ...) and
+                  # max_episode_steps (the TimeLimit the id is registered with)
+    [sim]         # SimConfig fields
+    [car]         # CarConfig fields
+    [camera]      # CameraConfig fields
+    [odometry]    # OdometryConfig fields
+    [reward]      # RewardConfig fields
+    [weather]     # optional: spec = "droplets@2" (any weather spec), or condition/severity
+    [perception]  # optional: mode = "detector" (see weather_gym.pipeline.PERCEPTION_MODES),
+                  # detector = "model.onnx", and the perception wrapper's keyword arguments
 
 Example:
     >>> from weather_gym.envs.scenario import load_scenario, scenario_files
@@ -41,7 +43,8 @@ SECTIONS: dict[str, type] = {
     "reward": RewardConfig,
 }
 ENV_KEYS = tuple(f.name for f in fields(EnvConfig) if f.name not in SECTIONS)
-TOP_KEYS = ("id", "description", "env", "weather", "detector", *SECTIONS)
+TOP_KEYS = ("id", "description", "env", "weather", "perception", *SECTIONS)
+DEFAULT_MAX_EPISODE_STEPS = 3000
 
 
 @dataclass(frozen=True)
@@ -54,7 +57,8 @@ class Scenario:
     env: dict[str, Any] = field(default_factory=dict)
     sections: dict[str, dict[str, Any]] = field(default_factory=dict)
     weather: dict[str, Any] | None = None
-    detector: dict[str, Any] | None = None
+    perception: dict[str, Any] | None = None
+    max_episode_steps: int = DEFAULT_MAX_EPISODE_STEPS
 
 
 def scenario_files() -> list[Path]:
@@ -77,12 +81,18 @@ def load_scenario(path: str | Path) -> Scenario:
         raise FileNotFoundError(f"scenario file {path} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: malformed TOML: {exc}") from None
+    if "detector" in data:
+        raise ValueError(f"{path}: the [detector] table is now [perception] with mode = \"detector\" "
+                         "(and the DetectorWrapper keyword arguments)")
     _check_keys(str(path), data, TOP_KEYS)
     env_id = data.get("id")
     if not isinstance(env_id, str) or "/" not in env_id or not env_id.rsplit("-v", 1)[-1].isdigit():
         raise ValueError(f"{path}: 'id' must be a Gymnasium id like 'WeatherGym/Name-v0', got {env_id!r}")
-    env = data.get("env", {})
-    _check_keys(f"{path} [env]", env, ENV_KEYS)
+    env = dict(data.get("env", {}))
+    _check_keys(f"{path} [env]", env, (*ENV_KEYS, "max_episode_steps"))
+    max_steps = env.pop("max_episode_steps", DEFAULT_MAX_EPISODE_STEPS)
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise ValueError(f"{path} [env]: max_episode_steps must be an integer >= 1, got {max_steps!r}")
     sections = {}
     for name, cls in SECTIONS.items():
         sec = data.get(name, {})
@@ -93,9 +103,12 @@ def load_scenario(path: str | Path) -> Scenario:
     weather = data.get("weather")
     if weather is not None:
         _check_keys(f"{path} [weather]", weather, ("spec", "condition", "severity"))
-    detector = data.get("detector")
+    perception = data.get("perception")
+    if perception is not None:
+        if not isinstance(perception, dict) or not isinstance(perception.get("mode", "camera"), str):
+            raise ValueError(f"{path}: [perception] must be a table with mode = \"camera\" | \"detector\" | ...")
     sc = Scenario(env_id=env_id, path=str(path), description=str(data.get("description", "")), env=env,
-                  sections=sections, weather=weather, detector=detector)
+                  sections=sections, weather=weather, perception=perception, max_episode_steps=max_steps)
     try:  # build once so that bad values fail at load time, naming the file
         build_config(sc)
     except (TypeError, ValueError) as exc:

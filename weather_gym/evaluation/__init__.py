@@ -17,11 +17,11 @@ Example:
 from __future__ import annotations
 
 # (the function ``evaluate`` is not re-exported: it would shadow the module of the same name)
-from weather_gym.evaluation.evaluate import EvalCell, EvalConfig, make_cells, make_eval_env, run_cell
+from weather_gym.evaluation.evaluate import EvalCell, EvalConfig, make_cells, run_cell
 from weather_gym.evaluation.report import aggregate, write_report
 from weather_gym.evaluation.runner import read_results, run_cells
 
 __all__ = [
-    "EvalCell", "EvalConfig", "aggregate", "make_cells", "make_eval_env", "read_results", "run_cell",
+    "EvalCell", "EvalConfig", "aggregate", "make_cells", "read_results", "run_cell",
     "run_cells", "write_report",
 ]

@@ -10,10 +10,10 @@ Severity -> weather goes through :func:`weather_gym.weather.presets.preset_spec`
 field of the cell (``weather``): when calibration rewrites the presets, old rows no longer match and
 the cells run again; nothing here changes.
 
-Pipeline of a cell: ``gymnasium.make(env_id, track=..., laps=..., **env_kwargs)`` ->
-``WeatherWrapper(weather)`` -> perception (``detector``: ``DetectorWrapper``; ``oracle``: the
-ground-truth cone list; ``camera``: none, the agent gets the weathered image) -> the agent from
-``AGENTS`` -> one episode from ``reset(seed=seed)``.
+Pipeline of a cell: :func:`weather_gym.pipeline.make_env` (``env_id``, ``track``, ``laps``,
+``max_episode_steps``, ``env_kwargs``; weather: the cell's preset; perception: a mode of
+``weather_gym.pipeline.PERCEPTION_MODES``) -> the agent from ``AGENTS`` -> one episode of
+:func:`weather_gym.agents.run_episode` from ``reset(seed=seed)``.
 
 Example:
     >>> import json
@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.pipeline import PERCEPTION_MODES
+
 __all__ = [
     "CELL_KEY_FIELDS",
     "DEFAULT_ENV_ID",
@@ -47,14 +49,13 @@ __all__ = [
     "PERCEPTIONS",
     "evaluate",
     "make_cells",
-    "make_eval_env",
     "map_precision_recall",
     "run_cell",
 ]
 
 DEFAULT_ENV_ID = "WeatherGym/ConeTrack-v0"
 DEFAULT_TRACK = "small_track"
-PERCEPTIONS = ("detector", "oracle", "camera")
+PERCEPTIONS = tuple(PERCEPTION_MODES)
 MAP_MATCH_RADIUS_M = 0.5
 """A mapped cone counts as correct within this distance of a true cone (and vice versa for recall)."""
 
@@ -67,7 +68,7 @@ METRICS: dict[str, str] = {
     "off_track_events": "times the car left the track",
     "cte_mean_m": "mean cross-track error over the steps (m)",
     "cte_max_m": "max cross-track error (m)",
-    "end_reason": "laps | off_track | time_limit | ended (the env terminated for another reason)",
+    "end_reason": "laps | off_track | time_limit (weather_gym.envs.END_REASONS)",
     "steps": "env steps driven",
     "sim_time_s": "simulated time (s)",
     "map_cones": "confirmed cones in the agent's map at the end (empty if the agent has no map)",
@@ -124,10 +125,10 @@ class EvalConfig:
         seeds: episode seeds (``reset(seed=...)``: weather realisation, odometry noise, ...).
         tracks: track names, ``random:SEED`` or cone CSV paths (anything ``gymnasium.make(track=...)`` takes).
         env_id: a Gymnasium id registered by weather-gym (a scenario).
-        perception: ``detector`` (the ONNX detector), ``oracle`` (ground-truth cone list) or
-            ``camera`` (no perception; the agent gets the weathered image).
-        laps: laps per episode; max_steps: step limit per episode (``gymnasium.make(max_episode_steps=)``;
-            the scenario's own limit still applies).
+        perception: a mode of ``weather_gym.pipeline.PERCEPTION_MODES``: ``detector`` (the ONNX
+            detector), ``oracle`` (the rendered ground truth as a cone list), ``gt_cones`` (ground-truth
+            cones from geometry; nothing rendered, so no weather) or ``camera`` (no perception).
+        laps: laps per episode; max_steps: the episode's time limit in steps (``TimeLimit``).
         agent_kwargs, env_kwargs, perception_kwargs: JSON-able keyword arguments of the agent factory,
             of ``gymnasium.make`` (e.g. ``{"camera": {"width": 336, "height": 188}}``) and of the
             perception wrapper (``DetectorWrapper``: ``score_threshold``, ``max_cones``...;
@@ -224,7 +225,15 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     clash = sorted(set(config.env_kwargs) & {"track", "laps", "max_episode_steps", "weather", "severity", "detector"})
     if clash:
         raise ValueError(f"env_kwargs may not set {', '.join(clash)}: the evaluation sets them per cell")
+    clash = sorted(set(config.env_kwargs) & {"perception", "perception_kwargs"})
+    if clash:
+        raise ValueError(f"env_kwargs may not set {', '.join(clash)}: use EvalConfig.perception / perception_kwargs")
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
+    if config.perception == "gt_cones":
+        wet = sorted(f"{e}@{s}" for (e, s), w in weather.items() if json.loads(w))
+        if wet:
+            raise ValueError(f"perception gt_cones renders no camera frame, so weather cannot act on it; "
+                             f"{', '.join(wet)} would be clear weather: evaluate gt_cones at severity 0 only")
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
                  perception=config.perception, laps=laps, max_steps=max_steps, weather=weather[e, s],
@@ -266,122 +275,45 @@ def _agent_map_xy(agent: Any) -> np.ndarray | None:
     return np.asarray(mapper.map(confirmed_only=True).xy, dtype=np.float64).reshape(-1, 2)
 
 
-def _wrap_perception(env: Any, perception: str, perception_kwargs: dict[str, Any]) -> Any:
-    """Add the perception of a cell: ``DetectorWrapper(**kw)``, ``GroundTruthConeWrapper(**kw)`` or none."""
-    if perception == "detector":
-        from weather_gym.wrappers import DetectorWrapper
-
-        return DetectorWrapper(env, **perception_kwargs)
-    if perception == "oracle":
-        from weather_gym.wrappers import GroundTruthConeWrapper
-
-        return GroundTruthConeWrapper(env, **perception_kwargs)
-    if perception_kwargs:
-        raise ValueError(f"perception_kwargs {sorted(perception_kwargs)} given, but perception 'camera' takes none")
-    return env
-
-
-def make_eval_env(env_id: str = DEFAULT_ENV_ID, *, track: str | None = None, laps: int | None = None,
-                  max_steps: int | None = None, weather: Any = None, perception: str = "detector",
-                  env_kwargs: Mapping[str, Any] | None = None, perception_kwargs: Mapping[str, Any] | None = None):
-    """The pipeline a cell drives: ``gymnasium.make`` -> ``WeatherWrapper(weather)`` -> perception.
-
-    Training scripts build their envs with it too, so a policy is evaluated on the observation it
-    was trained on. ``weather`` is any spec ``parse_weather`` takes (a preset ``("dim", 2)``, an
-    effect list...); it can be changed per episode with ``reset(options={"weather": ...})``.
-
-    Example:
-        >>> env = make_eval_env(track="small_track", weather=("dim", 2), perception="oracle")  # doctest: +SKIP
-        >>> sorted(env.observation_space.spaces)                                            # doctest: +SKIP
-        ['cones', 'mask', 'state']
-    """
-    import gymnasium as gym
-
-    import weather_gym  # noqa: F401 - registers the env ids
-    from weather_gym.wrappers import WeatherWrapper
-
-    if perception not in PERCEPTIONS:
-        raise ValueError(f"unknown perception {perception!r}; valid: {', '.join(PERCEPTIONS)}")
-    kwargs = dict(env_kwargs or {})
-    if track is not None:
-        kwargs["track"] = track
-    if laps is not None:
-        kwargs["laps"] = laps
-    if max_steps is not None:
-        kwargs["max_episode_steps"] = max_steps
-    env = gym.make(env_id, **kwargs)
-    try:
-        env = WeatherWrapper(env, weather=weather)
-        return _wrap_perception(env, perception, dict(perception_kwargs or {}))
-    except BaseException:
-        env.close()
-        raise
-
-
-def _end_reason(info: dict, terminated: bool, truncated: bool, laps: int) -> str:
-    if int(info.get("lap", 0)) >= laps or info.get("finished"):
-        return "laps"
-    if terminated and info.get("off_track"):
-        return "off_track"
-    if truncated:
-        return "time_limit"
-    return "ended"
-
-
 def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
     """Drive one episode of ``cell`` and return the metrics in :data:`METRICS` (NaN/None where not defined)."""
-    from weather_gym.agents import check_action, make_agent
+    from weather_gym.agents import make_agent, run_episode
+    from weather_gym.pipeline import make_env
 
     if isinstance(cell, Mapping):
         cell = EvalCell(**cell)
-    env = make_eval_env(cell.env_id, track=cell.track, laps=cell.laps, max_steps=cell.max_steps,
-                        weather=json.loads(cell.weather), perception=cell.perception,
-                        env_kwargs=json.loads(cell.env_kwargs), perception_kwargs=json.loads(cell.perception_kwargs))
+    weather = json.loads(cell.weather)
+    env = make_env(cell.env_id, track=cell.track, laps=cell.laps, max_episode_steps=cell.max_steps,
+                   weather=weather,
+                   perception=cell.perception, perception_kwargs=json.loads(cell.perception_kwargs),
+                   **json.loads(cell.env_kwargs))
     try:
         base = env.unwrapped
         track, camera = base.track, base.config.camera
         agent = make_agent(cell.agent, track, camera, **json.loads(cell.agent_kwargs))
         score_detector = cell.perception == "detector"
-        obs, info = env.reset(seed=cell.seed)
-        agent.reset(seed=cell.seed, info=info)
-        cte: list[float] = []
-        w_lat: list[float] = []
-        d_lat: list[float] = []
-        gts: list[dict] = []
+        gts: list[Any] = []
         dets: list[Any] = []
-        terminated = truncated = False
-        steps = 0
 
-        def seen(info: dict) -> None:  # every frame the agent acts on, the reset frame included
-            if score_detector and info.get("gt") is not None and info.get("detections") is not None:
+        def seen(step: int, obs: Any, info: dict, done: bool) -> None:
+            # every frame the agent acts on (the reset frame included, the final one not)
+            if score_detector and not done and info.get("gt") is not None and info.get("detections") is not None:
                 gts.append(info["gt"])
                 dets.append(info["detections"])
 
-        seen(info)
-        while not (terminated or truncated):
-            action = check_action(agent.act(obs, info), who=f"agent {cell.agent!r}")
-            obs, _reward, terminated, truncated, info = env.step(action)
-            steps += 1
-            cte.append(float(info["cross_track_error"]))
-            w_lat.append(float(info.get("weather_latency_ms", 0.0)))
-            d_lat.append(float(info.get("detector_latency_ms", 0.0)))
-            if not (terminated or truncated):
-                seen(info)
-        lap_times = [float(t) for t in info.get("lap_times", [])]
-        laps_done = int(info.get("lap", len(lap_times)))
-        progress = float(info.get("progress", math.nan)) / (track.length * cell.laps)
+        res = run_episode(env, agent, seed=cell.seed, on_step=seen, agent_name=cell.agent)
         out: dict[str, Any] = {
-            "laps_completed": laps_done,
-            "completed": int(laps_done >= cell.laps or bool(info.get("finished"))),
-            "lap_time_s": float(np.mean(lap_times)) if lap_times else None,
-            "progress": float(np.clip(progress, 0.0, 1.0)) if math.isfinite(progress) else math.nan,
-            "cones_hit": int(info["cones_hit"]),
-            "off_track_events": int(info.get("off_track_events", int(bool(info.get("off_track"))))),
-            "cte_mean_m": float(np.mean(cte)) if cte else math.nan,
-            "cte_max_m": float(np.max(cte)) if cte else math.nan,
-            "end_reason": _end_reason(info, terminated, truncated, cell.laps),
-            "steps": steps,
-            "sim_time_s": float(info.get("time", math.nan)),
+            "laps_completed": res.laps_completed,
+            "completed": int(res.completed),
+            "lap_time_s": float(np.mean(res.lap_times_s)) if res.lap_times_s else None,
+            "progress": res.progress,
+            "cones_hit": res.cones_hit,
+            "off_track_events": res.off_track_events,
+            "cte_mean_m": res.cte_mean_m,
+            "cte_max_m": res.cte_max_m,
+            "end_reason": res.end_reason,
+            "steps": res.steps,
+            "sim_time_s": res.sim_time_s,
         }
         mapped = _agent_map_xy(agent)
         if mapped is None:
@@ -392,12 +324,11 @@ def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
         if score_detector and gts:
             from weather_gym.perception import evaluate as score
 
-            res = score(gts, dets)
-            out.update(det_map50=res.map50, det_recall=res.recall, det_frames=res.n_images)
+            r = score(gts, dets)
+            out.update(det_map50=r.map50, det_recall=r.recall, det_frames=r.n_images)
         else:
             out.update(det_map50=None, det_recall=None, det_frames=0)
-        wl = float(np.mean(w_lat)) if w_lat else 0.0
-        dl = float(np.mean(d_lat)) if d_lat else 0.0
+        wl, dl = res.weather_latency_ms, res.detector_latency_ms
         out.update(weather_latency_ms=wl, detector_latency_ms=dl, added_latency_ms=wl + dl)
         return out
     finally:

@@ -1,5 +1,9 @@
 """The car's camera as a sensor: RGB, metric depth, segmentation and per-cone ground truth.
 
+Ground truth comes from the rendered segmentation (pixel exact) or, without rendering anything,
+from geometry (:mod:`weather_gym.sim.visibility`); ``render(segmentation=False)`` skips the
+segmentation pass (the sky is then found from the depth buffer).
+
 Example (needs PyBullet; see ``World.render``):
     >>> from weather_gym.sim.camera import depth_from_zbuffer
     >>> import numpy as np
@@ -18,19 +22,22 @@ import pybullet as p
 from scipy import ndimage
 
 from weather_gym.camera import CameraConfig
+from weather_gym.cone_arrays import ConeArrays
 from weather_gym.sim.look import Look
 from weather_gym.sim.renderer import quiet_if_egl
+from weather_gym.sim.visibility import empty_ground_truth, visible_cones
 
 
 @dataclass
 class CameraFrame:
     """One frame: ``rgb`` (H,W,3) uint8, ``depth`` (H,W) float32 metres, ``segmentation`` (H,W)
-    int32 cone index or -1, and ``gt`` (dict of per-visible-cone arrays)."""
+    int32 cone index or -1 (None when not rendered), and ``gt`` (``ConeArrays`` of the visible
+    cones, None when not computed)."""
 
-    rgb: np.ndarray
-    depth: np.ndarray
-    segmentation: np.ndarray
-    gt: dict[str, np.ndarray]
+    rgb: np.ndarray | None
+    depth: np.ndarray | None
+    segmentation: np.ndarray | None
+    gt: ConeArrays | None
 
 
 def depth_from_zbuffer(zbuf: np.ndarray, near: float, far: float) -> np.ndarray:
@@ -40,15 +47,8 @@ def depth_from_zbuffer(zbuf: np.ndarray, near: float, far: float) -> np.ndarray:
     return np.minimum(depth, np.float32(far), out=depth)  # float32 rounding at z=1 overshoots far by ~1e-3
 
 
-def empty_gt() -> dict[str, np.ndarray]:
-    return {
-        "boxes": np.zeros((0, 4), np.float32),
-        "classes": np.zeros((0,), np.int64),
-        "cone_ids": np.zeros((0,), np.int64),
-        "ranges": np.zeros((0,), np.float32),
-        "bearings": np.zeros((0,), np.float32),
-        "pixels": np.zeros((0,), np.int64),
-    }
+def empty_gt() -> ConeArrays:
+    return empty_ground_truth()
 
 
 class CameraSensor:
@@ -96,11 +96,15 @@ class CameraSensor:
         cone_xy: np.ndarray,
         cone_classes: np.ndarray,
         light: dict,
+        *,
+        segmentation: bool = True,
     ) -> CameraFrame:
+        """Render the frame; with ``segmentation`` also the cone segmentation and its ground truth."""
         c = self.config
         eye, heading, pitch = self.mount_pose(car_pose)
         fwd = np.array([math.cos(heading) * math.cos(pitch), math.sin(heading) * math.cos(pitch), -math.sin(pitch)])
         view = p.computeViewMatrix(eye.tolist(), (eye + fwd).tolist(), [0, 0, 1])
+        flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
         with quiet_if_egl(self.renderer):
             _, _, rgba, zbuf, seg = p.getCameraImage(
                 c.width,
@@ -109,18 +113,29 @@ class CameraSensor:
                 self._proj,
                 renderer=self.renderer,
                 shadow=int(self.shadows),
+                flags=flags,
                 physicsClientId=self.client,
                 **light,
             )[:5]
         rgba = np.asarray(rgba, dtype=np.uint8).reshape(c.height, c.width, 4)
         rgb = cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB)
-        depth = depth_from_zbuffer(np.asarray(zbuf).reshape(c.height, c.width), c.near, c.far)
+        zbuf = np.asarray(zbuf, dtype=np.float32).reshape(c.height, c.width)
+        depth = depth_from_zbuffer(zbuf, c.near, c.far)
+        if not segmentation:
+            self._composite_sky(rgb, zbuf >= np.float32(1.0), heading)  # nothing drawn: the far plane
+            return CameraFrame(rgb=rgb, depth=depth, segmentation=None, gt=None)
         seg = np.asarray(seg, dtype=np.int32).reshape(c.height, c.width)
         self._composite_sky(rgb, seg < 0, heading)
         # body id -> cone index; ids outside the table clip onto its last entry, which is -1
         cone_seg = np.take(cone_lut, seg + 1, mode="clip")
         gt = self._ground_truth(cone_seg, eye, heading, cone_xy, cone_classes)
         return CameraFrame(rgb=rgb, depth=depth, segmentation=cone_seg, gt=gt)
+
+    def geometric_ground_truth(self, car_pose: tuple[float, float, float], cone_xy: np.ndarray,
+                               cone_classes: np.ndarray, tilted=None) -> ConeArrays:
+        """The visible cones from geometry alone (no rendering); see :mod:`weather_gym.sim.visibility`."""
+        eye, heading, pitch = self.mount_pose(car_pose)
+        return visible_cones(self.config, eye, heading, pitch, cone_xy, cone_classes, tilted=tilted)
 
     def _composite_sky(self, rgb: np.ndarray, background: np.ndarray, heading: float) -> None:
         """Fill pixels where no geometry was drawn with the sky panorama seen at ``heading``."""
@@ -136,7 +151,7 @@ class CameraSensor:
         np.copyto(rgb[:last], sky, where=background[:last, :, None])
 
     @staticmethod
-    def _ground_truth(cone_seg, eye, heading, cone_xy, cone_classes) -> dict[str, np.ndarray]:
+    def _ground_truth(cone_seg, eye, heading, cone_xy, cone_classes) -> ConeArrays:
         n = cone_xy.shape[0]
         labels = cone_seg + 1
         counts = np.bincount(labels.ravel(), minlength=n + 1)[1:]
@@ -152,11 +167,11 @@ class CameraSensor:
         ranges = np.hypot(d[:, 0], d[:, 1])
         bearings = np.arctan2(d[:, 1], d[:, 0]) - heading
         bearings = (bearings + np.pi) % (2 * np.pi) - np.pi
-        return {
-            "boxes": boxes,
-            "classes": cone_classes[visible].astype(np.int64),
-            "cone_ids": visible.astype(np.int64),
-            "ranges": ranges.astype(np.float32),
-            "bearings": bearings.astype(np.float32),
-            "pixels": counts[visible].astype(np.int64),
-        }
+        return ConeArrays(
+            boxes=boxes,
+            classes=cone_classes[visible].astype(np.int64),
+            cone_ids=visible.astype(np.int64),
+            ranges=ranges.astype(np.float32),
+            bearings=bearings.astype(np.float32),
+            pixels=counts[visible].astype(np.int64),
+        )

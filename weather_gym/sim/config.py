@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 
-RENDERERS = ("auto", "egl", "tiny")
+RENDERERS = ("auto", "egl", "tiny", "none")
 
 
 def _check_finite_positive(obj, names: tuple[str, ...], allow_zero: bool = False) -> None:
@@ -35,7 +35,8 @@ class SimConfig:
     Attributes:
         physics_hz: fixed physics rate (car dynamics and PyBullet contacts).
         control_hz: env step rate (actions and camera frames); must divide ``physics_hz``.
-        renderer: ``"auto"`` (EGL when it loads, else TinyRenderer), ``"egl"`` or ``"tiny"``.
+        renderer: ``"auto"`` (EGL when it loads, else TinyRenderer), ``"egl"``, ``"tiny"`` or ``"none"``
+            (no camera rendering at all: physics only; ground truth from geometry).
         gui: open the PyBullet GUI (needs a display) instead of DIRECT mode.
         cone_mass: kg per small cone (big cones weigh 1.5x).
         shadows: TinyRenderer shadows (about doubles the frame time).

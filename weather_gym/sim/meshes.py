@@ -14,17 +14,28 @@ from __future__ import annotations
 
 import math
 
+CONE_TOP_RATIO = 0.12
+"""Radius of the cone's flat top / radius of its bottom."""
 
-def cone_obj(height: float, base: float, segments: int = 16, top_ratio: float = 0.12) -> str:
+
+def cone_dimensions(height: float, base: float, top_ratio: float = CONE_TOP_RATIO) -> dict[str, float]:
+    """The cone mesh's measures (metres): ``plate_half`` (half side of the square base plate),
+    ``plate_h`` (its thickness), ``r0``/``r1`` (frustum radius at the bottom / top), ``height``.
+    The geometric ground truth (:mod:`weather_gym.sim.visibility`) projects the same solid."""
+    r0 = 0.5 * base * 0.88  # frustum bottom radius (the square plate is a bit wider)
+    return {"plate_half": 0.5 * base, "plate_h": 0.02 * height / 0.325, "r0": r0, "r1": r0 * top_ratio,
+            "height": height}
+
+
+def cone_obj(height: float, base: float, segments: int = 16, top_ratio: float = CONE_TOP_RATIO) -> str:
     """A Formula Student traffic cone: square base plate plus a textured frustum.
 
     The frustum's texture coordinate ``v`` runs from 0 at the bottom to 1 at the top, so a
     vertical texture strip paints the colour bands (body colour, stripe). The base plate uses
     ``v = 0.001`` (body colour at the bottom of the strip).
     """
-    r0 = 0.5 * base * 0.88  # frustum bottom radius (the square plate is a bit wider)
-    r1 = r0 * top_ratio
-    plate_h = 0.02 * height / 0.325
+    dims = cone_dimensions(height, base, top_ratio)
+    r0, r1, plate_h = dims["r0"], dims["r1"], dims["plate_h"]
     lines = ["# weather-gym traffic cone"]
     verts: list[tuple[float, float, float]] = []
     uvs: list[tuple[float, float]] = []
@@ -55,7 +66,7 @@ def cone_obj(height: float, base: float, segments: int = 16, top_ratio: float = 
         t0, t1 = 2 * i + 2, 2 * i + 4
         faces.append(f"f {t0}/{t0}/{top_c} {t1}/{t1}/{top_c} {top_c}/{top_c}/{top_c}")
     # square base plate (box of height plate_h), body colour
-    h = 0.5 * base
+    h = dims["plate_half"]
     first = len(verts) + 1
     corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
     for z in (0.0, plate_h):

@@ -1,6 +1,11 @@
 """The PyBullet world: textured ground and sky, knock-over-able cones, the car's body, the camera.
 
-A ``World`` owns one PyBullet physics client (DIRECT by default) and frees it in ``close()``.
+A ``World`` owns one PyBullet physics client (DIRECT by default) and disconnects it in ``close()``
+(or, deferred, when it is garbage collected). Every method first makes the world's EGL context
+current (:func:`weather_gym.sim.renderer.activate`), so any number of worlds in a process render
+what each would render alone, in any order of creation and closing. With
+``SimConfig(renderer="none")`` nothing is rendered for the camera; :meth:`World.ground_truth` then
+gives the visible cones from geometry.
 
 Example:
     >>> from weather_gym.tracks import load_track
@@ -25,18 +30,24 @@ import pybullet as p
 
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.sim import renderer as _renderer
 from weather_gym.sim.camera import CameraFrame, CameraSensor
 from weather_gym.sim.car import Car
 from weather_gym.sim.config import CarConfig, SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
 from weather_gym.sim.meshes import box_obj, cone_obj, quad_obj
-from weather_gym.sim.renderer import quiet_c_output, quiet_if_egl, renderer_flag, setup_renderer
+from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
 from weather_gym.sim.textures import cone_texture, ground_texture, sky_panorama
 
 GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
 GROUND_TEXTURE_PX = 2048
 REAR_OVERHANG_M = 0.45
+CONE_REACH_M = 0.35
+"""Margin (m) around the car's body within which cones get contact physics: a big cone's base
+half-diagonal (0.2 m) plus safety (the motion during the control period is added to it)."""
+RESTING_SPEED = 1e-3
+"""A knocked cone slower than this (m/s and rad/s, each component) lies still."""
 
 
 _GROUND_FILES: dict[tuple, Path] = {}
@@ -78,6 +89,7 @@ class World:
         self.camera_config = camera or CameraConfig()
         self.car = Car(self.car_config, gravity=self.sim.gravity)
         self._client: int | None = None
+        self._lease: _renderer.PhysicsClient | None = None
         if self.sim.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
             # PyBullet's GUI calls exit() when it cannot reach an X server: refuse before that
             raise RuntimeError(
@@ -85,10 +97,9 @@ class World:
                 "not set; use render_mode='rgb_array' (or run under xvfb-run)"
             )
         try:
-            self._client = p.connect(p.GUI if self.sim.gui else p.DIRECT)
-            if self._client < 0:
-                raise RuntimeError("PyBullet could not start a physics client")
-            self.renderer_name, self._plugin = setup_renderer(self._client, self.sim.renderer)
+            self._lease = _renderer.connect(renderer=self.sim.renderer, gui=self.sim.gui)
+            self._client = self._lease.id
+            self.renderer_name = self._lease.renderer
             self._build()
             self.camera = CameraSensor(self.camera_config, self._client, renderer_flag(self.renderer_name), self.sim.shadows)
             self._look: Look | None = None
@@ -98,7 +109,13 @@ class World:
             raise
 
     # ------------------------------------------------------------------ construction
+    def _activate(self) -> None:
+        if self._lease is None:
+            raise RuntimeError("this World is closed")
+        _renderer.activate(self._lease)
+
     def _build(self) -> None:
+        self._activate()
         c = self._client
         p.resetSimulation(physicsClientId=c)
         p.setGravity(0, 0, -self.sim.gravity, physicsClientId=c)
@@ -155,6 +172,7 @@ class World:
             self._cone_com_z[i] = com_z
             self._cone_dynamics.append((mass, inertia))
         self._dynamic_cones: set[int] = set()
+        self._cone_tilt: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # knocked cone -> (mesh origin, rotation)
 
         # the car's body: a dynamic box (collision only) that the bicycle model teleports every
         # physics step, and a separate visual-only body shown in the chase view, never to the car camera
@@ -187,6 +205,7 @@ class World:
     # ------------------------------------------------------------------ appearance
     def set_look(self, look: Look) -> None:
         """Apply an appearance (textures are regenerated only when they change)."""
+        self._activate()
         old = self._look
         track = self.track
         c = self._client
@@ -228,6 +247,7 @@ class World:
     # ------------------------------------------------------------------ episode
     def reset(self, pose: tuple[float, float, float], speed: float = 0.0) -> None:
         """Put every cone back at home, standing, and the car at ``pose`` (rear axle x, y, yaw)."""
+        self._activate()
         c = self._client
         for i in sorted(self._dynamic_cones):
             b = self._cone_bodies[i]
@@ -237,6 +257,7 @@ class World:
                                               physicsClientId=c)
             p.resetBaseVelocity(b, [0, 0, 0], [0, 0, 0], physicsClientId=c)
         self._dynamic_cones.clear()
+        self._cone_tilt.clear()
         self._cone_xy = self._cone_home.copy()
         self.car.reset(*pose, speed=speed)
         self._place_car_body()
@@ -251,13 +272,45 @@ class World:
         p.resetBasePositionAndOrientation(self._car_body, [bx, by, self._car_body_z], q, physicsClientId=c)
         p.resetBaseVelocity(self._car_body, [vx, vy, 0], [0, 0, self.car.state.yaw_rate], physicsClientId=c)
 
+    def _cones_out_of_reach(self) -> bool:
+        """No cone can touch the car's body during the next control period, and none is moving."""
+        for i in self._dynamic_cones:  # a knocked cone still moving needs the physics
+            lin, ang = p.getBaseVelocity(self._cone_bodies[i], physicsClientId=self._client)
+            if max(map(abs, lin)) > RESTING_SPEED or max(map(abs, ang)) > RESTING_SPEED:
+                return False
+        x, y, yaw = self.car.pose
+        c, s = math.cos(yaw), math.sin(yaw)
+        bx, by = x + self._car_body_dx * c, y + self._car_body_dx * s
+        cfg, state = self.car_config, self.car.state
+        period = 1.0 / self.sim.control_hz
+        # how far any point of the body can move in one period: translation, plus rotation at the
+        # corners, with the speed and yaw rate it could reach by then; plus a cone's base and a margin
+        v_max = self.car.speed + cfg.max_accel * period
+        r_max = abs(state.yaw_rate) + v_max * math.tan(cfg.max_steer) / cfg.wheelbase
+        half_diag = math.hypot(cfg.length / 2, cfg.width / 2)
+        margin = CONE_REACH_M + (v_max + half_diag * r_max) * period
+        dx, dy = self._cone_xy[:, 0] - bx, self._cone_xy[:, 1] - by
+        along, across = np.abs(dx * c + dy * s), np.abs(-dx * s + dy * c)
+        near = (along < cfg.length / 2 + margin) & (across < cfg.width / 2 + margin)
+        return not near.any()
+
     def step(self, steer: float, pedal: float, friction: float | None = None) -> set[int]:
         """Advance one control period (``substeps`` physics steps). Returns the indices of cones
-        the car's body touched."""
+        the car's body touched.
+
+        The car follows its own dynamics; PyBullet only finds contacts with cones and moves knocked
+        ones. While no cone is within reach of the body and none is moving, PyBullet has nothing to
+        do, so it is not stepped (the car's state is the same either way)."""
+        self._activate()
         dt = 1.0 / self.sim.physics_hz
         touched: set[int] = set()
         c = self._client
         lut = self._cone_lut
+        if self._cones_out_of_reach():
+            for _ in range(self.sim.substeps):
+                self.car.step(dt, steer, pedal, friction)
+            self._place_car_body()
+            return touched
         for _ in range(self.sim.substeps):
             self.car.step(dt, steer, pedal, friction)
             self._place_car_body()
@@ -272,7 +325,10 @@ class World:
                 self._dynamic_cones.add(i)
         if self._dynamic_cones:
             for i in self._dynamic_cones:
-                self._cone_xy[i] = p.getBasePositionAndOrientation(self._cone_bodies[i], physicsClientId=c)[0][:2]
+                com, quat = p.getBasePositionAndOrientation(self._cone_bodies[i], physicsClientId=c)
+                self._cone_xy[i] = com[:2]
+                rot = np.asarray(p.getMatrixFromQuaternion(quat), dtype=np.float64).reshape(3, 3)
+                self._cone_tilt[i] = (np.asarray(com, dtype=np.float64) - rot[:, 2] * self._cone_com_z[i], rot)
         return touched
 
     @property
@@ -285,12 +341,24 @@ class World:
         return np.hypot(*(self._cone_xy - self._cone_home).T)
 
     # ------------------------------------------------------------------ sensors
-    def render(self) -> CameraFrame:
-        """The car camera's frame at the car's current pose."""
-        return self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light)
+    def render(self, segmentation: bool = True) -> CameraFrame:
+        """The car camera's frame at the car's current pose; ``segmentation=False`` skips the
+        segmentation pass (and its ground truth: take :meth:`ground_truth` instead)."""
+        if self.renderer_name == "none":
+            raise RuntimeError("this world renders no camera frames (renderer 'none'); "
+                               "use ground_truth() for the visible cones")
+        self._activate()
+        return self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
+                                  segmentation=segmentation)
+
+    def ground_truth(self):
+        """The cones the car camera sees now, from geometry (``ConeArrays``; nothing is rendered)."""
+        return self.camera.geometric_ground_truth(self.car.pose, self._cone_xy, self.cone_classes,
+                                                  tilted=self._cone_tilt or None)
 
     def render_chase(self, width: int = 640, height: int = 360, distance: float = 7.0, height_m: float = 3.5) -> np.ndarray:
         """A third-person view from behind and above the car, for humans (videos, ``render()``)."""
+        self._activate()
         x, y, yaw = self.car.pose
         eye = [x - distance * math.cos(yaw), y - distance * math.sin(yaw), height_m]
         target = [x + 6 * math.cos(yaw), y + 6 * math.sin(yaw), 0.0]
@@ -301,7 +369,7 @@ class World:
         body = [x + self._car_body_dx * math.cos(yaw), y + self._car_body_dx * math.sin(yaw), self._car_body_z]
         p.resetBasePositionAndOrientation(self._car_visual, body, q, physicsClientId=c)
         try:
-            flag = renderer_flag(self.renderer_name)
+            flag = renderer_flag(self.renderer_name)  # "none" renders the chase view with TinyRenderer
             with quiet_if_egl(flag):
                 _, _, rgba, _, seg = p.getCameraImage(width, height, view, proj, renderer=flag, physicsClientId=c,
                                                       **self._light)[:5]
@@ -318,19 +386,12 @@ class World:
         return self._client
 
     def close(self) -> None:
-        """Free the physics client (and its renderer plugin)."""
-        if self._client is not None:
-            try:
-                if getattr(self, "_plugin", None) is not None:
-                    with quiet_c_output():
-                        p.unloadPlugin(self._plugin, physicsClientId=self._client)
-                p.disconnect(physicsClientId=self._client)
-            except p.error:
-                pass
-            self._client = None
+        """Disconnect the physics client (safe to call twice)."""
+        lease, self._lease, self._client = getattr(self, "_lease", None), None, None
+        _renderer.release(lease)
 
-    def __del__(self) -> None:  # pragma: no cover - safety net
-        try:
-            self.close()
-        except Exception:
-            pass
+    def __del__(self) -> None:  # a world dropped without close(): queue its client, touch nothing now
+        lease = getattr(self, "_lease", None)
+        if lease is not None:
+            self._lease = self._client = None
+            _renderer.release(lease, deferred=True)

@@ -1,4 +1,5 @@
-"""Gymnasium wrappers: ``WeatherWrapper`` (weather on image observations), ``DetectorWrapper``.
+"""Gymnasium wrappers: ``WeatherWrapper`` (weather on image observations), ``DetectorWrapper``,
+``GroundTruthConeWrapper`` (oracle / ground-truth cone lists), ``EpisodeStatistics``.
 
 Imports are lazy (``__getattr__``) so ``import weather_gym.wrappers`` stays light; a new wrapper is
 one module plus one line in ``_LAZY``.
@@ -17,6 +18,8 @@ _LAZY = {
     "WeatherWrapper": "weather_gym.wrappers.weather",
     "GroundTruthConeWrapper": "weather_gym.wrappers.ground_truth",
     "OracleNoise": "weather_gym.wrappers.ground_truth",
+    "EpisodeStatistics": "weather_gym.wrappers.episode",
+    "latencies": "weather_gym.wrappers.episode",
 }
 
 __all__ = sorted(_LAZY)

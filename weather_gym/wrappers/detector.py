@@ -6,9 +6,12 @@ through; see ``weather_gym.perception.cones.CONE_FIELDS``), which stable-baselin
 comes from the depth observation when the env has one (``use_depth=True``; the study used stereo
 depth) or else from the box height and the known cone height.
 
-``info["detections"]`` holds the raw detections (``boxes`` xyxy in original pixels, ``scores``,
-``classes``) and ``info["detector_latency_ms"]`` the inference time of that step (letterbox, ONNX
-run and decoding). With ``keep_image=True`` the (weathered) image stays in the observation.
+``info["detections"]`` holds the raw detections as one ``ConeArrays`` object (``boxes`` xyxy in
+original pixels, ``scores``, ``classes``, ``ranges``, ``bearings``; an object, so vector envs keep
+one per env). ``wrapper.latency_ms`` is the inference time of the last step (letterbox, ONNX run
+and decoding); ``info["detector_latency_ms"]`` has it only with ``latency_in_info=True`` (wall-clock
+times differ between identical runs). With ``keep_image=True`` the (weathered) image stays in the
+observation.
 
 Example:
     >>> import gymnasium as gym, numpy as np
@@ -37,6 +40,7 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.camera import CameraConfig
+from weather_gym.cone_arrays import ConeArrays
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
 from weather_gym.perception.ranging import cones_to_observation, detections_to_cones
 
@@ -55,6 +59,7 @@ class DetectorWrapper(gym.ObservationWrapper):
         use_depth: take range from the ``depth_key`` observation when present.
         keep_image: keep the image in the observation (for viewing; most policies do not need it).
         score_threshold, threads: passed to a detector the wrapper creates.
+        latency_in_info: also put ``detector_latency_ms`` into ``info``.
     """
 
     def __init__(
@@ -70,8 +75,10 @@ class DetectorWrapper(gym.ObservationWrapper):
         keep_image: bool = False,
         score_threshold: float | None = None,
         threads: int = 1,
+        latency_in_info: bool = False,
     ) -> None:
         super().__init__(env)
+        self.latency_in_info = bool(latency_in_info)
         from weather_gym.perception.detector import ConeDetector
 
         if not isinstance(max_cones, int) or max_cones < 1:
@@ -113,8 +120,13 @@ class DetectorWrapper(gym.ObservationWrapper):
         elif keep_image:
             out[image_key] = image_space
         self.observation_space = spaces.Dict(out)
-        self._last_detections: dict[str, np.ndarray] | None = None
+        self._last_detections: ConeArrays | None = None
         self._last_latency = 0.0
+
+    @property
+    def latency_ms(self) -> float:
+        """Milliseconds the detector took on the last frame (letterbox, ONNX run, decoding)."""
+        return self._last_latency
 
     def observation(self, observation: Any) -> dict[str, np.ndarray]:
         image = observation[self.image_key] if self._is_dict else observation
@@ -124,8 +136,8 @@ class DetectorWrapper(gym.ObservationWrapper):
         depth = observation[self.depth_key] if self.depth_key is not None else None
         cones = detections_to_cones(det, self.camera, depth)
         packed, mask = cones_to_observation(cones, self.camera, self.max_cones)
-        self._last_detections = {**det.to_dict(), "ranges": cones["ranges"].astype(np.float32),
-                                 "bearings": cones["bearings"].astype(np.float32)}
+        self._last_detections = ConeArrays({**det.to_dict(), "ranges": cones["ranges"].astype(np.float32),
+                                            "bearings": cones["bearings"].astype(np.float32)})
         out: dict[str, np.ndarray] = {"cones": packed, "mask": mask}
         for k in self.observation_space.spaces:
             if k not in out:
@@ -135,7 +147,8 @@ class DetectorWrapper(gym.ObservationWrapper):
     def _add_info(self, info: dict) -> dict:
         info = dict(info)
         info["detections"] = self._last_detections
-        info["detector_latency_ms"] = self._last_latency
+        if self.latency_in_info:
+            info["detector_latency_ms"] = self._last_latency
         return info
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

@@ -14,8 +14,10 @@ Randomness: the wrapper's own generator, derived from the reset seed (a ``SeedSe
 of ``seed``, distinct from the env's own stream); ``reset(seed=None)`` continues the sequence, or
 on the first reset starts from the env's ``np_random_seed``. Same seeds, same frames: same bytes.
 
-``info["weather"]`` is the spec applied to the frame (a ramp's current k) and
-``info["weather_latency_ms"]`` the time the weather added to that step.
+``info["weather"]`` is the spec applied to the frame (a ramp's current k). The time the weather
+added to the last step is ``wrapper.latency_ms``; it goes into ``info["weather_latency_ms"]`` only
+with ``latency_in_info=True`` (a wall-clock time differs between identical runs, so by default the
+info stays deterministic).
 
 Example:
     >>> import gymnasium as gym, numpy as np
@@ -65,8 +67,10 @@ class WeatherWrapper(gym.ObservationWrapper):
 
     def __init__(self, env: gym.Env, weather: Any = None, *, image_key: str = "image",
                  depth_key: str | None = "depth", state_key: str | None = "state",
-                 state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None) -> None:
+                 state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None,
+                 latency_in_info: bool = False) -> None:
         super().__init__(env)
+        self.latency_in_info = bool(latency_in_info)
         space = env.observation_space
         self.image_key = image_key
         if isinstance(space, spaces.Dict):
@@ -89,6 +93,11 @@ class WeatherWrapper(gym.ObservationWrapper):
         self._ss: np.random.SeedSequence | None = None
         self._rng: np.random.Generator | None = None
         self._latency_ms = 0.0
+
+    @property
+    def latency_ms(self) -> float:
+        """Milliseconds the weather took on the last frame."""
+        return self._latency_ms
 
     @property
     def weather(self) -> Effect:
@@ -122,7 +131,10 @@ class WeatherWrapper(gym.ObservationWrapper):
         return obs, reward, terminated, truncated, self._info(info)
 
     def _info(self, info: dict[str, Any]) -> dict[str, Any]:
-        return {**info, "weather": current_spec(self._weather), "weather_latency_ms": self._latency_ms}
+        out = {**info, "weather": current_spec(self._weather)}
+        if self.latency_in_info:
+            out["weather_latency_ms"] = self._latency_ms
+        return out
 
     # -- observation -------------------------------------------------------------------------
     def _state(self, obs: Mapping[str, Any]) -> dict[str, float] | None:

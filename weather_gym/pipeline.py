@@ -1,0 +1,222 @@
+"""The one pipeline builder: env -> weather -> perception, for every caller.
+
+``make_env`` is ``gymnasium.make`` with weather-gym's keywords (the registered entry point of every
+``WeatherGym/*`` id is :func:`make_scenario_env`, which calls :func:`wrap_pipeline`), plus
+:class:`~weather_gym.wrappers.EpisodeStatistics` outside Gymnasium's ``TimeLimit``. ``make_vec_env``
+builds N of them in a Gymnasium vector env. The lap and evaluate commands, dataset rendering, the
+benchmarks and the examples all build their envs here, so a policy is evaluated on exactly the
+observation it was trained on.
+
+Perception modes (``PERCEPTION_MODES``), i.e. what the agent observes:
+
+* ``camera``   - no perception: ``Dict(image, depth, state)``, the (weathered) camera frame.
+* ``detector`` - ``DetectorWrapper``: the cone detector on the (weathered) image -> ``Dict(cones, mask, state)``.
+* ``oracle``   - ``GroundTruthConeWrapper`` on the rendered ground truth (pixel-exact visibility) -> cone list.
+* ``gt_cones`` - ground-truth cones from geometry: the camera renders nothing at all
+  (``camera_images=False, ground_truth="geometry"``); the cone list comes from projecting the cones
+  through the camera model (frustum, range, occlusion; :mod:`weather_gym.sim.visibility`). Thousands
+  of steps per second: for training controllers on cone lists.
+
+``oracle`` and ``gt_cones`` take ``OracleNoise`` fields in ``perception_kwargs`` (``miss_prob``, ...).
+
+Example:
+    >>> from weather_gym.pipeline import make_env
+    >>> env = make_env("WeatherGym/ConeTrack-v0", perception="gt_cones", max_episode_steps=300)
+    >>> obs, info = env.reset(seed=0)
+    >>> sorted(obs), obs["cones"].shape, env.unwrapped.renderer
+    (['cones', 'mask', 'state'], (64, 14), 'none')
+    >>> env.close()
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+
+from weather_gym.envs.scenario import Scenario, build_config, load_scenario
+
+__all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
+
+DEFAULT_ENV_ID = "WeatherGym/ConeTrack-v0"
+
+PERCEPTION_MODES: dict[str, str] = {
+    "camera": "no perception: the (weathered) camera image, depth and state",
+    "detector": "the cone detector on the (weathered) image -> cone list",
+    "oracle": "the rendered frame's ground truth (pixel-exact visibility) -> cone list",
+    "gt_cones": "ground-truth cones from geometry, nothing rendered (fast; for training controllers)",
+}
+"""Every perception mode, with what the agent observes."""
+
+_RENDER_FREE = {"camera_images": False, "ground_truth": "geometry"}
+
+
+def check_perception(perception: str) -> str:
+    """``perception`` if it is a mode of :data:`PERCEPTION_MODES`, else a ``ValueError`` listing them."""
+    if perception not in PERCEPTION_MODES:
+        raise ValueError(f"unknown perception {perception!r}; valid: {', '.join(PERCEPTION_MODES)}")
+    return perception
+
+
+def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camera", detector: Any = None,
+                  perception_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
+    """``env`` -> ``WeatherWrapper(weather)`` (when there is weather) -> the ``perception`` wrapper.
+
+    ``detector`` is passed to ``DetectorWrapper`` as its ``detector`` argument (anything it accepts:
+    a model path, a detector object, None for the shipped model); ``perception_kwargs`` are the
+    perception wrapper's other keyword arguments.
+    """
+    check_perception(perception)
+    kwargs = dict(perception_kwargs or {})
+    if detector is not None:
+        if perception != "detector":
+            raise ValueError(f"detector= is given but perception is {perception!r}; it needs perception='detector'")
+        if "detector" in kwargs:
+            raise ValueError("give the detector once: detector= or perception_kwargs['detector'], not both")
+        kwargs["detector"] = detector
+    images = isinstance(env.observation_space, gym.spaces.Dict) and "image" in env.observation_space.spaces
+    if weather is not None:
+        from weather_gym.weather import parse_weather, to_spec
+
+        effect = parse_weather(weather)  # a bad spec fails here, with the parser's message
+        if images:
+            from weather_gym.wrappers import WeatherWrapper
+
+            env = WeatherWrapper(env, weather=effect)
+        elif to_spec(effect):  # clear weather on an env without images is no weather at all
+            raise ValueError(f"weather {weather!r} acts on camera images, and this env renders none (perception "
+                             f"{perception!r}); take perception 'oracle' or 'detector' to drive in weather")
+    if perception == "detector":
+        if not images:
+            raise ValueError("perception 'detector' needs camera images (camera_images=True)")
+        from weather_gym.wrappers import DetectorWrapper
+
+        return DetectorWrapper(env, **kwargs)
+    if perception in ("oracle", "gt_cones"):
+        from weather_gym.wrappers import GroundTruthConeWrapper
+
+        return GroundTruthConeWrapper(env, **kwargs)
+    if kwargs:
+        raise ValueError(f"perception_kwargs {sorted(kwargs)} given, but perception 'camera' takes none")
+    return env
+
+
+def _scenario_perception(sc: Scenario) -> tuple[str, Any, dict[str, Any]]:
+    table = dict(sc.perception or {})
+    mode = table.pop("mode", "camera")
+    detector = table.pop("detector", None)
+    return mode, detector, table
+
+
+def make_scenario_env(scenario: str, render_mode: str | None = None, *, perception: str | None = None,
+                      weather: Any = None, severity: int | None = None, detector: Any = None,
+                      perception_kwargs: Mapping[str, Any] | None = None, **overrides: Any) -> gym.Env:
+    """Entry point of the registered ids (``gym.make``): the scenario's env, weather and perception.
+
+    Keywords: ``perception`` (a mode of :data:`PERCEPTION_MODES`; default: the scenario's, else
+    ``camera``), ``weather`` (any weather spec, or a condition with ``severity``), ``detector`` and
+    ``perception_kwargs`` (see :func:`wrap_pipeline`); the rest override the scenario's ``EnvConfig``
+    (``track=``, ``camera={"width": 336, "height": 188}``, ``laps=``...).
+    """
+    from weather_gym.envs.cone_track import ConeTrackEnv
+
+    sc = load_scenario(scenario)
+    sc_mode, sc_detector, sc_kwargs = _scenario_perception(sc)
+    if perception is None:
+        perception = "detector" if detector is not None and sc_mode == "camera" else sc_mode
+    check_perception(perception)
+    if perception == sc_mode:
+        detector = sc_detector if detector is None else detector
+        perception_kwargs = {**sc_kwargs, **dict(perception_kwargs or {})}
+    if perception == "gt_cones":
+        overrides = {**_RENDER_FREE, **overrides}
+    env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
+    try:
+        return wrap_pipeline(env, weather=_weather_spec(sc, weather, severity), perception=perception,
+                             detector=detector, perception_kwargs=perception_kwargs)
+    except BaseException:
+        env.close()
+        raise
+
+
+def _weather_spec(sc: Scenario, weather: Any, severity: int | None) -> Any:
+    if weather is None and severity is None:
+        if not sc.weather:
+            return None
+        if "spec" in sc.weather:
+            return sc.weather["spec"]
+        return (sc.weather["condition"], int(sc.weather.get("severity", 0)))
+    if severity is not None:
+        if not isinstance(weather, str):
+            raise ValueError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
+        return (weather, int(severity))
+    return weather
+
+
+def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, weather: Any = None,
+             severity: int | None = None, detector: Any = None, perception_kwargs: Mapping[str, Any] | None = None,
+             max_episode_steps: int | None = None, episode_statistics: bool = True,
+             render_mode: str | None = None, **env_kwargs: Any) -> gym.Env:
+    """One env: ``gym.make(env_id, ...)`` (env -> weather -> perception, ``TimeLimit``) ->
+    ``EpisodeStatistics`` (``info["episode"]`` at the end of each episode).
+
+    Args:
+        env_id: a registered ``WeatherGym/*`` id.
+        perception: a mode of :data:`PERCEPTION_MODES` (default: the scenario's, else ``camera``).
+        weather: any weather spec (``"droplets@3"``, ``{"dim": 0.5}``, an effect...), or a condition
+            name with ``severity``.
+        detector: the ``DetectorWrapper``'s detector (perception ``detector``): a model path, a
+            detector object, or None for the shipped model.
+        perception_kwargs: the perception wrapper's other keywords (``max_cones``, ``score_threshold``,
+            ``keep_image``, ``OracleNoise`` fields...).
+        max_episode_steps: the ``TimeLimit`` (default: the scenario's).
+        episode_statistics: add :class:`~weather_gym.wrappers.EpisodeStatistics`.
+        env_kwargs: ``EnvConfig`` overrides (``track``, ``laps``, ``camera``, ``sim``, ...).
+    """
+    import weather_gym  # noqa: F401 - registers the ids
+
+    if env_id not in gym.registry:
+        ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
+        raise ValueError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(ours)}")
+    kwargs: dict[str, Any] = dict(env_kwargs)
+    for key, value in (("perception", perception), ("weather", weather), ("severity", severity),
+                       ("detector", detector), ("perception_kwargs", perception_kwargs),
+                       ("render_mode", render_mode)):
+        if value is not None:
+            kwargs[key] = value
+    if max_episode_steps is not None:
+        if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, int) or max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}")
+        kwargs["max_episode_steps"] = max_episode_steps
+    env = gym.make(env_id, **kwargs)
+    if episode_statistics:
+        from weather_gym.wrappers import EpisodeStatistics
+
+        env = EpisodeStatistics(env)
+    return env
+
+
+def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorization_mode: str = "async",
+                 context: str | None = "forkserver", vector_kwargs: Mapping[str, Any] | None = None,
+                 **make_kwargs: Any) -> gym.vector.VectorEnv:
+    """``num_envs`` envs of :func:`make_env` (same keywords) in a Gymnasium vector env.
+
+    ``vectorization_mode`` ``"async"`` (one process per env) or ``"sync"``. Async workers start with
+    ``context`` (``forkserver`` by default: a fresh process that keeps the EGL renderer; see
+    :mod:`weather_gym.sim.renderer`). Seed with ``reset(seed=s)``: env i gets ``s + i``.
+    """
+    from functools import partial
+
+    if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
+        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    make_env(env_id, **make_kwargs).close()  # a bad setting fails here, in this process, with its message
+    fns = [partial(make_env, env_id, **make_kwargs) for _ in range(num_envs)]
+    vk = dict(vector_kwargs or {})
+    if vectorization_mode == "sync":
+        return gym.vector.SyncVectorEnv(fns, **vk)
+    if vectorization_mode == "async":
+        if context is not None:
+            vk.setdefault("context", context)
+        return gym.vector.AsyncVectorEnv(fns, **vk)
+    raise ValueError(f"vectorization_mode must be 'sync' or 'async', got {vectorization_mode!r}")
