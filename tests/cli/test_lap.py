@@ -54,7 +54,7 @@ def test_short_run_writes_video_and_strip(tmp_path, capsys):
                  "--strip-frames", "3", "--env", "WeatherGym/ConeTrackSmall-v0"])
     out = capsys.readouterr().out
     assert code == 1  # one lap was asked for and the step limit came first
-    assert "laps completed: 0/1 (step limit (45 steps))" in out and "cross-track error: mean" in out
+    assert "laps completed: 0/1 (time_limit, 45 steps)" in out and "cross-track error: mean" in out
     cap = cv2.VideoCapture(str(video))
     frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
     ok, first = cap.read()
@@ -93,3 +93,12 @@ def test_weather_goes_into_the_pipeline(tmp_path, capsys):
     # the recorded camera view is the weathered one
     wet, dry = cv2.imread(str(strip)), cv2.imread(str(clear))
     assert wet.shape == dry.shape and float(cv2.absdiff(wet, dry).mean()) > 2.0
+
+
+def test_gt_cones_laps_render_nothing_and_refuse_a_video(tmp_path, capsys):
+    code = main(["lap", "--track", "hairpin", "--agent", "mapper_pure_pursuit", "--perception", "gt_cones"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "perception gt_cones" in out and "laps completed: 1/1 (laps)" in out and "renderer none" in out
+    assert main(["lap", "--perception", "gt_cones", "--video", str(tmp_path / "v.mp4")]) == 2
+    assert "renders none" in capsys.readouterr().err

@@ -59,7 +59,7 @@ def test_other_presets_file_changes_the_cells(tmp_path):
         ({"tracks": ("nowhere",)}, r"unknown track 'nowhere'; valid names"),
         ({"seeds": ()}, "list of seeds is empty"),
         ({"seeds": (0, 0)}, "seeds repeated: 0"),
-        ({"perception": "lidar"}, r"unknown perception 'lidar'; valid: detector, oracle, camera"),
+        ({"perception": "lidar"}, r"unknown perception 'lidar'; valid: camera, detector, oracle, gt_cones"),
         ({"env_id": "CartPole-v1x"}, r"unknown env id 'CartPole-v1x'; weather-gym ids: .*WeatherGym/ConeTrack-v0"),
         ({"laps": 0}, "laps must be an integer >= 1"),
         ({"agent_kwargs": {"model": object()}}, "agent_kwargs must be JSON-serialisable"),
@@ -97,3 +97,9 @@ def test_one_real_cell_drives_and_reports_every_metric():
     again = run_cell(cell)  # same cell, same seed: same episode (only the timings differ)
     timing = ("weather_latency_ms", "detector_latency_ms", "added_latency_ms")
     assert {k: v for k, v in again.items() if k not in timing} == {k: v for k, v in m.items() if k not in timing}
+
+
+def test_gt_cones_is_evaluated_in_clear_weather_only():
+    assert len(make_cells(EvalConfig(perception="gt_cones", effects=("droplets",), severities=(0,), seeds=(0,)))) == 1
+    with pytest.raises(ValueError, match="gt_cones renders no camera frame.*droplets@2"):
+        make_cells(EvalConfig(perception="gt_cones", effects=("droplets",), severities=(0, 2), seeds=(0,)))

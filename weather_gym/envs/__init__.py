@@ -12,6 +12,8 @@ _LAZY = {
     "ConeTrackEnv": "weather_gym.envs.cone_track",
     "STATE_FIELDS": "weather_gym.envs.cone_track",
     "RESET_OPTIONS": "weather_gym.envs.cone_track",
+    "END_REASONS": "weather_gym.envs.cone_track",
+    "GROUND_TRUTH_MODES": "weather_gym.envs.config",
     "EnvConfig": "weather_gym.envs.config",
     "RewardConfig": "weather_gym.envs.config",
 }

@@ -20,11 +20,11 @@ Example:
     >>> from weather_gym.camera import CameraConfig
     >>> from weather_gym.sim.visibility import visible_cones
     >>> cam = CameraConfig(width=160, height=90)
-    >>> xy = np.array([[5.0, 0.0], [10.0, 0.0], [5.0, 30.0]])       # ahead, behind the first, far left
+    >>> xy = np.array([[5.0, 0.0], [6.0, 0.0], [5.0, 30.0]])        # ahead, just behind it, far left
     >>> gt = visible_cones(cam, eye=(0.0, 0.0, 1.0), heading=0.0, pitch=np.radians(4.0),
     ...                    cone_xy=xy, classes=np.array([0, 1, 0]))
-    >>> gt["cone_ids"].tolist(), bool(gt["pixels"][0] > 20)
-    ([0, 1], True)
+    >>> gt["cone_ids"].tolist(), gt["pixels"].tolist()   # the cone behind shows only its upper part
+    ([0, 1], [12, 4])
 """
 
 from __future__ import annotations
@@ -48,7 +48,6 @@ _PLATE_H = np.array([d["plate_h"] for d in _DIMS])
 _R0 = np.array([d["r0"] for d in _DIMS])
 _R1 = np.array([d["r1"] for d in _DIMS])
 _CORNERS = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
-_HALF_HEIGHT = 0.5 * _HEIGHT
 _RADIUS = _PLATE_HALF * math.sqrt(2.0)  # the plate's half-diagonal: a cone fits in this circle
 _FACE_SIGN = np.array([[1.0], [-1.0]])
 
@@ -103,12 +102,14 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     fx, fy, cx, cy, near, far = cam.fx, cam.fy, cam.cx, cam.cy, cam.near, cam.far
     width, height = int(cam.width), int(cam.height)
 
-    # cull on the cone's mid-height point: in front, before the far plane, inside the field of view
+    # cull: in front, before the far plane, inside the field of view (of its base or its top,
+    # whichever is deeper along the pitched optical axis)
     d = xy - eye[:2]
-    z_mid = d @ fwd[:2] + (_HALF_HEIGHT[cls] - eye[2]) * fwd[2]
+    z_flat = d @ fwd[:2]
+    z_deep = z_flat + np.maximum(-eye[2] * fwd[2], (_HEIGHT[cls] - eye[2]) * fwd[2])
     radius = _RADIUS[cls]
-    keep = (z_mid > near + radius) & (z_mid < far + radius) & (
-        np.abs(d @ right[:2]) - radius < z_mid * (0.5 * width / fx))
+    keep = (z_deep + radius > near) & (z_flat - radius < far) & (
+        np.abs(d @ right[:2]) - radius < (z_deep + radius) * (0.5 * width / fx))
     if tilted:
         keep[list(tilted)] = True  # knocked cones may have slid or rolled anywhere: always projected
     idx = np.flatnonzero(keep)
@@ -156,21 +157,26 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     base = np.where(u[:, 12:13] <= u[:, 13:14], [12, 13], [13, 12])  # (K, 2): left, right extreme
     ub, vb = u[rows, base], v[rows, base]
     tl, tr = np.minimum(u[:, 8], u[:, 9]), np.maximum(u[:, 8], u[:, 9])
+    # plate outlines: the lower chain of the bottom face and the upper chain of the top face (its v
+    # negated, so both are "the largest v"), through the face's corners sorted by u: corners off
+    # the chain are lifted onto the chord between the outer two (the face is convex)
     uq = u[:, :8].reshape(k, 2, 4)  # [bottom face, top face]
-    vq = v[:, :8].reshape(k, 2, 4) * _FACE_SIGN  # the top face's outline is its highest: flip its sign
-    il, ir, im = uq.argmin(axis=2), uq.argmax(axis=2), vq.argmax(axis=2)
-    r2 = np.arange(k)[:, None], np.arange(2)[None, :]
-    ul, ur, um = uq[(*r2, il)], uq[(*r2, ir)], uq[(*r2, im)]
-    vl, vr, vm = vq[(*r2, il)], vq[(*r2, ir)], vq[(*r2, im)]
+    vq = v[:, :8].reshape(k, 2, 4) * _FACE_SIGN
+    by_u = np.argsort(uq, axis=2)
+    uq, vq = np.take_along_axis(uq, by_u, axis=2), np.take_along_axis(vq, by_u, axis=2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        s_left = np.where(um > ul, (vm - vl) / (um - ul), 0.0)
-        s_right = np.where(ur > um, (vr - vm) / (ur - um), 0.0)
+        chord = (vq[..., 3:] - vq[..., :1]) / (uq[..., 3:] - uq[..., :1])
+        chord = np.where(np.isfinite(chord), chord, 0.0)
+        vq[..., 1:3] = np.maximum(vq[..., 1:3], vq[..., :1] + chord * (uq[..., 1:3] - uq[..., :1]))
+        slope = np.diff(vq, axis=2) / np.diff(uq, axis=2)  # (K, 2, 3)
+    slope = np.where(np.isfinite(slope), slope, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
         side = np.where(tl[:, None] - ub[:, :1] > 0, (vb - v1[:, None]) / np.abs(np.c_[tl, tr] - ub), 0.0)
     side[:, 1] = np.where(ub[:, 1] > tr, side[:, 1], 0.0)
 
     # pixel columns whose centre lies inside [u1, u2], clipped to the image; cones ordered nearest
     # first (lowest point of the plate), so that within a column the pairs run from near to far
-    bottom_low = vm[:, 0]
+    bottom_low = vq[:, 0].max(axis=1)
     j_lo = np.maximum(np.ceil(u1 - 0.5), 0).astype(np.int64)
     n_cols = np.minimum(np.floor(u2 - 0.5), width - 1).astype(np.int64) - j_lo + 1
     n_cols = np.where(in_front & (v1 < height) & (bottom_low > 0), np.maximum(n_cols, 0), 0)
@@ -184,16 +190,20 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     slot = np.repeat(np.arange(near_first.size), widths)
     cone = near_first[slot]
     col = j_lo[cone] + (np.arange(m) - starts[slot])
-    params = np.column_stack([v1, tl, tr, ub, side, um, vm, s_left, s_right, upright])[cone]
-    vt, ptl, ptr, pbl, pbr, psl, psr, b_um, t_um, b_vm, t_vm, b_sl, t_sl, b_sr, t_sr, up_ = params.T
+    outline = np.concatenate([uq[..., 1:3], vq[..., 1:3], slope], axis=2).reshape(k, 14)
+    params = np.column_stack([v1, tl, tr, ub, side, upright, outline])[cone]
+    vt, ptl, ptr, pbl, pbr, psl, psr, up_ = params[:, :8].T
+    b_u1, b_u2, b_v1, b_v2, b_s01, b_s12, b_s23, t_u1, t_u2, t_v1, t_v2, t_s01, t_s12, t_s23 = params[:, 8:].T
     uc = col + 0.5
 
     # the silhouette in each column: top = min(frustum, plate top face), bottom = plate bottom face
     frustum_top = np.where(uc < ptl, vt + psl * (ptl - uc), np.where(uc > ptr, vt + psr * (uc - ptr), vt))
     frustum_top[(uc < pbl) | (uc > pbr)] = np.inf
-    plate_top = -(t_vm + np.where(uc < t_um, t_sl, t_sr) * (uc - t_um))
+    plate_top = -np.where(uc < t_u1, t_v1 + t_s01 * (uc - t_u1),
+                          np.where(uc < t_u2, t_v1 + t_s12 * (uc - t_u1), t_v2 + t_s23 * (uc - t_u2)))
     top = np.where(up_ > 0, np.minimum(frustum_top, plate_top), vt)
-    bottom = b_vm + np.where(uc < b_um, b_sl, b_sr) * (uc - b_um)
+    bottom = np.where(uc < b_u1, b_v1 + b_s01 * (uc - b_u1),
+                      np.where(uc < b_u2, b_v1 + b_s12 * (uc - b_u1), b_v2 + b_s23 * (uc - b_u2)))
 
     # occlusion: going near to far in each column, a cone shows only above the nearer cones' tops
     order = np.argsort(col, kind="stable")
@@ -223,7 +233,7 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     by_id = np.argsort(ids)
     ids = ids[by_id]
     ext = ext[vis][by_id]
-    boxes = (ext[:, :4] * [-1.0, 1.0, -1.0, 1.0]).astype(np.float32)[:, [0, 2, 1, 3]]
+    boxes = (ext[:, :4] * [-1.0, 1.0, -1.0, 1.0] + 0.0).astype(np.float32)[:, [0, 2, 1, 3]]  # (+0: no -0.0)
     dxy = d[ids]
     bearings = (np.arctan2(dxy[:, 1], dxy[:, 0]) - heading + np.pi) % (2 * np.pi) - np.pi
     return ConeArrays(boxes=boxes, classes=cls[ids], cone_ids=ids,
