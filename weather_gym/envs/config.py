@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from weather_gym.camera import CameraConfig
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 
-
 RENDER_VIEWS = ("chase", "camera")
 """Views ``ConeTrackEnv.render()`` can return (``EnvConfig.render_view``)."""
 

@@ -22,7 +22,7 @@ Example:
     >>> rw = RandomWeather(presets=("rain", "droplets"), severities=(1, 2, 3), effects={"fog": (0.1, 0.5)}, p=0.5)
     >>> spec, label = rw.sample(np.random.default_rng(0))
     >>> label, [t["name"] for t in spec]
-    ('rain@2 + fog:0.33', ['rain', 'fog'])
+    ('droplets@1 + fog:0.1066', ['droplets', 'fog'])
 """
 
 from __future__ import annotations
