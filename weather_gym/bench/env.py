@@ -103,8 +103,9 @@ class _Factory:
 
 
 def time_vector(make_env: Callable[[], Any], num_envs: int, mode: str | None, *, steps: int, repeats: int,
-                warmup: int) -> list[float]:
-    """Env-steps/s of each timed block: ``mode`` None = one plain env, else a gymnasium vector env."""
+                warmup: int) -> tuple[list[float], str]:
+    """Env-steps/s of each timed block, and the renderer(s) in use: ``mode`` None = one plain env,
+    else a gymnasium vector env."""
     import gymnasium as gym
 
     if mode is None:
@@ -112,12 +113,16 @@ def time_vector(make_env: Callable[[], Any], num_envs: int, mode: str | None, *,
         step = env.step
         action: Any = np.asarray(ACTION, np.float32)
         env.reset(seed=0)
+        renderers = {env.unwrapped.renderer}
     else:
-        cls = gym.vector.SyncVectorEnv if mode == "sync" else gym.vector.AsyncVectorEnv
-        env = cls([make_env] * num_envs)
+        if mode == "sync":
+            env = gym.vector.SyncVectorEnv([make_env] * num_envs)
+        else:  # spawned workers keep the EGL renderer (a forked child of an EGL process cannot use it)
+            env = gym.vector.AsyncVectorEnv([make_env] * num_envs, context="spawn")
         step = env.step
         action = np.tile(np.asarray(ACTION, np.float32), (num_envs, 1))
         env.reset(seed=list(range(num_envs)))
+        renderers = set(env.get_attr("renderer"))
     try:
         for _ in range(warmup):
             step(action)
@@ -127,7 +132,7 @@ def time_vector(make_env: Callable[[], Any], num_envs: int, mode: str | None, *,
             for _ in range(steps):
                 step(action)
             rates.append(num_envs * steps / (time.perf_counter() - t0))
-        return rates
+        return rates, "+".join(sorted(renderers))
     finally:
         env.close()
 
@@ -150,16 +155,16 @@ def _run(args: argparse.Namespace) -> int:
     rows = []
     base: dict[tuple[str, tuple[int, int]], float] = {}
     for pipeline, size, n, mode in tqdm(plan, desc="bench env", unit="row"):
-        rates = time_vector(env_factory(args.env_id, args.track, size, pipeline, args.weather), n, mode,
+        rates, renderer = time_vector(env_factory(args.env_id, args.track, size, pipeline, args.weather), n, mode,
                             steps=args.steps, repeats=args.repeats, warmup=args.warmup)
         med = statistics.median(rates)
         q1, _, q3 = statistics.quantiles(rates, n=4) if len(rates) > 1 else (med, med, med)
         if mode is None:
             base[pipeline, size] = med
-        rows.append([pipeline, f"{size[0]}x{size[1]}", n, mode or "plain env (baseline)", f"{med:.1f}",
+        rows.append([pipeline, f"{size[0]}x{size[1]}", n, mode or "plain env (baseline)", renderer, f"{med:.1f}",
                      f"{q1:.1f}-{q3:.1f}", f"{med / base[pipeline, size]:.2f}"])
     load_after = os.getloadavg()
-    table = markdown_table(["pipeline", "camera", "envs", "vectorization", "env-steps/s (median)",
+    table = markdown_table(["pipeline", "camera", "envs", "vectorization", "renderer", "env-steps/s (median)",
                             "interquartile range", "x plain env"], rows)
     note = (f"{machine_line()}; median of {args.repeats} blocks of {args.steps} vector steps after {args.warmup} "
             f"warm-up steps; track {args.track}; weather+detector = {args.weather} + the shipped detector "
