@@ -212,6 +212,8 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--learning-rate", type=float, default=3e-4)
     p.add_argument("--gamma", type=float, default=0.99)
     p.add_argument("--ent-coef", type=float, default=0.0)
+    p.add_argument("--log-std-init", type=float, default=-1.0,
+                   help="initial log standard deviation of the actions (-1: std 0.37 of the [-1, 1] range)")
     p.add_argument("--eval-freq", type=int, default=25_000, help="env steps between held-out evaluations")
     p.add_argument("--eval-episodes", type=int, default=2, help="held-out episodes per evaluation")
     p.add_argument("--checkpoint-freq", type=int, default=25_000, help="env steps between checkpoints")
@@ -256,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
     from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
     from weather_gym._io import atomic_write_json
     from weather_gym.agents.sb3_features import ConeListExtractor
@@ -293,9 +295,12 @@ def main(argv: list[str] | None = None) -> int:
             for i in range(args.n_envs)]
     make[0]().close()  # a bad setting fails here, in this process, with its message
     vec = VecMonitor((SubprocVecEnv if args.vec == "subproc" else DummyVecEnv)(make))
-    eval_env = VecMonitor(DummyVecEnv([lambda: make_training_env(
+    # rewards scaled by a running estimate of the return's spread (the policy's input is untouched, so the
+    # saved policy needs no statistics to drive); its state is saved beside each checkpoint for resuming
+    vec = VecNormalize(vec, norm_obs=False, norm_reward=True, gamma=args.gamma)
+    eval_env = VecNormalize(VecMonitor(DummyVecEnv([lambda: make_training_env(
         s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
-        random_start=False)]))
+        random_start=False)])), norm_obs=False, norm_reward=False, training=False)  # rewards as they are
     segment = f"steps{_checkpoint_steps(ckpt):09d}"
     logger = configure(str(out / "logs" / segment), ["csv", "tensorboard"])
     started = time.time()
@@ -309,16 +314,21 @@ def main(argv: list[str] | None = None) -> int:
                         n_epochs=args.n_epochs, learning_rate=args.learning_rate, gamma=args.gamma,
                         ent_coef=args.ent_coef, seed=args.seed, device="cpu", verbose=0,
                         policy_kwargs={"features_extractor_class": ConeListExtractor,
-                                       "net_arch": {"pi": [128, 128], "vf": [128, 128]}})
+                                       "net_arch": {"pi": [128, 128], "vf": [128, 128]},
+                                       "log_std_init": args.log_std_init})
         else:
             print(f"resuming from {ckpt} ({ckpt.name})")
+            stats = ckpt.with_name(ckpt.name.replace("ppo_", "ppo_vecnormalize_").replace(".zip", ".pkl"))
+            if stats.is_file():
+                vec = VecNormalize.load(str(stats), vec.venv)
             model = PPO.load(str(ckpt), env=vec, device="cpu")
             vec.seed(args.seed + model.num_timesteps)
         model.set_logger(logger)
         eval_env.seed(10_000 + args.seed)
         callbacks = CallbackList([
             _tqdm_callback(args.timesteps),
-            CheckpointCallback(max(args.checkpoint_freq // args.n_envs, 1), str(checkpoints), name_prefix="ppo"),
+            CheckpointCallback(max(args.checkpoint_freq // args.n_envs, 1), str(checkpoints), name_prefix="ppo",
+                               save_vecnormalize=True),
             EvalCallback(eval_env, n_eval_episodes=args.eval_episodes, eval_freq=max(args.eval_freq // args.n_envs, 1),
                          best_model_save_path=str(out / "best"), log_path=str(out / "logs" / segment),
                          deterministic=True, verbose=0),

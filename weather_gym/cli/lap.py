@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 PERCEPTION_MODES = ("auto", "detector", "oracle", "none")
-PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit"})
+PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit", "ppo_cones"})
 """Agents that read cone lists: ``--perception auto`` gives them the detector."""
 MIN_SPEED_FOR_LIMIT = 2.0
 """Default step limit: every lap may take up to length / 2 m/s (at least a minute)."""
