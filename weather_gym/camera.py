@@ -14,6 +14,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 
 @dataclass(frozen=True)
 class CameraConfig:
@@ -45,7 +47,7 @@ class CameraConfig:
         for name in ("width", "height"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise ValueError(f"camera {name} must be a positive integer, got {v!r}")
+                raise InputError(f"camera {name} must be a positive integer, got {v!r}")
         checks = {
             "hfov_deg": 1.0 <= self.hfov_deg <= 170.0,
             "fps": self.fps > 0,
@@ -58,7 +60,7 @@ class CameraConfig:
         }
         for name, ok in checks.items():
             if not ok:
-                raise ValueError(f"camera {name} has an invalid value {getattr(self, name)!r}")
+                raise InputError(f"camera {name} has an invalid value {getattr(self, name)!r}")
 
     @property
     def fx(self) -> float:

@@ -24,6 +24,7 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.envs.config import EnvConfig
+from weather_gym.errors import InputError
 from weather_gym.sim.camera import CameraFrame
 from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
 from weather_gym.sim.world import World
@@ -55,7 +56,7 @@ class ConeTrackEnv(gym.Env):
         if overrides:
             config = replace(config, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+            raise InputError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.config = config
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": config.sim.control_hz}
@@ -91,7 +92,7 @@ class ConeTrackEnv(gym.Env):
         options = dict(options or {})
         unknown = set(options) - set(RESET_OPTIONS)
         if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
+            raise InputError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
         rng = self.np_random
         look = self._resolve_look(options.get("look"), rng)
         self._world.set_look(look)
@@ -100,7 +101,7 @@ class ConeTrackEnv(gym.Env):
         if "start_pose" in options:
             pose = tuple(float(v) for v in options["start_pose"])
             if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
-                raise ValueError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
+                raise InputError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
         elif "start_s" in options:
             x, y, h = track.point_at(float(options["start_s"]))
             pose = (float(x), float(y), float(h))
@@ -108,10 +109,10 @@ class ConeTrackEnv(gym.Env):
             pose = tuple(float(v) for v in track.start_pose)
         speed = float(options.get("start_speed", 0.0))
         if not math.isfinite(speed) or speed < 0:
-            raise ValueError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
+            raise InputError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
         friction = options.get("friction", self.config.car.friction)
         if not (isinstance(friction, (int, float)) and math.isfinite(friction) and friction > 0):
-            raise ValueError(f"reset option friction must be a finite number > 0, got {friction!r}")
+            raise InputError(f"reset option friction must be a finite number > 0, got {friction!r}")
         self._friction = float(friction)
         self._world.reset(pose, speed=speed)
 
@@ -147,7 +148,7 @@ class ConeTrackEnv(gym.Env):
             return sample_look(rng)
         if isinstance(look, dict):
             return Look.from_dict(look)
-        raise ValueError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
+        raise InputError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
 
     # ------------------------------------------------------------------ step
     def step(self, action):
@@ -155,11 +156,11 @@ class ConeTrackEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
+            raise InputError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {a.tolist()}")
+            raise InputError(f"action must be finite, got {a.tolist()}")
         if np.any(np.abs(a) > 1.0 + 1e-6):
-            raise ValueError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
+            raise InputError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
         steer, pedal = float(np.clip(a[0], -1, 1)), float(np.clip(a[1], -1, 1))  # only float rounding is clipped
 
         touched = self._world.step(steer, pedal, self._friction)

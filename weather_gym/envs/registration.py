@@ -19,6 +19,7 @@ from typing import Any
 import gymnasium as gym
 
 from weather_gym.envs.scenario import Scenario, build_config, load_scenario, scenario_files
+from weather_gym.errors import InputError
 
 _SCENARIOS: dict[str, Scenario] = {}
 
@@ -29,7 +30,7 @@ def register_envs() -> list[str]:
     for path in scenario_files():
         sc = load_scenario(path)
         if sc.env_id in _SCENARIOS and _SCENARIOS[sc.env_id].path != sc.path:
-            raise ValueError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
+            raise InputError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
         _SCENARIOS[sc.env_id] = sc
         if sc.env_id not in gym.registry:
             gym.register(id=sc.env_id, entry_point="weather_gym.envs.registration:make_scenario_env",
@@ -74,6 +75,6 @@ def _weather_spec(sc: Scenario, weather: Any, severity: int | None) -> Any:
         return (sc.weather["condition"], int(sc.weather.get("severity", 0)))
     if severity is not None:
         if not isinstance(weather, str):
-            raise ValueError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
+            raise InputError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
         return (weather, int(severity))
     return weather

@@ -30,6 +30,7 @@ from typing import Any
 
 from weather_gym.camera import CameraConfig
 from weather_gym.envs.config import EnvConfig, RewardConfig
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.paths import data_dir
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 
@@ -65,7 +66,7 @@ def scenario_files() -> list[Path]:
 def _check_keys(where: str, got: dict, valid: tuple[str, ...] | set[str]) -> None:
     unknown = sorted(set(got) - set(valid))
     if unknown:
-        raise ValueError(f"{where}: unknown key(s) {unknown}; valid keys: {sorted(valid)}")
+        raise InputError(f"{where}: unknown key(s) {unknown}; valid keys: {sorted(valid)}")
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -74,20 +75,20 @@ def load_scenario(path: str | Path) -> Scenario:
     try:
         data = tomllib.loads(path.read_text())
     except FileNotFoundError:
-        raise FileNotFoundError(f"scenario file {path} does not exist") from None
+        raise MissingInputError(f"scenario file {path} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: malformed TOML: {exc}") from None
+        raise FileFormatError(f"{path}: malformed TOML: {exc}") from None
     _check_keys(str(path), data, TOP_KEYS)
     env_id = data.get("id")
     if not isinstance(env_id, str) or "/" not in env_id or not env_id.rsplit("-v", 1)[-1].isdigit():
-        raise ValueError(f"{path}: 'id' must be a Gymnasium id like 'WeatherGym/Name-v0', got {env_id!r}")
+        raise FileFormatError(f"{path}: 'id' must be a Gymnasium id like 'WeatherGym/Name-v0', got {env_id!r}")
     env = data.get("env", {})
     _check_keys(f"{path} [env]", env, ENV_KEYS)
     sections = {}
     for name, cls in SECTIONS.items():
         sec = data.get(name, {})
         if not isinstance(sec, dict):
-            raise ValueError(f"{path}: [{name}] must be a table")
+            raise FileFormatError(f"{path}: [{name}] must be a table")
         _check_keys(f"{path} [{name}]", sec, {f.name for f in fields(cls)})
         sections[name] = sec
     weather = data.get("weather")
@@ -99,7 +100,7 @@ def load_scenario(path: str | Path) -> Scenario:
     try:  # build once so that bad values fail at load time, naming the file
         build_config(sc)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: {exc}") from None
+        raise FileFormatError(f"{path}: {exc}") from None
     return sc
 
 
@@ -108,12 +109,12 @@ def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
         return cls(**base)
     if is_dataclass(override):
         if not isinstance(override, cls):
-            raise ValueError(f"{name} must be a {cls.__name__} or a dict of its fields, got {type(override).__name__}")
+            raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {type(override).__name__}")
         return override
     if isinstance(override, dict):
         _check_keys(f"override {name}", override, {f.name for f in fields(cls)})
         return cls(**{**base, **override})
-    raise ValueError(f"{name} must be a {cls.__name__} or a dict of its fields, got {override!r}")
+    raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {override!r}")
 
 
 def build_config(scenario: Scenario, overrides: dict[str, Any] | None = None) -> EnvConfig:

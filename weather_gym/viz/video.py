@@ -1,6 +1,8 @@
 """Writing what people look at: MP4 videos (OpenCV ``mp4v``) and PNG strips of frames.
 
-Nothing a user wrote is overwritten unless they say so (``overwrite=True``).
+Nothing a user wrote is overwritten unless they say so (``overwrite=True``). A video is written to
+a temporary file beside its path and moved there by ``close()``; an interrupted run (an exception,
+Ctrl-C, SIGTERM through the CLI) leaves no file, not a truncated one (``weather_gym._io``).
 
 Example:
     >>> import numpy as np, tempfile, pathlib
@@ -16,6 +18,7 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from collections.abc import Sequence
@@ -24,20 +27,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from weather_gym._io import atomic_path, check_output, write_image
+from weather_gym.errors import InputError, OutputPathError
+
 __all__ = ["check_output_path", "VideoWriter", "FrameSampler", "save_strip"]
 
 
 def check_output_path(path: str | os.PathLike, *, overwrite: bool = False, suffixes: Sequence[str] = ()) -> Path:
-    """``path`` as a Path, after checking its suffix, that its folder exists and that it is not
-    about to overwrite a file (unless ``overwrite``)."""
-    p = Path(path)
-    if suffixes and p.suffix.lower() not in suffixes:
-        raise ValueError(f"{p}: expected a file ending in {' or '.join(suffixes)}")
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} already exists; pass --overwrite to replace it")
-    if not p.parent.is_dir():
-        raise FileNotFoundError(f"folder {p.parent} does not exist (for {p})")
-    return p
+    """``path`` as a Path, after :func:`weather_gym._io.check_output` (suffix, no overwrite unless asked)."""
+    return check_output(path, overwrite=overwrite, suffixes=suffixes)
 
 
 class VideoWriter:
@@ -45,38 +43,62 @@ class VideoWriter:
 
     def __init__(self, path: str | os.PathLike, fps: float = 30.0, *, overwrite: bool = False) -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
-            raise ValueError(f"video fps must be a finite number > 0, got {fps!r}")
+            raise InputError(f"video fps must be a finite number > 0, got {fps!r}")
         self.path = check_output_path(path, overwrite=overwrite, suffixes=(".mp4",))
+        self.overwrite = overwrite
         self.fps = float(fps)
         self._writer: cv2.VideoWriter | None = None
+        self._output: contextlib.AbstractContextManager[Path] | None = None
         self._size: tuple[int, int] | None = None
         self.frames = 0
 
     def write(self, frame: np.ndarray) -> None:
         f = np.asarray(frame)
         if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
-            raise ValueError(f"video frames must be RGB uint8 (H, W, 3), got {f.dtype} {f.shape}")
+            raise InputError(f"video frames must be RGB uint8 (H, W, 3), got {f.dtype} {f.shape}")
         size = (f.shape[1], f.shape[0])
         if self._writer is None:
-            self._writer = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"mp4v"), self.fps, size)
+            self._output = atomic_path(self.path, overwrite=self.overwrite)
+            tmp = self._output.__enter__()
+            self._writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), self.fps, size)
             if not self._writer.isOpened():
-                raise OSError(f"OpenCV could not open {self.path} for writing (mp4v codec)")
+                self.abort()
+                raise OutputPathError(f"OpenCV could not open {self.path} for writing (mp4v codec)")
             self._size = size
         elif size != self._size:
-            raise ValueError(f"video frame size changed from {self._size} to {size}")
+            raise InputError(f"video frame size changed from {self._size} to {size}")
         self._writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
         self.frames += 1
 
     def close(self) -> None:
+        """Finish the video and move it to ``path`` (nothing is written when no frame was)."""
         if self._writer is not None:
             self._writer.release()
             self._writer = None
+            output, self._output = self._output, None
+            output.__exit__(None, None, None)
+
+    def abort(self) -> None:
+        """Stop and discard the video: ``path`` is left as it was."""
+        if self._writer is not None:
+            self._writer.release()
+            self._writer = None
+        if self._output is not None:
+            output, self._output = self._output, None
+            output.__exit__(_Discarded, _Discarded(), None)
 
     def __enter__(self) -> VideoWriter:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+class _Discarded(Exception):
+    """Thrown into the temporary output of an aborted video so that it is removed."""
 
 
 class FrameSampler:
@@ -88,7 +110,7 @@ class FrameSampler:
 
     def __init__(self, n: int) -> None:
         if not (isinstance(n, int) and n >= 1):
-            raise ValueError(f"number of strip frames must be an integer >= 1, got {n!r}")
+            raise InputError(f"number of strip frames must be an integer >= 1, got {n!r}")
         self.n = n
         self.stride = 1
         self._count = 0
@@ -114,16 +136,14 @@ def save_strip(frames: Sequence[np.ndarray], path: str | os.PathLike, *, columns
     """Write the frames (RGB uint8, one size) as a PNG grid (``columns`` wide, default up to 4)."""
     p = check_output_path(path, overwrite=overwrite, suffixes=(".png",))
     if not len(frames):
-        raise ValueError("save_strip: no frames to write")
+        raise InputError("save_strip: no frames to write")
     h, w = frames[0].shape[:2]
     cols = columns or min(len(frames), 4)
     rows = math.ceil(len(frames) / cols)
     grid = np.full((rows * h + (rows - 1) * 2, cols * w + (cols - 1) * 2, 3), 255, np.uint8)
     for k, f in enumerate(frames):
         if f.shape[:2] != (h, w):
-            raise ValueError(f"save_strip: frame {k} is {f.shape[:2]}, expected {(h, w)}")
+            raise InputError(f"save_strip: frame {k} is {f.shape[:2]}, expected {(h, w)}")
         r, c = divmod(k, cols)
         grid[r * (h + 2) : r * (h + 2) + h, c * (w + 2) : c * (w + 2) + w] = f
-    if not cv2.imwrite(str(p), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR)):
-        raise OSError(f"could not write {p}")
-    return p
+    return write_image(p, grid, overwrite=overwrite)

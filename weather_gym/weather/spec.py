@@ -31,6 +31,7 @@ import numbers
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from weather_gym.errors import InputError
 from weather_gym.weather.base import Effect, KnobEffect
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.presets import preset_spec
@@ -49,29 +50,29 @@ def _number(v: Any) -> bool:
 def _from_table(table: Mapping[str, Any]) -> Effect:
     name = table.get("name")
     if not isinstance(name, str):
-        raise ValueError(f"weather table {dict(table)!r} needs a 'name' (one of {', '.join(EFFECTS.names())}, ramp)")
+        raise InputError(f"weather table {dict(table)!r} needs a 'name' (one of {', '.join(EFFECTS.names())}, ramp)")
     rest = {k: v for k, v in table.items() if k != "name"}
     if name == "ramp":
         if "effect" not in rest:
-            raise ValueError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
+            raise InputError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
         return Ramp(**rest)
     if name == "compose":
         return Compose([_from_table(t) for t in rest.get("effects", [])])
     if "k" not in rest:
-        raise ValueError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
+        raise InputError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
     return make(name, **rest)
 
 
 def _from_item(name: Any, value: Any) -> Effect:
     if not isinstance(name, str):
-        raise ValueError(f"weather spec key {name!r} must be an effect name")
+        raise InputError(f"weather spec key {name!r} must be an effect name")
     if _number(value):
         return make(name, k=value)
     if isinstance(value, Mapping):
         if "k" not in value:
-            raise ValueError(f"weather spec {name!r}: parameters {dict(value)!r} need 'k'")
+            raise InputError(f"weather spec {name!r}: parameters {dict(value)!r} need 'k'")
         return make(name, **value)
-    raise ValueError(f"weather spec {name!r}: expected k (a number in [0, 1]) or a table of parameters, "
+    raise InputError(f"weather spec {name!r}: expected k (a number in [0, 1]) or a table of parameters, "
                      f"got {value!r}")
 
 
@@ -90,17 +91,17 @@ def _from_string(text: str) -> list[Effect]:
             try:
                 severity = int(sev)
             except ValueError:
-                raise ValueError(f"weather spec item {item!r}: severity {sev!r} must be an integer 0-4") from None
+                raise InputError(f"weather spec item {item!r}: severity {sev!r} must be an integer 0-4") from None
             out += _preset(cond.strip(), severity)
         elif ":" in item:
             name, _, k = item.partition(":")
             try:
                 kv = float(k)
             except ValueError:
-                raise ValueError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1]") from None
+                raise InputError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1]") from None
             out.append(make(name.strip(), k=kv))
         else:
-            raise ValueError(f"weather spec item {item!r} must be NAME:K (e.g. droplets:0.55) or "
+            raise InputError(f"weather spec item {item!r} must be NAME:K (e.g. droplets:0.55) or "
                              f"CONDITION@SEVERITY (e.g. droplets@3), or 'clear'")
     return out
 
@@ -126,7 +127,7 @@ def _effects(spec: Any) -> list[Effect]:
         for item in spec:
             out += _effects(item)
         return out
-    raise ValueError(f"cannot read weather spec {spec!r}: expected None, 'clear', an effect, "
+    raise InputError(f"cannot read weather spec {spec!r}: expected None, 'clear', an effect, "
                      f"{{name: k}}, 'name:k,...', 'condition@severity' or a list of {{name, k, ...}} tables")
 
 
@@ -144,7 +145,7 @@ def to_spec(effect: Effect) -> list[dict[str, Any]]:
         return [t for e in effect.effects for t in to_spec(e)]
     if isinstance(effect, KnobEffect | Ramp):
         return [{"name": effect.name, **effect.params()}]
-    raise ValueError(f"cannot write {type(effect).__name__} as a weather spec")
+    raise InputError(f"cannot write {type(effect).__name__} as a weather spec")
 
 
 def current_spec(effect: Effect) -> list[dict[str, Any]]:
