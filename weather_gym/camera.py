@@ -14,7 +14,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, LimitError
+from weather_gym.limits import MAX_CAMERA_SIDE
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,8 @@ class CameraConfig:
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
                 raise InputError(f"camera {name} must be a positive integer, got {v!r}")
+            if v > MAX_CAMERA_SIDE:
+                raise LimitError(f"camera {name} = {v} px is too large; at most {MAX_CAMERA_SIDE} px are rendered")
         checks = {
             "hfov_deg": 1.0 <= self.hfov_deg <= 170.0,
             "fps": self.fps > 0,

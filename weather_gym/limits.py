@@ -31,11 +31,13 @@ MAX_CAMERA_SIDE = 4096
 """Largest simulated camera side (pixels): rendering cost grows with the area."""
 
 
-def check_image_size(shape: Sequence[int], *, what: str = "image") -> None:
-    """Refuse an image shape ``(H, W[, C])`` outside the limits (:class:`LimitError` naming ``what``)."""
+def check_image_size(shape: Sequence[int], *, what: str = "image", min_side: int = MIN_IMAGE_SIDE) -> None:
+    """Refuse an image shape ``(H, W[, C])`` outside the limits (:class:`LimitError` naming ``what``).
+
+    ``min_side``: the smallest side allowed (weather effects take any size from 1 pixel)."""
     h, w = int(shape[0]), int(shape[1])
-    if not (MIN_IMAGE_SIDE <= h <= MAX_IMAGE_SIDE and MIN_IMAGE_SIDE <= w <= MAX_IMAGE_SIDE):
-        raise LimitError(f"{what}: image is {w}x{h} pixels; each side must be {MIN_IMAGE_SIDE} to "
+    if not (min_side <= h <= MAX_IMAGE_SIDE and min_side <= w <= MAX_IMAGE_SIDE):
+        raise LimitError(f"{what}: image is {w}x{h} pixels; each side must be {min_side} to "
                          f"{MAX_IMAGE_SIDE} pixels")
     if h * w > MAX_IMAGE_PIXELS:
         raise LimitError(f"{what}: image is {w}x{h} = {h * w / 1e6:.0f} MP; at most {MAX_IMAGE_PIXELS / 1e6:.0f} MP "

@@ -71,7 +71,12 @@ def build_weather(effect: str | None, k: float | None, params: list[str], weathe
         if effect is not None or k is not None or params:
             raise InputError("give either --weather or --effect/--k/--param, not both")
         text = weather.strip()
-        return parse_weather(json.loads(text) if text[:1] in "[{" else text)
+        if text[:1] in ("[", "{"):
+            try:
+                return parse_weather(json.loads(text))
+            except json.JSONDecodeError as exc:
+                raise InputError(f"--weather {weather!r}: not valid JSON ({exc.msg})") from None
+        return parse_weather(text)
     if effect is None or k is None:
         raise InputError("give --effect NAME and --k K (or --weather SPEC)")
     kwargs = {}

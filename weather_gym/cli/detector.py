@@ -89,7 +89,7 @@ def register(sub) -> None:
 
 
 def _weather(args):
-    if getattr(args, "weather", None):
+    if getattr(args, "weather", None) is not None:
         if args.effect is not None:
             raise InputError("give either --weather or --effect/--k, not both")
         return args.weather
@@ -126,12 +126,16 @@ def _eval(args) -> int:
 
     _check_limit(args.limit)
     _check_threads(args.threads)
+    weather = _weather(args)
+    if isinstance(weather, str):
+        from weather_gym.weather import parse_weather
+
+        parse_weather(weather)  # a bad spec fails now, not after loading everything
     if args.json is not None:
         check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     ds = load_coco(args.dataset)
     _check_not_empty(ds)
     det = ConeDetector(args.model, threads=args.threads)
-    weather = _weather(args)
     result = score_dataset(ds, det, weather, seed=args.seed, limit=args.limit, progress=True)
     label = "clear" if weather is None else (args.weather or f"{args.effect} k={args.k}")
     print(f"{args.dataset} | {det.path.name} | weather: {label} | seed {args.seed}")

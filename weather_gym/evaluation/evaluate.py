@@ -226,6 +226,14 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     clash = sorted(set(config.env_kwargs) & {"track", "laps", "max_episode_steps", "weather", "severity", "detector"})
     if clash:
         raise InputError(f"env_kwargs may not set {', '.join(clash)}: the evaluation sets them per cell")
+    scenario = (gym.registry[config.env_id].kwargs or {}).get("scenario")
+    if scenario is not None:  # camera sizes and other overrides are checked now, not in every cell
+        from weather_gym.envs.scenario import build_config, load_scenario
+
+        try:
+            build_config(load_scenario(scenario), dict(config.env_kwargs))
+        except InputError as exc:
+            raise type(exc)(f"env_kwargs: {exc}") from None
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,

@@ -113,6 +113,12 @@ class GapConfig:
     def __post_init__(self) -> None:
         from weather_gym.weather import EFFECTS
 
+        if not 0.0 < self.held_out < 1.0:
+            raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
+        if self.mode not in ("auto", "paired", "unpaired"):
+            raise InputError(f"mode must be 'auto', 'paired' or 'unpaired', got {self.mode!r}")
+        if self.sim_frames is not None and self.sim_frames < 4:
+            raise InputError(f"sim_frames must be >= 4, got {self.sim_frames}")
         if self.fit_frames < 4:
             raise InputError(f"fit_frames must be >= 4, got {self.fit_frames}")
         if self.max_steps < 0:

@@ -37,15 +37,25 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, LimitError
+from weather_gym.limits import check_image_size
 
-__all__ = ["DEFAULT_SEED", "STATE_KEYS", "Effect", "KnobEffect", "check_image", "check_depth"]
+__all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "Effect", "KnobEffect", "check_image", "check_depth"]
 
 #: Seed of the episode generator of an effect whose ``reset`` was never called.
 DEFAULT_SEED = 20220607
 
 #: Keys of the vehicle ``state`` mapping that effects read (others are ignored).
 STATE_KEYS = ("speed", "yaw_rate", "exposure_s", "fx")
+
+#: Physical range of each state value (checked up front: a yaw rate of 1e8 rad/s would otherwise
+#: ask for a blur kernel millions of pixels wide).
+STATE_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "speed": (-150.0, 150.0, "m/s"),
+    "yaw_rate": (-20.0, 20.0, "rad/s"),
+    "exposure_s": (0.0, 1.0, "s"),
+    "fx": (1.0, 2e4, "px"),
+}
 
 SeedLike = int | np.random.SeedSequence | None
 
@@ -62,6 +72,7 @@ def check_image(image: Any, who: str) -> tuple[np.ndarray, bool]:
                          f"got shape {image.shape}")
     if min(image.shape[:-1]) < 1:
         raise InputError(f"{who}: expected H, W (and N) >= 1, got shape {image.shape}")
+    check_image_size(image.shape[-3:], what=who, min_side=1)
     return np.ascontiguousarray(image), image.ndim == 4
 
 
@@ -99,6 +110,10 @@ def _check_state_one(state: Any, who: str) -> dict[str, float]:
         raise InputError(f"{who}: state['fx'] must be a positive focal length in pixels, got {out['fx']}")
     if "exposure_s" in out and out["exposure_s"] < 0:
         raise InputError(f"{who}: state['exposure_s'] must be >= 0, got {out['exposure_s']}")
+    for key, (lo, hi, unit) in STATE_BOUNDS.items():
+        if key in out and not lo <= out[key] <= hi:
+            raise LimitError(f"{who}: state[{key!r}] = {out[key]:g} is outside its physical range "
+                             f"[{lo:g}, {hi:g}] {unit}")
     return out
 
 

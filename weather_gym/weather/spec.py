@@ -2,10 +2,12 @@
 
 ``parse_weather`` accepts
 
-* ``None``, ``"clear"``, ``""``, ``{}``, ``[]``: no weather (an empty :class:`Compose`);
+* ``None``, ``"clear"``, ``"none"``, ``{}``, ``[]``: no weather (an empty :class:`Compose`); an empty or
+  blank string is an error (usually a variable that expanded to nothing), not silently clear;
 * an effect, a :class:`Compose` or a :class:`Ramp`: returned as is;
 * ``{"droplets": 0.55, "dim": 0.3}`` (name -> k) or ``{"droplets": {"k": 0.55, "persistent": True}}``;
-* ``"droplets:0.55,dim:0.3"``;
+* ``"droplets:0.55,dim:0.3"``, with parameters ``"dim:0.5:mode=physical"`` (``NAME:K:PARAM=VALUE:...``,
+  values read as JSON, else as text);
 * presets ``"droplets@3"``, ``"low_light@2"``, ``("low_light", 2)`` (see :mod:`.presets`);
 * the list of effect tables of model files, ``[{"name": "dim", "k": 0.6, ...}]`` (a TOML
   ``[[effects]]`` array), where ``{"name": "ramp", "effect": "dim", "k_start": ..., ...}`` is a ramp;
@@ -40,7 +42,7 @@ from weather_gym.weather.schedule import Ramp
 
 __all__ = ["current_spec", "parse_weather", "to_spec"]
 
-_CLEAR = ("", "clear", "none")
+_CLEAR = ("clear", "none")
 
 
 def _number(v: Any) -> bool:
@@ -80,7 +82,18 @@ def _preset(condition: Any, severity: Any) -> list[Effect]:
     return [_from_table(t) for t in preset_spec(condition, severity)]
 
 
+def _param_value(text: str) -> Any:
+    import json
+
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
 def _from_string(text: str) -> list[Effect]:
+    if not text.strip():
+        raise InputError("empty weather spec; write 'clear' for no weather, or e.g. 'droplets:0.55' or 'low_light@2'")
     if text.strip().lower() in _CLEAR:
         return []
     out: list[Effect] = []
@@ -94,12 +107,20 @@ def _from_string(text: str) -> list[Effect]:
                 raise InputError(f"weather spec item {item!r}: severity {sev!r} must be an integer 0-4") from None
             out += _preset(cond.strip(), severity)
         elif ":" in item:
-            name, _, k = item.partition(":")
+            name, k, *params = (p.strip() for p in item.split(":"))
             try:
                 kv = float(k)
             except ValueError:
-                raise InputError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1]") from None
-            out.append(make(name.strip(), k=kv))
+                raise InputError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1] "
+                                 "(the form is NAME:K or NAME:K:PARAM=VALUE:...)") from None
+            kwargs: dict[str, Any] = {}
+            for p in params:
+                key, sep, value = p.partition("=")
+                if not sep or not key.strip():
+                    raise InputError(f"weather spec item {item!r}: parameter {p!r} must be PARAM=VALUE "
+                                     "(the form is NAME:K:PARAM=VALUE:..., e.g. dim:0.5:mode=physical)")
+                kwargs[key.strip()] = _param_value(value.strip())
+            out.append(make(name, k=kv, **kwargs))
         else:
             raise InputError(f"weather spec item {item!r} must be NAME:K (e.g. droplets:0.55) or "
                              f"CONDITION@SEVERITY (e.g. droplets@3), or 'clear'")
