@@ -10,7 +10,7 @@ Example:
     >>> check_image_size((1, 5000, 3), what="frame.png")
     Traceback (most recent call last):
     ...
-    weather_gym.errors.LimitError: frame.png: image is 5000x1 pixels; each side must be 8 to 16384 pixels ...
+    weather_gym.errors.LimitError: frame.png: image is 5000x1 pixels; each side must be 8 to 16384 pixels
 """
 
 from __future__ import annotations

@@ -322,8 +322,10 @@ def _execute(cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -> tuple[st
         return "failed", _error_summary(exc), time.perf_counter() - t0
 
 
-def _worker_init() -> None:
-    """Process-pool initializer: one thread per library (env is also set before the spawn)."""
+def _worker_init(parent_pid: int | None = None) -> None:
+    """Process-pool initializer: end with the parent (:func:`_die_with_parent`), one thread per library
+    (the environment is also set before the spawn)."""
+    _die_with_parent(parent_pid)
     os.environ.update(THREAD_ENV_VARS)
     # Ctrl-C is the parent's to handle: it stops submitting, and the pool is torn down.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -336,8 +338,44 @@ def _worker_init() -> None:
             sys.modules["torch"].set_num_threads(1)
 
 
-def _isolated_target(conn, cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -> None:
-    _worker_init()
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent_pid: int | None) -> None:
+    """Make this worker end when the process that started it ends, however it ends (``kill -9``
+    included), so that no worker is left behind holding memory and CPU.
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; then, if the parent already died before this ran,
+    exit now. Elsewhere: a daemon thread that exits when the parent process is gone.
+    ``parent_pid`` None skips the check (a forkserver's workers are the server's children).
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
+                raise OSError(ctypes.get_errno(), "prctl failed")
+        except (OSError, AttributeError):
+            pass
+        else:
+            if parent_pid is not None and os.getppid() != parent_pid:
+                os._exit(1)  # the parent died before the death signal was armed
+            return
+    import threading
+
+    original = os.getppid() if parent_pid is None else parent_pid
+
+    def _watch() -> None:
+        while os.getppid() == original:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=_watch, name="weather-gym-parent-watch", daemon=True).start()
+
+
+def _isolated_target(conn, cell_fn: CellFn, cell: Cell, key_fields: Sequence[str], parent_pid: int | None) -> None:
+    _worker_init(parent_pid)
     conn.send(_execute(cell_fn, cell, key_fields))
     conn.close()
 
@@ -346,7 +384,8 @@ def _run_isolated(ctx, cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -
     """Run one cell alone in a fresh process; a dead process becomes a failed result naming the signal."""
     recv, send = ctx.Pipe(duplex=False)
     t0 = time.perf_counter()
-    proc = ctx.Process(target=_isolated_target, args=(send, cell_fn, cell, key_fields), daemon=True)
+    proc = ctx.Process(target=_isolated_target, args=(send, cell_fn, cell, key_fields, _parent_pid(ctx)),
+                       daemon=True)
     proc.start()
     send.close()
     result = None
@@ -412,7 +451,8 @@ def _run_process(todo: list[tuple[int, Cell]], cell_fn: CellFn, key_fields, done
     with _thread_env():
         while queue:
             suspects: list[tuple[int, Cell]] = []
-            pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init)
+            pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                          initargs=(_parent_pid(ctx),))
             try:
                 inflight: dict[cf.Future, tuple[int, Cell]] = {}
                 while queue or inflight:
@@ -452,8 +492,14 @@ def _run_process(todo: list[tuple[int, Cell]], cell_fn: CellFn, key_fields, done
                 pool.shutdown(wait=True)
 
 
+def _parent_pid(ctx) -> int | None:
+    """The pid a worker's parent has (this process), or None when a forkserver starts the workers."""
+    return None if ctx.get_start_method() == "forkserver" else os.getpid()
+
+
 def _terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
-    """Stop a pool now: cancel queued work and end its worker processes (ours, by pid)."""
+    """Stop a pool now: cancel queued work and end its worker processes (ours, by pid): SIGTERM,
+    then SIGKILL for any still alive after 5 s."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
@@ -463,6 +509,9 @@ def _terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
     for p in procs:
         with contextlib.suppress(Exception):
             p.join(timeout=5)
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=5)
 
 
 def _ray_execute(cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -> tuple[str, Any, float]:

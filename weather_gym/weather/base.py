@@ -54,7 +54,7 @@ STATE_BOUNDS: dict[str, tuple[float, float, str]] = {
     "speed": (-150.0, 150.0, "m/s"),
     "yaw_rate": (-20.0, 20.0, "rad/s"),
     "exposure_s": (0.0, 1.0, "s"),
-    "fx": (1.0, 2e4, "px"),
+    "fx": (1.0, 1e7, "px"),
 }
 
 SeedLike = int | np.random.SeedSequence | None
