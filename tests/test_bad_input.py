@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import shutil
 import signal
 import sys
 from pathlib import Path
@@ -88,6 +89,18 @@ def _changed(before: dict, after: dict, allowed: str | None) -> list[str]:
 def test_bad_input_fails_cleanly(case: Case, world: World, capsys, monkeypatch):
     monkeypatch.chdir(world.root)
     before = _snapshot(world.root)
+    try:
+        _check(case, world, before, capsys)
+    finally:  # what one case wrote (its output, or damage when it failed) never reaches the next case
+        if case.out is not None:
+            shutil.rmtree(world[case.out], ignore_errors=True)
+        if _snapshot(world.root) != before:
+            shutil.rmtree(world.root)
+            world.root.mkdir()
+            build_world(world.root)
+
+
+def _check(case: Case, world: World, before: dict, capsys) -> None:
     culprit = case.culprit.replace("{w}", str(world.root))
     with _time_limit(CASE_TIMEOUT_S):
         if case.argv is not None:
@@ -105,6 +118,7 @@ def test_bad_input_fails_cleanly(case: Case, world: World, capsys, monkeypatch):
     if case.forbid:
         assert case.forbid not in message, f"the error quotes {case.forbid!r}"
     assert _changed(before, _snapshot(world.root), case.out) == []
+
 
 
 def test_the_table_covers_every_sub_command():

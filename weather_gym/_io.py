@@ -53,6 +53,7 @@ __all__ = [
     "check_output",
     "derived_outputs_replaceable",
     "exists_message",
+    "open_append",
     "resolve_inside",
     "save_figure",
     "write_image",
@@ -274,6 +275,27 @@ def atomic_file(path: str | os.PathLike, mode: str = "w", *, overwrite: bool = F
             yield f
             f.flush()
             os.fsync(f.fileno())
+
+
+def open_append(path: str | os.PathLike) -> IO[str]:
+    """A journal opened for appending text (created when missing), never through a symlink.
+
+    For the append-only files of resumable runs (a results table, a render journal), whose rows
+    are flushed one by one; everything else is written whole with :func:`atomic_write`.
+    """
+    path = Path(path)
+    _make_parent(path)
+    flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags, 0o666)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise OutputPathError(f"cannot append to {path}: it is a symbolic link") from None
+        raise OutputPathError(f"cannot append to {path}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise OutputPathError(f"cannot append to {path}: not a regular file")
+    return os.fdopen(fd, "a", encoding="utf-8", newline="")
 
 
 def atomic_write(path: str | os.PathLike, data: str | bytes, *, overwrite: bool = False,

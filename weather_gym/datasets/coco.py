@@ -37,7 +37,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from weather_gym._io import atomic_write_json, resolve_inside, write_image
+from weather_gym._io import atomic_write_json, open_append, resolve_inside, write_image
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import (
     FileFormatError,
@@ -335,7 +335,7 @@ class CocoWriter:
             journal.unlink()
         if ann.exists() and overwrite:
             ann.unlink()
-        self._journal = open(journal, "a")
+        self._journal = open_append(journal)
         self._closed = False
 
     @property

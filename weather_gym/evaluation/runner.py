@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym._io import atomic_file
+from weather_gym._io import atomic_file, open_append
 from weather_gym.errors import (
     FileFormatError,
     InputError,
@@ -248,7 +248,7 @@ class ResultsFile:
             self.columns.extend(new_cols)
             self.rewrite(self.rows)
             return
-        with open(self.path, "a", encoding="utf-8", newline="") as f:
+        with open_append(self.path) as f:
             f.write(self._line(row))
             f.flush()
             os.fsync(f.fileno())
