@@ -56,7 +56,7 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     assert cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
 
 
-def _dataset(root: Path, frames: int = 3) -> None:
+def _dataset(root: Path, frames: int) -> None:
     from weather_gym.camera import CameraConfig
     from weather_gym.datasets.coco import CocoWriter
 
@@ -86,7 +86,7 @@ def build_world(root: Path) -> World:
     import cv2
 
     w = World(root)
-    _dataset(w["ds"])
+    _dataset(w["ds"], frames=4)
     _dataset(w["ds_empty"], frames=0)
     victim = w["victim.png"]
     _write_png(victim, _frame(99))
@@ -103,6 +103,7 @@ def build_world(root: Path) -> World:
     shutil.copytree(w["ds/images"], w["elsewhere/images"])
     w["ds_link/images"].symlink_to(w["elsewhere/images"])
     w["no_annotations"].mkdir()
+    w["o"].mkdir()  # an existing output folder: a case tests one bad input, not also a missing folder
 
     _write_png(w["img.png"], _frame(5))
     _write_png(w["strip.png"], np.zeros((1, 5000, 3), np.uint8))
@@ -235,7 +236,7 @@ CASES: list[Case] = [
     _cli("detector-eval-depth-outside", "depth_file", "detector", "eval", "{w}/ds_depth_abs"),
     _cli("detector-eval-corrupt-model", "corrupt.onnx", "detector", "eval", "{w}/ds", "--model",
          "{w}/corrupt.onnx"),
-    _cli("detector-eval-threads-zero", "--threads", "detector", "eval", "{w}/ds", "--threads", "0"),
+    _cli("detector-eval-threads-zero", "threads", "detector", "eval", "{w}/ds", "--threads", "0"),
     _cli("detector-eval-effect-without-k", "--k", "detector", "eval", "{w}/ds", "--effect", "dim"),
     _cli("detector-eval-json-under-a-file", "afile", "detector", "eval", "{w}/ds", "--json", "{w}/afile/r.json"),
     _cli("detector-eval-empty-weather", "empty weather spec", "detector", "eval", "{w}/ds", "--weather", ""),
@@ -245,7 +246,7 @@ CASES: list[Case] = [
          "{w}/o/p.png", out="o"),
     _cli("detector-predict-out-exists", "exists.png", "detector", "predict", "{w}/img.png", "--out",
          "{w}/exists.png"),
-    _cli("detector-predict-threshold", "--threshold", "detector", "predict", "{w}/img.png", "--out", "{w}/o/p.png",
+    _cli("detector-predict-threshold", "threshold", "detector", "predict", "{w}/img.png", "--out", "{w}/o/p.png",
          "--threshold", "2", out="o"),
     _cli("detector-sweep-ks-out-of-range", "--ks", "detector", "sweep", "{w}/ds", "--ks", "0,2"),
     _cli("detector-sweep-json-exists", "exists.json", "detector", "sweep", "{w}/ds", "--ks", "0", "--effects",
