@@ -173,11 +173,39 @@ def _folder(weather, args) -> int:
     return 0
 
 
+class _Cv2Video:
+    """Non-MP4 outputs (.avi, .mkv, ...) through OpenCV, to a temporary file moved into place on close."""
+
+    def __init__(self, dst: Path, fps: float, size: tuple[int, int], overwrite: bool) -> None:
+        import cv2
+
+        from weather_gym._io import atomic_path
+
+        self._cv2 = cv2
+        self._output = atomic_path(dst, overwrite=overwrite)
+        tmp = self._output.__enter__()
+        fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
+        self.writer = cv2.VideoWriter(str(tmp), fourcc, fps, size)
+        if not self.writer.isOpened():
+            self.abort()
+            raise OutputPathError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
+
+    def write(self, rgb) -> None:
+        self.writer.write(self._cv2.cvtColor(rgb, self._cv2.COLOR_RGB2BGR))
+
+    def close(self) -> None:
+        self.writer.release()
+        self._output.__exit__(None, None, None)
+
+    def abort(self) -> None:
+        self.writer.release()
+        self._output.__exit__(InputError, InputError("aborted"), None)
+
+
 def _video(weather, src: Path, dst: Path, args) -> int:
     import cv2
     from tqdm import tqdm
 
-    from weather_gym._io import atomic_path
     from weather_gym.limits import check_image_size
 
     cap = cv2.VideoCapture(str(src))
@@ -189,27 +217,30 @@ def _video(weather, src: Path, dst: Path, args) -> int:
         w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
         check_image_size((h, w, 3), what=f"video {src}")
         total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
+        if dst.suffix.lower() == ".mp4":  # H.264 (PyAV), falling back to mp4v with a warning
+            from weather_gym.viz.video import VideoWriter
+
+            writer = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
+        else:
+            writer = _Cv2Video(dst, fps, (w, h), args.overwrite)
         weather.reset(args.seed)
         n = 0
-        with atomic_path(dst, overwrite=args.overwrite) as tmp:
-            fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
-            writer = cv2.VideoWriter(str(tmp), fourcc, fps, (w, h))
-            if not writer.isOpened():
-                raise OutputPathError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
-            try:
-                with tqdm(total=total, desc="degrade", unit="frame", disable=args.quiet) as bar:
-                    while True:
-                        ok, bgr = cap.read()
-                        if not ok:
-                            break
-                        rgb = weather(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-                        writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-                        n += 1
-                        bar.update(1)
-            finally:
-                writer.release()
-            if n == 0:
-                raise FileFormatError(f"{src}: no frames could be read")
+        try:
+            with tqdm(total=total, desc="degrade", unit="frame", disable=args.quiet) as bar:
+                while True:
+                    ok, bgr = cap.read()
+                    if not ok:
+                        break
+                    writer.write(weather(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)))
+                    n += 1
+                    bar.update(1)
+        except BaseException:
+            writer.abort()
+            raise
+        if n == 0:
+            writer.abort()
+            raise FileFormatError(f"{src}: no frames could be read")
+        writer.close()
     finally:
         cap.release()
     print(f"wrote {n} frame(s) to {dst}")
