@@ -339,6 +339,8 @@ CASES: list[Case] = [
     # ---- bench
     _cli("bench-bad-size", "96by64", "bench", "weather", "--sizes", "96by64"),
     _cli("bench-out-exists", "exists.md", "bench", "weather", "--out", "{w}/exists.md"),
+    _cli("bench-env-out-exists", "exists.md", "bench", "env", "--out", "{w}/exists.md"),
+    _cli("bench-env-bad-resolution", "672by376", "bench", "env", "--resolutions", "672by376"),
     # ---- Python entry points
     Case("py-gym-make-huge-camera", "width", call=lambda w: _make_env(camera={"width": 100000, "height": 100000})),
     Case("py-gym-make-collinear-track", "collinear.csv", call=lambda w: _make_env(track=str(w["collinear.csv"]))),

@@ -24,7 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
 
 PIPELINES = ("clean", "weather+detector")
@@ -47,6 +49,7 @@ def register(targets) -> None:
     p.add_argument("--repeats", type=int, default=15, help="timed blocks per row; the median is reported")
     p.add_argument("--warmup", type=int, default=10, help="untimed vector steps first (default %(default)s)")
     p.add_argument("--out", type=Path, help="also write the markdown table to this file")
+    add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
 
 
@@ -141,6 +144,9 @@ def time_vector(make_env: Callable[[], Any], num_envs: int, mode: str | None, *,
 def _run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    if args.out is not None:
+        check_output(args.out, overwrite=args.overwrite, what="--out")
+
     envs = _ints(args.envs, "envs")
     modes = _names(args.modes, MODES, "modes")
     sizes = _resolutions(args.resolutions)
@@ -173,7 +179,5 @@ def _run(args: argparse.Namespace) -> int:
     text = table + "\n\n" + note + "\n"
     print(text)
     if args.out is not None:
-        from weather_gym._io import atomic_write
-
-        atomic_write(args.out, text)
+        atomic_write(args.out, text, overwrite=args.overwrite)
     return 0
