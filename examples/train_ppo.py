@@ -179,10 +179,9 @@ def plot_learning_curve(out: Path) -> Path | None:
     ax2.grid(alpha=0.3)
     fig.suptitle(f"PPO on the cone list ({out.name})")
     fig.tight_layout()
-    path = out / "learning_curve.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    from weather_gym._io import save_figure
+
+    return save_figure(fig, out / "learning_curve.png", overwrite=True, dpi=110)
 
 
 def _parse(argv: list[str] | None) -> argparse.Namespace:
@@ -229,65 +228,64 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
 
 
 def _settings(args: argparse.Namespace) -> dict[str, Any]:
+    from weather_gym.errors import InputError
+
     env_kwargs: dict[str, Any] = {}
     if args.camera:
         try:
             w, h = (int(v) for v in args.camera.lower().split("x"))
         except ValueError:
-            raise ValueError(f"--camera must look like 336x188, got {args.camera!r}") from None
+            raise InputError(f"--camera must look like 336x188, got {args.camera!r}") from None
         env_kwargs["camera"] = {"width": w, "height": h}
     try:
         noise = json.loads(args.noise)
         weather = json.loads(args.weather) if args.weather else None
     except json.JSONDecodeError as exc:
-        raise ValueError(f"--noise / --weather must be JSON objects: {exc}") from None
+        raise InputError(f"--noise / --weather must be JSON objects: {exc}") from None
     tracks = [t.strip() for t in args.tracks.split(",") if t.strip()]
     if not tracks:
-        raise ValueError("--tracks is empty")
+        raise InputError("--tracks is empty")
     if args.eval_track in tracks:
-        raise ValueError(f"--eval-track {args.eval_track} is also a training track: it would not be held out")
+        raise InputError(f"--eval-track {args.eval_track} is also a training track: it would not be held out")
     if weather and args.perception == "gt_cones":
-        raise ValueError("--weather acts on camera images; gt_cones renders none (use --perception detector)")
+        raise InputError("--weather acts on camera images; gt_cones renders none (use --perception detector)")
     return {"env_id": args.env_id, "perception": args.perception, "noise": noise if args.perception != "detector" else {},
             "max_steps": args.max_steps, "env_kwargs": env_kwargs, "weather": weather, "tracks": tracks}
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parse(argv)
+    from weather_gym.cli import run_command
+
+    return run_command(_train, _parse(argv))
+
+
+def _train(args: argparse.Namespace) -> int:
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
-    from weather_gym._io import atomic_write_json
+    from weather_gym._io import atomic_path, atomic_write_json
     from weather_gym.agents.sb3_features import ConeListExtractor
+    from weather_gym.errors import InputError, OutputExistsError
 
     torch.set_num_threads(args.torch_threads)
     out: Path = args.out
-    try:
-        s = _settings(args)
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    s = _settings(args)
     checkpoints = out / "checkpoints"
     run_file = out / "run.json"
     if args.resume:
         ckpt = latest_checkpoint(checkpoints)
         if ckpt is None or not run_file.is_file():
-            print(f"error: --resume: no checkpoint in {checkpoints} (or no {run_file}); start a new run instead",
-                  file=sys.stderr)
-            return 2
+            raise InputError(f"--resume: no checkpoint in {checkpoints} (or no {run_file}); start a new run instead")
         run = json.loads(run_file.read_text())
         if run["settings"] != s:
-            print(f"error: --resume with other settings than the run in {out}: {run['settings']} vs {s}",
-                  file=sys.stderr)
-            return 2
+            raise InputError(f"--resume with other settings than the run in {out}: {run['settings']} vs {s}")
     else:
         if out.exists() and any(out.iterdir()):
-            print(f"error: {out} exists and is not empty; pass --resume to continue that run, or another --out",
-                  file=sys.stderr)
-            return 2
+            raise OutputExistsError(f"{out} exists and is not empty; pass --resume to continue that run, "
+                                    "or give another --out (a run folder is never overwritten)")
         ckpt, run = None, {"settings": s, "segments": []}
     tracks = s["tracks"]
     make = [lambda i=i: make_training_env(s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"],
@@ -337,7 +335,8 @@ def main(argv: list[str] | None = None) -> int:
         remaining = args.timesteps - start_steps
         if remaining > 0:
             model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=False)
-        model.save(str(out / "model.zip"))
+        with atomic_path(out / "model.zip", overwrite=True) as tmp:  # this run's own file
+            model.save(str(tmp))
     finally:
         vec.close()
         eval_env.close()
@@ -347,13 +346,13 @@ def main(argv: list[str] | None = None) -> int:
                                 "command": shlex.join([sys.executable, *sys.argv])})
         run["wall_s_total"] = round(sum(seg["wall_s"] for seg in run["segments"]), 1)
         if out.is_dir():
-            atomic_write_json(run_file, run, indent=2)
+            atomic_write_json(run_file, run, indent=2, overwrite=True)
     atomic_write_json(out / "model.json", {
         "algo": "PPO", "timesteps": int(model.num_timesteps), "n_envs": args.n_envs, "seed": args.seed,
         "env_id": s["env_id"], "track": args.eval_track, "train_tracks": tracks, "perception": s["perception"],
         "train_noise": s["noise"], "env_kwargs": s["env_kwargs"], "train_weather": s["weather"],
         "train_max_steps": s["max_steps"], "features": "weather_gym.agents.sb3_features.ConeListExtractor",
-    }, indent=2)
+    }, indent=2, overwrite=True)
     curve = plot_learning_curve(out)
     print(f"saved {out / 'model.zip'} after {model.num_timesteps} steps; {run['wall_s_total']:.0f} s of training "
           f"in {len(run['segments'])} segment(s); learning curve: {curve}")
