@@ -43,8 +43,8 @@ import numpy as np
 
 DEFAULT_TRACKS = ("peanut", "fsds_training", "b_shape", "jellybean", "hairpin", "oval", "random:1", "random:2")
 DEFAULT_EVAL_TRACK = "small_track"
-DEFAULT_NOISE = {"miss_prob": 0.1, "range_noise": 0.05, "bearing_noise": 0.01, "false_positives": 0.2,
-                 "swap_prob": 0.02, "max_range": 25.0}
+DEFAULT_NOISE = {"miss_prob": 0.15, "range_noise": 0.05, "bearing_noise": 0.01, "false_positives": 0.3,
+                 "swap_prob": 0.02, "max_range": 22.0}
 """OracleNoise of training: roughly what the detector does wrong on clean frames (see docs/rl.md)."""
 PERCEPTIONS = ("gt_cones", "oracle", "detector")
 EVAL_MAX_STEPS = 1800
@@ -205,14 +205,14 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                         "'{\"presets\": [\"droplets\", \"low_light\", \"rain\"], \"severities\": [0, 1, 2, 3]}'")
     p.add_argument("--camera", default=None, help="camera resolution WxH (default: the scenario's)")
     p.add_argument("--max-steps", type=int, default=1200, help="episode step limit while training (30 = 1 s)")
-    p.add_argument("--n-steps", type=int, default=1024, help="PPO rollout length per env")
+    p.add_argument("--n-steps", type=int, default=256, help="PPO rollout length per env")
     p.add_argument("--batch-size", type=int, default=256)
     p.add_argument("--n-epochs", type=int, default=10, help="PPO epochs per update")
     p.add_argument("--learning-rate", type=float, default=3e-4)
     p.add_argument("--gamma", type=float, default=0.99)
     p.add_argument("--ent-coef", type=float, default=0.0)
-    p.add_argument("--log-std-init", type=float, default=-1.0,
-                   help="initial log standard deviation of the actions (-1: std 0.37 of the [-1, 1] range)")
+    p.add_argument("--log-std-init", type=float, default=-0.5,
+                   help="initial log standard deviation of the actions (-0.5: std 0.61 of the [-1, 1] range)")
     p.add_argument("--eval-freq", type=int, default=25_000, help="env steps between held-out evaluations")
     p.add_argument("--eval-episodes", type=int, default=2, help="held-out episodes per evaluation")
     p.add_argument("--checkpoint-freq", type=int, default=25_000, help="env steps between checkpoints")
