@@ -57,6 +57,7 @@ def test_random_start_is_seeded_and_varies_per_episode():
 @pytest.mark.slow
 def test_ppo_trains_on_gt_cones_resumes_and_drives_through_the_detector(tmp_path):
     pytest.importorskip("stable_baselines3")
+    pytest.importorskip("weather_gym.pipeline", reason="the render-free gt_cones mode comes with the pipeline builder")
     train, evaluate_policy = _load("train_ppo"), _load("evaluate_policy")
     out = tmp_path / "run"
     common = ["--n-envs", "2", "--tracks", "hairpin,oval", "--n-steps", "128", "--batch-size", "64",
