@@ -129,3 +129,14 @@ def test_make_vec_env_seeds_each_env_and_stacks_its_info():
         assert trunc.all() and info["episode"]["end_reason"].tolist() == ["time_limit"] * 2
     finally:
         venv.close()
+
+
+def test_the_older_detector_keyword_still_means_the_detector():
+    env = gym.make("WeatherGym/ConeTrack-v0", camera=SMALL_CAMERA, detector={"threads": 1, "max_cones": 8})
+    off = gym.make("WeatherGym/ConeTrack-v0", camera=SMALL_CAMERA, detector={"enabled": False})
+    try:
+        assert DetectorWrapper in _chain(env) and env.observation_space["cones"].shape == (8, 14)
+        assert DetectorWrapper not in _chain(off) and "image" in off.observation_space.spaces
+    finally:
+        env.close()
+        off.close()

@@ -14,6 +14,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from weather_gym.errors import InputError, LimitError
+from weather_gym.limits import MAX_CAMERA_SIDE
+
 
 @dataclass(frozen=True)
 class CameraConfig:
@@ -45,7 +48,9 @@ class CameraConfig:
         for name in ("width", "height"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise ValueError(f"camera {name} must be a positive integer, got {v!r}")
+                raise InputError(f"camera {name} must be a positive integer, got {v!r}")
+            if v > MAX_CAMERA_SIDE:
+                raise LimitError(f"camera {name} = {v} px is too large; at most {MAX_CAMERA_SIDE} px are rendered")
         checks = {
             "hfov_deg": 1.0 <= self.hfov_deg <= 170.0,
             "fps": self.fps > 0,
@@ -58,7 +63,7 @@ class CameraConfig:
         }
         for name, ok in checks.items():
             if not ok:
-                raise ValueError(f"camera {name} has an invalid value {getattr(self, name)!r}")
+                raise InputError(f"camera {name} has an invalid value {getattr(self, name)!r}")
 
     @property
     def fx(self) -> float:

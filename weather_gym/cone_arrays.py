@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["ConeArrays"]
 
 
@@ -42,11 +44,11 @@ class ConeArrays(Mapping):
         for key, value in items.items():
             a = np.asarray(value)
             if a.ndim == 0:
-                raise ValueError(f"ConeArrays: {key!r} must have one row per cone, got a scalar")
+                raise InputError(f"ConeArrays: {key!r} must have one row per cone, got a scalar")
             if n is None:
                 n = a.shape[0]
             elif a.shape[0] != n:
-                raise ValueError(f"ConeArrays: {key!r} has {a.shape[0]} rows, the others {n}")
+                raise InputError(f"ConeArrays: {key!r} has {a.shape[0]} rows, the others {n}")
             a = a.view()
             a.flags.writeable = False
             out[key] = a

@@ -36,6 +36,7 @@ from typing import Any
 import gymnasium as gym
 
 from weather_gym.envs.scenario import Scenario, build_config, load_scenario
+from weather_gym.errors import InputError
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
 
@@ -55,7 +56,7 @@ _RENDER_FREE = {"camera_images": False, "ground_truth": "geometry"}
 def check_perception(perception: str) -> str:
     """``perception`` if it is a mode of :data:`PERCEPTION_MODES`, else a ``ValueError`` listing them."""
     if perception not in PERCEPTION_MODES:
-        raise ValueError(f"unknown perception {perception!r}; valid: {', '.join(PERCEPTION_MODES)}")
+        raise InputError(f"unknown perception {perception!r}; valid: {', '.join(PERCEPTION_MODES)}")
     return perception
 
 
@@ -71,9 +72,9 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
     kwargs = dict(perception_kwargs or {})
     if detector is not None:
         if perception != "detector":
-            raise ValueError(f"detector= is given but perception is {perception!r}; it needs perception='detector'")
+            raise InputError(f"detector= is given but perception is {perception!r}; it needs perception='detector'")
         if "detector" in kwargs:
-            raise ValueError("give the detector once: detector= or perception_kwargs['detector'], not both")
+            raise InputError("give the detector once: detector= or perception_kwargs['detector'], not both")
         kwargs["detector"] = detector
     images = isinstance(env.observation_space, gym.spaces.Dict) and "image" in env.observation_space.spaces
     if weather is not None:
@@ -85,11 +86,11 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
 
             env = WeatherWrapper(env, weather=effect)
         elif to_spec(effect):  # clear weather on an env without images is no weather at all
-            raise ValueError(f"weather {weather!r} acts on camera images, and this env renders none (perception "
+            raise InputError(f"weather {weather!r} acts on camera images, and this env renders none (perception "
                              f"{perception!r}); take perception 'oracle' or 'detector' to drive in weather")
     if perception == "detector":
         if not images:
-            raise ValueError("perception 'detector' needs camera images (camera_images=True)")
+            raise InputError("perception 'detector' needs camera images (camera_images=True)")
         from weather_gym.wrappers import DetectorWrapper
 
         return DetectorWrapper(env, **kwargs)
@@ -98,7 +99,7 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
 
         return GroundTruthConeWrapper(env, **kwargs)
     if kwargs:
-        raise ValueError(f"perception_kwargs {sorted(kwargs)} given, but perception 'camera' takes none")
+        raise InputError(f"perception_kwargs {sorted(kwargs)} given, but perception 'camera' takes none")
     return env
 
 
@@ -116,13 +117,23 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
 
     Keywords: ``perception`` (a mode of :data:`PERCEPTION_MODES`; default: the scenario's, else
     ``camera``), ``weather`` (any weather spec, or a condition with ``severity``), ``detector`` and
-    ``perception_kwargs`` (see :func:`wrap_pipeline`); the rest override the scenario's ``EnvConfig``
-    (``track=``, ``camera={"width": 336, "height": 188}``, ``laps=``...).
+    ``perception_kwargs`` (see :func:`wrap_pipeline`; ``detector=True`` or a dict of
+    ``DetectorWrapper`` keywords, the older form, mean ``perception="detector"`` with those keywords);
+    the rest override the scenario's ``EnvConfig`` (``track=``, ``camera={"width": 336, "height":
+    188}``, ``laps=``...).
     """
     from weather_gym.envs.cone_track import ConeTrackEnv
 
     sc = load_scenario(scenario)
     sc_mode, sc_detector, sc_kwargs = _scenario_perception(sc)
+    if detector is True or isinstance(detector, Mapping):  # the older form: detector=True / a dict of wrapper kwargs
+        table = {} if detector is True else dict(detector)
+        if table.pop("enabled", True) is False:
+            perception, detector = perception or "camera", None
+        else:
+            perception = perception or "detector"
+            detector = table.pop("detector", None)
+            perception_kwargs = {**table, **dict(perception_kwargs or {})}
     if perception is None:
         perception = "detector" if detector is not None and sc_mode == "camera" else sc_mode
     check_perception(perception)
@@ -149,7 +160,7 @@ def _weather_spec(sc: Scenario, weather: Any, severity: int | None) -> Any:
         return (sc.weather["condition"], int(sc.weather.get("severity", 0)))
     if severity is not None:
         if not isinstance(weather, str):
-            raise ValueError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
+            raise InputError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
         return (weather, int(severity))
     return weather
 
@@ -178,7 +189,7 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
 
     if env_id not in gym.registry:
         ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
-        raise ValueError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(ours)}")
+        raise InputError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(ours)}")
     kwargs: dict[str, Any] = dict(env_kwargs)
     for key, value in (("perception", perception), ("weather", weather), ("severity", severity),
                        ("detector", detector), ("perception_kwargs", perception_kwargs),
@@ -187,7 +198,7 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
             kwargs[key] = value
     if max_episode_steps is not None:
         if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, int) or max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}")
+            raise InputError(f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}")
         kwargs["max_episode_steps"] = max_episode_steps
     env = gym.make(env_id, **kwargs)
     if episode_statistics:
@@ -209,7 +220,7 @@ def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorizati
     from functools import partial
 
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
-        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        raise InputError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     make_env(env_id, **make_kwargs).close()  # a bad setting fails here, in this process, with its message
     fns = [partial(make_env, env_id, **make_kwargs) for _ in range(num_envs)]
     vk = dict(vector_kwargs or {})
@@ -219,4 +230,4 @@ def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorizati
         if context is not None:
             vk.setdefault("context", context)
         return gym.vector.AsyncVectorEnv(fns, **vk)
-    raise ValueError(f"vectorization_mode must be 'sync' or 'async', got {vectorization_mode!r}")
+    raise InputError(f"vectorization_mode must be 'sync' or 'async', got {vectorization_mode!r}")

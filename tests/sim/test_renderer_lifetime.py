@@ -91,11 +91,11 @@ SCRIPT = textwrap.dedent('''
     checks["closed_twice_then_other"] = frame(a) == solo_a
 
     # 6. many envs created and dropped in a loop, others closed out of order
-    envs = [make() for _ in range(4)]
-    for e in envs[::2]:
-        frame(e)
-    envs[1].close(); del envs[0]; gc.collect(); envs[2].close()
-    checks["loop"] = frame(envs[-1]) == solo_a == frame(a)
+    e0, e1, e2, e3 = (make() for _ in range(4))
+    frame(e0); frame(e2)
+    e1.close(); del e0; gc.collect(); e2.close()
+    checks["loop"] = frame(e3) == solo_a == frame(a)
+    e3.close()
     renderer = a.unwrapped.renderer
     a.close()
     print(json.dumps({"renderer": renderer, "checks": checks}))

@@ -1,7 +1,8 @@
 """Ground truth without rendering (weather_gym.sim.visibility) against the rendered ground truth.
 
 The agreement test drives real laps with the ground-truth driver and compares, frame by frame, the
-cones the geometry says are visible with the segmentation of the rendered frame (672x376 camera).
+cones the geometry says are visible with the segmentation of the rendered frame (672x376 camera;
+``weather-gym bench gt`` prints the same comparison as a table).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from weather_gym.agents import AGENTS
+from weather_gym.bench.gt import compare_ground_truth
 from weather_gym.camera import CameraConfig
 from weather_gym.sim.visibility import visible_cones
 from weather_gym.sim.world import World
@@ -21,50 +22,10 @@ CAM = CameraConfig()
 PITCH = math.radians(CAM.pitch_deg)
 
 
-def _iou(a, b) -> float:
-    w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    h = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - w * h
-    return w * h / union if union > 0 else 0.0
-
-
-def compare_on_lap(track_name: str, camera: CameraConfig = CAM, steps: int = 450, every: int = 3) -> dict:
-    """Drive ``steps`` steps of a GT lap; compare geometric and rendered ground truth every ``every``."""
-    track = load_track(track_name)
-    world = World(track, camera=camera)
-    try:
-        world.reset(tuple(track.start_pose))
-        agent = AGENTS.get("gt_pure_pursuit")(track, camera)
-        agent.reset(info={"pose": world.car.pose, "speed": 0.0})
-        stats = {"rendered": 0, "geometric": 0, "both": 0, "big": 0, "big_missed": 0, "iou": [], "pixel_err": []}
-        for step in range(steps):
-            a = agent.act(None, {"pose": world.car.pose, "speed": world.car.speed})
-            world.step(float(a[0]), float(a[1]))
-            if step % every:
-                continue
-            r, g = world.render().gt, world.ground_truth()
-            ri = {int(c): i for i, c in enumerate(r["cone_ids"])}
-            gi = {int(c): i for i, c in enumerate(g["cone_ids"])}
-            stats["rendered"] += len(ri)
-            stats["geometric"] += len(gi)
-            stats["both"] += len(ri.keys() & gi.keys())
-            for c, i in ri.items():
-                if r["pixels"][i] >= 20:
-                    stats["big"] += 1
-                    stats["big_missed"] += c not in gi
-            for c in ri.keys() & gi.keys():
-                stats["iou"].append(_iou(r["boxes"][ri[c]], g["boxes"][gi[c]]))
-                if r["pixels"][ri[c]] >= 20:
-                    stats["pixel_err"].append(g["pixels"][gi[c]] / r["pixels"][ri[c]] - 1.0)
-        return stats
-    finally:
-        world.close()
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("track", ["small_track", "hairpin"])
 def test_geometric_ground_truth_agrees_with_the_rendered_one_on_a_lap(track):
-    s = compare_on_lap(track)
+    s = compare_ground_truth(track, CAM, steps=450, every=3)
     iou, err = np.array(s["iou"]), np.abs(np.array(s["pixel_err"]))
     assert s["rendered"] > 1000
     assert s["both"] / s["rendered"] >= 0.99 and s["both"] / s["geometric"] >= 0.995  # recall, precision

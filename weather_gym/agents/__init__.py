@@ -7,6 +7,8 @@
 * ``mapper_pure_pursuit`` - the perception stack: ``ConeMapper`` + centre-line planner + pure
   pursuit, reading only ``obs["cones"]``, ``obs["mask"]`` and ``obs["state"]``.
 * ``sb3`` - a stable-baselines3 model (``model=`` an instance or ``path=`` a saved zip).
+* ``ppo_cones`` - the shipped PPO driver (``examples/train_ppo.py``, ``docs/rl.md``): reads the
+  cone list like ``mapper_pure_pursuit``; needs stable-baselines3 (``pip install -e ".[rl]"``).
 
 Callers always pass the step's ``info``; perception-driven agents never read ground truth from it.
 :func:`run_episode` is the one loop that drives an agent through an episode (``EpisodeResult``).
@@ -15,7 +17,7 @@ Example:
     >>> import numpy as np
     >>> from weather_gym.agents import AGENTS, Agent
     >>> AGENTS.names()
-    ['gt_pure_pursuit', 'mapper_pure_pursuit', 'sb3']
+    ['gt_pure_pursuit', 'mapper_pure_pursuit', 'ppo_cones', 'sb3']
     >>> class Straight:                       # a user's own stack: two methods are enough
     ...     def reset(self, seed=None, info=None): pass
     ...     def act(self, obs, info=None): return np.array([0.0, 0.3], np.float32)
@@ -29,6 +31,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.registry import Registry
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -56,9 +59,9 @@ def check_action(action: Any, who: str = "agent") -> np.ndarray:
     """Validate an agent's output: a finite float32 ``(2,)`` array in [-1, 1] (nothing is clamped)."""
     a = np.asarray(action, dtype=np.float32)
     if a.shape != (2,):
-        raise ValueError(f"{who} returned an action of shape {a.shape}; expected (2,) = (steering, throttle/brake)")
+        raise InputError(f"{who} returned an action of shape {a.shape}; expected (2,) = (steering, throttle/brake)")
     if not np.isfinite(a).all() or (np.abs(a) > 1.0).any():
-        raise ValueError(f"{who} returned {a.tolist()}; both components must be finite and in [-1, 1]")
+        raise InputError(f"{who} returned {a.tolist()}; both components must be finite and in [-1, 1]")
     return a
 
 
@@ -86,6 +89,14 @@ def _sb3(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     from weather_gym.agents.sb3 import SB3Agent
 
     return SB3Agent(track, camera, **kwargs)
+
+
+@AGENTS.register("ppo_cones")
+def _ppo_cones(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
+    from weather_gym.agents.sb3 import SB3Agent
+    from weather_gym.paths import PPO_CONES_MODEL
+
+    return SB3Agent(track, camera, path=PPO_CONES_MODEL, algo="PPO", **kwargs)
 
 
 from weather_gym.agents.episode import EpisodeResult, run_episode  # noqa: E402  (needs check_action above)

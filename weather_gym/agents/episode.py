@@ -31,6 +31,7 @@ import gymnasium as gym
 import numpy as np
 
 from weather_gym.agents import check_action
+from weather_gym.errors import InputError
 
 __all__ = ["EpisodeResult", "run_episode"]
 
@@ -96,7 +97,7 @@ def run_episode(env: gym.Env, agent: Any, *, seed: int | None = None, options: d
     from weather_gym.wrappers.episode import EpisodeStatistics, latencies
 
     if _find(env, gym.wrappers.TimeLimit) is None:
-        raise ValueError("run_episode needs an env with a time limit (gymnasium.wrappers.TimeLimit; "
+        raise InputError("run_episode needs an env with a time limit (gymnasium.wrappers.TimeLimit; "
                          "weather_gym.make_env(..., max_episode_steps=N) has one)")
     stats = _find(env, EpisodeStatistics)
     driven = env if stats is not None else EpisodeStatistics(env)

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from weather_gym.errors import MissingInputError
+
 
 def register(sub) -> None:
     p = sub.add_parser("gap", help="find and fix the gap between simulated and measured frames",
@@ -49,11 +51,11 @@ def _run(args) -> int:
     from weather_gym.gap.workflow import GapConfig, run_gap
 
     if not args.measured.is_dir():
-        raise FileNotFoundError(f"measured data folder {args.measured} not found")
+        raise MissingInputError(f"measured data folder {args.measured} not found")
     if args.model is not None and not args.model.is_file():
-        raise FileNotFoundError(f"model file {args.model} not found")
+        raise MissingInputError(f"model file {args.model} not found")
     if args.detector is not None and not args.detector.is_file():
-        raise FileNotFoundError(f"detector model {args.detector} not found")
+        raise MissingInputError(f"detector model {args.detector} not found")
     cands = None
     if args.candidates:
         cands = tuple(c.strip() for c in args.candidates.split(",") if c.strip())

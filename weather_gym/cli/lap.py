@@ -13,20 +13,22 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 from pathlib import Path
 from typing import Any
 
+from weather_gym.errors import InputError, MissingInputError
 from weather_gym.pipeline import PERCEPTION_MODES
 
 PERCEPTION_CHOICES = ("auto", *PERCEPTION_MODES)
-PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit"})
+PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit", "ppo_cones"})
 """Agents that read cone lists: ``--perception auto`` gives them the detector."""
 MIN_SPEED_FOR_LIMIT = 2.0
-"""Default step limit: every lap may take up to length / 2 m/s (at least a minute)."""
+"""Default time limit: every lap may take up to length / 2 m/s (at least a minute)."""
 
 EPILOG = """\
 perception (what the agent sees; the modes of weather_gym.pipeline.PERCEPTION_MODES):
-  auto      detector for agents that read cone lists (mapper_pure_pursuit), else camera
+  auto      detector for agents that read cone lists (mapper_pure_pursuit, ppo_cones), else camera
   camera    no perception: the (weathered) image, depth and state; gt_pure_pursuit drives from info
   detector  the ONNX cone detector on the (weathered) camera image -> cone list
   oracle    the rendered frame's ground truth as a perfect cone list
@@ -37,8 +39,8 @@ weather: a spec for weather_gym.weather.parse_weather, e.g. droplets:0.55, "drop
 
 output: per-lap times, cones hit, off-track events, mean/max cross-track error, why the run ended
   (laps | off_track | time_limit) and the renderer; --video writes an MP4 of the camera view
-  (weathered) with the cone boxes the agent received and a top-down map inset; --strip a PNG grid of
-  frames. Existing files are never replaced without --overwrite.
+  (weathered) with the cone boxes the agent received and a top-down map inset; --strip a PNG grid
+  of frames. Existing files are never replaced without --overwrite.
   Exit status 0 when every requested lap was completed, 1 when not (off track or time limit).
 
 examples:
@@ -83,7 +85,7 @@ def parse_agent_args(items: list[str]) -> dict[str, Any]:
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key.strip():
-            raise ValueError(f"--agent-arg {item!r}: expected KEY=VALUE")
+            raise InputError(f"--agent-arg {item!r}: expected KEY=VALUE")
         value: Any = raw
         if raw.lower() in ("true", "false"):
             value = raw.lower() == "true"
@@ -102,19 +104,19 @@ def _run(args) -> int:
     from weather_gym.viz.video import check_output_path
 
     if args.laps < 1:
-        raise ValueError(f"--laps must be >= 1, got {args.laps}")
+        raise InputError(f"--laps must be >= 1, got {args.laps}")
     if args.max_steps is not None and args.max_steps < 1:
-        raise ValueError(f"--max-steps must be >= 1, got {args.max_steps}")
+        raise InputError(f"--max-steps must be >= 1, got {args.max_steps}")
     if args.strip_frames < 1:
-        raise ValueError(f"--strip-frames must be >= 1, got {args.strip_frames}")
+        raise InputError(f"--strip-frames must be >= 1, got {args.strip_frames}")
     if args.video is not None:
         check_output_path(args.video, overwrite=args.overwrite, suffixes=(".mp4",))
     if args.strip is not None:
         check_output_path(args.strip, overwrite=args.overwrite, suffixes=(".png",))
     if args.video is not None and args.strip is not None and args.video.resolve() == args.strip.resolve():
-        raise ValueError("--video and --strip must be different files")
+        raise InputError("--video and --strip must be different files")
     if args.detector is not None and not args.detector.is_file():
-        raise FileNotFoundError(f"--detector: model file {args.detector} not found")
+        raise MissingInputError(f"--detector: model file {args.detector} not found")
     agent_kwargs = parse_agent_args(args.agent_arg)
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
@@ -144,11 +146,9 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
              overwrite: bool = False, progress: bool = False) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
 
-    The env comes from :func:`weather_gym.pipeline.make_env` and the episode from
-    :func:`weather_gym.agents.run_episode`.
+    The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
+    and the episode from :func:`weather_gym.agents.run_episode`.
     """
-    from tqdm import tqdm
-
     from weather_gym.agents import AGENTS, run_episode
     from weather_gym.pipeline import check_perception, make_env
 
@@ -158,7 +158,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     mode = perception if perception != "auto" else ("detector" if agent in PERCEPTION_AGENTS else "camera")
     recording = video is not None or strip is not None
     if recording and mode == "gt_cones":
-        raise ValueError("--video/--strip record the camera, and perception gt_cones renders none; "
+        raise InputError("--video/--strip record the camera, and perception gt_cones renders none; "
                          "take --perception oracle for a video of ground-truth driving")
     if max_steps is None:
         max_steps = default_max_steps(env_id, track, laps)
@@ -178,30 +178,34 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         trk, camera = base.track, base.config.camera
         hz = float(base.config.sim.control_hz)
         driver = factory(trk, camera, **(agent_kwargs or {}))
-        bar = tqdm(total=max_steps, unit="step", desc=f"{agent} on {trk.name}", disable=not progress or None,
-                   leave=False)
+        bar = _LapProgress(laps * trk.length, f"{agent} on {trk.name}", enabled=progress)
+        seen = _SeenByPerception(score_detector=mode == "detector")
         state: dict[str, Any] = {}
 
         def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
             nonlocal recorder
-            state["info"] = info
             if step == 0:
                 state["weather"] = weather or _describe_weather(info.get("weather"))
+                state["weathered"] = "weather" in info
                 if recording:
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
                                          state["weather"])
+            seen.add(info)
             if recorder is not None:
                 recorder.add(obs, info, laps)
             if step and step % 30 == 0:
-                bar.update(30)
-                bar.set_postfix(lap=info["lap"], v=f"{info['speed']:.1f}")
+                bar.update(info, laps)
 
         try:
             res = run_episode(env, driver, seed=seed, on_step=on_step, agent_name=agent)
+        except BaseException:
+            if recorder is not None:
+                recorder.abort()  # an interrupted run leaves no half-written video or strip
+            raise
         finally:
             bar.close()
-            if recorder is not None:
-                recorder.close()
+        if recorder is not None:
+            recorder.close()
         renderer = base.renderer
     finally:
         env.close()
@@ -212,16 +216,75 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,
         "cones_hit": res.cones_hit, "off_track_events": res.off_track_events,
         "cte_mean_m": res.cte_mean_m, "cte_max_m": res.cte_max_m, "max_steps": max_steps, "renderer": renderer,
-        "weather_latency_ms": res.weather_latency_ms, "detector_latency_ms": res.detector_latency_ms,
+        "weather_latency_ms": res.weather_latency_ms if state["weathered"] else None,
+        "detector_latency_ms": res.detector_latency_ms if mode == "detector" else None,
     }
+    result.update(seen.summary())
     cone_map = getattr(driver, "last_map", None)
     if cone_map is not None:
         result["map"] = cone_map.summary()
     if recording:
         result["video"] = str(video) if video is not None else None
         result["video_frames"] = recorder.video.frames if recorder is not None and recorder.video is not None else 0
+        result["video_codec"] = recorder.video.codec if recorder is not None and recorder.video is not None else None
         result["strip"] = str(strip) if strip is not None else None
     return result
+
+
+class _SeenByPerception:
+    """The detector's mAP@0.5 on the frames of the lap it saw (pycocotools, against the env's ground truth)."""
+
+    def __init__(self, *, score_detector: bool) -> None:
+        self.score_detector = score_detector
+        self.gts: list[Any] = []
+        self.dets: list[Any] = []
+
+    def add(self, info: dict) -> None:
+        if self.score_detector and info.get("gt") is not None and info.get("detections") is not None:
+            self.gts.append(info["gt"])
+            self.dets.append(info["detections"])
+
+    def summary(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.gts:
+            from weather_gym.perception import evaluate as score
+
+            res = score(self.gts, self.dets)
+            out.update(det_map50=float(res.map50), det_recall=float(res.recall), det_frames=int(res.n_images))
+        return out
+
+
+class _LapProgress:
+    """Distance driven along the track: a tqdm bar on a terminal, a plain line every 10 s otherwise."""
+
+    EVERY_S = 10.0
+
+    def __init__(self, total_m: float, desc: str, *, enabled: bool) -> None:
+        import sys
+
+        from tqdm import tqdm
+
+        self.enabled, self.desc = enabled, desc
+        self.tty = enabled and sys.stderr.isatty()
+        self.bar = tqdm(total=round(total_m), unit="m", desc=desc, leave=False, disable=not self.tty)
+        self.t0 = self.last = time.perf_counter()
+
+    def update(self, info: dict, laps: int) -> None:
+        import sys
+
+        done = max(0.0, float(info.get("progress", 0.0)))
+        lap = min(int(info["lap"]) + 1, laps)
+        if self.tty:
+            self.bar.n = min(round(done), self.bar.total)
+            self.bar.set_postfix(lap=f"{lap}/{laps}", v=f"{info['speed']:.1f}")
+        elif self.enabled and time.perf_counter() - self.last >= self.EVERY_S:
+            self.last = time.perf_counter()
+            print(f"{self.desc}: lap {lap}/{laps}, {done:.0f}/{self.bar.total} m, "
+                  f"{float(info.get('time', 0.0)):.1f} s simulated, {self.last - self.t0:.0f} s wall",
+                  file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        self.bar.close()
 
 
 def _describe_weather(spec: Any) -> str:
@@ -244,12 +307,20 @@ def format_result(r: dict[str, Any]) -> str:
                  f"{r['sim_time_s']:.1f} s simulated, {r['wall_time_s']:.1f} s wall, renderer {r['renderer']}")
     lines.append(f"cones hit: {r['cones_hit']}   off-track events: {r['off_track_events']}")
     lines.append(f"cross-track error: mean {r['cte_mean_m']:.3f} m, max {r['cte_max_m']:.3f} m")
+    if r.get("det_frames"):
+        lines.append(f"detector: mAP@0.5 {r['det_map50']:.3f}, recall {r['det_recall']:.3f} on the {r['det_frames']} "
+                     f"frames it saw")
+    added = [f"{name} {r[key]:.1f} ms" for name, key in (("weather", "weather_latency_ms"),
+                                                         ("detector", "detector_latency_ms")) if r.get(key) is not None]
+    if added:
+        lines.append("added per step: " + ", ".join(added))
     if "map" in r:
         m = r["map"]
         lines.append(f"map: {m['confirmed']} confirmed cones, mean position std {m['mean_position_std_m']:.3f} m, "
                      f"colour confidence {m['mean_class_confidence']:.2f}")
     if r.get("video"):
-        lines.append(f"video: {r['video']} ({r['video_frames']} frames)")
+        codec = {"h264": "H.264", "mp4v": "MPEG-4 Part 2"}.get(r.get("video_codec"), r.get("video_codec"))
+        lines.append(f"video: {r['video']} ({r['video_frames']} frames, {codec})")
     if r.get("strip"):
         lines.append(f"strip: {r['strip']}")
     return "\n".join(lines)
@@ -278,7 +349,7 @@ class _Recorder:
         from weather_gym.viz.overlay import compose_frame, cone_list_boxes, draw_boxes
 
         if not isinstance(obs, dict) or "image" not in obs:
-            raise ValueError("recording needs the camera image in the observation (a Dict with 'image')")
+            raise InputError("recording needs the camera image in the observation (a Dict with 'image')")
         image = np.asarray(obs["image"])
         h, w = image.shape[:2]
         if "cones" in obs and "mask" in obs:
@@ -312,6 +383,10 @@ class _Recorder:
             self.video.write(frame)
         if self.sampler is not None:
             self.sampler.offer(frame)
+
+    def abort(self) -> None:
+        if self.video is not None:
+            self.video.abort()
 
     def close(self) -> None:
         from weather_gym.viz.video import save_strip

@@ -18,7 +18,9 @@ import shlex
 import sys
 from pathlib import Path
 
+from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
+from weather_gym.errors import MissingInputError
 
 
 def register(sub) -> None:
@@ -41,6 +43,8 @@ def register(sub) -> None:
     p.add_argument("--model", type=Path, default=None, help="ONNX detector (default: the shipped model)")
     p.add_argument("--out", type=Path, required=True, help="output folder (curves.csv is resumed, never clobbered)")
     p.add_argument("--no-plot", action="store_true", help="do not draw curves.png")
+    add_overwrite_arg(p, help="replace plots or sweep.json in --out that no earlier sweep there wrote "
+                              "(curves.csv is always resumed, never replaced)")
     add_runner_args(p)
     p.set_defaults(func=_run)
 
@@ -64,7 +68,7 @@ def _run(args) -> int:
     seeds = parse_seeds(args.seeds, args.seed_list)
     check_runner_args(args)
     if not args.dataset.exists():
-        raise FileNotFoundError(f"--dataset {args.dataset} not found (render one with `weather-gym dataset render`)")
+        raise MissingInputError(f"--dataset {args.dataset} not found (render one with `weather-gym dataset render`)")
     cells = make_sweep_cells(effects, ks, seeds, args.dataset, args.model)  # validates set and model first
     check_results_path(args.out / CURVE_FILE)
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "sweep" in sys.argv[1:2] else None
@@ -72,7 +76,7 @@ def _run(args) -> int:
           f"{args.out / CURVE_FILE} ({args.backend}, {args.workers} workers)", file=sys.stderr)
     rows = run_sweep(effects, ks, seeds, args.dataset, args.out, model=args.model, workers=args.workers,
                      backend=args.backend, progress=not args.no_progress, retry_failed=not args.skip_failed,
-                     ray_address=args.ray_address, plot=not args.no_plot, command=command)
+                     ray_address=args.ray_address, plot=not args.no_plot, command=command, overwrite=args.overwrite)
     failed = [r for r in rows if r["status"] != "ok"]
     curves = load_curves(args.out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
     print("effect           k      mAP@0.5 mean ± sd   relative")

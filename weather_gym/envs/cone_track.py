@@ -26,6 +26,7 @@ import math
 import os
 import sys
 import warnings
+from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -35,6 +36,7 @@ from gymnasium import spaces
 
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
+from weather_gym.errors import InputError, StateError
 from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
 from weather_gym.sim.world import World
 
@@ -70,7 +72,7 @@ class ConeTrackEnv(gym.Env):
         if overrides:
             config = replace(config, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+            raise InputError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.config = config
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": config.sim.control_hz}
@@ -112,35 +114,37 @@ class ConeTrackEnv(gym.Env):
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self._check_open()
+        if options is not None and not isinstance(options, Mapping):
+            raise InputError(f"reset options must be a dict (keys {list(RESET_OPTIONS)}), got {options!r}")
         super().reset(seed=seed)
         options = dict(options or {})
         unknown = set(options) - set(RESET_OPTIONS)
         if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
+            raise InputError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
         self._episode_started = False  # until this reset has succeeded
         rng = self.np_random
         look = self._resolve_look(options.get("look"), rng)
 
         track = self.track
         if "start_pose" in options:
-            try:
-                pose = tuple(float(v) for v in options["start_pose"])
-            except (TypeError, ValueError):
-                pose = ()
+            pose = _numbers(options["start_pose"], "start_pose")
             if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
-                raise ValueError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
+                raise InputError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
         elif "start_s" in options:
-            x, y, h = track.point_at(float(options["start_s"]))
+            start_s = _numbers([options["start_s"]], "start_s")[0]
+            if not math.isfinite(start_s):
+                raise InputError(f"reset option start_s must be a finite arc length in metres, got {start_s!r}")
+            x, y, h = track.point_at(start_s)
             pose = (float(x), float(y), float(h))
         else:
             pose = tuple(float(v) for v in track.start_pose)
-        speed = options.get("start_speed", 0.0)
-        if not (isinstance(speed, (int, float)) and math.isfinite(speed) and speed >= 0):
-            raise ValueError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
-        speed = float(speed)
+        speed = _numbers([options.get("start_speed", 0.0)], "start_speed")[0]
+        if not math.isfinite(speed) or speed < 0:
+            raise InputError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
         friction = options.get("friction", self.config.car.friction)
         if not (isinstance(friction, (int, float)) and math.isfinite(friction) and friction > 0):
-            raise ValueError(f"reset option friction must be a finite number > 0, got {friction!r}")
+            raise InputError(f"reset option friction must be a finite number > 0, got {friction!r}")
         self._friction = float(friction)
         world = self.world
         world.set_look(look)
@@ -178,19 +182,20 @@ class ConeTrackEnv(gym.Env):
             return sample_look(rng)
         if isinstance(look, dict):
             return Look.from_dict(look)
-        raise ValueError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
+        raise InputError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
 
     # ------------------------------------------------------------------ step
     def step(self, action):
+        self._check_open()
         if not self._episode_started:
-            raise RuntimeError("call reset() before step()")
+            raise StateError("call reset() before step()")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
+            raise InputError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {a.tolist()}")
+            raise InputError(f"action must be finite, got {a.tolist()}")
         if np.any(np.abs(a) > 1.0 + 1e-6):
-            raise ValueError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
+            raise InputError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
         steer, pedal = float(np.clip(a[0], -1, 1)), float(np.clip(a[1], -1, 1))  # only float rounding is clipped
 
         touched = self._world.step(steer, pedal, self._friction)  # reset() made the world
@@ -310,8 +315,19 @@ class ConeTrackEnv(gym.Env):
         return info
 
     # ------------------------------------------------------------------ render / close
+    @property
+    def render_view(self) -> str:
+        """What ``render()`` returns in ``rgb_array`` mode: ``"chase"`` or ``"camera"`` (``EnvConfig.render_view``)."""
+        return self.config.render_view
+
     def render(self):
+        """``rgb_array``: the chase view, or the camera frame (``render_view="camera"``; a
+        ``WeatherWrapper`` above returns it weathered); ``human``: None (the GUI window shows the scene)."""
         if self.render_mode == "rgb_array":
+            if self.config.render_view == "camera":
+                if self._image is None:
+                    raise StateError("call reset() before render()")
+                return self._image.copy()
             return self.world.render_chase()
         return None  # "human": the PyBullet GUI window shows the scene live
 
@@ -320,8 +336,21 @@ class ConeTrackEnv(gym.Env):
         self._episode_started = False
         if world is not None:
             world.close()
+        self._closed = True
         super().close()
+
+    def _check_open(self) -> None:
+        if getattr(self, "_closed", False):
+            raise StateError("this env was closed; make a new one (gymnasium.make) to go on")
 
 
 def _display_available() -> bool:
     return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY"))
+
+
+def _numbers(values: Any, option: str) -> tuple[float, ...]:
+    """``values`` as floats; an :class:`InputError` naming the reset option when they are not numbers."""
+    try:
+        return tuple(float(v) for v in values)
+    except (TypeError, ValueError):
+        raise InputError(f"reset option {option} must be numbers, got {values!r}") from None

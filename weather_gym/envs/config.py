@@ -15,11 +15,15 @@ import math
 from dataclasses import dataclass, field
 
 from weather_gym.camera import CameraConfig
+from weather_gym.errors import InputError
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 
 GROUND_TRUTH_MODES = ("segmentation", "geometry", "off")
 """Where ``info["gt"]`` comes from: the rendered segmentation (pixel exact), geometry (no rendering;
 :mod:`weather_gym.sim.visibility`), or nowhere (no ``info["gt"]``)."""
+
+RENDER_VIEWS = ("chase", "camera")
+"""Views ``ConeTrackEnv.render()`` can return (``EnvConfig.render_view``)."""
 
 
 @dataclass(frozen=True)
@@ -36,7 +40,7 @@ class RewardConfig:
         for name in ("progress", "cone_hit", "off_track", "time"):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"RewardConfig.{name} must be a finite number, got {v!r}")
+                raise InputError(f"RewardConfig.{name} must be a finite number, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -56,6 +60,10 @@ class EnvConfig:
             (the observation is ``state`` only; pair with ``ground_truth="geometry"``).
         ground_truth: ``info["gt"]`` from the rendered ``"segmentation"``, from ``"geometry"`` (the
             segmentation pass is then skipped), or ``"off"``.
+        render_view: what ``render()`` returns with ``render_mode="rgb_array"``: ``"chase"`` (a
+            camera behind the car, for people) or ``"camera"`` (the car's camera frame; through a
+            ``WeatherWrapper`` it is the weathered frame the agent sees, so Gymnasium's and our
+            ``RecordVideo`` record the weather).
 
     The episode's time limit is not here: Gymnasium's ``TimeLimit`` owns truncation
     (``gym.make(id, max_episode_steps=...)``; each scenario registers its default).
@@ -69,6 +77,7 @@ class EnvConfig:
     randomize_look: bool = False
     camera_images: bool = True
     ground_truth: str = "segmentation"
+    render_view: str = "chase"
     sim: SimConfig = field(default_factory=SimConfig)
     car: CarConfig = field(default_factory=CarConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
@@ -77,24 +86,28 @@ class EnvConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.track, str) or not self.track:
-            raise ValueError(f"EnvConfig.track must be a non-empty string, got {self.track!r}")
+            raise InputError(f"EnvConfig.track must be a non-empty string, got {self.track!r}")
         if not isinstance(self.laps, int) or isinstance(self.laps, bool) or self.laps < 0:
-            raise ValueError(f"EnvConfig.laps must be an integer >= 0, got {self.laps!r}")
+            raise InputError(f"EnvConfig.laps must be an integer >= 0, got {self.laps!r}")
         if not isinstance(self.camera_images, bool):
-            raise ValueError(f"EnvConfig.camera_images must be true or false, got {self.camera_images!r}")
+            raise InputError(f"EnvConfig.camera_images must be true or false, got {self.camera_images!r}")
         if self.ground_truth not in GROUND_TRUTH_MODES:
-            raise ValueError(f"EnvConfig.ground_truth must be one of {', '.join(GROUND_TRUTH_MODES)}, "
+            raise InputError(f"EnvConfig.ground_truth must be one of {', '.join(GROUND_TRUTH_MODES)}, "
                              f"got {self.ground_truth!r}")
         if not self.camera_images and self.ground_truth == "segmentation":
-            raise ValueError('EnvConfig.ground_truth="segmentation" needs rendered frames; with camera_images=False '
+            raise InputError('EnvConfig.ground_truth="segmentation" needs rendered frames; with camera_images=False '
                              'take ground_truth="geometry" (or "off")')
         if not (isinstance(self.off_track_margin, (int, float)) and math.isfinite(self.off_track_margin)
                 and self.off_track_margin >= 0):
-            raise ValueError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
+            raise InputError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
+        if self.render_view not in RENDER_VIEWS:
+            raise InputError(f"EnvConfig.render_view must be one of {', '.join(RENDER_VIEWS)}, got {self.render_view!r}")
         for name, cls in (("sim", SimConfig), ("car", CarConfig), ("camera", CameraConfig),
                           ("odometry", OdometryConfig), ("reward", RewardConfig)):
             if not isinstance(getattr(self, name), cls):
-                raise ValueError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+                raise InputError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
         if self.camera_images and self.sim.renderer == "none":
-            raise ValueError('EnvConfig: sim.renderer="none" renders no camera frames; set camera_images=False '
+            raise InputError('EnvConfig: sim.renderer="none" renders no camera frames; set camera_images=False '
                              '(or pick renderer "auto", "egl" or "tiny")')
+        if self.render_view == "camera" and not self.camera_images:
+            raise InputError('EnvConfig: render_view="camera" needs camera_images=True (nothing is rendered otherwise)')

@@ -3,8 +3,8 @@
 Each id's entry point is :func:`weather_gym.pipeline.make_scenario_env` (env -> weather ->
 perception; see :mod:`weather_gym.pipeline` for its keywords) and its ``max_episode_steps`` the
 scenario's: Gymnasium's ``TimeLimit`` owns truncation, so ``gym.make(id, max_episode_steps=N)``
-runs up to N steps. This module only stores the entry point's name, so the env layer imports
-nothing above it.
+runs up to N steps (``-1``: Gymnasium's "no limit"). This module only stores the entry point's
+name, so the env layer imports nothing above it.
 
 Example:
     >>> import gymnasium as gym
@@ -19,6 +19,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from weather_gym.envs.scenario import Scenario, load_scenario, scenario_files
+from weather_gym.errors import InputError
 
 ENTRY_POINT = "weather_gym.pipeline:make_scenario_env"
 
@@ -31,7 +32,7 @@ def register_envs() -> list[str]:
     for path in scenario_files():
         sc = load_scenario(path)
         if sc.env_id in _SCENARIOS and _SCENARIOS[sc.env_id].path != sc.path:
-            raise ValueError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
+            raise InputError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
         _SCENARIOS[sc.env_id] = sc
         if sc.env_id not in gym.registry:
             gym.register(id=sc.env_id, entry_point=ENTRY_POINT, kwargs={"scenario": str(path)},
@@ -46,4 +47,4 @@ def scenario_of(env_id: str) -> Scenario:
     try:
         return _SCENARIOS[env_id]
     except KeyError:
-        raise ValueError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(sorted(_SCENARIOS))}") from None
+        raise InputError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(sorted(_SCENARIOS))}") from None

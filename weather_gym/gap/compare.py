@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.gap.perception import FrameMatches, perception_stats
 from weather_gym.gap.signals import SIGNALS
 
@@ -102,7 +103,7 @@ class GapMeter:
     def _check(self, sim: np.ndarray) -> np.ndarray:
         sim = np.asarray(sim, np.float64)
         if self.paired and sim.shape != self.measured.shape:
-            raise ValueError(f"paired comparison needs sim signals of shape {self.measured.shape}, got {sim.shape}")
+            raise InputError(f"paired comparison needs sim signals of shape {self.measured.shape}, got {sim.shape}")
         return sim
 
     def biases(self, sim: np.ndarray) -> np.ndarray:

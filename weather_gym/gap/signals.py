@@ -50,6 +50,8 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["SIGNALS", "SIGNAL_NAMES", "FAMILIES", "Signal", "frame_signals", "signal_table", "signal_weights"]
 
 
@@ -260,10 +262,10 @@ def frame_signals(image: np.ndarray, depth: np.ndarray | None = None,
     """
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
-        raise ValueError(f"frame_signals: expected an RGB uint8 image (H, W, 3), got {got}")
+        raise InputError(f"frame_signals: expected an RGB uint8 image (H, W, 3), got {got}")
     h, w = image.shape[:2]
     if h < 32 or w < 32:
-        raise ValueError(f"frame_signals: image {w}x{h} is too small (at least 32x32)")
+        raise InputError(f"frame_signals: image {w}x{h} is too small (at least 32x32)")
     image = np.ascontiguousarray(image)
     y8 = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
     y = y8.astype(np.float32)

@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["FrameSet", "GapData", "load_frames", "paired_check", "simulate", "split_indices", "frame_state"]
 
 _PAIRED_KEYS = ("track", "pose")
@@ -130,7 +132,7 @@ def load_frames(ds: Any, *, progress: bool = False, desc: str = "load") -> Frame
     if images:
         shapes = {im.shape for im in images}
         if len(shapes) > 1:
-            raise ValueError(f"{ds.root}: frames have different sizes {sorted(shapes)}; the gap workflow "
+            raise InputError(f"{ds.root}: frames have different sizes {sorted(shapes)}; the gap workflow "
                              "needs one camera resolution")
     return FrameSet(images, depths, gts, states, ids, str(ds.root))
 
@@ -151,9 +153,9 @@ def paired_check(ds: Any) -> tuple[bool, str]:
 def split_indices(n: int, *, held_out: float = 0.5, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A seeded split of ``range(n)`` into (fitting, held-out) index arrays, each sorted."""
     if not 0.0 < held_out < 1.0:
-        raise ValueError(f"held_out must be a fraction in (0, 1), got {held_out}")
+        raise InputError(f"held_out must be a fraction in (0, 1), got {held_out}")
     if n < 4:
-        raise ValueError(f"the gap workflow needs at least 4 frames, got {n}")
+        raise InputError(f"the gap workflow needs at least 4 frames, got {n}")
     perm = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5917])).permutation(n)
     n_held = min(max(int(round(n * held_out)), 2), n - 2)
     return np.sort(perm[n_held:]), np.sort(perm[:n_held])
@@ -169,7 +171,7 @@ def _camera_of(ds: Any) -> Any:
     rec = ds.images[0]
     cam = CameraConfig(**rec["camera"]) if rec.get("camera") else CameraConfig().scaled(rec["width"], rec["height"])
     if (cam.width, cam.height) != (rec["width"], rec["height"]):
-        raise ValueError(f"{ds.annotations_path}: image {rec['id']} is {rec['width']}x{rec['height']} but its "
+        raise InputError(f"{ds.annotations_path}: image {rec['id']} is {rec['width']}x{rec['height']} but its "
                          f"camera record says {cam.width}x{cam.height}")
     return cam
 
@@ -197,7 +199,12 @@ def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) ->
 
     camera = _camera_of(ds)
     views = [_view_record(rec, camera, notes) for rec in ds.images]
-    key = _key({"v": _CACHE_VERSION, "views": [{k: v for k, v in view.items() if k != "id"} for view in views]})
+    for i, view in enumerate(views):  # render from the track the record names, confined to the dataset folder
+        if view.get("track") is not None:
+            view["track"] = ds.track_spec(i)
+        view["index"] = i
+    key = _key({"v": _CACHE_VERSION, "views": [{k: v for k, v in view.items() if k not in ("id", "index")}
+                                                for view in views]})
     out = cache_dir / f"paired-{key}"
     if (out / ANNOTATIONS).is_file():
         return out
@@ -209,6 +216,8 @@ def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) ->
                          initial=writer.done, total=len(views)):
             r = renderer.render(view)
             rec = {k: v for k, v in view.items() if k != "id"}
+            rec["track"] = ds.images[view["index"]].get("track")  # as the measured record names it
+            rec.pop("index")
             rec["measured_id"] = view["id"]
             writer.add(r["image"], rec, r["gt"], depth=r["depth"])
     except BaseException:
@@ -250,13 +259,13 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
     from weather_gym.datasets.coco import load_coco
 
     if mode not in ("auto", "paired", "unpaired"):
-        raise ValueError(f"mode must be 'auto', 'paired' or 'unpaired', got {mode!r}")
+        raise InputError(f"mode must be 'auto', 'paired' or 'unpaired', got {mode!r}")
     ds = measured if hasattr(measured, "render_view") else load_coco(measured)
     if len(ds) < 4:
-        raise ValueError(f"{ds.root}: the gap workflow needs at least 4 measured frames, found {len(ds)}")
+        raise InputError(f"{ds.root}: the gap workflow needs at least 4 measured frames, found {len(ds)}")
     can_pair, why = paired_check(ds)
     if mode == "paired" and not can_pair:
-        raise ValueError(f"{ds.annotations_path}: paired mode needs 'track' and 'pose' in every image record; {why}")
+        raise InputError(f"{ds.annotations_path}: paired mode needs 'track' and 'pose' in every image record; {why}")
     use_paired = can_pair if mode == "auto" else mode == "paired"
     if mode == "unpaired" and can_pair:
         why = "unpaired mode was asked for: distributions over the whole sets are compared"
@@ -272,9 +281,9 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         mode_name = "paired"
     else:
         if tracks is None:
-            tracks = sorted({str(r["track"]) for r in ds.images if r.get("track")})
+            tracks = sorted({ds.track_spec(i) for i, r in enumerate(ds.images) if r.get("track")})
         if not tracks:
-            raise ValueError(f"{ds.annotations_path}: the records name no track; unpaired mode needs one "
+            raise InputError(f"{ds.annotations_path}: the records name no track; unpaired mode needs one "
                              "(--track NAME)")
         n_sim = int(sim_frames or len(ds))
         sim_root = _render_unpaired(ds, cache, list(tracks), n_sim, seed, progress)
@@ -283,7 +292,7 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         mode_name = "unpaired"
     sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
     if sim_frames_set.size != measured_frames.size:
-        raise ValueError(f"simulated frames are {sim_frames_set.size}, measured {measured_frames.size}")
+        raise InputError(f"simulated frames are {sim_frames_set.size}, measured {measured_frames.size}")
     meta = {"measured": str(ds.root), "sim": str(sim_root), "tracks": sorted({str(r.get("track")) for r in sim_ds.images}),
             "size": list(measured_frames.size)}
     return GapData(mode_name, why, measured_frames, sim_frames_set, fit, held, sim_fit, sim_held,

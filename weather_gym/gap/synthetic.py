@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from pathlib import Path
 from typing import Any
 
-import cv2
-
-from weather_gym._io import atomic_write_json
+from weather_gym._io import atomic_write, atomic_write_json, check_output, write_image
+from weather_gym.errors import InputError
 from weather_gym.gap.model import apply_chain
 from weather_gym.gap.simulate import frame_state
 
@@ -47,29 +45,27 @@ def degrade_dataset(src: str | os.PathLike, dst: str | os.PathLike, weather: Any
     """
     from tqdm import tqdm
 
-    from weather_gym.datasets.coco import ANNOTATIONS, load_coco
+    from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
 
-    ds = load_coco(src)
+    ds = load_coco(src)  # every file name is checked to stay inside src (record_path)
     dst = Path(dst)
-    if (dst / ANNOTATIONS).exists() and not overwrite:
-        raise FileExistsError(f"{dst / ANNOTATIONS} already exists; pass overwrite=True to replace it")
+    if dst.resolve() == Path(src).resolve():
+        raise InputError(f"{dst}: the copy must go to another folder than its source")
+    check_output(dst / ANNOTATIONS, overwrite=overwrite)
     effects = _effects(weather)
-    (dst / "images").mkdir(parents=True, exist_ok=True)
     data = json.loads((Path(src) / ANNOTATIONS).read_text())
     for i in tqdm(range(len(ds)), desc="degrade", unit="frame", disable=not progress):
         rec = ds.record(i)
         img = apply_chain(effects, ds.image(i), depth=ds.depth(i), state=frame_state(rec), seed=seed,
                           frame_id=int(rec["id"]))
-        out = dst / rec["file_name"]
-        out.parent.mkdir(parents=True, exist_ok=True)
-        if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
-            raise OSError(f"could not write {out}")
+        # the same relative names, confined to dst: a dataset cannot make us write elsewhere
+        write_image(record_path(dst, rec, "file_name"), img, overwrite=overwrite)
         if rec.get("depth_file"):
-            (dst / rec["depth_file"]).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(Path(src) / rec["depth_file"], dst / rec["depth_file"])
+            atomic_write(record_path(dst, rec, "depth_file"), record_path(src, rec, "depth_file").read_bytes(),
+                         overwrite=overwrite)
     if strip_poses:
         for rec in data["images"]:
             for key in ("pose", "look", "seed", "episode", "step"):
                 rec.pop(key, None)
     data.setdefault("info", {})["description"] = "weather-gym frames with weather applied (degrade_dataset)"
-    return atomic_write_json(dst / ANNOTATIONS, data)
+    return atomic_write_json(dst / ANNOTATIONS, data, overwrite=overwrite)

@@ -46,6 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
+from weather_gym.errors import InputError
+
 RENDERER_NAMES = ("egl", "tiny", "none")
 
 _egl_used = False
@@ -228,11 +230,11 @@ def connect(*, renderer: str = "auto", gui: bool = False) -> PhysicsClient:
     ``WEATHER_GYM_RENDERER`` (``egl``/``tiny``) overrides "auto". "egl" raises when EGL cannot be used.
     """
     if renderer not in ("auto", *RENDERER_NAMES):
-        raise ValueError(f"renderer must be one of auto, {', '.join(RENDERER_NAMES)}; got {renderer!r}")
+        raise InputError(f"renderer must be one of auto, {', '.join(RENDERER_NAMES)}; got {renderer!r}")
     if renderer == "auto":
         renderer = os.environ.get("WEATHER_GYM_RENDERER", "auto") or "auto"
         if renderer not in ("auto", "egl", "tiny"):
-            raise ValueError(f"WEATHER_GYM_RENDERER must be egl or tiny, got {renderer!r}")
+            raise InputError(f"WEATHER_GYM_RENDERER must be egl or tiny, got {renderer!r}")
     _drain_pending()
     if renderer in ("auto", "egl") and not gui and _forked_after_egl:
         raise RuntimeError(

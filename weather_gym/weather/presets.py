@@ -1,22 +1,29 @@
 """Weather presets: a condition and a severity 0-4 name a list of effects (``presets.toml``).
 
-The table ships with the package (``weather_gym/weather/presets.toml``); calibration rewrites that
-file and nothing else changes (``calibrated = true`` and the calibration's provenance are in it;
-``calibrated = false`` would mark uncalibrated guesses).
+Every effect is a condition (``rain@2``, ``fog@3``, ...), plus the study's two: ``droplets`` and
+``low_light`` (alias ``dim``). Each row says whether it is **calibrated** (its k was read off a
+measured perception drop by ``weather-gym calibrate``; ``calibrated = true``) or **nominal** (a
+documented choice of k, not measured; ``calibrated = false``). The table ships with the package
+(``weather_gym/weather/presets.toml``); calibration rewrites the rows it measured, keeps the others
+as nominal, and nothing else changes.
 
-File format: top-level ``calibrated`` (bool) and free metadata, then one ``[[presets]]`` table per
-condition and severity with ``condition``, ``severity``, ``effects`` (a list of ``{name, k, ...}``
-tables as in model files) and optional fields (``description``, ``k_interval``, ``measured_map``,
-``measured_relative``, ``achieved_relative``, anything else) kept as they are.
+File format: free top-level metadata, then one ``[[presets]]`` table per condition and severity with
+``condition``, ``severity``, ``effects`` (a list of ``{name, k, ...}`` tables as in model files),
+``calibrated`` (bool; default: the file's top-level ``calibrated``, else false) and optional fields
+(``description``, ``k_interval``, ``measured_map``, ``measured_relative``, ``achieved_relative``,
+``note``, anything else) kept as they are. A condition in the file has all five severities; a file
+need not hold every condition.
 
 Example:
-    >>> from weather_gym.weather.presets import preset_spec, CONDITIONS
-    >>> CONDITIONS
-    ('droplets', 'low_light')
+    >>> from weather_gym.weather.presets import preset_entry, preset_spec, CONDITIONS
+    >>> CONDITIONS[:3]
+    ('droplets', 'low_light', 'blur')
     >>> preset_spec("droplets", 3)[0]["name"]
     'droplets'
     >>> preset_spec("dim", 0)            # "dim" is an alias of low_light; severity 0 is clear
     []
+    >>> preset_entry("rain", 2)["calibrated"], preset_spec("rain", 2)
+    (False, [{'name': 'rain', 'k': 0.5}])
 """
 
 from __future__ import annotations
@@ -26,6 +33,8 @@ import numbers
 from pathlib import Path
 from typing import Any
 
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
+
 try:
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
@@ -34,7 +43,9 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 __all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "SEVERITIES", "canonical_condition",
            "load_presets", "preset_entry", "preset_spec"]
 
-CONDITIONS = ("droplets", "low_light")
+CONDITIONS = ("droplets", "low_light", "blur", "motion_blur", "noise", "exposure", "fog", "rain", "glare",
+              "vignette", "jpeg")
+"""The study's two conditions, then every other effect under its own name."""
 SEVERITIES = (0, 1, 2, 3, 4)
 #: Other names accepted for a condition (the effect names of each condition).
 ALIASES = {"dim": "low_light", "droplets": "droplets"}
@@ -50,13 +61,13 @@ def canonical_condition(condition: str) -> str:
         c = ALIASES.get(condition, condition)
         if c in CONDITIONS:
             return c
-    raise ValueError(f"unknown weather condition {condition!r}; valid conditions: {', '.join(CONDITIONS)} "
+    raise InputError(f"unknown weather condition {condition!r}; valid conditions: {', '.join(CONDITIONS)} "
                      f"(aliases: {', '.join(f'{a}={c}' for a, c in ALIASES.items() if a != c)})")
 
 
 def _check_severity(severity: Any) -> int:
     if isinstance(severity, bool) or not isinstance(severity, numbers.Integral) or int(severity) not in SEVERITIES:
-        raise ValueError(f"invalid severity {severity!r}; valid severities: {', '.join(map(str, SEVERITIES))}")
+        raise InputError(f"invalid severity {severity!r}; valid severities: {', '.join(map(str, SEVERITIES))}")
     return int(severity)
 
 
@@ -65,52 +76,62 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
 
     tables = data.get("presets")
     if not isinstance(tables, list):
-        raise ValueError(f"{path}: expected [[presets]] tables")
+        raise FileFormatError(f"{path}: expected [[presets]] tables")
+    default_calibrated = data.get("calibrated", False)
+    if not isinstance(default_calibrated, bool):
+        raise FileFormatError(f"{path}: 'calibrated' must be true or false")
     out: dict[str, dict[int, dict[str, Any]]] = {c: {} for c in CONDITIONS}
     for i, t in enumerate(tables):
         where = f"{path}: [[presets]] #{i + 1}"
         if not isinstance(t, dict):
-            raise ValueError(f"{where}: expected a table")
+            raise FileFormatError(f"{where}: expected a table")
         for key in ("condition", "severity", "effects"):
             if key not in t:
-                raise ValueError(f"{where}: missing key {key!r}")
+                raise FileFormatError(f"{where}: missing key {key!r}")
         try:
             cond = canonical_condition(t["condition"])
             sev = _check_severity(t["severity"])
             if not isinstance(t["effects"], list):
-                raise ValueError(f"effects must be a list of {{name, k, ...}} tables, got {t['effects']!r}")
+                raise FileFormatError(f"effects must be a list of {{name, k, ...}} tables, got {t['effects']!r}")
             parse_weather(t["effects"])
         except ValueError as exc:
-            raise ValueError(f"{where}: {exc}") from None
+            raise FileFormatError(f"{where}: {exc}") from None
         if sev in out[cond]:
-            raise ValueError(f"{where}: {cond} severity {sev} appears twice")
+            raise FileFormatError(f"{where}: {cond} severity {sev} appears twice")
+        t = dict(t)
+        t.setdefault("calibrated", default_calibrated)
+        if not isinstance(t["calibrated"], bool):
+            raise FileFormatError(f"{where}: 'calibrated' must be true or false, got {t['calibrated']!r}")
         out[cond][sev] = t
-    for cond in CONDITIONS:
-        missing = [s for s in SEVERITIES if s not in out[cond]]
+    out = {c: sevs for c, sevs in out.items() if sevs}
+    for cond, sevs in out.items():
+        missing = [s for s in SEVERITIES if s not in sevs]
         if missing:
-            raise ValueError(f"{path}: condition {cond!r} has no preset for severity {missing}")
-    meta = {k: v for k, v in data.items() if k != "presets"}
-    if not isinstance(meta.get("calibrated", False), bool):
-        raise ValueError(f"{path}: 'calibrated' must be true or false")
-    return {**meta, "calibrated": meta.get("calibrated", False), "presets": out}
+            raise FileFormatError(f"{path}: condition {cond!r} has no preset for severity {missing}")
+    if not out:
+        raise FileFormatError(f"{path}: no [[presets]] tables")
+    meta = {k: v for k, v in data.items() if k not in ("presets", "calibrated")}
+    calibrated = tuple(c for c, sevs in out.items() if all(t["calibrated"] for t in sevs.values()))
+    return {**meta, "calibrated": bool(calibrated), "calibrated_conditions": calibrated, "presets": out}
 
 
 def load_presets(path: str | Path | None = None) -> dict[str, Any]:
     """Read and validate a presets file (default: the shipped one).
 
-    Returns ``{"calibrated": bool, <other top-level keys>, "presets": {condition: {severity: table}}}``.
-    Re-read whenever the file changes.
+    Returns ``{<top-level keys>, "presets": {condition: {severity: table}}, "calibrated_conditions":
+    (conditions whose every row is calibrated), "calibrated": bool(calibrated_conditions)}``; every
+    table has its ``calibrated`` flag. Re-read whenever the file changes.
     """
     p = Path(path) if path is not None else DEFAULT_PRESETS
     if not p.is_file():
-        raise FileNotFoundError(f"presets file {p} not found")
+        raise MissingInputError(f"presets file {p} not found")
     key = (str(p.resolve()), p.stat().st_mtime_ns)
     if key not in _CACHE:
         try:
             with p.open("rb") as f:
                 data = tomllib.load(f)
         except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{p}: not valid TOML: {exc}") from None
+            raise FileFormatError(f"{p}: not valid TOML: {exc}") from None
         _CACHE[key] = _validate(data, p)
     return copy.deepcopy(_CACHE[key])
 
@@ -118,7 +139,11 @@ def load_presets(path: str | Path | None = None) -> dict[str, Any]:
 def preset_entry(condition: str, severity: int, path: str | Path | None = None) -> dict[str, Any]:
     """The whole ``[[presets]]`` table of a condition and severity (effects, measurements, ...)."""
     cond, sev = canonical_condition(condition), _check_severity(severity)
-    return load_presets(path)["presets"][cond][sev]
+    table = load_presets(path)["presets"]
+    if cond not in table:
+        raise InputError(f"presets file {path or DEFAULT_PRESETS} has no rows for condition {cond!r} "
+                         f"(it has: {', '.join(table)})")
+    return table[cond][sev]
 
 
 def preset_spec(condition: str, severity: int, path: str | Path | None = None) -> list[dict[str, Any]]:

@@ -1,5 +1,7 @@
-"""Gymnasium wrappers: ``WeatherWrapper`` (weather on image observations), ``DetectorWrapper``,
-``GroundTruthConeWrapper`` (oracle / ground-truth cone lists), ``EpisodeStatistics``.
+"""Gymnasium wrappers: ``WeatherWrapper`` (weather on image observations), ``WeatherRandomizer``
+(random weather per episode or step), ``DetectorWrapper``, ``GroundTruthConeWrapper`` (oracle /
+ground-truth cone lists), ``EpisodeStatistics`` (a summary of each episode in its last info), and
+``RecordVideo`` (H.264 videos of ``render()``, defined in ``weather_gym.viz``).
 
 Imports are lazy (``__getattr__``) so ``import weather_gym.wrappers`` stays light; a new wrapper is
 one module plus one line in ``_LAZY``.
@@ -20,6 +22,9 @@ _LAZY = {
     "OracleNoise": "weather_gym.wrappers.ground_truth",
     "EpisodeStatistics": "weather_gym.wrappers.episode",
     "latencies": "weather_gym.wrappers.episode",
+    "RandomWeather": "weather_gym.wrappers.weather_randomizer",
+    "RecordVideo": "weather_gym.viz.record_video",
+    "WeatherRandomizer": "weather_gym.wrappers.weather_randomizer",
 }
 
 __all__ = sorted(_LAZY)

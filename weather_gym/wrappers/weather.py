@@ -14,10 +14,21 @@ Randomness: the wrapper's own generator, derived from the reset seed (a ``SeedSe
 of ``seed``, distinct from the env's own stream); ``reset(seed=None)`` continues the sequence, or
 on the first reset starts from the env's ``np_random_seed``. Same seeds, same frames: same bytes.
 
+**Changing the weather mid-episode**: ``set_weather(spec)`` (or assigning ``weather``) takes effect
+from the next frame, with a fresh random stream derived from the episode's seed (same calls, same
+bytes). It works through any wrappers above and on vector envs::
+
+    env.get_wrapper_attr("set_weather")("rain@2")        # through DetectorWrapper, TimeLimit, ...
+    envs.call("set_weather", "fog@3")                     # every env of a gymnasium VectorEnv
+    envs.set_attr("weather", ["clear", "droplets@4"])     # one spec per env
+    vec_env.env_method("set_weather", "low_light@2")      # stable-baselines3 VecEnv
+
 ``info["weather"]`` is the spec applied to the frame (a ramp's current k). The time the weather
 added to the last step is ``wrapper.latency_ms``; it goes into ``info["weather_latency_ms"]`` only
 with ``latency_in_info=True`` (a wall-clock time differs between identical runs, so by default the
-info stays deterministic).
+info stays deterministic). With ``render_mode="rgb_array"`` and a camera ``render_view`` below
+(``ConeTrackEnv``'s ``render_view="camera"``), ``render()`` returns the weathered frame the agent
+saw, so videos (Gymnasium's ``RecordVideo``, ``weather_gym.wrappers.RecordVideo``) show the weather.
 
 Example:
     >>> import gymnasium as gym, numpy as np
@@ -37,6 +48,7 @@ Example:
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -45,6 +57,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from weather_gym.errors import InputError
 from weather_gym.weather import Effect, current_spec, parse_weather
 
 __all__ = ["STATE_FIELDS", "WeatherWrapper"]
@@ -59,7 +72,7 @@ _SPAWN_KEY = (0x57EA7E7,)
 def _check_image_space(space: Any, where: str) -> None:
     if not (isinstance(space, spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3
             and space.shape[2] == 3):
-        raise ValueError(f"WeatherWrapper: {where} must be an image Box(0, 255, (H, W, 3), uint8), got {space}")
+        raise InputError(f"WeatherWrapper: {where} must be an image Box(0, 255, (H, W, 3), uint8), got {space}")
 
 
 class WeatherWrapper(gym.ObservationWrapper):
@@ -68,14 +81,14 @@ class WeatherWrapper(gym.ObservationWrapper):
     def __init__(self, env: gym.Env, weather: Any = None, *, image_key: str = "image",
                  depth_key: str | None = "depth", state_key: str | None = "state",
                  state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None,
-                 latency_in_info: bool = False) -> None:
+                 render_weather: bool | None = None, latency_in_info: bool = False) -> None:
         super().__init__(env)
         self.latency_in_info = bool(latency_in_info)
         space = env.observation_space
         self.image_key = image_key
         if isinstance(space, spaces.Dict):
             if image_key not in space.spaces:
-                raise ValueError(f"WeatherWrapper: observation Dict has no image key {image_key!r} "
+                raise InputError(f"WeatherWrapper: observation Dict has no image key {image_key!r} "
                                  f"(keys: {', '.join(space.spaces)}); pass image_key=...")
             _check_image_space(space[image_key], f"observation[{image_key!r}]")
             self._is_dict = True
@@ -87,12 +100,16 @@ class WeatherWrapper(gym.ObservationWrapper):
             self.depth_key = self.state_key = None
         self.state_fields = tuple(state_fields)
         if fx is not None and not (np.isfinite(fx) and fx > 0):
-            raise ValueError(f"WeatherWrapper: fx must be a positive focal length in pixels, got {fx!r}")
+            raise InputError(f"WeatherWrapper: fx must be a positive focal length in pixels, got {fx!r}")
         self.fx = fx
         self._weather: Effect = parse_weather(weather)
         self._ss: np.random.SeedSequence | None = None
         self._rng: np.random.Generator | None = None
         self._latency_ms = 0.0
+        if render_weather is None:  # the camera view of the env below is what the agent sees
+            render_weather = getattr(env.unwrapped, "render_view", None) == "camera"
+        self.render_weather = bool(render_weather)
+        self._last_image: np.ndarray | None = None
 
     @property
     def latency_ms(self) -> float:
@@ -101,8 +118,44 @@ class WeatherWrapper(gym.ObservationWrapper):
 
     @property
     def weather(self) -> Effect:
-        """The weather effect applied to the observations."""
+        """The weather effect applied to the observations (assigning a spec calls ``set_weather``)."""
         return self._weather
+
+    @weather.setter
+    def weather(self, spec: Any) -> None:
+        self.set_weather(spec)
+
+    def set_weather(self, spec: Any) -> list[dict[str, Any]]:
+        """Change the weather from the next frame on, mid-episode or between episodes.
+
+        ``spec`` is anything :func:`~weather_gym.weather.parse_weather` takes (``"rain@2"``,
+        ``{"fog": 0.4}``, an effect, ``"clear"``...); an effect object is copied, so one object
+        given to several envs (``VectorEnv.call``) never shares its state. The new weather's random
+        stream is the next child of the episode's seed sequence: the same calls at the same steps
+        give the same bytes. Returns the new weather as a spec (``to_spec``-style list of tables).
+
+        Example:
+            >>> import gymnasium as gym, numpy as np
+            >>> from weather_gym.wrappers import WeatherWrapper
+            >>> class Camera(gym.Env):
+            ...     observation_space = gym.spaces.Box(0, 255, (8, 8, 3), np.uint8)
+            ...     action_space = gym.spaces.Discrete(1)
+            ...     def reset(self, *, seed=None, options=None):
+            ...         super().reset(seed=seed); return np.full((8, 8, 3), 200, np.uint8), {}
+            ...     def step(self, action):
+            ...         return np.full((8, 8, 3), 200, np.uint8), 0.0, False, False, {}
+            >>> env = gym.wrappers.TimeLimit(WeatherWrapper(Camera()), max_episode_steps=10)
+            >>> _ = env.reset(seed=0)
+            >>> env.get_wrapper_attr("set_weather")({"dim": 0.5})[0]["k"]
+            0.5
+            >>> int(env.step(0)[0][0, 0, 0])
+            100
+        """
+        effect = copy.deepcopy(parse_weather(spec))
+        if self._ss is not None:  # inside an episode: a fresh, repeatable stream for the new weather
+            effect.reset(self._ss.spawn(1)[0])
+        self._weather = effect
+        return current_spec(effect)
 
     # -- episode -----------------------------------------------------------------------------
     def _seed_episode(self, seed: int | None) -> None:
@@ -158,6 +211,14 @@ class WeatherWrapper(gym.ObservationWrapper):
                                   rng=self._rng)
             out = {**observation, self.image_key: image}
         else:
-            out = self._weather(observation, rng=self._rng)
+            image = out = self._weather(observation, rng=self._rng)
         self._latency_ms = 1000.0 * (time.perf_counter() - t0)
+        self._last_image = image
         return out
+
+    def render(self) -> Any:
+        """The env's render; the weathered camera frame of the last step when ``render_weather``
+        (default: the env below renders its camera view, ``render_view="camera"``)."""
+        if self.render_weather and self.render_mode == "rgb_array" and self._last_image is not None:
+            return np.array(self._last_image, copy=True)
+        return self.env.render()
