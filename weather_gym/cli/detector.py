@@ -15,6 +15,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from weather_gym.cli._detector_args import add_detector_args, detector_from_args
+
 
 def register(sub) -> None:
     p = sub.add_parser("detector", help="train, score or run the ONNX cone detector",
@@ -39,7 +41,7 @@ def register(sub) -> None:
 
     e = cmds.add_parser("eval", help="score the detector on a COCO folder (optionally under weather)")
     e.add_argument("dataset", type=Path)
-    e.add_argument("--model", type=Path, default=None, help="ONNX model (default: the shipped one)")
+    add_detector_args(e, legacy_model=True)
     e.add_argument("--effect", default=None, help="weather effect name (e.g. droplets, dim)")
     e.add_argument("--k", type=float, default=None, help="severity of --effect in [0, 1]")
     e.add_argument("--weather", default=None, help="any weather spec instead of --effect/--k, e.g. 'droplets:0.55,dim:0.3'")
@@ -52,7 +54,7 @@ def register(sub) -> None:
     pr = cmds.add_parser("predict", help="detect cones in one image and draw them")
     pr.add_argument("image", type=Path)
     pr.add_argument("--out", type=Path, required=True, help="annotated PNG to write")
-    pr.add_argument("--model", type=Path, default=None)
+    add_detector_args(pr, legacy_model=True)
     pr.add_argument("--effect", default=None)
     pr.add_argument("--k", type=float, default=None)
     pr.add_argument("--seed", type=int, default=0)
@@ -62,7 +64,7 @@ def register(sub) -> None:
 
     sw = cmds.add_parser("sweep", help="mAP versus k for droplets and dim (the study's Figures 3 and 5)")
     sw.add_argument("dataset", type=Path)
-    sw.add_argument("--model", type=Path, default=None)
+    add_detector_args(sw, legacy_model=True)
     sw.add_argument("--ks", default="0,0.2,0.4,0.55,0.7,0.78,0.9", help="comma-separated k values")
     sw.add_argument("--effects", default="droplets,dim")
     sw.add_argument("--seed", type=int, default=0)
@@ -75,7 +77,7 @@ def register(sub) -> None:
     fg = cmds.add_parser("figure", help="one frame with detections: clean | droplets 0.55 | dim 0.78")
     fg.add_argument("dataset", type=Path)
     fg.add_argument("--index", type=int, default=0, help="image index in the dataset")
-    fg.add_argument("--model", type=Path, default=None)
+    add_detector_args(fg, legacy_model=True)
     fg.add_argument("--seed", type=int, default=0)
     fg.add_argument("--out", type=Path, required=True)
     fg.set_defaults(func=_figure)
@@ -112,21 +114,20 @@ def _train(args) -> int:
 
 
 def _eval(args) -> int:
+    from weather_gym._io import atomic_write
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.scoring import score_dataset
 
     ds = load_coco(args.dataset)
-    det = ConeDetector(args.model, threads=args.threads)
+    det = detector_from_args(args, threads=args.threads)
     weather = _weather(args)
     result = score_dataset(ds, det, weather, seed=args.seed, limit=args.limit, progress=True)
     label = "clear" if weather is None else (args.weather or f"{args.effect} k={args.k}")
-    print(f"{args.dataset} | {det.path.name} | weather: {label} | seed {args.seed}")
+    print(f"{args.dataset} | {det.name} | weather: {label} | seed {args.seed}")
     print(result.table())
     if args.json is not None:
-        with open(args.json, "w") as f:
-            json.dump({"dataset": str(args.dataset), "model": str(det.path), "weather": label, **result.to_dict()}, f,
-                      indent=2, default=str)
+        atomic_write(args.json, json.dumps({"dataset": str(args.dataset), "detector": det.name, "weather": label,
+                                            **result.to_dict()}, indent=2, default=str))
     return 0
 
 
@@ -135,7 +136,6 @@ def _predict(args) -> int:
     import numpy as np
 
     from weather_gym.datasets.coco import read_image
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.draw import draw_detections
 
     if args.out.exists() and not args.force:
@@ -148,7 +148,9 @@ def _predict(args) -> int:
         eff = parse_weather(weather)
         eff.reset(args.seed)
         image = eff(image, rng=np.random.default_rng(args.seed))
-    det = ConeDetector(args.model, score_threshold=args.threshold)
+    if args.threshold is not None:
+        args.detector_threshold = args.threshold
+    det = detector_from_args(args)
     d = det(image)
     if not cv2.imwrite(str(args.out), cv2.cvtColor(draw_detections(image, d), cv2.COLOR_RGB2BGR)):
         raise ValueError(f"could not write {args.out}")
@@ -158,7 +160,6 @@ def _predict(args) -> int:
 
 def _sweep(args) -> int:
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.report import STUDY_CLEAN_MAP, STUDY_POINTS, plot_map_vs_k, sweep_map_vs_k
 
     try:
@@ -168,10 +169,10 @@ def _sweep(args) -> int:
     if any(not 0 <= k <= 1 for k in ks):
         raise ValueError(f"--ks must lie in [0, 1], got {ks}")
     ds = load_coco(args.dataset, cache_images=True)
-    det = ConeDetector(args.model, threads=args.threads)
+    det = detector_from_args(args, threads=args.threads)
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     sweep = sweep_map_vs_k(ds, det, ks, effects, seed=args.seed, limit=args.limit)
-    print(f"{args.dataset} | {det.path.name} | seed {args.seed}")
+    print(f"{args.dataset} | {det.name} | seed {args.seed}")
     print("effect     k      mAP@0.5  mAP@.5:.95  relative   study (relative)")
     for e, rows in sweep.items():
         clean = next((r["map50"] for r in rows if r["k"] == 0), float("nan"))
@@ -192,7 +193,6 @@ def _sweep(args) -> int:
 
 def _figure(args) -> int:
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.report import detections_figure
 
     ds = load_coco(args.dataset)
@@ -200,7 +200,7 @@ def _figure(args) -> int:
         raise ValueError(f"--index must be in 0..{len(ds) - 1}, got {args.index}")
     rec = ds.record(args.index)
     state = {"speed": float(rec.get("speed", 0.0)), "yaw_rate": float(rec.get("yaw_rate", 0.0))}
-    out = detections_figure(ds.image(args.index), ConeDetector(args.model), args.out, depth=ds.depth(args.index),
+    out = detections_figure(ds.image(args.index), detector_from_args(args), args.out, depth=ds.depth(args.index),
                             state=state, seed=args.seed)
     print(f"wrote {out}")
     return 0

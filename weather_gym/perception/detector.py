@@ -77,8 +77,11 @@ class ConeDetector:
         nms_iou: IoU of the class-agnostic box NMS after the heatmap peak filter (None = off).
 
     Call with one frame ``(H, W, 3)`` -> ``Detections``, or a batch ``(N, H, W, 3)`` / list of
-    frames -> ``list[Detections]``. Boxes are in the original frame's pixels.
+    frames -> ``list[Detections]``. Boxes are in the original frame's pixels. It follows the
+    :class:`~weather_gym.perception.detectors.Detector` protocol (``resize`` is always ``letterbox``).
     """
+
+    resize = "letterbox"
 
     def __init__(
         self,
@@ -142,6 +145,7 @@ class ConeDetector:
         self.max_detections = int(max_detections)
         self.nms_iou = nms_iou
         self.threads = threads
+        self.name = f"conenet:{path.name}"
 
     def __repr__(self) -> str:
         return (f"ConeDetector({str(self.path)!r}, input={self.input_size[0]}x{self.input_size[1]}, "
