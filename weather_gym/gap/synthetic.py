@@ -60,13 +60,19 @@ def degrade_dataset(src: str | os.PathLike, dst: str | os.PathLike, weather: Any
         rec = ds.record(i)
         img = apply_chain(effects, ds.image(i), depth=ds.depth(i), state=frame_state(rec), seed=seed,
                           frame_id=int(rec["id"]))
-        out = dst / rec["file_name"]
+        name = str(Path(rec["file_name"]).with_suffix(".png"))  # lossless: no compression on top of the weather
+        data["images"][i]["file_name"] = name
+        out = dst / name
         out.parent.mkdir(parents=True, exist_ok=True)
         if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
             raise OSError(f"could not write {out}")
-        if rec.get("depth_file"):
-            (dst / rec["depth_file"]).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(Path(src) / rec["depth_file"], dst / rec["depth_file"])
+        for key in ("depth_file", "ignore_mask"):
+            if rec.get(key):
+                (dst / rec[key]).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(Path(src) / rec[key], dst / rec[key])
+    mask = (data.get("info") or {}).get("ignore_mask")
+    if mask:
+        shutil.copyfile(Path(src) / mask, dst / mask)
     if strip_poses:
         for rec in data["images"]:
             for key in ("pose", "look", "seed", "episode", "step"):
