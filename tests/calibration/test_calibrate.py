@@ -73,8 +73,8 @@ def test_absolute_matching_and_physical_curve(curves, levels):
 def test_calibrate_refuses_missing_curves_and_bad_use(curves, levels):
     with pytest.raises(ValueError, match="curve 'dim'.*hold: droplets"):
         calibrate({"droplets": curves["droplets"]}, levels)
-    with pytest.raises(ValueError, match="unknown weather condition 'fog'"):
-        parse_use(["fog=dim"])
+    with pytest.raises(ValueError, match="unknown weather condition 'snow'"):
+        parse_use(["snow=dim"])
     with pytest.raises(ValueError, match="CONDITION=CURVE_LABEL"):
         parse_use(["low_light"])
     with pytest.raises(ValueError, match="unknown match"):
@@ -86,7 +86,7 @@ def test_written_presets_load_and_are_used_by_name(tmp_path, curves, levels):
     fill_from_curves(calibs, curves)
     path = write_presets(calibs, tmp_path / "presets.toml", meta={"source": "test", "match": "relative"})
     data = load_presets(path)
-    assert data["calibrated"] is True and data["source"] == "test"
+    assert data["calibrated_conditions"] == ("droplets", "low_light") and data["source"] == "test"
     e = preset_entry("low_light", 4, path)
     assert e["reachable"] is False and "cannot bring" in e["note"]
     assert e["measured_relative"] == 0.013
@@ -105,9 +105,12 @@ def test_write_presets_never_overwrites_and_copies_uncalibrated_conditions(tmp_p
     calibs = calibrate(curves, only_drops)
     path = write_presets(calibs, tmp_path / "p.toml", meta={"source": "test"})
     data = load_presets(path)
-    assert data["calibrated"] is False  # low_light came from the shipped table
+    assert data["calibrated_conditions"] == ("droplets",)  # low_light came from the shipped table
     ll = preset_entry("low_light", 2, path)
     assert ll["calibrated"] is False and "not calibrated here" in ll["note"]
+    assert preset_entry("droplets", 2, path)["calibrated"] is True
+    rain, shipped_rain = preset_entry("rain", 3, path), preset_entry("rain", 3)
+    assert rain == shipped_rain and rain["calibrated"] is False  # nominal rows are kept as they are
     with pytest.raises(FileExistsError, match="--overwrite"):
         write_presets(calibs, path, meta={})
     write_presets(calibs, path, meta={"source": "again"}, overwrite=True)

@@ -53,7 +53,7 @@ def test_relative_matching_without_an_ideal_is_refused(tmp_path):
 @pytest.mark.parametrize("body, match", [
     ("condition,map\ndroplets,0.5\n", r"lacks column\(s\) severity"),
     ("condition,severity\ndroplets,2\n", "map or relative_to_ideal"),
-    ("condition,severity,map\nfog,2,0.5\n", "unknown condition 'fog'; valid: ideal, droplets, low_light"),
+    ("condition,severity,map\nsnow,2,0.5\n", "unknown condition 'snow'; valid: ideal, droplets, low_light"),
     ("condition,severity,map\ndroplets,7,0.5\n", "severity 7 is outside 0-4"),
     ("condition,severity,map\ndroplets,two,0.5\n", "severity must be an integer"),
     ("condition,severity,map\ndroplets,2,1.3\n", r"data row 1: map = 1.3 is outside \[0, 1\]"),

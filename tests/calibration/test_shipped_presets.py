@@ -32,9 +32,10 @@ SEEDS = (0, 1)
 @pytest.mark.parametrize("path", [DEFAULT_PRESETS, PHYSICAL_PRESETS], ids=["shipped", "physical"])
 def test_presets_files_are_calibrated_and_complete(path):
     data = load_presets(path)
-    assert data["calibrated"] is True
+    assert data["calibrated_conditions"] == ("droplets", "low_light")
     assert data["source"].startswith("weather-gym calibrate") and data["match"] == "relative"
-    for cond, sevs in data["presets"].items():
+    for cond in data["calibrated_conditions"]:
+        sevs = data["presets"][cond]
         assert sevs[0]["effects"] == []  # severity 0 is clear
         for sev in (1, 2, 3, 4):
             e = sevs[sev]

@@ -51,7 +51,7 @@ def test_other_presets_file_changes_the_cells(tmp_path):
     ("change", "message"),
     [
         ({"agents": ("nope",)}, r"unknown agent 'nope'; valid names: .*gt_pure_pursuit.*mapper_pure_pursuit"),
-        ({"effects": ("fog",)}, r"unknown weather condition 'fog'; valid conditions: droplets, low_light"),
+        ({"effects": ("snow",)}, r"unknown weather condition 'snow'; valid conditions: droplets, low_light, blur"),
         ({"effects": ("dim", "low_light")}, "same condition twice"),
         ({"severities": (0, 5)}, r"invalid severity 5; valid severities: 0, 1, 2, 3, 4"),
         ({"severities": (-1,)}, "invalid severity -1"),

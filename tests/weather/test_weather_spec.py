@@ -67,7 +67,7 @@ def test_presets_in_every_spelling():
     ("droplets:high", "k 'high' must be a number"),
     ("droplets", "must be NAME:K"),
     ("droplets:1.5", "parameter k=1.5 is outside"),
-    ("fog@2", "unknown weather condition 'fog'; valid conditions: droplets, low_light"),
+    ("snow@2", "unknown weather condition 'snow'; valid conditions: droplets, low_light, blur"),
     ("droplets@7", "invalid severity 7; valid severities: 0, 1, 2, 3, 4"),
     ("droplets@x", "severity 'x' must be an integer"),
     ({"droplets": "wet"}, "expected k"),
@@ -125,8 +125,9 @@ UNCALIBRATED = Path(__file__).with_name("data") / "presets_uncalibrated.toml"
 @pytest.mark.parametrize("path", [DEFAULT_PRESETS, UNCALIBRATED], ids=["shipped", "uncalibrated"])
 def test_presets_are_complete_and_grow_with_severity(path):
     data = load_presets(path)
-    assert set(data["presets"]) == set(CONDITIONS)
-    for cond in CONDITIONS:
+    want = set(CONDITIONS) if path == DEFAULT_PRESETS else {"droplets", "low_light"}
+    assert set(data["presets"]) == want
+    for cond in want:
         assert sorted(data["presets"][cond]) == list(SEVERITIES)
         assert preset_spec(cond, 0, path) == []
         ks = [preset_spec(cond, s, path)[0]["k"] for s in SEVERITIES[1:]]
@@ -135,16 +136,38 @@ def test_presets_are_complete_and_grow_with_severity(path):
     assert entry["measured_map"] == 0.273 and entry["description"] == "Sunset"
 
 
+def test_every_effect_has_a_severity_table_marked_calibrated_or_nominal():
+    from weather_gym.weather import EFFECTS, parse_weather, to_spec
+    from weather_gym.weather.presets import canonical_condition
+
+    data = load_presets()
+    for name in EFFECTS.names():
+        rows = data["presets"][canonical_condition(name)]
+        assert {type(r["calibrated"]) for r in rows.values()} == {bool}
+        assert to_spec(parse_weather(f"{name}@4"))[0]["name"] == name
+    assert data["calibrated_conditions"] == ("droplets", "low_light")
+    rain = preset_entry("rain", 2)
+    assert rain["calibrated"] is False and "nominal" in rain["note"]
+    assert to_spec(parse_weather("rain@2")) == [{"name": "rain", **parse_weather("rain:0.5").params()}]
+    assert preset_entry("droplets", 3)["calibrated"] is True
+
+
+def test_a_file_may_hold_some_conditions_and_says_which_are_missing():
+    with pytest.raises(ValueError, match="has no rows for condition 'rain' \\(it has: droplets, low_light\\)"):
+        preset_spec("rain", 2, UNCALIBRATED)
+
+
 def test_an_uncalibrated_table_says_so():
     data = load_presets(UNCALIBRATED)
-    assert data["calibrated"] is False
+    assert data["calibrated"] is False and data["calibrated_conditions"] == ()
+    assert preset_entry("droplets", 3, UNCALIBRATED)["calibrated"] is False
     assert preset_spec("droplets", 3, UNCALIBRATED) == [{"name": "droplets", "k": 0.55}]
     assert preset_spec("low_light", 3, UNCALIBRATED) == [{"name": "dim", "k": 0.78}]
     assert np.isnan(preset_entry("low_light", 2, UNCALIBRATED)["achieved_relative"])
 
 
 def test_preset_lookup_errors():
-    with pytest.raises(ValueError, match="valid conditions: droplets, low_light"):
+    with pytest.raises(ValueError, match="valid conditions: droplets, low_light, blur"):
         preset_spec("snow", 1)
     with pytest.raises(ValueError, match="valid severities: 0, 1, 2, 3, 4"):
         preset_spec("droplets", 5)
@@ -168,8 +191,11 @@ def test_a_rewritten_presets_file_is_read_without_code_changes(tmp_path):
     (lambda t: t.replace('condition = "low_light"\nseverity = 4', 'condition = "low_light"\nseverity = 3'),
      "appears twice"),
     (lambda t: t.replace('name = "dim", k = 0.92', 'name = "dimm", k = 0.92'), "unknown weather effect 'dimm'"),
+    (lambda t: t.replace('condition = "droplets"\nseverity = 2', 'condition = "snow"\nseverity = 2'),
+     "unknown weather condition 'snow'"),
     (lambda t: t.replace('condition = "droplets"\nseverity = 2', 'condition = "fog"\nseverity = 2'),
-     "unknown weather condition 'fog'"),
+     "condition 'droplets' has no preset for severity \\[2\\]"),
+    (lambda t: t.replace('severity = 2\n', 'severity = 2\ncalibrated = 1\n', 1), "'calibrated' must be true or false"),
     (lambda t: t + "\n[[presets]]\ncondition = 'droplets'\n", "missing key 'severity'"),
     (lambda t: t.replace("calibrated = false", "calibrated = 'no'"), "'calibrated' must be true or false"),
     (lambda t: t.replace("calibrated = false", "calibrated = = false"), "not valid TOML"),

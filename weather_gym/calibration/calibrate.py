@@ -84,7 +84,8 @@ class PresetCalibration:
 
     def toml_fields(self) -> dict[str, Any]:
         out: dict[str, Any] = {
-            "condition": self.condition, "severity": self.severity, "description": self.description,
+            "condition": self.condition, "severity": self.severity, "calibrated": True,
+            "description": self.description,
             "effects": self.effects, "k_interval": list(self.k_interval), "measured_map": self.measured_map,
             "measured_relative": self.measured_relative, "achieved_map": self.achieved_map,
             "achieved_relative": self.achieved_relative,
@@ -216,6 +217,19 @@ def fill_from_curves(calibs: Sequence[PresetCalibration], curves: Mapping[str, C
 
 
 # ------------------------------------------------------------------------------------------- TOML
+def _copied_row(row: Mapping[str, Any], base: str | os.PathLike | None) -> dict[str, Any]:
+    """A base row not measured in this run: nominal rows as they are; calibrated ones marked as not."""
+    row = dict(row)
+    was_calibrated = row.pop("calibrated", False)
+    fields = {k: row.pop(k) for k in ("condition", "severity")}
+    fields["calibrated"] = False
+    fields.update(row)
+    if was_calibrated:
+        fields["note"] = (f"not calibrated here (no measured level): copied from "
+                          f"{Path(base).name if base else 'the shipped presets.toml'}")
+    return fields
+
+
 def _toml_value(v: Any) -> str:
     """Preset values: floats to 4 decimals, NaN and infinities as TOML's ``nan``/``inf``, None as ""."""
     return toml_value(v, digits=4, none='""')
@@ -224,23 +238,25 @@ def _toml_value(v: Any) -> str:
 HEADER = """\
 # weather-gym weather presets: condition x severity (0-4) -> list of effects.
 #
-# CALIBRATED (calibrated = true) with `weather-gym calibrate` (weather_gym/calibration/, docs/calibration.md),
-# the reference study's method: sweep k, measure the shipped detector's mAP@0.5 on a fixed rendered
-# evaluation set at each k (5 weather realisations per k), and read off the k where that curve meets the
-# level measured in real weather of the severity. Conditions and severities are the study's (Table 2):
-# real-world "droplets" on the lens and "low_light" (late afternoon .. night).
+# Rows with calibrated = true were CALIBRATED with `weather-gym calibrate` (weather_gym/calibration/,
+# docs/calibration.md), the reference study's method: sweep k, measure the shipped detector's mAP@0.5 on a
+# fixed rendered evaluation set at each k (5 weather realisations per k), and read off the k where that curve
+# meets the level measured in real weather of the severity. Conditions and severities are the study's
+# (Table 2): real-world "droplets" on the lens and "low_light" (late afternoon .. night).
+# Rows with calibrated = false are NOMINAL: a documented choice of k (see their note), not measured; every
+# effect has such a table, so that "rain@2" works. Calibration keeps them as they are.
 #
 # match = "relative": what is matched is the DROP, mAP in the weather / mAP in ideal conditions of the same
 # domain (the study's real camera: 0.793; our detector on our clean set: eval_ideal_map), because our
 # detector is not the study's. k_absolute is what matching the absolute mAP would have given (nan: that
 # level is out of the effect's reach with our detector).
 #
-# Each [[presets]] table: condition, severity, description, effects = [{ name = ..., k = ..., <params> }],
-# k_interval = [lo, hi] (k where mean -/+ 1 sd over seeds meets the target), measured_map /
-# measured_relative (the study's measurement), achieved_map / achieved_relative / achieved_sd (our detector
-# re-measured at the chosen k, mean and sd over seeds), predicted (the mean curve at k), reachable = false
-# when the effect cannot reach the target at any k in [0, 1] (then k is the end of the range that comes
-# closest and note says by how much; nothing is clamped silently).
+# Each calibrated [[presets]] table: condition, severity, calibrated, description, effects = [{ name = ...,
+# k = ..., <params> }], k_interval = [lo, hi] (k where mean -/+ 1 sd over seeds meets the target),
+# measured_map / measured_relative (the study's measurement), achieved_map / achieved_relative / achieved_sd
+# (our detector re-measured at the chosen k, mean and sd over seeds), predicted (the mean curve at k),
+# reachable = false when the effect cannot reach the target at any k in [0, 1] (then k is the end of the
+# range that comes closest and note says by how much; nothing is clamped silently).
 """
 
 
@@ -248,9 +264,10 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
                   base: str | os.PathLike | None = None, overwrite: bool = False, header: str = HEADER) -> Path:
     """Write a presets TOML (``weather_gym.weather.presets`` format), validated by ``load_presets`` first.
 
-    Every condition x severity the loader needs that was not calibrated is copied from ``base``
-    (default: the shipped table) with ``calibrated = false`` and a note; the top-level ``calibrated``
-    is true only when nothing was copied. ``path`` is never overwritten unless ``overwrite``.
+    The calibrated rows get ``calibrated = true``. Every other condition x severity of ``base``
+    (default: the shipped table) is copied with ``calibrated = false``: a nominal row as it is, a row
+    calibrated before (not measured in this run) with a note saying so. ``path`` is never overwritten
+    unless ``overwrite``.
     """
     from weather_gym.weather.presets import CONDITIONS, SEVERITIES, load_presets
 
@@ -258,10 +275,7 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; pass --overwrite to replace it (nothing was written)")
     done = {(c.condition, c.severity): c for c in calibs}
-    missing = [(c, s) for c in CONDITIONS for s in SEVERITIES if (c, s) not in done]
-    base_tables: dict[str, dict[int, dict[str, Any]]] = {}
-    if missing:
-        base_tables = load_presets(base)["presets"]
+    base_tables = load_presets(base)["presets"]
     lines = [header.rstrip("\n")]
     used = {}
     for c in calibs:
@@ -271,21 +285,23 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
         lines.append("#")
         for cond, (curve, eff) in sorted(used.items()):
             lines.append(f"# {cond}: curve {curve!r}, effect {_toml_value(eff)} with the k below.")
-    lines += ["", f"calibrated = {_toml_value(not missing)}"]
+    lines.append("")
     for k, v in meta.items():
-        if k == "calibrated":
+        if k in ("calibrated", "calibrated_conditions"):
             continue
         lines.append(f"{k} = {_toml_value(v)}")
     for cond in CONDITIONS:
+        if not any((cond, s) in done for s in SEVERITIES) and cond not in base_tables:
+            continue
         for sev in SEVERITIES:
             lines += ["", "[[presets]]"]
             if (cond, sev) in done:
                 fields = done[cond, sev].toml_fields()
+            elif cond not in base_tables:
+                raise ValueError(f"condition {cond!r}: severity {sev} was not calibrated and the base presets "
+                                 f"have no row for it")
             else:
-                fields = dict(base_tables[cond][sev])
-                fields["calibrated"] = False
-                fields["note"] = (f"not calibrated here (no measured level): copied from "
-                                  f"{Path(base).name if base else 'the shipped presets.toml'}")
+                fields = _copied_row(base_tables[cond][sev], base)
             for k, v in fields.items():
                 lines.append(f"{k} = {_toml_value(v)}")
     text = "\n".join(lines) + "\n"

@@ -163,6 +163,31 @@ def _folder(weather, args) -> int:
     return 0
 
 
+class _Cv2Video:
+    """Non-MP4 outputs (.avi, .mkv, ...) through OpenCV, to a partial file renamed on close."""
+
+    def __init__(self, dst: Path, fps: float, size: tuple[int, int]) -> None:
+        import cv2
+
+        self.dst, self.tmp = dst, _tmp(dst)
+        self._cv2 = cv2
+        fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
+        self.writer = cv2.VideoWriter(str(self.tmp), fourcc, fps, size)
+        if not self.writer.isOpened():
+            raise ValueError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
+
+    def write(self, rgb) -> None:
+        self.writer.write(self._cv2.cvtColor(rgb, self._cv2.COLOR_RGB2BGR))
+
+    def close(self) -> None:
+        self.writer.release()
+        os.replace(self.tmp, self.dst)
+
+    def abort(self) -> None:
+        self.writer.release()
+        self.tmp.unlink(missing_ok=True)
+
+
 def _video(weather, src: Path, dst: Path, args) -> int:
     import cv2
     from tqdm import tqdm
@@ -174,12 +199,16 @@ def _video(weather, src: Path, dst: Path, args) -> int:
     w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
     total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
     dst.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp(dst)
-    fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
-    writer = cv2.VideoWriter(str(tmp), fourcc, fps, (w, h))
-    if not writer.isOpened():
+    try:
+        if dst.suffix.lower() == ".mp4":  # H.264 (PyAV), falling back to mp4v with a warning
+            from weather_gym.viz.video import VideoWriter
+
+            writer = VideoWriter(dst, fps=fps, overwrite=True)
+        else:
+            writer = _Cv2Video(dst, fps, (w, h))
+    except BaseException:
         cap.release()
-        raise ValueError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
+        raise
     weather.reset(args.seed)
     n = 0
     try:
@@ -188,21 +217,18 @@ def _video(weather, src: Path, dst: Path, args) -> int:
                 ok, bgr = cap.read()
                 if not ok:
                     break
-                rgb = weather(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-                writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+                writer.write(weather(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)))
                 n += 1
                 bar.update(1)
     except BaseException:
-        writer.release()
-        tmp.unlink(missing_ok=True)
+        writer.abort()
         raise
     finally:
         cap.release()
-    writer.release()
     if n == 0:
-        tmp.unlink(missing_ok=True)
+        writer.abort()
         raise ValueError(f"{src}: no frames could be read")
-    os.replace(tmp, dst)
+    writer.close()
     print(f"wrote {n} frame(s) to {dst}")
     return 0
 

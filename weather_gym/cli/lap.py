@@ -160,7 +160,6 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
              overwrite: bool = False, progress: bool = False) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``)."""
     import numpy as np
-    from tqdm import tqdm
 
     from weather_gym.agents import AGENTS, check_action
 
@@ -183,8 +182,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
                     if recording else None)
         cte, steps, wall0 = [], 0, time.perf_counter()
         terminated = truncated = False
-        bar = tqdm(total=limit, unit="step", desc=f"{agent} on {trk.name}", disable=not progress or None,
-                   leave=False)
+        bar = _LapProgress(laps * trk.length, f"{agent} on {trk.name}", enabled=progress)
         try:
             if recorder is not None:
                 recorder.add(obs, info, laps)
@@ -196,8 +194,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
                 if recorder is not None:
                     recorder.add(obs, info, laps)
                 if steps % 30 == 0:
-                    bar.update(30)
-                    bar.set_postfix(lap=info["lap"], v=f"{info['speed']:.1f}")
+                    bar.update(info, laps)
                 if terminated or truncated:
                     break
         finally:
@@ -231,8 +228,42 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     if recording:
         result["video"] = str(video) if video is not None else None
         result["video_frames"] = recorder.video.frames if recorder.video is not None else 0
+        result["video_codec"] = recorder.video.codec if recorder.video is not None else None
         result["strip"] = str(strip) if strip is not None else None
     return result
+
+
+class _LapProgress:
+    """Distance driven along the track: a tqdm bar on a terminal, a plain line every 10 s otherwise."""
+
+    EVERY_S = 10.0
+
+    def __init__(self, total_m: float, desc: str, *, enabled: bool) -> None:
+        import sys
+
+        from tqdm import tqdm
+
+        self.enabled, self.desc = enabled, desc
+        self.tty = enabled and sys.stderr.isatty()
+        self.bar = tqdm(total=round(total_m), unit="m", desc=desc, leave=False, disable=not self.tty)
+        self.t0 = self.last = time.perf_counter()
+
+    def update(self, info: dict, laps: int) -> None:
+        import sys
+
+        done = max(0.0, float(info.get("progress", 0.0)))
+        lap = min(int(info["lap"]) + 1, laps)
+        if self.tty:
+            self.bar.n = min(round(done), self.bar.total)
+            self.bar.set_postfix(lap=f"{lap}/{laps}", v=f"{info['speed']:.1f}")
+        elif self.enabled and time.perf_counter() - self.last >= self.EVERY_S:
+            self.last = time.perf_counter()
+            print(f"{self.desc}: lap {lap}/{laps}, {done:.0f}/{self.bar.total} m, "
+                  f"{float(info.get('time', 0.0)):.1f} s simulated, {self.last - self.t0:.0f} s wall",
+                  file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        self.bar.close()
 
 
 def _describe_weather(spec: Any) -> str:
@@ -259,7 +290,8 @@ def format_result(r: dict[str, Any]) -> str:
         lines.append(f"map: {m['confirmed']} confirmed cones, mean position std {m['mean_position_std_m']:.3f} m, "
                      f"colour confidence {m['mean_class_confidence']:.2f}")
     if r.get("video"):
-        lines.append(f"video: {r['video']} ({r['video_frames']} frames)")
+        codec = {"h264": "H.264", "mp4v": "MPEG-4 Part 2"}.get(r.get("video_codec"), r.get("video_codec"))
+        lines.append(f"video: {r['video']} ({r['video_frames']} frames, {codec})")
     if r.get("strip"):
         lines.append(f"strip: {r['strip']}")
     return "\n".join(lines)

@@ -262,10 +262,21 @@ class ConeTrackEnv(gym.Env):
         }
 
     # ------------------------------------------------------------------ render / close
+    @property
+    def render_view(self) -> str:
+        """What ``render()`` returns in ``rgb_array`` mode: ``"chase"`` or ``"camera"`` (``EnvConfig.render_view``)."""
+        return self.config.render_view
+
     def render(self):
+        """``rgb_array``: the chase view, or the camera frame (``render_view="camera"``; a
+        ``WeatherWrapper`` above returns it weathered); ``human``: None (the GUI window shows the scene)."""
         if self.render_mode == "rgb_array":
+            if self.config.render_view == "camera":
+                if self._frame is None:
+                    raise RuntimeError("call reset() before render()")
+                return self._frame.rgb.copy()
             return self._world.render_chase()
-        return None  # "human": the PyBullet GUI window shows the scene live
+        return None
 
     def close(self) -> None:
         world = getattr(self, "_world", None)

@@ -15,6 +15,9 @@ from dataclasses import dataclass, field
 from weather_gym.camera import CameraConfig
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 
+RENDER_VIEWS = ("chase", "camera")
+"""Views ``ConeTrackEnv.render()`` can return (``EnvConfig.render_view``)."""
+
 
 @dataclass(frozen=True)
 class RewardConfig:
@@ -47,6 +50,10 @@ class EnvConfig:
         off_track_margin: metres beyond the cone line the car's reference point may go before it
             counts as off track (0.6 m = all four wheels out for a 1.2 m wide car).
         randomize_look: draw a random appearance from the episode's RNG at every reset.
+        render_view: what ``render()`` returns with ``render_mode="rgb_array"``: ``"chase"`` (a
+            camera behind the car, for people) or ``"camera"`` (the car's camera frame; through a
+            ``WeatherWrapper`` it is the weathered frame the agent sees, so Gymnasium's and our
+            ``RecordVideo`` record the weather).
     """
 
     track: str = "small_track"
@@ -56,6 +63,7 @@ class EnvConfig:
     terminate_off_track: bool = True
     off_track_margin: float = 0.6
     randomize_look: bool = False
+    render_view: str = "chase"
     sim: SimConfig = field(default_factory=SimConfig)
     car: CarConfig = field(default_factory=CarConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
@@ -72,6 +80,8 @@ class EnvConfig:
         if not (isinstance(self.off_track_margin, (int, float)) and math.isfinite(self.off_track_margin)
                 and self.off_track_margin >= 0):
             raise ValueError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
+        if self.render_view not in RENDER_VIEWS:
+            raise ValueError(f"EnvConfig.render_view must be one of {', '.join(RENDER_VIEWS)}, got {self.render_view!r}")
         for name, cls in (("sim", SimConfig), ("car", CarConfig), ("camera", CameraConfig),
                           ("odometry", OdometryConfig), ("reward", RewardConfig)):
             if not isinstance(getattr(self, name), cls):

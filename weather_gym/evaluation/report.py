@@ -169,20 +169,25 @@ def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path
 
 def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> list[str]:
     seen = list(dict.fromkeys((r.get("effect"), r.get("severity"), _hashable(r.get("weather"))) for r in rows))
-    lines = ["| effect | severity | weather (preset effect list) |", "|---|---|---|"]
+    lines = ["| effect | severity | weather (preset effect list) | k |", "|---|---|---|---|"]
+    try:
+        from weather_gym.weather.presets import DEFAULT_PRESETS, preset_entry
+
+        def status(e: Any, s: Any) -> str:
+            try:
+                return "calibrated" if preset_entry(str(e), int(s), presets)["calibrated"] else "nominal"
+            except (ValueError, TypeError):
+                return "?"
+
+        source = presets or str(DEFAULT_PRESETS.name)
+        lines.insert(0, f"Severities resolve through the presets file `{source}` (calibrated: k read off a "
+                        f"measured perception drop; nominal: a documented choice of k, not measured):\n")
+    except Exception:  # noqa: BLE001 - the report still lists the specs the cells used
+        def status(e: Any, s: Any) -> str:
+            return "?"
     for e, s, w in sorted(seen, key=lambda t: (str(t[0]), _num(t[1]))):
         spec = w if isinstance(w, str) else json.dumps(w)
-        lines.append(f"| {e} | {s} | `{spec}` |")
-    calibrated = "unknown"
-    try:
-        from weather_gym.weather.presets import DEFAULT_PRESETS, load_presets
-
-        meta = load_presets(presets)
-        calibrated = "calibrated" if meta.get("calibrated") else "NOT calibrated (first-guess k values)"
-        source = presets or str(DEFAULT_PRESETS.name)
-        lines.insert(0, f"Severities resolve through the presets file `{source}` ({calibrated}):\n")
-    except Exception:  # noqa: BLE001 - the report still lists the specs the cells used
-        pass
+        lines.append(f"| {e} | {s} | `{spec}` | {status(e, s)} |")
     return lines
 
 

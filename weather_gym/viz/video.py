@@ -1,6 +1,11 @@
-"""Writing what people look at: MP4 videos (OpenCV ``mp4v``) and PNG strips of frames.
+"""Writing what people look at: MP4 videos (H.264) and PNG strips of frames.
 
-Nothing a user wrote is overwritten unless they say so (``overwrite=True``).
+Videos are H.264 (``yuv420p``, ``+faststart``: browsers and notebooks play them) through PyAV
+(``av``, a runtime dependency). Without PyAV, or when its FFmpeg has no H.264 encoder, the writer
+falls back to OpenCV's MPEG-4 Part 2 (``mp4v``) with a warning. Frames go to a hidden temporary
+file beside the target, renamed into place by ``close()``: an interrupted run never leaves a
+half-written video under the real name. Nothing a user wrote is overwritten unless they say so
+(``overwrite=True``).
 
 Example:
     >>> import numpy as np, tempfile, pathlib
@@ -8,8 +13,8 @@ Example:
     >>> d = pathlib.Path(tempfile.mkdtemp())
     >>> with VideoWriter(d / "lap.mp4", fps=30) as video:
     ...     for k in range(5): video.write(np.full((48, 64, 3), 40 * k, np.uint8))
-    >>> video.frames, (d / "lap.mp4").stat().st_size > 0
-    (5, True)
+    >>> video.frames, video.codec, (d / "lap.mp4").stat().st_size > 0
+    (5, 'h264', True)
     >>> save_strip([np.zeros((48, 64, 3), np.uint8)] * 4, d / "strip.png").name
     'strip.png'
 """
@@ -18,13 +23,18 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections.abc import Sequence
+from fractions import Fraction
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-__all__ = ["check_output_path", "VideoWriter", "FrameSampler", "save_strip"]
+__all__ = ["check_output_path", "h264_available", "VideoWriter", "FrameSampler", "save_strip"]
+
+H264_OPTIONS = {"crf": "23", "preset": "veryfast", "movflags": "+faststart"}
+"""libx264 settings: visually clean at a few hundred kB per lap, fast enough to write while driving."""
 
 
 def check_output_path(path: str | os.PathLike, *, overwrite: bool = False, suffixes: Sequence[str] = ()) -> Path:
@@ -40,15 +50,91 @@ def check_output_path(path: str | os.PathLike, *, overwrite: bool = False, suffi
     return p
 
 
-class VideoWriter:
-    """An MP4 file written frame by frame (RGB uint8, all frames the size of the first)."""
+def h264_available() -> bool:
+    """True when PyAV is installed and its FFmpeg can encode H.264 (libx264)."""
+    try:
+        import av
+    except ImportError:
+        return False
+    return "libx264" in av.codecs_available
 
-    def __init__(self, path: str | os.PathLike, fps: float = 30.0, *, overwrite: bool = False) -> None:
+
+class _AvStream:
+    """H.264 in MP4 through PyAV."""
+
+    codec = "h264"
+
+    def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
+        import av
+
+        self._container = av.open(str(path), mode="w", format="mp4", options={"movflags": H264_OPTIONS["movflags"]})
+        rate = Fraction(fps).limit_denominator(1001)
+        self._stream = self._container.add_stream("libx264", rate=rate)
+        # yuv420p needs even sizes: odd frames get one replicated edge row/column
+        self._pad = (size[1] % 2, size[0] % 2)
+        self._stream.width, self._stream.height = size[0] + self._pad[1], size[1] + self._pad[0]
+        self._stream.pix_fmt = "yuv420p"
+        self._stream.options = {k: v for k, v in H264_OPTIONS.items() if k != "movflags"}
+        self._av = av
+
+    def write(self, rgb: np.ndarray) -> None:
+        if any(self._pad):
+            rgb = np.pad(rgb, ((0, self._pad[0]), (0, self._pad[1]), (0, 0)), mode="edge")
+        frame = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb), format="rgb24")
+        for packet in self._stream.encode(frame):
+            self._container.mux(packet)
+
+    def close(self) -> None:
+        try:
+            for packet in self._stream.encode():  # flush the encoder
+                self._container.mux(packet)
+        finally:
+            self._container.close()
+
+
+class _Mp4vStream:
+    """MPEG-4 Part 2 through OpenCV (the fallback: most browsers will not play it)."""
+
+    codec = "mp4v"
+
+    def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
+        self._writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+        if not self._writer.isOpened():
+            raise OSError(f"OpenCV could not open {path} for writing (mp4v codec)")
+
+    def write(self, rgb: np.ndarray) -> None:
+        self._writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+
+    def close(self) -> None:
+        self._writer.release()
+
+
+class VideoWriter:
+    """An MP4 file written frame by frame (RGB uint8, all frames the size of the first).
+
+    ``codec``: ``"h264"`` (PyAV) or ``"mp4v"`` (the OpenCV fallback, with a warning); ``"auto"``
+    (default) picks H.264 when it is available. The file appears under ``path`` on ``close()``.
+    """
+
+    def __init__(self, path: str | os.PathLike, fps: float = 30.0, *, overwrite: bool = False,
+                 codec: str = "auto") -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
             raise ValueError(f"video fps must be a finite number > 0, got {fps!r}")
+        if codec not in ("auto", "h264", "mp4v"):
+            raise ValueError(f"video codec must be 'auto', 'h264' or 'mp4v', got {codec!r}")
         self.path = check_output_path(path, overwrite=overwrite, suffixes=(".mp4",))
         self.fps = float(fps)
-        self._writer: cv2.VideoWriter | None = None
+        if codec == "auto":
+            codec = "h264" if h264_available() else "mp4v"
+            if codec == "mp4v":
+                warnings.warn("PyAV with an H.264 encoder is not installed (pip install av): writing "
+                              f"{self.path} as MPEG-4 Part 2, which browsers may not play", RuntimeWarning,
+                              stacklevel=2)
+        elif codec == "h264" and not h264_available():
+            raise RuntimeError("H.264 video needs PyAV with libx264: pip install av")
+        self.codec = codec
+        self._tmp = self.path.with_name(f".{self.path.stem}.{os.getpid()}.partial.mp4")
+        self._stream: _AvStream | _Mp4vStream | None = None
         self._size: tuple[int, int] | None = None
         self.frames = 0
 
@@ -57,26 +143,39 @@ class VideoWriter:
         if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
             raise ValueError(f"video frames must be RGB uint8 (H, W, 3), got {f.dtype} {f.shape}")
         size = (f.shape[1], f.shape[0])
-        if self._writer is None:
-            self._writer = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"mp4v"), self.fps, size)
-            if not self._writer.isOpened():
-                raise OSError(f"OpenCV could not open {self.path} for writing (mp4v codec)")
+        if self._stream is None:
+            cls = _AvStream if self.codec == "h264" else _Mp4vStream
+            self._stream = cls(self._tmp, self.fps, size)
             self._size = size
         elif size != self._size:
             raise ValueError(f"video frame size changed from {self._size} to {size}")
-        self._writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+        self._stream.write(f)
         self.frames += 1
 
     def close(self) -> None:
-        if self._writer is not None:
-            self._writer.release()
-            self._writer = None
+        """Finish the file and move it to ``path`` (nothing is written when no frame was)."""
+        if self._stream is not None:
+            stream, self._stream = self._stream, None
+            try:
+                stream.close()
+                os.replace(self._tmp, self.path)
+            finally:
+                self._tmp.unlink(missing_ok=True)
+
+    def abort(self) -> None:
+        """Drop the partial file; ``path`` is left as it was."""
+        if self._stream is not None:
+            stream, self._stream = self._stream, None
+            try:
+                stream.close()
+            finally:
+                self._tmp.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
         return self
 
     def __exit__(self, *exc) -> None:
-        self.close()
+        self.close()  # a run that stopped early still leaves a playable video of what it recorded
 
 
 class FrameSampler:

@@ -1,22 +1,29 @@
 """Weather presets: a condition and a severity 0-4 name a list of effects (``presets.toml``).
 
-The table ships with the package (``weather_gym/weather/presets.toml``); calibration rewrites that
-file and nothing else changes (``calibrated = true`` and the calibration's provenance are in it;
-``calibrated = false`` would mark uncalibrated guesses).
+Every effect is a condition (``rain@2``, ``fog@3``, ...), plus the study's two: ``droplets`` and
+``low_light`` (alias ``dim``). Each row says whether it is **calibrated** (its k was read off a
+measured perception drop by ``weather-gym calibrate``; ``calibrated = true``) or **nominal** (a
+documented choice of k, not measured; ``calibrated = false``). The table ships with the package
+(``weather_gym/weather/presets.toml``); calibration rewrites the rows it measured, keeps the others
+as nominal, and nothing else changes.
 
-File format: top-level ``calibrated`` (bool) and free metadata, then one ``[[presets]]`` table per
-condition and severity with ``condition``, ``severity``, ``effects`` (a list of ``{name, k, ...}``
-tables as in model files) and optional fields (``description``, ``k_interval``, ``measured_map``,
-``measured_relative``, ``achieved_relative``, anything else) kept as they are.
+File format: free top-level metadata, then one ``[[presets]]`` table per condition and severity with
+``condition``, ``severity``, ``effects`` (a list of ``{name, k, ...}`` tables as in model files),
+``calibrated`` (bool; default: the file's top-level ``calibrated``, else false) and optional fields
+(``description``, ``k_interval``, ``measured_map``, ``measured_relative``, ``achieved_relative``,
+``note``, anything else) kept as they are. A condition in the file has all five severities; a file
+need not hold every condition.
 
 Example:
-    >>> from weather_gym.weather.presets import preset_spec, CONDITIONS
-    >>> CONDITIONS
-    ('droplets', 'low_light')
+    >>> from weather_gym.weather.presets import preset_entry, preset_spec, CONDITIONS
+    >>> CONDITIONS[:3]
+    ('droplets', 'low_light', 'blur')
     >>> preset_spec("droplets", 3)[0]["name"]
     'droplets'
     >>> preset_spec("dim", 0)            # "dim" is an alias of low_light; severity 0 is clear
     []
+    >>> preset_entry("rain", 2)["calibrated"], preset_spec("rain", 2)
+    (False, [{'name': 'rain', 'k': 0.5}])
 """
 
 from __future__ import annotations
@@ -34,7 +41,9 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 __all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "SEVERITIES", "canonical_condition",
            "load_presets", "preset_entry", "preset_spec"]
 
-CONDITIONS = ("droplets", "low_light")
+CONDITIONS = ("droplets", "low_light", "blur", "motion_blur", "noise", "exposure", "fog", "rain", "glare",
+              "vignette", "jpeg")
+"""The study's two conditions, then every other effect under its own name."""
 SEVERITIES = (0, 1, 2, 3, 4)
 #: Other names accepted for a condition (the effect names of each condition).
 ALIASES = {"dim": "low_light", "droplets": "droplets"}
@@ -66,6 +75,9 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
     tables = data.get("presets")
     if not isinstance(tables, list):
         raise ValueError(f"{path}: expected [[presets]] tables")
+    default_calibrated = data.get("calibrated", False)
+    if not isinstance(default_calibrated, bool):
+        raise ValueError(f"{path}: 'calibrated' must be true or false")
     out: dict[str, dict[int, dict[str, Any]]] = {c: {} for c in CONDITIONS}
     for i, t in enumerate(tables):
         where = f"{path}: [[presets]] #{i + 1}"
@@ -84,22 +96,29 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
             raise ValueError(f"{where}: {exc}") from None
         if sev in out[cond]:
             raise ValueError(f"{where}: {cond} severity {sev} appears twice")
+        t = dict(t)
+        t.setdefault("calibrated", default_calibrated)
+        if not isinstance(t["calibrated"], bool):
+            raise ValueError(f"{where}: 'calibrated' must be true or false, got {t['calibrated']!r}")
         out[cond][sev] = t
-    for cond in CONDITIONS:
-        missing = [s for s in SEVERITIES if s not in out[cond]]
+    out = {c: sevs for c, sevs in out.items() if sevs}
+    for cond, sevs in out.items():
+        missing = [s for s in SEVERITIES if s not in sevs]
         if missing:
             raise ValueError(f"{path}: condition {cond!r} has no preset for severity {missing}")
-    meta = {k: v for k, v in data.items() if k != "presets"}
-    if not isinstance(meta.get("calibrated", False), bool):
-        raise ValueError(f"{path}: 'calibrated' must be true or false")
-    return {**meta, "calibrated": meta.get("calibrated", False), "presets": out}
+    if not out:
+        raise ValueError(f"{path}: no [[presets]] tables")
+    meta = {k: v for k, v in data.items() if k not in ("presets", "calibrated")}
+    calibrated = tuple(c for c, sevs in out.items() if all(t["calibrated"] for t in sevs.values()))
+    return {**meta, "calibrated": bool(calibrated), "calibrated_conditions": calibrated, "presets": out}
 
 
 def load_presets(path: str | Path | None = None) -> dict[str, Any]:
     """Read and validate a presets file (default: the shipped one).
 
-    Returns ``{"calibrated": bool, <other top-level keys>, "presets": {condition: {severity: table}}}``.
-    Re-read whenever the file changes.
+    Returns ``{<top-level keys>, "presets": {condition: {severity: table}}, "calibrated_conditions":
+    (conditions whose every row is calibrated), "calibrated": bool(calibrated_conditions)}``; every
+    table has its ``calibrated`` flag. Re-read whenever the file changes.
     """
     p = Path(path) if path is not None else DEFAULT_PRESETS
     if not p.is_file():
@@ -118,7 +137,11 @@ def load_presets(path: str | Path | None = None) -> dict[str, Any]:
 def preset_entry(condition: str, severity: int, path: str | Path | None = None) -> dict[str, Any]:
     """The whole ``[[presets]]`` table of a condition and severity (effects, measurements, ...)."""
     cond, sev = canonical_condition(condition), _check_severity(severity)
-    return load_presets(path)["presets"][cond][sev]
+    table = load_presets(path)["presets"]
+    if cond not in table:
+        raise ValueError(f"presets file {path or DEFAULT_PRESETS} has no rows for condition {cond!r} "
+                         f"(it has: {', '.join(table)})")
+    return table[cond][sev]
 
 
 def preset_spec(condition: str, severity: int, path: str | Path | None = None) -> list[dict[str, Any]]:

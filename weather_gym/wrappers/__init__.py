@@ -1,4 +1,6 @@
-"""Gymnasium wrappers: ``WeatherWrapper`` (weather on image observations), ``DetectorWrapper``.
+"""Gymnasium wrappers: ``WeatherWrapper`` (weather on image observations), ``WeatherRandomizer``
+(random weather per episode or step), ``DetectorWrapper``, ``GroundTruthConeWrapper``, and
+``RecordVideo`` (H.264 videos of ``render()``, defined in ``weather_gym.viz``).
 
 Imports are lazy (``__getattr__``) so ``import weather_gym.wrappers`` stays light; a new wrapper is
 one module plus one line in ``_LAZY``.
@@ -17,6 +19,9 @@ _LAZY = {
     "WeatherWrapper": "weather_gym.wrappers.weather",
     "GroundTruthConeWrapper": "weather_gym.wrappers.ground_truth",
     "OracleNoise": "weather_gym.wrappers.ground_truth",
+    "RandomWeather": "weather_gym.wrappers.weather_randomizer",
+    "RecordVideo": "weather_gym.viz.record_video",
+    "WeatherRandomizer": "weather_gym.wrappers.weather_randomizer",
 }
 
 __all__ = sorted(_LAZY)

@@ -14,8 +14,20 @@ Randomness: the wrapper's own generator, derived from the reset seed (a ``SeedSe
 of ``seed``, distinct from the env's own stream); ``reset(seed=None)`` continues the sequence, or
 on the first reset starts from the env's ``np_random_seed``. Same seeds, same frames: same bytes.
 
+**Changing the weather mid-episode**: ``set_weather(spec)`` (or assigning ``weather``) takes effect
+from the next frame, with a fresh random stream derived from the episode's seed (same calls, same
+bytes). It works through any wrappers above and on vector envs::
+
+    env.get_wrapper_attr("set_weather")("rain@2")        # through DetectorWrapper, TimeLimit, ...
+    envs.call("set_weather", "fog@3")                     # every env of a gymnasium VectorEnv
+    envs.set_attr("weather", ["clear", "droplets@4"])     # one spec per env
+    vec_env.env_method("set_weather", "low_light@2")      # stable-baselines3 VecEnv
+
 ``info["weather"]`` is the spec applied to the frame (a ramp's current k) and
-``info["weather_latency_ms"]`` the time the weather added to that step.
+``info["weather_latency_ms"]`` the time the weather added to that step. With
+``render_mode="rgb_array"`` and a camera ``render_view`` below (``ConeTrackEnv``'s
+``render_view="camera"``), ``render()`` returns the weathered frame the agent saw, so videos
+(Gymnasium's ``RecordVideo``, ``weather_gym.wrappers.RecordVideo``) show the weather.
 
 Example:
     >>> import gymnasium as gym, numpy as np
@@ -35,6 +47,7 @@ Example:
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -65,7 +78,8 @@ class WeatherWrapper(gym.ObservationWrapper):
 
     def __init__(self, env: gym.Env, weather: Any = None, *, image_key: str = "image",
                  depth_key: str | None = "depth", state_key: str | None = "state",
-                 state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None) -> None:
+                 state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None,
+                 render_weather: bool | None = None) -> None:
         super().__init__(env)
         space = env.observation_space
         self.image_key = image_key
@@ -89,11 +103,51 @@ class WeatherWrapper(gym.ObservationWrapper):
         self._ss: np.random.SeedSequence | None = None
         self._rng: np.random.Generator | None = None
         self._latency_ms = 0.0
+        if render_weather is None:  # the camera view of the env below is what the agent sees
+            render_weather = getattr(env.unwrapped, "render_view", None) == "camera"
+        self.render_weather = bool(render_weather)
+        self._last_image: np.ndarray | None = None
 
     @property
     def weather(self) -> Effect:
-        """The weather effect applied to the observations."""
+        """The weather effect applied to the observations (assigning a spec calls ``set_weather``)."""
         return self._weather
+
+    @weather.setter
+    def weather(self, spec: Any) -> None:
+        self.set_weather(spec)
+
+    def set_weather(self, spec: Any) -> list[dict[str, Any]]:
+        """Change the weather from the next frame on, mid-episode or between episodes.
+
+        ``spec`` is anything :func:`~weather_gym.weather.parse_weather` takes (``"rain@2"``,
+        ``{"fog": 0.4}``, an effect, ``"clear"``...); an effect object is copied, so one object
+        given to several envs (``VectorEnv.call``) never shares its state. The new weather's random
+        stream is the next child of the episode's seed sequence: the same calls at the same steps
+        give the same bytes. Returns the new weather as a spec (``to_spec``-style list of tables).
+
+        Example:
+            >>> import gymnasium as gym, numpy as np
+            >>> from weather_gym.wrappers import WeatherWrapper
+            >>> class Camera(gym.Env):
+            ...     observation_space = gym.spaces.Box(0, 255, (8, 8, 3), np.uint8)
+            ...     action_space = gym.spaces.Discrete(1)
+            ...     def reset(self, *, seed=None, options=None):
+            ...         super().reset(seed=seed); return np.full((8, 8, 3), 200, np.uint8), {}
+            ...     def step(self, action):
+            ...         return np.full((8, 8, 3), 200, np.uint8), 0.0, False, False, {}
+            >>> env = gym.wrappers.TimeLimit(WeatherWrapper(Camera()), max_episode_steps=10)
+            >>> _ = env.reset(seed=0)
+            >>> env.get_wrapper_attr("set_weather")({"dim": 0.5})[0]["k"]
+            0.5
+            >>> int(env.step(0)[0][0, 0, 0])
+            100
+        """
+        effect = copy.deepcopy(parse_weather(spec))
+        if self._ss is not None:  # inside an episode: a fresh, repeatable stream for the new weather
+            effect.reset(self._ss.spawn(1)[0])
+        self._weather = effect
+        return current_spec(effect)
 
     # -- episode -----------------------------------------------------------------------------
     def _seed_episode(self, seed: int | None) -> None:
@@ -146,6 +200,14 @@ class WeatherWrapper(gym.ObservationWrapper):
                                   rng=self._rng)
             out = {**observation, self.image_key: image}
         else:
-            out = self._weather(observation, rng=self._rng)
+            image = out = self._weather(observation, rng=self._rng)
         self._latency_ms = 1000.0 * (time.perf_counter() - t0)
+        self._last_image = image
         return out
+
+    def render(self) -> Any:
+        """The env's render; the weathered camera frame of the last step when ``render_weather``
+        (default: the env below renders its camera view, ``render_view="camera"``)."""
+        if self.render_weather and self.render_mode == "rgb_array" and self._last_image is not None:
+            return np.array(self._last_image, copy=True)
+        return self.env.render()
