@@ -41,6 +41,7 @@ def register(sub) -> None:
     r.set_defaults(func=_render)
     i = cmds.add_parser("info", help="summary of a COCO dataset folder (validates it)")
     i.add_argument("dir", type=Path)
+    add_detector_args(i, what="the too-small rule is stated at this detector's input scale")
     i.set_defaults(func=_info)
 
     from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS
@@ -108,21 +109,31 @@ def _info(args) -> int:
     from weather_gym.datasets.coco import load_coco
     from weather_gym.perception.ignore import inside_mask
     from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
+    from weather_gym.perception.scoring import small_rule
 
     ds = load_coco(args.dir)
     anns = ds.data["annotations"]
     info = ds.info
     sizes = Counter(f"{im['width']}x{im['height']}" for im in ds.images)
-    rule = (info.get("too_small") or {}).get("rule") or (
-        f"box height < {info.get('min_box_height_px', MIN_BOX_HEIGHT_PX):g} px (6.1 px at the shipped detector's "
-        "512x288 input for 672x376 frames)")
+    det = detector_from_args(args, required=False)
+    sr = small_rule(ds, det)
+    if sr is not None:
+        rule, min_h = sr.describe(), sr.min_height_px
+    else:  # frames of several sizes: the flags stored with the dataset
+        min_h = None
+        rule = (info.get("too_small") or {}).get("rule") or (
+            f"box height < {info.get('min_box_height_px', MIN_BOX_HEIGHT_PX):g} px, as stored")
     masked = 0
     for i in range(len(ds)) if ds.has_ignore_mask else ():
         g = ds.gt(i)
         masked += int((inside_mask(g.get("ignore_mask"), g["boxes"]) & ~g["ignore"]).sum())
     regions = [a for a in anns if a.get("ignore")]
-    small = [a for a in anns if a.get("iscrowd") and not a.get("ignore")]
-    per_class = Counter(CONE_CLASSES[a["category_id"] - 1] for a in anns if not a.get("iscrowd", 0))
+
+    def is_small(a: dict) -> bool:
+        return bool(a.get("iscrowd")) if min_h is None else a["bbox"][3] < min_h
+
+    small = [a for a in anns if not a.get("ignore") and is_small(a)]
+    per_class = Counter(CONE_CLASSES[a["category_id"] - 1] for a in anns if not a.get("ignore") and not is_small(a))
     heights = np.array([a["bbox"][3] for a in anns]) if anns else np.zeros(0)
     origin = info.get("origin", "render" if any("track" in im for im in ds.images) else "?")
     print(f"{args.dir}: {len(ds)} images ({', '.join(f'{s} ({n})' for s, n in sizes.items())}), {origin}, "
