@@ -182,3 +182,28 @@ def test_a_plain_function_is_a_detector_and_the_wrapper_takes_specs(tmp_path):
     env = DetectorWrapper(Camera(), f"yolov8:{path}", detector_classes="0=blue,1=yellow,2=orange")
     obs, info = env.reset(seed=0)
     assert int(obs["mask"].sum()) == 2
+
+
+def test_every_command_takes_the_detector_options(tmp_path, capsys):
+    """detector eval scores with a YOLO export (its too-small rule at the export's input scale); evaluate
+    hands the options to its DetectorWrapper; a bad spec fails before anything runs."""
+    import argparse
+
+    from weather_gym.cli import main
+    from weather_gym.cli.evaluate import _perception_kwargs
+    from weather_gym.datasets.coco import CocoWriter
+
+    path = make_onnx(tmp_path / "m.onnx", {"output0": raw_v8()})
+    with CocoWriter(tmp_path / "ds") as w:
+        w.add(FRAME, {}, {"boxes": np.array(LETTERBOX), "classes": np.array([0, 1])})
+    assert main(["detector", "eval", str(tmp_path / "ds"), "--detector", f"yolov8:{path}",
+                 "--detector-classes", "0=blue,1=yellow,2=orange"]) == 0
+    out = capsys.readouterr().out
+    assert "mAP@0.5      1.000" in out and "6.1 px at the detector's 64x64 input, letterbox x0.5" in out
+    args = argparse.Namespace(perception_kwargs=None, perception="detector", detector=f"yolov8:{path}",
+                              detector_classes="0=blue,1=yellow,2=orange", detector_resize="stretch",
+                              detector_input=None, detector_threshold=0.4)
+    assert _perception_kwargs(args) == {"detector": f"yolov8:{path}", "detector_classes": "0=blue,1=yellow,2=orange",
+                                        "detector_resize": "stretch", "score_threshold": 0.4}
+    assert main(["detector", "eval", str(tmp_path / "ds"), "--detector", "yolov8:missing.onnx"]) == 2
+    assert "detector model missing.onnx not found" in capsys.readouterr().err

@@ -171,7 +171,16 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
                         score_threshold: float | None = None) -> DetectorSpec:
     """A :class:`DetectorSpec` from ``"kind:PATH"``, a bare ONNX path, or None (the shipped model)."""
     if isinstance(spec, DetectorSpec):
-        return spec
+        if (classes, resize, input_size, score_threshold) == (None, None, None, None):
+            return spec
+        from dataclasses import replace
+
+        if isinstance(classes, Mapping):
+            classes = ",".join(f"{k}={v}" for k, v in classes.items())
+        changes = {k: v for k, v in (("classes", classes), ("resize", resize), ("score_threshold", score_threshold),
+                                     ("input_size", _parse_size(input_size) if isinstance(input_size, str)
+                                      else input_size)) if v is not None}
+        return replace(spec, **changes)
     if isinstance(classes, Mapping):
         classes = ",".join(f"{k}={v}" for k, v in classes.items())
     if isinstance(input_size, str):

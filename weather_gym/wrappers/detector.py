@@ -57,8 +57,9 @@ class DetectorWrapper(gym.ObservationWrapper):
             default camera scaled to the image size).
         use_depth: take range from the ``depth_key`` observation when present.
         keep_image: keep the image in the observation (for viewing; most policies do not need it).
-        score_threshold, threads, detector_classes: passed to a detector the wrapper creates from a
-            spec (``detector_classes``: a YOLO class map, e.g. ``"0=blue,1=yellow"``).
+        score_threshold, threads, detector_classes, detector_resize, detector_input: passed to a
+            detector the wrapper creates from a spec (``detector_classes``: a YOLO class map, e.g.
+            ``"0=blue,1=yellow"``; ``detector_resize``: letterbox / stretch; ``detector_input``: ``"640x640"``).
     """
 
     def __init__(
@@ -75,9 +76,11 @@ class DetectorWrapper(gym.ObservationWrapper):
         score_threshold: float | None = None,
         threads: int = 1,
         detector_classes: str | None = None,
+        detector_resize: str | None = None,
+        detector_input: str | tuple[int, int] | None = None,
     ) -> None:
         super().__init__(env)
-        from weather_gym.perception.detectors import as_detector, load_detector
+        from weather_gym.perception.detectors import DetectorSpec, as_detector, load_detector
 
         if not isinstance(max_cones, int) or max_cones < 1:
             raise ValueError(f"DetectorWrapper: max_cones must be a positive integer, got {max_cones!r}")
@@ -103,9 +106,9 @@ class DetectorWrapper(gym.ObservationWrapper):
         if (camera.width, camera.height) != (w, h):
             raise ValueError(f"DetectorWrapper: camera is {camera.width}x{camera.height} but the image observation is {w}x{h}")
         self.camera = camera
-        if detector is None or isinstance(detector, (str, os.PathLike)):
+        if detector is None or isinstance(detector, (str, os.PathLike, DetectorSpec)):
             detector = load_detector(detector, classes=detector_classes, score_threshold=score_threshold,
-                                     threads=threads)
+                                     resize=detector_resize, input_size=detector_input, threads=threads)
         self.detector = as_detector(detector)
         self.image_key = image_key
         self.depth_key = depth_key if (use_depth and self._is_dict and depth_key in space.spaces) else None
