@@ -41,7 +41,7 @@ import math
 import os
 import shutil
 from collections import Counter
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -157,18 +157,23 @@ def _floats(parts: Sequence[str], where: str, what: str) -> list[float]:
         raise ValueError(f"{where}: expected numbers for {what}, got {' '.join(parts)!r}") from None
 
 
+def _labelled(images: Path, labels: Path, fmt: str) -> Iterator[tuple[Path, Path, _Frame]]:
+    """Each image under ``images`` with its label file (mirrored under ``labels``, ``.txt``) and a new frame."""
+    for img in _images_under(images):
+        lab = _label_for(img, images, labels)
+        if not lab.is_file():
+            raise FileNotFoundError(f"{img}: its {fmt} label file {lab} is missing (every image needs one; an "
+                                    "empty file means no cones)")
+        yield img, lab, _Frame(img, str(img.relative_to(images)))
+
+
 def _read_kitti(src: Path) -> tuple[list[_Frame], Counter]:
     images = _find_dir(src, _KITTI_DIRS["images"], "images")
     labels = _find_dir(src, _KITTI_DIRS["labels"], "labels")
     calib = _find_dir(src, _KITTI_DIRS["calib"], "calib", required=False)
     stats: Counter = Counter()
     frames = []
-    for img in _images_under(images):
-        lab = _label_for(img, images, labels)
-        if not lab.is_file():
-            raise FileNotFoundError(f"{img}: its KITTI label file {lab} is missing (every image needs one; an "
-                                    "empty file means no cones)")
-        fr = _Frame(img, str(img.relative_to(images)))
+    for img, lab, fr in _labelled(images, labels, "KITTI"):
         for n, line in enumerate(lab.read_text().splitlines(), 1):
             parts = line.split()
             if not parts:
@@ -258,12 +263,7 @@ def _read_yolo(src: Path) -> tuple[list[_Frame], Counter]:
     names = _yolo_names(src)
     stats: Counter = Counter()
     frames = []
-    for img in _images_under(images):
-        lab = _label_for(img, images, labels)
-        if not lab.is_file():
-            raise FileNotFoundError(f"{img}: its YOLO label file {lab} is missing (every image needs one; an "
-                                    "empty file means no cones)")
-        fr = _Frame(img, str(img.relative_to(images)))
+    for img, lab, fr in _labelled(images, labels, "YOLO"):
         fr.size = _image_size(img)
         w, h = fr.size
         for n, line in enumerate(lab.read_text().splitlines(), 1):

@@ -33,7 +33,7 @@ import math
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -635,8 +635,8 @@ class GapSession:
             "model_in": model_tables(self.input_model),
             "model_effects": model_tables(self.model),
             "signals": [{"name": n, "scale": float(s)} for n, s in zip(SIGNAL_NAMES, self.scale)],
-            "settings": {k: (list(v) if isinstance(v, tuple) else str(v) if k == "detector" and v is not None else v)
-                         for k, v in asdict(self.config).items() if k != "progress"},
+            "settings": {f.name: _setting(getattr(self.config, f.name)) for f in fields(self.config)
+                         if f.name != "progress"},
             "log": list(self.log),
         }
 
@@ -664,6 +664,15 @@ def _perception_summary(rows: list[dict[str, Any]], sim: dict[str, float], meas:
                            for n in sim if n.startswith("recall.size.")},
         "scores": {n: {"sim": sim[n], "measured": meas[n]} for n in ("score_tp_mean", "score_fp_mean", "fp_per_frame")},
     }
+
+
+def _setting(v: Any) -> Any:
+    """A GapConfig value for the report: tuples as lists, a detector spec as its text."""
+    if isinstance(v, tuple):
+        return list(v)
+    if v is None or isinstance(v, bool | int | float | str):
+        return v
+    return str(v)
 
 
 def _changes(before: dict[str, Any], after: dict[str, Any]) -> str:

@@ -51,6 +51,16 @@ class Detections:
         return {"boxes": self.boxes, "scores": self.scores, "classes": self.classes}
 
 
+def check_frame(image: Any, where: str) -> np.ndarray:
+    """``image`` when it is an RGB uint8 ``(H, W, 3)`` array; ValueError naming ``where`` otherwise."""
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+        got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
+        raise ValueError(f"{where}: expected an RGB uint8 image of shape (H, W, 3), got {got}")
+    if image.shape[0] < 1 or image.shape[1] < 1:
+        raise ValueError(f"{where}: image is empty (shape {image.shape})")
+    return image
+
+
 def load_model_metadata(model_path: str | os.PathLike) -> dict[str, Any]:
     """The sidecar JSON of ``model_path`` (``{}`` when there is none)."""
     side = Path(model_path).with_suffix(".json")
@@ -153,12 +163,7 @@ class ConeDetector:
 
     # ------------------------------------------------------------------ inference
     def _check(self, image: Any, where: str) -> np.ndarray:
-        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-            got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
-            raise ValueError(f"{where}: expected an RGB uint8 image of shape (H, W, 3), got {got}")
-        if image.shape[0] < 1 or image.shape[1] < 1:
-            raise ValueError(f"{where}: image is empty (shape {image.shape})")
-        return image
+        return check_frame(image, where)
 
     def raw(self, images: list[np.ndarray]) -> tuple[np.ndarray, list]:
         """Letterbox ``images`` and run the graph; returns (output, letterboxes)."""

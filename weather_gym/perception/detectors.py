@@ -44,7 +44,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from weather_gym.perception.detector import Detections
+from weather_gym.perception.detector import Detections, check_frame
 
 __all__ = ["Detector", "DetectorBase", "CallableDetector", "DetectorSpec", "KINDS", "as_detector", "load_detector",
            "parse_detector_spec", "detector_id"]
@@ -58,16 +58,6 @@ class Detector(Protocol):
     """``detector(frame) -> Detections`` for an RGB uint8 frame ``(H, W, 3)``."""
 
     def __call__(self, frame: np.ndarray) -> Detections: ...
-
-
-def check_frame(image: Any, where: str) -> np.ndarray:
-    """``image`` when it is an RGB uint8 ``(H, W, 3)`` array; ValueError naming ``where`` otherwise."""
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-        got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
-        raise ValueError(f"{where}: expected an RGB uint8 image of shape (H, W, 3), got {got}")
-    if image.shape[0] < 1 or image.shape[1] < 1:
-        raise ValueError(f"{where}: image is empty (shape {image.shape})")
-    return image
 
 
 class DetectorBase:
