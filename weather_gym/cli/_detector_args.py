@@ -37,7 +37,7 @@ def detector_spec_from_args(args) -> Any:
     from weather_gym.perception.detectors import parse_detector_spec
 
     spec = getattr(args, "detector", None)
-    model = getattr(args, "model", None)
+    model = getattr(args, "detector_model", None)
     if model is not None:
         if spec is not None:
             raise ValueError("give either --detector or --model, not both")
@@ -50,7 +50,7 @@ def detector_spec_from_args(args) -> Any:
 
 def detector_from_args(args, *, required: bool = True, threads: int = 1) -> Any:
     """The loaded detector (``required=False``: None when no detector option was given)."""
-    given = any(getattr(args, k, None) is not None for k in ("detector", "model", "detector_classes",
+    given = any(getattr(args, k, None) is not None for k in ("detector", "detector_model", "detector_classes",
                                                             "detector_resize", "detector_input",
                                                             "detector_threshold"))
     if not required and not given:
