@@ -17,6 +17,8 @@ import os
 import sys
 from pathlib import Path
 
+from weather_gym.cli import run_command
+from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.evaluation.evaluate import EvalConfig, evaluate
 
 
@@ -25,12 +27,16 @@ def config_for_model(model: Path, *, effects, severities, seeds, tracks=None, ma
     """The ``EvalConfig`` evaluating ``model`` on the observation it was trained on (from its sidecar)."""
     model = model if model.suffix == ".zip" else model.with_suffix(".zip")
     if not model.is_file():
-        raise FileNotFoundError(f"model {model} not found")
+        raise MissingInputError(f"model {model} not found")
     sidecar = model.with_suffix(".json")
     if not sidecar.is_file():
-        raise FileNotFoundError(f"{sidecar} not found: it records the env the model was trained on "
+        raise MissingInputError(f"{sidecar} not found: it records the env the model was trained on "
                                 "(written by examples/train_ppo.py)")
-    meta = json.loads(sidecar.read_text())
+    try:
+        meta = json.loads(sidecar.read_text())
+        meta["track"], meta["env_id"], meta["perception"]  # noqa: B018 - the keys the config needs
+    except (ValueError, KeyError, TypeError) as exc:
+        raise FileFormatError(f"{sidecar}: not a model sidecar written by examples/train_ppo.py ({exc})") from None
     return EvalConfig(
         agents=("sb3",), agent_kwargs={"path": str(model.resolve()), "algo": meta.get("algo", "PPO")},
         effects=tuple(effects), severities=tuple(severities), seeds=tuple(seeds),
@@ -52,17 +58,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     p.add_argument("--backend", choices=("process", "ray", "serial"), default="process")
-    args = p.parse_args(argv)
-    try:
-        config = config_for_model(
-            args.model, effects=[e for e in args.effects.split(",") if e],
-            severities=[int(s) for s in args.severities.split(",") if s], seeds=range(args.seeds),
-            tracks=[t for t in args.tracks.split(",") if t] if args.tracks else None,
-            max_steps=args.max_steps, laps=args.laps)
-        rows = evaluate(config, args.out, workers=args.workers, backend=args.backend)
-    except (ValueError, FileNotFoundError, PermissionError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    p.add_argument("--overwrite", action="store_true", help="replace a report in --out that no earlier run wrote")
+    return run_command(_evaluate, p.parse_args(argv))
+
+
+def _evaluate(args) -> int:
+    config = config_for_model(
+        args.model, effects=[e for e in args.effects.split(",") if e],
+        severities=[int(s) for s in args.severities.split(",") if s], seeds=range(args.seeds),
+        tracks=[t for t in args.tracks.split(",") if t] if args.tracks else None,
+        max_steps=args.max_steps, laps=args.laps)
+    rows = evaluate(config, args.out, workers=args.workers, backend=args.backend, overwrite=args.overwrite)
     failed = sum(r["status"] != "ok" for r in rows)
     print(f"{len(rows) - failed} ok, {failed} failed; report: {args.out / 'report.md'}")
     return 1 if failed else 0

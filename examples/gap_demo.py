@@ -35,6 +35,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="seed of the hidden weather's random numbers (default 4242, not the workflow's)")
     args = ap.parse_args(argv)
 
+    from weather_gym._io import atomic_write
     from weather_gym.datasets import render_dataset
     from weather_gym.gap import degrade_dataset
 
@@ -47,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (measured / "annotations.json").exists():
         degrade_dataset(clean, measured, HIDDEN, seed=args.measured_seed, progress=True)
     if not model.exists():
-        model.write_text(MODEL)
+        atomic_write(model, MODEL)
     t2 = time.perf_counter()
     print(f"clean set {clean} ({t1 - t0:.0f} s), measured set {measured} ({t2 - t1:.0f} s), model {model}")
     hidden = ", ".join(f"{e['name']} k={e['k']}" for e in HIDDEN)

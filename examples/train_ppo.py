@@ -31,6 +31,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from weather_gym._io import atomic_path, atomic_write, check_output
+from weather_gym.cli import run_command
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
 from weather_gym.evaluation.evaluate import DEFAULT_ENV_ID, DEFAULT_TRACK, PERCEPTIONS, make_eval_env
 
 _SPAWN_KEY = (0x9E7A,)  # separates the preset draw from the env's own streams for the same seed
@@ -100,7 +104,7 @@ def _camera(text: str | None) -> dict | None:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise SystemExit(f"error: --camera must look like 336x188, got {text!r}") from None
+        raise InputError(f"--camera must look like 336x188, got {text!r}") from None
     return {"width": w, "height": h}
 
 
@@ -111,8 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--n-envs", type=int, default=4, help="parallel envs")
     p.add_argument("--vec", choices=("subproc", "dummy"), default="subproc",
                    help="SubprocVecEnv (one process per env) or DummyVecEnv (in this process)")
-    p.add_argument("--out", type=Path, required=True, help="model zip to write (never overwritten without --force)")
-    p.add_argument("--force", action="store_true", help="overwrite --out")
+    p.add_argument("--out", type=Path, required=True, help="model zip to write (never overwritten without --overwrite)")
+    add_overwrite_arg(p, help="replace --out (and its .json sidecar)")
     p.add_argument("--env-id", default=DEFAULT_ENV_ID)
     p.add_argument("--track", default=DEFAULT_TRACK)
     p.add_argument("--perception", choices=PERCEPTIONS[:2], default="detector",
@@ -125,20 +129,19 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--batch-size", type=int, default=128)
     p.add_argument("--n-epochs", type=int, default=10, help="PPO epochs per update")
     p.add_argument("--seed", type=int, default=0)
-    args = p.parse_args(argv)
+    return run_command(_train, p.parse_args(argv))
 
+
+def _train(args) -> int:
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     out = args.out if args.out.suffix == ".zip" else args.out.with_suffix(".zip")
-    if out.exists() and not args.force:
-        print(f"error: {out} exists; pass --force to overwrite it", file=sys.stderr)
-        return 2
+    check_output(out, overwrite=args.overwrite, what="--out")
+    check_output(out.with_suffix(".json"), overwrite=args.overwrite, what="model sidecar")
     if args.timesteps < 1 or args.n_envs < 1:
-        print("error: --timesteps and --n-envs must be >= 1", file=sys.stderr)
-        return 2
-    out.parent.mkdir(parents=True, exist_ok=True)
+        raise InputError("--timesteps and --n-envs must be >= 1")
     conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
     severities = tuple(int(s) for s in args.severities.split(",") if s.strip())
     settings = {"env_id": args.env_id, "track": args.track, "perception": args.perception,
@@ -155,14 +158,15 @@ def main(argv: list[str] | None = None) -> int:
         model.learn(total_timesteps=args.timesteps, callback=_progress_callback(args.timesteps))
     finally:
         vec.close()
-    model.save(str(out))
+    with atomic_path(out, overwrite=args.overwrite) as tmp:
+        model.save(str(tmp))
     sidecar = out.with_suffix(".json")
     env_kwargs = {"camera": settings["camera"]} if settings["camera"] else {}
-    sidecar.write_text(json.dumps({
+    atomic_write(sidecar, json.dumps({
         "algo": "PPO", "timesteps": args.timesteps, "n_envs": args.n_envs, "seed": args.seed,
         "env_id": args.env_id, "track": args.track, "perception": args.perception, "env_kwargs": env_kwargs,
         "train_conditions": list(conditions), "train_severities": list(severities), "train_max_steps": args.max_steps,
-    }, indent=2) + "\n")
+    }, indent=2) + "\n", overwrite=args.overwrite)
     print(f"saved {out} and {sidecar}")
     return 0
 

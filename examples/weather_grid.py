@@ -2,7 +2,7 @@
 
 Run (writes docs/img/weather_grid.png):
 
-    python examples/weather_grid.py --force
+    python examples/weather_grid.py --overwrite
 
 Rows are the effects of the registry (plus physical dim and persistent droplets), columns the
 clean frame and k = 0.25 / 0.5 / 0.75. The frame comes from ``WeatherGym/ConeTrack-v0`` after a
@@ -19,6 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.weather import EFFECTS, make
 
 KS = (0.25, 0.5, 0.75)
@@ -79,33 +80,34 @@ def grid(image: np.ndarray, depth: np.ndarray | None, state: dict, tile_w: int =
 
 
 def main(argv: list[str] | None = None) -> int:
+    from weather_gym.cli import run_command
+
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group()
     src.add_argument("--image", type=Path, help="use this image instead of a simulator frame")
     src.add_argument("--synthetic", action="store_true", help="use the synthetic scene (no simulator)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, help="PNG to write (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
-    args = p.parse_args(argv)
-    if args.out.exists() and not args.force:
-        print(f"error: {args.out} exists (use --force to replace it)", file=sys.stderr)
-        return 2
+    add_overwrite_arg(p, help="overwrite --out if it exists")
+    return run_command(_run, p.parse_args(argv))
+
+
+def _run(args) -> int:
+    from weather_gym._io import check_output, write_image
+    from weather_gym.datasets.coco import read_image
+
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".png",), what="--out")
     if args.synthetic:
         from weather_gym.weather.sample import sample_frame
 
         image, depth = sample_frame(376, 672, seed=args.seed)
         state = {"speed": 10.0, "yaw_rate": 0.2}
     elif args.image is not None:
-        bgr = cv2.imread(str(args.image), cv2.IMREAD_COLOR)
-        if bgr is None:
-            print(f"error: {args.image}: not a readable image", file=sys.stderr)
-            return 2
-        image, depth, state = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), None, {}
+        image, depth, state = read_image(args.image), None, {}
     else:
         image, depth, state = simulator_frame(args.seed)
     out = grid(image, depth, state, seed=args.seed)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(args.out), cv2.cvtColor(out, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    write_image(args.out, out, overwrite=args.overwrite, params=[cv2.IMWRITE_PNG_COMPRESSION, 9])
     print(f"wrote {args.out} ({out.shape[1]}x{out.shape[0]})")
     return 0
 

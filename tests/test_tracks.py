@@ -270,7 +270,7 @@ def test_cli_list_show_export(tmp_path, capsys):
     assert main(["tracks", "show", "peanut", "--out", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["tracks", "show", "peanut", "--out", str(png)]) == 2
-    assert "--force" in capsys.readouterr().err
+    assert "--overwrite" in capsys.readouterr().err
     csv = tmp_path / "r.csv"
     assert main(["tracks", "export", "random:3", "--out", str(csv)]) == 0
     assert read_cone_csv(csv)[0].tobytes() == generate_random_track(3).cones_xy.tobytes()

@@ -15,6 +15,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from weather_gym.errors import InputError
+
 __all__ = ["toml_value"]
 
 
@@ -35,7 +37,7 @@ def toml_value(v: Any, *, digits: int | None = None, finite: bool = False, none:
     if isinstance(v, float):
         if not math.isfinite(v):
             if finite:
-                raise ValueError(f"cannot write the non-finite number {v!r} here")
+                raise InputError(f"cannot write the non-finite number {v!r} here")
             return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
         if digits is not None and (abs(v) >= 1e-4 or v == 0):
             v = round(v, digits)
@@ -47,4 +49,4 @@ def toml_value(v: Any, *, digits: int | None = None, finite: bool = False, none:
         return "{ " + ", ".join(f"{k} = {toml_value(x, **kw)}" for k, x in v.items()) + " }"
     if isinstance(v, list | tuple):
         return "[" + ", ".join(toml_value(x, **kw) for x in v) + "]"
-    raise ValueError(f"cannot write {type(v).__name__} {v!r} as a TOML value")
+    raise InputError(f"cannot write {type(v).__name__} {v!r} as a TOML value")

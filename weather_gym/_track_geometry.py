@@ -18,9 +18,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
-from scipy.spatial import Delaunay
+from scipy.spatial import Delaunay, QhullError
 
 from weather_gym.cone_spec import CONE_CLASSES as CONE_NAMES
+from weather_gym.errors import InputError
 
 STEP_M = 0.5
 """Centerline point spacing."""
@@ -187,7 +188,10 @@ def mixed_edge_chain(points: np.ndarray, side: np.ndarray) -> tuple[np.ndarray, 
     """
     if len(points) < 3 or (side > 0).sum() == 0 or (side < 0).sum() == 0:
         return np.empty((0, 2)), False
-    tri = Delaunay(points)
+    try:
+        tri = Delaunay(points)
+    except QhullError:  # all cones on one line (or another degenerate layout): no triangles, no track
+        return np.empty((0, 2)), False
     links: dict[tuple[int, int], list[tuple[int, int]]] = {}
     for simplex in tri.simplices:
         mixed = []
@@ -371,7 +375,8 @@ def layout_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> dic
     bnd = side != 0
     mids, closed = mixed_edge_chain(xy[bnd], side[bnd])
     if len(mids) < 3:
-        raise ValueError(f"{where}: no blue cone faces a yellow cone: cannot find the track between them")
+        raise InputError(f"{where}: no blue cone faces a yellow cone: cannot find the track between them "
+                         "(are the cones all on one line?)")
     line = _orient_blue_left(smooth(mids, closed, SMOOTH_SIGMA_M, debias=True), xy, cls, closed)
     # orange / big orange cones join the boundary on their side (those across the lane do not)
     lat, _ = signed_lateral(xy, line, closed)
@@ -422,7 +427,7 @@ def layout_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> dic
         finish_s += back
         length = polyline_length(line, closed)
         if finish_s > length + 1e-6:
-            raise ValueError(f"{where}: the lane ends {length - start_line_s:.1f} m after the start line; "
+            raise InputError(f"{where}: the lane ends {length - start_line_s:.1f} m after the start line; "
                              f"an open track needs big_orange finish cones or {ACCEL_LENGTH_M:.0f} m of lane")
     lat, s_cone = signed_lateral(xy, line, closed)
     hw = []
@@ -430,7 +435,7 @@ def layout_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> dic
         members = np.nonzero(side == sign)[0]
         members = members[np.argsort(s_cone[members], kind="stable")]
         if closed and len(members) < 3:
-            raise ValueError(f"{where}: a closed track needs at least 3 cones on each side")
+            raise InputError(f"{where}: a closed track needs at least 3 cones on each side")
         hw.append(xy[members])
     hwl, hwr = half_widths(line, hw[0], hw[1], closed)
     return dict(centerline=line, closed=closed, event="trackdrive" if closed else "acceleration",
@@ -451,7 +456,7 @@ def _start_pose(line, closed, start, start_line_s, where):
     along = float(np.interp(q[0] % length if closed else q[0], s, h))
     yaw = along if start[2] is None else float(start[2])
     if np.cos(yaw - along) < 0:
-        raise ValueError(f"{where}: car_start faces against the driving direction "
+        raise InputError(f"{where}: car_start faces against the driving direction "
                          "(the driving direction keeps blue cones on the left)")
     return (float(start[0]), float(start[1]), float(np.arctan2(np.sin(yaw), np.cos(yaw))))
 
@@ -460,7 +465,7 @@ def skidpad_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> di
     """The FS skidpad sequence: entry, 2 laps right circle, 2 laps left circle, exit."""
     big = xy[cls == BIG_ORANGE]
     if len(big) < 2 or start is None:
-        raise ValueError(f"{where}: a skidpad needs big_orange cones at the crossing and a car_start row")
+        raise InputError(f"{where}: a skidpad needs big_orange cones at the crossing and a car_start row")
     o = big.mean(axis=0)
     d = o - np.asarray(start[:2], dtype=float)
     d /= np.linalg.norm(d)
@@ -470,10 +475,10 @@ def skidpad_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> di
     for key, colour, sign in (("in_r", YELLOW, -1), ("out_r", BLUE, -1), ("in_l", BLUE, 1), ("out_l", YELLOW, 1)):
         pts = xy[(cls == colour) & (np.sign(lat) == sign)]
         if len(pts) < 3:
-            raise ValueError(f"{where}: skidpad circle {key} has {len(pts)} cones; at least 3 are needed")
+            raise InputError(f"{where}: skidpad circle {key} has {len(pts)} cones; at least 3 are needed")
         c, r, resid = fit_circle(pts)
         if resid > 0.3:
-            raise ValueError(f"{where}: the {CONE_NAMES[colour]} cones of skidpad circle {key} are not on a "
+            raise InputError(f"{where}: the {CONE_NAMES[colour]} cones of skidpad circle {key} are not on a "
                              f"circle (RMS residual {resid:.2f} m)")
         fits[key] = (c, r)
     c_r = (fits["in_r"][0] + fits["out_r"][0]) / 2.0

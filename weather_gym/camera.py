@@ -14,6 +14,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from weather_gym.errors import InputError, LimitError
+from weather_gym.limits import MAX_CAMERA_SIDE
+
 
 @dataclass(frozen=True)
 class CameraConfig:
@@ -53,7 +56,9 @@ class CameraConfig:
         for name in ("width", "height"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise ValueError(f"camera {name} must be a positive integer, got {v!r}")
+                raise InputError(f"camera {name} must be a positive integer, got {v!r}")
+            if v > MAX_CAMERA_SIDE:
+                raise LimitError(f"camera {name} = {v} px is too large; at most {MAX_CAMERA_SIDE} px are rendered")
         checks = {
             "hfov_deg": 1.0 <= self.hfov_deg <= 170.0,
             "fps": self.fps > 0,
@@ -70,7 +75,7 @@ class CameraConfig:
                                          and (v > 0 if name == "fy_px" else True))
         for name, ok in checks.items():
             if not ok:
-                raise ValueError(f"camera {name} has an invalid value {getattr(self, name)!r}")
+                raise InputError(f"camera {name} has an invalid value {getattr(self, name)!r}")
 
     @classmethod
     def from_intrinsics(cls, width: int, height: int, fx: float, fy: float, cx: float, cy: float,
@@ -84,10 +89,10 @@ class CameraConfig:
         """
         for name, v in (("fx", fx), ("fy", fy)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"camera intrinsics: {name} must be a positive number of pixels, got {v!r}")
+                raise InputError(f"camera intrinsics: {name} must be a positive number of pixels, got {v!r}")
         for name, v, size in (("cx", cx, width), ("cy", cy, height)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 <= v <= size):
-                raise ValueError(f"camera intrinsics: {name} must lie in [0, {size}] pixels, got {v!r}")
+                raise InputError(f"camera intrinsics: {name} must lie in [0, {size}] pixels, got {v!r}")
         hfov = math.degrees(2.0 * math.atan(width / (2.0 * float(fx))))
         return cls(width=int(width), height=int(height), hfov_deg=hfov,
                    fy_px=None if abs(fy - fx) < 1e-9 else float(fy),

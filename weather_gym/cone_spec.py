@@ -8,6 +8,8 @@ Example:
 
 from __future__ import annotations
 
+from weather_gym.errors import InputError
+
 CONE_CLASSES: tuple[str, ...] = ("blue", "yellow", "orange", "big_orange")
 """Class id = index in this tuple; COCO category id = index + 1."""
 
@@ -34,7 +36,7 @@ def class_id(name: str) -> int:
     try:
         return CONE_CLASSES.index(name)
     except ValueError:
-        raise ValueError(f"unknown cone colour {name!r}; expected one of {', '.join(CONE_CLASSES)}") from None
+        raise InputError(f"unknown cone colour {name!r}; expected one of {', '.join(CONE_CLASSES)}") from None
 
 
 def cone_height(name_or_id: str | int) -> float:

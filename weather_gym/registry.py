@@ -10,13 +10,15 @@ Example:
     >>> shapes.get("circle")
     Traceback (most recent call last):
     ...
-    ValueError: unknown shape 'circle'; valid names: square
+    weather_gym.errors.InputError: unknown shape 'circle'; valid names: square
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from typing import Generic, TypeVar
+
+from weather_gym.errors import InputError
 
 T = TypeVar("T")
 
@@ -33,7 +35,7 @@ class Registry(Generic[T]):
 
         def _add(o: T) -> T:
             if name in self._items and self._items[name] is not o:
-                raise ValueError(f"{self.kind} {name!r} is already registered")
+                raise InputError(f"{self.kind} {name!r} is already registered")
             self._items[name] = o
             return o
 
@@ -43,7 +45,7 @@ class Registry(Generic[T]):
         try:
             return self._items[name]
         except KeyError:
-            raise ValueError(
+            raise InputError(
                 f"unknown {self.kind} {name!r}; valid names: {', '.join(sorted(self._items))}"
             ) from None
 

@@ -33,18 +33,26 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from weather_gym import _track_geometry as geo
+from weather_gym._io import atomic_write
 from weather_gym.cone_spec import CONE_BODY_RGB, CONE_CLASSES
+from weather_gym.errors import FileFormatError, InputError, LimitError, MissingInputError
 from weather_gym.paths import data_dir
 from weather_gym.registry import Registry
 
 __all__ = [
-    "CONE_CLASSES", "EVENTS", "TRACKS", "Projection", "Track", "generate_random_track", "load_track",
+    "CONE_CLASSES", "EVENTS", "TRACKS", "Projection", "Track", "generate_random_track", "is_track_file", "load_track",
     "oval", "read_cone_csv",
 ]
 
 EVENTS = ("trackdrive", "acceleration", "skidpad")
 CSV_HEADER = "tag,x,y,direction,x_variance,y_variance,xy_covariance"
 DUPLICATE_TOL_M = 0.01
+MAX_TRACK_FILE_BYTES = 10_000_000
+"""Largest cone CSV read (EUFS tracks are a few kB)."""
+MAX_CONES = 10_000
+"""Most cones in a track (the largest shipped track has a few hundred)."""
+MAX_COORDINATE_M = 100_000.0
+"""Cone positions lie within this distance of the origin (100 km)."""
 MIN_RADIUS_M = 6.0
 """Generated tracks keep every centerline radius at or above this (a car can drive it)."""
 StartPose = tuple[float, float, float]
@@ -66,7 +74,7 @@ class Projection(NamedTuple):
 def _frozen(a, dtype, shape_tail: tuple[int, ...], what: str) -> np.ndarray:
     arr = np.array(a, dtype=dtype, copy=True)
     if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
-        raise ValueError(f"Track.{what} must have shape (N, {', '.join(map(str, shape_tail))}); got {arr.shape}")
+        raise InputError(f"Track.{what} must have shape (N, {', '.join(map(str, shape_tail))}); got {arr.shape}")
     arr.flags.writeable = False
     return arr
 
@@ -102,15 +110,15 @@ class Track:
         put("finish_s", float(self.finish_s))
         put("start_line_s", float(self.start_line_s))
         if len(self.cone_classes) != len(self.cones_xy):
-            raise ValueError(f"track {self.name!r}: {len(self.cones_xy)} cones but {len(self.cone_classes)} classes")
+            raise InputError(f"track {self.name!r}: {len(self.cones_xy)} cones but {len(self.cone_classes)} classes")
         if m < 3 or len(self.half_width_left) != m or len(self.half_width_right) != m:
-            raise ValueError(f"track {self.name!r}: centerline ({m} points) and half widths disagree")
+            raise InputError(f"track {self.name!r}: centerline ({m} points) and half widths disagree")
         if len(self.cone_classes) and not ((self.cone_classes >= 0) & (self.cone_classes < len(CONE_CLASSES))).all():
-            raise ValueError(f"track {self.name!r}: cone class ids must be 0..{len(CONE_CLASSES) - 1}")
+            raise InputError(f"track {self.name!r}: cone class ids must be 0..{len(CONE_CLASSES) - 1}")
         if self.event not in EVENTS:
-            raise ValueError(f"track {self.name!r}: unknown event {self.event!r}; expected one of {EVENTS}")
+            raise InputError(f"track {self.name!r}: unknown event {self.event!r}; expected one of {EVENTS}")
         if len(self.start_pose) != 3 or not all(map(math.isfinite, self.start_pose)):
-            raise ValueError(f"track {self.name!r}: start_pose must be 3 finite numbers (x, y, yaw)")
+            raise InputError(f"track {self.name!r}: start_pose must be 3 finite numbers (x, y, yaw)")
 
     def __repr__(self) -> str:
         return (f"Track({self.name!r}, event={self.event!r}, closed={self.closed}, cones={len(self.cones_xy)}, "
@@ -242,17 +250,13 @@ class Track:
 
     # ------------------------------------------------------------------ output
     def to_csv(self, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
-        """Write the cones (and a ``car_start`` row) in the EUFS CSV format; refuses to overwrite."""
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise FileExistsError(f"{path} already exists; choose another path or pass overwrite=True")
+        """Write the cones (and a ``car_start`` row) in the EUFS CSV format (safely; refuses to overwrite)."""
         rows = [CSV_HEADER]
         for (x, y), c in zip(self.cones_xy.tolist(), self.cone_classes.tolist(), strict=True):
             rows.append(f"{CONE_CLASSES[c]},{x!r},{y!r},0.0,0.01,0.01,0.0")
         x, y, yaw = self.start_pose
         rows.append(f"car_start,{x!r},{y!r},{yaw!r},0.0,0.0,0.0")
-        path.write_text("\n".join(rows) + "\n", encoding="utf-8")
-        return path
+        return atomic_write(path, "\n".join(rows) + "\n", overwrite=overwrite)
 
     def plot(self, ax=None, *, title: str | None = None):
         """Draw cones in their colours, the centerline and the start pose; returns the matplotlib axes."""
@@ -287,7 +291,7 @@ class Track:
 
 def _fail(path, line_no: int | None, msg: str):
     where = f"{path}: line {line_no}: " if line_no is not None else f"{path}: "
-    raise ValueError(where + msg)
+    raise FileFormatError(where + msg)
 
 
 def read_cone_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, tuple | None]:
@@ -304,27 +308,32 @@ def read_cone_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, tupl
         ((46, 2), (-53.0, 0.0, 0.0))
     """
     path = Path(path)
+    if not path.exists():
+        raise MissingInputError(f"track file {path} not found")
     if not path.is_file():
-        raise FileNotFoundError(f"track file {path} not found")
+        raise FileFormatError(f"track file {path} is not a regular file")
+    if path.stat().st_size > MAX_TRACK_FILE_BYTES:
+        raise LimitError(f"track file {path} is {path.stat().st_size / 1e6:.1f} MB; a cone CSV is at most "
+                         f"{MAX_TRACK_FILE_BYTES / 1e6:.0f} MB")
     try:
         lines = path.read_text(encoding="utf-8-sig").splitlines()
     except UnicodeDecodeError as exc:
-        raise ValueError(f"{path}: not a UTF-8 text file ({exc.reason})") from None
+        raise FileFormatError(f"{path}: not a UTF-8 text file ({exc.reason})") from None
     body = [(i + 1, ln.strip()) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     expected = f"a header line 'tag,x,y' or '{CSV_HEADER}'"
     if not body:
         _fail(path, None, f"empty file; expected {expected} followed by one cone per line")
     head_no, head = body[0]
     header = [h.strip().lower() for h in head.split(",")]
-    if header[:3] != ["tag", "x", "y"]:
-        _fail(path, head_no, f"missing header: expected {expected}, got {head!r}")
+    if header[:3] != ["tag", "x", "y"]:  # the line is not quoted: the file may be anything (a system file)
+        _fail(path, head_no, f"missing header: expected {expected}; is this a cone CSV file?")
     has_direction = len(header) > 3 and header[3] == "direction"
     tags, xy, line_nos, start, start_line = [], [], [], None, None
     valid = ", ".join(CONE_CLASSES)
     for no, text in body[1:]:
         fields = [f.strip() for f in text.split(",")]
         if len(fields) < 3:
-            _fail(path, no, f"expected at least 3 comma-separated fields (tag,x,y), got {text!r}")
+            _fail(path, no, f"expected at least 3 comma-separated fields (tag,x,y), got {len(fields)}")
         tag = fields[0].lower()
         if tag == "midpoint":
             continue
@@ -339,6 +348,9 @@ def read_cone_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, tupl
                 _fail(path, no, f"{col} = {raw!r} is not a number")
             if not math.isfinite(v):
                 _fail(path, no, f"{col} = {raw!r}: positions must be finite numbers")
+            if abs(v) > MAX_COORDINATE_M:
+                raise LimitError(f"{path}: line {no}: {col} = {raw}: positions must lie within "
+                                 f"+-{MAX_COORDINATE_M:g} m")
             vals.append(v)
         if tag == "car_start":
             if start is not None:
@@ -356,6 +368,8 @@ def read_cone_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, tupl
         tags.append(CONE_CLASSES.index(tag))
         xy.append(vals)
         line_nos.append(no)
+        if len(xy) > MAX_CONES:
+            raise LimitError(f"{path}: more than {MAX_CONES} cones; a track has at most {MAX_CONES}")
     if not xy:
         _fail(path, None, "no cones after the header")
     cones = np.array(xy, dtype=np.float64)
@@ -376,12 +390,12 @@ def track_from_csv(path: str | os.PathLike, *, name: str | None = None, event: s
     acceleration (open lane); "skidpad" builds the skidpad sequence from circle fits."""
     path = Path(path)
     if event is not None and event not in EVENTS:
-        raise ValueError(f"unknown event {event!r}; expected one of {', '.join(EVENTS)}")
+        raise InputError(f"unknown event {event!r}; expected one of {', '.join(EVENTS)}")
     cones, classes, start = read_cone_csv(path)
     builder = geo.skidpad_from_cones if event == "skidpad" else geo.layout_from_cones
     fields = builder(cones, classes, start, str(path))
     if event is not None and fields["event"] != event:
-        raise ValueError(f"{path}: event {event!r} expected, but the cones form a "
+        raise InputError(f"{path}: event {event!r} expected, but the cones form a "
                          f"{'closed loop' if fields['closed'] else 'open lane'} ({fields['event']})")
     return Track(name=name or path.stem, cones_xy=cones, cone_classes=classes, source=str(path), **fields)
 
@@ -391,9 +405,9 @@ def track_from_csv(path: str | os.PathLike, *, name: str | None = None, event: s
 
 def _check_range(what: str, value, lo: float, hi: float) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"{what} must be a number in [{lo}, {hi}]; got {value!r}")
+        raise InputError(f"{what} must be a number in [{lo}, {hi}]; got {value!r}")
     if not lo <= float(value) <= hi:
-        raise ValueError(f"{what} must be in [{lo}, {hi}]; got {value!r}")
+        raise InputError(f"{what} must be in [{lo}, {hi}]; got {value!r}")
     return float(value)
 
 
@@ -439,7 +453,7 @@ def generate_random_track(seed: int, *, length: float | None = None, width: floa
         ('generated:random(seed=3)', 'trackdrive')
     """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"random track seed must be a non-negative integer; got {seed!r}")
+        raise InputError(f"random track seed must be a non-negative integer; got {seed!r}")
     if length is not None:
         length = _check_range("random track length", length, 100.0, 1000.0)
     if width is not None:
@@ -493,6 +507,21 @@ TRACKS.register("oval", oval)
 TRACKS.register("random", generate_random_track)
 
 
+def is_track_file(spec: str | os.PathLike) -> bool:
+    """Whether :func:`load_track` reads ``spec`` as a cone CSV path (not a registered name or ``random:SEED``).
+
+    Example:
+        >>> is_track_file("peanut"), is_track_file("random:3"), is_track_file("my/track.csv")
+        (False, False, True)
+    """
+    if isinstance(spec, os.PathLike):
+        return True
+    name = spec.strip()
+    if name == "random" or name.startswith("random:") or name in TRACKS:
+        return False
+    return name.lower().endswith(".csv") or "/" in name or os.sep in name or Path(name).is_file()
+
+
 def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, event: str | None = None) -> Track:
     """A track from a registered name, ``"random:SEED"`` (or ``"random"`` with ``seed=``), a CSV path,
     or a :class:`Track` (returned as is). ``seed`` only matters for ``"random"``; ``"random:SEED"``
@@ -507,7 +536,7 @@ def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, even
     if isinstance(spec, os.PathLike):
         return track_from_csv(spec, event=event)
     if not isinstance(spec, str):
-        raise ValueError(f"track spec must be a track name, 'random:SEED', a CSV path or a Track; got {spec!r}")
+        raise InputError(f"track spec must be a track name, 'random:SEED', a CSV path or a Track; got {spec!r}")
     name = spec.strip()
     if name == "random" or name.startswith("random:"):
         if ":" in name:
@@ -515,16 +544,16 @@ def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, even
             try:
                 seed = int(raw)
             except ValueError:
-                raise ValueError(f"track {spec!r}: 'random:SEED' needs an integer seed, got {raw!r}") from None
+                raise InputError(f"track {spec!r}: 'random:SEED' needs an integer seed, got {raw!r}") from None
         elif seed is None:
-            raise ValueError("track 'random' needs a seed: use 'random:SEED' or load_track('random', seed=SEED)")
+            raise InputError("track 'random' needs a seed: use 'random:SEED' or load_track('random', seed=SEED)")
         return generate_random_track(seed)
     if name in TRACKS:
         track = TRACKS.get(name)()
         if event is not None and event != track.event:
-            raise ValueError(f"track {name!r} is a {track.event} track, not {event!r}")
+            raise InputError(f"track {name!r} is a {track.event} track, not {event!r}")
         return track
-    if name.lower().endswith(".csv") or "/" in name or os.sep in name or Path(name).is_file():
+    if is_track_file(name):
         return track_from_csv(name, event=event)
-    raise ValueError(f"unknown track {name!r}; valid names: {', '.join(TRACKS.names())}, "
+    raise InputError(f"unknown track {name!r}; valid names: {', '.join(TRACKS.names())}, "
                      "'random:SEED', or a path to a cone CSV file")

@@ -93,3 +93,34 @@ def test_weather_goes_into_the_pipeline(tmp_path, capsys):
     # the recorded camera view is the weathered one
     wet, dry = cv2.imread(str(strip)), cv2.imread(str(clear))
     assert wet.shape == dry.shape and float(cv2.absdiff(wet, dry).mean()) > 2.0
+
+
+@pytest.mark.slow
+def test_a_terminated_lap_leaves_no_video(tmp_path):
+    """SIGTERM mid-run: exit 143, no half-written video at the path (a rerun is not refused), no temp file."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")])}
+    video = tmp_path / "lap.mp4"
+    proc = subprocess.Popen([sys.executable, "-m", "weather_gym.cli", "lap", "--laps", "3", "--video", str(video)],
+                            cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        t0 = time.monotonic()
+        while not list(tmp_path.glob(".lap.mp4.*")) and time.monotonic() - t0 < 120:
+            assert proc.poll() is None, proc.stderr.read().decode()
+            time.sleep(0.1)
+        time.sleep(1.0)  # frames are being written to the temporary file
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 143, proc.stderr.read().decode()
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -74,3 +74,25 @@ def test_episode_plan_splits_frames_evenly():
     assert episode_plan(["a", "b"], 5, 2) == [("a", 2), ("a", 1), ("b", 2)]
     with pytest.raises(ValueError, match="frames"):
         episode_plan(["a"], 0, 2)
+
+
+def test_a_csv_track_travels_with_the_dataset(tmp_path):
+    """A cone CSV given as a track is copied into DIR/tracks/ and the records name the copy, so the
+    dataset is self-contained and its track paths stay inside it (see datasets.coco.record_path)."""
+    from weather_gym.camera import CameraConfig
+    from weather_gym.tracks import load_track
+
+    csv = tmp_path / "elsewhere" / "my_oval.csv"
+    csv.parent.mkdir()
+    load_track("oval").to_csv(csv)
+    root = tmp_path / "ds"
+    render_dataset(root, tracks=[str(csv)], frames=2, frames_per_episode=2, camera=CameraConfig(width=64, height=36),
+                   progress=False)
+    ds = load_coco(root)
+    assert ds.record(0)["track"] == "tracks/my_oval.csv"
+    assert (root / "tracks" / "my_oval.csv").read_bytes() == csv.read_bytes()
+    csv.unlink()  # the original may go away: the dataset still re-renders its views
+    assert ds.track_spec(0) == str((root / "tracks" / "my_oval.csv").resolve())
+    view = ds.render_view(0)
+    ds.close()
+    assert view["image"].shape == (36, 64, 3)

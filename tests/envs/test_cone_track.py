@@ -215,3 +215,18 @@ def test_creating_and_closing_200_envs_frees_their_clients():
     gc.collect()
     grown = _rss_mb() - before
     assert grown < 150, f"memory grew by {grown:.0f} MB over 180 env create/close cycles"
+
+
+def test_gym_make_max_episode_steps_is_the_step_limit(make_env):
+    """gymnasium.make(max_episode_steps=N) is obeyed above the scenario's 3000 too (not silently cut)."""
+    import gymnasium as gym
+
+    from weather_gym.envs.registration import UNLIMITED_STEPS
+
+    assert gym.spec("WeatherGym/ConeTrack-v0").max_episode_steps == 3000  # the scenario's [env] value
+    env = make_env(max_episode_steps=5000)
+    assert env.spec.max_episode_steps == 5000 and env.unwrapped.config.max_episode_steps == UNLIMITED_STEPS
+    env = make_env(max_episode_steps=4)
+    env.reset(seed=0)
+    flags = [env.step(np.zeros(2, np.float32))[3] for _ in range(4)]
+    assert flags == [False, False, False, True]

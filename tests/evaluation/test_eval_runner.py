@@ -16,6 +16,7 @@ from pathlib import Path
 import eval_cellfns as fns
 import pytest
 
+from weather_gym.errors import OutputPathError
 from weather_gym.evaluation.runner import _run_isolated, read_results, run_cells
 
 HERE = Path(__file__).resolve().parent
@@ -143,6 +144,18 @@ def test_cut_last_row_is_dropped_and_rerun(tmp_path, env_log):
     assert all(r["status"] == "ok" for r in rows)
 
 
+def test_complete_last_row_without_newline_is_kept_and_reading_changes_nothing(tmp_path, env_log):
+    path = tmp_path / "results.csv"
+    run_cells(fns.grid()[:3], fns.metrics, path, backend="serial", progress=False)
+    text = path.read_text()
+    path.write_text(text[:-1])  # an editor that dropped the final newline
+    before = path.read_bytes()
+    assert len(read_results(path)) == 3 and path.read_bytes() == before  # reading never writes
+    rows = run_cells(fns.grid(), fns.logged, path, backend="serial", progress=False)
+    assert len(_calls(env_log)) == 9 and all(r["status"] == "ok" for r in rows)  # the 3 rows were not re-run
+    assert path.read_text().endswith("\n") and len(read_results(path)) == 12
+
+
 def test_other_configuration_is_refused_and_file_kept(tmp_path):
     path = tmp_path / "results.csv"
     run_cells(fns.grid()[:2], fns.metrics, path, backend="serial", progress=False)
@@ -167,7 +180,7 @@ def test_bad_arguments(tmp_path):
         run_cells([{"x": 1}], lambda cell: {}, tmp_path / "r.csv", backend="process")
     blocker = tmp_path / "a-file"
     blocker.write_text("")
-    with pytest.raises(PermissionError, match="cannot write results to"):
+    with pytest.raises(OutputPathError, match="cannot write results to"):
         run_cells([{"x": 1}], fns.metrics, blocker / "results.csv", backend="serial")
 
 

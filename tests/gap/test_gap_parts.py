@@ -140,7 +140,7 @@ def test_model_file_round_trip(tmp_path):
     back = read_model(path)
     assert [e.params() for e in back] == [e.params() for e in effects]
     assert model_tables(back)[1] == {"name": "exposure", "k": 0.25, "direction": "over"}
-    write_model(path, [])
+    write_model(path, [], overwrite=True)
     assert read_model(path) == []
     (tmp_path / "empty.toml").write_text("")
     assert read_model(tmp_path / "empty.toml") == []

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from weather_gym.errors import MissingDependencyError
 from weather_gym.viz import video as video_mod
 from weather_gym.viz.video import VideoWriter, h264_available
 
@@ -59,7 +60,7 @@ def test_without_h264_the_writer_falls_back_to_mp4v_with_a_warning(tmp_path, mon
         for f in _frames(4):
             writer.write(f)
     assert writer.codec == "mp4v" and _read(tmp_path / "old.mp4")[0] == "mpeg4"
-    with pytest.raises(RuntimeError, match="pip install av"):
+    with pytest.raises(MissingDependencyError, match="pip install av"):
         VideoWriter(tmp_path / "x.mp4", codec="h264")
 
 

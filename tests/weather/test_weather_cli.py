@@ -49,8 +49,10 @@ def test_degrade_never_overwrites(tmp_path, frame, capsys):
     out = tmp_path / "out.png"
     _write(out, frame)
     assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5"]) == 2
-    assert "use --force" in capsys.readouterr().err
-    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--force"]) == 0
+    assert "pass --overwrite" in capsys.readouterr().err
+    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--overwrite"]) == 0
+    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--force"]) == 0  # old name
+    assert "--force is deprecated" in capsys.readouterr().err
 
 
 def test_degrade_a_folder_mirrors_names_and_resumes(tmp_path, frame, capsys):
@@ -143,4 +145,4 @@ def test_grid_example_on_the_synthetic_scene(tmp_path):
     assert g.shape[1] == 190 + 84 * 4 and g.shape[0] == 28 + len(mod.ROWS) * 47
     out = tmp_path / "grid.png"
     assert mod.main(["--synthetic", "--out", str(out)]) == 0 and out.stat().st_size > 0
-    assert mod.main(["--synthetic", "--out", str(out)]) == 2  # never overwritten without --force
+    assert mod.main(["--synthetic", "--out", str(out)]) == 2  # never overwritten without --overwrite

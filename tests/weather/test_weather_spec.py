@@ -39,7 +39,7 @@ def test_every_form_of_spec():
     assert parse_weather({"name": "dim", "k": 0.6, "mode": "physical"}) == make("dim", k=0.6, mode="physical")
 
 
-@pytest.mark.parametrize("clear", [None, "clear", "", " Clear ", {}, [], Compose([])])
+@pytest.mark.parametrize("clear", [None, "clear", " Clear ", "none", {}, [], Compose([])])
 def test_clear_weather_is_the_identity(clear, noisy_image):
     w = parse_weather(clear)
     np.testing.assert_array_equal(w(noisy_image), noisy_image)

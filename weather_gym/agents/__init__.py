@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.registry import Registry
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,9 +56,9 @@ def check_action(action: Any, who: str = "agent") -> np.ndarray:
     """Validate an agent's output: a finite float32 ``(2,)`` array in [-1, 1] (nothing is clamped)."""
     a = np.asarray(action, dtype=np.float32)
     if a.shape != (2,):
-        raise ValueError(f"{who} returned an action of shape {a.shape}; expected (2,) = (steering, throttle/brake)")
+        raise InputError(f"{who} returned an action of shape {a.shape}; expected (2,) = (steering, throttle/brake)")
     if not np.isfinite(a).all() or (np.abs(a) > 1.0).any():
-        raise ValueError(f"{who} returned {a.tolist()}; both components must be finite and in [-1, 1]")
+        raise InputError(f"{who} returned {a.tolist()}; both components must be finite and in [-1, 1]")
     return a
 
 

@@ -10,13 +10,15 @@ Example:
     >>> C()
     Traceback (most recent call last):
     ...
-    ValueError: C.gain must be a finite number > 0, got -1.0
+    weather_gym.errors.InputError: C.gain must be a finite number > 0, got -1.0
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+
+from weather_gym.errors import InputError
 
 
 def check_fields(obj, *, positive: Iterable[str] = (), non_negative: Iterable[str] = (),
@@ -28,8 +30,8 @@ def check_fields(obj, *, positive: Iterable[str] = (), non_negative: Iterable[st
         for name in names:
             v = getattr(obj, name)
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and ok(v)):
-                raise ValueError(f"{kind}.{name} must be {what}, got {v!r}")
+                raise InputError(f"{kind}.{name} must be {what}, got {v!r}")
     for name in integers:
         v = getattr(obj, name)
         if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
-            raise ValueError(f"{kind}.{name} must be an integer >= 1, got {v!r}")
+            raise InputError(f"{kind}.{name} must be an integer >= 1, got {v!r}")

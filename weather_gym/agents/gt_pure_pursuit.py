@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig
+from weather_gym.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera import CameraConfig
@@ -43,7 +44,7 @@ def config_with(base: PurePursuitConfig | None, overrides: dict[str, Any], who: 
     names = {f.name for f in dataclasses.fields(PurePursuitConfig)}
     unknown = sorted(set(overrides) - names)
     if unknown:
-        raise ValueError(f"{who}: unknown option(s) {', '.join(unknown)}; valid: {', '.join(sorted(names))}")
+        raise InputError(f"{who}: unknown option(s) {', '.join(unknown)}; valid: {', '.join(sorted(names))}")
     return dataclasses.replace(base or PurePursuitConfig(), **overrides)
 
 
@@ -71,7 +72,7 @@ class GroundTruthPurePursuit:
 
     def act(self, obs: Any, info: dict | None = None) -> np.ndarray:
         if info is None or "pose" not in info or "speed" not in info:
-            raise ValueError('gt_pure_pursuit needs the step info with "pose" (x, y, yaw) and "speed"')
+            raise InputError('gt_pure_pursuit needs the step info with "pose" (x, y, yaw) and "speed"')
         x, y, yaw = _pose(info)
         return self.controller.command(x, y, yaw, float(info["speed"]))
 
@@ -83,5 +84,5 @@ class GroundTruthPurePursuit:
 def _pose(info: dict) -> tuple[float, float, float]:
     pose = np.asarray(info["pose"], dtype=np.float64).reshape(-1)
     if pose.shape[0] < 3:
-        raise ValueError(f'info["pose"] must be (x, y, yaw), got {pose.tolist()}')
+        raise InputError(f'info["pose"] must be (x, y, yaw), got {pose.tolist()}')
     return float(pose[0]), float(pose[1]), float(pose[2])

@@ -31,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from weather_gym.agents._checks import check_fields
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import unpack_cones
 
 __all__ = ["MapperConfig", "ConeMap", "ConeMapper"]
@@ -184,11 +185,11 @@ class ConeMapper:
         """Update from a cone-list observation (``cones``, ``mask``, ``state`` with odometry x, y, yaw)."""
         for key in ("cones", "mask", "state"):
             if key not in obs:
-                raise ValueError(f"ConeMapper needs obs[{key!r}] (a cone-list observation); got keys {sorted(obs)}")
+                raise InputError(f"ConeMapper needs obs[{key!r}] (a cone-list observation); got keys {sorted(obs)}")
         d = unpack_cones(obs["cones"], obs["mask"])
         state = np.asarray(obs["state"], dtype=np.float64).reshape(-1)
         if state.shape[0] < 5:
-            raise ValueError(f'obs["state"] must hold [speed, yaw_rate, odom_x, odom_y, odom_yaw], got {state.tolist()}')
+            raise InputError(f'obs["state"] must hold [speed, yaw_rate, odom_x, odom_y, odom_yaw], got {state.tolist()}')
         xy = np.c_[d["x_body"], d["y_body"]].astype(np.float64)
         return self.update(xy, d["classes"], d["score"], pose=state[2:5], ranges=d["range"], bearings=d["bearing"])
 

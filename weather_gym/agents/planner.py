@@ -34,6 +34,7 @@ from scipy.spatial import Delaunay, QhullError
 
 from weather_gym.agents._checks import check_fields
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError
 
 __all__ = ["PlannerConfig", "Plan", "CenterlinePlanner"]
 
@@ -75,7 +76,7 @@ class PlannerConfig:
     def __post_init__(self) -> None:
         check_fields(self, positive=tuple(self.__dataclass_fields__))
         if self.max_width <= self.min_width:
-            raise ValueError(f"PlannerConfig.max_width ({self.max_width}) must exceed min_width ({self.min_width})")
+            raise InputError(f"PlannerConfig.max_width ({self.max_width}) must exceed min_width ({self.min_width})")
 
 
 @dataclass
@@ -165,7 +166,7 @@ class CenterlinePlanner:
         xy = np.asarray(cones_xy, dtype=np.float64).reshape(-1, 2)
         classes = np.asarray(classes, dtype=np.int64).reshape(-1)
         if classes.shape[0] != xy.shape[0]:
-            raise ValueError(f"plan: {xy.shape[0]} cone positions but {classes.shape[0]} classes")
+            raise InputError(f"plan: {xy.shape[0]} cone positions but {classes.shape[0]} classes")
         px, py, yaw = (float(v) for v in np.asarray(pose, dtype=np.float64).reshape(3))
         c, s = math.cos(yaw), math.sin(yaw)
         # everything below works in the car frame (x forward, y left)

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from weather_gym.agents._checks import check_fields
+from weather_gym.errors import InputError
 
 __all__ = ["PurePursuitConfig", "PurePursuit", "resample_path", "path_curvature", "speed_profile"]
 
@@ -86,19 +87,19 @@ class PurePursuitConfig:
                                      "resample_step", "curvature_window", "search_ahead"),
                      non_negative=("v_end", "lookahead_time", "preview_time", "search_back"))
         if self.lookahead_max < self.lookahead_min:
-            raise ValueError(
+            raise InputError(
                 f"PurePursuitConfig.lookahead_max ({self.lookahead_max}) must be >= lookahead_min ({self.lookahead_min})"
             )
         if self.max_steer >= math.pi / 2:
-            raise ValueError(f"PurePursuitConfig.max_steer must be below pi/2 rad, got {self.max_steer}")
+            raise InputError(f"PurePursuitConfig.max_steer must be below pi/2 rad, got {self.max_steer}")
 
 
 def _as_path(xy: np.ndarray) -> np.ndarray:
     p = np.asarray(xy, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 2:
-        raise ValueError(f"path must be an (M, 2) array of x, y points, got shape {p.shape}")
+        raise InputError(f"path must be an (M, 2) array of x, y points, got shape {p.shape}")
     if not np.isfinite(p).all():
-        raise ValueError("path contains non-finite points")
+        raise InputError("path contains non-finite points")
     return p
 
 
@@ -116,7 +117,7 @@ def resample_path(xy: np.ndarray, step: float, closed: bool) -> np.ndarray:
     keep = np.r_[True, seg > 1e-9]
     p = p[keep]
     if len(p) < 2:
-        raise ValueError("path needs at least two distinct points")
+        raise InputError("path needs at least two distinct points")
     s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(p, axis=0).T))]
     n = max(int(math.ceil(s[-1] / step)), 1)
     if closed:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from weather_gym.agents import check_action
+from weather_gym.errors import InputError, MissingInputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera import CameraConfig
@@ -43,19 +44,19 @@ class SB3Agent:
     def __init__(self, track: Track | None = None, camera: CameraConfig | None = None, *, model: Any = None,
                  path: str | Path | None = None, algo: str = "PPO", device: str = "cpu") -> None:
         if (model is None) == (path is None):
-            raise ValueError("sb3 agent: give exactly one of model= (a stable-baselines3 model) or path= (a saved .zip)")
+            raise InputError("sb3 agent: give exactly one of model= (a stable-baselines3 model) or path= (a saved .zip)")
         if model is None:
             p = Path(path)
             if not p.exists() and p.with_suffix(".zip").exists():
                 p = p.with_suffix(".zip")
             if not p.is_file():
-                raise FileNotFoundError(f"sb3 agent: model file {str(path)!r} not found")
+                raise MissingInputError(f"sb3 agent: model file {str(path)!r} not found")
             if algo not in SB3_ALGOS:
-                raise ValueError(f"sb3 agent: unknown algo {algo!r}; expected one of {', '.join(SB3_ALGOS)}")
+                raise InputError(f"sb3 agent: unknown algo {algo!r}; expected one of {', '.join(SB3_ALGOS)}")
             cls = getattr(importlib.import_module("stable_baselines3"), algo)
             model = cls.load(str(p), device=device)
         if not callable(getattr(model, "predict", None)):
-            raise ValueError(f"sb3 agent: model {type(model).__name__} has no predict(obs, deterministic=...) method")
+            raise InputError(f"sb3 agent: model {type(model).__name__} has no predict(obs, deterministic=...) method")
         self.model = model
 
     def reset(self, seed: int | None = None, info: dict | None = None) -> None:

@@ -38,6 +38,7 @@ from scipy.optimize import least_squares
 
 from weather_gym.agents._checks import check_fields
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError
 
 __all__ = ["SkidpadConfig", "SkidpadPlanner", "skidpad_cones"]
 
@@ -69,10 +70,10 @@ class SkidpadConfig:
 
     def __post_init__(self) -> None:
         if not 0 < self.inner_radius < self.outer_radius:
-            raise ValueError(f"SkidpadConfig: need 0 < inner_radius < outer_radius, got {self.inner_radius}, "
+            raise InputError(f"SkidpadConfig: need 0 < inner_radius < outer_radius, got {self.inner_radius}, "
                              f"{self.outer_radius}")
         if not 0 < self.smoothing <= 1:
-            raise ValueError(f"SkidpadConfig.smoothing must be in (0, 1], got {self.smoothing}")
+            raise InputError(f"SkidpadConfig.smoothing must be in (0, 1], got {self.smoothing}")
         check_fields(self, positive=("centre_distance", "exit_length", "step"),
                      integers=("laps_per_circle", "min_cones"))
 

@@ -36,6 +36,7 @@ from weather_gym.agents.mapper import ConeMap, ConeMapper, MapperConfig
 from weather_gym.agents.planner import CenterlinePlanner, Plan, PlannerConfig
 from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig
 from weather_gym.agents.skidpad import SkidpadConfig, SkidpadPlanner
+from weather_gym.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera import CameraConfig
@@ -83,9 +84,9 @@ class MapperPurePursuit:
             if camera is not None:
                 mapper = dataclasses.replace(mapper, hfov_deg=camera.hfov_deg, mount_x=camera.mount_x)
         if not (np.isfinite(v_path_end) and v_path_end >= 0):
-            raise ValueError(f"mapper_pure_pursuit: v_path_end must be a finite speed >= 0, got {v_path_end!r}")
+            raise InputError(f"mapper_pure_pursuit: v_path_end must be a finite speed >= 0, got {v_path_end!r}")
         if not (isinstance(plan_max_age, int) and plan_max_age >= 1):
-            raise ValueError(f"mapper_pure_pursuit: plan_max_age must be an integer >= 1, got {plan_max_age!r}")
+            raise InputError(f"mapper_pure_pursuit: plan_max_age must be an integer >= 1, got {plan_max_age!r}")
         self.plan_max_age = plan_max_age
         merged = {**STACK_DEFAULTS, **overrides} if controller is None else overrides
         self.mapper = ConeMapper(mapper)
@@ -94,7 +95,7 @@ class MapperPurePursuit:
         self.v_path_end = float(v_path_end)
         self.mission = mission if mission is not None else getattr(track, "event", "trackdrive")
         if self.mission not in MISSIONS:
-            raise ValueError(f"mapper_pure_pursuit: unknown mission {self.mission!r}; expected one of {', '.join(MISSIONS)}")
+            raise InputError(f"mapper_pure_pursuit: unknown mission {self.mission!r}; expected one of {', '.join(MISSIONS)}")
         self.skidpad_config = skidpad
         self.skidpad: SkidpadPlanner | None = None
         self._skidpad_done = False

@@ -25,7 +25,9 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
+from weather_gym.cli._output_args import add_overwrite_arg
 
 
 def register(targets) -> None:
@@ -38,6 +40,7 @@ def register(targets) -> None:
     p.add_argument("--step", action="store_true", help="also time the whole env step (needs the simulator)")
     p.add_argument("--steps", type=int, default=150, help="env steps timed with --step (default %(default)s)")
     p.add_argument("--out", type=Path, help="also write the markdown tables to this file")
+    add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
 
 
@@ -219,9 +222,11 @@ def format_table(res: dict[str, Any]) -> str:
 
 
 def _run(args) -> int:
+    if args.out is not None:
+        check_output(args.out, overwrite=args.overwrite, what="--out")
     res = run_benchmark(args.model, args.repeats, args.batch, not args.no_baseline, args.step, args.steps)
     text = format_table(res)
     print(text)
     if args.out is not None:
-        args.out.write_text(text + "\n")
+        atomic_write(args.out, text + "\n", overwrite=args.overwrite)
     return 0

@@ -24,7 +24,10 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
 
 PIPELINES = ("clean", "weather+detector")
 MODES = ("sync", "async")
@@ -46,6 +49,7 @@ def register(targets) -> None:
     p.add_argument("--repeats", type=int, default=15, help="timed blocks per row; the median is reported")
     p.add_argument("--warmup", type=int, default=10, help="untimed vector steps first (default %(default)s)")
     p.add_argument("--out", type=Path, help="also write the markdown table to this file")
+    add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
 
 
@@ -53,9 +57,9 @@ def _ints(text: str, what: str) -> list[int]:
     try:
         vals = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise ValueError(f"--{what} must be comma-separated integers, got {text!r}") from None
+        raise InputError(f"--{what} must be comma-separated integers, got {text!r}") from None
     if not vals or min(vals) < 1:
-        raise ValueError(f"--{what} must list integers >= 1, got {text!r}")
+        raise InputError(f"--{what} must list integers >= 1, got {text!r}")
     return vals
 
 
@@ -65,9 +69,9 @@ def _resolutions(text: str) -> list[tuple[int, int]]:
         try:
             w, h = (int(v) for v in item.lower().split("x"))
         except ValueError:
-            raise ValueError(f"--resolutions: {item!r} must look like 672x376") from None
+            raise InputError(f"--resolutions: {item!r} must look like 672x376") from None
         if w < 16 or h < 16:
-            raise ValueError(f"--resolutions: {item!r} is too small (at least 16x16)")
+            raise InputError(f"--resolutions: {item!r} is too small (at least 16x16)")
         out.append((w, h))
     return out
 
@@ -76,7 +80,7 @@ def _names(text: str, valid: Sequence[str], what: str) -> list[str]:
     vals = [v.strip() for v in text.split(",") if v.strip()]
     bad = [v for v in vals if v not in valid]
     if bad or not vals:
-        raise ValueError(f"--{what}: unknown {', '.join(bad) or 'empty list'}; valid: {', '.join(valid)}")
+        raise InputError(f"--{what}: unknown {', '.join(bad) or 'empty list'}; valid: {', '.join(valid)}")
     return vals
 
 
@@ -140,12 +144,15 @@ def time_vector(make_env: Callable[[], Any], num_envs: int, mode: str | None, *,
 def _run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    if args.out is not None:
+        check_output(args.out, overwrite=args.overwrite, what="--out")
+
     envs = _ints(args.envs, "envs")
     modes = _names(args.modes, MODES, "modes")
     sizes = _resolutions(args.resolutions)
     pipelines = _names(args.pipelines, PIPELINES, "pipelines")
     if args.steps < 1 or args.repeats < 1 or args.warmup < 0:
-        raise ValueError("--steps and --repeats must be >= 1, --warmup >= 0")
+        raise InputError("--steps and --repeats must be >= 1, --warmup >= 0")
     if pipelines.count("weather+detector"):
         from weather_gym.weather import parse_weather
 
@@ -172,7 +179,5 @@ def _run(args: argparse.Namespace) -> int:
     text = table + "\n\n" + note + "\n"
     print(text)
     if args.out is not None:
-        from weather_gym._io import atomic_write
-
-        atomic_write(args.out, text)
+        atomic_write(args.out, text, overwrite=args.overwrite)
     return 0

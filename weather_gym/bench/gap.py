@@ -24,7 +24,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+from weather_gym._io import check_output
 from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
 
 
 def register(targets) -> None:
@@ -37,6 +40,7 @@ def register(targets) -> None:
     p.add_argument("--baseline", action="store_true", help="also time the run without scaling (slow)")
     p.add_argument("--workdir", type=Path, default=None, help="keep the frames here (default: a temporary folder)")
     p.add_argument("--out", type=Path, help="also write the markdown table to this file")
+    add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
 
 
@@ -71,9 +75,11 @@ def _run(args) -> int:
     try:
         w, h = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
-        raise ValueError(f"--size must be WxH, e.g. 1024x768, got {args.size!r}") from None
+        raise InputError(f"--size must be WxH, e.g. 1024x768, got {args.size!r}") from None
     if args.frames < 8 or args.repeats < 1:
-        raise ValueError("--frames must be >= 8 and --repeats >= 1")
+        raise InputError("--frames must be >= 8 and --repeats >= 1")
+    if args.out is not None:
+        check_output(args.out, overwrite=args.overwrite, suffixes=(".md", ".txt"), what="--out")
     tmp = None
     root = args.workdir
     if root is None:
@@ -103,7 +109,7 @@ def _run(args) -> int:
         if args.out is not None:
             from weather_gym._io import atomic_write
 
-            atomic_write(args.out, text)
+            atomic_write(args.out, text, overwrite=args.overwrite)
     finally:
         if tmp is not None:
             tmp.cleanup()

@@ -33,7 +33,10 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
 
 DEFAULT_SIZES = ((608, 352), (672, 376), (1280, 720))
 STUDY_K = {"droplets": 0.55, "dim": 0.78}
@@ -55,6 +58,7 @@ def register(targets) -> None:
                    help="one timed call per row per turn, right after the other rows' (caches as a pipeline "
                         "leaves them) instead of short back-to-back runs")
     p.add_argument("--out", type=Path, help="also write the markdown table to this file")
+    add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
 
 
@@ -63,7 +67,7 @@ def _parse_sizes(text: str) -> list[tuple[int, int]]:
     for item in text.split(","):
         w, sep, h = item.strip().lower().partition("x")
         if not sep or not w.isdigit() or not h.isdigit() or int(w) < 1 or int(h) < 1:
-            raise ValueError(f"--sizes: {item!r} must be WxH, e.g. 672x376")
+            raise InputError(f"--sizes: {item!r} must be WxH, e.g. 672x376")
         sizes.append((int(w), int(h)))
     return sizes
 
@@ -199,6 +203,8 @@ def format_table(res: dict[str, Any]) -> str:
 
 
 def _run(args) -> int:
+    if args.out is not None:
+        check_output(args.out, overwrite=args.overwrite, what="--out")
     from weather_gym.weather import EFFECTS
 
     names = None if args.effects == "all" else [n.strip() for n in args.effects.split(",") if n.strip()]
@@ -206,7 +212,7 @@ def _run(args) -> int:
         for n in names:
             EFFECTS.get(n)
     if args.repeats < 1 or args.warmup < 0 or args.batch < 0:
-        raise ValueError("--repeats must be >= 1, --warmup and --batch >= 0")
+        raise InputError("--repeats must be >= 1, --warmup and --batch >= 0")
     load0 = os.getloadavg()[0]
     res = run_benchmark(_parse_sizes(args.sizes), args.repeats, args.warmup, args.batch, names, args.cold)
     how = ("one call per row per turn, caches as the other rows left them (`--cold`)" if args.cold else
@@ -216,5 +222,5 @@ def _run(args) -> int:
             f"start, {os.getloadavg()[0]:.1f} at the end.\n\n{format_table(res)}\n")
     print(text)
     if args.out is not None:
-        args.out.write_text(text)
+        atomic_write(args.out, text, overwrite=args.overwrite)
     return 0

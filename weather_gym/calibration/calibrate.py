@@ -37,10 +37,11 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym._io import atomic_write
+from weather_gym._io import atomic_write, check_output
 from weather_gym._toml import toml_value
 from weather_gym.calibration.curve import Curve, invert
 from weather_gym.calibration.measured import MeasuredLevel, levels_by_condition
+from weather_gym.errors import InputError
 
 __all__ = ["DEFAULT_USE", "MATCHES", "PresetCalibration", "calibrate", "parse_use", "remeasure",
            "write_presets"]
@@ -106,7 +107,7 @@ def parse_use(values: Sequence[str] | None) -> dict[str, str]:
     for v in values or []:
         cond, eq, label = str(v).partition("=")
         if not eq or not label.strip():
-            raise ValueError(f"--use {v!r}: expected CONDITION=CURVE_LABEL, e.g. low_light=dim_physical")
+            raise InputError(f"--use {v!r}: expected CONDITION=CURVE_LABEL, e.g. low_light=dim_physical")
         use[canonical_condition(cond.strip())] = label.strip()
     return use
 
@@ -120,7 +121,7 @@ def calibrate(curves: Mapping[str, Curve], levels: Sequence[MeasuredLevel], *, m
               descriptions: Mapping[tuple[str, int], str] | None = None) -> list[PresetCalibration]:
     """Invert each condition's curve at each measured severity (and add severity 0 = no effect)."""
     if match not in MATCHES:
-        raise ValueError(f"unknown match {match!r}; valid: {', '.join(MATCHES)}")
+        raise InputError(f"unknown match {match!r}; valid: {', '.join(MATCHES)}")
     use = dict(DEFAULT_USE if use is None else use)
     by_cond, ideal, domain = levels_by_condition(levels, domain=domain, match=match)
     descriptions = descriptions or {}
@@ -128,7 +129,7 @@ def calibrate(curves: Mapping[str, Curve], levels: Sequence[MeasuredLevel], *, m
     for cond in sorted(by_cond):
         label = use.get(cond, cond)
         if label not in curves:
-            raise ValueError(f"condition {cond!r} is calibrated with the curve {label!r} (change with --use "
+            raise InputError(f"condition {cond!r} is calibrated with the curve {label!r} (change with --use "
                              f"{cond}=LABEL), but the curve files hold: {', '.join(sorted(curves))}")
         curve = curves[label]
         mean, sd = curve.scaled(relative=(match == "relative"))
@@ -271,9 +272,7 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
     """
     from weather_gym.weather.presets import CONDITIONS, SEVERITIES, load_presets
 
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass --overwrite to replace it (nothing was written)")
+    path = check_output(path, overwrite=overwrite, suffixes=(".toml",))
     done = {(c.condition, c.severity): c for c in calibs}
     base_tables = load_presets(base)["presets"]
     lines = [header.rstrip("\n")]
@@ -298,7 +297,7 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
             if (cond, sev) in done:
                 fields = done[cond, sev].toml_fields()
             elif cond not in base_tables:
-                raise ValueError(f"condition {cond!r}: severity {sev} was not calibrated and the base presets "
+                raise InputError(f"condition {cond!r}: severity {sev} was not calibrated and the base presets "
                                  f"have no row for it")
             else:
                 fields = _copied_row(base_tables[cond][sev], base)
@@ -306,5 +305,5 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
                 lines.append(f"{k} = {_toml_value(v)}")
     text = "\n".join(lines) + "\n"
     # the loader's own validation: a file it would refuse is never written
-    return atomic_write(path, text, check=load_presets)
+    return atomic_write(path, text, check=load_presets, overwrite=overwrite)
 

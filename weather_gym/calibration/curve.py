@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.errors import InputError, MissingInputError
+
 __all__ = ["Curve", "Inversion", "REQUIRED_COLUMNS", "effect_name", "invert", "load_curves", "monotone_decreasing"]
 
 REQUIRED_COLUMNS = ("effect", "k", "seed")
@@ -81,7 +83,7 @@ class Curve:
         """Mean metric at k = 0 (the clean set: our own 'ideal conditions')."""
         i = np.flatnonzero(np.isclose(self.ks, 0.0))
         if i.size == 0:
-            raise ValueError(f"curve {self.label!r} ({self.source}) has no k = 0 row: relative matching needs "
+            raise InputError(f"curve {self.label!r} ({self.source}) has no k = 0 row: relative matching needs "
                              "the clean mAP; sweep from k = 0 (e.g. --k 0:1:0.05) or use absolute matching")
         return float(self.mean[i[0]])
 
@@ -91,7 +93,7 @@ class Curve:
             return self.mean, self.sd
         ideal = self.ideal
         if not ideal > 0:
-            raise ValueError(f"curve {self.label!r}: the clean {self.metric} is {ideal:g}; relative matching needs it > 0")
+            raise InputError(f"curve {self.label!r}: the clean {self.metric} is {ideal:g}; relative matching needs it > 0")
         return self.mean / ideal, self.sd / ideal
 
     def at(self, k: float, relative: bool = False) -> float:
@@ -157,14 +159,14 @@ def invert(ks: Sequence[float], mean: Sequence[float], target: float, sd: Sequen
     ks = np.asarray(ks, dtype=np.float64)
     mean = np.asarray(mean, dtype=np.float64)
     if ks.ndim != 1 or ks.shape != mean.shape or len(ks) < 2:
-        raise ValueError(f"a curve needs at least two k values with one mean each, got {len(ks)} k and {mean.size} values")
+        raise InputError(f"a curve needs at least two k values with one mean each, got {len(ks)} k and {mean.size} values")
     if np.any(np.diff(ks) <= 0):
-        raise ValueError("the k values of a curve must be increasing")
+        raise InputError("the k values of a curve must be increasing")
     if not np.all(np.isfinite(mean)):
         bad = ks[~np.isfinite(mean)]
-        raise ValueError(f"the curve has no value at k = {', '.join(f'{k:g}' for k in bad)}")
+        raise InputError(f"the curve has no value at k = {', '.join(f'{k:g}' for k in bad)}")
     if not math.isfinite(target):
-        raise ValueError(f"target must be a finite number, got {target!r}")
+        raise InputError(f"target must be a finite number, got {target!r}")
     sd = np.zeros_like(mean) if sd is None else np.nan_to_num(np.asarray(sd, dtype=np.float64))
     mono = monotone_decreasing(mean)
     monotonised = bool(np.max(np.abs(mono - mean)) > 1e-12)
@@ -207,11 +209,11 @@ def effect_name(label: str) -> str:
 
 def _read_rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
     if not path.is_file():
-        raise FileNotFoundError(f"curve file {path} not found (write one with `weather-gym sweep`)")
+        raise MissingInputError(f"curve file {path} not found (write one with `weather-gym sweep`)")
     text = path.read_text(encoding="utf-8")
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        raise ValueError(f"curve file {path} is empty")
+        raise InputError(f"curve file {path} is empty")
     reader = csv.DictReader(io.StringIO("\n".join(lines)))
     return list(reader.fieldnames or []), list(reader)
 
@@ -220,7 +222,7 @@ def _float(path: Path, lineno: int, col: str, text: str | None) -> float:
     try:
         return float(text)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise ValueError(f"{path}, row {lineno}: column {col!r} must be a number, got {text!r}") from None
+        raise InputError(f"{path}, row {lineno}: column {col!r} must be a number, got {text!r}") from None
 
 
 def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str | None = None,
@@ -237,7 +239,7 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
     header, rows = _read_rows(path)
     missing = [c for c in (*REQUIRED_COLUMNS, metric) if c not in header]
     if missing:
-        raise ValueError(f"curve file {path} lacks column(s) {', '.join(missing)}; expected at least "
+        raise InputError(f"curve file {path} lacks column(s) {', '.join(missing)}; expected at least "
                          f"{', '.join((*REQUIRED_COLUMNS, metric))} (as written by `weather-gym sweep`); "
                          f"it has: {', '.join(header) or '(no header)'}")
     extra_cols = [c for c in header if c.startswith(("recall", "ap50_")) or c == "map"]
@@ -248,7 +250,7 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
             continue
         label = (r.get("effect") or "").strip()
         if not label:
-            raise ValueError(f"{path}, row {lineno}: empty 'effect'")
+            raise InputError(f"{path}, row {lineno}: empty 'effect'")
         if effect is not None and label != effect:
             continue
         if dataset_id is not None and "dataset_id" in header and r.get("dataset_id") != dataset_id:
@@ -257,14 +259,14 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
             continue
         k = _float(path, lineno, "k", r.get("k"))
         if not 0.0 <= k <= 1.0:
-            raise ValueError(f"{path}, row {lineno}: k = {k:g} is outside [0, 1]")
+            raise InputError(f"{path}, row {lineno}: k = {k:g} is outside [0, 1]")
         try:
             seed = int(r.get("seed") or "")
         except ValueError:
-            raise ValueError(f"{path}, row {lineno}: column 'seed' must be an integer, got {r.get('seed')!r}") from None
+            raise InputError(f"{path}, row {lineno}: column 'seed' must be an integer, got {r.get('seed')!r}") from None
         v = _float(path, lineno, metric, r.get(metric))
         if math.isfinite(v) and not 0.0 <= v <= 1.0:
-            raise ValueError(f"{path}, row {lineno}: {metric} = {v:g} is outside [0, 1]")
+            raise InputError(f"{path}, row {lineno}: {metric} = {v:g} is outside [0, 1]")
         vals = {"v": v}
         for c in extra_cols:
             try:
@@ -278,13 +280,13 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
                 meta[key].add(r.get(key) or "")
     if not data:
         what = f" for effect {effect!r}" if effect else ""
-        raise ValueError(f"curve file {path} has no usable (status ok) rows{what}")
+        raise InputError(f"curve file {path} has no usable (status ok) rows{what}")
     curves = {}
     for label, cells in data.items():
         meta = info[label]
         for key in ("dataset_id", "model_id", "spec"):
             if len(meta[key]) > 1:
-                raise ValueError(
+                raise InputError(
                     f"curve file {path}: effect {label!r} mixes {len(meta[key])} values of {key} "
                     f"({', '.join(sorted(meta[key]))}); a resumed sweep with a new model or dataset keeps the old rows - "
                     f"choose one (--{key.replace('_', '-')}) or sweep into a fresh folder")
@@ -302,7 +304,7 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
         try:
             params = json.loads(spec)
         except json.JSONDecodeError:
-            raise ValueError(f"curve file {path}: effect {label!r} has a 'spec' that is not JSON: {spec!r}") from None
+            raise InputError(f"curve file {path}: effect {label!r} has a 'spec' that is not JSON: {spec!r}") from None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns (a class absent from the set)
             extra_mean = {c: np.nanmean(a[keep], axis=1) for c, a in extra.items()}

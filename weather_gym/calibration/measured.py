@@ -31,6 +31,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from weather_gym.errors import InputError, MissingInputError
+
 __all__ = ["IDEAL", "MeasuredLevel", "levels_by_condition", "load_measured", "measure_datasets",
            "parse_measured_arg", "read_measured_table"]
 
@@ -63,7 +65,7 @@ def _condition(text: str, where: str) -> str:
         return canonical_condition(t)
     except ValueError:
         aliases = ", ".join(f"{a} = {c}" for a, c in ALIASES.items() if a != c)
-        raise ValueError(f"{where}: unknown condition {t!r}; valid: ideal, {', '.join(CONDITIONS)} "
+        raise InputError(f"{where}: unknown condition {t!r}; valid: ideal, {', '.join(CONDITIONS)} "
                          f"(aliases: {aliases})") from None
 
 
@@ -73,9 +75,9 @@ def _severity(text: str, where: str) -> int:
     try:
         s = int(str(text).strip())
     except ValueError:
-        raise ValueError(f"{where}: severity must be an integer 0-4, got {text!r}") from None
+        raise InputError(f"{where}: severity must be an integer 0-4, got {text!r}") from None
     if s not in SEVERITIES:
-        raise ValueError(f"{where}: severity {s} is outside 0-4")
+        raise InputError(f"{where}: severity {s} is outside 0-4")
     return s
 
 
@@ -85,9 +87,9 @@ def _number(text: str | None, where: str, col: str, lo: float, hi: float) -> flo
     try:
         v = float(text)
     except ValueError:
-        raise ValueError(f"{where}: column {col!r} must be a number, got {text!r}") from None
+        raise InputError(f"{where}: column {col!r} must be a number, got {text!r}") from None
     if not math.isfinite(v) or not lo <= v <= hi:
-        raise ValueError(f"{where}: {col} = {text} is outside [{lo:g}, {hi:g}]")
+        raise InputError(f"{where}: {col} = {text} is outside [{lo:g}, {hi:g}]")
     return v
 
 
@@ -106,7 +108,7 @@ def _fill_relative(levels: list[MeasuredLevel], where: str) -> list[MeasuredLeve
             out.append(replace(m, relative=derived))
         else:
             if math.isfinite(derived) and abs(derived - m.relative) > 0.01:
-                raise ValueError(f"{where}: {m.condition} severity {m.severity} ({m.domain}): relative_to_ideal "
+                raise InputError(f"{where}: {m.condition} severity {m.severity} ({m.domain}): relative_to_ideal "
                                  f"{m.relative:g} disagrees with map / ideal map = {m.map:g} / {ideal_map:g} = "
                                  f"{derived:.3f}")
             out.append(m)
@@ -117,11 +119,11 @@ def read_measured_table(path: str | os.PathLike) -> list[MeasuredLevel]:
     """Read and validate a measured-levels CSV (see the module doc); errors name file, row and column."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"measured table {path} not found")
+        raise MissingInputError(f"measured table {path} not found")
     lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        raise ValueError(f"measured table {path} is empty")
+        raise InputError(f"measured table {path} is empty")
     reader = csv.DictReader(io.StringIO("\n".join(lines)))
     header = [h.strip() for h in reader.fieldnames or []]
     reader.fieldnames = header
@@ -130,7 +132,7 @@ def read_measured_table(path: str | os.PathLike) -> list[MeasuredLevel]:
     if "map" not in header and rel_col is None:
         missing.append("map or relative_to_ideal")
     if missing:
-        raise ValueError(f"measured table {path} lacks column(s) {', '.join(missing)}; it has: {', '.join(header)}")
+        raise InputError(f"measured table {path} lacks column(s) {', '.join(missing)}; it has: {', '.join(header)}")
     levels: list[MeasuredLevel] = []
     seen: dict[tuple, int] = {}
     for lineno, row in enumerate(reader, start=2):
@@ -138,15 +140,15 @@ def read_measured_table(path: str | os.PathLike) -> list[MeasuredLevel]:
         cond = _condition(row.get("condition", ""), where)
         sev = _severity(row.get("severity", ""), where)
         if cond == IDEAL and sev != 0:
-            raise ValueError(f"{where}: the ideal (clear) row must have severity 0, got {sev}")
+            raise InputError(f"{where}: the ideal (clear) row must have severity 0, got {sev}")
         domain = (row.get("domain") or "measured").strip() or "measured"
         mp = _number(row.get("map"), where, "map", 0.0, 1.0)
         rel = _number(row.get(rel_col) if rel_col else None, where, rel_col or "relative_to_ideal", 0.0, 10.0)
         if math.isnan(mp) and math.isnan(rel):
-            raise ValueError(f"{where}: {cond} severity {sev} has neither map nor relative_to_ideal")
+            raise InputError(f"{where}: {cond} severity {sev} has neither map nor relative_to_ideal")
         key = (cond, sev, domain)
         if key in seen:
-            raise ValueError(f"{where}: {cond} severity {sev} ({domain}) already given in data row {seen[key]}")
+            raise InputError(f"{where}: {cond} severity {sev} ({domain}) already given in data row {seen[key]}")
         seen[key] = lineno - 1
         images = row.get("images")
         levels.append(MeasuredLevel(cond, sev, domain, mp, rel, (row.get("description") or "").strip(), str(path),
@@ -165,7 +167,7 @@ def parse_measured_arg(text: str) -> tuple[str, Any]:
             return "dataset", (IDEAL, 0, Path(folder))
         cond, at, sev = label.partition("@")
         if not at:
-            raise ValueError(f"--measured {text!r}: expected CONDITION@SEVERITY=DIR (e.g. droplets@3=data/drops3), "
+            raise InputError(f"--measured {text!r}: expected CONDITION@SEVERITY=DIR (e.g. droplets@3=data/drops3), "
                              "ideal=DIR, a COCO folder or a CSV table")
         where = f"--measured {text!r}"
         return "dataset", (_condition(cond, where), _severity(sev, where), Path(folder))
@@ -174,7 +176,7 @@ def parse_measured_arg(text: str) -> tuple[str, Any]:
         return "dataset", (None, None, p)
     if p.is_file():
         return "table", p
-    raise FileNotFoundError(f"--measured {text}: no such file or folder (expected a CSV table, a COCO folder, "
+    raise MissingInputError(f"--measured {text}: no such file or folder (expected a CSV table, a COCO folder, "
                             "CONDITION@SEVERITY=DIR or ideal=DIR)")
 
 
@@ -202,14 +204,14 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
                 rec = ds.record(i)
                 where = f"{folder}: image {rec.get('file_name', i)}"
                 if "condition" not in rec or "severity" not in rec:
-                    raise ValueError(f"{where} has no 'condition'/'severity' fields; label the whole folder with "
+                    raise InputError(f"{where} has no 'condition'/'severity' fields; label the whole folder with "
                                      f"--measured CONDITION@SEVERITY={folder} (or ideal={folder})")
                 c = _condition(str(rec["condition"]), where)
                 key = (c, 0 if c == IDEAL else _severity(rec["severity"], where))
             frames.append((ds.gt(i), key))
             rule = small_rule(ds, det)
             if rule is None or rules.setdefault(key, rule).min_height_px != rule.min_height_px:
-                raise ValueError(f"{folder}: frames of one level must have one size (the too-small rule depends "
+                raise InputError(f"{folder}: frames of one level must have one size (the too-small rule depends "
                                  "on it); import each camera size into its own folder")
         from tqdm import tqdm
 
@@ -229,7 +231,7 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
         r = evaluate([g for g, _ in pairs], [d for _, d in pairs], score_threshold=det.score_threshold,
                      min_box_height=rule.min_height_px, too_small=rule.describe())
         if not math.isfinite(r.map50):
-            raise ValueError(f"measured set {', '.join(sources[cond, sev])} ({cond} severity {sev}) has no scorable cones")
+            raise InputError(f"measured set {', '.join(sources[cond, sev])} ({cond} severity {sev}) has no scorable cones")
         levels.append(MeasuredLevel(cond, sev, domain, float(r.map50), math.nan,
                                     f"measured: {len(pairs)} images, {r.n_gt} cones", "; ".join(sources[cond, sev]),
                                     len(pairs)))
@@ -261,14 +263,14 @@ def levels_by_condition(levels: Sequence[MeasuredLevel], *, domain: str | None =
     """
     weather = [m for m in levels if m.condition != IDEAL]
     if not weather:
-        raise ValueError("the measured levels hold no weather condition (only ideal rows): nothing to calibrate")
+        raise InputError("the measured levels hold no weather condition (only ideal rows): nothing to calibrate")
     domains = sorted({m.domain for m in weather})
     if domain is None:
         if len(domains) > 1:
-            raise ValueError(f"the measured levels come from several domains ({', '.join(domains)}); pick one with --domain")
+            raise InputError(f"the measured levels come from several domains ({', '.join(domains)}); pick one with --domain")
         domain = domains[0]
     elif domain not in domains:
-        raise ValueError(f"--domain {domain!r}: no weather rows in that domain; domains: {', '.join(domains)}")
+        raise InputError(f"--domain {domain!r}: no weather rows in that domain; domains: {', '.join(domains)}")
     out: dict[str, dict[int, MeasuredLevel]] = {}
     for m in weather:
         if m.domain != domain:
@@ -277,7 +279,7 @@ def levels_by_condition(levels: Sequence[MeasuredLevel], *, domain: str | None =
         if not math.isfinite(value):
             need = ("relative_to_ideal, or an ideal row (condition ideal, severity 0) of domain "
                     f"{domain!r}") if match == "relative" else "map"
-            raise ValueError(f"{m.source}: {m.condition} severity {m.severity} has no {match} value for "
+            raise InputError(f"{m.source}: {m.condition} severity {m.severity} has no {match} value for "
                              f"{match} matching: give {need}")
         out.setdefault(m.condition, {})[m.severity] = m
     ideal = next((m for m in levels if m.condition == IDEAL and m.domain == domain), None)

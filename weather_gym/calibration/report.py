@@ -12,7 +12,7 @@ Example:
     >>> study_points("no/such.csv")
     Traceback (most recent call last):
     ...
-    FileNotFoundError: study points file no/such.csv not found
+    weather_gym.errors.MissingInputError: study points file no/such.csv not found
 """
 
 from __future__ import annotations
@@ -27,8 +27,10 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_write, save_figure
 from weather_gym.calibration.curve import Curve
 from weather_gym.calibration.shapes import STUDY_SHAPE, ShapeFit, fit_shapes
+from weather_gym.errors import InputError, MissingInputError
 
 __all__ = ["agreement", "plot_calibration", "plot_curves", "plot_recall_by_range", "plot_study_comparison",
            "study_points", "write_report"]
@@ -46,13 +48,9 @@ def _plt():
     return plt
 
 
-def _save(fig, out: str | os.PathLike) -> Path:
-    """Save ``fig`` to ``out`` (its folder made if needed) and close it."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
-    _plt().close(fig)
-    return out
+def _save(fig, out: str | os.PathLike, overwrite: bool) -> Path:
+    """Save ``fig`` to ``out`` safely (its folder made if needed) and close it."""
+    return save_figure(fig, out, overwrite=overwrite, metadata=None)
 
 
 def _color(label: str, i: int = 0) -> str:
@@ -60,7 +58,7 @@ def _color(label: str, i: int = 0) -> str:
 
 
 def plot_curves(curves: Mapping[str, Curve], out: str | os.PathLike, *, recall_out: str | os.PathLike | None = None,
-                title: str = "") -> Path:
+                title: str = "", overwrite: bool = False) -> Path:
     """One panel per curve: seeds as points, mean line, +/- 1 sd band; relative mAP on the right axis."""
     plt = _plt()
     labels = list(curves)
@@ -91,13 +89,14 @@ def plot_curves(curves: Mapping[str, Curve], out: str | os.PathLike, *, recall_o
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    out = _save(fig, out)
+    out = _save(fig, out, overwrite)
     if recall_out is not None:
-        plot_recall_by_range(curves, recall_out)
+        plot_recall_by_range(curves, recall_out, overwrite=overwrite)
     return out
 
 
-def plot_recall_by_range(curves: Mapping[str, Curve], out: str | os.PathLike) -> Path | None:
+def plot_recall_by_range(curves: Mapping[str, Curve], out: str | os.PathLike, *,
+                         overwrite: bool = False) -> Path | None:
     """Recall at the detector's operating threshold by cone range, mean over seeds, vs k; None without data."""
     plt = _plt()
     labels = [lb for lb in curves if any(c.startswith("recall_") for c in curves[lb].extra)]
@@ -124,10 +123,11 @@ def plot_recall_by_range(curves: Mapping[str, Curve], out: str | os.PathLike) ->
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
-    return _save(fig, out)
+    return _save(fig, out, overwrite)
 
 
-def plot_calibration(calibs: Sequence[Any], curves: Mapping[str, Curve], out: str | os.PathLike) -> Path:
+def plot_calibration(calibs: Sequence[Any], curves: Mapping[str, Curve], out: str | os.PathLike, *,
+                     overwrite: bool = False) -> Path:
     """Per condition: the curve in the matched units, measured severities (horizontal), chosen k (vertical)."""
     plt = _plt()
     conds = sorted({c.condition for c in calibs})
@@ -160,33 +160,33 @@ def plot_calibration(calibs: Sequence[Any], curves: Mapping[str, Curve], out: st
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
-    return _save(fig, out)
+    return _save(fig, out, overwrite)
 
 
 def study_points(path: str | os.PathLike) -> dict[str, tuple[float, float]]:
     """The study's Figure-7 points file (``effect,k,map``; ``#`` comments) -> ``{effect: (k, map)}``."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"study points file {path} not found")
+        raise MissingInputError(f"study points file {path} not found")
     lines = [ln for ln in path.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     reader = csv.DictReader(io.StringIO("\n".join(lines)))
     missing = [c for c in ("effect", "k", "map") if c not in (reader.fieldnames or [])]
     if missing:
-        raise ValueError(f"study points file {path} lacks column(s) {', '.join(missing)}")
+        raise InputError(f"study points file {path} lacks column(s) {', '.join(missing)}")
     out = {}
     for n, r in enumerate(reader, start=1):
         try:
             k, m = float(r["k"]), float(r["map"])
         except ValueError:
-            raise ValueError(f"{path}, data row {n}: k and map must be numbers, got {r['k']!r}, {r['map']!r}") from None
+            raise InputError(f"{path}, data row {n}: k and map must be numbers, got {r['k']!r}, {r['map']!r}") from None
         if not (0 <= k <= 1 and 0 <= m <= 1):
-            raise ValueError(f"{path}, data row {n}: k = {k:g} and map = {m:g} must lie in [0, 1]")
+            raise InputError(f"{path}, data row {n}: k = {k:g} and map = {m:g} must lie in [0, 1]")
         out[r["effect"].strip()] = (k, m)
     return out
 
 
 def plot_study_comparison(curves: Mapping[str, Curve], points: Mapping[str, tuple[float, float]],
-                          levels: Sequence[Any], out: str | os.PathLike) -> Path:
+                          levels: Sequence[Any], out: str | os.PathLike, *, overwrite: bool = False) -> Path:
     """2 x 2: (droplets, dim) x (absolute, relative) - our curves, the study's Figure-7 points (simulator)
     and its Table-2 real-world levels (horizontal lines)."""
     plt = _plt()
@@ -231,7 +231,7 @@ def plot_study_comparison(curves: Mapping[str, Curve], points: Mapping[str, tupl
     fig.suptitle("ours (our detector, our rendered set) vs the study (YOLOv3-tiny; Table 2 real levels as dashed "
                  "lines, Figure 7 simulator points as stars)", fontsize=8.5)
     fig.tight_layout()
-    return _save(fig, out)
+    return _save(fig, out, overwrite)
 
 
 # ------------------------------------------------------------------------------------------- report
@@ -256,13 +256,13 @@ def _f(v: float, nd: int = 3) -> str:
 def write_report(calibs: Sequence[Any], curves: Mapping[str, Curve], out_dir: str | os.PathLike, *,
                  command: str | None = None, presets_path: str | os.PathLike | None = None,
                  study: Mapping[str, tuple[float, float]] | None = None, levels: Sequence[Any] = (),
-                 relative_fits: bool = True) -> Path:
-    """Write ``calibration_report.md`` and ``calibration.png`` (and ``study_comparison.png`` with ``study``)."""
+                 relative_fits: bool = True, overwrite: bool = False) -> Path:
+    """Write ``calibration_report.md`` and ``calibration.png`` (and ``study_comparison.png`` with ``study``);
+    existing files only with ``overwrite`` (see :data:`REPORT_FILES`)."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    plot_calibration(calibs, curves, out_dir / "calibration.png")
+    plot_calibration(calibs, curves, out_dir / "calibration.png", overwrite=overwrite)
     if study is not None:
-        plot_study_comparison(curves, study, levels, out_dir / "study_comparison.png")
+        plot_study_comparison(curves, study, levels, out_dir / "study_comparison.png", overwrite=overwrite)
     match = calibs[0].match if calibs else "relative"
     md = ["# Calibration report", ""]
     if command:
@@ -336,6 +336,8 @@ def write_report(calibs: Sequence[Any], curves: Mapping[str, Curve], out_dir: st
             if base in study:
                 k, m = study[base]
                 md.append(f"| {lb} | {k:g} | {m:.3f} ({m / sim_clean:.3f}) | {c.at(k):.3f} ({c.at(k, True):.3f}) |")
-    path = out_dir / "calibration_report.md"
-    path.write_text("\n".join(md) + "\n", encoding="utf-8")
-    return path
+    return atomic_write(out_dir / "calibration_report.md", "\n".join(md) + "\n", overwrite=overwrite)
+
+
+REPORT_FILES = ("calibration_report.md", "calibration.png", "study_comparison.png", "remeasured.csv")
+"""The files ``weather-gym calibrate`` writes in its report folder."""

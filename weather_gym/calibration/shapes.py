@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["SHAPES", "ShapeFit", "fit_shapes", "r_squared"]
 
 SHAPES = ("linear", "exponential", "logistic")
@@ -80,7 +82,7 @@ def fit_shapes(k: Sequence[float], y: Sequence[float]) -> dict[str, ShapeFit]:
     ok = np.isfinite(k) & np.isfinite(y)
     k, y = k[ok], y[ok]
     if len(k) < 3:
-        raise ValueError(f"a shape fit needs at least 3 points, got {len(k)}")
+        raise InputError(f"a shape fit needs at least 3 points, got {len(k)}")
     out: dict[str, ShapeFit] = {}
     b, a = np.polyfit(k, y, 1)
     lin = ShapeFit("linear", _round({"a": a, "b": b}), 0.0, "a + b k")

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym._io import atomic_write_json
+from weather_gym.errors import InputError
 
 __all__ = [
     "CURVE_FILE",
@@ -122,7 +123,7 @@ def parse_effect(text: str) -> SweepEffect:
     from weather_gym.weather import EFFECTS, make
 
     if not isinstance(text, str) or not text.strip():
-        raise ValueError(f"--effect must be NAME or NAME:PARAM=VALUE,..., got {text!r}")
+        raise InputError(f"--effect must be NAME or NAME:PARAM=VALUE,..., got {text!r}")
     name, _, rest = text.strip().partition(":")
     name = name.strip()
     EFFECTS.get(name)  # ValueError listing the valid names
@@ -130,16 +131,16 @@ def parse_effect(text: str) -> SweepEffect:
     for item in filter(None, (p.strip() for p in rest.split(","))):
         key, eq, val = item.partition("=")
         if not eq or not key.strip():
-            raise ValueError(f"effect {text!r}: parameter {item!r} must be PARAM=VALUE (e.g. dim:mode=physical)")
+            raise InputError(f"effect {text!r}: parameter {item!r} must be PARAM=VALUE (e.g. dim:mode=physical)")
         key = key.strip()
         if key == "k":
-            raise ValueError(f"effect {text!r}: k is what the sweep varies; give it with --k, not in the effect")
+            raise InputError(f"effect {text!r}: k is what the sweep varies; give it with --k, not in the effect")
         params[key] = _value(val)
     default = make(name, k=0.0)
     try:
         effect = make(name, k=0.0, **params)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"effect {text!r}: {exc}") from None
+        raise InputError(f"effect {text!r}: {exc}") from None
     canonical = {p: getattr(effect, p) for p in params if getattr(effect, p) != getattr(default, p)}
     return SweepEffect(name, canonical)
 
@@ -150,39 +151,39 @@ def parse_k_range(text: str) -> tuple[float, ...]:
     Values are rounded to 10 decimals so ``0:1:0.05`` gives exactly 0.05, 0.1, ... (21 values).
     """
     if not isinstance(text, str) or not text.strip():
-        raise ValueError("--k must be START:STOP:STEP (e.g. 0:1:0.05) or a comma-separated list of k values")
+        raise InputError("--k must be START:STOP:STEP (e.g. 0:1:0.05) or a comma-separated list of k values")
     text = text.strip()
     if ":" in text:
         parts = text.split(":")
         if len(parts) != 3:
-            raise ValueError(f"--k {text!r}: a range is START:STOP:STEP with three numbers, e.g. 0:1:0.05")
+            raise InputError(f"--k {text!r}: a range is START:STOP:STEP with three numbers, e.g. 0:1:0.05")
         try:
             start, stop, step = (float(p) for p in parts)
         except ValueError:
-            raise ValueError(f"--k {text!r}: START, STOP and STEP must be numbers, e.g. 0:1:0.05") from None
+            raise InputError(f"--k {text!r}: START, STOP and STEP must be numbers, e.g. 0:1:0.05") from None
         if not all(math.isfinite(v) for v in (start, stop, step)):
-            raise ValueError(f"--k {text!r}: START, STOP and STEP must be finite numbers")
+            raise InputError(f"--k {text!r}: START, STOP and STEP must be finite numbers")
         if step <= 0:
-            raise ValueError(f"--k {text!r}: STEP must be > 0, got {step:g}")
+            raise InputError(f"--k {text!r}: STEP must be > 0, got {step:g}")
         if stop < start:
-            raise ValueError(f"--k {text!r}: STOP ({stop:g}) is below START ({start:g})")
+            raise InputError(f"--k {text!r}: STOP ({stop:g}) is below START ({start:g})")
         n = int(math.floor((stop - start) / step + 1e-9)) + 1
         if n > 10_000:
-            raise ValueError(f"--k {text!r}: {n} values; use a larger STEP")
+            raise InputError(f"--k {text!r}: {n} values; use a larger STEP")
         ks = [round(start + i * step, 10) for i in range(n)]
     else:
         try:
             ks = [float(p) for p in text.split(",") if p.strip()]
         except ValueError:
-            raise ValueError(f"--k {text!r}: expected numbers separated by commas, e.g. 0,0.25,0.5") from None
+            raise InputError(f"--k {text!r}: expected numbers separated by commas, e.g. 0,0.25,0.5") from None
         if not ks:
-            raise ValueError(f"--k {text!r}: no k values")
+            raise InputError(f"--k {text!r}: no k values")
     bad = [k for k in ks if not (0.0 <= k <= 1.0)]
     if bad:
-        raise ValueError(f"--k {text!r}: k must lie in [0, 1], got {', '.join(f'{k:g}' for k in bad)}")
+        raise InputError(f"--k {text!r}: k must lie in [0, 1], got {', '.join(f'{k:g}' for k in bad)}")
     out = tuple(sorted(set(ks)))
     if len(out) != len(ks):
-        raise ValueError(f"--k {text!r}: repeated k values")
+        raise InputError(f"--k {text!r}: repeated k values")
     return out
 
 
@@ -192,12 +193,12 @@ def parse_seeds(n: int | None = None, seed_list: str | None = None) -> tuple[int
         try:
             seeds = [int(s) for s in seed_list.split(",") if s.strip()]
         except ValueError:
-            raise ValueError(f"--seed-list {seed_list!r}: expected integers separated by commas") from None
+            raise InputError(f"--seed-list {seed_list!r}: expected integers separated by commas") from None
         if not seeds or any(s < 0 for s in seeds) or len(set(seeds)) != len(seeds):
-            raise ValueError(f"--seed-list {seed_list!r}: expected distinct non-negative integers")
+            raise InputError(f"--seed-list {seed_list!r}: expected distinct non-negative integers")
         return tuple(seeds)
     if n is None or n < 1:
-        raise ValueError(f"--seeds must be >= 1, got {n}")
+        raise InputError(f"--seeds must be >= 1, got {n}")
     return tuple(range(int(n)))
 
 
@@ -283,7 +284,7 @@ def make_sweep_cells(effects: Sequence[SweepEffect], ks: Sequence[float], seeds:
     labels = [e.label for e in effects]
     dup = sorted({x for x in labels if labels.count(x) > 1})
     if dup:
-        raise ValueError(f"effect(s) {', '.join(dup)} given twice")
+        raise InputError(f"effect(s) {', '.join(dup)} given twice")
     dsid, mid = file_id(ds_path / ANNOTATIONS), detector_id(spec)
     return [SweepCell(effect=e.label, spec=e.spec, k=float(k), seed=int(s), dataset_id=dsid, model_id=mid,
                       name=e.name, dataset=str(ds_path.resolve()), model=spec)
@@ -294,29 +295,36 @@ def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequen
               dataset: str | os.PathLike, out: str | os.PathLike, *, model: Any = None,
               workers: int | None = None, backend: str = "process", progress: bool = True,
               retry_failed: bool = True, ray_address: str | None = None, plot: bool = True,
-              command: str | None = None) -> list[dict[str, Any]]:
-    """Run the sweep into ``out/curves.csv`` (resumable), plot it, record ``out/sweep.json``; return the rows."""
-    from weather_gym.evaluation.runner import run_cells
+              command: str | None = None, overwrite: bool = False) -> list[dict[str, Any]]:
+    """Run the sweep into ``out/curves.csv`` (resumable), plot it, record ``out/sweep.json``; return the rows.
+
+    When ``out`` holds no curves.csv yet, an existing plot or sweep.json there is refused before any
+    cell runs, unless ``overwrite``."""
+    from weather_gym._io import derived_outputs_replaceable
+    from weather_gym.evaluation.runner import check_results_path, run_cells
 
     cells = make_sweep_cells(effects, ks, seeds, dataset, model)
     out = Path(out)
+    check_results_path(out / CURVE_FILE)
+    derived = [out / META_FILE] + ([out / "curves.png", out / "curves_recall.png"] if plot else [])
+    replace = derived_outputs_replaceable(out / CURVE_FILE, derived, overwrite=overwrite)
     t0 = time.perf_counter()
     rows = run_cells(cells, run_sweep_cell, out / CURVE_FILE, key_fields=KEY_FIELDS, workers=workers,
                      backend=backend, progress=progress, retry_failed=retry_failed, ray_address=ray_address,
                      desc="sweep")
     wall = time.perf_counter() - t0
-    _write_meta(out, cells, effects, ks, seeds, dataset, model, wall, command)
+    _write_meta(out, cells, effects, ks, seeds, dataset, model, wall, command, replace)
     if plot:
         from weather_gym.calibration.curve import load_curves
         from weather_gym.calibration.report import plot_curves
 
         curves = load_curves(out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
-        plot_curves(curves, out / "curves.png", recall_out=out / "curves_recall.png")
+        plot_curves(curves, out / "curves.png", recall_out=out / "curves_recall.png", overwrite=replace)
     return rows
 
 
 def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, model, wall: float,
-                command: str | None) -> None:
+                command: str | None, overwrite: bool) -> None:
     """Merge this run's description into ``out/sweep.json`` (per curve label)."""
     path = out / META_FILE
     meta: dict[str, Any] = {}
@@ -337,4 +345,4 @@ def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, 
             "model": str(model) if model is not None else "weather_gym/perception/models/cone_detector.onnx",
             "model_id": c0.model_id, "command": command, "wall_s_of_run": round(wall, 1),
         }
-    atomic_write_json(path, meta, indent=2, sort_keys=True)
+    atomic_write_json(path, meta, indent=2, sort_keys=True, overwrite=overwrite)

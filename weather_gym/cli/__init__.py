@@ -4,6 +4,11 @@ Every module in this package whose name does not start with ``_`` is one sub-com
 ``register(subparsers)`` which adds its parser and sets ``func`` (called with the parsed args,
 returns an exit code). Heavy imports happen inside ``func`` so ``--help`` stays fast.
 
+Errors: a :class:`weather_gym.errors.WeatherGymError` (bad input, an output that exists, a path
+outside its folder, ...) is printed as ``error: MESSAGE`` with exit status 2; anything else is a
+bug and keeps its traceback, followed by a line asking to report it (exit status 70). Ctrl-C exits
+with 130, SIGTERM with 143, after cleaning up (no temporary file or worker process is left).
+
 Example:
     >>> from weather_gym.cli import main
     >>> main(["--version"])  # doctest: +SKIP
@@ -12,15 +17,26 @@ Example:
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import pkgutil
+import signal
 import sys
+import traceback
 
 from weather_gym import __version__
+from weather_gym.errors import InputError, WeatherGymError
+
+BUG_REPORT = ("this is a bug in weather-gym, not a problem with your input: please report it with the command "
+              "you ran and the traceback above")
 
 
-class CLIError(Exception):
-    """A user error: printed as ``error: ...`` with exit code 2, no traceback."""
+INTERNAL_ERROR = 70
+"""Exit status of an unexpected exception (a bug; ``EX_SOFTWARE`` of sysexits.h)."""
+
+
+class CLIError(InputError):
+    """A user error found by the command line itself: printed as ``error: ...`` with exit code 2."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -39,18 +55,57 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def run_command(func, *args, **kwargs) -> int:
+    """Call ``func`` and turn the outcome into an exit status, the way every command does.
+
+    A :class:`WeatherGymError` prints ``error: MESSAGE`` and gives 2; Ctrl-C (or SIGTERM) gives 130
+    (143) after the ``finally`` blocks ran, so no temporary file is left; any other exception
+    prints its traceback and a line asking to report the bug, and gives 70. Scripts in
+    ``examples/`` use it too.
+    """
+    with _terminate_as_exit():
+        try:
+            return int(func(*args, **kwargs) or 0)
+        except WeatherGymError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            return 130
+        except _Terminated:
+            print("terminated", file=sys.stderr)
+            return 143
+        except Exception:
+            traceback.print_exc()
+            print(f"weather-gym {__version__}: {BUG_REPORT}", file=sys.stderr)
+            return INTERNAL_ERROR
+
+
+class _Terminated(BaseException):
+    """Raised in the main thread on SIGTERM so that cleanup (temporary files, workers) runs."""
+
+
+@contextlib.contextmanager
+def _terminate_as_exit():
+    """While a command runs, SIGTERM unwinds the stack like Ctrl-C instead of killing the process outright."""
+    def _raise(signum, frame):
+        raise _Terminated()
+
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except (CLIError, ValueError, FileNotFoundError, FileExistsError, PermissionError, KeyError) as exc:
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"error: {msg}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    return run_command(args.func, args)
 
 
 if __name__ == "__main__":  # pragma: no cover

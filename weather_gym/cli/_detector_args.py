@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from weather_gym.errors import InputError
+
 
 def add_detector_args(p, *, what: str | None = None, legacy_model: bool = False) -> None:
     """Add the detector options to the parser ``p`` (``legacy_model``: also accept ``--model PATH``)."""
@@ -40,7 +42,7 @@ def detector_spec_from_args(args) -> Any:
     model = getattr(args, "detector_model", None)
     if model is not None:
         if spec is not None:
-            raise ValueError("give either --detector or --model, not both")
+            raise InputError("give either --detector or --model, not both")
         spec = f"conenet:{model}"
     return parse_detector_spec(spec, classes=getattr(args, "detector_classes", None),
                                resize=getattr(args, "detector_resize", None),

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import os
 
+from weather_gym.errors import InputError, MissingDependencyError
+
 
 def add_runner_args(p, *, what: str = "cells", resumable: bool = True) -> None:
     """Add the runner options to the parser (or argument group) ``p``."""
@@ -25,9 +27,9 @@ def add_runner_args(p, *, what: str = "cells", resumable: bool = True) -> None:
 def check_runner_args(args) -> None:
     """Refuse bad runner options before any cell runs (``ValueError`` naming the option)."""
     if args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+        raise InputError(f"--workers must be >= 1, got {args.workers}")
     if args.backend == "ray":
         try:
             import ray  # noqa: F401
         except ModuleNotFoundError:
-            raise ValueError("--backend ray needs Ray: pip install 'weather-gym[ray]'") from None
+            raise MissingDependencyError("--backend ray needs Ray: pip install 'weather-gym[ray]'") from None

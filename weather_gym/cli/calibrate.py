@@ -22,7 +22,9 @@ import sys
 from pathlib import Path
 
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
+from weather_gym.errors import InputError, MissingInputError
 
 
 def register(sub) -> None:
@@ -40,7 +42,7 @@ def register(sub) -> None:
                    help="measured levels: a CSV (condition, severity, map and/or relative_to_ideal, optional domain), "
                         "or labelled COCO image sets whose mAP is measured here; repeat for several")
     p.add_argument("--out", type=Path, required=True, help="presets TOML to write (never overwritten without --overwrite)")
-    p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    add_overwrite_arg(p, help="replace --out and the report files if they exist")
     p.add_argument("--match", default="relative", choices=("relative", "absolute"),
                    help="relative: mAP / ideal mAP of the same domain (default; detector-independent); absolute: mAP")
     p.add_argument("--use", action="append", default=None, metavar="CONDITION=CURVE",
@@ -71,12 +73,13 @@ def _merge_curves(paths, metric, dataset_id, model_id):
     for path in paths:
         for label, c in load_curves(path, metric=metric, dataset_id=dataset_id, model_id=model_id).items():
             if label in curves:
-                raise ValueError(f"curve {label!r} appears in both {curves[label].source} and {path}; give it once")
+                raise InputError(f"curve {label!r} appears in both {curves[label].source} and {path}; give it once")
             curves[label] = c
     return curves
 
 
 def _run(args) -> int:
+    from weather_gym._io import check_output, derived_outputs_replaceable
     from weather_gym.calibration.calibrate import (
         calibrate,
         fill_from_curves,
@@ -85,18 +88,19 @@ def _run(args) -> int:
         write_presets,
     )
     from weather_gym.calibration.measured import load_measured
-    from weather_gym.calibration.report import study_points, write_report
+    from weather_gym.calibration.report import REPORT_FILES, study_points, write_report
     from weather_gym.weather.presets import load_presets
 
-    if args.out.exists() and not args.overwrite:
-        raise FileExistsError(f"--out {args.out} exists; pass --overwrite to replace it (nothing was written)")
-    if args.out.exists() and args.out.is_dir():
-        raise ValueError(f"--out {args.out} is a folder; give a .toml file path")
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".toml",), what="--out")
+    report_dir = args.report or args.out.with_name(args.out.stem + "_report")
+    replace_report = derived_outputs_replaceable(report_dir / "remeasured.csv",
+                                                 [report_dir / f for f in REPORT_FILES if f != "remeasured.csv"],
+                                                 overwrite=args.overwrite)
     if args.seeds < 1:
-        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+        raise InputError(f"--seeds must be >= 1, got {args.seeds}")
     check_runner_args(args)
     if args.dataset is not None and not args.dataset.exists():
-        raise FileNotFoundError(f"--dataset {args.dataset} not found")
+        raise MissingInputError(f"--dataset {args.dataset} not found")
     curves = _merge_curves(args.curve, args.metric, args.dataset_id, args.model_id)
     use = parse_use(args.use)
     study = study_points(args.study_points) if args.study_points is not None else None
@@ -105,7 +109,6 @@ def _run(args) -> int:
     base = load_presets(args.base)["presets"]
     descriptions = {(c, s): t.get("description", "") for c, sev in base.items() for s, t in sev.items()}
     calibs = calibrate(curves, levels, match=args.match, use=use, domain=args.domain, descriptions=descriptions)
-    report_dir = args.report or args.out.with_name(args.out.stem + "_report")
     if args.dataset is not None:
         remeasure(calibs, curves, args.dataset, report_dir / "remeasured.csv", seeds=tuple(range(args.seeds)),
                   model=detector, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
@@ -125,7 +128,8 @@ def _run(args) -> int:
         "eval_ideal_map": {lb: round(curves[lb].ideal, 4) for lb in used},
     }
     path = write_presets(calibs, args.out, meta=meta, base=args.base, overwrite=args.overwrite)
-    write_report(calibs, curves, report_dir, command=command, presets_path=path, study=study, levels=levels)
+    write_report(calibs, curves, report_dir, command=command, presets_path=path, study=study, levels=levels,
+                 overwrite=replace_report)
     print(f"{'condition':<10} S  target  k      interval         achieved  reachable")
     for c in calibs:
         if c.severity == 0:

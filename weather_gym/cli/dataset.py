@@ -15,6 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
 
 
 def register(sub) -> None:
@@ -65,7 +67,7 @@ def register(sub) -> None:
     im.add_argument("--annotations", type=Path, default=None, help="COCO: the JSON file (default: the only *.json in SRC)")
     im.add_argument("--location-frame", default="auto", choices=("auto", "camera", "vehicle", "none"),
                     help="KITTI: frame of the 3D locations used for cone range (default: recognised from the boxes)")
-    im.add_argument("--overwrite", action="store_true", help="replace an existing dataset in --out")
+    add_overwrite_arg(im, help="replace an existing dataset in --out")
     im.add_argument("--quiet", action="store_true", help="no progress bar")
     add_detector_args(im, what="the too-small rule is stated at this detector's input scale")
     im.set_defaults(func=_import)
@@ -82,7 +84,7 @@ def register(sub) -> None:
     m.add_argument("--preview", type=Path, default=None, help="with --out: also write a frame with the mask drawn on it")
     m.add_argument("--frame", default=None, help="with --set: the image file_name the mask is for (default: all frames)")
     m.add_argument("--max-frames", type=int, default=60, help="frames used for the proposal, evenly spaced (default %(default)s)")
-    m.add_argument("--overwrite", action="store_true", help="replace an existing mask file")
+    add_overwrite_arg(m, help="replace an existing mask file (--out, --preview, or the dataset's mask with --set)")
     m.set_defaults(func=_mask)
 
 
@@ -187,38 +189,33 @@ def _import(args) -> int:
 
 
 def _mask(args) -> int:
-    import cv2
     import numpy as np
 
+    from weather_gym._io import check_output, write_image
     from weather_gym.datasets.coco import load_coco
     from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
 
     if args.set is not None:
         if args.preview is not None:
-            raise ValueError("--preview goes with --out (a proposal), not with --set")
+            raise InputError("--preview goes with --out (a proposal), not with --set")
         dest = set_dataset_mask(args.dir, args.set, frame=args.frame, overwrite=args.overwrite)
         print(f"stored {args.set} as {dest}")
         return 0
     if args.frame is not None:
-        raise ValueError("--frame goes with --set")
-    ds = load_coco(args.dir)
-    for p in (args.out, args.preview):
-        if p is not None and p.exists() and not args.overwrite:
-            raise FileExistsError(f"{p} already exists; choose another file or pass --overwrite")
+        raise InputError("--frame goes with --set")
+    for p, what in ((args.out, "--out"), (args.preview, "--preview")):
+        if p is not None:
+            check_output(p, overwrite=args.overwrite, suffixes=(".png",), what=what)
     if args.max_frames < 4:
-        raise ValueError(f"--max-frames must be >= 4, got {args.max_frames}")
+        raise InputError(f"--max-frames must be >= 4, got {args.max_frames}")
+    ds = load_coco(args.dir)
     idx = np.unique(np.linspace(0, len(ds) - 1, min(args.max_frames, len(ds))).round().astype(int))
     frames = [ds.image(int(i)) for i in idx]
     mask = propose_mask(frames)
-    write_mask(args.out, mask)
+    write_mask(args.out, mask, overwrite=args.overwrite)
     print(f"proposed ignore mask from {len(frames)} frames: {100.0 * mask.mean():.1f} % of the frame -> {args.out}")
     if args.preview is not None:
-        from weather_gym._io import atomic_write
-
-        ok, buf = cv2.imencode(".png", cv2.cvtColor(mask_preview(frames[0], mask), cv2.COLOR_RGB2BGR))
-        if not ok:
-            raise ValueError(f"could not encode {args.preview}")
-        atomic_write(args.preview, buf.tobytes())
+        write_image(args.preview, mask_preview(frames[0], mask), overwrite=args.overwrite)
         print(f"preview: {args.preview}")
     print(f"check and edit it (white = ignored), then: weather-gym dataset mask {args.dir} --set {args.out}")
     return 0

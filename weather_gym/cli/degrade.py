@@ -11,9 +11,10 @@ Examples:
 * INPUT: an image (.png .jpg .jpeg .bmp .tif .tiff .webp), a folder (its images, recursively) or a
   video (.mp4 .avi .mov .mkv .m4v .webm). Output names mirror the input names (a folder's tree is
   rebuilt under OUTPUT; an existing folder as OUTPUT of a file receives a file of the same name).
-* The input is never written to. An existing output file is an error unless ``--force``; for a
+* The input is never written to. An existing output file is an error unless ``--overwrite``; for a
   folder, outputs that already exist are skipped, so an interrupted run resumes where it stopped.
-  Files are written to a temporary name first, then renamed.
+  Files are written to a fresh temporary file first, then renamed (``weather_gym._io``). An
+  unreadable image in a folder stops the run, naming it, unless ``--skip-unreadable``.
 * Randomness: each image gets its own generator from ``--seed`` and its relative path (so the
   result does not depend on the order or on resuming); a video is one episode from ``--seed``.
 * ``--depth``: metric depth as uint16 PNG in millimetres (the dataset layout), a file for an
@@ -23,9 +24,11 @@ Examples:
 from __future__ import annotations
 
 import json
-import os
 import zlib
 from pathlib import Path
+
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
 
 IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_EXTS = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
@@ -46,7 +49,9 @@ def register(sub) -> None:
     p.add_argument("--weather", help="a weather spec instead of --effect/--k")
     p.add_argument("--seed", type=int, default=0, help="random seed (default %(default)s)")
     p.add_argument("--depth", type=Path, help="depth PNG (uint16 mm) or folder of them mirroring INPUT")
-    p.add_argument("--force", action="store_true", help="replace existing output files (never the input)")
+    add_overwrite_arg(p)
+    p.add_argument("--skip-unreadable", action="store_true",
+                   help="in a folder, skip images that cannot be read (listed at the end) instead of stopping")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -64,16 +69,21 @@ def build_weather(effect: str | None, k: float | None, params: list[str], weathe
 
     if weather is not None:
         if effect is not None or k is not None or params:
-            raise ValueError("give either --weather or --effect/--k/--param, not both")
+            raise InputError("give either --weather or --effect/--k/--param, not both")
         text = weather.strip()
-        return parse_weather(json.loads(text) if text[:1] in "[{" else text)
+        if text[:1] in ("[", "{"):
+            try:
+                return parse_weather(json.loads(text))
+            except json.JSONDecodeError as exc:
+                raise InputError(f"--weather {weather!r}: not valid JSON ({exc.msg})") from None
+        return parse_weather(text)
     if effect is None or k is None:
-        raise ValueError("give --effect NAME and --k K (or --weather SPEC)")
+        raise InputError("give --effect NAME and --k K (or --weather SPEC)")
     kwargs = {}
     for item in params:
         name, sep, value = item.partition("=")
         if not sep or not name:
-            raise ValueError(f"--param {item!r} must be NAME=VALUE")
+            raise InputError(f"--param {item!r} must be NAME=VALUE")
         kwargs[name.strip()] = _param_value(value.strip())
     return make(effect, k=k, **kwargs)
 
@@ -86,39 +96,24 @@ def _target(src: Path, output: Path) -> Path:
     return output / src.name if output.is_dir() else output
 
 
-def _tmp(path: Path) -> Path:
-    return path.with_name(f".{path.stem}.partial{path.suffix}")
-
-
 def _read_rgb(path: Path):
-    import cv2
+    from weather_gym.datasets.coco import read_image
 
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if bgr is None:
-        raise ValueError(f"{path}: not a readable image")
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    return read_image(path)
 
 
 def _read_depth(path: Path, shape):
     import cv2
     import numpy as np
 
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
     if raw is None or raw.ndim != 2:
-        raise ValueError(f"{path}: expected a single-channel uint16 depth PNG in millimetres")
+        raise FileFormatError(f"{path}: expected a single-channel uint16 depth PNG in millimetres")
     if raw.shape != tuple(shape[:2]):
-        raise ValueError(f"{path}: depth is {raw.shape[1]}x{raw.shape[0]}, the image {shape[1]}x{shape[0]}")
+        raise InputError(f"{path}: depth is {raw.shape[1]}x{raw.shape[0]}, the image {shape[1]}x{shape[0]}")
     return raw.astype(np.float32) / np.float32(1000.0)
 
 
-def _write_rgb(path: Path, rgb) -> None:
-    import cv2
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp(path)
-    if not cv2.imwrite(str(tmp), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
-        raise ValueError(f"{path}: OpenCV cannot write this image format")
-    os.replace(tmp, path)
 
 
 def _image_seed(seed: int, rel: Path):
@@ -127,11 +122,15 @@ def _image_seed(seed: int, rel: Path):
     return np.random.SeedSequence(seed, spawn_key=(zlib.crc32(rel.as_posix().encode()),))
 
 
-def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path) -> None:
+def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path, overwrite: bool) -> None:
+    from weather_gym._io import write_image
+    from weather_gym.limits import check_image_size
+
     img = _read_rgb(src)
+    check_image_size(img.shape, what=str(src))
     d = _read_depth(depth, img.shape) if depth is not None else None
     weather.reset(_image_seed(seed, rel))
-    _write_rgb(dst, weather(img, depth=d))
+    write_image(dst, weather(img, depth=d), overwrite=overwrite)
 
 
 def _folder(weather, args) -> int:
@@ -139,122 +138,139 @@ def _folder(weather, args) -> int:
 
     src_root, out_root = args.input, args.output
     if _same(src_root, out_root) or out_root.resolve().is_relative_to(src_root.resolve()):
-        raise ValueError(f"{out_root}: the output folder must not be the input folder or inside it")
+        raise InputError(f"{out_root}: the output folder must not be the input folder or inside it")
     if out_root.exists() and not out_root.is_dir():
-        raise ValueError(f"{out_root}: exists and is not a folder")
+        raise OutputPathError(f"{out_root}: exists and is not a folder")
     files = sorted(p for p in src_root.rglob("*") if p.is_file() and p.suffix.lower() in IMAGE_EXTS)
     if not files:
-        raise FileNotFoundError(f"{src_root}: no images ({', '.join(IMAGE_EXTS)}) found")
+        raise MissingInputError(f"{src_root}: no images ({', '.join(IMAGE_EXTS)}) found")
     done = skipped = 0
+    unreadable: list[str] = []
     for src in tqdm(files, desc="degrade", unit="img", disable=args.quiet):
         rel = src.relative_to(src_root)
         dst = out_root / rel
-        if dst.exists() and not args.force:
+        if dst.exists() and not args.overwrite:
             skipped += 1
             continue
         depth = None
         if args.depth is not None:
             depth = args.depth / rel.with_suffix(".png")
             if not depth.is_file():
-                raise FileNotFoundError(f"{depth}: no depth map for {src}")
-        _one_image(weather, src, dst, depth, args.seed, rel)
+                raise MissingInputError(f"{depth}: no depth map for {src}")
+        try:
+            _one_image(weather, src, dst, depth, args.seed, rel, args.overwrite)
+        except FileFormatError as exc:
+            if not args.skip_unreadable:
+                raise FileFormatError(f"{exc} (pass --skip-unreadable to skip such images; {done} written so far, "
+                                      "a rerun resumes)") from None
+            unreadable.append(str(rel))
+            continue
         done += 1
     print(f"wrote {done} image(s) to {out_root}" + (f", skipped {skipped} that already existed" if skipped else ""))
+    if unreadable:
+        shown = ", ".join(unreadable[:10]) + (f" and {len(unreadable) - 10} more" if len(unreadable) > 10 else "")
+        print(f"skipped {len(unreadable)} unreadable image(s): {shown}")
     return 0
 
 
 class _Cv2Video:
-    """Non-MP4 outputs (.avi, .mkv, ...) through OpenCV, to a partial file renamed on close."""
+    """Non-MP4 outputs (.avi, .mkv, ...) through OpenCV, to a temporary file moved into place on close."""
 
-    def __init__(self, dst: Path, fps: float, size: tuple[int, int]) -> None:
+    def __init__(self, dst: Path, fps: float, size: tuple[int, int], overwrite: bool) -> None:
         import cv2
 
-        self.dst, self.tmp = dst, _tmp(dst)
+        from weather_gym._io import atomic_path
+
         self._cv2 = cv2
+        self._output = atomic_path(dst, overwrite=overwrite)
+        tmp = self._output.__enter__()
         fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
-        self.writer = cv2.VideoWriter(str(self.tmp), fourcc, fps, size)
+        self.writer = cv2.VideoWriter(str(tmp), fourcc, fps, size)
         if not self.writer.isOpened():
-            raise ValueError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
+            self.abort()
+            raise OutputPathError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
 
     def write(self, rgb) -> None:
         self.writer.write(self._cv2.cvtColor(rgb, self._cv2.COLOR_RGB2BGR))
 
     def close(self) -> None:
         self.writer.release()
-        os.replace(self.tmp, self.dst)
+        self._output.__exit__(None, None, None)
 
     def abort(self) -> None:
         self.writer.release()
-        self.tmp.unlink(missing_ok=True)
+        self._output.__exit__(InputError, InputError("aborted"), None)
 
 
 def _video(weather, src: Path, dst: Path, args) -> int:
     import cv2
     from tqdm import tqdm
 
+    from weather_gym.limits import check_image_size
+
     cap = cv2.VideoCapture(str(src))
-    if not cap.isOpened():
-        raise ValueError(f"{src}: OpenCV cannot open this video")
-    fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
-    w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-    total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
-    dst.parent.mkdir(parents=True, exist_ok=True)
     try:
+        if not cap.isOpened():
+            raise FileFormatError(f"{src}: OpenCV cannot open this video")
+        fps = cap.get(cv2.CAP_PROP_FPS)
+        fps = fps if 0 < fps < 1000 else 30.0
+        w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        check_image_size((h, w, 3), what=f"video {src}")
+        total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
         if dst.suffix.lower() == ".mp4":  # H.264 (PyAV), falling back to mp4v with a warning
             from weather_gym.viz.video import VideoWriter
 
-            writer = VideoWriter(dst, fps=fps, overwrite=True)
+            writer = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
         else:
-            writer = _Cv2Video(dst, fps, (w, h))
-    except BaseException:
-        cap.release()
-        raise
-    weather.reset(args.seed)
-    n = 0
-    try:
-        with tqdm(total=total, desc="degrade", unit="frame", disable=args.quiet) as bar:
-            while True:
-                ok, bgr = cap.read()
-                if not ok:
-                    break
-                writer.write(weather(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)))
-                n += 1
-                bar.update(1)
-    except BaseException:
-        writer.abort()
-        raise
+            writer = _Cv2Video(dst, fps, (w, h), args.overwrite)
+        weather.reset(args.seed)
+        n = 0
+        try:
+            with tqdm(total=total, desc="degrade", unit="frame", disable=args.quiet) as bar:
+                while True:
+                    ok, bgr = cap.read()
+                    if not ok:
+                        break
+                    writer.write(weather(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)))
+                    n += 1
+                    bar.update(1)
+        except BaseException:
+            writer.abort()
+            raise
+        if n == 0:
+            writer.abort()
+            raise FileFormatError(f"{src}: no frames could be read")
+        writer.close()
     finally:
         cap.release()
-    if n == 0:
-        writer.abort()
-        raise ValueError(f"{src}: no frames could be read")
-    writer.close()
     print(f"wrote {n} frame(s) to {dst}")
     return 0
 
 
 def _run(args) -> int:
+    from weather_gym._io import check_output
+
     weather = build_weather(args.effect, args.k, args.param, args.weather)
     src = args.input
     if not src.exists():
-        raise FileNotFoundError(f"{src}: no such file or folder")
+        raise MissingInputError(f"{src}: no such file or folder")
     if src.is_dir():
         if args.depth is not None and not args.depth.is_dir():
-            raise ValueError(f"--depth {args.depth}: must be a folder when INPUT is a folder")
+            raise InputError(f"--depth {args.depth}: must be a folder when INPUT is a folder")
         return _folder(weather, args)
     ext = src.suffix.lower()
     if ext not in IMAGE_EXTS + VIDEO_EXTS:
-        raise ValueError(f"{src}: unknown kind of file; expected an image ({', '.join(IMAGE_EXTS)}), "
+        raise InputError(f"{src}: unknown kind of file; expected an image ({', '.join(IMAGE_EXTS)}), "
                          f"a video ({', '.join(VIDEO_EXTS)}) or a folder")
     dst = _target(src, args.output)
     if _same(src, dst):
-        raise ValueError(f"{dst}: the output would overwrite the input")
-    if dst.exists() and not args.force:
-        raise FileExistsError(f"{dst}: exists (use --force to replace it)")
+        raise InputError(f"{dst}: the output would overwrite the input")
+    kind = VIDEO_EXTS if ext in VIDEO_EXTS else IMAGE_EXTS
+    check_output(dst, overwrite=args.overwrite, suffixes=kind, what="OUTPUT")
     if ext in VIDEO_EXTS:
         if args.depth is not None:
-            raise ValueError("--depth is not supported for videos")
+            raise InputError("--depth is not supported for videos")
         return _video(weather, src, dst, args)
-    _one_image(weather, src, dst, args.depth, args.seed, Path(src.name))
+    _one_image(weather, src, dst, args.depth, args.seed, Path(src.name), args.overwrite)
     print(f"wrote {dst}")
     return 0

@@ -12,10 +12,13 @@ Examples:
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from weather_gym._io import atomic_write_json, check_output, write_image
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError, LimitError, MissingDependencyError
+from weather_gym.limits import check_image_size
 
 
 def register(sub) -> None:
@@ -35,7 +38,7 @@ def register(sub) -> None:
     t.add_argument("--input-size", type=int, nargs=2, default=(512, 288), metavar=("W", "H"))
     t.add_argument("--max-steps", type=int, default=None, help="stop after this many optimizer steps")
     t.add_argument("--out", type=Path, required=True, help="ONNX file to write (+ .json sidecar)")
-    t.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    add_overwrite_arg(t, help="replace an existing --out")
     t.add_argument("--no-resume", action="store_true", help="ignore a checkpoint from an interrupted run")
     t.set_defaults(func=_train)
 
@@ -49,6 +52,7 @@ def register(sub) -> None:
     e.add_argument("--limit", type=int, default=None, help="score only the first N images")
     e.add_argument("--threads", type=int, default=2)
     e.add_argument("--json", type=Path, default=None, help="also write the result as JSON here")
+    add_overwrite_arg(e, help="replace an existing --json")
     e.set_defaults(func=_eval)
 
     pr = cmds.add_parser("predict", help="detect cones in one image and draw them")
@@ -59,7 +63,7 @@ def register(sub) -> None:
     pr.add_argument("--k", type=float, default=None)
     pr.add_argument("--seed", type=int, default=0)
     pr.add_argument("--threshold", type=float, default=None, help="score threshold (default: the model's)")
-    pr.add_argument("--force", action="store_true", help="overwrite --out")
+    add_overwrite_arg(pr, help="replace an existing --out")
     pr.set_defaults(func=_predict)
 
     sw = cmds.add_parser("sweep", help="mAP versus k for droplets and dim (the study's Figures 3 and 5)")
@@ -72,6 +76,7 @@ def register(sub) -> None:
     sw.add_argument("--threads", type=int, default=2)
     sw.add_argument("--plot", type=Path, default=None, help="PNG plot to write")
     sw.add_argument("--json", type=Path, default=None, help="JSON of the sweep to write")
+    add_overwrite_arg(sw, help="replace existing --plot / --json files")
     sw.set_defaults(func=_sweep)
 
     fg = cmds.add_parser("figure", help="one frame with detections: clean | droplets 0.55 | dim 0.78")
@@ -79,23 +84,24 @@ def register(sub) -> None:
     fg.add_argument("--index", type=int, default=0, help="image index in the dataset")
     add_detector_args(fg, legacy_model=True)
     fg.add_argument("--seed", type=int, default=0)
-    fg.add_argument("--out", type=Path, required=True)
+    fg.add_argument("--out", type=Path, required=True, help="PNG to write")
+    add_overwrite_arg(fg, help="replace an existing --out")
     fg.set_defaults(func=_figure)
 
 
 def _weather(args):
-    if getattr(args, "weather", None):
+    if getattr(args, "weather", None) is not None:
         if args.effect is not None:
-            raise ValueError("give either --weather or --effect/--k, not both")
+            raise InputError("give either --weather or --effect/--k, not both")
         return args.weather
     if args.effect is None:
         if args.k is not None:
-            raise ValueError("--k needs --effect")
+            raise InputError("--k needs --effect")
         return None
     from weather_gym.weather import make
 
     if args.k is None:
-        raise ValueError(f"--effect {args.effect} needs --k (severity in [0, 1])")
+        raise InputError(f"--effect {args.effect} needs --k (severity in [0, 1])")
     return make(args.effect, k=args.k)
 
 
@@ -103,44 +109,72 @@ def _train(args) -> int:
     try:
         from weather_gym.perception.train import TrainConfig, train_detector
     except ImportError as exc:  # pragma: no cover - depends on the install
-        raise ValueError(f"training needs the 'train' extra (torch, onnx): {exc}") from None
-    if args.out.exists() and not args.overwrite:
-        raise FileExistsError(f"{args.out} already exists; pass --overwrite to replace it")
+        raise MissingDependencyError(f"training needs the 'train' extra (torch, onnx): {exc}") from None
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".onnx",), what="--out")
+    check_output(args.out.with_suffix(".json"), overwrite=args.overwrite, what="model sidecar")
     cfg = TrainConfig(input_size=tuple(args.input_size), epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                       seed=args.seed, threads=args.threads, max_steps=args.max_steps)
-    result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume)
+    result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
+                            overwrite=args.overwrite)
     print(f"wrote {result['model']} ({result['steps']} steps, {result['train_time_s']:.0f} s)")
     return 0
 
 
 def _eval(args) -> int:
-    from weather_gym._io import atomic_write
     from weather_gym.datasets.coco import load_coco
     from weather_gym.perception.scoring import score_dataset
 
-    ds = load_coco(args.dataset)
-    det = detector_from_args(args, threads=args.threads)
+    _check_limit(args.limit)
+    _check_threads(args.threads)
     weather = _weather(args)
+    if isinstance(weather, str):
+        from weather_gym.weather import parse_weather
+
+        parse_weather(weather)  # a bad spec fails now, not after loading everything
+    if args.json is not None:
+        check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
+    ds = load_coco(args.dataset)
+    _check_not_empty(ds)
+    det = detector_from_args(args, threads=args.threads)
     result = score_dataset(ds, det, weather, seed=args.seed, limit=args.limit, progress=True)
     label = "clear" if weather is None else (args.weather or f"{args.effect} k={args.k}")
     print(f"{args.dataset} | {det.name} | weather: {label} | seed {args.seed}")
     print(result.table())
     if args.json is not None:
-        atomic_write(args.json, json.dumps({"dataset": str(args.dataset), "detector": det.name, "weather": label,
-                                            **result.to_dict()}, indent=2, default=str))
+        atomic_write_json(args.json, {"dataset": str(args.dataset), "detector": det.name, "weather": label,
+                                      **result.to_dict()}, indent=2, default=str, overwrite=args.overwrite)
     return 0
 
 
+def _check_limit(limit: int | None) -> None:
+    if limit is not None and limit < 1:
+        raise InputError(f"--limit must be >= 1 (images to score), got {limit}")
+
+
+def _check_threads(threads: int) -> None:
+    import os
+
+    most = 4 * (os.cpu_count() or 1)
+    if not 1 <= threads <= most:
+        raise LimitError(f"--threads must be in 1..{most} (4 per CPU core), got {threads}")
+
+
+def _check_not_empty(ds) -> None:
+    if len(ds) == 0:
+        raise InputError(f"{ds.annotations_path} lists no images: nothing to score")
+
+
 def _predict(args) -> int:
-    import cv2
     import numpy as np
 
     from weather_gym.datasets.coco import read_image
     from weather_gym.perception.draw import draw_detections
 
-    if args.out.exists() and not args.force:
-        raise FileExistsError(f"{args.out} already exists; pass --force to overwrite it")
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".png", ".jpg", ".jpeg"), what="--out")
+    if args.threshold is not None and not 0 <= args.threshold <= 1:
+        raise InputError(f"--threshold must be a score in [0, 1], got {args.threshold}")
     image = read_image(args.image)
+    check_image_size(image.shape, what=str(args.image))
     weather = _weather(args)
     if weather is not None:
         from weather_gym.weather import parse_weather
@@ -152,8 +186,7 @@ def _predict(args) -> int:
         args.detector_threshold = args.threshold
     det = detector_from_args(args)
     d = det(image)
-    if not cv2.imwrite(str(args.out), cv2.cvtColor(draw_detections(image, d), cv2.COLOR_RGB2BGR)):
-        raise ValueError(f"could not write {args.out}")
+    write_image(args.out, draw_detections(image, d), overwrite=args.overwrite)
     print(f"{len(d)} cones -> {args.out}")
     return 0
 
@@ -165,10 +198,17 @@ def _sweep(args) -> int:
     try:
         ks = sorted({float(v) for v in args.ks.split(",")})
     except ValueError:
-        raise ValueError(f"--ks must be comma-separated numbers, got {args.ks!r}") from None
+        raise InputError(f"--ks must be comma-separated numbers, got {args.ks!r}") from None
     if any(not 0 <= k <= 1 for k in ks):
-        raise ValueError(f"--ks must lie in [0, 1], got {ks}")
+        raise InputError(f"--ks must lie in [0, 1], got {ks}")
+    _check_limit(args.limit)
+    _check_threads(args.threads)
+    if args.plot is not None:
+        check_output(args.plot, overwrite=args.overwrite, suffixes=(".png",), what="--plot")
+    if args.json is not None:
+        check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     ds = load_coco(args.dataset, cache_images=True)
+    _check_not_empty(ds)
     det = detector_from_args(args, threads=args.threads)
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     sweep = sweep_map_vs_k(ds, det, ks, effects, seed=args.seed, limit=args.limit)
@@ -183,11 +223,11 @@ def _sweep(args) -> int:
                 study = f"{STUDY_CLEAN_MAP}->{m} ({m / STUDY_CLEAN_MAP:.3f})"
             print(f"{e:<10} {r['k']:<6.2f} {r['map50']:<8.3f} {r['map']:<11.3f} {r['map50'] / clean:<10.3f} {study}")
     if args.plot is not None:
-        plot_map_vs_k(sweep, args.plot, title=f"{args.dataset.name}: mAP@0.5 vs k (seed {args.seed})")
+        plot_map_vs_k(sweep, args.plot, title=f"{args.dataset.name}: mAP@0.5 vs k (seed {args.seed})",
+                      overwrite=args.overwrite)
         print(f"wrote {args.plot}")
     if args.json is not None:
-        with open(args.json, "w") as f:
-            json.dump(sweep, f, indent=2)
+        atomic_write_json(args.json, sweep, indent=2, overwrite=args.overwrite)
     return 0
 
 
@@ -195,12 +235,14 @@ def _figure(args) -> int:
     from weather_gym.datasets.coco import load_coco
     from weather_gym.perception.report import detections_figure
 
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".png",), what="--out")
     ds = load_coco(args.dataset)
+    _check_not_empty(ds)
     if not 0 <= args.index < len(ds):
-        raise ValueError(f"--index must be in 0..{len(ds) - 1}, got {args.index}")
+        raise InputError(f"--index must be in 0..{len(ds) - 1}, got {args.index}")
     rec = ds.record(args.index)
     state = {"speed": float(rec.get("speed", 0.0)), "yaw_rate": float(rec.get("yaw_rate", 0.0))}
     out = detections_figure(ds.image(args.index), detector_from_args(args), args.out, depth=ds.depth(args.index),
-                            state=state, seed=args.seed)
+                            state=state, seed=args.seed, overwrite=args.overwrite)
     print(f"wrote {out}")
     return 0

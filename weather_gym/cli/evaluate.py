@@ -21,7 +21,9 @@ import sys
 from pathlib import Path
 
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
+from weather_gym.errors import InputError, MissingInputError
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -34,7 +36,7 @@ def _ints(flag: str, text: str) -> tuple[int, ...]:
         try:
             out.append(int(part))
         except ValueError:
-            raise ValueError(f"{flag}: {part!r} is not an integer (expected a comma-separated list such as 0,1,2)") from None
+            raise InputError(f"{flag}: {part!r} is not an integer (expected a comma-separated list such as 0,1,2)") from None
     return tuple(out)
 
 
@@ -44,9 +46,9 @@ def _json_arg(flag: str, text: str | None) -> dict:
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{flag}: not valid JSON ({exc.msg}): {text!r}") from None
+        raise InputError(f"{flag}: not valid JSON ({exc.msg}): {text!r}") from None
     if not isinstance(value, dict):
-        raise ValueError(f"{flag}: expected a JSON object such as '{{\"v_max\": 8}}', got {text!r}")
+        raise InputError(f"{flag}: expected a JSON object such as '{{\"v_max\": 8}}', got {text!r}")
     return value
 
 
@@ -80,6 +82,8 @@ def register(sub) -> None:
     add_detector_args(e, what="for --perception detector; the same as the detector keys of --perception-kwargs")
     r = p.add_argument_group("run")
     r.add_argument("--out", type=Path, required=True, help="output folder (results.csv, report.md, plots/)")
+    add_overwrite_arg(r, help="replace a report.md or plots/ in --out that no earlier run of this grid wrote "
+                              "(results.csv is always resumed, never replaced)")
     add_runner_args(r)
     p.set_defaults(func=_run)
 
@@ -92,7 +96,7 @@ def build_config(args):
         seeds = _ints("--seed-list", args.seed_list)
     else:
         if args.seeds < 1:
-            raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+            raise InputError(f"--seeds must be >= 1, got {args.seeds}")
         seeds = tuple(range(args.seeds))
     return EvalConfig(
         agents=_names(args.agents), effects=_names(args.effects), severities=_ints("--severities", args.severities),
@@ -127,14 +131,15 @@ def _run(args) -> int:
 
     check_runner_args(args)
     if args.presets is not None and not args.presets.is_file():
-        raise FileNotFoundError(f"--presets: {args.presets} not found")
+        raise MissingInputError(f"--presets: {args.presets} not found")
     config = build_config(args)
     cells = make_cells(config)  # every name and number checked before anything runs
     check_results_path(args.out / "results.csv")
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "evaluate" in sys.argv[1:2] else None
     print(f"{len(cells)} cells -> {args.out / 'results.csv'} ({args.backend}, {args.workers} workers)", file=sys.stderr)
     rows = evaluate(config, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
-                    progress=not args.no_progress, retry_failed=not args.skip_failed, command=command)
+                    progress=not args.no_progress, retry_failed=not args.skip_failed, command=command,
+                    overwrite=args.overwrite)
     failed = [r for r in rows if r["status"] != "ok"]
     print(f"{len(rows) - len(failed)} ok, {len(failed)} failed; report: {args.out / 'report.md'}")
     for r in failed[:5]:

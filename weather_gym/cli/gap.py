@@ -16,6 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.errors import InputError, MissingInputError
 
 
 def register(sub) -> None:
@@ -61,13 +62,13 @@ def _run(args) -> int:
     from weather_gym.gap.workflow import GapConfig, run_gap
 
     if not args.measured.is_dir():
-        raise FileNotFoundError(f"measured data folder {args.measured} not found")
+        raise MissingInputError(f"measured data folder {args.measured} not found")
     if args.reference is not None and not args.reference.is_dir():
-        raise FileNotFoundError(f"--reference folder {args.reference} not found")
+        raise MissingInputError(f"--reference folder {args.reference} not found")
     if args.model is not None and not args.model.is_file():
-        raise FileNotFoundError(f"model file {args.model} not found")
+        raise MissingInputError(f"model file {args.model} not found")
     if args.compare_width < 64:
-        raise ValueError(f"--compare-width must be >= 64 pixels, got {args.compare_width}")
+        raise InputError(f"--compare-width must be >= 64 pixels, got {args.compare_width}")
     detector = detector_spec_from_args(args)
     cands = None
     if args.candidates:

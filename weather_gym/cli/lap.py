@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.errors import InputError
 
 PERCEPTION_MODES = ("auto", "detector", "oracle", "none")
 PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit"})
@@ -79,7 +80,7 @@ def parse_agent_args(items: list[str]) -> dict[str, Any]:
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key.strip():
-            raise ValueError(f"--agent-arg {item!r}: expected KEY=VALUE")
+            raise InputError(f"--agent-arg {item!r}: expected KEY=VALUE")
         value: Any = raw
         if raw.lower() in ("true", "false"):
             value = raw.lower() == "true"
@@ -98,17 +99,17 @@ def _run(args) -> int:
     from weather_gym.viz.video import check_output_path
 
     if args.laps < 1:
-        raise ValueError(f"--laps must be >= 1, got {args.laps}")
+        raise InputError(f"--laps must be >= 1, got {args.laps}")
     if args.max_steps is not None and args.max_steps < 1:
-        raise ValueError(f"--max-steps must be >= 1, got {args.max_steps}")
+        raise InputError(f"--max-steps must be >= 1, got {args.max_steps}")
     if args.strip_frames < 1:
-        raise ValueError(f"--strip-frames must be >= 1, got {args.strip_frames}")
+        raise InputError(f"--strip-frames must be >= 1, got {args.strip_frames}")
     if args.video is not None:
         check_output_path(args.video, overwrite=args.overwrite, suffixes=(".mp4",))
     if args.strip is not None:
         check_output_path(args.strip, overwrite=args.overwrite, suffixes=(".png",))
     if args.video is not None and args.strip is not None and args.video.resolve() == args.strip.resolve():
-        raise ValueError("--video and --strip must be different files")
+        raise InputError("--video and --strip must be different files")
     detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
     result = run_laps(
@@ -129,7 +130,7 @@ def _make_env(env_id: str, track: str | None, weather: str | None, perception: s
 
     if env_id not in gym.registry:
         ids = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
-        raise ValueError(f"unknown env id {env_id!r}; registered: {', '.join(ids)}")
+        raise InputError(f"unknown env id {env_id!r}; registered: {', '.join(ids)}")
     kwargs: dict[str, Any] = {"laps": laps, "max_episode_steps": 10**9}  # the step limit is ours
     if track is not None:
         kwargs["track"] = track
@@ -164,7 +165,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     from weather_gym.agents import AGENTS, check_action
 
     if perception not in PERCEPTION_MODES:
-        raise ValueError(f"perception must be one of {', '.join(PERCEPTION_MODES)}, got {perception!r}")
+        raise InputError(f"perception must be one of {', '.join(PERCEPTION_MODES)}, got {perception!r}")
     factory = AGENTS.get(agent)
     mode = perception if perception != "auto" else ("detector" if agent in PERCEPTION_AGENTS else "none")
     recording = video is not None or strip is not None
@@ -197,10 +198,14 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
                     bar.update(info, laps)
                 if terminated or truncated:
                     break
+        except BaseException:
+            if recorder is not None:
+                recorder.abort()  # an interrupted run leaves no half-written video or strip
+            raise
         finally:
             bar.close()
-            if recorder is not None:
-                recorder.close()
+        if recorder is not None:
+            recorder.close()
         wall = time.perf_counter() - wall0
     finally:
         env.close()
@@ -320,7 +325,7 @@ class _Recorder:
         from weather_gym.viz.overlay import compose_frame, cone_list_boxes, draw_boxes
 
         if not isinstance(obs, dict) or "image" not in obs:
-            raise ValueError("recording needs the camera image in the observation (a Dict with 'image')")
+            raise InputError("recording needs the camera image in the observation (a Dict with 'image')")
         image = np.asarray(obs["image"])
         h, w = image.shape[:2]
         if "cones" in obs and "mask" in obs:
@@ -354,6 +359,10 @@ class _Recorder:
             self.video.write(frame)
         if self.sampler is not None:
             self.sampler.offer(frame)
+
+    def abort(self) -> None:
+        if self.video is not None:
+            self.video.abort()
 
     def close(self) -> None:
         from weather_gym.viz.video import save_strip

@@ -19,7 +19,9 @@ import sys
 from pathlib import Path
 
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
+from weather_gym.errors import MissingInputError
 
 
 def register(sub) -> None:
@@ -42,6 +44,8 @@ def register(sub) -> None:
     add_detector_args(p, legacy_model=True)
     p.add_argument("--out", type=Path, required=True, help="output folder (curves.csv is resumed, never clobbered)")
     p.add_argument("--no-plot", action="store_true", help="do not draw curves.png")
+    add_overwrite_arg(p, help="replace plots or sweep.json in --out that no earlier sweep there wrote "
+                              "(curves.csv is always resumed, never replaced)")
     add_runner_args(p)
     p.set_defaults(func=_run)
 
@@ -65,7 +69,7 @@ def _run(args) -> int:
     seeds = parse_seeds(args.seeds, args.seed_list)
     check_runner_args(args)
     if not args.dataset.exists():
-        raise FileNotFoundError(f"--dataset {args.dataset} not found (render one with `weather-gym dataset render`)")
+        raise MissingInputError(f"--dataset {args.dataset} not found (render one with `weather-gym dataset render`)")
     detector = detector_spec_from_args(args)
     cells = make_sweep_cells(effects, ks, seeds, args.dataset, detector)  # validates set and detector first
     check_results_path(args.out / CURVE_FILE)
@@ -74,7 +78,7 @@ def _run(args) -> int:
           f"{args.out / CURVE_FILE} ({args.backend}, {args.workers} workers)", file=sys.stderr)
     rows = run_sweep(effects, ks, seeds, args.dataset, args.out, model=detector, workers=args.workers,
                      backend=args.backend, progress=not args.no_progress, retry_failed=not args.skip_failed,
-                     ray_address=args.ray_address, plot=not args.no_plot, command=command)
+                     ray_address=args.ray_address, plot=not args.no_plot, command=command, overwrite=args.overwrite)
     failed = [r for r in rows if r["status"] != "ok"]
     curves = load_curves(args.out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
     print("effect           k      mAP@0.5 mean ± sd   relative")

@@ -4,13 +4,17 @@ Examples:
     weather-gym tracks list
     weather-gym tracks show peanut --out peanut.png
     weather-gym tracks show random:7 --out random7.png
-    weather-gym tracks show --all --out docs/img/tracks.png --force
+    weather-gym tracks show --all --out docs/img/tracks.png --overwrite
     weather-gym tracks export random:7 --out my_track.csv
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+
+from weather_gym._io import check_output, save_figure
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
 
 ALL_SEED = 7
 """Seed of the random track drawn by ``show --all``."""
@@ -30,13 +34,14 @@ def register(sub) -> None:
     show.add_argument("track", nargs="?", help="a track name, 'random:SEED' or a cone CSV path")
     show.add_argument("--all", action="store_true", help="plot every registered track in a grid")
     show.add_argument("--out", required=True, type=Path, help="PNG file to write")
-    show.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    add_overwrite_arg(show, help="overwrite --out if it exists")
     show.add_argument("--seed", type=int, default=ALL_SEED, help="seed for 'random' (default %(default)s)")
     show.set_defaults(func=_show)
 
     exp = cmds.add_parser("export", help="write a track's cones as a CSV in the EUFS format")
     exp.add_argument("track", help="a track name, 'random:SEED' or a cone CSV path")
-    exp.add_argument("--out", required=True, type=Path, help="CSV file to write (never overwritten)")
+    exp.add_argument("--out", required=True, type=Path, help="CSV file to write (never overwritten without --overwrite)")
+    add_overwrite_arg(exp, help="overwrite --out if it exists")
     exp.add_argument("--seed", type=int, default=None, help="seed for 'random'")
     exp.set_defaults(func=_export)
 
@@ -59,13 +64,6 @@ def _short(source: str) -> str:
         return source
 
 
-def _check_out(path: Path, force: bool) -> None:
-    if path.exists() and not force:
-        raise FileExistsError(f"{path} already exists; pass --force to overwrite it")
-    if not path.parent.is_dir():
-        raise FileNotFoundError(f"folder {path.parent} does not exist")
-
-
 def _show(args) -> int:
     import matplotlib
 
@@ -75,8 +73,8 @@ def _show(args) -> int:
     from weather_gym.tracks import TRACKS, load_track
 
     if args.all == (args.track is not None):
-        raise ValueError("give either a TRACK or --all")
-    _check_out(args.out, args.force)
+        raise InputError("give either a TRACK or --all")
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".png",), what="--out")
     if args.all:
         names = TRACKS.names()
         cols = 4
@@ -94,8 +92,7 @@ def _show(args) -> int:
         load_track(args.track, seed=args.seed).plot(ax)
         ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
-    fig.savefig(args.out, dpi=110)
-    plt.close(fig)
+    save_figure(fig, args.out, overwrite=args.overwrite, dpi=110)
     print(f"wrote {args.out}")
     return 0
 
@@ -111,7 +108,8 @@ def _legend(axes):
 def _export(args) -> int:
     from weather_gym.tracks import load_track
 
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".csv",), what="--out")
     track = load_track(args.track, seed=args.seed)
-    track.to_csv(args.out)
+    track.to_csv(args.out, overwrite=args.overwrite)
     print(f"wrote {args.out} ({len(track.cones_xy)} cones, {track.length:.1f} m centerline)")
     return 0

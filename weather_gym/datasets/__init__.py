@@ -5,7 +5,7 @@ Example:
     >>> load_coco("no/such/folder")
     Traceback (most recent call last):
     ...
-    FileNotFoundError: dataset folder no/such/folder not found
+    weather_gym.errors.MissingInputError: dataset folder no/such/folder not found
 """
 
 from __future__ import annotations

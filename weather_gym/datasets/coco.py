@@ -43,11 +43,19 @@ from typing import Any
 import cv2
 import numpy as np
 
-from weather_gym._io import atomic_write_json
+from weather_gym._io import atomic_write_json, open_append, resolve_inside, write_image
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import (
+    FileFormatError,
+    InputError,
+    MissingInputError,
+    OutputExistsError,
+    OutputPathError,
+)
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xywh_to_xyxy
+from weather_gym.tracks import is_track_file
 
-__all__ = ["CocoDataset", "CocoWriter", "load_coco", "read_image", "read_depth_png", "write_depth_png"]
+__all__ = ["CocoDataset", "CocoWriter", "load_coco", "read_image", "read_depth_png", "record_path", "write_depth_png"]
 
 ANNOTATIONS = "annotations.json"
 JOURNAL = "annotations.partial.jsonl"
@@ -58,9 +66,9 @@ def _nonempty_file(path: str | os.PathLike, kind: str) -> Path:
     """``path`` as a Path; FileNotFoundError / ValueError naming it when it is missing or empty."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"{kind} file {path} not found")
+        raise MissingInputError(f"{kind} file {path} not found")
     if path.stat().st_size == 0:
-        raise ValueError(f"{kind} file {path} is empty (0 bytes)")
+        raise FileFormatError(f"{kind} file {path} is empty (0 bytes)")
     return path
 
 
@@ -69,16 +77,15 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     path = _nonempty_file(path, "image")
     bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if bgr is None or bgr.size == 0:
-        raise ValueError(f"image file {path} could not be decoded as an image")
+        raise FileFormatError(f"image file {path} could not be decoded as an image")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
-def write_depth_png(path: str | os.PathLike, depth_m: np.ndarray) -> None:
-    """Write float metres as uint16 millimetres (values beyond 65.535 m saturate)."""
+def write_depth_png(path: str | os.PathLike, depth_m: np.ndarray, *, overwrite: bool = False) -> None:
+    """Write float metres as uint16 millimetres (values beyond 65.535 m saturate), safely (``weather_gym._io``)."""
     d = np.asarray(depth_m, dtype=np.float64)
     mm = np.clip(np.rint(np.nan_to_num(d, nan=0.0, posinf=65.535) * DEPTH_SCALE), 0, 65535).astype(np.uint16)
-    if not cv2.imwrite(str(path), mm):
-        raise OSError(f"could not write depth file {path}")
+    write_image(path, mm, rgb=False, overwrite=overwrite)
 
 
 def read_depth_png(path: str | os.PathLike) -> np.ndarray:
@@ -86,7 +93,7 @@ def read_depth_png(path: str | os.PathLike) -> np.ndarray:
     path = _nonempty_file(path, "depth")
     mm = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if mm is None or mm.ndim != 2 or mm.dtype != np.uint16:
-        raise ValueError(f"depth file {path} is not a single-channel 16-bit PNG of millimetres")
+        raise FileFormatError(f"depth file {path} is not a single-channel 16-bit PNG of millimetres")
     return mm.astype(np.float32) / np.float32(DEPTH_SCALE)
 
 
@@ -129,7 +136,16 @@ class CocoDataset:
         return self.images[i]
 
     def image_path(self, i: int) -> Path:
-        return self.root / self.images[i]["file_name"]
+        """Where frame ``i`` is (inside the dataset folder: checked, see :func:`load_coco`)."""
+        return record_path(self.root, self.images[i], "file_name")
+
+    def track_spec(self, i: int) -> str | None:
+        """The track of frame ``i`` as :func:`weather_gym.tracks.load_track` takes it: a registered name,
+        ``random:SEED``, or the (confined, resolved) path of a cone CSV inside the dataset folder."""
+        track = self.images[i].get("track")
+        if track is None:
+            return None
+        return str(record_path(self.root, self.images[i], "track")) if is_track_file(track) else track
 
     def image(self, i: int) -> np.ndarray:
         """RGB uint8 frame ``i`` (read-only when ``cache_images`` keeps decoded frames in memory)."""
@@ -145,7 +161,7 @@ class CocoDataset:
     def depth(self, i: int) -> np.ndarray | None:
         """Depth of frame ``i`` in metres (float32), or None when the record has no ``depth_file``."""
         rel = self.images[i].get("depth_file")
-        return None if not rel else read_depth_png(self.root / rel)
+        return None if not rel else read_depth_png(record_path(self.root, self.images[i], "depth_file"))
 
     def annotations(self, i: int) -> list[dict]:
         return self._anns[self.images[i]["id"]]
@@ -161,12 +177,12 @@ class CocoDataset:
 
         m = self._masks.get(rel)
         if m is None:
-            m = read_mask(inside_root(self.root, rel, f"{self.annotations_path}: ignore mask"),
+            m = read_mask(resolve_inside(self.root, rel, what=f"{self.annotations_path}: ignore mask"),
                           (int(rec["width"]), int(rec["height"])))
             m.setflags(write=False)
             self._masks[rel] = m
         if m.shape != (int(rec["height"]), int(rec["width"])):
-            raise ValueError(f"{self.root / rel}: ignore mask is {m.shape[1]}x{m.shape[0]} but image {rec['id']} "
+            raise FileFormatError(f"{self.root / rel}: ignore mask is {m.shape[1]}x{m.shape[0]} but image {rec['id']} "
                              f"is {rec['width']}x{rec['height']}")
         return m
 
@@ -232,7 +248,10 @@ class CocoDataset:
 
         if self._renderer is None:
             self._renderer = ViewRenderer()
-        rec = self.images[i] if not isinstance(i, dict) else i
+        if isinstance(i, dict):
+            rec = i
+        else:
+            rec = {**self.images[i], "track": self.track_spec(i)}
         return self._renderer.render(rec)
 
     def close(self) -> None:
@@ -248,18 +267,15 @@ class CocoDataset:
 
 
 def _fail(path: Path, msg: str):
-    raise ValueError(f"{path}: {msg}")
+    raise FileFormatError(f"{path}: {msg}")
 
 
-def inside_root(root: Path, rel: Any, what: str) -> Path:
-    """``root / rel`` for a relative path that stays inside ``root``; ValueError naming ``what`` otherwise."""
-    if not isinstance(rel, str) or not rel:
-        raise ValueError(f"{what}: expected a path relative to {root}, got {rel!r}")
-    p = Path(rel)
-    if p.is_absolute() or ".." in p.parts:
-        raise ValueError(f"{what}: path {rel!r} leaves the dataset folder {root}; paths must be relative and "
-                         "inside it")
-    return root / p
+def record_path(root: str | os.PathLike, record: dict, key: str) -> Path:
+    """The file an image record's ``key`` (``file_name``, ``depth_file``, a ``track`` CSV) names, resolved
+    inside the dataset folder ``root``: an absolute path, a ``..`` or a symlink that leads outside
+    raises :class:`~weather_gym.errors.OutsideRootError` (a dataset cannot make us read or write
+    elsewhere)."""
+    return resolve_inside(root, record[key], what=f"{Path(root) / ANNOTATIONS}: image {record.get('id')!r} {key!r}")
 
 
 def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images: bool = False) -> CocoDataset:
@@ -274,17 +290,17 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
     """
     root = Path(root)
     if not root.is_dir():
-        raise FileNotFoundError(f"dataset folder {root} not found")
+        raise MissingInputError(f"dataset folder {root} not found")
     path = root / ANNOTATIONS
     if not path.is_file():
         extra = " (an interrupted render left annotations.partial.jsonl: rerun it with --resume)" if (
             root / JOURNAL).exists() else ""
-        raise FileNotFoundError(f"{path} not found: a COCO dataset folder needs annotations.json{extra}")
+        raise MissingInputError(f"{path} not found: a COCO dataset folder needs annotations.json{extra}")
     try:
-        with open(path) as f:
+        with open(path, encoding="utf-8") as f:
             data = json.load(f)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path} is not valid JSON: {exc}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise FileFormatError(f"{path} is not valid JSON: {exc}") from None
     if not isinstance(data, dict):
         _fail(path, "expected a JSON object with images, annotations and categories")
     for key in ("images", "annotations", "categories"):
@@ -299,23 +315,34 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
         for key in ("id", "file_name", "width", "height"):
             if not isinstance(im, dict) or key not in im:
                 _fail(path, f"image record {im!r} has no {key!r}")
+        if not isinstance(im["id"], int) or isinstance(im["id"], bool):
+            _fail(path, f"image record id {im['id']!r} is not an integer")
+        if not isinstance(im["file_name"], str):
+            _fail(path, f"image {im['id']}: 'file_name' must be a string, got {im['file_name']!r}")
+        for key in ("width", "height"):
+            if not isinstance(im[key], int) or isinstance(im[key], bool) or im[key] < 1:
+                _fail(path, f"image {im['id']}: {key!r} must be a positive integer, got {im[key]!r}")
         if im["id"] in ids:
             _fail(path, f"duplicate image id {im['id']}")
         ids.add(im["id"])
-        f = inside_root(root, im["file_name"], f"{path}: image {im['id']}")
+        f = record_path(root, im, "file_name")
+        if im.get("depth_file") is not None:
+            record_path(root, im, "depth_file")
+        if isinstance(im.get("track"), str) and is_track_file(im["track"]):
+            record_path(root, im, "track")
         if im.get("ignore_mask") is not None:
-            inside_root(root, im["ignore_mask"], f"{path}: image {im['id']} ignore_mask")
+            record_path(root, im, "ignore_mask")
         if check_files:
             if not f.is_file():
-                raise FileNotFoundError(f"{path}: image {im['id']} points to {f}, which does not exist")
+                raise MissingInputError(f"{path}: image {im['id']} points to {f}, which does not exist")
             if f.stat().st_size == 0:
                 _fail(path, f"image {im['id']} file {f} is empty (0 bytes)")
     for a in data["annotations"]:
         if not isinstance(a, dict):
             _fail(path, f"annotation {a!r} is not an object")
-        if a.get("image_id") not in ids:
+        if not isinstance(a.get("image_id"), int) or a["image_id"] not in ids:
             _fail(path, f"annotation {a.get('id')} refers to unknown image_id {a.get('image_id')!r}")
-        if a.get("category_id") not in cat_ids:
+        if not isinstance(a.get("category_id"), int) or a["category_id"] not in cat_ids:
             _fail(path, f"annotation {a.get('id')} has unknown category_id {a.get('category_id')!r}")
         b = a.get("bbox")
         if (not isinstance(b, list) or len(b) != 4 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in b)
@@ -323,9 +350,9 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
             _fail(path, f"annotation {a.get('id')} has an invalid bbox {b!r} (expected [x, y, w, h], w, h >= 0)")
     info = data.get("info") if isinstance(data.get("info"), dict) else {}
     if info.get("ignore_mask") is not None:
-        mask_file = inside_root(root, info["ignore_mask"], f"{path}: info.ignore_mask")
+        mask_file = resolve_inside(root, info["ignore_mask"], what=f"{path}: info.ignore_mask")
         if check_files and not mask_file.is_file():
-            raise FileNotFoundError(f"{path}: info.ignore_mask points to {mask_file}, which does not exist")
+            raise MissingInputError(f"{path}: info.ignore_mask points to {mask_file}, which does not exist")
     return CocoDataset(root, data, cache_images=cache_images)
 
 
@@ -344,12 +371,14 @@ class CocoWriter:
                  min_box_height: float = MIN_BOX_HEIGHT_PX, info: dict | None = None) -> None:
         self.root = Path(root)
         self.min_box_height = float(min_box_height)
+        if self.root.exists() and not self.root.is_dir():
+            raise OutputPathError(f"dataset folder {self.root} exists and is not a folder")
         ann = self.root / ANNOTATIONS
         if ann.exists() and not overwrite:
-            raise FileExistsError(f"{ann} already exists; choose another --out folder or pass --overwrite")
+            raise OutputExistsError(f"{ann} already exists; choose another --out folder or pass --overwrite")
         journal = self.root / JOURNAL
         if journal.exists() and not (resume or overwrite):
-            raise FileExistsError(f"{journal} exists (an interrupted render): pass --resume to continue it "
+            raise OutputExistsError(f"{journal} exists (an interrupted render): pass --resume to continue it "
                                   "or --overwrite to start again")
         (self.root / "images").mkdir(parents=True, exist_ok=True)
         (self.root / "depth").mkdir(parents=True, exist_ok=True)
@@ -372,7 +401,7 @@ class CocoWriter:
             journal.unlink()
         if ann.exists() and overwrite:
             ann.unlink()
-        self._journal = open(journal, "a")
+        self._journal = open_append(journal)
         self._closed = False
 
     @property
@@ -383,14 +412,14 @@ class CocoWriter:
     def add(self, image: np.ndarray, record: dict, gt: dict, depth: np.ndarray | None = None) -> int:
         image = np.asarray(image)
         if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-            raise ValueError(f"image must be uint8 (H, W, 3) RGB, got {image.dtype} {image.shape}")
+            raise InputError(f"image must be uint8 (H, W, 3) RGB, got {image.dtype} {image.shape}")
         idx = len(self.images)
         name = f"{idx:06d}.png"
-        if not cv2.imwrite(str(self.root / "images" / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
-            raise OSError(f"could not write {self.root / 'images' / name}")
+        # the dataset's own frames: a resumed or --overwrite render replaces them (the folder-level check is above)
+        write_image(self.root / "images" / name, image, overwrite=True)
         rec = {"id": idx, "file_name": f"images/{name}", "width": int(image.shape[1]), "height": int(image.shape[0])}
         if depth is not None:
-            write_depth_png(self.root / "depth" / name, depth)
+            write_depth_png(self.root / "depth" / name, depth, overwrite=True)
             rec["depth_file"] = f"depth/{name}"
         rec.update(record)
         boxes = np.asarray(gt["boxes"], dtype=np.float64).reshape(-1, 4)

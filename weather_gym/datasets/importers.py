@@ -39,7 +39,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 from collections import Counter
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -49,7 +48,15 @@ from typing import Any
 import cv2
 import numpy as np
 
+from weather_gym._io import atomic_write, atomic_write_json, resolve_inside
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import (
+    FileFormatError,
+    InputError,
+    MissingInputError,
+    OutputExistsError,
+    OutputPathError,
+)
 from weather_gym.perception.labels import DEFAULT_CLASSES, IGNORE, parse_class_map
 
 __all__ = ["FORMATS", "DEFAULT_CLASSES", "IGNORE", "parse_class_map", "parse_intrinsics", "import_dataset"]
@@ -75,7 +82,7 @@ def parse_intrinsics(spec: str | Sequence[float] | Mapping[str, float] | None) -
     except (TypeError, ValueError):
         nums = []
     if len(nums) != 4 or not all(math.isfinite(v) for v in nums) or nums[0] <= 0 or nums[1] <= 0:
-        raise ValueError(f"intrinsics {spec!r}: expected fx,fy,cx,cy in pixels at the image size (fx, fy > 0), "
+        raise InputError(f"intrinsics {spec!r}: expected fx,fy,cx,cy in pixels at the image size (fx, fy > 0), "
                          "e.g. 900.9,900.1,506.4,358.0")
     return dict(zip(("fx", "fy", "cx", "cy"), nums))
 
@@ -83,21 +90,21 @@ def parse_intrinsics(spec: str | Sequence[float] | Mapping[str, float] | None) -
 def _condition(condition: str | None, severity: int | None) -> tuple[str | None, int | None]:
     if condition is None:
         if severity is not None:
-            raise ValueError("--severity needs --condition (clear, or a weather condition such as droplets)")
+            raise InputError("--severity needs --condition (clear, or a weather condition such as droplets)")
         return None, None
     from weather_gym.weather.presets import CONDITIONS, canonical_condition
 
     if condition.strip().lower() in ("clear", "ideal", "none"):
         if severity not in (None, 0):
-            raise ValueError(f"--condition {condition} is the clear reference: severity must be 0 or absent, got {severity}")
+            raise InputError(f"--condition {condition} is the clear reference: severity must be 0 or absent, got {severity}")
         return "clear", 0
     try:
         c = canonical_condition(condition.strip())
     except ValueError:
-        raise ValueError(f"--condition {condition!r}: expected clear or a weather condition "
+        raise InputError(f"--condition {condition!r}: expected clear or a weather condition "
                          f"({', '.join(CONDITIONS)}, or the effect names droplets, dim)") from None
     if severity is None or not 1 <= int(severity) <= 4:
-        raise ValueError(f"--condition {condition} needs --severity 1-4, got {severity}")
+        raise InputError(f"--condition {condition} needs --severity 1-4, got {severity}")
     return c, int(severity)
 
 
@@ -127,14 +134,14 @@ def _find_dir(src: Path, names: Sequence[str], what: str, required: bool = True)
         if (src / n).is_dir():
             return src / n
     if required:
-        raise FileNotFoundError(f"{src}: no {what} folder (looked for {', '.join(n + '/' for n in names)})")
+        raise MissingInputError(f"{src}: no {what} folder (looked for {', '.join(n + '/' for n in names)})")
     return None
 
 
 def _images_under(folder: Path) -> list[Path]:
     files = sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in IMAGE_EXTS)
     if not files:
-        raise FileNotFoundError(f"{folder}: no images ({', '.join(IMAGE_EXTS)})")
+        raise MissingInputError(f"{folder}: no images ({', '.join(IMAGE_EXTS)})")
     return files
 
 
@@ -144,9 +151,9 @@ def _label_for(image: Path, images: Path, labels: Path) -> Path:
 
 def _check_box(x1: float, y1: float, x2: float, y2: float, where: str) -> tuple[float, float, float, float]:
     if not all(math.isfinite(v) for v in (x1, y1, x2, y2)):
-        raise ValueError(f"{where}: box ({x1}, {y1}, {x2}, {y2}) is not finite")
+        raise FileFormatError(f"{where}: box ({x1}, {y1}, {x2}, {y2}) is not finite")
     if x2 <= x1 or y2 <= y1:
-        raise ValueError(f"{where}: box ({x1:g}, {y1:g}, {x2:g}, {y2:g}) is empty or inverted (expected x1 < x2, y1 < y2)")
+        raise FileFormatError(f"{where}: box ({x1:g}, {y1:g}, {x2:g}, {y2:g}) is empty or inverted (expected x1 < x2, y1 < y2)")
     return (x1, y1, x2, y2)
 
 
@@ -154,7 +161,7 @@ def _floats(parts: Sequence[str], where: str, what: str) -> list[float]:
     try:
         return [float(v) for v in parts]
     except ValueError:
-        raise ValueError(f"{where}: expected numbers for {what}, got {' '.join(parts)!r}") from None
+        raise FileFormatError(f"{where}: expected numbers for {what}, got {' '.join(parts)!r}") from None
 
 
 def _labelled(images: Path, labels: Path, fmt: str) -> Iterator[tuple[Path, Path, _Frame]]:
@@ -162,7 +169,7 @@ def _labelled(images: Path, labels: Path, fmt: str) -> Iterator[tuple[Path, Path
     for img in _images_under(images):
         lab = _label_for(img, images, labels)
         if not lab.is_file():
-            raise FileNotFoundError(f"{img}: its {fmt} label file {lab} is missing (every image needs one; an "
+            raise MissingInputError(f"{img}: its {fmt} label file {lab} is missing (every image needs one; an "
                                     "empty file means no cones)")
         yield img, lab, _Frame(img, str(img.relative_to(images)))
 
@@ -180,7 +187,7 @@ def _read_kitti(src: Path) -> tuple[list[_Frame], Counter]:
                 continue
             where = f"{lab}:{n}"
             if len(parts) not in (15, 16):
-                raise ValueError(f"{where}: a KITTI row has 15 values (type truncated occluded alpha x1 y1 x2 y2 "
+                raise FileFormatError(f"{where}: a KITTI row has 15 values (type truncated occluded alpha x1 y1 x2 y2 "
                                  f"h w l x y z rotation_y) or 16 (with score), got {len(parts)}")
             v = _floats(parts[1:15], where, "the KITTI columns")
             x1, y1, x2, y2 = v[3:7]
@@ -206,8 +213,8 @@ def _kitti_calib(path: Path) -> dict[str, float] | None:
                 return {"fx": v[0], "fy": v[4], "cx": v[2], "cy": v[5]}
             if len(v) == 12:
                 return {"fx": v[0], "fy": v[5], "cx": v[2], "cy": v[6]}
-            raise ValueError(f"{path}:{n}: {key.strip()} needs 12 values (3x4 projection) or K 9 values, got {len(v)}")
-    raise ValueError(f"{path}: no P2 (or K) line with the camera intrinsics")
+            raise FileFormatError(f"{path}:{n}: {key.strip()} needs 12 values (3x4 projection) or K 9 values, got {len(v)}")
+    raise FileFormatError(f"{path}: no P2 (or K) line with the camera intrinsics")
 
 
 def _yolo_names(src: Path) -> list[str] | None:
@@ -249,11 +256,11 @@ def _yaml_names(path: Path) -> list[str]:
         if names is None:
             names = block
     except Exception as exc:
-        raise ValueError(f"{path} is not valid YAML: {exc}") from None
+        raise FileFormatError(f"{path} is not valid YAML: {exc}") from None
     if isinstance(names, dict):
         names = [str(names[k]) for k in sorted(names, key=int)]
     if not isinstance(names, list) or not names:
-        raise ValueError(f"{path}: expected a 'names' list (or index: name mapping) of the classes")
+        raise FileFormatError(f"{path}: expected a 'names' list (or index: name mapping) of the classes")
     return [str(n) for n in names]
 
 
@@ -272,17 +279,17 @@ def _read_yolo(src: Path) -> tuple[list[_Frame], Counter]:
                 continue
             where = f"{lab}:{n}"
             if len(parts) != 5:
-                raise ValueError(f"{where}: a YOLO row has 5 values (class cx cy w h, normalised to the image), "
+                raise FileFormatError(f"{where}: a YOLO row has 5 values (class cx cy w h, normalised to the image), "
                                  f"got {len(parts)}")
             try:
                 idx = int(parts[0])
             except ValueError:
-                raise ValueError(f"{where}: class must be an integer index, got {parts[0]!r}") from None
+                raise FileFormatError(f"{where}: class must be an integer index, got {parts[0]!r}") from None
             cx, cy, bw, bh = _floats(parts[1:], where, "cx cy w h")
             if not all(-0.01 <= v <= 1.01 for v in (cx, cy, bw, bh)):
-                raise ValueError(f"{where}: cx cy w h must be normalised to [0, 1], got {' '.join(parts[1:])}")
+                raise FileFormatError(f"{where}: cx cy w h must be normalised to [0, 1], got {' '.join(parts[1:])}")
             if names is not None and not 0 <= idx < len(names):
-                raise ValueError(f"{where}: class index {idx} is outside the {len(names)} class names of {src}")
+                raise FileFormatError(f"{where}: class index {idx} is outside the {len(names)} class names of {src}")
             cls = names[idx] if names is not None else str(idx)
             box = ((cx - bw / 2) * w, (cy - bh / 2) * h, (cx + bw / 2) * w, (cy + bh / 2) * h)
             fr.boxes.append(_Box(cls, _check_box(*box, where), where))
@@ -294,33 +301,32 @@ def _read_coco(src: Path, annotations: Path | None) -> tuple[list[_Frame], Count
     if annotations is None:
         cands = sorted(src.glob("*.json"))
         if len(cands) != 1:
-            raise FileNotFoundError(f"{src}: expected exactly one COCO *.json file, found "
+            raise MissingInputError(f"{src}: expected exactly one COCO *.json file, found "
                                     f"{len(cands)} ({', '.join(p.name for p in cands) or 'none'}); pass --annotations")
         annotations = cands[0]
     try:
         data = json.loads(Path(annotations).read_text())
     except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{annotations} is not a readable COCO JSON file: {exc}") from None
+        raise FileFormatError(f"{annotations} is not a readable COCO JSON file: {exc}") from None
     for key in ("images", "annotations", "categories"):
         if not isinstance(data, dict) or not isinstance(data.get(key), list):
-            raise ValueError(f"{annotations}: missing or invalid key {key!r} (expected a list)")
+            raise FileFormatError(f"{annotations}: missing or invalid key {key!r} (expected a list)")
     cats = {}
     for c in data["categories"]:
         if not isinstance(c, dict) or "id" not in c or "name" not in c:
-            raise ValueError(f"{annotations}: category {c!r} needs an id and a name")
+            raise FileFormatError(f"{annotations}: category {c!r} needs an id and a name")
         cats[c["id"]] = str(c["name"])
     base = Path(annotations).parent
     frames, by_id = [], {}
     for im in data["images"]:
         if not isinstance(im, dict) or "id" not in im or "file_name" not in im:
-            raise ValueError(f"{annotations}: image record {im!r} needs an id and a file_name")
+            raise FileFormatError(f"{annotations}: image record {im!r} needs an id and a file_name")
         rel = Path(str(im["file_name"]))
-        if rel.is_absolute() or ".." in rel.parts:
-            raise ValueError(f"{annotations}: image {im['id']} file_name {im['file_name']!r} must be a relative path "
-                             f"inside {base}")
-        path = next((p for p in (base / rel, base / "images" / rel) if p.is_file()), None)
+        what = f"{annotations}: image {im['id']} 'file_name'"
+        cands = (resolve_inside(base, rel, what=what), resolve_inside(base / "images", rel, what=what))
+        path = next((p for p in cands if p.is_file()), None)
         if path is None:
-            raise FileNotFoundError(f"{annotations}: image {im['id']} file {im['file_name']} not found under {base} "
+            raise MissingInputError(f"{annotations}: image {im['id']} file {im['file_name']} not found under {base} "
                                     f"or {base / 'images'}")
         fr = _Frame(path, str(rel))
         frames.append(fr)
@@ -328,12 +334,12 @@ def _read_coco(src: Path, annotations: Path | None) -> tuple[list[_Frame], Count
     for a in data["annotations"]:
         where = f"{annotations}: annotation {a.get('id') if isinstance(a, dict) else a!r}"
         if not isinstance(a, dict) or a.get("image_id") not in by_id:
-            raise ValueError(f"{where} refers to an unknown image_id")
+            raise FileFormatError(f"{where} refers to an unknown image_id")
         if a.get("category_id") not in cats:
-            raise ValueError(f"{where} has an unknown category_id {a.get('category_id')!r}")
+            raise FileFormatError(f"{where} has an unknown category_id {a.get('category_id')!r}")
         b = a.get("bbox")
         if not isinstance(b, list) or len(b) != 4:
-            raise ValueError(f"{where}: bbox {b!r} is not [x, y, w, h]")
+            raise FileFormatError(f"{where}: bbox {b!r} is not [x, y, w, h]")
         x, y, w, h = _floats([str(v) for v in b], where, "bbox")
         box = _Box(cats[a["category_id"]], _check_box(x, y, x + w, y + h, where), where, crowd=bool(a.get("iscrowd")))
         box.range = float(a["range"]) if isinstance(a.get("range"), int | float) else math.nan
@@ -344,9 +350,9 @@ def _read_coco(src: Path, annotations: Path | None) -> tuple[list[_Frame], Count
 def _image_size(path: Path) -> tuple[int, int]:
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None or img.size == 0:
-        raise ValueError(f"image file {path} could not be decoded as an image")
+        raise FileFormatError(f"image file {path} could not be decoded as an image")
     if img.ndim == 2 or img.shape[2] not in (3, 4):
-        raise ValueError(f"image file {path} has {1 if img.ndim == 2 else img.shape[2]} channel(s); expected colour "
+        raise FileFormatError(f"image file {path} has {1 if img.ndim == 2 else img.shape[2]} channel(s); expected colour "
                          "(RGB) frames")
     return int(img.shape[1]), int(img.shape[0])
 
@@ -356,7 +362,7 @@ def _location_frame(frames: list[_Frame], requested: str) -> tuple[str, str]:
     """Which frame KITTI 3D locations are in: ``camera`` (x right, z forward) or ``vehicle`` (x forward,
     y left), recognised from which puts the cones on the side of the image their 2D box is on."""
     if requested not in ("auto", "camera", "vehicle", "none"):
-        raise ValueError(f"location frame must be auto, camera, vehicle or none, got {requested!r}")
+        raise InputError(f"location frame must be auto, camera, vehicle or none, got {requested!r}")
     if requested != "auto":
         return requested, f"{requested} (given)"
     votes = Counter()
@@ -400,13 +406,13 @@ def _prepare_out(out: Path, src: Path, overwrite: bool) -> None:
 
     o, s = out.resolve(), src.resolve()
     if o == s or s in o.parents or o in s.parents:
-        raise ValueError(f"--out {out} and the source {src} must not contain each other")
+        raise InputError(f"--out {out} and the source {src} must not contain each other")
     if (out / ANNOTATIONS).exists() and not overwrite:
-        raise FileExistsError(f"{out / ANNOTATIONS} already exists; choose another --out folder or pass --overwrite")
+        raise OutputExistsError(f"{out / ANNOTATIONS} already exists; choose another --out folder or pass --overwrite")
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} exists and is not a folder")
+        raise OutputPathError(f"--out {out} exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not (out / ANNOTATIONS).exists():
-        raise FileExistsError(f"--out {out} is not empty (and holds no dataset); choose an empty or new folder")
+        raise OutputExistsError(f"--out {out} is not empty (and holds no dataset); choose an empty or new folder")
 
 
 def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
@@ -428,10 +434,10 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
     from weather_gym.perception.labels import CATEGORIES, SmallRule
 
     if fmt not in FORMATS:
-        raise ValueError(f"unknown dataset format {fmt!r}; expected one of {', '.join(FORMATS)}")
+        raise InputError(f"unknown dataset format {fmt!r}; expected one of {', '.join(FORMATS)}")
     src, out = Path(src), Path(out)
     if not src.is_dir():
-        raise FileNotFoundError(f"source folder {src} not found")
+        raise MissingInputError(f"source folder {src} not found")
     cmap = parse_class_map(classes)
     cond, sev = _condition(condition, severity)
     given_k = parse_intrinsics(intrinsics)
@@ -445,19 +451,19 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
     else:
         frames, stats = _read_coco(src, Path(annotations) if annotations is not None else None)
     if not frames:
-        raise ValueError(f"{src}: no frames to import")
+        raise FileFormatError(f"{src}: no frames to import")
     for fr in tqdm(frames, desc="check", unit="frame", disable=not progress):
         if fr.size == (0, 0):
             fr.size = _image_size(fr.image)
     size = frames[0].size
     for fr in frames:
         if fr.size != size:
-            raise ValueError(f"{fr.image} is {fr.size[0]}x{fr.size[1]} but {frames[0].image} is {size[0]}x{size[1]}: "
+            raise FileFormatError(f"{fr.image} is {fr.size[0]}x{fr.size[1]} but {frames[0].image} is {size[0]}x{size[1]}: "
                              "one dataset holds frames of one camera and size (import each size into its own folder)")
     unmapped = sorted({b.cls for fr in frames for b in fr.boxes if b.cls not in cmap})
     if unmapped and "*" not in cmap:
         where = next(b.where for fr in frames for b in fr.boxes if b.cls == unmapped[0])
-        raise ValueError(f"{where}: class {unmapped[0]!r} is not in the class map "
+        raise FileFormatError(f"{where}: class {unmapped[0]!r} is not in the class map "
                          f"({', '.join(f'{k}={v}' for k, v in cmap.items())}); classes found but not mapped: "
                          f"{', '.join(unmapped)}. Map each to a cone class, or to 'ignore' to make its boxes ignore "
                          f"regions (e.g. {unmapped[0]}=ignore, or *=ignore for every unmapped class)")
@@ -465,7 +471,7 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
         for b in fr.boxes:
             x1, y1, x2, y2 = b.box
             if x1 < -1 or y1 < -1 or x2 > fr.size[0] + 1 or y2 > fr.size[1] + 1:
-                raise ValueError(f"{b.where}: box ({x1:g}, {y1:g}, {x2:g}, {y2:g}) lies outside the "
+                raise FileFormatError(f"{b.where}: box ({x1:g}, {y1:g}, {x2:g}, {y2:g}) lies outside the "
                                  f"{fr.size[0]}x{fr.size[1]} image {fr.image}")
             b.box = (max(x1, 0.0), max(y1, 0.0), min(x2, float(fr.size[0])), min(y2, float(fr.size[1])))
         k = given_k or fr.intrinsics
@@ -473,22 +479,20 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
             try:
                 CameraConfig.from_intrinsics(fr.size[0], fr.size[1], **k)
             except ValueError as exc:
-                raise ValueError(f"{fr.image}: {exc}") from None
+                raise FileFormatError(f"{fr.image}: {exc}") from None
             fr.intrinsics = k
     loc_frame, loc_why = _location_frame(frames, location_frame) if fmt == "kitti" else ("none", "none")
     rule = SmallRule.for_image(size, detector)
     mask_arr = read_mask(mask, size) if mask is not None else None
 
     # 2. write: frames copied byte for byte, then annotations.json last
-    (out / "images").mkdir(parents=True, exist_ok=True)
     images, anns = [], []
     per_class: Counter = Counter()
     ignored: Counter = Counter()
     n_small = 0
     for i, fr in enumerate(tqdm(frames, desc="import", unit="frame", disable=not progress)):
-        dest = out / "images" / fr.rel
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(fr.image, dest)
+        dest = resolve_inside(out / "images", fr.rel, what=f"{fr.image}")
+        atomic_write(dest, fr.image.read_bytes(), overwrite=overwrite)  # byte for byte
         rec: dict[str, Any] = {"id": i, "file_name": f"images/{Path(fr.rel).as_posix()}", "width": fr.size[0],
                                "height": fr.size[1], "source_file": str(fr.image.relative_to(src).as_posix())}
         if fr.intrinsics is not None:
@@ -528,12 +532,10 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
     if cond is not None:
         info["condition"], info["severity"] = cond, sev
     if mask_arr is not None:
-        write_mask(out / MASK_FILE, mask_arr)
+        write_mask(out / MASK_FILE, mask_arr, overwrite=overwrite)
         info["ignore_mask"] = MASK_FILE
-    from weather_gym._io import atomic_write_json
-
     atomic_write_json(out / ANNOTATIONS, {"info": info, "images": images, "annotations": anns,
-                                          "categories": CATEGORIES})
+                                          "categories": CATEGORIES}, overwrite=overwrite)
     return {"out": str(out), "frames": len(images), "size": list(size), "cones": dict(per_class),
             "too_small": n_small, "ignore_regions": dict(ignored), "rows_left_out": dict(stats),
             "rule": rule.describe(), "location_frame": loc_why, "intrinsics": info["intrinsics"],

@@ -35,7 +35,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from weather_gym._io import atomic_write, atomic_write_json
+from weather_gym._io import atomic_write, atomic_write_json, resolve_inside
+from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputExistsError
 
 __all__ = ["MASK_FILE", "read_mask", "write_mask", "propose_mask", "mask_preview", "set_dataset_mask"]
 
@@ -47,19 +48,19 @@ def read_mask(path: str | os.PathLike, size: tuple[int, int] | None = None) -> n
     """A mask PNG as a boolean ``(H, W)`` array (True = ignored); ``size`` (W, H) is checked when given."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"ignore mask {path} not found")
+        raise MissingInputError(f"ignore mask {path} not found")
     raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if raw is None or raw.size == 0:
-        raise ValueError(f"ignore mask {path} could not be decoded as an image (expected a PNG, white = ignored)")
+        raise FileFormatError(f"ignore mask {path} could not be decoded as an image (expected a PNG, white = ignored)")
     if raw.ndim == 3:
         raw = cv2.cvtColor(raw[..., :3], cv2.COLOR_BGR2GRAY)
     if raw.dtype == np.uint16:
         raw = (raw >> 8).astype(np.uint8)
     if raw.dtype != np.uint8:
-        raise ValueError(f"ignore mask {path} has pixel type {raw.dtype}; expected an 8-bit PNG (white = ignored)")
+        raise FileFormatError(f"ignore mask {path} has pixel type {raw.dtype}; expected an 8-bit PNG (white = ignored)")
     mask = raw >= 128
     if size is not None and (mask.shape[1], mask.shape[0]) != tuple(size):
-        raise ValueError(f"ignore mask {path} is {mask.shape[1]}x{mask.shape[0]} but the frames are "
+        raise FileFormatError(f"ignore mask {path} is {mask.shape[1]}x{mask.shape[0]} but the frames are "
                          f"{size[0]}x{size[1]}; a mask must have the frames' size")
     return mask
 
@@ -67,16 +68,17 @@ def read_mask(path: str | os.PathLike, size: tuple[int, int] | None = None) -> n
 def _png(mask: np.ndarray) -> bytes:
     ok, buf = cv2.imencode(".png", np.where(np.asarray(mask, bool), 255, 0).astype(np.uint8))
     if not ok:
-        raise ValueError("could not encode the mask as PNG")
+        raise InputError("could not encode the mask as PNG")
     return buf.tobytes()
 
 
-def write_mask(path: str | os.PathLike, mask: np.ndarray) -> Path:
-    """Write a boolean mask as an 8-bit PNG (255 = ignored), atomically."""
+def write_mask(path: str | os.PathLike, mask: np.ndarray, *, overwrite: bool = False) -> Path:
+    """Write a boolean mask as an 8-bit PNG (255 = ignored), safely (never over an existing file
+    unless ``overwrite``)."""
     m = np.asarray(mask)
     if m.ndim != 2 or m.size == 0:
-        raise ValueError(f"a mask must be a 2-D (H, W) array, got shape {m.shape}")
-    return atomic_write(path, _png(m))
+        raise InputError(f"a mask must be a 2-D (H, W) array, got shape {m.shape}")
+    return atomic_write(path, _png(m), overwrite=overwrite)
 
 
 def _luma_stack(frames: Sequence[np.ndarray], width: int) -> np.ndarray:
@@ -86,7 +88,7 @@ def _luma_stack(frames: Sequence[np.ndarray], width: int) -> np.ndarray:
     out = np.empty((len(frames), h, w), np.float32)
     for i, f in enumerate(frames):
         if f.shape[:2] != (h0, w0):
-            raise ValueError(f"frame {i} is {f.shape[1]}x{f.shape[0]}, frame 0 is {w0}x{h0}: a mask needs frames "
+            raise InputError(f"frame {i} is {f.shape[1]}x{f.shape[0]}, frame 0 is {w0}x{h0}: a mask needs frames "
                              "of one size")
         y = cv2.cvtColor(np.ascontiguousarray(f), cv2.COLOR_RGB2GRAY)
         out[i] = cv2.resize(y, (w, h), interpolation=cv2.INTER_AREA)
@@ -106,14 +108,14 @@ def propose_mask(frames: Sequence[np.ndarray], *, static_fraction: float = 0.45,
     Needs at least 4 frames in which the scene moves.
     """
     if len(frames) < 4:
-        raise ValueError(f"proposing a mask needs at least 4 frames, got {len(frames)}")
+        raise InputError(f"proposing a mask needs at least 4 frames, got {len(frames)}")
     h0, w0 = frames[0].shape[:2]
     y = _luma_stack(frames, _WORK_WIDTH)
     med = np.median(y, axis=0)
     mad = np.median(np.abs(y - med), axis=0)
     typical = float(np.percentile(mad, 75))
     if typical < 2.0:
-        raise ValueError(f"the {len(frames)} frames hardly change (75th percentile of the per-pixel change "
+        raise InputError(f"the {len(frames)} frames hardly change (75th percentile of the per-pixel change "
                          f"{typical:.2f} grey levels): the static ego vehicle cannot be told from the scene; "
                          "propose a mask from frames of a moving camera")
     static = (mad < min(static_fraction * typical, 12.0)).astype(np.uint8)
@@ -172,25 +174,25 @@ def set_dataset_mask(root: str | os.PathLike, mask_path: str | os.PathLike, *, f
     if frame is None:
         sizes = {(int(r["width"]), int(r["height"])) for r in ds.images}
         if len(sizes) != 1:
-            raise ValueError(f"{root}: frames have several sizes {sorted(sizes)}; a dataset-wide mask needs one "
+            raise InputError(f"{root}: frames have several sizes {sorted(sizes)}; a dataset-wide mask needs one "
                              "size (set per-frame masks with --frame)")
         size, rel, rec = next(iter(sizes)), MASK_FILE, None
     else:
         rec = next((r for r in ds.images if r["file_name"] == frame), None)
         if rec is None:
-            raise ValueError(f"{root / ANNOTATIONS}: no image with file_name {frame!r}")
+            raise InputError(f"{root / ANNOTATIONS}: no image with file_name {frame!r}")
         size = (int(rec["width"]), int(rec["height"]))
         rel = f"masks/{Path(frame).stem}.png"
     mask = read_mask(mask_path, size)
-    dest = root / rel
+    dest = resolve_inside(root, rel, what=f"{root}: ignore mask")
     current = ds.data.get("info", {}).get("ignore_mask") if rec is None else rec.get("ignore_mask")
     if (current or dest.exists()) and not overwrite:
-        raise FileExistsError(f"{root} already has an ignore mask ({current or rel}); pass --overwrite to replace it")
-    atomic_write(dest, _png(mask))
+        raise OutputExistsError(f"{root} already has an ignore mask ({current or rel}); pass --overwrite to replace it")
+    atomic_write(dest, _png(mask), overwrite=overwrite)
     data = json.loads((root / ANNOTATIONS).read_text())
     if rec is None:
         data.setdefault("info", {})["ignore_mask"] = rel
     else:
         next(r for r in data["images"] if r["file_name"] == frame)["ignore_mask"] = rel
-    atomic_write_json(root / ANNOTATIONS, data)
+    atomic_write_json(root / ANNOTATIONS, data, overwrite=True)  # the dataset's own index, one key added
     return dest

@@ -23,6 +23,7 @@ import numpy as np
 
 from weather_gym.camera import CameraConfig
 from weather_gym.datasets.coco import CocoWriter
+from weather_gym.errors import InputError
 
 __all__ = ["render_dataset", "ViewRenderer", "episode_plan"]
 
@@ -30,11 +31,11 @@ __all__ = ["render_dataset", "ViewRenderer", "episode_plan"]
 def episode_plan(tracks: Sequence[str], frames: int, frames_per_episode: int) -> list[tuple[str, int]]:
     """Split ``frames`` over the tracks (as evenly as possible) and into episodes: ``[(track, n), ...]``."""
     if frames < 1:
-        raise ValueError(f"frames must be >= 1, got {frames}")
+        raise InputError(f"frames must be >= 1, got {frames}")
     if not tracks:
-        raise ValueError("at least one track is needed")
+        raise InputError("at least one track is needed")
     if frames_per_episode < 1:
-        raise ValueError(f"frames_per_episode must be >= 1, got {frames_per_episode}")
+        raise InputError(f"frames_per_episode must be >= 1, got {frames_per_episode}")
     per_track = [frames // len(tracks) + (1 if i < frames % len(tracks) else 0) for i in range(len(tracks))]
     plan = []
     for t, n in zip(tracks, per_track, strict=True):
@@ -80,7 +81,8 @@ def render_dataset(
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
     Args:
-        tracks: track specs (registered names or ``"random:SEED"``).
+        tracks: track specs (registered names, ``"random:SEED"`` or cone CSV paths; a CSV is copied into
+            ``out/tracks/`` and the records name that copy).
         randomize: draw a random ``Look`` per episode (``weather_gym.sim.look.sample_look``);
             otherwise every frame uses the default bright-overcast look.
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
@@ -92,7 +94,7 @@ def render_dataset(
     from weather_gym.sim.look import DEFAULT_LOOK, sample_look
 
     if every < 1:
-        raise ValueError(f"every must be >= 1, got {every}")
+        raise InputError(f"every must be >= 1, got {every}")
     camera = camera or CameraConfig()
     plan = episode_plan(list(tracks), int(frames), int(frames_per_episode))
     # every episode's seed comes from the master seed, so resuming replays exactly the same episodes
@@ -100,6 +102,7 @@ def render_dataset(
     writer = CocoWriter(out, overwrite=overwrite, resume=resume, info={
         "tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
         "every": int(every), "frames_per_episode": int(frames_per_episode)})
+    recorded = _record_tracks(Path(out), list(tracks))
     done_before = writer.done
     bar = tqdm(total=int(frames), initial=done_before, desc=f"render {Path(out).name}", unit="frame",
                disable=not progress)
@@ -129,7 +132,7 @@ def render_dataset(
                 if step % every == 0 and step > 0:
                     if written >= done_before:
                         record = {
-                            "track": track_spec,
+                            "track": recorded[track_spec],
                             "pose": [float(v) for v in info["pose"]],
                             "speed": float(info["speed"]),
                             "yaw_rate": float(info["yaw_rate"]),
@@ -163,6 +166,31 @@ def render_dataset(
     return writer.close()
 
 
+def _record_tracks(out: Path, tracks: list[str]) -> dict[str, str]:
+    """How each track spec is recorded in the image records: names as they are; a cone CSV is copied
+    into ``out/tracks/`` and recorded by that relative path, so the dataset is self-contained (and a
+    dataset's track path never leads outside it, see ``weather_gym.datasets.coco.record_path``)."""
+    from weather_gym._io import atomic_write
+    from weather_gym.tracks import is_track_file, load_track
+
+    recorded: dict[str, str] = {}
+    used: set[str] = set()
+    for spec in dict.fromkeys(tracks):
+        if not is_track_file(spec):
+            recorded[spec] = spec
+            continue
+        load_track(spec)  # a bad file fails here, before anything is rendered
+        stem, n = Path(spec).stem, 1
+        name = f"tracks/{stem}.csv"
+        while name in used:
+            n += 1
+            name = f"tracks/{stem}_{n}.csv"
+        used.add(name)
+        atomic_write(out / name, Path(spec).read_bytes(), overwrite=True)  # the dataset's own copy
+        recorded[spec] = name
+    return recorded
+
+
 class ViewRenderer:
     """Re-render dataset views: same track, camera, look and pose. Envs are cached per (track, camera)."""
 
@@ -172,7 +200,7 @@ class ViewRenderer:
     def render(self, record: dict) -> dict[str, Any]:
         for key in ("track", "pose", "look", "camera"):
             if key not in record:
-                raise ValueError(f"image record {record.get('id')!r} has no {key!r}: it cannot be re-rendered")
+                raise InputError(f"image record {record.get('id')!r} has no {key!r}: it cannot be re-rendered")
         camera = CameraConfig(**record["camera"])
         key = (record["track"], tuple(sorted(record["camera"].items())))
         env = self._envs.get(key)

@@ -16,6 +16,7 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -24,6 +25,7 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.envs.config import EnvConfig
+from weather_gym.errors import InputError, StateError
 from weather_gym.sim.camera import CameraFrame
 from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
 from weather_gym.sim.world import World
@@ -55,7 +57,7 @@ class ConeTrackEnv(gym.Env):
         if overrides:
             config = replace(config, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+            raise InputError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.config = config
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": config.sim.control_hz}
@@ -87,31 +89,37 @@ class ConeTrackEnv(gym.Env):
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self._check_open()
+        if options is not None and not isinstance(options, Mapping):
+            raise InputError(f"reset options must be a dict (keys {list(RESET_OPTIONS)}), got {options!r}")
         super().reset(seed=seed)
         options = dict(options or {})
         unknown = set(options) - set(RESET_OPTIONS)
         if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
+            raise InputError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
         rng = self.np_random
         look = self._resolve_look(options.get("look"), rng)
         self._world.set_look(look)
 
         track = self.track
         if "start_pose" in options:
-            pose = tuple(float(v) for v in options["start_pose"])
+            pose = _numbers(options["start_pose"], "start_pose")
             if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
-                raise ValueError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
+                raise InputError(f"reset option start_pose must be 3 finite numbers (x, y, yaw), got {options['start_pose']!r}")
         elif "start_s" in options:
-            x, y, h = track.point_at(float(options["start_s"]))
+            start_s = _numbers([options["start_s"]], "start_s")[0]
+            if not math.isfinite(start_s):
+                raise InputError(f"reset option start_s must be a finite arc length in metres, got {start_s!r}")
+            x, y, h = track.point_at(start_s)
             pose = (float(x), float(y), float(h))
         else:
             pose = tuple(float(v) for v in track.start_pose)
-        speed = float(options.get("start_speed", 0.0))
+        speed = _numbers([options.get("start_speed", 0.0)], "start_speed")[0]
         if not math.isfinite(speed) or speed < 0:
-            raise ValueError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
+            raise InputError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
         friction = options.get("friction", self.config.car.friction)
         if not (isinstance(friction, (int, float)) and math.isfinite(friction) and friction > 0):
-            raise ValueError(f"reset option friction must be a finite number > 0, got {friction!r}")
+            raise InputError(f"reset option friction must be a finite number > 0, got {friction!r}")
         self._friction = float(friction)
         self._world.reset(pose, speed=speed)
 
@@ -147,19 +155,20 @@ class ConeTrackEnv(gym.Env):
             return sample_look(rng)
         if isinstance(look, dict):
             return Look.from_dict(look)
-        raise ValueError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
+        raise InputError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
 
     # ------------------------------------------------------------------ step
     def step(self, action):
+        self._check_open()
         if not self._episode_started:
-            raise RuntimeError("call reset() before step()")
+            raise StateError("call reset() before step()")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
+            raise InputError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {a.tolist()}")
+            raise InputError(f"action must be finite, got {a.tolist()}")
         if np.any(np.abs(a) > 1.0 + 1e-6):
-            raise ValueError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
+            raise InputError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
         steer, pedal = float(np.clip(a[0], -1, 1)), float(np.clip(a[1], -1, 1))  # only float rounding is clipped
 
         touched = self._world.step(steer, pedal, self._friction)
@@ -282,4 +291,17 @@ class ConeTrackEnv(gym.Env):
         world = getattr(self, "_world", None)
         if world is not None:
             world.close()
+        self._closed = True
         super().close()
+
+    def _check_open(self) -> None:
+        if getattr(self, "_closed", False):
+            raise StateError("this env was closed; make a new one (gymnasium.make) to go on")
+
+
+def _numbers(values: Any, option: str) -> tuple[float, ...]:
+    """``values`` as floats; an :class:`InputError` naming the reset option when they are not numbers."""
+    try:
+        return tuple(float(v) for v in values)
+    except (TypeError, ValueError):
+        raise InputError(f"reset option {option} must be numbers, got {values!r}") from None

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 
 from weather_gym.camera import CameraConfig
+from weather_gym.errors import InputError
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 
 RENDER_VIEWS = ("chase", "camera")
@@ -33,7 +34,7 @@ class RewardConfig:
         for name in ("progress", "cone_hit", "off_track", "time"):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"RewardConfig.{name} must be a finite number, got {v!r}")
+                raise InputError(f"RewardConfig.{name} must be a finite number, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -72,17 +73,17 @@ class EnvConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.track, str) or not self.track:
-            raise ValueError(f"EnvConfig.track must be a non-empty string, got {self.track!r}")
+            raise InputError(f"EnvConfig.track must be a non-empty string, got {self.track!r}")
         if not isinstance(self.laps, int) or isinstance(self.laps, bool) or self.laps < 0:
-            raise ValueError(f"EnvConfig.laps must be an integer >= 0, got {self.laps!r}")
+            raise InputError(f"EnvConfig.laps must be an integer >= 0, got {self.laps!r}")
         if not isinstance(self.max_episode_steps, int) or isinstance(self.max_episode_steps, bool) or self.max_episode_steps < 1:
-            raise ValueError(f"EnvConfig.max_episode_steps must be an integer >= 1, got {self.max_episode_steps!r}")
+            raise InputError(f"EnvConfig.max_episode_steps must be an integer >= 1, got {self.max_episode_steps!r}")
         if not (isinstance(self.off_track_margin, (int, float)) and math.isfinite(self.off_track_margin)
                 and self.off_track_margin >= 0):
-            raise ValueError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
+            raise InputError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
         if self.render_view not in RENDER_VIEWS:
-            raise ValueError(f"EnvConfig.render_view must be one of {', '.join(RENDER_VIEWS)}, got {self.render_view!r}")
+            raise InputError(f"EnvConfig.render_view must be one of {', '.join(RENDER_VIEWS)}, got {self.render_view!r}")
         for name, cls in (("sim", SimConfig), ("car", CarConfig), ("camera", CameraConfig),
                           ("odometry", OdometryConfig), ("reward", RewardConfig)):
             if not isinstance(getattr(self, name), cls):
-                raise ValueError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+                raise InputError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")

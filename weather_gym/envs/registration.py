@@ -1,7 +1,9 @@
 """Register every scenario file in ``envs/`` as a Gymnasium id, and build envs from them.
 
 ``gym.make(id, **kwargs)``: kwargs override the scenario (``track="peanut"``,
-``camera={"width": 336, "height": 188}``, ``laps=2``...). ``weather=`` (any weather spec, or a
+``camera={"width": 336, "height": 188}``, ``laps=2``...). The step limit is Gymnasium's
+``max_episode_steps`` (the scenario's ``[env] max_episode_steps`` unless ``gym.make`` is given
+another; ``-1`` is Gymnasium's "no limit"). ``weather=`` (any weather spec, or a
 condition name with ``severity=``) adds a ``WeatherWrapper``; ``detector=True`` (or a dict of
 ``DetectorWrapper`` arguments) adds the detector.
 
@@ -19,8 +21,11 @@ from typing import Any
 import gymnasium as gym
 
 from weather_gym.envs.scenario import Scenario, build_config, load_scenario, scenario_files
+from weather_gym.errors import InputError
 
 _SCENARIOS: dict[str, Scenario] = {}
+UNLIMITED_STEPS = 2**62
+"""The env's own step limit under ``gymnasium.make``: none (Gymnasium's ``TimeLimit`` is the limit)."""
 
 
 def register_envs() -> list[str]:
@@ -29,11 +34,12 @@ def register_envs() -> list[str]:
     for path in scenario_files():
         sc = load_scenario(path)
         if sc.env_id in _SCENARIOS and _SCENARIOS[sc.env_id].path != sc.path:
-            raise ValueError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
+            raise InputError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
         _SCENARIOS[sc.env_id] = sc
         if sc.env_id not in gym.registry:
             gym.register(id=sc.env_id, entry_point="weather_gym.envs.registration:make_scenario_env",
-                         kwargs={"scenario": str(path)})
+                         kwargs={"scenario": str(path)},
+                         max_episode_steps=build_config(sc).max_episode_steps)
         ids.append(sc.env_id)
     return ids
 
@@ -44,6 +50,10 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, weather: An
     from weather_gym.envs.cone_track import ConeTrackEnv
 
     sc = load_scenario(scenario)
+    # The step limit is Gymnasium's TimeLimit (the spec's max_episode_steps = the scenario's, or
+    # gymnasium.make(..., max_episode_steps=N)); the env's own limit is off so that N is not silently
+    # cut to the scenario's value.
+    overrides.setdefault("max_episode_steps", UNLIMITED_STEPS)
     env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
     try:
         spec = _weather_spec(sc, weather, severity)
@@ -74,6 +84,6 @@ def _weather_spec(sc: Scenario, weather: Any, severity: int | None) -> Any:
         return (sc.weather["condition"], int(sc.weather.get("severity", 0)))
     if severity is not None:
         if not isinstance(weather, str):
-            raise ValueError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
+            raise InputError(f"severity= needs weather= to be a condition name (e.g. 'low_light'), got {weather!r}")
         return (weather, int(severity))
     return weather

@@ -28,8 +28,10 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any
 
+from weather_gym._io import resolve_inside
 from weather_gym.camera import CameraConfig
 from weather_gym.envs.config import EnvConfig, RewardConfig
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.paths import data_dir
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 
@@ -65,42 +67,84 @@ def scenario_files() -> list[Path]:
 def _check_keys(where: str, got: dict, valid: tuple[str, ...] | set[str]) -> None:
     unknown = sorted(set(got) - set(valid))
     if unknown:
-        raise ValueError(f"{where}: unknown key(s) {unknown}; valid keys: {sorted(valid)}")
+        raise InputError(f"{where}: unknown key(s) {unknown}; valid keys: {sorted(valid)}")
 
 
 def load_scenario(path: str | Path) -> Scenario:
     """Parse and validate a scenario TOML file; errors name the file and the key."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise FileNotFoundError(f"scenario file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: malformed TOML: {exc}") from None
+        raise MissingInputError(f"scenario file {path} does not exist") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise FileFormatError(f"{path}: malformed TOML: {exc}") from None
     _check_keys(str(path), data, TOP_KEYS)
     env_id = data.get("id")
     if not isinstance(env_id, str) or "/" not in env_id or not env_id.rsplit("-v", 1)[-1].isdigit():
-        raise ValueError(f"{path}: 'id' must be a Gymnasium id like 'WeatherGym/Name-v0', got {env_id!r}")
+        raise FileFormatError(f"{path}: 'id' must be a Gymnasium id like 'WeatherGym/Name-v0', got {env_id!r}")
     env = data.get("env", {})
+    if not isinstance(env, dict):
+        raise FileFormatError(f"{path}: [env] must be a table of EnvConfig fields, got {env!r}")
     _check_keys(f"{path} [env]", env, ENV_KEYS)
+    env = _confine_paths(path, env, "env", "track")
     sections = {}
     for name, cls in SECTIONS.items():
         sec = data.get(name, {})
         if not isinstance(sec, dict):
-            raise ValueError(f"{path}: [{name}] must be a table")
+            raise FileFormatError(f"{path}: [{name}] must be a table")
         _check_keys(f"{path} [{name}]", sec, {f.name for f in fields(cls)})
         sections[name] = sec
     weather = data.get("weather")
     if weather is not None:
+        if not isinstance(weather, dict):
+            raise FileFormatError(f"{path}: [weather] must be a table (spec = ..., or condition and severity)")
         _check_keys(f"{path} [weather]", weather, ("spec", "condition", "severity"))
+        _check_weather(path, weather)
     detector = data.get("detector")
+    if detector is not None and not isinstance(detector, dict):
+        raise FileFormatError(f"{path}: [detector] must be a table (enabled = true, DetectorWrapper arguments)")
+    if detector is not None:
+        detector = _confine_paths(path, detector, "detector", "detector")
     sc = Scenario(env_id=env_id, path=str(path), description=str(data.get("description", "")), env=env,
                   sections=sections, weather=weather, detector=detector)
     try:  # build once so that bad values fail at load time, naming the file
         build_config(sc)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: {exc}") from None
+        raise FileFormatError(f"{path}: {exc}") from None
     return sc
+
+
+def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) -> dict[str, Any]:
+    """A file named in a scenario (a track CSV, a detector model) is read relative to the scenario's
+    folder and must stay inside it (``weather_gym._io.resolve_inside``); names are kept as they are."""
+    from weather_gym.tracks import is_track_file
+
+    value = table.get(key)
+    if not isinstance(value, str) or (key == "track" and not is_track_file(value)):
+        return table
+    where = f"{path} [{section}] {key}"
+    return {**table, key: str(resolve_inside(path.parent, value, what=where))}
+
+
+def _check_weather(path: Path, weather: dict[str, Any]) -> None:
+    """The scenario's weather must parse now, naming the file (not fail later, at ``gym.make``)."""
+    from weather_gym.weather import parse_weather
+
+    if "spec" in weather and ("condition" in weather or "severity" in weather):
+        raise FileFormatError(f"{path}: [weather] takes either spec or condition/severity, not both")
+    try:
+        if "spec" in weather:
+            parse_weather(weather["spec"])
+        elif "condition" in weather:
+            sev = weather.get("severity", 0)
+            if not isinstance(sev, int) or isinstance(sev, bool):
+                raise InputError(f"severity must be an integer 0-4, got {sev!r}")
+            parse_weather((weather["condition"], sev))
+        elif "severity" in weather:
+            raise InputError("severity needs a condition (e.g. condition = \"low_light\")")
+    except InputError as exc:
+        raise FileFormatError(f"{path}: [weather]: {exc}") from None
 
 
 def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
@@ -108,12 +152,12 @@ def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
         return cls(**base)
     if is_dataclass(override):
         if not isinstance(override, cls):
-            raise ValueError(f"{name} must be a {cls.__name__} or a dict of its fields, got {type(override).__name__}")
+            raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {type(override).__name__}")
         return override
     if isinstance(override, dict):
         _check_keys(f"override {name}", override, {f.name for f in fields(cls)})
         return cls(**{**base, **override})
-    raise ValueError(f"{name} must be a {cls.__name__} or a dict of its fields, got {override!r}")
+    raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {override!r}")
 
 
 def build_config(scenario: Scenario, overrides: dict[str, Any] | None = None) -> EnvConfig:

@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = [
     "CELL_KEY_FIELDS",
     "DEFAULT_ENV_ID",
@@ -152,29 +154,29 @@ class EvalConfig:
 
 def _check_int(name: str, value: Any, lo: int) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < lo:
-        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+        raise InputError(f"{name} must be an integer >= {lo}, got {value!r}")
     return int(value)
 
 
 def _check_names(what: str, values: Sequence[Any]) -> tuple[str, ...]:
     if isinstance(values, str):
-        raise ValueError(f"{what} must be a list of names, got the string {values!r}")
+        raise InputError(f"{what} must be a list of names, got the string {values!r}")
     values = tuple(values)
     if not values:
-        raise ValueError(f"the list of {what} is empty; give at least one")
+        raise InputError(f"the list of {what} is empty; give at least one")
     dup = sorted({v for v in values if values.count(v) > 1})
     if dup:
-        raise ValueError(f"{what} repeated: {', '.join(map(str, dup))}")
+        raise InputError(f"{what} repeated: {', '.join(map(str, dup))}")
     return values
 
 
 def _jsonable(what: str, value: Mapping[str, Any]) -> str:
     if not isinstance(value, Mapping):
-        raise ValueError(f"{what} must be a mapping of keyword arguments, got {value!r}")
+        raise InputError(f"{what} must be a mapping of keyword arguments, got {value!r}")
     try:
         return _json(dict(value))
     except TypeError as exc:
-        raise ValueError(f"{what} must be JSON-serialisable (numbers, strings, lists, dicts): {exc}") from None
+        raise InputError(f"{what} must be JSON-serialisable (numbers, strings, lists, dicts): {exc}") from None
 
 
 def validate_config(config: EvalConfig) -> None:
@@ -202,20 +204,20 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
 
     for t in tracks:
         if not isinstance(t, str) or not t:
-            raise ValueError(f"a track must be a non-empty name or path, got {t!r}")
+            raise InputError(f"a track must be a non-empty name or path, got {t!r}")
         load_track(t)  # unknown names list the valid ones; a bad CSV names its line
     effects = _check_names("effects", config.effects)
     for e in effects:
         canonical_condition(e)
     if len({canonical_condition(e) for e in effects}) != len(effects):
-        raise ValueError(f"effects {', '.join(effects)} name the same condition twice (dim is low_light)")
+        raise InputError(f"effects {', '.join(effects)} name the same condition twice (dim is low_light)")
     severities = _check_names("severities", config.severities)
     seeds = tuple(_check_int("a seed", s, 0) for s in _check_names("seeds", config.seeds))
     if config.perception not in PERCEPTIONS:
-        raise ValueError(f"unknown perception {config.perception!r}; valid: {', '.join(PERCEPTIONS)}")
+        raise InputError(f"unknown perception {config.perception!r}; valid: {', '.join(PERCEPTIONS)}")
     if config.env_id not in gym.registry:
         ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
-        raise ValueError(f"unknown env id {config.env_id!r}; weather-gym ids: {', '.join(ours)}")
+        raise InputError(f"unknown env id {config.env_id!r}; weather-gym ids: {', '.join(ours)}")
     laps = _check_int("laps", config.laps, 1)
     max_steps = _check_int("max_steps", config.max_steps, 1)
     agent_kwargs = _jsonable("agent_kwargs", config.agent_kwargs)
@@ -223,7 +225,15 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     perception_kwargs = _jsonable("perception_kwargs", config.perception_kwargs)
     clash = sorted(set(config.env_kwargs) & {"track", "laps", "max_episode_steps", "weather", "severity", "detector"})
     if clash:
-        raise ValueError(f"env_kwargs may not set {', '.join(clash)}: the evaluation sets them per cell")
+        raise InputError(f"env_kwargs may not set {', '.join(clash)}: the evaluation sets them per cell")
+    scenario = (gym.registry[config.env_id].kwargs or {}).get("scenario")
+    if scenario is not None:  # camera sizes and other overrides are checked now, not in every cell
+        from weather_gym.envs.scenario import build_config, load_scenario
+
+        try:
+            build_config(load_scenario(scenario), dict(config.env_kwargs))
+        except InputError as exc:
+            raise type(exc)(f"env_kwargs: {exc}") from None
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
@@ -250,7 +260,7 @@ def map_precision_recall(mapped_xy: np.ndarray, true_xy: np.ndarray,
     mapped_xy = np.asarray(mapped_xy, dtype=np.float64).reshape(-1, 2)
     true_xy = np.asarray(true_xy, dtype=np.float64).reshape(-1, 2)
     if len(true_xy) == 0:
-        raise ValueError("the track has no cones to compare the map with")
+        raise InputError("the track has no cones to compare the map with")
     if len(mapped_xy) == 0:
         return math.nan, 0.0
     d_map, _ = cKDTree(true_xy).query(mapped_xy)
@@ -277,7 +287,7 @@ def _wrap_perception(env: Any, perception: str, perception_kwargs: dict[str, Any
 
         return GroundTruthConeWrapper(env, **perception_kwargs)
     if perception_kwargs:
-        raise ValueError(f"perception_kwargs {sorted(perception_kwargs)} given, but perception 'camera' takes none")
+        raise InputError(f"perception_kwargs {sorted(perception_kwargs)} given, but perception 'camera' takes none")
     return env
 
 
@@ -301,7 +311,7 @@ def make_eval_env(env_id: str = DEFAULT_ENV_ID, *, track: str | None = None, lap
     from weather_gym.wrappers import WeatherWrapper
 
     if perception not in PERCEPTIONS:
-        raise ValueError(f"unknown perception {perception!r}; valid: {', '.join(PERCEPTIONS)}")
+        raise InputError(f"unknown perception {perception!r}; valid: {', '.join(PERCEPTIONS)}")
     kwargs = dict(env_kwargs or {})
     if track is not None:
         kwargs["track"] = track
@@ -407,24 +417,29 @@ def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
 # ----------------------------------------------------------------------------------------- the grid
 def evaluate(config: EvalConfig, out_dir: str | Path, *, workers: int | None = None, backend: str = "process",
              ray_address: str | None = None, progress: bool = True, retry_failed: bool = True,
-             report: bool = True, command: str | None = None) -> list[dict[str, Any]]:
+             report: bool = True, command: str | None = None, overwrite: bool = False) -> list[dict[str, Any]]:
     """Run the grid of ``config`` into ``out_dir/results.csv`` (resuming) and write the report.
 
     Returns this grid's rows (see :data:`METRICS`). ``out_dir/report.md`` and ``out_dir/plots/`` are
-    rewritten from them when ``report`` is true.
+    rewritten from them when ``report`` is true; when ``out_dir`` holds no results.csv yet, an
+    existing report or plot there is refused before any cell runs, unless ``overwrite``.
     """
+    from weather_gym._io import derived_outputs_replaceable
+    from weather_gym.evaluation.report import report_paths
     from weather_gym.evaluation.runner import check_results_path, run_cells
 
     cells = make_cells(config)
     out = Path(out_dir)
     results = check_results_path(out / "results.csv")
+    replace = derived_outputs_replaceable(results, report_paths(out) if report else [], overwrite=overwrite)
     started = time.perf_counter()
     rows = run_cells(cells, run_cell, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
                      ray_address=ray_address, progress=progress, retry_failed=retry_failed, desc="evaluate")
     if report:
         from weather_gym.evaluation.report import write_report
 
-        write_report(rows, out, config=config, wall_s=time.perf_counter() - started, command=command)
+        write_report(rows, out, config=config, wall_s=time.perf_counter() - started, command=command,
+                     overwrite=replace)
     return rows
 
 

@@ -23,7 +23,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PLOT_METRICS", "TABLE_METRICS", "aggregate", "plot_metric", "write_report"]
+from weather_gym._io import atomic_write, save_figure
+
+__all__ = ["PLOT_METRICS", "TABLE_METRICS", "aggregate", "plot_metric", "report_paths", "write_report"]
 
 TABLE_METRICS: tuple[str, ...] = (
     "completed", "progress", "lap_time_s", "cones_hit", "off_track_events", "cte_mean_m", "cte_max_m",
@@ -111,7 +113,8 @@ def _has_values(rows: Sequence[Mapping[str, Any]], metric: str) -> bool:
 
 
 def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path, *, x: str = "severity",
-                line: Sequence[str] = ("agent", "effect"), panel: str = "track", title: str | None = None) -> Path:
+                line: Sequence[str] = ("agent", "effect"), panel: str = "track", title: str | None = None,
+                overwrite: bool = False) -> Path:
     """``metric`` against ``x``: one panel per ``panel`` value, one line per ``line`` combination.
 
     Each line is the mean over the ok rows (seeds) at each x; the band spans their min..max, dots are
@@ -160,11 +163,7 @@ def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path
     fig.suptitle(title or f"{LABELS.get(metric, metric)} vs {x}\nline: mean over seeds, band: min..max, dots: seeds",
                  fontsize=10)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, overwrite=overwrite, dpi=110)
 
 
 def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> list[str]:
@@ -195,11 +194,12 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
                  wall_s: float | None = None, command: str | None = None,
                  group_by: Sequence[str] = ("agent", "track", "effect", "severity"),
                  table_metrics: Sequence[str] = TABLE_METRICS,
-                 plot_metrics: Sequence[str] = PLOT_METRICS) -> Path:
-    """Write ``out_dir/report.md`` and ``out_dir/plots/*.png`` from evaluation rows; return the report path."""
+                 plot_metrics: Sequence[str] = PLOT_METRICS, overwrite: bool = False) -> Path:
+    """Write ``out_dir/report.md`` and ``out_dir/plots/*.png`` from evaluation rows; return the report path.
+
+    Existing files are replaced only with ``overwrite`` (see :func:`report_paths`)."""
     out = Path(out_dir)
     plots = out / "plots"
-    plots.mkdir(parents=True, exist_ok=True)
     rows = list(rows)
     n_ok = sum(r.get("status") == "ok" for r in rows)
     failed = [r for r in rows if r.get("status") != "ok"]
@@ -236,7 +236,7 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
     written = []
     for m in plot_metrics:
         if _has_values(rows, m):
-            written.append(plot_metric(rows, m, plots / f"{m}.png"))
+            written.append(plot_metric(rows, m, plots / f"{m}.png", overwrite=overwrite))
     if written:
         md += ["## Plots", ""]
         for p in written:
@@ -255,6 +255,10 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
     from weather_gym.evaluation.evaluate import METRICS
 
     md += ["## Metrics", ""] + [f"- `{k}`: {v}" for k, v in METRICS.items()] + [""]
-    path = out / "report.md"
-    path.write_text("\n".join(md), encoding="utf-8")
-    return path
+    return atomic_write(out / "report.md", "\n".join(md), overwrite=overwrite)
+
+
+def report_paths(out_dir: str | Path, plot_metrics: Sequence[str] = PLOT_METRICS) -> list[Path]:
+    """The files :func:`write_report` may write in ``out_dir`` (report.md and one plot per metric)."""
+    out = Path(out_dir)
+    return [out / "report.md", *(out / "plots" / f"{m}.png" for m in plot_metrics)]

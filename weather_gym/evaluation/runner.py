@@ -57,6 +57,16 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import atomic_file, open_append
+from weather_gym.errors import (
+    FileFormatError,
+    InputError,
+    MissingDependencyError,
+    MissingInputError,
+    OutputExistsError,
+    OutputPathError,
+)
+
 __all__ = [
     "RESERVED_COLUMNS",
     "THREAD_ENV_VARS",
@@ -150,7 +160,7 @@ def cell_key(cell: Cell, key_fields: Sequence[str]) -> tuple[str, ...]:
     fields = cell_fields(cell)
     missing = [k for k in key_fields if k not in fields]
     if missing:
-        raise ValueError(f"cell {fields!r} lacks key field(s) {', '.join(missing)}")
+        raise InputError(f"cell {fields!r} lacks key field(s) {', '.join(missing)}")
     return tuple(_format(fields[k]) for k in key_fields)
 
 
@@ -167,32 +177,39 @@ class ResultsFile:
         self.key_fields = tuple(key_fields)
         self.columns: list[str] = [*self.key_fields, *RESERVED_COLUMNS]
         self.rows: list[dict[str, str]] = []
+        self._needs_rewrite = False
         if self.path.exists() and self.path.stat().st_size > 0:
             self._load()
 
     # -- reading
     def _load(self) -> None:
         raw = self.path.read_bytes()
+        tail = b""
         if not raw.endswith(b"\n"):
-            # the last row was cut by an interruption mid-write: drop it (its cell runs again)
+            # a last row without its newline: kept if it is complete (an editor that drops the final
+            # newline), dropped if it was cut by an interruption mid-write (its cell runs again). The
+            # file itself is not touched here; the next write rewrites it whole.
             cut = raw.rfind(b"\n") + 1
-            raw = raw[:cut]
-            with open(self.path, "r+b") as f:
-                f.truncate(cut)
-        text = raw.decode("utf-8")
+            raw, tail = raw[:cut], raw[cut:]
+            self._needs_rewrite = True
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise FileFormatError(f"{self.path} is not a UTF-8 text file ({exc.reason}); choose another output "
+                                  "path") from None
         reader = csv.reader(io.StringIO(text, newline=""))
         try:
             header = next(reader)
         except StopIteration:
             return
         if "status" not in header:
-            raise ValueError(
+            raise InputError(
                 f"{self.path} is not a results file written by weather-gym's runner (no 'status' column; "
                 f"header: {', '.join(header)}); choose another output path"
             )
         file_keys = tuple(header[: header.index("status")])
         if file_keys != self.key_fields or tuple(header[len(file_keys): len(file_keys) + 3]) != RESERVED_COLUMNS:
-            raise ValueError(
+            raise InputError(
                 f"{self.path} was written by a different configuration: its key fields are "
                 f"({', '.join(file_keys)}), this run's are ({', '.join(self.key_fields)}); "
                 "use another output path (nothing was changed)"
@@ -200,11 +217,15 @@ class ResultsFile:
         self.columns = header
         for lineno, values in enumerate(reader, start=2):
             if len(values) != len(header):
-                raise ValueError(
+                raise InputError(
                     f"{self.path}, row {lineno}: {len(values)} values for {len(header)} columns; "
                     "the file was edited or corrupted - fix or remove that row"
                 )
             self.rows.append(dict(zip(header, values, strict=True)))
+        if tail:
+            values = next(csv.reader(io.StringIO(tail.decode("utf-8", "replace"), newline="")), [])
+            if len(values) == len(header) and values[header.index("status")] in ("ok", "failed"):
+                self.rows.append(dict(zip(header, values, strict=True)))
 
     def latest(self) -> dict[tuple[str, ...], dict[str, str]]:
         """The last row for each key (the latest attempt)."""
@@ -223,11 +244,11 @@ class ResultsFile:
         """Write one row (text values) durably; widen the header first if it has new columns."""
         new_cols = [c for c in row if c not in self.columns]
         self.rows.append(dict(row))
-        if new_cols or not self.path.exists() or self.path.stat().st_size == 0:
+        if new_cols or self._needs_rewrite or not self.path.exists() or self.path.stat().st_size == 0:
             self.columns.extend(new_cols)
             self.rewrite(self.rows)
             return
-        with open(self.path, "a", encoding="utf-8", newline="") as f:
+        with open_append(self.path) as f:
             f.write(self._line(row))
             f.flush()
             os.fsync(f.fileno())
@@ -237,33 +258,11 @@ class ResultsFile:
         if columns is not None:
             self.columns = columns
         self.rows = list(rows)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
-        try:
-            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it 0600; a results file is readable like any other
-            with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-                csv.writer(f, lineterminator="\n").writerow(self.columns)
-                for r in self.rows:
-                    f.write(self._line(r))
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, self.path)
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-            raise
-        with contextlib.suppress(OSError):  # make the rename durable
-            dfd = os.open(self.path.parent, os.O_RDONLY)
-            try:
-                os.fsync(dfd)
-            finally:
-                os.close(dfd)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+        with atomic_file(self.path, overwrite=True, newline="") as f:  # the run's own file
+            csv.writer(f, lineterminator="\n").writerow(self.columns)
+            for r in self.rows:
+                f.write(self._line(r))
+        self._needs_rewrite = False
 
 
 def read_results(path: str | os.PathLike) -> list[dict[str, Any]]:
@@ -278,11 +277,11 @@ def read_results(path: str | os.PathLike) -> list[dict[str, Any]]:
     """
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"results file {path} does not exist")
+        raise MissingInputError(f"results file {path} does not exist")
     with open(path, encoding="utf-8", newline="") as f:
         header = next(csv.reader(f), None)
     if header is None or "status" not in header:
-        raise ValueError(f"{path} is not a results file written by weather-gym's runner")
+        raise InputError(f"{path} is not a results file written by weather-gym's runner")
     rf = ResultsFile(path, header[: header.index("status")])
     return [{c: _parse(r.get(c, "")) for c in rf.columns} for r in rf.rows]
 
@@ -301,7 +300,7 @@ def _check_metrics(metrics: Any, key_fields: Sequence[str]) -> dict[str, str]:
         raise TypeError(f"the cell function returned {type(metrics).__name__}; expected a dict of metrics")
     clash = sorted(set(metrics) & (set(RESERVED_COLUMNS) | set(key_fields)))
     if clash:
-        raise ValueError(f"the cell function returned metric name(s) {', '.join(clash)} that are "
+        raise InputError(f"the cell function returned metric name(s) {', '.join(clash)} that are "
                          "key fields or reserved columns")
     out: dict[str, str] = {}
     for name, value in metrics.items():
@@ -323,8 +322,10 @@ def _execute(cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -> tuple[st
         return "failed", _error_summary(exc), time.perf_counter() - t0
 
 
-def _worker_init() -> None:
-    """Process-pool initializer: one thread per library (env is also set before the spawn)."""
+def _worker_init(parent_pid: int | None = None) -> None:
+    """Process-pool initializer: end with the parent (:func:`_die_with_parent`), one thread per library
+    (the environment is also set before the spawn)."""
+    _die_with_parent(parent_pid)
     os.environ.update(THREAD_ENV_VARS)
     # Ctrl-C is the parent's to handle: it stops submitting, and the pool is torn down.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -337,8 +338,44 @@ def _worker_init() -> None:
             sys.modules["torch"].set_num_threads(1)
 
 
-def _isolated_target(conn, cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -> None:
-    _worker_init()
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent_pid: int | None) -> None:
+    """Make this worker end when the process that started it ends, however it ends (``kill -9``
+    included), so that no worker is left behind holding memory and CPU.
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; then, if the parent already died before this ran,
+    exit now. Elsewhere: a daemon thread that exits when the parent process is gone.
+    ``parent_pid`` None skips the check (a forkserver's workers are the server's children).
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
+                raise OSError(ctypes.get_errno(), "prctl failed")
+        except (OSError, AttributeError):
+            pass
+        else:
+            if parent_pid is not None and os.getppid() != parent_pid:
+                os._exit(1)  # the parent died before the death signal was armed
+            return
+    import threading
+
+    original = os.getppid() if parent_pid is None else parent_pid
+
+    def _watch() -> None:
+        while os.getppid() == original:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=_watch, name="weather-gym-parent-watch", daemon=True).start()
+
+
+def _isolated_target(conn, cell_fn: CellFn, cell: Cell, key_fields: Sequence[str], parent_pid: int | None) -> None:
+    _worker_init(parent_pid)
     conn.send(_execute(cell_fn, cell, key_fields))
     conn.close()
 
@@ -347,7 +384,8 @@ def _run_isolated(ctx, cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -
     """Run one cell alone in a fresh process; a dead process becomes a failed result naming the signal."""
     recv, send = ctx.Pipe(duplex=False)
     t0 = time.perf_counter()
-    proc = ctx.Process(target=_isolated_target, args=(send, cell_fn, cell, key_fields), daemon=True)
+    proc = ctx.Process(target=_isolated_target, args=(send, cell_fn, cell, key_fields, _parent_pid(ctx)),
+                       daemon=True)
     proc.start()
     send.close()
     result = None
@@ -413,7 +451,8 @@ def _run_process(todo: list[tuple[int, Cell]], cell_fn: CellFn, key_fields, done
     with _thread_env():
         while queue:
             suspects: list[tuple[int, Cell]] = []
-            pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init)
+            pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                          initargs=(_parent_pid(ctx),))
             try:
                 inflight: dict[cf.Future, tuple[int, Cell]] = {}
                 while queue or inflight:
@@ -453,8 +492,14 @@ def _run_process(todo: list[tuple[int, Cell]], cell_fn: CellFn, key_fields, done
                 pool.shutdown(wait=True)
 
 
+def _parent_pid(ctx) -> int | None:
+    """The pid a worker's parent has (this process), or None when a forkserver starts the workers."""
+    return None if ctx.get_start_method() == "forkserver" else os.getpid()
+
+
 def _terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
-    """Stop a pool now: cancel queued work and end its worker processes (ours, by pid)."""
+    """Stop a pool now: cancel queued work and end its worker processes (ours, by pid): SIGTERM,
+    then SIGKILL for any still alive after 5 s."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
@@ -464,6 +509,9 @@ def _terminate_pool(pool: cf.ProcessPoolExecutor) -> None:
     for p in procs:
         with contextlib.suppress(Exception):
             p.join(timeout=5)
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=5)
 
 
 def _ray_execute(cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -> tuple[str, Any, float]:
@@ -486,7 +534,7 @@ def _run_ray(todo: list[tuple[int, Cell]], cell_fn: CellFn, key_fields, done: Do
     try:
         import ray
     except ModuleNotFoundError as exc:  # pragma: no cover - depends on the install
-        raise ModuleNotFoundError(
+        raise MissingDependencyError(
             "backend 'ray' needs Ray: pip install 'weather-gym[ray]'"
         ) from exc
     started_here = False
@@ -554,7 +602,7 @@ def _exclusive(path: Path) -> Iterator[None]:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise FileExistsError(
+            raise OutputExistsError(
                 f"another run is writing results in {path.parent} (for {path.name} or a sibling); "
                 "wait for it to finish or use another output folder"
             ) from None
@@ -571,20 +619,23 @@ def _default_key_fields(cells: list[Cell]) -> tuple[str, ...]:
 
 
 def check_results_path(results_path: str | os.PathLike) -> Path:
-    """Create the results file's folder and check it is writable (``PermissionError`` if not)."""
+    """Create the results file's folder and check it is writable (:class:`OutputPathError` if not)."""
     path = Path(results_path)
-    if path.exists() and path.is_dir():
-        raise IsADirectoryError(f"results path {path} is a directory; give a file path such as {path / 'results.csv'}")
+    if path.is_dir():
+        raise OutputPathError(f"results path {path} is a folder; give a file path such as {path / 'results.csv'} "
+                              "(or move the folder away)")
+    if path.exists() and not path.is_file():
+        raise OutputPathError(f"results path {path} exists and is not a regular file")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".write-test-"):
             pass
         if path.exists() and not os.access(path, os.W_OK):
-            raise PermissionError(f"results file {path} is not writable")
-    except PermissionError as exc:
-        raise PermissionError(f"cannot write results to {path}: {exc.strerror or exc}") from None
+            raise OutputPathError(f"results file {path} is not writable")
     except OSError as exc:
-        raise PermissionError(f"cannot write results to {path}: {exc.strerror or exc}") from None
+        if isinstance(exc, OutputPathError):
+            raise
+        raise OutputPathError(f"cannot write results to {path}: {exc.strerror or exc}") from None
     return path
 
 
@@ -628,26 +679,26 @@ def run_cells(
     """
     cells = list(cells)
     if backend not in BACKENDS:
-        raise ValueError(f"unknown backend {backend!r}; valid: {', '.join(BACKENDS)}")
+        raise InputError(f"unknown backend {backend!r}; valid: {', '.join(BACKENDS)}")
     if mp_context not in ("spawn", "forkserver", "fork"):
-        raise ValueError(f"unknown mp_context {mp_context!r}; valid: spawn, forkserver, fork")
+        raise InputError(f"unknown mp_context {mp_context!r}; valid: spawn, forkserver, fork")
     workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+        raise InputError(f"workers must be >= 1, got {workers}")
     path = check_results_path(results_path)
     if not cells:
         return []
     key_fields = tuple(key_fields) if key_fields is not None else _default_key_fields(cells)
     if not key_fields:
-        raise ValueError("key_fields is empty; a cell needs at least one field that identifies it")
+        raise InputError("key_fields is empty; a cell needs at least one field that identifies it")
     clash = sorted(set(key_fields) & set(RESERVED_COLUMNS))
     if clash:
-        raise ValueError(f"cell field name(s) {', '.join(clash)} are reserved by the runner; rename them")
+        raise InputError(f"cell field name(s) {', '.join(clash)} are reserved by the runner; rename them")
     keys = [cell_key(c, key_fields) for c in cells]
     seen: dict[tuple[str, ...], int] = {}
     for i, k in enumerate(keys):
         if k in seen:
-            raise ValueError(f"cells {seen[k]} and {i} have the same key {dict(zip(key_fields, k, strict=True))}")
+            raise InputError(f"cells {seen[k]} and {i} have the same key {dict(zip(key_fields, k, strict=True))}")
         seen[k] = i
 
     if backend == "process":
@@ -703,14 +754,14 @@ def _check_picklable(cell_fn: CellFn, cell: Cell) -> None:
     try:
         pickle.dumps(cell_fn)
     except Exception as exc:  # noqa: BLE001 - pickling raises several types
-        raise ValueError(
+        raise InputError(
             f"the cell function {getattr(cell_fn, '__qualname__', cell_fn)!r} cannot be sent to worker processes "
             f"({type(exc).__name__}: {exc}); define it at module level, or use backend='serial'"
         ) from None
     try:
         pickle.dumps(cell)
     except Exception as exc:  # noqa: BLE001
-        raise ValueError(f"cell {cell!r} cannot be sent to worker processes ({type(exc).__name__}: {exc})") from None
+        raise InputError(f"cell {cell!r} cannot be sent to worker processes ({type(exc).__name__}: {exc})") from None
 
 
 def _compact(results: ResultsFile, keys: list[tuple[str, ...]]) -> None:

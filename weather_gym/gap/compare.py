@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.gap.perception import FrameMatches, perception_stats
 from weather_gym.gap.signals import SIGNALS
 
@@ -118,10 +119,10 @@ class GapMeter:
         sim = np.asarray(sim, np.float64)
         if self.did:
             if self.base is None or sim.shape != self.base.shape:
-                raise ValueError("difference in differences needs the clean simulator signals (base) of the same "
+                raise InputError("difference in differences needs the clean simulator signals (base) of the same "
                                  f"frames: base {None if self.base is None else self.base.shape}, sim {sim.shape}")
         elif self.paired and sim.shape != self.measured.shape:
-            raise ValueError(f"paired comparison needs sim signals of shape {self.measured.shape}, got {sim.shape}")
+            raise InputError(f"paired comparison needs sim signals of shape {self.measured.shape}, got {sim.shape}")
         return sim
 
     def measured_change(self) -> np.ndarray:

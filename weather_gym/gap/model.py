@@ -43,6 +43,7 @@ import numpy as np
 
 from weather_gym._io import atomic_write
 from weather_gym._toml import toml_value
+from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
 __all__ = ["CHAIN_ORDER", "read_model", "write_model", "model_tables", "insert_position", "apply_chain",
@@ -58,34 +59,34 @@ def read_model(path: str | os.PathLike) -> list[KnobEffect]:
     """Read a model file: a list of effects (empty for the clean simulator). Errors name the file and key."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"model file {path} not found")
+        raise MissingInputError(f"model file {path} not found")
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)
     except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"model file {path} is not valid TOML: {exc}") from None
+        raise FileFormatError(f"model file {path} is not valid TOML: {exc}") from None
     unknown = sorted(set(data) - {"effects"})
     if unknown:
-        raise ValueError(f"model file {path}: unknown top-level key(s) {unknown}; expected only [[effects]] tables")
+        raise FileFormatError(f"model file {path}: unknown top-level key(s) {unknown}; expected only [[effects]] tables")
     tables = data.get("effects", [])
     if not isinstance(tables, list) or not all(isinstance(t, Mapping) for t in tables):
-        raise ValueError(f"model file {path}: 'effects' must be an array of tables ([[effects]] with name and k)")
+        raise FileFormatError(f"model file {path}: 'effects' must be an array of tables ([[effects]] with name and k)")
     effects: list[KnobEffect] = []
     seen: set[str] = set()
     for i, t in enumerate(tables):
         name = t.get("name")
         if not isinstance(name, str) or name not in EFFECTS:
-            raise ValueError(f"model file {path}: effects[{i}] has name {name!r}; expected one of "
+            raise FileFormatError(f"model file {path}: effects[{i}] has name {name!r}; expected one of "
                              f"{', '.join(EFFECTS.names())}")
         if "k" not in t:
-            raise ValueError(f"model file {path}: effects[{i}] ({name}) needs 'k' (severity in [0, 1])")
+            raise FileFormatError(f"model file {path}: effects[{i}] ({name}) needs 'k' (severity in [0, 1])")
         if name in seen:
-            raise ValueError(f"model file {path}: effect {name!r} appears twice; list each effect once")
+            raise FileFormatError(f"model file {path}: effect {name!r} appears twice; list each effect once")
         seen.add(name)
         try:
             effects.append(make(name, **{k: v for k, v in t.items() if k != "name"}))
         except (ValueError, TypeError) as exc:
-            raise ValueError(f"model file {path}: effects[{i}]: {exc}") from None
+            raise FileFormatError(f"model file {path}: effects[{i}]: {exc}") from None
     return effects
 
 
@@ -103,8 +104,10 @@ def model_tables(effects: Sequence[KnobEffect]) -> list[dict[str, Any]]:
 
 
 def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
-                comments: Mapping[int, str] | None = None, header: str | None = None) -> None:
-    """Write ``effects`` as a model file; ``comments[i]`` is written above effect ``i``."""
+                comments: Mapping[int, str] | None = None, header: str | None = None, *,
+                overwrite: bool = False) -> None:
+    """Write ``effects`` as a model file; ``comments[i]`` is written above effect ``i`` (an existing
+    file only with ``overwrite``)."""
     lines = [f"# {line}" for line in (header or "").splitlines()]
     if not effects:
         lines.append("effects = []  # the clean simulator")
@@ -115,7 +118,7 @@ def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
             lines += [f"# {c}" for c in comments[i].splitlines()]
         lines.append("[[effects]]")
         lines += [f"{k} = {toml_value(v, finite=True)}" for k, v in table.items()]
-    atomic_write(path, "\n".join(lines) + "\n")
+    atomic_write(path, "\n".join(lines) + "\n", overwrite=overwrite)
 
 
 def insert_position(effects: Sequence[KnobEffect], name: str) -> int:

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym._io import atomic_write
+from weather_gym._io import atomic_write, save_figure
 
 __all__ = ["write_plots", "write_markdown", "markdown"]
 
@@ -42,7 +42,11 @@ def _ci(ci: Any, fmt: str = ".3f") -> str:
     return f" [{_f(ci[0], fmt)}, {_f(ci[1], fmt)}]"
 
 
-def write_plots(report: dict[str, Any], session: Any, out: str | os.PathLike) -> list[str]:
+PLOT_NAMES = ("gap_before_after.png", "perception.png", "disagreements.png", "frames.png")
+"""The plots :func:`write_plots` may write."""
+
+
+def write_plots(report: dict[str, Any], session: Any, out: str | os.PathLike, *, overwrite: bool = False) -> list[str]:
     """Write the plots (see module doc); returns their file names."""
     import matplotlib
 
@@ -54,8 +58,7 @@ def write_plots(report: dict[str, Any], session: Any, out: str | os.PathLike) ->
 
     def save(fig, name: str) -> None:
         fig.tight_layout()
-        fig.savefig(out / name, dpi=110, metadata={"Software": None})
-        plt.close(fig)
+        save_figure(fig, out / name, overwrite=overwrite, dpi=110)
         names.append(name)
 
     # 1. gap trajectory
@@ -321,5 +324,5 @@ def markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_markdown(report: dict[str, Any], path: str | os.PathLike) -> None:
-    atomic_write(path, markdown(report))
+def write_markdown(report: dict[str, Any], path: str | os.PathLike, *, overwrite: bool = False) -> None:
+    atomic_write(path, markdown(report), overwrite=overwrite)

@@ -54,6 +54,8 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["SIGNALS", "SIGNAL_NAMES", "FAMILIES", "Signal", "SignalMask", "signal_mask", "frame_signals",
            "signal_table", "signal_weights"]
 
@@ -348,14 +350,14 @@ def frame_signals(image: np.ndarray, depth: np.ndarray | None = None,
     """
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
-        raise ValueError(f"frame_signals: expected an RGB uint8 image (H, W, 3), got {got}")
+        raise InputError(f"frame_signals: expected an RGB uint8 image (H, W, 3), got {got}")
     h, w = image.shape[:2]
     if h < 32 or w < 32:
-        raise ValueError(f"frame_signals: image {w}x{h} is too small (at least 32x32)")
+        raise InputError(f"frame_signals: image {w}x{h} is too small (at least 32x32)")
     image = np.ascontiguousarray(image)
     sm = mask if isinstance(mask, SignalMask) or mask is None else signal_mask(mask)
     if sm is not None and sm.ignored.shape != (h, w):
-        raise ValueError(f"frame_signals: mask is {sm.ignored.shape[1]}x{sm.ignored.shape[0]}, the image {w}x{h}")
+        raise InputError(f"frame_signals: mask is {sm.ignored.shape[1]}x{sm.ignored.shape[0]}, the image {w}x{h}")
     vf, vh, vq = (None, None, None) if sm is None else (sm.full, sm.half, sm.quarter)
     y8 = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
     y = y8.astype(np.float32)

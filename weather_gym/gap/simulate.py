@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["FrameSet", "GapData", "MIN_FRAMES", "COMPARE_WIDTH", "MODES", "load_frames", "paired_check", "simulate",
            "split_indices", "frame_state", "same_views", "is_real"]
 
@@ -199,7 +201,7 @@ def load_frames(ds: Any, *, max_width: int | None = None, progress: bool = False
 
     sizes = {(int(r["width"]), int(r["height"])) for r in ds.images}
     if len(sizes) > 1:
-        raise ValueError(f"{ds.annotations_path}: frames have different sizes {sorted(sizes)}; the gap workflow "
+        raise InputError(f"{ds.annotations_path}: frames have different sizes {sorted(sizes)}; the gap workflow "
                          "needs one camera resolution")
     w0, h0 = next(iter(sizes))
     if max_width is not None and w0 > max_width:
@@ -213,7 +215,7 @@ def load_frames(ds: Any, *, max_width: int | None = None, progress: bool = False
     for i in tqdm(range(len(ds)), desc=desc, unit="frame", disable=not progress):
         img = ds.image(i)
         if img.shape[:2] != (h0, w0):
-            raise ValueError(f"{ds.image_path(i)} is {img.shape[1]}x{img.shape[0]} but its record says {w0}x{h0}")
+            raise InputError(f"{ds.image_path(i)} is {img.shape[1]}x{img.shape[0]} but its record says {w0}x{h0}")
         depth = ds.depth(i)
         gt = ds.gt(i)
         mask = gt.pop("ignore_mask", None)
@@ -288,9 +290,9 @@ def paired_check(ds: Any) -> tuple[bool, str]:
 def split_indices(n: int, *, held_out: float = 0.5, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A seeded split of ``range(n)`` into (fitting, held-out) index arrays, each sorted."""
     if not 0.0 < held_out < 1.0:
-        raise ValueError(f"held_out must be a fraction in (0, 1), got {held_out}")
+        raise InputError(f"held_out must be a fraction in (0, 1), got {held_out}")
     if n < 4:
-        raise ValueError(f"the gap workflow needs at least 4 frames, got {n}")
+        raise InputError(f"the gap workflow needs at least 4 frames, got {n}")
     perm = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5917])).permutation(n)
     n_held = min(max(int(round(n * held_out)), 2), n - 2)
     return np.sort(perm[n_held:]), np.sort(perm[:n_held])
@@ -304,7 +306,7 @@ def _camera_of(ds: Any) -> Any:
     rec = ds.images[0]
     cam = ds.camera(0)
     if (cam.width, cam.height) != (rec["width"], rec["height"]):
-        raise ValueError(f"{ds.annotations_path}: image {rec['id']} is {rec['width']}x{rec['height']} but its "
+        raise InputError(f"{ds.annotations_path}: image {rec['id']} is {rec['width']}x{rec['height']} but its "
                          f"camera record says {cam.width}x{cam.height}")
     return cam
 
@@ -332,7 +334,12 @@ def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) ->
 
     camera = _camera_of(ds)
     views = [_view_record(rec, camera, notes) for rec in ds.images]
-    key = _key({"v": _CACHE_VERSION, "views": [{k: v for k, v in view.items() if k != "id"} for view in views]})
+    for i, view in enumerate(views):  # render from the track the record names, confined to the dataset folder
+        if view.get("track") is not None:
+            view["track"] = ds.track_spec(i)
+        view["index"] = i
+    key = _key({"v": _CACHE_VERSION, "views": [{k: v for k, v in view.items() if k not in ("id", "index")}
+                                                for view in views]})
     out = cache_dir / f"paired-{key}"
     if (out / ANNOTATIONS).is_file():
         return out
@@ -344,6 +351,8 @@ def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) ->
                          initial=writer.done, total=len(views)):
             r = renderer.render(view)
             rec = {k: v for k, v in view.items() if k != "id"}
+            rec["track"] = ds.images[view["index"]].get("track")  # as the measured record names it
+            rec.pop("index")
             rec["measured_id"] = view["id"]
             writer.add(r["image"], rec, r["gt"], depth=r["depth"])
     except BaseException:
@@ -370,16 +379,16 @@ def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: in
 
 def _check_count(ds: Any, what: str) -> None:
     if len(ds) < MIN_FRAMES:
-        raise ValueError(f"{ds.root}: the gap workflow needs at least {MIN_FRAMES} {what} frames (half to fit, half "
+        raise InputError(f"{ds.root}: the gap workflow needs at least {MIN_FRAMES} {what} frames (half to fit, half "
                          f"held out), found {len(ds)}")
 
 
 def _resolve_mode(mode: str, reference: Any, can_pair: bool, why: str, ds: Any) -> tuple[str, str]:
     if mode not in MODES:
-        raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+        raise InputError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     if reference is not None:
         if mode in ("paired", "unpaired"):
-            raise ValueError(f"--reference (measured clear frames) goes with mode same-camera or did, not {mode}")
+            raise InputError(f"--reference (measured clear frames) goes with mode same-camera or did, not {mode}")
         if mode == "did":
             return "did", ("difference-in-differences: the change from the measured clear reference to the measured "
                            "frames is compared with the change the model makes to clean simulator frames; what "
@@ -389,9 +398,9 @@ def _resolve_mode(mode: str, reference: Any, can_pair: bool, why: str, ds: Any) 
                                "applied to the clear frames and compared with the measured frames; scene and camera "
                                "cancel, no simulator in the loop")
     if mode in ("same-camera", "did"):
-        raise ValueError(f"mode {mode} needs --reference CLEAR_DIR: measured clear frames of the same camera")
+        raise InputError(f"mode {mode} needs --reference CLEAR_DIR: measured clear frames of the same camera")
     if mode == "paired" and not can_pair:
-        raise ValueError(f"{ds.annotations_path}: paired mode needs 'track' and 'pose' in every image record; {why}")
+        raise InputError(f"{ds.annotations_path}: paired mode needs 'track' and 'pose' in every image record; {why}")
     use_paired = can_pair if mode == "auto" else mode == "paired"
     if mode == "unpaired" and can_pair:
         why = "unpaired mode was asked for: distributions over the whole sets are compared"
@@ -400,9 +409,9 @@ def _resolve_mode(mode: str, reference: Any, can_pair: bool, why: str, ds: Any) 
 
 def _tracks_of(ds: Any, tracks: list[str] | None) -> list[str]:
     if tracks is None:
-        tracks = sorted({str(r["track"]) for r in ds.images if r.get("track")})
+        tracks = sorted({ds.track_spec(i) for i, r in enumerate(ds.images) if r.get("track")})
     if not tracks:
-        raise ValueError(f"{ds.annotations_path}: the records name no track; the simulator needs one to render "
+        raise InputError(f"{ds.annotations_path}: the records name no track; the simulator needs one to render "
                          "(--track NAME)")
     return list(tracks)
 
@@ -450,7 +459,7 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
     if ref_ds is not None:
         ref_frames = load_frames(ref_ds, max_width=compare_width, progress=progress, desc="load reference")
         if ref_frames.size != measured_frames.size:
-            raise ValueError(f"the clear reference {ref_ds.root} has {ref_frames.original_size[0]}x"
+            raise InputError(f"the clear reference {ref_ds.root} has {ref_frames.original_size[0]}x"
                              f"{ref_frames.original_size[1]} frames but the measured {ds.root} has "
                              f"{measured_frames.original_size[0]}x{measured_frames.original_size[1]}: a reference "
                              "must come from the same camera at the same size")
@@ -503,6 +512,6 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
                 "weather or the camera, lens, scene, exposure or car - the data cannot tell them apart. Give "
                 "--reference CLEAR_DIR (measured clear frames of the same camera) to name missing weather"))
     if sim_frames_set.size != measured_frames.size:
-        raise ValueError(f"simulated frames are {sim_frames_set.size}, measured {measured_frames.size}")
+        raise InputError(f"simulated frames are {sim_frames_set.size}, measured {measured_frames.size}")
     meta.setdefault("tracks", sorted({str(r.get("track")) for r in ds.images if r.get("track")}))
     return GapData(notes=sorted(notes), meta=meta, **out)

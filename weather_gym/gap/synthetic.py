@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from pathlib import Path
 from typing import Any
 
-import cv2
-
-from weather_gym._io import atomic_write_json
+from weather_gym._io import atomic_write, atomic_write_json, check_output, resolve_inside, write_image
+from weather_gym.errors import InputError
 from weather_gym.gap.model import apply_chain
 from weather_gym.gap.simulate import frame_state
 
@@ -47,35 +45,35 @@ def degrade_dataset(src: str | os.PathLike, dst: str | os.PathLike, weather: Any
     """
     from tqdm import tqdm
 
-    from weather_gym.datasets.coco import ANNOTATIONS, load_coco
+    from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
 
-    ds = load_coco(src)
+    ds = load_coco(src)  # every file name is checked to stay inside src (record_path)
     dst = Path(dst)
-    if (dst / ANNOTATIONS).exists() and not overwrite:
-        raise FileExistsError(f"{dst / ANNOTATIONS} already exists; pass overwrite=True to replace it")
+    if dst.resolve() == Path(src).resolve():
+        raise InputError(f"{dst}: the copy must go to another folder than its source")
+    check_output(dst / ANNOTATIONS, overwrite=overwrite)
     effects = _effects(weather)
-    (dst / "images").mkdir(parents=True, exist_ok=True)
     data = json.loads((Path(src) / ANNOTATIONS).read_text())
     for i in tqdm(range(len(ds)), desc="degrade", unit="frame", disable=not progress):
         rec = ds.record(i)
         img = apply_chain(effects, ds.image(i), depth=ds.depth(i), state=frame_state(rec), seed=seed,
                           frame_id=int(rec["id"]))
-        name = str(Path(rec["file_name"]).with_suffix(".png"))  # lossless: no compression on top of the weather
+        # the same relative names (as lossless PNG: no compression on top of the weather), confined to dst
+        name = str(Path(rec["file_name"]).with_suffix(".png"))
         data["images"][i]["file_name"] = name
-        out = dst / name
-        out.parent.mkdir(parents=True, exist_ok=True)
-        if not cv2.imwrite(str(out), cv2.cvtColor(img, cv2.COLOR_RGB2BGR)):
-            raise OSError(f"could not write {out}")
+        write_image(resolve_inside(dst, name, what=f"{src}: image {rec.get('id')!r} 'file_name'"), img,
+                    overwrite=overwrite)
         for key in ("depth_file", "ignore_mask"):
             if rec.get(key):
-                (dst / rec[key]).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(Path(src) / rec[key], dst / rec[key])
+                atomic_write(record_path(dst, rec, key), record_path(src, rec, key).read_bytes(), overwrite=overwrite)
     mask = (data.get("info") or {}).get("ignore_mask")
     if mask:
-        shutil.copyfile(Path(src) / mask, dst / mask)
+        where = f"{src}: info.ignore_mask"
+        atomic_write(resolve_inside(dst, mask, what=where), resolve_inside(src, mask, what=where).read_bytes(),
+                     overwrite=overwrite)
     if strip_poses:
         for rec in data["images"]:
             for key in ("pose", "look", "seed", "episode", "step"):
                 rec.pop(key, None)
     data.setdefault("info", {})["description"] = "weather-gym frames with weather applied (degrade_dataset)"
-    return atomic_write_json(dst / ANNOTATIONS, data)
+    return atomic_write_json(dst / ANNOTATIONS, data, overwrite=overwrite)

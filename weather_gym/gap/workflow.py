@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym._io import atomic_write_json
+from weather_gym.errors import InputError
 from weather_gym.gap.compare import (
     ALPHA,
     MIN_EFFECT,
@@ -127,16 +128,22 @@ class GapConfig:
     def __post_init__(self) -> None:
         from weather_gym.weather import EFFECTS
 
+        if not 0.0 < self.held_out < 1.0:
+            raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
+        if self.mode not in ("auto", "paired", "unpaired"):
+            raise InputError(f"mode must be 'auto', 'paired' or 'unpaired', got {self.mode!r}")
+        if self.sim_frames is not None and self.sim_frames < 4:
+            raise InputError(f"sim_frames must be >= 4, got {self.sim_frames}")
         if self.fit_frames < 4:
-            raise ValueError(f"fit_frames must be >= 4, got {self.fit_frames}")
+            raise InputError(f"fit_frames must be >= 4, got {self.fit_frames}")
         if self.max_steps < 0:
-            raise ValueError(f"max_steps must be >= 0, got {self.max_steps}")
+            raise InputError(f"max_steps must be >= 0, got {self.max_steps}")
         if self.top < 1:
-            raise ValueError(f"top must be >= 1, got {self.top}")
+            raise InputError(f"top must be >= 1, got {self.top}")
         if not 0.0 < self.alpha < 1.0:
-            raise ValueError(f"alpha must be in (0, 1), got {self.alpha}")
+            raise InputError(f"alpha must be in (0, 1), got {self.alpha}")
         if self.bootstrap < 100:
-            raise ValueError(f"bootstrap must be >= 100 resamples, got {self.bootstrap}")
+            raise InputError(f"bootstrap must be >= 100 resamples, got {self.bootstrap}")
         for name in self.candidates or ():
             EFFECTS.get(name)  # unknown names: ValueError listing the valid ones
 
@@ -708,9 +715,11 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
     config = config or GapConfig()
     out = Path(out)
     t_start = time.perf_counter()
-    for name in ("report.json", "model.toml", "report.md"):
-        if (out / name).exists() and not overwrite:
-            raise FileExistsError(f"{out / name} already exists; choose another --out folder or pass --overwrite")
+    from weather_gym._io import check_output
+    from weather_gym.gap.report import PLOT_NAMES
+
+    for name in ("report.json", "model.toml", "report.md", *(PLOT_NAMES if plots else ())):
+        check_output(out / name, overwrite=overwrite)
     effects = read_model(model) if model is not None else []
     out.mkdir(parents=True, exist_ok=True)
     cache = Path(cache_dir) if cache_dir is not None else out / "cache"
@@ -741,16 +750,16 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
                            else f"re-fitted by weather-gym gap: {changed}")
     write_model(model_path, session.model, comments,
                 header=f"weather model written by `weather-gym gap` from {model if model is not None else 'the clean simulator'}\n"
-                       f"measured data: {data.meta['measured']} ({data.mode} mode)")
+                       f"measured data: {data.meta['measured']} ({data.mode} mode)", overwrite=overwrite)
     report["measured"] = str(measured)
     report["reference"] = None if reference is None else str(reference)
     report["model_input"] = None if model is None else str(model)
     report["model"] = str(model_path)
     session.timings["simulate_s"] = t_sim
-    report["plots"] = write_plots(report, session, out) if plots else []
+    report["plots"] = write_plots(report, session, out, overwrite=overwrite) if plots else []
     session.timings["total_s"] = time.perf_counter() - t_start
     report["timings"] = {k: round(v, 2) for k, v in sorted(session.timings.items())}
     report = _jsonable(report)
-    atomic_write_json(out / "report.json", report, indent=1)
-    write_markdown(report, out / "report.md")
+    atomic_write_json(out / "report.json", report, indent=1, overwrite=overwrite)
+    write_markdown(report, out / "report.md", overwrite=overwrite)
     return report

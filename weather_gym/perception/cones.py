@@ -21,6 +21,7 @@ from gymnasium import spaces
 
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError
 
 CONE_FIELDS: tuple[str, ...] = (
     *(f"is_{c}" for c in CONE_CLASSES),  # one-hot class (4)
@@ -74,7 +75,7 @@ def pack_cones(
     scores = np.asarray(scores, dtype=np.float64).reshape(n)
     boxes = np.asarray(boxes, dtype=np.float64).reshape(n, 4)
     if n and (classes.min() < 0 or classes.max() >= len(CONE_CLASSES)):
-        raise ValueError(f"cone classes must be in 0..{len(CONE_CLASSES) - 1}, got {np.unique(classes).tolist()}")
+        raise InputError(f"cone classes must be in 0..{len(CONE_CLASSES) - 1}, got {np.unique(classes).tolist()}")
     order = np.argsort(ranges, kind="stable")[:max_cones]
     k = order.shape[0]
     out = np.zeros((max_cones, len(CONE_FIELDS)), dtype=np.float32)

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError, MissingInputError
 from weather_gym.perception.preprocess import decode, letterbox
 
 __all__ = ["ConeDetector", "Detections", "DEFAULT_MODEL", "load_model_metadata"]
@@ -52,12 +53,12 @@ class Detections:
 
 
 def check_frame(image: Any, where: str) -> np.ndarray:
-    """``image`` when it is an RGB uint8 ``(H, W, 3)`` array; ValueError naming ``where`` otherwise."""
+    """``image`` when it is an RGB uint8 ``(H, W, 3)`` array; InputError naming ``where`` otherwise."""
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
-        raise ValueError(f"{where}: expected an RGB uint8 image of shape (H, W, 3), got {got}")
+        raise InputError(f"{where}: expected an RGB uint8 image of shape (H, W, 3), got {got}")
     if image.shape[0] < 1 or image.shape[1] < 1:
-        raise ValueError(f"{where}: image is empty (shape {image.shape})")
+        raise InputError(f"{where}: image is empty (shape {image.shape})")
     return image
 
 
@@ -70,9 +71,9 @@ def load_model_metadata(model_path: str | os.PathLike) -> dict[str, Any]:
         with open(side) as f:
             meta = json.load(f)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"model metadata {side} is not valid JSON: {exc}") from None
+        raise InputError(f"model metadata {side} is not valid JSON: {exc}") from None
     if not isinstance(meta, dict):
-        raise ValueError(f"model metadata {side} must be a JSON object")
+        raise InputError(f"model metadata {side} must be a JSON object")
     return meta
 
 
@@ -107,11 +108,11 @@ class ConeDetector:
         path = Path(model) if model is not None else DEFAULT_MODEL
         if not path.is_file():
             hint = "" if model is not None else " (the package was installed without its model; reinstall weather-gym)"
-            raise FileNotFoundError(f"detector model {path} not found{hint}")
+            raise MissingInputError(f"detector model {path} not found{hint}")
         if not isinstance(threads, int) or threads < 1:
-            raise ValueError(f"threads must be a positive integer, got {threads!r}")
+            raise InputError(f"threads must be a positive integer, got {threads!r}")
         if max_detections < 1:
-            raise ValueError(f"max_detections must be >= 1, got {max_detections}")
+            raise InputError(f"max_detections must be >= 1, got {max_detections}")
         self.path = path
         self.meta = load_model_metadata(path)
         opts = ort.SessionOptions()
@@ -122,35 +123,35 @@ class ConeDetector:
         try:
             self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own exception types for bad files
-            raise ValueError(f"detector model {path} could not be loaded by onnxruntime "
+            raise InputError(f"detector model {path} could not be loaded by onnxruntime "
                              f"(corrupt or not an ONNX model): {exc}") from None
         self.classes: tuple[str, ...] = tuple(self.meta.get("classes", CONE_CLASSES))
         self.stride = int(self.meta.get("stride", 4))
         inp = self.session.get_inputs()
         outs = self.session.get_outputs()
         if len(inp) != 1 or len(outs) != 1:
-            raise ValueError(f"detector model {path} must have one input and one output, "
+            raise InputError(f"detector model {path} must have one input and one output, "
                              f"got {len(inp)} inputs and {len(outs)} outputs")
         shape = inp[0].shape
         if len(shape) != 4 or shape[1] != 3 or not all(isinstance(v, int) for v in shape[2:]):
-            raise ValueError(f"detector model {path} has input shape {shape}; expected (batch, 3, H, W) with fixed H, W")
+            raise InputError(f"detector model {path} has input shape {shape}; expected (batch, 3, H, W) with fixed H, W")
         self.input_name = inp[0].name
         self.input_size: tuple[int, int] = (int(shape[3]), int(shape[2]))  # (W, H)
         want = self.meta.get("input_size")
         if want is not None and tuple(want) != self.input_size:
-            raise ValueError(f"detector model {path} has input {self.input_size[0]}x{self.input_size[1]} but its "
+            raise InputError(f"detector model {path} has input {self.input_size[0]}x{self.input_size[1]} but its "
                              f"metadata {path.with_suffix('.json')} says {want[0]}x{want[1]}")
         if self.input_size[0] % self.stride or self.input_size[1] % self.stride:
-            raise ValueError(f"detector model {path}: input size {self.input_size} is not a multiple of stride {self.stride}")
+            raise InputError(f"detector model {path}: input size {self.input_size} is not a multiple of stride {self.stride}")
         oshape = outs[0].shape
         nc = len(self.classes)
         if len(oshape) != 4 or oshape[1] != nc + 4:
-            raise ValueError(f"detector model {path} has output shape {oshape}; expected (batch, {nc + 4}, H/{self.stride}, "
+            raise InputError(f"detector model {path} has output shape {oshape}; expected (batch, {nc + 4}, H/{self.stride}, "
                              f"W/{self.stride}) for {nc} classes")
         self.batch_fixed = shape[0] if isinstance(shape[0], int) else None
         thr = score_threshold if score_threshold is not None else float(self.meta.get("score_threshold", 0.3))
         if not 0.0 <= thr <= 1.0:
-            raise ValueError(f"score_threshold must be in [0, 1], got {thr}")
+            raise InputError(f"score_threshold must be in [0, 1], got {thr}")
         self.score_threshold = float(thr)
         self.max_detections = int(max_detections)
         self.nms_iou = nms_iou
@@ -183,7 +184,7 @@ class ConeDetector:
         """Detections for each frame of a batch (list of frames or an (N, H, W, 3) array)."""
         if isinstance(images, np.ndarray):
             if images.ndim != 4:
-                raise ValueError(f"a batch must be (N, H, W, 3), got shape {images.shape}")
+                raise InputError(f"a batch must be (N, H, W, 3), got shape {images.shape}")
             images = list(images)
         frames = [self._check(im, f"frame {i}") for i, im in enumerate(images)]
         if not frames:

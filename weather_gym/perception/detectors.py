@@ -44,6 +44,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from weather_gym.errors import InputError, MissingInputError
 from weather_gym.perception.detector import Detections, check_frame
 
 __all__ = ["Detector", "DetectorBase", "CallableDetector", "DetectorSpec", "KINDS", "as_detector", "load_detector",
@@ -107,7 +108,7 @@ class CallableDetector(DetectorBase):
                                np.asarray(d["scores"], np.float32).reshape(-1),
                                np.asarray(d["classes"], np.int64).reshape(-1))
             if not isinstance(d, Detections):
-                raise ValueError(f"detector {self.name} returned {type(d).__name__}; expected Detections "
+                raise InputError(f"detector {self.name} returned {type(d).__name__}; expected Detections "
                                  "(boxes, scores, classes)")
             out.append(d.above(thr))
         return out
@@ -120,7 +121,7 @@ def as_detector(obj: Any) -> Any:
         return obj
     if callable(obj):
         return CallableDetector(obj)
-    raise ValueError(f"expected a detector (a callable frame -> Detections), got {type(obj).__name__}")
+    raise InputError(f"expected a detector (a callable frame -> Detections), got {type(obj).__name__}")
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,7 @@ class DetectorSpec:
             from weather_gym.perception.detector import ConeDetector
 
             if self.classes is not None or self.resize not in (None, "letterbox") or self.input_size is not None:
-                raise ValueError(f"detector {self}: classes, resize and input size are options of YOLO detectors; "
+                raise InputError(f"detector {self}: classes, resize and input size are options of YOLO detectors; "
                                  "the ConeNet detector has its own (from its sidecar JSON)")
             return ConeDetector(self.path, threads=threads, score_threshold=self.score_threshold)
         from weather_gym.perception.yolo import YoloDetector
@@ -176,9 +177,9 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
     if isinstance(input_size, str):
         input_size = _parse_size(input_size)
     if resize not in (None, "letterbox", "stretch"):
-        raise ValueError(f"detector resize must be 'letterbox' or 'stretch', got {resize!r}")
+        raise InputError(f"detector resize must be 'letterbox' or 'stretch', got {resize!r}")
     if score_threshold is not None and not 0.0 <= float(score_threshold) <= 1.0:
-        raise ValueError(f"detector score threshold must be in [0, 1], got {score_threshold}")
+        raise InputError(f"detector score threshold must be in [0, 1], got {score_threshold}")
     kind, path = "conenet", None
     if spec is not None:
         text = os.fspath(spec)
@@ -187,20 +188,20 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
         if sep and head_l in KINDS:
             kind, path = head_l, tail
             if not path:
-                raise ValueError(f"detector {text!r}: give the ONNX file after the colon, e.g. {head_l}:model.onnx")
+                raise InputError(f"detector {text!r}: give the ONNX file after the colon, e.g. {head_l}:model.onnx")
         elif sep and not Path(text).is_file():
-            raise ValueError(f"detector {text!r}: unknown kind {head!r}; expected conenet, conenet:PATH, yolov8:PATH, "
+            raise InputError(f"detector {text!r}: unknown kind {head!r}; expected conenet, conenet:PATH, yolov8:PATH, "
                              "yolov5:PATH, yolo:PATH or a path to a ConeNet .onnx file")
         elif not sep and head_l in KINDS:
             if head_l != "conenet":
-                raise ValueError(f"detector {text!r}: a YOLO detector needs its ONNX file, e.g. {head_l}:model.onnx")
+                raise InputError(f"detector {text!r}: a YOLO detector needs its ONNX file, e.g. {head_l}:model.onnx")
         elif text.lower().endswith(".onnx") or Path(text).is_file():
             path = text
         else:
-            raise ValueError(f"detector {text!r}: expected conenet, conenet:PATH, yolov8:PATH, yolov5:PATH, yolo:PATH "
+            raise InputError(f"detector {text!r}: expected conenet, conenet:PATH, yolov8:PATH, yolov5:PATH, yolo:PATH "
                              "or a path to a ConeNet .onnx file")
     if path is not None and not Path(path).is_file():
-        raise FileNotFoundError(f"detector model {path} not found")
+        raise MissingInputError(f"detector model {path} not found")
     return DetectorSpec(kind, path, classes, resize, tuple(input_size) if input_size else None,
                         None if score_threshold is None else float(score_threshold))
 
@@ -212,7 +213,7 @@ def _parse_size(text: str) -> tuple[int, int]:
     except ValueError:
         size = (0, 0)
     if not sep or min(size) < 1:
-        raise ValueError(f"detector input size {text!r}: expected WxH in pixels, e.g. 640x640")
+        raise InputError(f"detector input size {text!r}: expected WxH in pixels, e.g. 640x640")
     return size
 
 
@@ -222,7 +223,7 @@ def load_detector(spec: Any = None, *, classes: str | Mapping | None = None, res
     """A ready detector from a spec (see module doc), a ``DetectorSpec``, or a detector / callable (as is)."""
     if spec is not None and not isinstance(spec, str | os.PathLike | DetectorSpec):
         if classes is not None or resize is not None or input_size is not None:
-            raise ValueError("classes / resize / input size are options of a detector spec, not of a detector object")
+            raise InputError("classes / resize / input size are options of a detector spec, not of a detector object")
         return as_detector(spec)
     return parse_detector_spec(spec, classes=classes, resize=resize, input_size=input_size,
                                score_threshold=score_threshold).load(threads=threads)

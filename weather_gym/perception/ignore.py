@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["MASKED_FRACTION", "box_mask_fraction", "inside_mask", "check_mask"]
 
 MASKED_FRACTION = 0.5
@@ -28,7 +30,7 @@ def check_mask(mask: np.ndarray, size: tuple[int, int], where: str) -> np.ndarra
     m = np.asarray(mask)
     w, h = size
     if m.ndim != 2 or m.shape != (h, w):
-        raise ValueError(f"{where}: ignore mask is {_shape(m)} but the frames are {w}x{h}; "
+        raise InputError(f"{where}: ignore mask is {_shape(m)} but the frames are {w}x{h}; "
                          "a mask must have the frames' size")
     return m.astype(bool, copy=False)
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError
 
 MIN_BOX_HEIGHT_PX: float = 8.0
 """Boxes shorter than this (pixels of the default 672x376 camera image) are ``iscrowd`` / ignored."""
@@ -43,12 +44,12 @@ def input_scale(image_size: tuple[int, int], input_size: tuple[int, int], resize
     aspect ratio; ``stretch``: each axis on its own)."""
     (w, h), (iw, ih) = image_size, input_size
     if min(w, h, iw, ih) <= 0:
-        raise ValueError(f"image size {image_size} and input size {input_size} must be positive")
+        raise InputError(f"image size {image_size} and input size {input_size} must be positive")
     if resize == "letterbox":
         return min(iw / w, ih / h)
     if resize == "stretch":
         return ih / h
-    raise ValueError(f"resize must be 'letterbox' or 'stretch', got {resize!r}")
+    raise InputError(f"resize must be 'letterbox' or 'stretch', got {resize!r}")
 
 
 @dataclass(frozen=True)
@@ -109,19 +110,19 @@ def parse_class_map(spec: str | Mapping[str, str] | None) -> dict[str, str]:
                 continue
             src, eq, dst = part.partition("=")
             if not eq or not src.strip() or not dst.strip():
-                raise ValueError(f"class map entry {part!r}: expected SOURCE=TARGET (e.g. blue_cone=blue, 0=yellow, "
+                raise InputError(f"class map entry {part!r}: expected SOURCE=TARGET (e.g. blue_cone=blue, 0=yellow, "
                                  "unknown_cone=ignore)")
             items.append((src.strip(), dst.strip()))
     out: dict[str, str] = {}
     valid = (*CONE_CLASSES, IGNORE)
     for src, dst in items:
         if dst not in valid:
-            raise ValueError(f"class map entry {src}={dst}: target {dst!r} is not one of {', '.join(valid)}")
+            raise InputError(f"class map entry {src}={dst}: target {dst!r} is not one of {', '.join(valid)}")
         if src in out:
-            raise ValueError(f"class map: source class {src!r} is mapped twice")
+            raise InputError(f"class map: source class {src!r} is mapped twice")
         out[str(src)] = dst
     if not out:
-        raise ValueError("the class map is empty; give SOURCE=TARGET pairs (e.g. blue_cone=blue)")
+        raise InputError("the class map is empty; give SOURCE=TARGET pairs (e.g. blue_cone=blue)")
     return out
 
 

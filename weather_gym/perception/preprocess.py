@@ -40,11 +40,16 @@ class Letterbox:
         return b
 
 
+def _fitted(width: int, height: int, scale: float) -> tuple[int, int]:
+    """The scaled size, at least one pixel each way (a 1 x 5000 strip still has a row)."""
+    return max(1, int(round(width * scale))), max(1, int(round(height * scale)))
+
+
 def letterbox_params(width: int, height: int, input_size: tuple[int, int]) -> Letterbox:
     """Scale to fit ``input_size`` (W, H) keeping the aspect ratio, centred."""
     iw, ih = input_size
     scale = min(iw / width, ih / height)
-    nw, nh = int(round(width * scale)), int(round(height * scale))
+    nw, nh = _fitted(width, height, scale)
     return Letterbox(scale=scale, pad=((iw - nw) // 2, (ih - nh) // 2), original_size=(int(width), int(height)))
 
 
@@ -53,7 +58,7 @@ def letterbox(image: np.ndarray, input_size: tuple[int, int]) -> tuple[np.ndarra
     h, w = image.shape[:2]
     lb = letterbox_params(w, h, input_size)
     iw, ih = input_size
-    nw, nh = int(round(w * lb.scale)), int(round(h * lb.scale))
+    nw, nh = _fitted(w, h, lb.scale)
     if (nw, nh) == (iw, ih):
         return (image if (w, h) == (iw, ih) else cv2.resize(image, (nw, nh), interpolation=cv2.INTER_LINEAR)), lb
     out = np.full((ih, iw, 3), PAD_VALUE, dtype=np.uint8)

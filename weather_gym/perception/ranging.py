@@ -40,6 +40,7 @@ import numpy as np
 
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, pack_cones
 
 __all__ = ["detections_to_cones", "cones_to_observation", "range_from_depth", "range_from_box_height"]
@@ -105,14 +106,14 @@ def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray
     classes = np.asarray(d["classes"], dtype=np.int64).reshape(n)
     scores = np.asarray(d["scores"], dtype=np.float64).reshape(n)
     if n and (classes.min() < 0 or classes.max() >= len(CONE_CLASSES)):
-        raise ValueError(f"detection classes must be in 0..{len(CONE_CLASSES) - 1}, got {np.unique(classes).tolist()}")
+        raise InputError(f"detection classes must be in 0..{len(CONE_CLASSES) - 1}, got {np.unique(classes).tolist()}")
     bearings = np.asarray(camera.bearing((boxes[:, 0] + boxes[:, 2]) / 2), dtype=np.float64).reshape(n) if n else np.zeros(0)
     ranges = np.full(n, np.nan)
     source = np.full(n, "height", dtype=object)
     if depth is not None and n:
         depth = np.asarray(depth)
         if depth.ndim != 2:
-            raise ValueError(f"depth must be an (H, W) array of metres, got shape {depth.shape}")
+            raise InputError(f"depth must be an (H, W) array of metres, got shape {depth.shape}")
         ranges = range_from_depth(boxes, classes, depth, camera)
         source[np.isfinite(ranges)] = "depth"
         source[ranges == camera.far] = "far"

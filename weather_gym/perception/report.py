@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._io import save_figure, write_image
 from weather_gym.perception.draw import draw_detections
 
 STUDY_CLEAN_MAP = 0.715
@@ -39,7 +40,8 @@ def sweep_map_vs_k(dataset, detector, ks: Sequence[float], effects: Sequence[str
     return out
 
 
-def plot_map_vs_k(sweep: dict[str, list[dict[str, Any]]], out: str | os.PathLike, title: str = "") -> Path:
+def plot_map_vs_k(sweep: dict[str, list[dict[str, Any]]], out: str | os.PathLike, title: str = "", *,
+                  overwrite: bool = False) -> Path:
     """Plot the sweep, relative to clean, with the study's relative drops at its two points."""
     import matplotlib
 
@@ -64,14 +66,12 @@ def plot_map_vs_k(sweep: dict[str, list[dict[str, Any]]], out: str | os.PathLike
     if title:
         ax.set_title(title, fontsize=9)
     fig.tight_layout()
-    out = Path(out)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out, overwrite=overwrite)
 
 
 def detections_figure(image: np.ndarray, detector, out: str | os.PathLike, *, depth: np.ndarray | None = None,
-                      state: dict | None = None, seed: int = 0, captions: dict[str, str] | None = None) -> Path:
+                      state: dict | None = None, seed: int = 0, captions: dict[str, str] | None = None,
+                      overwrite: bool = False) -> Path:
     """Three panels of one frame with detected boxes: clean | droplets k=0.55 | dim k=0.78."""
     import cv2
 
@@ -93,7 +93,4 @@ def detections_figure(image: np.ndarray, detector, out: str | os.PathLike, *, de
         cv2.putText(pic, label, (4, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
         panels.append(pic)
     grid = np.concatenate(panels, axis=1)
-    out = Path(out)
-    if not cv2.imwrite(str(out), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR)):
-        raise ValueError(f"could not write {out}")
-    return out
+    return write_image(out, grid, overwrite=overwrite)

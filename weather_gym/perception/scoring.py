@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, SmallRule, tiny_mask, xyxy_to_xywh
 
 __all__ = ["EvalResult", "evaluate", "score_dataset", "small_rule", "coco_lists", "coco_eval", "DEFAULT_RANGE_BINS"]
@@ -111,10 +112,10 @@ def _as_arrays(d: Any, keys: Sequence[str], where: str) -> dict[str, np.ndarray]
     if hasattr(d, "to_dict") and not isinstance(d, dict):
         d = d.to_dict()
     if not isinstance(d, dict):
-        raise ValueError(f"{where}: expected a dict of arrays or Detections, got {type(d).__name__}")
+        raise InputError(f"{where}: expected a dict of arrays or Detections, got {type(d).__name__}")
     missing = [k for k in keys if k not in d]
     if missing:
-        raise ValueError(f"{where}: missing key(s) {missing}; expected {list(keys)}")
+        raise InputError(f"{where}: missing key(s) {missing}; expected {list(keys)}")
     return d
 
 
@@ -143,7 +144,7 @@ def coco_lists(frames: Sequence[Any], detections: Sequence[Any], *,
     from weather_gym.perception.ignore import inside_mask
 
     if len(frames) != len(detections):
-        raise ValueError(f"got {len(frames)} ground-truth frames but {len(detections)} detection lists")
+        raise InputError(f"got {len(frames)} ground-truth frames but {len(detections)} detection lists")
     images, gt_anns, dt_anns = [], [], []
     for i, (g, d) in enumerate(zip(frames, detections, strict=True)):
         g = _as_arrays(g, ("boxes", "classes"), f"ground truth of frame {i}")

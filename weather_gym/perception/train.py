@@ -28,7 +28,9 @@ import cv2
 import numpy as np
 import torch
 
+from weather_gym._io import atomic_path, atomic_write_json, check_output
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import FileFormatError, InputError
 from weather_gym.perception.model import NUM_CLASSES, STRIDE, ConeNet, ConeNetExport
 from weather_gym.perception.preprocess import PAD_VALUE, letterbox_params
 
@@ -64,13 +66,13 @@ class TrainConfig:
     def __post_init__(self) -> None:
         w, h = self.input_size
         if w % 32 or h % 32:
-            raise ValueError(f"input_size must be multiples of 32, got {self.input_size}")
+            raise InputError(f"input_size must be multiples of 32, got {self.input_size}")
         if self.crop_size is not None:
             cw, ch = self.crop_size
             if cw % 32 or ch % 32 or cw > w or ch > h:
-                raise ValueError(f"crop_size must be multiples of 32 within input_size {self.input_size}, got {self.crop_size}")
+                raise InputError(f"crop_size must be multiples of 32 within input_size {self.input_size}, got {self.crop_size}")
         if self.epochs < 1 or self.batch_size < 1:
-            raise ValueError("epochs and batch_size must be >= 1")
+            raise InputError("epochs and batch_size must be >= 1")
 
 
 # ----------------------------------------------------------------------------------- samples
@@ -248,22 +250,27 @@ def count_flops(net: ConeNet, input_size: tuple[int, int]) -> int:
     return int(fc.get_total_flops())
 
 
-def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, int], meta: dict | None = None) -> Path:
-    """Export ``net`` (with sigmoid + peak filter) to ONNX with a dynamic batch, plus its JSON sidecar."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    w, h = input_size
-    model = ConeNetExport(net.eval()).eval()
-    tmp = path.with_name(path.name + ".tmp")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        torch.onnx.export(model, torch.zeros(1, 3, h, w), str(tmp), input_names=["images"], output_names=["output"],
-                          dynamic_axes={"images": {0: "batch"}, "output": {0: "batch"}}, opset_version=17,
-                          dynamo=False)
+def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, int], meta: dict | None = None, *,
+                overwrite: bool = False) -> Path:
+    """Export ``net`` (with sigmoid + peak filter) to ONNX with a dynamic batch, plus its JSON sidecar.
+
+    Both files are written safely (``weather_gym._io``); existing ones only with ``overwrite``.
+    """
     import onnx
 
-    onnx.checker.check_model(str(tmp))
-    os.replace(tmp, path)
+    path = Path(path)
+    sidecar_path = path.with_suffix(".json")
+    for p in (path, sidecar_path):
+        check_output(p, overwrite=overwrite, what="model file")
+    w, h = input_size
+    model = ConeNetExport(net.eval()).eval()
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            torch.onnx.export(model, torch.zeros(1, 3, h, w), str(tmp), input_names=["images"],
+                              output_names=["output"], dynamic_axes={"images": {0: "batch"}, "output": {0: "batch"}},
+                              opset_version=17, dynamo=False)
+        onnx.checker.check_model(str(tmp))
     sidecar = {
         "format": "weather-gym cone detector v1",
         "architecture": "ConeNet (CenterNet-style, stride 4)",
@@ -276,8 +283,7 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
         "flops": count_flops(net, input_size),
         **(meta or {}),
     }
-    with open(path.with_suffix(".json"), "w") as f:
-        json.dump(sidecar, f, indent=2)
+    atomic_write_json(sidecar_path, sidecar, indent=2, overwrite=overwrite)
     return path
 
 
@@ -311,28 +317,32 @@ def train_detector(
     *,
     val: str | os.PathLike | None = None,
     resume: bool = True,
+    overwrite: bool = False,
     progress: bool = True,
     log=print,
 ) -> dict[str, Any]:
     """Train on the COCO folders ``data`` and write ``out`` (ONNX) + its sidecar; returns a summary.
 
     A checkpoint ``<out>.ckpt`` is written after every epoch; when it exists (and ``resume``),
-    training continues from it. It is removed once the ONNX file is written.
+    training continues from it. It is removed once the ONNX file is written. An existing ``out``
+    (or its sidecar) is refused before training unless ``overwrite``.
     """
     from tqdm import tqdm
 
     from weather_gym.datasets.coco import load_coco
 
     if not data:
-        raise ValueError("no training data given")
+        raise InputError("no training data given")
     out = Path(out)
+    check_output(out, overwrite=overwrite, suffixes=(".onnx",), what="model file")
+    check_output(out.with_suffix(".json"), overwrite=overwrite, what="model sidecar")
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     train_sets = [load_coco(d) for d in data]
     val_set = load_coco(val) if val is not None else None
     frames = _Frames(train_sets, cfg, train=True)
     if len(frames) == 0:
-        raise ValueError(f"the training data {', '.join(map(str, data))} has no images")
+        raise InputError(f"the training data {', '.join(map(str, data))} has no images")
     net = ConeNet().to(memory_format=torch.channels_last)  # much faster convolutions on CPU
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     steps_per_epoch = math.ceil(float(frames.repeat.sum()) / cfg.batch_size)
@@ -347,9 +357,13 @@ def train_detector(
     ckpt = out.with_name(out.name + ".ckpt")
     start_epoch, step, history, elapsed = 0, 0, [], 0.0
     if resume and ckpt.is_file():
-        state = torch.load(ckpt, map_location="cpu", weights_only=False)
+        try:  # tensors and plain values only: a checkpoint cannot run code when it is loaded
+            state = torch.load(ckpt, map_location="cpu", weights_only=True)
+        except Exception as exc:  # noqa: BLE001 - torch raises several types for a bad file
+            raise FileFormatError(f"checkpoint {ckpt} cannot be read ({type(exc).__name__}); delete it to start "
+                                  "again") from None
         if state.get("config") != asdict(cfg) or state.get("data") != [str(d) for d in data]:
-            raise ValueError(f"checkpoint {ckpt} was made with other settings or data; delete it to start again")
+            raise InputError(f"checkpoint {ckpt} was made with other settings or data; delete it to start again")
         net.load_state_dict(state["model"])
         opt.load_state_dict(state["optim"])
         start_epoch, step, history, elapsed = state["epoch"], state["step"], state["history"], state["elapsed"]
@@ -388,11 +402,10 @@ def train_detector(
         if val_set is not None and ((epoch + 1) % 5 == 0 or epoch + 1 == cfg.epochs or step >= total_steps):
             entry["val_map50"] = _eval_map(net, val_set, cfg)
         history.append(entry)
-        tmp = ckpt.with_name(ckpt.name + ".tmp")
-        torch.save({"model": net.state_dict(), "optim": opt.state_dict(), "epoch": epoch + 1, "step": step,
-                    "history": history, "elapsed": time.perf_counter() - t_start, "config": asdict(cfg),
-                    "data": [str(d) for d in data]}, tmp)
-        os.replace(tmp, ckpt)
+        with atomic_path(ckpt, overwrite=True) as tmp:  # the run's own checkpoint, replaced every epoch
+            torch.save({"model": net.state_dict(), "optim": opt.state_dict(), "epoch": epoch + 1, "step": step,
+                        "history": history, "elapsed": time.perf_counter() - t_start, "config": asdict(cfg),
+                        "data": [str(d) for d in data]}, tmp)
         log(json.dumps(entry))
     train_time = time.perf_counter() - t_start
     meta = {
@@ -410,6 +423,6 @@ def train_detector(
             "history": history,
         },
     }
-    export_onnx(net.to(memory_format=torch.contiguous_format), out, cfg.input_size, meta)
+    export_onnx(net.to(memory_format=torch.contiguous_format), out, cfg.input_size, meta, overwrite=overwrite)
     ckpt.unlink(missing_ok=True)
     return {"model": str(out), "steps": step, "train_time_s": train_time, "history": history}

@@ -42,6 +42,7 @@ import cv2
 import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception.detector import Detections
 from weather_gym.perception.detectors import DetectorBase, check_frame
 from weather_gym.perception.preprocess import letterbox
@@ -59,7 +60,7 @@ def resolve_class_map(classes: str | Mapping[str, str] | None, nc: int | None, n
 
     if classes is None:
         if not names:
-            raise ValueError(f"detector {where}: the export names no classes; give a class map "
+            raise InputError(f"detector {where}: the export names no classes; give a class map "
                              "(--detector-classes 0=blue,1=yellow,2=orange,3=big_orange)")
         classes = DEFAULT_CLASSES
     cmap = parse_class_map(classes)
@@ -74,12 +75,12 @@ def resolve_class_map(classes: str | Mapping[str, str] | None, nc: int | None, n
         elif target != IGNORE:
             out[i] = CONE_CLASSES.index(target)
     if missing:
-        raise ValueError(f"detector {where}: output class(es) {', '.join(missing)} are not in the class map "
+        raise InputError(f"detector {where}: output class(es) {', '.join(missing)} are not in the class map "
                          f"({', '.join(f'{k}={v}' for k, v in cmap.items())}); map every class to a cone class or "
                          "to 'ignore' ('*=ignore' drops every class not named)")
     bad = [k for k in cmap if k.isdigit() and int(k) >= n]
     if bad:
-        raise ValueError(f"detector {where}: class map names output index {bad[0]} but the export has {n} classes")
+        raise InputError(f"detector {where}: class map names output index {bad[0]} but the export has {n} classes")
     return out
 
 
@@ -125,11 +126,11 @@ class YoloDetector(DetectorBase):
 
         path = Path(model)
         if not path.is_file():
-            raise FileNotFoundError(f"detector model {path} not found")
+            raise MissingInputError(f"detector model {path} not found")
         if layout not in LAYOUTS:
-            raise ValueError(f"YOLO layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+            raise InputError(f"YOLO layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
         if resize not in ("letterbox", "stretch"):
-            raise ValueError(f"resize must be 'letterbox' or 'stretch', got {resize!r}")
+            raise InputError(f"resize must be 'letterbox' or 'stretch', got {resize!r}")
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = int(threads)
         opts.inter_op_num_threads = 1
@@ -137,28 +138,28 @@ class YoloDetector(DetectorBase):
         try:
             self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
         except Exception as exc:
-            raise ValueError(f"detector model {path} could not be loaded by onnxruntime (corrupt or not an ONNX "
+            raise FileFormatError(f"detector model {path} could not be loaded by onnxruntime (corrupt or not an ONNX "
                              f"model): {exc}") from None
         self.path, self.resize, self.threads = path, resize, int(threads)
         self.name = f"yolo:{path.name}"
         self.nms_iou, self.max_detections = float(nms_iou), int(max_detections)
         self.score_threshold = 0.25 if score_threshold is None else float(score_threshold)
         if not 0.0 <= self.score_threshold <= 1.0:
-            raise ValueError(f"score_threshold must be in [0, 1], got {self.score_threshold}")
+            raise InputError(f"score_threshold must be in [0, 1], got {self.score_threshold}")
         inputs = self.session.get_inputs()
         if len(inputs) != 1 or len(inputs[0].shape) != 4:
-            raise ValueError(f"detector model {path} must have one image input (batch, 3, H, W), got "
+            raise FileFormatError(f"detector model {path} must have one image input (batch, 3, H, W), got "
                              f"{[(i.name, i.shape) for i in inputs]}")
         shape = inputs[0].shape
         if shape[1] not in (3, "3") and isinstance(shape[1], int):
-            raise ValueError(f"detector model {path} has input shape {shape}; expected (batch, 3, H, W)")
+            raise FileFormatError(f"detector model {path} has input shape {shape}; expected (batch, 3, H, W)")
         meta = _metadata(self.session)
         self.input_name = inputs[0].name
         self.input_dtype = np.float16 if "float16" in inputs[0].type else np.float32
         if isinstance(shape[2], int) and isinstance(shape[3], int):
             fixed = (int(shape[3]), int(shape[2]))
             if input_size is not None and tuple(input_size) != fixed:
-                raise ValueError(f"detector model {path} has a fixed {fixed[0]}x{fixed[1]} input, not "
+                raise InputError(f"detector model {path} has a fixed {fixed[0]}x{fixed[1]} input, not "
                                  f"{input_size[0]}x{input_size[1]}")
             self.input_size = fixed
         elif input_size is not None:
@@ -168,7 +169,7 @@ class YoloDetector(DetectorBase):
             sz = [sz, sz] if isinstance(sz, int) else list(sz)
             self.input_size = (int(sz[-1]), int(sz[0]))
         else:
-            raise ValueError(f"detector model {path} has a dynamic input size {shape}; give one "
+            raise InputError(f"detector model {path} has a dynamic input size {shape}; give one "
                              "(input_size=(W, H), --detector-input 640x640)")
         self.batch_fixed = shape[0] if isinstance(shape[0], int) else None
         self.names = meta.get("names")
@@ -203,13 +204,13 @@ class YoloDetector(DetectorBase):
         try:
             outs = self._run(np.zeros((1, 3, h, w), self.input_dtype))
         except Exception as exc:
-            raise ValueError(f"detector model {self.path} failed on a {w}x{h} input: {exc}") from None
+            raise FileFormatError(f"detector model {self.path} failed on a {w}x{h} input: {exc}") from None
         shapes = [tuple(o.shape) for o in outs]
         nc_hint = len(self.names) if self.names else _map_size(classes)
         expected = ("(1, N, 5+nc) YOLOv5, (1, 4+nc, N) YOLOv8/v11, (1, K, 6) [x1 y1 x2 y2 score class] or "
                     "(K, 7) [batch x1 y1 x2 y2 class score] with NMS in the graph, or the four outputs num_dets, "
                     "boxes, scores, classes")
-        fail = ValueError(f"detector model {self.path}: outputs {shapes} match no YOLO layout"
+        fail = FileFormatError(f"detector model {self.path}: outputs {shapes} match no YOLO layout"
                           f"{f' for {nc_hint} class(es)' if nc_hint else ''}; expected {expected}")
         if len(outs) == 4 and [len(s) for s in shapes][1:] == [3, 2, 2]:
             if layout not in ("auto", "nms"):
@@ -247,7 +248,7 @@ class YoloDetector(DetectorBase):
         self._nms_form = "six"
         nc = {"v8": a - 4, "v5": c - 5, "nms": None}[chosen]
         if nc is not None and nc_hint is not None and nc != nc_hint and self.names:
-            raise ValueError(f"detector model {self.path}: output {s} has {nc} classes but its metadata names "
+            raise FileFormatError(f"detector model {self.path}: output {s} has {nc} classes but its metadata names "
                              f"{len(self.names)}")
         return chosen, nc
 
@@ -308,7 +309,7 @@ class YoloDetector(DetectorBase):
         """Detections for each frame of a batch (list of frames or an (N, H, W, 3) array)."""
         if isinstance(images, np.ndarray):
             if images.ndim != 4:
-                raise ValueError(f"a batch must be (N, H, W, 3), got shape {images.shape}")
+                raise InputError(f"a batch must be (N, H, W, 3), got shape {images.shape}")
             images = list(images)
         frames = [check_frame(im, f"frame {i}") for i, im in enumerate(images)]
         if not frames:
@@ -320,7 +321,7 @@ class YoloDetector(DetectorBase):
         for i, (im, (sx, sy, px, py)) in enumerate(zip(frames, maps)):
             boxes, scores, cls = self._decode(outs, i, thr)
             if len(cls) and (cls.min() < 0 or cls.max() >= len(self.class_map)):
-                raise ValueError(f"detector {self.path} reported class {int(cls.max())}, outside the "
+                raise InputError(f"detector {self.path} reported class {int(cls.max())}, outside the "
                                  f"{len(self.class_map)} classes of its class map")
             target = self.class_map[cls] if len(cls) else np.zeros(0, np.int64)
             ok = target >= 0

@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 
+from weather_gym.errors import InputError
+
 RENDERERS = ("auto", "egl", "tiny")
 
 
@@ -25,7 +27,7 @@ def _check_finite_positive(obj, names: tuple[str, ...], allow_zero: bool = False
         ok = ok and (v >= 0 if allow_zero else v > 0)
         if not ok:
             kind = "a finite number >= 0" if allow_zero else "a finite number > 0"
-            raise ValueError(f"{type(obj).__name__}.{name} must be {kind}, got {v!r}")
+            raise InputError(f"{type(obj).__name__}.{name} must be {kind}, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -52,10 +54,10 @@ class SimConfig:
     def __post_init__(self) -> None:
         _check_finite_positive(self, ("physics_hz", "control_hz", "cone_mass", "gravity"))
         if self.renderer not in RENDERERS:
-            raise ValueError(f"SimConfig.renderer must be one of {RENDERERS}, got {self.renderer!r}")
+            raise InputError(f"SimConfig.renderer must be one of {RENDERERS}, got {self.renderer!r}")
         ratio = self.physics_hz / self.control_hz
         if ratio < 1 or abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(
+            raise InputError(
                 f"SimConfig.physics_hz ({self.physics_hz}) must be an integer multiple of control_hz ({self.control_hz})"
             )
 
@@ -99,9 +101,9 @@ class CarConfig:
         _check_finite_positive(self, tuple(f.name for f in fields(self) if f.name not in ("drag", "rolling_resistance")))
         _check_finite_positive(self, ("drag", "rolling_resistance"), allow_zero=True)
         if not 0 < self.cg_to_rear < self.wheelbase:
-            raise ValueError(f"CarConfig.cg_to_rear must lie inside the wheelbase (0, {self.wheelbase}), got {self.cg_to_rear}")
+            raise InputError(f"CarConfig.cg_to_rear must lie inside the wheelbase (0, {self.wheelbase}), got {self.cg_to_rear}")
         if self.max_steer >= math.pi / 2:
-            raise ValueError(f"CarConfig.max_steer must be below pi/2 rad, got {self.max_steer}")
+            raise InputError(f"CarConfig.max_steer must be below pi/2 rad, got {self.max_steer}")
 
     @property
     def cg_to_front(self) -> float:

@@ -18,6 +18,8 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from weather_gym.errors import InputError
+
 RGB = tuple[float, float, float]
 
 
@@ -47,11 +49,11 @@ class Look:
         for f in fields(self):
             flat = np.asarray(getattr(self, f.name), dtype=np.float64).ravel()
             if not np.all(np.isfinite(flat)):
-                raise ValueError(f"look.{f.name} must be finite, got {getattr(self, f.name)!r}")
+                raise InputError(f"look.{f.name} must be finite, got {getattr(self, f.name)!r}")
         if np.linalg.norm(self.light_direction) == 0:
-            raise ValueError("look.light_direction must not be the zero vector")
+            raise InputError("look.light_direction must not be the zero vector")
         if len(self.cone_shade) != 4:
-            raise ValueError(f"look.cone_shade needs one RGB multiplier per cone class (4), got {len(self.cone_shade)}")
+            raise InputError(f"look.cone_shade needs one RGB multiplier per cone class (4), got {len(self.cone_shade)}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -62,7 +64,7 @@ class Look:
         known = {f.name for f in fields(cls)}
         unknown = set(d) - known
         if unknown:
-            raise ValueError(f"unknown look keys {sorted(unknown)}; valid keys: {sorted(known)}")
+            raise InputError(f"unknown look keys {sorted(unknown)}; valid keys: {sorted(known)}")
         conv = {}
         for k, v in d.items():
             if k == "cone_shade":

@@ -27,6 +27,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from weather_gym._io import atomic_write
+
 __all__ = ["mesh_file", "mesh_dir"]
 
 _dir: Path | None = None
@@ -49,9 +51,7 @@ def _remove_mesh_dir() -> None:
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    atomic_write(path, data, overwrite=True)  # content-named: a file already there holds the same bytes
 
 
 def mesh_file(stem: str, obj_text: str, texture_rgb: np.ndarray | None = None) -> Path:

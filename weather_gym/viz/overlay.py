@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD
 from weather_gym.perception.draw import BOX_RGB, draw_detections
 
@@ -54,7 +55,7 @@ class TopDownView:
     def __init__(self, bounds: Sequence[float], size: int = 200, margin: float = 3.0) -> None:
         xmin, xmax, ymin, ymax = (float(v) for v in bounds)
         if not (xmax > xmin and ymax > ymin) or not all(map(math.isfinite, (xmin, xmax, ymin, ymax))):
-            raise ValueError(f"TopDownView bounds must be finite (xmin < xmax, ymin < ymax), got {tuple(bounds)}")
+            raise InputError(f"TopDownView bounds must be finite (xmin < xmax, ymin < ymax), got {tuple(bounds)}")
         xmin, xmax, ymin, ymax = xmin - margin, xmax + margin, ymin - margin, ymax + margin
         self.scale = (size - 1) / max(xmax - xmin, ymax - ymin)
         self.width = max(int(round((xmax - xmin) * self.scale)) + 1, 8)
@@ -65,7 +66,7 @@ class TopDownView:
     def around(cls, points: np.ndarray, size: int = 200, margin: float = 3.0) -> TopDownView:
         p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         if not len(p):
-            raise ValueError("TopDownView.around needs at least one point")
+            raise InputError("TopDownView.around needs at least one point")
         lo, hi = p.min(axis=0), p.max(axis=0)
         hi = np.maximum(hi, lo + 1.0)
         return cls((lo[0], hi[0], lo[1], hi[1]), size=size, margin=margin)

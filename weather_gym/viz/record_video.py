@@ -31,6 +31,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.viz.video import VideoWriter
 
 __all__ = ["RecordVideo"]
@@ -56,13 +57,13 @@ class RecordVideo(gym.Wrapper):
                  name_prefix: str = "rl-video", fps: float | None = None, overwrite: bool = False) -> None:
         super().__init__(env)
         if env.render_mode != "rgb_array":
-            raise ValueError(f"RecordVideo needs render_mode='rgb_array' (frames as arrays), got {env.render_mode!r}")
+            raise InputError(f"RecordVideo needs render_mode='rgb_array' (frames as arrays), got {env.render_mode!r}")
         if episode_trigger is None and step_trigger is None:
             from gymnasium.utils.save_video import capped_cubic_video_schedule
 
             episode_trigger = capped_cubic_video_schedule
         if isinstance(video_length, bool) or not isinstance(video_length, int) or video_length < 0:
-            raise ValueError(f"RecordVideo: video_length must be an integer >= 0 (0 = whole episodes), got {video_length!r}")
+            raise InputError(f"RecordVideo: video_length must be an integer >= 0 (0 = whole episodes), got {video_length!r}")
         self.episode_trigger, self.step_trigger = episode_trigger, step_trigger
         self.video_folder = Path(video_folder)
         self.video_folder.mkdir(parents=True, exist_ok=True)
@@ -97,7 +98,7 @@ class RecordVideo(gym.Wrapper):
             frame = frame[-1] if frame else None
         if not isinstance(frame, np.ndarray):
             self.stop_recording()
-            raise ValueError(f"RecordVideo: env.render() returned {type(frame).__name__}, expected an RGB array")
+            raise InputError(f"RecordVideo: env.render() returned {type(frame).__name__}, expected an RGB array")
         assert self._writer is not None
         self._writer.write(frame)
         if self._writer.frames >= self.video_length:

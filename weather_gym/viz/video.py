@@ -4,8 +4,9 @@ Videos are H.264 (``yuv420p``, ``+faststart``: browsers and notebooks play them)
 (``av``, a runtime dependency). Without PyAV, or when its FFmpeg has no H.264 encoder, the writer
 falls back to OpenCV's MPEG-4 Part 2 (``mp4v``) with a warning. Frames go to a hidden temporary
 file beside the target, renamed into place by ``close()``: an interrupted run never leaves a
-half-written video under the real name. Nothing a user wrote is overwritten unless they say so
-(``overwrite=True``).
+half-written video under the real name (the temporary file is made and moved by
+``weather_gym._io``: an unpredictable name, ``O_EXCL``, fsync, one rename). Nothing a user wrote is
+overwritten unless they say so (``overwrite=True``).
 
 Example:
     >>> import numpy as np, tempfile, pathlib
@@ -21,6 +22,7 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import warnings
@@ -31,6 +33,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from weather_gym._io import atomic_path, check_output, write_image
+from weather_gym.errors import InputError, MissingDependencyError, OutputPathError
+
 __all__ = ["check_output_path", "h264_available", "VideoWriter", "FrameSampler", "save_strip"]
 
 H264_OPTIONS = {"crf": "23", "preset": "veryfast", "movflags": "+faststart"}
@@ -38,16 +43,8 @@ H264_OPTIONS = {"crf": "23", "preset": "veryfast", "movflags": "+faststart"}
 
 
 def check_output_path(path: str | os.PathLike, *, overwrite: bool = False, suffixes: Sequence[str] = ()) -> Path:
-    """``path`` as a Path, after checking its suffix, that its folder exists and that it is not
-    about to overwrite a file (unless ``overwrite``)."""
-    p = Path(path)
-    if suffixes and p.suffix.lower() not in suffixes:
-        raise ValueError(f"{p}: expected a file ending in {' or '.join(suffixes)}")
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} already exists; pass --overwrite to replace it")
-    if not p.parent.is_dir():
-        raise FileNotFoundError(f"folder {p.parent} does not exist (for {p})")
-    return p
+    """``path`` as a Path, after :func:`weather_gym._io.check_output` (suffix, no overwrite unless asked)."""
+    return check_output(path, overwrite=overwrite, suffixes=suffixes)
 
 
 def h264_available() -> bool:
@@ -100,7 +97,7 @@ class _Mp4vStream:
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
         self._writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
         if not self._writer.isOpened():
-            raise OSError(f"OpenCV could not open {path} for writing (mp4v codec)")
+            raise OutputPathError(f"OpenCV could not open {path} for writing (mp4v codec)")
 
     def write(self, rgb: np.ndarray) -> None:
         self._writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
@@ -119,10 +116,11 @@ class VideoWriter:
     def __init__(self, path: str | os.PathLike, fps: float = 30.0, *, overwrite: bool = False,
                  codec: str = "auto") -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
-            raise ValueError(f"video fps must be a finite number > 0, got {fps!r}")
+            raise InputError(f"video fps must be a finite number > 0, got {fps!r}")
         if codec not in ("auto", "h264", "mp4v"):
-            raise ValueError(f"video codec must be 'auto', 'h264' or 'mp4v', got {codec!r}")
+            raise InputError(f"video codec must be 'auto', 'h264' or 'mp4v', got {codec!r}")
         self.path = check_output_path(path, overwrite=overwrite, suffixes=(".mp4",))
+        self.overwrite = overwrite
         self.fps = float(fps)
         if codec == "auto":
             codec = "h264" if h264_available() else "mp4v"
@@ -131,9 +129,9 @@ class VideoWriter:
                               f"{self.path} as MPEG-4 Part 2, which browsers may not play", RuntimeWarning,
                               stacklevel=2)
         elif codec == "h264" and not h264_available():
-            raise RuntimeError("H.264 video needs PyAV with libx264: pip install av")
+            raise MissingDependencyError("H.264 video needs PyAV with libx264: pip install av")
         self.codec = codec
-        self._tmp = self.path.with_name(f".{self.path.stem}.{os.getpid()}.partial.mp4")
+        self._output: contextlib.AbstractContextManager[Path] | None = None
         self._stream: _AvStream | _Mp4vStream | None = None
         self._size: tuple[int, int] | None = None
         self.frames = 0
@@ -141,14 +139,21 @@ class VideoWriter:
     def write(self, frame: np.ndarray) -> None:
         f = np.asarray(frame)
         if f.dtype != np.uint8 or f.ndim != 3 or f.shape[2] != 3:
-            raise ValueError(f"video frames must be RGB uint8 (H, W, 3), got {f.dtype} {f.shape}")
+            raise InputError(f"video frames must be RGB uint8 (H, W, 3), got {f.dtype} {f.shape}")
         size = (f.shape[1], f.shape[0])
         if self._stream is None:
             cls = _AvStream if self.codec == "h264" else _Mp4vStream
-            self._stream = cls(self._tmp, self.fps, size)
+            self._output = atomic_path(self.path, overwrite=self.overwrite)
+            tmp = self._output.__enter__()
+            try:
+                self._stream = cls(tmp, self.fps, size)
+            except BaseException as exc:
+                output, self._output = self._output, None
+                output.__exit__(type(exc), exc, exc.__traceback__)
+                raise
             self._size = size
         elif size != self._size:
-            raise ValueError(f"video frame size changed from {self._size} to {size}")
+            raise InputError(f"video frame size changed from {self._size} to {size}")
         self._stream.write(f)
         self.frames += 1
 
@@ -156,26 +161,33 @@ class VideoWriter:
         """Finish the file and move it to ``path`` (nothing is written when no frame was)."""
         if self._stream is not None:
             stream, self._stream = self._stream, None
+            output, self._output = self._output, None
             try:
                 stream.close()
-                os.replace(self._tmp, self.path)
-            finally:
-                self._tmp.unlink(missing_ok=True)
+            except BaseException as exc:
+                output.__exit__(type(exc), exc, exc.__traceback__)
+                raise
+            output.__exit__(None, None, None)
 
     def abort(self) -> None:
         """Drop the partial file; ``path`` is left as it was."""
         if self._stream is not None:
             stream, self._stream = self._stream, None
+            output, self._output = self._output, None
             try:
                 stream.close()
             finally:
-                self._tmp.unlink(missing_ok=True)
+                output.__exit__(_Discarded, _Discarded(), None)
 
     def __enter__(self) -> VideoWriter:
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()  # a run that stopped early still leaves a playable video of what it recorded
+
+
+class _Discarded(Exception):
+    """Thrown into the temporary output of an aborted video so that it is removed."""
 
 
 class FrameSampler:
@@ -187,7 +199,7 @@ class FrameSampler:
 
     def __init__(self, n: int) -> None:
         if not (isinstance(n, int) and n >= 1):
-            raise ValueError(f"number of strip frames must be an integer >= 1, got {n!r}")
+            raise InputError(f"number of strip frames must be an integer >= 1, got {n!r}")
         self.n = n
         self.stride = 1
         self._count = 0
@@ -213,16 +225,14 @@ def save_strip(frames: Sequence[np.ndarray], path: str | os.PathLike, *, columns
     """Write the frames (RGB uint8, one size) as a PNG grid (``columns`` wide, default up to 4)."""
     p = check_output_path(path, overwrite=overwrite, suffixes=(".png",))
     if not len(frames):
-        raise ValueError("save_strip: no frames to write")
+        raise InputError("save_strip: no frames to write")
     h, w = frames[0].shape[:2]
     cols = columns or min(len(frames), 4)
     rows = math.ceil(len(frames) / cols)
     grid = np.full((rows * h + (rows - 1) * 2, cols * w + (cols - 1) * 2, 3), 255, np.uint8)
     for k, f in enumerate(frames):
         if f.shape[:2] != (h, w):
-            raise ValueError(f"save_strip: frame {k} is {f.shape[:2]}, expected {(h, w)}")
+            raise InputError(f"save_strip: frame {k} is {f.shape[:2]}, expected {(h, w)}")
         r, c = divmod(k, cols)
         grid[r * (h + 2) : r * (h + 2) + h, c * (w + 2) : c * (w + 2) + w] = f
-    if not cv2.imwrite(str(p), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR)):
-        raise OSError(f"could not write {p}")
-    return p
+    return write_image(p, grid, overwrite=overwrite)

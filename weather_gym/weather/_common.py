@@ -19,6 +19,8 @@ from statistics import NormalDist
 import cv2
 import numpy as np
 
+from weather_gym.errors import InputError
+
 #: Horizontal field of view assumed when neither the state nor the effect gives a focal length.
 DEFAULT_HFOV_DEG = 90.0
 
@@ -232,7 +234,7 @@ def depth_min(depth: np.ndarray, who: str) -> float:
     """The smallest depth, after checking that all are finite metres >= 0 (two reductions)."""
     lo, hi = float(depth.min()), float(depth.max())  # NaN fails both tests
     if not (lo >= 0 and hi < math.inf):
-        raise ValueError(f"{who}: depth must be finite metres >= 0 (got NaN, inf or negative values)")
+        raise InputError(f"{who}: depth must be finite metres >= 0 (got NaN, inf or negative values)")
     return lo
 
 

@@ -39,7 +39,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["DEFAULT_SEED", "STATE_KEYS", "Effect", "KnobEffect", "check_image", "check_depth"]
+from weather_gym.errors import InputError, LimitError
+from weather_gym.limits import check_image_size
+
+__all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "Effect", "KnobEffect", "check_image", "check_depth"]
 
 #: Seed of the episode generator of an effect whose ``reset`` was never called.
 DEFAULT_SEED = 20220607
@@ -47,21 +50,31 @@ DEFAULT_SEED = 20220607
 #: Keys of the vehicle ``state`` mapping that effects read (others are ignored).
 STATE_KEYS = ("speed", "yaw_rate", "exposure_s", "fx", "binning")
 
+#: Physical range of each state value (checked up front: a yaw rate of 1e8 rad/s would otherwise
+#: ask for a blur kernel millions of pixels wide).
+STATE_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "speed": (-150.0, 150.0, "m/s"),
+    "yaw_rate": (-20.0, 20.0, "rad/s"),
+    "exposure_s": (0.0, 1.0, "s"),
+    "fx": (1.0, 1e7, "px"),
+}
+
 SeedLike = int | np.random.SeedSequence | None
 
 
 def check_image(image: Any, who: str) -> tuple[np.ndarray, bool]:
     """Validate an image or batch; returns ``(C-contiguous uint8 array, is_batch)``."""
     if not isinstance(image, np.ndarray):
-        raise ValueError(f"{who}: expected a numpy uint8 array of shape (H, W, 3) or (N, H, W, 3), "
+        raise InputError(f"{who}: expected a numpy uint8 array of shape (H, W, 3) or (N, H, W, 3), "
                          f"got {type(image).__name__}")
     if image.dtype != np.uint8:
-        raise ValueError(f"{who}: expected dtype uint8 (0-255 RGB), got {image.dtype}")
+        raise InputError(f"{who}: expected dtype uint8 (0-255 RGB), got {image.dtype}")
     if image.ndim not in (3, 4) or image.shape[-1] != 3:
-        raise ValueError(f"{who}: expected shape (H, W, 3) or (N, H, W, 3) with 3 RGB channels, "
+        raise InputError(f"{who}: expected shape (H, W, 3) or (N, H, W, 3) with 3 RGB channels, "
                          f"got shape {image.shape}")
     if min(image.shape[:-1]) < 1:
-        raise ValueError(f"{who}: expected H, W (and N) >= 1, got shape {image.shape}")
+        raise InputError(f"{who}: expected H, W (and N) >= 1, got shape {image.shape}")
+    check_image_size(image.shape[-3:], what=who, min_side=1)
     return np.ascontiguousarray(image), image.ndim == 4
 
 
@@ -72,9 +85,9 @@ def check_depth(depth: Any, image_shape: tuple[int, ...], who: str) -> np.ndarra
     expected = tuple(image_shape[:-1])
     if not isinstance(depth, np.ndarray) or not np.issubdtype(depth.dtype, np.floating):
         got = depth.dtype if isinstance(depth, np.ndarray) else type(depth).__name__
-        raise ValueError(f"{who}: depth must be a float array of metres with shape {expected}, got {got}")
+        raise InputError(f"{who}: depth must be a float array of metres with shape {expected}, got {got}")
     if depth.shape != expected:
-        raise ValueError(f"{who}: depth must have shape {expected} matching the image, got {depth.shape}")
+        raise InputError(f"{who}: depth must have shape {expected} matching the image, got {depth.shape}")
     return np.ascontiguousarray(depth, dtype=np.float32)
 
 
@@ -82,7 +95,7 @@ def _check_state_one(state: Any, who: str) -> dict[str, float]:
     if state is None:
         return {}
     if not isinstance(state, Mapping):
-        raise ValueError(f"{who}: state must be a mapping with optional keys {', '.join(STATE_KEYS)}, "
+        raise InputError(f"{who}: state must be a mapping with optional keys {', '.join(STATE_KEYS)}, "
                          f"got {type(state).__name__}")
     out: dict[str, float] = {}
     for key in STATE_KEYS:
@@ -91,14 +104,18 @@ def _check_state_one(state: Any, who: str) -> dict[str, float]:
             try:
                 f = float(v)
             except (TypeError, ValueError):
-                raise ValueError(f"{who}: state[{key!r}] must be a number, got {v!r}") from None
+                raise InputError(f"{who}: state[{key!r}] must be a number, got {v!r}") from None
             if not math.isfinite(f):
-                raise ValueError(f"{who}: state[{key!r}] must be finite, got {v!r}")
+                raise InputError(f"{who}: state[{key!r}] must be finite, got {v!r}")
             out[key] = f
     if "fx" in out and out["fx"] <= 0:
-        raise ValueError(f"{who}: state['fx'] must be a positive focal length in pixels, got {out['fx']}")
+        raise InputError(f"{who}: state['fx'] must be a positive focal length in pixels, got {out['fx']}")
     if "exposure_s" in out and out["exposure_s"] < 0:
-        raise ValueError(f"{who}: state['exposure_s'] must be >= 0, got {out['exposure_s']}")
+        raise InputError(f"{who}: state['exposure_s'] must be >= 0, got {out['exposure_s']}")
+    for key, (lo, hi, unit) in STATE_BOUNDS.items():
+        if key in out and not lo <= out[key] <= hi:
+            raise LimitError(f"{who}: state[{key!r}] = {out[key]:g} is outside its physical range "
+                             f"[{lo:g}, {hi:g}] {unit}")
     return out
 
 
@@ -111,16 +128,16 @@ def check_state(state: Any, n: int | None, who: str) -> list[dict[str, float]] |
         return [one] * n
     if isinstance(state, Sequence) and not isinstance(state, str | bytes):
         if len(state) != n:
-            raise ValueError(f"{who}: a batch of {n} frames needs one state mapping or {n}, got {len(state)}")
+            raise InputError(f"{who}: a batch of {n} frames needs one state mapping or {n}, got {len(state)}")
         return [_check_state_one(s, who) for s in state]
-    raise ValueError(f"{who}: state must be a mapping (or a sequence of mappings for a batch), "
+    raise InputError(f"{who}: state must be a mapping (or a sequence of mappings for a batch), "
                      f"got {type(state).__name__}")
 
 
 def check_rng(rng: Any, who: str) -> np.random.Generator | None:
     if rng is None or isinstance(rng, np.random.Generator):
         return rng
-    raise ValueError(f"{who}: rng must be a numpy.random.Generator or None, got {type(rng).__name__}")
+    raise InputError(f"{who}: rng must be a numpy.random.Generator or None, got {type(rng).__name__}")
 
 
 def check_seed(seed: Any, who: str) -> np.random.SeedSequence:
@@ -131,7 +148,7 @@ def check_seed(seed: Any, who: str) -> np.random.SeedSequence:
         return seed
     if isinstance(seed, numbers.Integral) and not isinstance(seed, bool) and int(seed) >= 0:
         return np.random.SeedSequence(int(seed))
-    raise ValueError(f"{who}: seed must be a non-negative int, a numpy SeedSequence or None, got {seed!r}")
+    raise InputError(f"{who}: seed must be a non-negative int, a numpy SeedSequence or None, got {seed!r}")
 
 
 class Effect:
@@ -238,23 +255,23 @@ class KnobEffect(Effect):
             if f.name in self.CHOICES:
                 allowed = self.CHOICES[f.name]
                 if v not in allowed:
-                    raise ValueError(f"{who}: parameter {f.name}={v!r} must be one of {', '.join(allowed)}")
+                    raise InputError(f"{who}: parameter {f.name}={v!r} must be one of {', '.join(allowed)}")
             elif ftype == "bool":
                 if not isinstance(v, bool | np.bool_):
-                    raise ValueError(f"{who}: parameter {f.name}={v!r} must be true or false")
+                    raise InputError(f"{who}: parameter {f.name}={v!r} must be true or false")
                 object.__setattr__(self, f.name, bool(v))
             elif ftype in ("float", "int"):
                 lo, hi = self.bounds_of(f.name)
                 if not _is_real(v) or not math.isfinite(float(v)):
-                    raise ValueError(f"{who}: parameter {f.name}={v!r} must be a finite number in [{lo}, {hi}]")
+                    raise InputError(f"{who}: parameter {f.name}={v!r} must be a finite number in [{lo}, {hi}]")
                 if ftype == "int":
                     if float(v) != int(v):
-                        raise ValueError(f"{who}: parameter {f.name}={v!r} must be an integer in [{lo}, {hi}]")
+                        raise InputError(f"{who}: parameter {f.name}={v!r} must be an integer in [{lo}, {hi}]")
                     v = int(v)
                 else:
                     v = float(v)
                 if not lo <= v <= hi:
-                    raise ValueError(f"{who}: parameter {f.name}={v!r} is outside [{lo}, {hi}]")
+                    raise InputError(f"{who}: parameter {f.name}={v!r} is outside [{lo}, {hi}]")
                 object.__setattr__(self, f.name, v)
             else:  # pragma: no cover - a programming error in an effect definition
                 raise TypeError(f"{who}: parameter {f.name} has unsupported type {ftype}")

@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.weather.base import Effect, SeedLike, check_seed
 
 __all__ = ["Compose"]
@@ -36,7 +37,7 @@ class Compose(Effect):
         effects = tuple(effects)
         for i, e in enumerate(effects):
             if not isinstance(e, Effect):
-                raise ValueError(f"compose: item {i} must be a weather effect, got {type(e).__name__}")
+                raise InputError(f"compose: item {i} must be a weather effect, got {type(e).__name__}")
         object.__setattr__(self, "effects", effects)
         object.__setattr__(self, "_rng", None)
 

@@ -19,6 +19,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
+from weather_gym.errors import LimitError
 from weather_gym.weather._common import (
     DEFAULT_HFOV_DEG,
     depth_min,
@@ -100,6 +101,11 @@ def _fallback_weights(key: tuple, who: str) -> tuple[np.ndarray, np.ndarray]:
     return wts
 
 
+MAX_SMEAR_WIDTHS = 4
+"""Longest yaw smear, in frame widths (beyond that the frame is one uniform streak, and the box filter's
+cost grows with its length)."""
+
+
 def motion_smear(img: np.ndarray, depth: np.ndarray | None, state: dict[str, float], exposure_s: float, *,
                  speed_mps: float, yaw_rate_rps: float, hfov_deg: float, camera_height_m: float,
                  horizon_frac: float, near_depth_m: float, far_m: float, who: str,
@@ -116,6 +122,10 @@ def motion_smear(img: np.ndarray, depth: np.ndarray | None, state: dict[str, flo
     scale = speed * exposure_s / near_depth_m
     zoom = scale * 0.5 * math.hypot(w, h) >= 1.0
     length = fx * yaw * exposure_s
+    if length > MAX_SMEAR_WIDTHS * w:
+        raise LimitError(f"{who}: the yaw smear would be {length:.3g} px (fx {fx:.4g} px x yaw rate {yaw:.3g} rad/s "
+                         f"x exposure {exposure_s:.3g} s) on a {w} px wide frame; at most {MAX_SMEAR_WIDTHS} frame "
+                         "widths are supported")
     n = int(round(length)) if length >= 1.5 else 0
     src = img
     if zoom:

@@ -13,6 +13,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["rms_contrast", "ssim"]
 
 
@@ -23,7 +25,7 @@ def _gray(img: np.ndarray) -> np.ndarray:
 def ssim(clean: np.ndarray, degraded: np.ndarray, sigma: float = 1.5) -> float:
     """Mean structural similarity (Wang et al. 2004) of the luma of two uint8 RGB images."""
     if clean.shape != degraded.shape:
-        raise ValueError(f"ssim: shapes differ: {clean.shape} vs {degraded.shape}")
+        raise InputError(f"ssim: shapes differ: {clean.shape} vs {degraded.shape}")
     x, y = _gray(clean), _gray(degraded)
     c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
 

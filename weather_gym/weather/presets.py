@@ -33,6 +33,8 @@ import numbers
 from pathlib import Path
 from typing import Any
 
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
+
 try:
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
@@ -59,13 +61,13 @@ def canonical_condition(condition: str) -> str:
         c = ALIASES.get(condition, condition)
         if c in CONDITIONS:
             return c
-    raise ValueError(f"unknown weather condition {condition!r}; valid conditions: {', '.join(CONDITIONS)} "
+    raise InputError(f"unknown weather condition {condition!r}; valid conditions: {', '.join(CONDITIONS)} "
                      f"(aliases: {', '.join(f'{a}={c}' for a, c in ALIASES.items() if a != c)})")
 
 
 def _check_severity(severity: Any) -> int:
     if isinstance(severity, bool) or not isinstance(severity, numbers.Integral) or int(severity) not in SEVERITIES:
-        raise ValueError(f"invalid severity {severity!r}; valid severities: {', '.join(map(str, SEVERITIES))}")
+        raise InputError(f"invalid severity {severity!r}; valid severities: {', '.join(map(str, SEVERITIES))}")
     return int(severity)
 
 
@@ -74,40 +76,40 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
 
     tables = data.get("presets")
     if not isinstance(tables, list):
-        raise ValueError(f"{path}: expected [[presets]] tables")
+        raise FileFormatError(f"{path}: expected [[presets]] tables")
     default_calibrated = data.get("calibrated", False)
     if not isinstance(default_calibrated, bool):
-        raise ValueError(f"{path}: 'calibrated' must be true or false")
+        raise FileFormatError(f"{path}: 'calibrated' must be true or false")
     out: dict[str, dict[int, dict[str, Any]]] = {c: {} for c in CONDITIONS}
     for i, t in enumerate(tables):
         where = f"{path}: [[presets]] #{i + 1}"
         if not isinstance(t, dict):
-            raise ValueError(f"{where}: expected a table")
+            raise FileFormatError(f"{where}: expected a table")
         for key in ("condition", "severity", "effects"):
             if key not in t:
-                raise ValueError(f"{where}: missing key {key!r}")
+                raise FileFormatError(f"{where}: missing key {key!r}")
         try:
             cond = canonical_condition(t["condition"])
             sev = _check_severity(t["severity"])
             if not isinstance(t["effects"], list):
-                raise ValueError(f"effects must be a list of {{name, k, ...}} tables, got {t['effects']!r}")
+                raise FileFormatError(f"effects must be a list of {{name, k, ...}} tables, got {t['effects']!r}")
             parse_weather(t["effects"])
         except ValueError as exc:
-            raise ValueError(f"{where}: {exc}") from None
+            raise FileFormatError(f"{where}: {exc}") from None
         if sev in out[cond]:
-            raise ValueError(f"{where}: {cond} severity {sev} appears twice")
+            raise FileFormatError(f"{where}: {cond} severity {sev} appears twice")
         t = dict(t)
         t.setdefault("calibrated", default_calibrated)
         if not isinstance(t["calibrated"], bool):
-            raise ValueError(f"{where}: 'calibrated' must be true or false, got {t['calibrated']!r}")
+            raise FileFormatError(f"{where}: 'calibrated' must be true or false, got {t['calibrated']!r}")
         out[cond][sev] = t
     out = {c: sevs for c, sevs in out.items() if sevs}
     for cond, sevs in out.items():
         missing = [s for s in SEVERITIES if s not in sevs]
         if missing:
-            raise ValueError(f"{path}: condition {cond!r} has no preset for severity {missing}")
+            raise FileFormatError(f"{path}: condition {cond!r} has no preset for severity {missing}")
     if not out:
-        raise ValueError(f"{path}: no [[presets]] tables")
+        raise FileFormatError(f"{path}: no [[presets]] tables")
     meta = {k: v for k, v in data.items() if k not in ("presets", "calibrated")}
     calibrated = tuple(c for c, sevs in out.items() if all(t["calibrated"] for t in sevs.values()))
     return {**meta, "calibrated": bool(calibrated), "calibrated_conditions": calibrated, "presets": out}
@@ -122,14 +124,14 @@ def load_presets(path: str | Path | None = None) -> dict[str, Any]:
     """
     p = Path(path) if path is not None else DEFAULT_PRESETS
     if not p.is_file():
-        raise FileNotFoundError(f"presets file {p} not found")
+        raise MissingInputError(f"presets file {p} not found")
     key = (str(p.resolve()), p.stat().st_mtime_ns)
     if key not in _CACHE:
         try:
             with p.open("rb") as f:
                 data = tomllib.load(f)
         except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{p}: not valid TOML: {exc}") from None
+            raise FileFormatError(f"{p}: not valid TOML: {exc}") from None
         _CACHE[key] = _validate(data, p)
     return copy.deepcopy(_CACHE[key])
 
@@ -139,7 +141,7 @@ def preset_entry(condition: str, severity: int, path: str | Path | None = None) 
     cond, sev = canonical_condition(condition), _check_severity(severity)
     table = load_presets(path)["presets"]
     if cond not in table:
-        raise ValueError(f"presets file {path or DEFAULT_PRESETS} has no rows for condition {cond!r} "
+        raise InputError(f"presets file {path or DEFAULT_PRESETS} has no rows for condition {cond!r} "
                          f"(it has: {', '.join(table)})")
     return table[cond][sev]
 

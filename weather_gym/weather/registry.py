@@ -9,13 +9,14 @@ Example:
     >>> make("snow")
     Traceback (most recent call last):
     ...
-    ValueError: unknown weather effect 'snow'; valid names: blur, dim, droplets, exposure, fog, glare, jpeg, motion_blur, noise, rain, vignette
+    weather_gym.errors.InputError: unknown weather effect 'snow'; valid names: blur, dim, droplets, exposure, fog, glare, jpeg, motion_blur, noise, rain, vignette
 """
 
 from __future__ import annotations
 
 from typing import Any, TypeVar
 
+from weather_gym.errors import InputError
 from weather_gym.registry import Registry
 from weather_gym.weather.base import KnobEffect
 
@@ -41,6 +42,6 @@ def make(name: str, k: float = 0.0, **params: Any) -> KnobEffect:
     valid = [p for p in cls.param_names() if p != "k"]
     unknown = sorted(set(params) - set(valid))
     if unknown:
-        raise ValueError(f"{name}: unknown parameter(s) {', '.join(map(repr, unknown))}; "
+        raise InputError(f"{name}: unknown parameter(s) {', '.join(map(repr, unknown))}; "
                          f"valid parameters: k, {', '.join(valid)}")
     return cls(k=k, **params)

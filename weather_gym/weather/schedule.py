@@ -23,6 +23,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.weather.base import Effect, KnobEffect, SeedLike
 from weather_gym.weather.registry import make
 
@@ -46,11 +47,11 @@ class Ramp(Effect):
                  **params: Any) -> None:
         for key, v in (("k_start", k_start), ("k_end", k_end)):
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (0.0 <= float(v) <= 1.0):
-                raise ValueError(f"ramp: {key}={v!r} must be a number in [0, 1]")
+                raise InputError(f"ramp: {key}={v!r} must be a number in [0, 1]")
         if isinstance(steps, bool) or not isinstance(steps, numbers.Integral) or steps < 1:
-            raise ValueError(f"ramp: steps={steps!r} must be an integer >= 1 (frames)")
+            raise InputError(f"ramp: steps={steps!r} must be an integer >= 1 (frames)")
         if "k" in params:
-            raise ValueError("ramp: give k_start and k_end, not k")
+            raise InputError("ramp: give k_start and k_end, not k")
         make(effect, k=float(k_start), **params)  # validates the effect name and its parameters
         object.__setattr__(self, "effect", effect)
         object.__setattr__(self, "k_start", float(k_start))

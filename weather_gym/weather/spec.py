@@ -2,10 +2,12 @@
 
 ``parse_weather`` accepts
 
-* ``None``, ``"clear"``, ``""``, ``{}``, ``[]``: no weather (an empty :class:`Compose`);
+* ``None``, ``"clear"``, ``"none"``, ``{}``, ``[]``: no weather (an empty :class:`Compose`); an empty or
+  blank string is an error (usually a variable that expanded to nothing), not silently clear;
 * an effect, a :class:`Compose` or a :class:`Ramp`: returned as is;
 * ``{"droplets": 0.55, "dim": 0.3}`` (name -> k) or ``{"droplets": {"k": 0.55, "persistent": True}}``;
-* ``"droplets:0.55,dim:0.3"``;
+* ``"droplets:0.55,dim:0.3"``, with parameters ``"dim:0.5:mode=physical"`` (``NAME:K:PARAM=VALUE:...``,
+  values read as JSON, else as text);
 * presets ``"droplets@3"``, ``"low_light@2"``, ``("low_light", 2)`` (see :mod:`.presets`);
 * the list of effect tables of model files, ``[{"name": "dim", "k": 0.6, ...}]`` (a TOML
   ``[[effects]]`` array), where ``{"name": "ramp", "effect": "dim", "k_start": ..., ...}`` is a ramp;
@@ -31,6 +33,7 @@ import numbers
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from weather_gym.errors import InputError
 from weather_gym.weather.base import Effect, KnobEffect
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.presets import preset_spec
@@ -39,7 +42,7 @@ from weather_gym.weather.schedule import Ramp
 
 __all__ = ["current_spec", "parse_weather", "to_spec"]
 
-_CLEAR = ("", "clear", "none")
+_CLEAR = ("clear", "none")
 
 
 def _number(v: Any) -> bool:
@@ -49,29 +52,29 @@ def _number(v: Any) -> bool:
 def _from_table(table: Mapping[str, Any]) -> Effect:
     name = table.get("name")
     if not isinstance(name, str):
-        raise ValueError(f"weather table {dict(table)!r} needs a 'name' (one of {', '.join(EFFECTS.names())}, ramp)")
+        raise InputError(f"weather table {dict(table)!r} needs a 'name' (one of {', '.join(EFFECTS.names())}, ramp)")
     rest = {k: v for k, v in table.items() if k != "name"}
     if name == "ramp":
         if "effect" not in rest:
-            raise ValueError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
+            raise InputError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
         return Ramp(**rest)
     if name == "compose":
         return Compose([_from_table(t) for t in rest.get("effects", [])])
     if "k" not in rest:
-        raise ValueError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
+        raise InputError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
     return make(name, **rest)
 
 
 def _from_item(name: Any, value: Any) -> Effect:
     if not isinstance(name, str):
-        raise ValueError(f"weather spec key {name!r} must be an effect name")
+        raise InputError(f"weather spec key {name!r} must be an effect name")
     if _number(value):
         return make(name, k=value)
     if isinstance(value, Mapping):
         if "k" not in value:
-            raise ValueError(f"weather spec {name!r}: parameters {dict(value)!r} need 'k'")
+            raise InputError(f"weather spec {name!r}: parameters {dict(value)!r} need 'k'")
         return make(name, **value)
-    raise ValueError(f"weather spec {name!r}: expected k (a number in [0, 1]) or a table of parameters, "
+    raise InputError(f"weather spec {name!r}: expected k (a number in [0, 1]) or a table of parameters, "
                      f"got {value!r}")
 
 
@@ -79,7 +82,18 @@ def _preset(condition: Any, severity: Any) -> list[Effect]:
     return [_from_table(t) for t in preset_spec(condition, severity)]
 
 
+def _param_value(text: str) -> Any:
+    import json
+
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
 def _from_string(text: str) -> list[Effect]:
+    if not text.strip():
+        raise InputError("empty weather spec; write 'clear' for no weather, or e.g. 'droplets:0.55' or 'low_light@2'")
     if text.strip().lower() in _CLEAR:
         return []
     out: list[Effect] = []
@@ -90,17 +104,25 @@ def _from_string(text: str) -> list[Effect]:
             try:
                 severity = int(sev)
             except ValueError:
-                raise ValueError(f"weather spec item {item!r}: severity {sev!r} must be an integer 0-4") from None
+                raise InputError(f"weather spec item {item!r}: severity {sev!r} must be an integer 0-4") from None
             out += _preset(cond.strip(), severity)
         elif ":" in item:
-            name, _, k = item.partition(":")
+            name, k, *params = (p.strip() for p in item.split(":"))
             try:
                 kv = float(k)
             except ValueError:
-                raise ValueError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1]") from None
-            out.append(make(name.strip(), k=kv))
+                raise InputError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1] "
+                                 "(the form is NAME:K or NAME:K:PARAM=VALUE:...)") from None
+            kwargs: dict[str, Any] = {}
+            for p in params:
+                key, sep, value = p.partition("=")
+                if not sep or not key.strip():
+                    raise InputError(f"weather spec item {item!r}: parameter {p!r} must be PARAM=VALUE "
+                                     "(the form is NAME:K:PARAM=VALUE:..., e.g. dim:0.5:mode=physical)")
+                kwargs[key.strip()] = _param_value(value.strip())
+            out.append(make(name, k=kv, **kwargs))
         else:
-            raise ValueError(f"weather spec item {item!r} must be NAME:K (e.g. droplets:0.55) or "
+            raise InputError(f"weather spec item {item!r} must be NAME:K (e.g. droplets:0.55) or "
                              f"CONDITION@SEVERITY (e.g. droplets@3), or 'clear'")
     return out
 
@@ -126,7 +148,7 @@ def _effects(spec: Any) -> list[Effect]:
         for item in spec:
             out += _effects(item)
         return out
-    raise ValueError(f"cannot read weather spec {spec!r}: expected None, 'clear', an effect, "
+    raise InputError(f"cannot read weather spec {spec!r}: expected None, 'clear', an effect, "
                      f"{{name: k}}, 'name:k,...', 'condition@severity' or a list of {{name, k, ...}} tables")
 
 
@@ -144,7 +166,7 @@ def to_spec(effect: Effect) -> list[dict[str, Any]]:
         return [t for e in effect.effects for t in to_spec(e)]
     if isinstance(effect, KnobEffect | Ramp):
         return [{"name": effect.name, **effect.params()}]
-    raise ValueError(f"cannot write {type(effect).__name__} as a weather spec")
+    raise InputError(f"cannot write {type(effect).__name__} as a weather spec")
 
 
 def current_spec(effect: Effect) -> list[dict[str, Any]]:

@@ -37,6 +37,7 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.camera import CameraConfig
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
 from weather_gym.perception.ranging import cones_to_observation, detections_to_cones
 
@@ -83,11 +84,11 @@ class DetectorWrapper(gym.ObservationWrapper):
         from weather_gym.perception.detectors import DetectorSpec, as_detector, load_detector
 
         if not isinstance(max_cones, int) or max_cones < 1:
-            raise ValueError(f"DetectorWrapper: max_cones must be a positive integer, got {max_cones!r}")
+            raise InputError(f"DetectorWrapper: max_cones must be a positive integer, got {max_cones!r}")
         space = env.observation_space
         if isinstance(space, spaces.Dict):
             if image_key not in space.spaces:
-                raise ValueError(f"DetectorWrapper: observation Dict has no image key {image_key!r} "
+                raise InputError(f"DetectorWrapper: observation Dict has no image key {image_key!r} "
                                  f"(keys: {', '.join(space.spaces)}); pass image_key=...")
             image_space = space[image_key]
             self._is_dict = True
@@ -96,7 +97,7 @@ class DetectorWrapper(gym.ObservationWrapper):
             self._is_dict = False
         if not (isinstance(image_space, spaces.Box) and image_space.dtype == np.uint8 and len(image_space.shape) == 3
                 and image_space.shape[2] == 3):
-            raise ValueError(f"DetectorWrapper: the image observation must be Box(0, 255, (H, W, 3), uint8), got {image_space}")
+            raise InputError(f"DetectorWrapper: the image observation must be Box(0, 255, (H, W, 3), uint8), got {image_space}")
         h, w = image_space.shape[:2]
         if camera is None:
             cfg = getattr(getattr(env, "unwrapped", env), "config", None)
@@ -104,7 +105,7 @@ class DetectorWrapper(gym.ObservationWrapper):
             if not isinstance(camera, CameraConfig):
                 camera = CameraConfig().scaled(w, h)
         if (camera.width, camera.height) != (w, h):
-            raise ValueError(f"DetectorWrapper: camera is {camera.width}x{camera.height} but the image observation is {w}x{h}")
+            raise InputError(f"DetectorWrapper: camera is {camera.width}x{camera.height} but the image observation is {w}x{h}")
         self.camera = camera
         if detector is None or isinstance(detector, (str, os.PathLike, DetectorSpec)):
             detector = load_detector(detector, classes=detector_classes, score_threshold=score_threshold,

@@ -29,6 +29,7 @@ from gymnasium import spaces
 
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES, cone_height
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
 
 __all__ = ["GroundTruthConeWrapper", "OracleNoise", "oracle_cones"]
@@ -63,15 +64,15 @@ class OracleNoise:
         for name in ("range_noise", "bearing_noise", "false_positives"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"oracle {name} must be a finite number >= 0, got {v!r}")
+                raise InputError(f"oracle {name} must be a finite number >= 0, got {v!r}")
         for name in ("miss_prob", "swap_prob"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and 0 <= v <= 1):
-                raise ValueError(f"oracle {name} must be a probability in [0, 1], got {v!r}")
+                raise InputError(f"oracle {name} must be a probability in [0, 1], got {v!r}")
         if self.max_range is not None and not (math.isfinite(self.max_range) and self.max_range > 0):
-            raise ValueError(f"oracle max_range must be a finite number > 0 or None, got {self.max_range!r}")
+            raise InputError(f"oracle max_range must be a finite number > 0 or None, got {self.max_range!r}")
         if not (isinstance(self.min_pixels, int) and self.min_pixels >= 0):
-            raise ValueError(f"oracle min_pixels must be an integer >= 0, got {self.min_pixels!r}")
+            raise InputError(f"oracle min_pixels must be an integer >= 0, got {self.min_pixels!r}")
 
     @property
     def is_perfect(self) -> bool:
@@ -84,7 +85,7 @@ def oracle_cones(gt: dict, camera: CameraConfig, noise: OracleNoise | None = Non
     """``(cones, mask)`` from one frame's ground truth, degraded by ``noise`` with ``rng``."""
     noise = noise or OracleNoise()
     if not noise.is_perfect and rng is None:
-        raise ValueError("oracle_cones: a numpy Generator is needed when noise is enabled")
+        raise InputError("oracle_cones: a numpy Generator is needed when noise is enabled")
     if gt is None:
         gt = {}
     n = len(gt.get("classes", ()))
@@ -137,24 +138,24 @@ class GroundTruthConeWrapper(gym.Wrapper):
                  keep_image: bool = False, **noise_fields: Any) -> None:
         super().__init__(env)
         if noise is not None and noise_fields:
-            raise ValueError("GroundTruthConeWrapper: pass either noise=OracleNoise(...) or its fields, not both")
+            raise InputError("GroundTruthConeWrapper: pass either noise=OracleNoise(...) or its fields, not both")
         try:
             self.noise = noise or OracleNoise(**noise_fields)
         except TypeError:
             valid = ", ".join(OracleNoise.__dataclass_fields__)
-            raise ValueError(f"GroundTruthConeWrapper: unknown option(s) {sorted(noise_fields)}; valid: {valid}") from None
+            raise InputError(f"GroundTruthConeWrapper: unknown option(s) {sorted(noise_fields)}; valid: {valid}") from None
         if not (isinstance(max_cones, int) and max_cones >= 1):
-            raise ValueError(f"GroundTruthConeWrapper: max_cones must be an integer >= 1, got {max_cones!r}")
+            raise InputError(f"GroundTruthConeWrapper: max_cones must be an integer >= 1, got {max_cones!r}")
         inner = env.observation_space
         if not isinstance(inner, spaces.Dict) or "state" not in inner.spaces:
-            raise ValueError("GroundTruthConeWrapper needs an env whose observation is a Dict with a 'state' entry")
+            raise InputError("GroundTruthConeWrapper needs an env whose observation is a Dict with a 'state' entry")
         self.max_cones = max_cones
         self.keep_image = bool(keep_image)
         space = dict(cone_list_space(max_cones).spaces)
         space["state"] = inner["state"]
         if self.keep_image:
             if "image" not in inner.spaces:
-                raise ValueError("GroundTruthConeWrapper(keep_image=True) needs an env with an 'image' observation")
+                raise InputError("GroundTruthConeWrapper(keep_image=True) needs an env with an 'image' observation")
             space["image"] = inner["image"]
         self.observation_space = spaces.Dict(space)
         self._rng: np.random.Generator | None = None
@@ -162,9 +163,9 @@ class GroundTruthConeWrapper(gym.Wrapper):
     def _convert(self, obs: dict, info: dict) -> dict:
         camera = info.get("camera")
         if not isinstance(camera, CameraConfig):
-            raise ValueError('GroundTruthConeWrapper needs info["camera"] (a CameraConfig) from the env')
+            raise InputError('GroundTruthConeWrapper needs info["camera"] (a CameraConfig) from the env')
         if "gt" not in info:
-            raise ValueError('GroundTruthConeWrapper needs info["gt"] (the visible cones) from the env')
+            raise InputError('GroundTruthConeWrapper needs info["gt"] (the visible cones) from the env')
         cones, mask = oracle_cones(info["gt"], camera, self.noise, self._rng, self.max_cones)
         out = {"cones": cones, "mask": mask, "state": np.asarray(obs["state"], dtype=np.float32)}
         if self.keep_image:

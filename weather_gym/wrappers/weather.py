@@ -56,6 +56,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from weather_gym.errors import InputError
 from weather_gym.weather import Effect, current_spec, parse_weather
 
 __all__ = ["STATE_FIELDS", "WeatherWrapper"]
@@ -70,7 +71,7 @@ _SPAWN_KEY = (0x57EA7E7,)
 def _check_image_space(space: Any, where: str) -> None:
     if not (isinstance(space, spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3
             and space.shape[2] == 3):
-        raise ValueError(f"WeatherWrapper: {where} must be an image Box(0, 255, (H, W, 3), uint8), got {space}")
+        raise InputError(f"WeatherWrapper: {where} must be an image Box(0, 255, (H, W, 3), uint8), got {space}")
 
 
 class WeatherWrapper(gym.ObservationWrapper):
@@ -85,7 +86,7 @@ class WeatherWrapper(gym.ObservationWrapper):
         self.image_key = image_key
         if isinstance(space, spaces.Dict):
             if image_key not in space.spaces:
-                raise ValueError(f"WeatherWrapper: observation Dict has no image key {image_key!r} "
+                raise InputError(f"WeatherWrapper: observation Dict has no image key {image_key!r} "
                                  f"(keys: {', '.join(space.spaces)}); pass image_key=...")
             _check_image_space(space[image_key], f"observation[{image_key!r}]")
             self._is_dict = True
@@ -97,7 +98,7 @@ class WeatherWrapper(gym.ObservationWrapper):
             self.depth_key = self.state_key = None
         self.state_fields = tuple(state_fields)
         if fx is not None and not (np.isfinite(fx) and fx > 0):
-            raise ValueError(f"WeatherWrapper: fx must be a positive focal length in pixels, got {fx!r}")
+            raise InputError(f"WeatherWrapper: fx must be a positive focal length in pixels, got {fx!r}")
         self.fx = fx
         self._weather: Effect = parse_weather(weather)
         self._ss: np.random.SeedSequence | None = None

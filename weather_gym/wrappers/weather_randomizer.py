@@ -35,6 +35,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from weather_gym.errors import InputError
+
 __all__ = ["RandomWeather", "SCHEDULES", "WeatherRandomizer"]
 
 SCHEDULES = ("episode", "step", "ramp")
@@ -47,9 +49,9 @@ def _k_range(name: str, value: Any) -> tuple[float, float]:
     elif isinstance(value, Sequence) and not isinstance(value, str) and len(value) == 2:
         lo, hi = (float(v) for v in value)
     else:
-        raise ValueError(f"RandomWeather: effects[{name!r}] k must be a number or a (low, high) range, got {value!r}")
+        raise InputError(f"RandomWeather: effects[{name!r}] k must be a number or a (low, high) range, got {value!r}")
     if not (0.0 <= lo <= hi <= 1.0):
-        raise ValueError(f"RandomWeather: effects[{name!r}] k range ({lo}, {hi}) must satisfy 0 <= low <= high <= 1")
+        raise InputError(f"RandomWeather: effects[{name!r}] k range ({lo}, {hi}) must satisfy 0 <= low <= high <= 1")
     return lo, hi
 
 
@@ -87,7 +89,7 @@ class RandomWeather:
         object.__setattr__(self, "presets", tuple(canonical_condition(c) for c in presets))
         object.__setattr__(self, "severities", tuple(self.severities))
         if self.presets and not self.severities:
-            raise ValueError("RandomWeather: presets need at least one severity")
+            raise InputError("RandomWeather: presets need at least one severity")
         for c in self.presets:
             for s in self.severities:
                 preset_spec(c, s)  # names an unknown condition or severity
@@ -95,21 +97,21 @@ class RandomWeather:
         for name, value in dict(self.effects).items():
             params = dict(value) if isinstance(value, Mapping) else {"k": value}
             if "k" not in params:
-                raise ValueError(f"RandomWeather: effects[{name!r}] = {value!r} needs 'k' (a number or a range)")
+                raise InputError(f"RandomWeather: effects[{name!r}] = {value!r} needs 'k' (a number or a range)")
             lo, hi = _k_range(name, params.pop("k"))
             make(name, k=hi, **params)  # names an unknown effect or parameter
             tables[name] = ((lo, hi), params)
         object.__setattr__(self, "_tables", tables)
         if not self.presets and not tables:
-            raise ValueError("RandomWeather: give presets and/or effects to draw from")
+            raise InputError("RandomWeather: give presets and/or effects to draw from")
         for name in ("p", "p_clear"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (0.0 <= float(v) <= 1.0):
-                raise ValueError(f"RandomWeather: {name} must be a probability in [0, 1], got {v!r}")
+                raise InputError(f"RandomWeather: {name} must be a probability in [0, 1], got {v!r}")
         if self.schedule not in SCHEDULES:
-            raise ValueError(f"RandomWeather: schedule must be one of {', '.join(SCHEDULES)}, got {self.schedule!r}")
+            raise InputError(f"RandomWeather: schedule must be one of {', '.join(SCHEDULES)}, got {self.schedule!r}")
         if isinstance(self.every, bool) or not isinstance(self.every, numbers.Integral) or self.every < 1:
-            raise ValueError(f"RandomWeather: every must be an integer >= 1 (steps), got {self.every!r}")
+            raise InputError(f"RandomWeather: every must be an integer >= 1 (steps), got {self.every!r}")
 
     def sample(self, rng: np.random.Generator) -> tuple[list[dict[str, Any]], str]:
         """One draw: ``(effect tables for parse_weather, a short label)``; ``([], "clear")`` when clear.
@@ -151,12 +153,12 @@ class WeatherRandomizer(gym.Wrapper):
 
     def __init__(self, env: gym.Env, config: RandomWeather | None = None, **fields: Any) -> None:
         if config is not None and fields:
-            raise ValueError("WeatherRandomizer: pass either config=RandomWeather(...) or its fields, not both")
+            raise InputError("WeatherRandomizer: pass either config=RandomWeather(...) or its fields, not both")
         try:
             self.config = config or RandomWeather(**fields)
         except TypeError:
             valid = ", ".join(RandomWeather.__dataclass_fields__)
-            raise ValueError(f"WeatherRandomizer: unknown option(s) {sorted(fields)}; valid: {valid}") from None
+            raise InputError(f"WeatherRandomizer: unknown option(s) {sorted(fields)}; valid: {valid}") from None
         try:
             env.get_wrapper_attr("set_weather")
         except AttributeError:
@@ -165,7 +167,7 @@ class WeatherRandomizer(gym.Wrapper):
             try:
                 env = WeatherWrapper(env)
             except ValueError as exc:
-                raise ValueError("WeatherRandomizer needs a WeatherWrapper below it (put it under any "
+                raise InputError("WeatherRandomizer needs a WeatherWrapper below it (put it under any "
                                  f"DetectorWrapper), and could not add one: {exc}") from None
         super().__init__(env)
         self._rng: np.random.Generator | None = None

@@ -1,0 +1,26 @@
+"""The one overwrite option of every command that writes files: ``--overwrite``.
+
+Without it an existing output is never replaced (``error: output ... already exists; pass
+--overwrite ...``, exit status 2). ``--force``, the name some commands used before, is kept as a
+hidden alias that prints a deprecation warning.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+class _DeprecatedForce(argparse.Action):
+    def __init__(self, option_strings, dest, **kwargs) -> None:
+        super().__init__(option_strings, dest, nargs=0, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print(f"warning: {option_string} is deprecated; use --overwrite", file=sys.stderr)
+        setattr(namespace, self.dest, True)
+
+
+def add_overwrite_arg(p, help: str = "replace existing output files (an input is never written to)") -> None:
+    """Add ``--overwrite`` (and the hidden, deprecated ``--force``) to the parser or group ``p``."""
+    p.add_argument("--overwrite", action="store_true", default=False, help=help)
+    p.add_argument("--force", dest="overwrite", action=_DeprecatedForce, help=argparse.SUPPRESS)

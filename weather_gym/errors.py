@@ -1,0 +1,85 @@
+"""The errors weather-gym raises for things a user can fix: one small hierarchy.
+
+Everything a user can cause (a bad value, argument, spec or file; an output that exists; a path
+that leaves its folder; a parameter out of its physical range) raises a subclass of
+:class:`WeatherGymError`. The command line prints those as ``error: MESSAGE`` and exits with
+status 2; any other exception is a bug and keeps its traceback. The classes also derive from the
+built-in exception a caller would expect (``ValueError``, ``FileNotFoundError``,
+``FileExistsError``, ``OSError``), so ``except ValueError`` around the Python API keeps working.
+
+::
+
+    WeatherGymError
+    ├── InputError (ValueError)                bad value, argument, spec
+    │   ├── FileFormatError                    a file whose content is wrong (names the file)
+    │   ├── OutsideRootError                   a path that escapes its root folder
+    │   ├── LimitError                         a parameter outside its physical/allowed bounds
+    │   └── MissingInputError (FileNotFoundError)  a named input file or folder is not there
+    ├── OutputExistsError (FileExistsError)    refusing to overwrite without ``--overwrite``
+    ├── OutputPathError (OSError)              an output that cannot be written there
+    ├── StateError (RuntimeError)              an object used in the wrong state (step after close)
+    └── MissingDependencyError (ImportError)   an optional extra is not installed
+
+Example:
+    >>> from weather_gym.errors import InputError, WeatherGymError
+    >>> try:
+    ...     raise InputError("--k must be in [0, 1], got 2.0")
+    ... except ValueError as exc:          # still a ValueError for existing callers
+    ...     isinstance(exc, WeatherGymError)
+    True
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "WeatherGymError",
+    "InputError",
+    "FileFormatError",
+    "OutsideRootError",
+    "LimitError",
+    "MissingInputError",
+    "OutputExistsError",
+    "OutputPathError",
+    "StateError",
+    "MissingDependencyError",
+]
+
+
+class WeatherGymError(Exception):
+    """Base of every error a user can fix; the CLI prints it as ``error: ...`` and exits 2."""
+
+
+class InputError(WeatherGymError, ValueError):
+    """A bad value, argument or spec (the message names it and what was expected)."""
+
+
+class FileFormatError(InputError):
+    """A file whose content is wrong: malformed, wrong type, bad key or value (the message names the file)."""
+
+
+class OutsideRootError(InputError):
+    """A path read from a file (dataset, model, scenario) that leaves the folder it must stay in."""
+
+
+class LimitError(InputError):
+    """A parameter outside its physical or allowed range (checked before any work starts)."""
+
+
+class MissingInputError(InputError, FileNotFoundError):
+    """A named input file or folder does not exist."""
+
+
+class OutputExistsError(WeatherGymError, FileExistsError):
+    """An output exists and would be replaced: refused unless ``--overwrite`` / ``overwrite=True``."""
+
+
+class OutputPathError(WeatherGymError, OSError):
+    """An output cannot be written where it was asked for (a folder in the way, no permission, ...)."""
+
+
+class StateError(WeatherGymError, RuntimeError):
+    """An object used in a state that does not allow it (e.g. ``step`` after ``close``)."""
+
+
+class MissingDependencyError(WeatherGymError, ImportError):
+    """An optional extra is needed (the message says which ``pip install`` brings it)."""

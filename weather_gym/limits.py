@@ -1,0 +1,44 @@
+"""Bounds checked before any work starts, so that no input runs for minutes or exhausts memory.
+
+Images a weather effect or the detector is given, and camera sizes the simulator renders, must
+lie within these limits; effect parameters carry their own physical ranges
+(``weather_gym.weather.base.Param``). A value outside raises :class:`LimitError` naming it.
+
+Example:
+    >>> from weather_gym.limits import check_image_size
+    >>> check_image_size((376, 672, 3))
+    >>> check_image_size((1, 5000, 3), what="frame.png")
+    Traceback (most recent call last):
+    ...
+    weather_gym.errors.LimitError: frame.png: image is 5000x1 pixels; each side must be 8 to 16384 pixels
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from weather_gym.errors import LimitError
+
+__all__ = ["MIN_IMAGE_SIDE", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_CAMERA_SIDE", "check_image_size"]
+
+MIN_IMAGE_SIDE = 8
+"""Smallest image side (pixels) an effect or the detector accepts."""
+MAX_IMAGE_SIDE = 16384
+"""Largest image side (pixels)."""
+MAX_IMAGE_PIXELS = 40_000_000
+"""Largest image area: 40 MP (8K UHD is 33 MP); a float32 working copy is then 480 MB."""
+MAX_CAMERA_SIDE = 4096
+"""Largest simulated camera side (pixels): rendering cost grows with the area."""
+
+
+def check_image_size(shape: Sequence[int], *, what: str = "image", min_side: int = MIN_IMAGE_SIDE) -> None:
+    """Refuse an image shape ``(H, W[, C])`` outside the limits (:class:`LimitError` naming ``what``).
+
+    ``min_side``: the smallest side allowed (weather effects take any size from 1 pixel)."""
+    h, w = int(shape[0]), int(shape[1])
+    if not (min_side <= h <= MAX_IMAGE_SIDE and min_side <= w <= MAX_IMAGE_SIDE):
+        raise LimitError(f"{what}: image is {w}x{h} pixels; each side must be {min_side} to "
+                         f"{MAX_IMAGE_SIDE} pixels")
+    if h * w > MAX_IMAGE_PIXELS:
+        raise LimitError(f"{what}: image is {w}x{h} = {h * w / 1e6:.0f} MP; at most {MAX_IMAGE_PIXELS / 1e6:.0f} MP "
+                         "are supported")
