@@ -21,7 +21,7 @@ def add_detector_args(p, *, what: str | None = None, legacy_model: bool = False)
                    help="detector: conenet (the shipped model, default), conenet:PATH, yolov8:PATH (also v11), "
                         "yolov5:PATH or yolo:PATH (an ONNX export; layout recognised)" + extra)
     if legacy_model:
-        p.add_argument("--model", default=None, metavar="PATH.onnx",
+        p.add_argument("--model", dest="detector_model", default=None, metavar="PATH.onnx",
                        help="a ConeNet ONNX model (the same as --detector conenet:PATH)")
     p.add_argument("--detector-classes", default=None, metavar="ID=CLASS,...",
                    help="class map of a YOLO detector: output index or name = blue|yellow|orange|big_orange|ignore "

@@ -438,6 +438,10 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
     def opened(x: Any) -> Any:
         return x if hasattr(x, "render_view") else load_coco(x)
 
+    if mode in ("same-camera", "did") and reference is None:
+        raise InputError(f"mode {mode} needs --reference CLEAR_DIR: measured clear frames of the same camera")
+    if mode in ("paired", "unpaired") and reference is not None:
+        raise InputError(f"--reference (measured clear frames) goes with mode same-camera or did, not {mode}")
     ds = opened(measured)
     _check_count(ds, "measured")
     ref_ds = opened(reference) if reference is not None else None

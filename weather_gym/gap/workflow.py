@@ -67,7 +67,7 @@ from weather_gym.gap.fit import (
 from weather_gym.gap.model import describe, model_tables, read_model, write_model
 from weather_gym.gap.perception import detect_frames, match_frames, perception_stats
 from weather_gym.gap.signals import SIGNAL_NAMES, signal_table, signal_weights
-from weather_gym.gap.simulate import COMPARE_WIDTH, GapData, simulate
+from weather_gym.gap.simulate import COMPARE_WIDTH, MIN_FRAMES, MODES, GapData, simulate
 from weather_gym.weather import KnobEffect
 
 __all__ = ["GapConfig", "Comparison", "GapSession", "run_gap", "REPORT_VERSION"]
@@ -130,10 +130,12 @@ class GapConfig:
 
         if not 0.0 < self.held_out < 1.0:
             raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
-        if self.mode not in ("auto", "paired", "unpaired"):
-            raise InputError(f"mode must be 'auto', 'paired' or 'unpaired', got {self.mode!r}")
-        if self.sim_frames is not None and self.sim_frames < 4:
-            raise InputError(f"sim_frames must be >= 4, got {self.sim_frames}")
+        if self.mode not in MODES:
+            raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.sim_frames is not None and self.sim_frames < MIN_FRAMES:
+            raise InputError(f"sim_frames must be >= {MIN_FRAMES}, got {self.sim_frames}")
+        if self.compare_width is not None and self.compare_width < 64:
+            raise InputError(f"compare_width must be >= 64 pixels (or None), got {self.compare_width}")
         if self.fit_frames < 4:
             raise InputError(f"fit_frames must be >= 4, got {self.fit_frames}")
         if self.max_steps < 0:
