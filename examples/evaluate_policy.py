@@ -1,12 +1,15 @@
 """Put a saved stable-baselines3 policy through the robustness evaluation, per weather severity.
 
-Reads the model's JSON sidecar (written by ``examples/train_ppo.py``) for the env id, camera and
-perception it was trained with, then runs the same harness as ``weather-gym evaluate`` with the
-``sb3`` agent: ``OUT/results.csv`` (resumable), ``OUT/report.md``, ``OUT/plots/``.
+Reads the model's JSON sidecar (``model.json`` beside ``model.zip``, written by
+``examples/train_ppo.py``) for the env id and camera it was trained with, then runs the same harness
+as ``weather-gym evaluate`` with the ``sb3`` agent: ``OUT/results.csv`` (resumable),
+``OUT/report.md``, ``OUT/plots/``. The perception defaults to ``detector``: a policy trained on
+ground-truth cone lists (``gt_cones``) drives on the detector's cone list of the weathered frame,
+the same observation space.
 
 Usage:
-    python examples/evaluate_policy.py --model runs/ppo_cones.zip --effects droplets,dim \\
-        --severities 0,1,2,3,4 --seeds 3 --out runs/ppo_eval
+    python examples/evaluate_policy.py --model runs/ppo_cones/model.zip --effects droplets,dim \\
+        --severities 0,1,2,3,4 --seeds 3 --tracks small_track --out runs/ppo_eval
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from weather_gym.evaluation.evaluate import EvalConfig, evaluate
 
 
 def config_for_model(model: Path, *, effects, severities, seeds, tracks=None, max_steps: int = 3000,
-                     laps: int = 1) -> EvalConfig:
+                     laps: int = 1, perception: str = "detector") -> EvalConfig:
     """The ``EvalConfig`` evaluating ``model`` on the observation it was trained on (from its sidecar)."""
     model = model if model.suffix == ".zip" else model.with_suffix(".zip")
     if not model.is_file():
@@ -34,13 +37,13 @@ def config_for_model(model: Path, *, effects, severities, seeds, tracks=None, ma
                                 "(written by examples/train_ppo.py)")
     try:
         meta = json.loads(sidecar.read_text())
-        meta["track"], meta["env_id"], meta["perception"]  # noqa: B018 - the keys the config needs
+        meta["track"], meta["env_id"]  # noqa: B018 - the keys the config needs
     except (ValueError, KeyError, TypeError) as exc:
         raise FileFormatError(f"{sidecar}: not a model sidecar written by examples/train_ppo.py ({exc})") from None
     return EvalConfig(
         agents=("sb3",), agent_kwargs={"path": str(model.resolve()), "algo": meta.get("algo", "PPO")},
         effects=tuple(effects), severities=tuple(severities), seeds=tuple(seeds),
-        tracks=tuple(tracks or (meta["track"],)), env_id=meta["env_id"], perception=meta["perception"],
+        tracks=tuple(tracks or (meta["track"],)), env_id=meta["env_id"], perception=perception,
         env_kwargs=meta.get("env_kwargs", {}), max_steps=max_steps, laps=laps,
     )
 
@@ -54,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=3, help="seeds 0..N-1")
     p.add_argument("--tracks", default=None, help="comma-separated (default: the training track)")
     p.add_argument("--max-steps", type=int, default=3000)
+    p.add_argument("--perception", default="detector",
+                   help="what the policy sees: detector (default; the weathered frame's detections) or oracle")
     p.add_argument("--laps", type=int, default=1)
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
@@ -67,7 +72,7 @@ def _evaluate(args) -> int:
         args.model, effects=[e for e in args.effects.split(",") if e],
         severities=[int(s) for s in args.severities.split(",") if s], seeds=range(args.seeds),
         tracks=[t for t in args.tracks.split(",") if t] if args.tracks else None,
-        max_steps=args.max_steps, laps=args.laps)
+        max_steps=args.max_steps, laps=args.laps, perception=args.perception)
     rows = evaluate(config, args.out, workers=args.workers, backend=args.backend, overwrite=args.overwrite)
     failed = sum(r["status"] != "ok" for r in rows)
     print(f"{len(rows) - failed} ok, {failed} failed; report: {args.out / 'report.md'}")

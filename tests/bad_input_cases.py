@@ -330,6 +330,8 @@ CASES: list[Case] = [
          out="o_ev"),
     _cli("evaluate-severity-out-of-range", "7", *EV[:8], "7", *EV[9:], "--out", "{w}/o_ev", out="o_ev"),
     _cli("evaluate-workers-zero", "--workers", *EV, "--workers", "0", "--out", "{w}/o_ev", out="o_ev"),
+    _cli("evaluate-workers-10000", "--workers", *EV[:-3], "--workers", "10000", "--no-progress", "--out", "{w}/o_ev",
+         out="o_ev"),
     _cli("evaluate-agent-kwargs-not-json", "--agent-kwargs", *EV, "--agent-kwargs", "{bad", "--out", "{w}/o_ev",
          out="o_ev"),
     _cli("evaluate-collinear-track", "collinear.csv", *EV, "--tracks", "{w}/collinear.csv", "--out", "{w}/o_ev",

@@ -43,7 +43,7 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from weather_gym.errors import OutputExistsError, OutputPathError, OutsideRootError
+from weather_gym.errors import InputError, OutputExistsError, OutputPathError, OutsideRootError
 
 __all__ = [
     "atomic_file",
@@ -268,7 +268,7 @@ def atomic_file(path: str | os.PathLike, mode: str = "w", *, overwrite: bool = F
         'a,b\\n1,2\\n'
     """
     if mode not in ("w", "wb"):
-        raise ValueError(f"atomic_file mode must be 'w' or 'wb', got {mode!r}")
+        raise InputError(f"atomic_file mode must be 'w' or 'wb', got {mode!r}")
     with atomic_path(path, overwrite=overwrite) as tmp:
         kwargs = {} if "b" in mode else {"encoding": encoding, "newline": newline}
         with open(tmp, mode, **kwargs) as f:

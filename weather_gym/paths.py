@@ -23,3 +23,7 @@ def data_dir(name: str) -> Path:
         if candidate.is_dir():
             return candidate
     raise FileNotFoundError(f"data folder {name!r} not found in {_PKG / '_data'} or {_PKG.parent}")
+
+
+PPO_CONES_MODEL = _PKG / "agents" / "models" / "ppo_cones.zip"
+"""The shipped PPO driver of the ``ppo_cones`` agent (trained by ``examples/train_ppo.py``; ``docs/rl.md``)."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import cv2
 import pytest
 
@@ -124,3 +126,16 @@ def test_a_terminated_lap_leaves_no_video(tmp_path):
             proc.wait()
     assert proc.returncode == 143, proc.stderr.read().decode()
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_detector_lap_reports_map_latency_and_an_h264_video(tmp_path, capsys):
+    video = tmp_path / "wet.mp4"
+    code = main(["lap", "--agent", "mapper_pure_pursuit", "--weather", "droplets@3", "--max-steps", "20",
+                 "--env", "WeatherGym/ConeTrackSmall-v0", "--video", str(video)])
+    out = capsys.readouterr().out
+    assert code == 1 and "perception detector | weather droplets@3" in out
+    m = re.search(r"detector: mAP@0.5 (\d\.\d+), recall (\d\.\d+) on the 21 frames it saw", out)
+    assert m and 0.0 < float(m.group(1)) <= 1.0, out
+    m = re.search(r"added per step: weather (\d+\.\d) ms, detector (\d+\.\d) ms", out)
+    assert m and float(m.group(2)) > 0, out
+    assert f"video: {video} (21 frames, H.264)" in out

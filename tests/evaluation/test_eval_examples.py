@@ -20,11 +20,16 @@ def _load(name: str):
     return module
 
 
+class _Track:
+    closed, length = True, 100.0
+
+
 class _Recorder(gym.Env):
     """Records the options of every reset."""
 
     observation_space = gym.spaces.Box(0, 1, (1,), np.float32)
     action_space = gym.spaces.Box(-1, 1, (2,), np.float32)
+    track = _Track()
 
     def __init__(self):
         self.options = []
@@ -35,38 +40,48 @@ class _Recorder(gym.Env):
         return np.zeros(1, np.float32), {}
 
 
-def test_random_preset_weather_is_seeded_and_varies_per_episode():
+def test_random_start_is_seeded_and_varies_per_episode():
     train = _load("train_ppo")
 
-    def presets(seed):
-        env = train.RandomPresetWeather(_Recorder(), ("droplets", "dim"), (0, 2, 4))
-        out = [env.reset(seed=seed)[1]["preset"]] + [env.reset()[1]["preset"] for _ in range(11)]
-        assert [o["weather"] for o in env.env.options] == out
+    def starts(seed):
+        env = train.RandomStart(_Recorder())
+        out = [env.reset(seed=seed)[1]["start_s"]] + [env.reset()[1]["start_s"] for _ in range(9)]
+        assert [o["start_s"] for o in env.env.options] == out
         return out
 
-    a, b = presets(3), presets(3)
-    assert a == b  # same seed, same sequence of presets
-    assert presets(4) != a
-    assert {c for c, _ in a} == {"droplets", "low_light"} and len({s for _, s in a}) > 1
-    with pytest.raises(ValueError, match="invalid severity 9"):
-        train.RandomPresetWeather(_Recorder(), ("dim",), (9,))
+    a = starts(3)
+    assert a == starts(3) and a != starts(4)  # same seed, same starts
+    assert all(0 <= s < 100 for s in a) and len(set(a)) == 10
 
 
 @pytest.mark.slow
-def test_ppo_smoke_train_then_evaluate(tmp_path):
+def test_ppo_trains_on_gt_cones_resumes_and_drives_through_the_detector(tmp_path):
     pytest.importorskip("stable_baselines3")
+    pytest.importorskip("weather_gym.pipeline", reason="the render-free gt_cones mode comes with the pipeline builder")
     train, evaluate_policy = _load("train_ppo"), _load("evaluate_policy")
-    model = tmp_path / "ppo.zip"
-    assert train.main(["--timesteps", "2048", "--n-envs", "2", "--vec", "dummy", "--perception", "oracle",
-                       "--camera", "96x54", "--n-steps", "256", "--batch-size", "128", "--n-epochs", "2",
-                       "--max-steps", "150", "--out", str(model)]) == 0
-    meta = json.loads(model.with_suffix(".json").read_text())
-    assert meta["perception"] == "oracle" and meta["env_kwargs"] == {"camera": {"width": 96, "height": 54}}
+    out = tmp_path / "run"
+    common = ["--n-envs", "2", "--tracks", "hairpin,oval", "--n-steps", "128", "--batch-size", "64",
+              "--n-epochs", "1", "--max-steps", "150", "--eval-freq", "256", "--eval-episodes", "1",
+              "--checkpoint-freq", "256", "--out", str(out)]
+    assert train.main(["--timesteps", "512", *common]) == 0
+    assert train.main(["--timesteps", "512", *common]) == 2  # never overwrites a run
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["ppo_256_steps.zip", "ppo_512_steps.zip"]
+    (out / "checkpoints" / "ppo_512_steps.zip").unlink()  # as if it had stopped after 256 steps
+    assert train.main(["--timesteps", "768", "--resume", *common]) == 0
+    run = json.loads((out / "run.json").read_text())
+    assert [(s["from_steps"], s["to_steps"]) for s in run["segments"]] == [(0, 512), (256, 768)]
+    assert len(list((out / "logs").glob("*/progress.csv"))) == 2
+    assert list((out / "logs").glob("*/events.out.tfevents*"))  # TensorBoard
+    assert (out / "best" / "best_model.zip").is_file() and (out / "learning_curve.png").stat().st_size > 0
+    meta = json.loads((out / "model.json").read_text())
+    assert meta["perception"] == "gt_cones" and meta["timesteps"] == 768 and meta["track"] == "small_track"
+    assert train.main(["--timesteps", "512", "--eval-track", "hairpin", *common[:-1], str(tmp_path / "x")]) == 2
 
     from weather_gym.evaluation.evaluate import evaluate
 
-    config = evaluate_policy.config_for_model(model, effects=["dim"], severities=[0, 4], seeds=[0], max_steps=40)
+    config = evaluate_policy.config_for_model(out / "model.zip", effects=["droplets"], severities=[0, 3], seeds=[0],
+                                              max_steps=30)
+    assert config.perception == "detector"
     rows = evaluate(config, tmp_path / "eval", backend="serial", progress=False)
-    assert [(r["agent"], r["severity"], r["status"], r["steps"]) for r in rows] == [
-        ("sb3", 0, "ok", 40), ("sb3", 4, "ok", 40)]
-    assert (tmp_path / "eval" / "report.md").exists()
+    assert [(r["agent"], r["severity"], r["status"]) for r in rows] == [("sb3", 0, "ok"), ("sb3", 3, "ok")]
+    assert all(0 < r["steps"] <= 30 for r in rows) and rows[0]["det_frames"] > 0 and (tmp_path / "eval" / "report.md").exists()

@@ -146,3 +146,18 @@ def test_grid_example_on_the_synthetic_scene(tmp_path):
     out = tmp_path / "grid.png"
     assert mod.main(["--synthetic", "--out", str(out)]) == 0 and out.stat().st_size > 0
     assert mod.main(["--synthetic", "--out", str(out)]) == 2  # never overwritten without --overwrite
+
+
+def test_degrade_a_folder_stops_at_an_unreadable_image_unless_told_to_skip(tmp_path, frame, capsys):
+    src = tmp_path / "images"
+    for rel in ("a.png", "b.png", "c.png"):
+        _write(src / rel, frame)
+    (src / "b.png").write_bytes((src / "b.png").read_bytes()[:60])  # cut short
+    out = tmp_path / "out"
+    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "b.png" in err and "--skip-unreadable" in err
+    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--quiet", "--skip-unreadable"]) == 0
+    text = capsys.readouterr().out
+    assert "skipped 1 unreadable image(s): b.png" in text
+    assert sorted(p.name for p in out.iterdir()) == ["a.png", "c.png"]

@@ -7,6 +7,8 @@
 * ``mapper_pure_pursuit`` - the perception stack: ``ConeMapper`` + centre-line planner + pure
   pursuit, reading only ``obs["cones"]``, ``obs["mask"]`` and ``obs["state"]``.
 * ``sb3`` - a stable-baselines3 model (``model=`` an instance or ``path=`` a saved zip).
+* ``ppo_cones`` - the shipped PPO driver (``examples/train_ppo.py``, ``docs/rl.md``): reads the
+  cone list like ``mapper_pure_pursuit``; needs stable-baselines3 (``pip install -e ".[rl]"``).
 
 Callers always pass the step's ``info``; perception-driven agents never read ground truth from it.
 
@@ -14,7 +16,7 @@ Example:
     >>> import numpy as np
     >>> from weather_gym.agents import AGENTS, Agent
     >>> AGENTS.names()
-    ['gt_pure_pursuit', 'mapper_pure_pursuit', 'sb3']
+    ['gt_pure_pursuit', 'mapper_pure_pursuit', 'ppo_cones', 'sb3']
     >>> class Straight:                       # a user's own stack: two methods are enough
     ...     def reset(self, seed=None, info=None): pass
     ...     def act(self, obs, info=None): return np.array([0.0, 0.3], np.float32)
@@ -86,3 +88,11 @@ def _sb3(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     from weather_gym.agents.sb3 import SB3Agent
 
     return SB3Agent(track, camera, **kwargs)
+
+
+@AGENTS.register("ppo_cones")
+def _ppo_cones(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
+    from weather_gym.agents.sb3 import SB3Agent
+    from weather_gym.paths import PPO_CONES_MODEL
+
+    return SB3Agent(track, camera, path=PPO_CONES_MODEL, algo="PPO", **kwargs)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from weather_gym.errors import InputError, MissingDependencyError
+from weather_gym.errors import InputError, LimitError, MissingDependencyError
 
 
 def add_runner_args(p, *, what: str = "cells", resumable: bool = True) -> None:
@@ -28,6 +28,10 @@ def check_runner_args(args) -> None:
     """Refuse bad runner options before any cell runs (``ValueError`` naming the option)."""
     if args.workers < 1:
         raise InputError(f"--workers must be >= 1, got {args.workers}")
+    most = 4 * (os.cpu_count() or 1)
+    if args.backend == "process" and args.workers > most:
+        raise LimitError(f"--workers {args.workers}: at most {most} local worker processes (4 per CPU core; "
+                         "each holds a simulator); use --backend ray --ray-address for a cluster")
     if args.backend == "ray":
         try:
             import ray  # noqa: F401

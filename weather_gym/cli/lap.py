@@ -20,7 +20,7 @@ from weather_gym.cli._detector_args import add_detector_args, detector_spec_from
 from weather_gym.errors import InputError
 
 PERCEPTION_MODES = ("auto", "detector", "oracle", "none")
-PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit"})
+PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit", "ppo_cones"})
 """Agents that read cone lists: ``--perception auto`` gives them the detector."""
 MIN_SPEED_FOR_LIMIT = 2.0
 """Default step limit: every lap may take up to length / 2 m/s (at least a minute)."""
@@ -184,7 +184,9 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         cte, steps, wall0 = [], 0, time.perf_counter()
         terminated = truncated = False
         bar = _LapProgress(laps * trk.length, f"{agent} on {trk.name}", enabled=progress)
+        seen = _SeenByPerception(score_detector=mode == "detector")
         try:
+            seen.add(info)
             if recorder is not None:
                 recorder.add(obs, info, laps)
             while steps < limit:
@@ -192,6 +194,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
                 obs, _, terminated, truncated, info = env.step(action)
                 steps += 1
                 cte.append(float(info["cross_track_error"]))
+                seen.add(info)
                 if recorder is not None:
                     recorder.add(obs, info, laps)
                 if steps % 30 == 0:
@@ -227,6 +230,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         "cte_mean_m": float(np.mean(cte)) if cte else float("nan"),
         "cte_max_m": float(np.max(cte)) if cte else float("nan"),
     }
+    result.update(seen.summary())
     cone_map = getattr(driver, "last_map", None)
     if cone_map is not None:
         result["map"] = cone_map.summary()
@@ -236,6 +240,41 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         result["video_codec"] = recorder.video.codec if recorder.video is not None else None
         result["strip"] = str(strip) if strip is not None else None
     return result
+
+
+class _SeenByPerception:
+    """What the weather and the detector did on the frames of the lap: the detector's mAP@0.5 on the
+    frames it saw (pycocotools, against the env's ground truth) and the mean time each added per step."""
+
+    def __init__(self, *, score_detector: bool) -> None:
+        self.score_detector = score_detector
+        self.gts: list[Any] = []
+        self.dets: list[Any] = []
+        self.weather_ms: list[float] = []
+        self.detector_ms: list[float] = []
+
+    def add(self, info: dict) -> None:
+        if "weather_latency_ms" in info:
+            self.weather_ms.append(float(info["weather_latency_ms"]))
+        if "detector_latency_ms" in info:
+            self.detector_ms.append(float(info["detector_latency_ms"]))
+        if self.score_detector and info.get("gt") is not None and info.get("detections") is not None:
+            self.gts.append(info["gt"])
+            self.dets.append(info["detections"])
+
+    def summary(self) -> dict[str, Any]:
+        import numpy as np
+
+        out: dict[str, Any] = {
+            "weather_latency_ms": float(np.mean(self.weather_ms)) if self.weather_ms else None,
+            "detector_latency_ms": float(np.mean(self.detector_ms)) if self.detector_ms else None,
+        }
+        if self.gts:
+            from weather_gym.perception import evaluate as score
+
+            res = score(self.gts, self.dets)
+            out.update(det_map50=float(res.map50), det_recall=float(res.recall), det_frames=int(res.n_images))
+        return out
 
 
 class _LapProgress:
@@ -290,6 +329,13 @@ def format_result(r: dict[str, Any]) -> str:
                  f"{r['sim_time_s']:.1f} s simulated, {r['wall_time_s']:.1f} s wall")
     lines.append(f"cones hit: {r['cones_hit']}   off-track events: {r['off_track_events']}")
     lines.append(f"cross-track error: mean {r['cte_mean_m']:.3f} m, max {r['cte_max_m']:.3f} m")
+    if r.get("det_frames"):
+        lines.append(f"detector: mAP@0.5 {r['det_map50']:.3f}, recall {r['det_recall']:.3f} on the {r['det_frames']} "
+                     f"frames it saw")
+    added = [f"{name} {r[key]:.1f} ms" for name, key in (("weather", "weather_latency_ms"),
+                                                         ("detector", "detector_latency_ms")) if r.get(key) is not None]
+    if added:
+        lines.append("added per step: " + ", ".join(added))
     if "map" in r:
         m = r["map"]
         lines.append(f"map: {m['confirmed']} confirmed cones, mean position std {m['mean_position_std_m']:.3f} m, "
