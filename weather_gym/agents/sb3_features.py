@@ -29,6 +29,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD
 
 __all__ = ["ConeListExtractor"]
@@ -45,11 +46,11 @@ class ConeListExtractor(BaseFeaturesExtractor):
     def __init__(self, observation_space: spaces.Dict, max_cones: int = 24) -> None:
         for key in ("cones", "mask", "state"):
             if key not in observation_space.spaces:
-                raise ValueError(f"ConeListExtractor needs a Dict observation with {key!r} (a cone list), "
+                raise InputError(f"ConeListExtractor needs a Dict observation with {key!r} (a cone list), "
                                  f"got keys {list(observation_space.spaces)}")
         n = observation_space["cones"].shape[0]
         if not (isinstance(max_cones, int) and 1 <= max_cones <= n):
-            raise ValueError(f"ConeListExtractor: max_cones must be an integer in [1, {n}], got {max_cones!r}")
+            raise InputError(f"ConeListExtractor: max_cones must be an integer in [1, {n}], got {max_cones!r}")
         super().__init__(observation_space, features_dim=max_cones * _PER_CONE + 2)
         self.max_cones = max_cones
 
