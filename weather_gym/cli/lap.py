@@ -16,7 +16,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.errors import InputError
 
 PERCEPTION_MODES = ("auto", "detector", "oracle", "none")
 PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit", "ppo_cones"})
@@ -62,8 +63,7 @@ def register(sub) -> None:
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
     p.add_argument("--perception", choices=PERCEPTION_MODES, default="auto", help="what the agent sees (see below)")
-    p.add_argument("--detector", type=Path, metavar="MODEL.onnx",
-                   help="ONNX detector for --perception detector (default: the shipped model)")
+    add_detector_args(p, what="for --perception detector")
     p.add_argument("--laps", type=int, default=1, help="laps to drive (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default %(default)s)")
     p.add_argument("--max-steps", type=int, help="step limit (default: laps x max(60 s, length / 2 m/s))")
@@ -110,12 +110,11 @@ def _run(args) -> int:
         check_output_path(args.strip, overwrite=args.overwrite, suffixes=(".png",))
     if args.video is not None and args.strip is not None and args.video.resolve() == args.strip.resolve():
         raise InputError("--video and --strip must be different files")
-    if args.detector is not None and not args.detector.is_file():
-        raise MissingInputError(f"--detector: model file {args.detector} not found")
+    detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
-        perception=args.perception, detector=args.detector, laps=args.laps, seed=args.seed,
+        perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
         overwrite=args.overwrite, progress=True,
     )
@@ -123,7 +122,7 @@ def _run(args) -> int:
     return 0 if result["completed"] else 1
 
 
-def _make_env(env_id: str, track: str | None, weather: str | None, perception: str, detector: Path | None,
+def _make_env(env_id: str, track: str | None, weather: str | None, perception: str, detector: Any,
               laps: int, keep_image: bool):
     import gymnasium as gym
 
@@ -143,7 +142,7 @@ def _make_env(env_id: str, track: str | None, weather: str | None, perception: s
     if perception == "detector":
         det: dict[str, Any] = {"keep_image": keep_image}
         if detector is not None:
-            det["detector"] = str(detector)
+            det["detector"] = detector  # a spec: the shipped model, conenet:PATH, yolov8:PATH, ...
         kwargs["detector"] = det
     else:
         kwargs["detector"] = {"enabled": False}
@@ -157,7 +156,7 @@ def _make_env(env_id: str, track: str | None, weather: str | None, perception: s
 
 def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = None, agent: str = "gt_pure_pursuit",
              agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = "auto",
-             detector: Path | None = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
+             detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
              overwrite: bool = False, progress: bool = False) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``)."""
