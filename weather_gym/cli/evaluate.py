@@ -116,10 +116,10 @@ def _perception_kwargs(args) -> dict:
              "score_threshold": args.detector_threshold}
     given = {k: v for k, v in given.items() if v is not None}
     if given and args.perception != "detector":
-        raise ValueError(f"--detector options go with --perception detector, not {args.perception}")
+        raise InputError(f"--detector options go with --perception detector, not {args.perception}")
     clash = sorted(set(given) & set(kw))
     if clash:
-        raise ValueError(f"{', '.join(clash)} given both as --detector options and in --perception-kwargs; give each once")
+        raise InputError(f"{', '.join(clash)} given both as --detector options and in --perception-kwargs; give each once")
     if given:
         detector_spec_from_args(args)  # a bad spec or a missing file fails here, before any cell runs
     return {**kw, **given}
