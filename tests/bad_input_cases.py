@@ -137,7 +137,36 @@ def build_world(root: Path) -> World:
     w["sweep_plot/curves.png"].write_text("someone's plot\n")
     w["gap_out"].mkdir()
     w["gap_out/report.json"].write_text("{}\n")
+    _import_sources(w)
     return w
+
+
+def _import_sources(w: World) -> None:
+    """KITTI folders with one fault each, a mask of the wrong size, an ONNX matching no YOLO layout."""
+    row = "blue_cone 0.00 0 0.00 10.00 10.00 20.00 30.00 0.36 0.25 0.25 4.0 1.0 -0.9 0.00\n"
+    for name in ("kitti_ok", "kitti_nolabel", "kitti_unmapped", "kitti_sizes"):
+        _write_png(w[f"{name}/images/000001.png"], _frame(11))
+        w[f"{name}/labels"].mkdir(parents=True)
+        w[f"{name}/labels/000001.txt"].write_text(row)
+    _write_png(w["kitti_nolabel/images/000002.png"], _frame(12))
+    w["kitti_unmapped/labels/000001.txt"].write_text(row.replace("blue_cone", "weird_cone"))
+    _write_png(w["kitti_sizes/images/000002.png"], np.zeros((20, 30, 3), np.uint8))
+    w["kitti_sizes/labels/000002.txt"].write_text("")
+    _write_png(w["mask_small.png"], np.zeros((10, 10, 3), np.uint8))
+    try:
+        import onnx
+        from onnx import TensorProto, helper
+    except ImportError:  # pragma: no cover - the dev extra has onnx
+        return
+    inp = helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 32, 32])
+    out = helper.make_tensor_value_info("out", TensorProto.FLOAT, [1, 5, 5, 5])
+    model = helper.make_model(helper.make_graph(
+        [helper.make_node("ReduceMean", ["images"], ["m"], keepdims=0),
+         helper.make_node("Expand", ["m", "shape"], ["out"])], "odd", [inp], [out],
+        [onnx.numpy_helper.from_array(np.array([1, 5, 5, 5], np.int64), "shape")]),
+        opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    onnx.save(model, str(w["odd.onnx"]))
 
 
 # --------------------------------------------------------------------------------------- Python calls
@@ -331,6 +360,34 @@ CASES: list[Case] = [
          "{w}/measured_bad.csv", "--out", "{w}/exists.toml"),
     _cli("calibrate-not-a-curve-file", "exists.csv", "calibrate", "--curve", "{w}/exists.csv",
          "--measured", "{w}/measured_bad.csv", "--out", "{w}/o/p.toml", out="o"),
+    # ---- dataset import / mask, detector specs, gap with a clear reference (issue 10)
+    _cli("import-unknown-format", "voc", "dataset", "import", "voc", "{w}/kitti_ok", "--out", "{w}/o_import",
+         out="o_import"),
+    _cli("import-missing-source", "nope", "dataset", "import", "kitti", "{w}/nope", "--out", "{w}/o_import",
+         out="o_import"),
+    _cli("import-missing-labels", "000002.txt", "dataset", "import", "kitti", "{w}/kitti_nolabel", "--out",
+         "{w}/o_import", out="o_import"),
+    _cli("import-class-map-leaves-a-class-out", "weird_cone", "dataset", "import", "kitti", "{w}/kitti_unmapped",
+         "--out", "{w}/o_import", out="o_import"),
+    _cli("import-mismatched-image-sizes", "000002.png", "dataset", "import", "kitti", "{w}/kitti_sizes", "--out",
+         "{w}/o_import", out="o_import"),
+    _cli("import-bad-class-target", "purple", "dataset", "import", "kitti", "{w}/kitti_ok", "--classes",
+         "blue_cone=purple", "--out", "{w}/o_import", out="o_import"),
+    _cli("import-bad-intrinsics", "intrinsics", "dataset", "import", "kitti", "{w}/kitti_ok", "--intrinsics",
+         "900,1", "--out", "{w}/o_import", out="o_import"),
+    _cli("import-mask-wrong-size", "mask_small.png", "dataset", "import", "kitti", "{w}/kitti_ok", "--mask",
+         "{w}/mask_small.png", "--out", "{w}/o_import", out="o_import"),
+    _cli("import-out-not-empty", "imgs", "dataset", "import", "kitti", "{w}/kitti_ok", "--out", "{w}/imgs"),
+    _cli("mask-set-wrong-size", "mask_small.png", "dataset", "mask", "{w}/ds", "--set", "{w}/mask_small.png"),
+    _cli("mask-out-exists", "exists.png", "dataset", "mask", "{w}/ds", "--out", "{w}/exists.png"),
+    _cli("detector-eval-onnx-matching-no-layout", "odd.onnx", "detector", "eval", "{w}/ds", "--detector",
+         "yolo:{w}/odd.onnx", "--detector-classes", "0=blue"),
+    _cli("detector-eval-unknown-detector-kind", "detr", "detector", "eval", "{w}/ds", "--detector", "detr:x.onnx"),
+    _cli("gap-too-few-frames", "at least 8", "gap", "{w}/ds", "--out", "{w}/o_gap", out="o_gap"),
+    _cli("gap-same-camera-without-reference", "--reference", "gap", "{w}/ds", "--mode", "same-camera", "--out",
+         "{w}/o_gap", out="o_gap"),
+    _cli("gap-missing-reference", "nope", "gap", "{w}/ds", "--reference", "{w}/nope", "--out", "{w}/o_gap",
+         out="o_gap"),
     # ---- gap
     _cli("gap-missing-measured", "nope", "gap", "{w}/nope", "--out", "{w}/o_gap", out="o_gap"),
     _cli("gap-bad-model", "model_bad.toml", "gap", "{w}/ds", "--model", "{w}/model_bad.toml", "--out",

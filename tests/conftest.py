@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,6 +12,44 @@ from weather_gym.camera import CameraConfig
 
 SMALL_CAMERA = CameraConfig(width=96, height=54)
 """A tiny camera that keeps env tests fast (rendering dominates the step time)."""
+
+
+REAL_FRAMES = "data/real/fskitti_estoril_autox2"
+"""Real camera frames (GPL-3.0, validation only): read in place from the shared folder, never copied
+into the repository; tests that need them skip when the folder is absent."""
+REAL_INTRINSICS = "900.9,900.1,506.4,358.0"
+
+
+def shared_dir() -> Path:
+    """The read-only shared folder: ``$WEATHER_GYM_SHARED`` or ``<repo>/../shared``."""
+    env = os.environ.get("WEATHER_GYM_SHARED")
+    return Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared"
+
+
+@pytest.fixture(scope="session")
+def real_frames_src() -> Path:
+    """The FSKITTI Estoril frames (23 x 1024x768, KITTI labels); skips when absent."""
+    src = shared_dir() / REAL_FRAMES
+    if not (src / "images").is_dir() or not (src / "labels").is_dir():
+        pytest.skip(f"real frames not found at {src} (set WEATHER_GYM_SHARED)")
+    return src
+
+
+@pytest.fixture(scope="session")
+def real_dataset(real_frames_src, tmp_path_factory) -> Path:
+    """The real frames imported once per session (into pytest's temporary folder), with the proposed
+    ego-vehicle mask stored; condition clear."""
+    from weather_gym.datasets.coco import load_coco
+    from weather_gym.datasets.importers import import_dataset
+    from weather_gym.datasets.masks import propose_mask, set_dataset_mask, write_mask
+
+    out = tmp_path_factory.mktemp("real") / "clear"
+    import_dataset("kitti", real_frames_src, out, intrinsics=REAL_INTRINSICS, condition="clear")
+    ds = load_coco(out)
+    mask_png = out.parent / "proposed_mask.png"
+    write_mask(mask_png, propose_mask([ds.image(i) for i in range(len(ds))]))
+    set_dataset_mask(out, mask_png)
+    return out
 
 
 @pytest.fixture

@@ -31,6 +31,11 @@ class CameraConfig:
         fps: frame rate of the sensor (the env's control rate must divide the physics rate).
         near, far: clipping planes in metres; depth beyond ``far`` reads as ``far``.
         exposure_s: nominal exposure time (used by motion blur / low-light models).
+        fy_px: vertical focal length in pixels when it differs from ``fx`` (None: square pixels).
+        cx_px, cy_px: principal point in pixels when it is off-centre (None: the image centre).
+
+    A measured camera (``fx, fy, cx, cy`` from a calibration) is :meth:`from_intrinsics`; ``fx``
+    always follows from ``hfov_deg`` and ``width``.
     """
 
     width: int = 672
@@ -43,6 +48,9 @@ class CameraConfig:
     near: float = 0.1
     far: float = 80.0
     exposure_s: float = 0.004
+    fy_px: float | None = None
+    cx_px: float | None = None
+    cy_px: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -61,9 +69,35 @@ class CameraConfig:
             "mount_x": math.isfinite(self.mount_x),
             "exposure_s": self.exposure_s > 0,
         }
+        for name in ("fy_px", "cx_px", "cy_px"):
+            v = getattr(self, name)
+            checks[name] = v is None or (isinstance(v, (int, float)) and math.isfinite(v)
+                                         and (v > 0 if name == "fy_px" else True))
         for name, ok in checks.items():
             if not ok:
                 raise InputError(f"camera {name} has an invalid value {getattr(self, name)!r}")
+
+    @classmethod
+    def from_intrinsics(cls, width: int, height: int, fx: float, fy: float, cx: float, cy: float,
+                        **kwargs) -> CameraConfig:
+        """A camera from measured intrinsics (pixels, at ``width`` x ``height``).
+
+        Example:
+            >>> cam = CameraConfig.from_intrinsics(1024, 768, 900.9, 900.1, 506.4, 358.0)
+            >>> round(cam.fx, 1), cam.fy, cam.cx, cam.cy, round(cam.hfov_deg, 2)
+            (900.9, 900.1, 506.4, 358.0, 59.22)
+        """
+        for name, v in (("fx", fx), ("fy", fy)):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise InputError(f"camera intrinsics: {name} must be a positive number of pixels, got {v!r}")
+        for name, v, size in (("cx", cx, width), ("cy", cy, height)):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 <= v <= size):
+                raise InputError(f"camera intrinsics: {name} must lie in [0, {size}] pixels, got {v!r}")
+        hfov = math.degrees(2.0 * math.atan(width / (2.0 * float(fx))))
+        return cls(width=int(width), height=int(height), hfov_deg=hfov,
+                   fy_px=None if abs(fy - fx) < 1e-9 else float(fy),
+                   cx_px=None if abs(cx - width / 2.0) < 1e-9 else float(cx),
+                   cy_px=None if abs(cy - height / 2.0) < 1e-9 else float(cy), **kwargs)
 
     @property
     def fx(self) -> float:
@@ -71,15 +105,25 @@ class CameraConfig:
 
     @property
     def fy(self) -> float:
-        return self.fx  # square pixels
+        return self.fx if self.fy_px is None else float(self.fy_px)  # square pixels unless measured otherwise
 
     @property
     def cx(self) -> float:
-        return self.width / 2.0
+        return self.width / 2.0 if self.cx_px is None else float(self.cx_px)
 
     @property
     def cy(self) -> float:
-        return self.height / 2.0
+        return self.height / 2.0 if self.cy_px is None else float(self.cy_px)
+
+    @property
+    def centred(self) -> bool:
+        """Square pixels and the principal point at the image centre (the simulator's default camera)."""
+        return self.fy_px is None and self.cx_px is None and self.cy_px is None
+
+    @property
+    def intrinsics(self) -> dict[str, float]:
+        """``{"fx", "fy", "cx", "cy"}`` in pixels."""
+        return {"fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy}
 
     @property
     def vfov_deg(self) -> float:
@@ -102,10 +146,20 @@ class CameraConfig:
         return self.fy * np.asarray(object_height_m, dtype=np.float64) / h
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The fields as a dict (the measured-intrinsics fields only when set)."""
+        d = asdict(self)
+        for key in ("fy_px", "cx_px", "cy_px"):
+            if d[key] is None:
+                del d[key]
+        return d
 
     def scaled(self, width: int, height: int) -> CameraConfig:
-        """The same camera at another resolution (same field of view)."""
-        d = self.to_dict()
+        """The same camera at another resolution (same field of view; a measured principal point and
+        vertical focal length scale with the image)."""
+        d = asdict(self)
+        sx, sy = int(width) / self.width, int(height) / self.height
         d.update(width=int(width), height=int(height))
+        for key, f in (("fy_px", sy), ("cx_px", sx), ("cy_px", sy)):
+            if d[key] is not None:
+                d[key] = d[key] * f
         return CameraConfig(**d)

@@ -10,3 +10,7 @@ CLEAN_FRAMES = 40
 FAST = dict(fit_frames=12, bootstrap=500)
 #: the "real world" draws other random numbers than the workflow (seed 0)
 MEASURED_SEED = 4242
+#: frames per domain-shifted clear set
+SHIFTED_FRAMES = 24
+#: the real frames (1024x768) are compared at 256x192 in the tests (scaled once by 4)
+REAL_WIDTH = 256

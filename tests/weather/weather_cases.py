@@ -8,7 +8,9 @@ from weather_gym.weather import EFFECTS, make
 VARIANTS = [(name, {}) for name in EFFECTS.names()] + [
     ("droplets", {"persistent": True}),
     ("dim", {"mode": "physical"}),
-    ("exposure", {"direction": "over", "gamma_error": 0.3, "flare": 0.1}),
+    ("exposure", {"direction": "over", "gamma_error": 0.3, "flare": 0.1, "contrast": 0.5}),
+    ("exposure", {"contrast": -0.6}),
+    ("motion_blur", {"kind": "linear", "angle_deg": 30.0}),
 ]
 VARIANT_IDS = [n + ("-" + "-".join(f"{k}={v}" for k, v in p.items()) if p else "") for n, p in VARIANTS]
 

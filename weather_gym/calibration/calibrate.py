@@ -168,7 +168,7 @@ def calibrate(curves: Mapping[str, Curve], levels: Sequence[MeasuredLevel], *, m
 # ------------------------------------------------------------------------------------- re-measuring
 def remeasure(calibs: Sequence[PresetCalibration], curves: Mapping[str, Curve], dataset: str | os.PathLike,
               results_path: str | os.PathLike, *, seeds: Sequence[int] = (0, 1, 2, 3, 4),
-              model: str | os.PathLike | None = None, workers: int | None = None, backend: str = "process",
+              model: Any = None, workers: int | None = None, backend: str = "process",
               ray_address: str | None = None, progress: bool = True) -> list[dict[str, Any]]:
     """Measure each preset's effect at its chosen k (and k = 0) on ``dataset`` over ``seeds``.
 

@@ -180,13 +180,18 @@ def parse_measured_arg(text: str) -> tuple[str, Any]:
                             "CONDITION@SEVERITY=DIR or ideal=DIR)")
 
 
-def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model: str | os.PathLike | None = None,
+def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model: Any = None,
                      *, domain: str = "measured", progress: bool = True) -> list[MeasuredLevel]:
-    """Score the detector on labelled measured image sets; one level per (condition, severity) group."""
+    """Score the detector (a spec or detector, see ``weather_gym.perception.load_detector``) on labelled
+    measured image sets; one level per (condition, severity) group. Ignore masks and ignore regions of
+    the sets apply; the too-small rule is the detector's."""
     from weather_gym.datasets import load_coco
-    from weather_gym.perception import ConeDetector, evaluate
+    from weather_gym.perception import evaluate
+    from weather_gym.perception.detectors import load_detector
+    from weather_gym.perception.scoring import small_rule
 
-    det = ConeDetector(model)
+    det = load_detector(model)
+    rules: dict[tuple[str, int], Any] = {}
     groups: dict[tuple[str, int], list[tuple[dict, Any]]] = {}
     sources: dict[tuple[str, int], list[str]] = {}
     for cond, sev, folder in items:
@@ -204,6 +209,10 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
                 c = _condition(str(rec["condition"]), where)
                 key = (c, 0 if c == IDEAL else _severity(rec["severity"], where))
             frames.append((ds.gt(i), key))
+            rule = small_rule(ds, det)
+            if rule is None or rules.setdefault(key, rule).min_height_px != rule.min_height_px:
+                raise InputError(f"{folder}: frames of one level must have one size (the too-small rule depends "
+                                 "on it); import each camera size into its own folder")
         from tqdm import tqdm
 
         dets = []
@@ -218,7 +227,9 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
                 sources[key].append(str(folder))
     levels = []
     for (cond, sev), pairs in sorted(groups.items()):
-        r = evaluate([g for g, _ in pairs], [d for _, d in pairs], score_threshold=det.score_threshold)
+        rule = rules[(cond, sev)]
+        r = evaluate([g for g, _ in pairs], [d for _, d in pairs], score_threshold=det.score_threshold,
+                     min_box_height=rule.min_height_px, too_small=rule.describe())
         if not math.isfinite(r.map50):
             raise InputError(f"measured set {', '.join(sources[cond, sev])} ({cond} severity {sev}) has no scorable cones")
         levels.append(MeasuredLevel(cond, sev, domain, float(r.map50), math.nan,
@@ -227,7 +238,7 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
     return _fill_relative(levels, "measured image sets")
 
 
-def load_measured(values: Sequence[str], model: str | os.PathLike | None = None,
+def load_measured(values: Sequence[str], model: Any = None,
                   progress: bool = True) -> list[MeasuredLevel]:
     """All ``--measured`` values (tables and image sets) -> levels."""
     levels: list[MeasuredLevel] = []

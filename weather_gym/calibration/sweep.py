@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym._io import atomic_write_json
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.errors import InputError
 
 __all__ = [
     "CURVE_FILE",
@@ -214,7 +214,8 @@ def file_id(path: str | os.PathLike) -> str:
 # -------------------------------------------------------------------------------------------- cells
 @dataclass(frozen=True)
 class SweepCell:
-    """One (effect, k, seed) measurement. Key fields: :data:`KEY_FIELDS`; ``dataset``/``model`` are paths."""
+    """One (effect, k, seed) measurement. Key fields: :data:`KEY_FIELDS`; ``dataset`` is a path, ``model``
+    the detector (a :class:`~weather_gym.perception.detectors.DetectorSpec`, or a ConeNet ONNX path)."""
 
     effect: str
     spec: str
@@ -224,21 +225,21 @@ class SweepCell:
     model_id: str
     name: str = ""
     dataset: str = ""
-    model: str = ""
+    model: Any = ""
 
 
-_CACHE: dict[tuple[str, str], tuple[Any, Any]] = {}
+_CACHE: dict[tuple[str, Any], tuple[Any, Any]] = {}
 
 
-def _dataset_and_detector(dataset: str, model: str) -> tuple[Any, Any]:
+def _dataset_and_detector(dataset: str, model: Any) -> tuple[Any, Any]:
     """Load once per worker process: the evaluation set (frames kept in memory) and the detector."""
     key = (dataset, model)
     if key not in _CACHE:
         from weather_gym.datasets import load_coco
-        from weather_gym.perception import ConeDetector
+        from weather_gym.perception.detectors import load_detector
 
         _CACHE.clear()
-        _CACHE[key] = (load_coco(dataset, cache_images=True), ConeDetector(model, threads=1))
+        _CACHE[key] = (load_coco(dataset, cache_images=True), load_detector(model or None, threads=1))
     return _CACHE[key]
 
 
@@ -263,28 +264,35 @@ def run_sweep_cell(cell: SweepCell) -> dict[str, Any]:
 
 
 def make_sweep_cells(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequence[int],
-                     dataset: str | os.PathLike, model: str | os.PathLike | None = None) -> list[SweepCell]:
-    """Every (effect, k, seed) cell, checking the dataset and model exist first."""
+                     dataset: str | os.PathLike, model: Any = None) -> list[SweepCell]:
+    """Every (effect, k, seed) cell, checking the dataset and the detector first.
+
+    ``model``: a detector spec (``"yolov8:model.onnx"``, a ``DetectorSpec``, a ConeNet ``.onnx`` path;
+    None: the shipped detector). ``model_id`` identifies its file and options.
+    """
+    from dataclasses import replace as _replace
+
     from weather_gym.datasets.coco import ANNOTATIONS, load_coco
-    from weather_gym.perception.detector import DEFAULT_MODEL
+    from weather_gym.perception.detectors import detector_id, parse_detector_spec
 
     ds_path = Path(dataset)
     load_coco(ds_path)  # validates (missing folder / annotations / images -> a clear error)
-    model_path = Path(model) if model is not None else DEFAULT_MODEL
-    if not model_path.is_file():
-        raise MissingInputError(f"detector model {model_path} not found")
+    spec = parse_detector_spec(model)  # a missing file or a bad spec -> a clear error
+    if spec.path is not None:
+        spec = _replace(spec, path=str(Path(spec.path).resolve()))
+    spec.load(threads=1)  # the export's layout and class map are checked before any cell runs
     labels = [e.label for e in effects]
     dup = sorted({x for x in labels if labels.count(x) > 1})
     if dup:
         raise InputError(f"effect(s) {', '.join(dup)} given twice")
-    dsid, mid = file_id(ds_path / ANNOTATIONS), file_id(model_path)
+    dsid, mid = file_id(ds_path / ANNOTATIONS), detector_id(spec)
     return [SweepCell(effect=e.label, spec=e.spec, k=float(k), seed=int(s), dataset_id=dsid, model_id=mid,
-                      name=e.name, dataset=str(ds_path.resolve()), model=str(model_path.resolve()))
+                      name=e.name, dataset=str(ds_path.resolve()), model=spec)
             for e in effects for k in ks for s in seeds]
 
 
 def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequence[int],
-              dataset: str | os.PathLike, out: str | os.PathLike, *, model: str | os.PathLike | None = None,
+              dataset: str | os.PathLike, out: str | os.PathLike, *, model: Any = None,
               workers: int | None = None, backend: str = "process", progress: bool = True,
               retry_failed: bool = True, ray_address: str | None = None, plot: bool = True,
               command: str | None = None, overwrite: bool = False) -> list[dict[str, Any]]:

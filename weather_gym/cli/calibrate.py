@@ -21,6 +21,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
@@ -53,8 +54,7 @@ def register(sub) -> None:
     p.add_argument("--dataset", type=Path, default=None,
                    help="re-measure every chosen k on this COCO set (achieved mAP); default: interpolate the curve")
     p.add_argument("--seeds", type=int, default=5, help="weather realisations per preset when re-measuring")
-    p.add_argument("--model", type=Path, default=None,
-                   help="ONNX detector for measured image sets and re-measuring (default: the shipped model)")
+    add_detector_args(p, what="scores the measured image sets and re-measures", legacy_model=True)
     p.add_argument("--base", type=Path, default=None,
                    help="presets file for conditions without measured levels (default: the shipped one)")
     p.add_argument("--report", type=Path, default=None,
@@ -104,13 +104,14 @@ def _run(args) -> int:
     curves = _merge_curves(args.curve, args.metric, args.dataset_id, args.model_id)
     use = parse_use(args.use)
     study = study_points(args.study_points) if args.study_points is not None else None
-    levels = load_measured(args.measured, args.model, progress=not args.no_progress)
+    detector = detector_spec_from_args(args)
+    levels = load_measured(args.measured, detector, progress=not args.no_progress)
     base = load_presets(args.base)["presets"]
     descriptions = {(c, s): t.get("description", "") for c, sev in base.items() for s, t in sev.items()}
     calibs = calibrate(curves, levels, match=args.match, use=use, domain=args.domain, descriptions=descriptions)
     if args.dataset is not None:
         remeasure(calibs, curves, args.dataset, report_dir / "remeasured.csv", seeds=tuple(range(args.seeds)),
-                  model=args.model, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
+                  model=detector, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
                   progress=not args.no_progress)
     else:
         fill_from_curves(calibs, curves)

@@ -1,14 +1,22 @@
-"""``weather-gym dataset render|info``: COCO datasets of rendered cone frames.
+"""``weather-gym dataset render|import|mask|info``: COCO datasets of cone frames, rendered or imported.
 
 Examples:
     weather-gym dataset render --track small_track --track random:3 --frames 500 --out data/train --randomize
     weather-gym dataset render --track peanut --frames 300 --out data/val --seed 101
-    weather-gym dataset info data/val
+    weather-gym dataset import kitti recordings/estoril --out data/real --intrinsics 900.9,900.1,506.4,358.0 \
+        --condition clear
+    weather-gym dataset mask data/real --out ego_mask.png --preview ego_preview.png   # propose, then edit
+    weather-gym dataset mask data/real --set ego_mask.png                             # store with the dataset
+    weather-gym dataset info data/real
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+
+from weather_gym.cli._detector_args import add_detector_args, detector_from_args
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
 
 
 def register(sub) -> None:
@@ -35,7 +43,49 @@ def register(sub) -> None:
     r.set_defaults(func=_render)
     i = cmds.add_parser("info", help="summary of a COCO dataset folder (validates it)")
     i.add_argument("dir", type=Path)
+    add_detector_args(i, what="the too-small rule is stated at this detector's input scale")
     i.set_defaults(func=_info)
+
+    from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS
+
+    im = cmds.add_parser("import", help="import labelled frames (KITTI, YOLO txt, COCO) into a COCO folder",
+                         description="Read a folder of frames and labels, validate it, copy the frames into "
+                                     "OUT/images/ and write OUT/annotations.json (nothing outside --out is written). "
+                                     "See docs/real_data.md.")
+    im.add_argument("format", choices=FORMATS, help="label format of SRC")
+    im.add_argument("src", type=Path, help="source folder (images/ + labels/, or a COCO JSON beside the images)")
+    im.add_argument("--out", type=Path, required=True, help="new dataset folder (never overwritten without --overwrite)")
+    im.add_argument("--classes", default=None, metavar="SRC=TARGET,...",
+                    help="class map, TARGET in blue, yellow, orange, big_orange, ignore (ignore regions); '*=ignore' "
+                         f"maps every class not named; default {DEFAULT_CLASSES}")
+    im.add_argument("--condition", default=None,
+                    help="condition of every frame: clear, or a weather condition (droplets, low_light) with --severity")
+    im.add_argument("--severity", type=int, default=None, help="severity 1-4 of --condition")
+    im.add_argument("--intrinsics", default=None, metavar="FX,FY,CX,CY",
+                    help="camera intrinsics in pixels at the image size (else from KITTI calib/ files, else unknown)")
+    im.add_argument("--mask", type=Path, default=None, help="ignore-mask PNG (white = ignored) to store with the dataset")
+    im.add_argument("--annotations", type=Path, default=None, help="COCO: the JSON file (default: the only *.json in SRC)")
+    im.add_argument("--location-frame", default="auto", choices=("auto", "camera", "vehicle", "none"),
+                    help="KITTI: frame of the 3D locations used for cone range (default: recognised from the boxes)")
+    add_overwrite_arg(im, help="replace an existing dataset in --out")
+    im.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_detector_args(im, what="the too-small rule is stated at this detector's input scale")
+    im.set_defaults(func=_import)
+
+    m = cmds.add_parser("mask", help="propose an ignore mask (the ego vehicle) from the frames, or store one",
+                        description="Without --set: propose an ignore mask from the frames themselves (pixels that "
+                                    "stay the same while the scene moves, touching the bottom of the frame) and write "
+                                    "it as a PNG to --out for you to check and edit (white = ignored). With --set: "
+                                    "store a mask PNG with the dataset (dataset-wide, or for one --frame).")
+    m.add_argument("dir", type=Path, help="dataset folder")
+    what = m.add_mutually_exclusive_group(required=True)
+    what.add_argument("--out", type=Path, help="write the proposed mask PNG here (nothing else is written)")
+    what.add_argument("--set", type=Path, metavar="MASK.png", help="store this mask PNG with the dataset")
+    m.add_argument("--preview", type=Path, default=None, help="with --out: also write a frame with the mask drawn on it")
+    m.add_argument("--frame", default=None, help="with --set: the image file_name the mask is for (default: all frames)")
+    m.add_argument("--max-frames", type=int, default=60, help="frames used for the proposal, evenly spaced (default %(default)s)")
+    add_overwrite_arg(m, help="replace an existing mask file (--out, --preview, or the dataset's mask with --set)")
+    m.set_defaults(func=_mask)
 
 
 def _render(args) -> int:
@@ -59,18 +109,113 @@ def _info(args) -> int:
 
     from weather_gym.cone_spec import CONE_CLASSES
     from weather_gym.datasets.coco import load_coco
+    from weather_gym.perception.ignore import inside_mask
     from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
+    from weather_gym.perception.scoring import small_rule
 
     ds = load_coco(args.dir)
     anns = ds.data["annotations"]
-    tracks = Counter(im.get("track", "?") for im in ds.images)
+    info = ds.info
+    sizes = Counter(f"{im['width']}x{im['height']}" for im in ds.images)
+    det = detector_from_args(args, required=False)
+    sr = small_rule(ds, det)
+    if sr is not None:
+        rule, min_h = sr.describe(), sr.min_height_px
+    else:  # frames of several sizes: the flags stored with the dataset
+        min_h = None
+        rule = (info.get("too_small") or {}).get("rule") or (
+            f"box height < {info.get('min_box_height_px', MIN_BOX_HEIGHT_PX):g} px, as stored")
+    masked = 0
+    for i in range(len(ds)) if ds.has_ignore_mask else ():
+        g = ds.gt(i)
+        masked += int((inside_mask(g.get("ignore_mask"), g["boxes"]) & ~g["ignore"]).sum())
+    regions = [a for a in anns if a.get("ignore")]
+
+    def is_small(a: dict) -> bool:
+        return bool(a.get("iscrowd")) if min_h is None else a["bbox"][3] < min_h
+
+    small = [a for a in anns if not a.get("ignore") and is_small(a)]
+    per_class = Counter(CONE_CLASSES[a["category_id"] - 1] for a in anns if not a.get("ignore") and not is_small(a))
     heights = np.array([a["bbox"][3] for a in anns]) if anns else np.zeros(0)
-    crowd = sum(int(a.get("iscrowd", 0)) for a in anns)
-    per_class = Counter(CONE_CLASSES[a["category_id"] - 1] for a in anns if not a.get("iscrowd", 0))
-    print(f"{args.dir}: {len(ds)} images, {len(anns)} cones ({crowd} tiny: box height < {MIN_BOX_HEIGHT_PX:g} px, ignored)")
-    print("tracks: " + ", ".join(f"{t} ({n})" for t, n in sorted(tracks.items())))
-    print("scored cones per class: " + ", ".join(f"{c} {per_class.get(c, 0)}" for c in CONE_CLASSES))
+    origin = info.get("origin", "render" if any("track" in im for im in ds.images) else "?")
+    print(f"{args.dir}: {len(ds)} images ({', '.join(f'{s} ({n})' for s, n in sizes.items())}), {origin}, "
+          f"{len(anns)} boxes")
+    print("scored cones per class: " + ", ".join(f"{c} {per_class.get(c, 0)}" for c in CONE_CLASSES)
+          + (f" (of which {masked} inside the ignore mask)" if masked else ""))
+    print(f"too small (ignored): {len(small)} cones, {rule}")
+    if regions:
+        by = Counter(a.get("source_class", a["ignore"]) for a in regions)
+        print("ignore regions (not misses): " + ", ".join(f"{c} {n}" for c, n in sorted(by.items())))
+    for what, n in (info.get("rows_left_out") or {}).items():
+        print(f"{what}: {n}")
+    if ds.has_ignore_mask:
+        m = ds.ignore_mask(0)
+        print(f"ignore mask: {info.get('ignore_mask') or 'per frame'} "
+              f"({100.0 * float(m.mean()) if m is not None else 0.0:.1f} % of frame 0)")
+    tracks = Counter(im.get("track") for im in ds.images if im.get("track"))
+    if tracks:
+        print("tracks: " + ", ".join(f"{t} ({n})" for t, n in sorted(tracks.items())))
+    conds = Counter(f"{im['condition']}@{im.get('severity', 0)}" for im in ds.images if im.get("condition"))
+    if conds:
+        print("conditions: " + ", ".join(f"{c} ({n})" for c, n in sorted(conds.items())))
+    k = ds.images[0].get("intrinsics") if ds.images else None
+    if k:
+        print("intrinsics (frame 0): " + ", ".join(f"{n} {v:.1f}" for n, v in k.items()))
     if heights.size:
         q = np.percentile(heights, [10, 50, 90])
         print(f"box height px: p10 {q[0]:.1f}, median {q[1]:.1f}, p90 {q[2]:.1f}")
+    return 0
+
+
+def _import(args) -> int:
+    from weather_gym.datasets.importers import import_dataset
+
+    det = detector_from_args(args, required=False)
+    r = import_dataset(args.format, args.src, args.out, classes=args.classes, condition=args.condition,
+                       severity=args.severity, intrinsics=args.intrinsics, detector=det, mask=args.mask,
+                       annotations=args.annotations, location_frame=args.location_frame, overwrite=args.overwrite,
+                       progress=not args.quiet)
+    cones = ", ".join(f"{c} {n}" for c, n in sorted(r["cones"].items())) or "none"
+    print(f"imported {r['frames']} frames ({r['size'][0]}x{r['size'][1]}) into {r['out']}")
+    print(f"cones: {cones}; too small: {r['too_small']} ({r['rule']})")
+    if r["ignore_regions"]:
+        print("ignore regions: " + ", ".join(f"{c} {n}" for c, n in sorted(r["ignore_regions"].items())))
+    for what, n in r["rows_left_out"].items():
+        print(f"{what}: {n}")
+    print(f"intrinsics: {r['intrinsics']}" + (f"; 3D locations: {r['location_frame']}" if args.format == "kitti" else ""))
+    if r["condition"] is not None:
+        print(f"condition: {r['condition']} (severity {r['severity']})")
+    return 0
+
+
+def _mask(args) -> int:
+    import numpy as np
+
+    from weather_gym._io import check_output, write_image
+    from weather_gym.datasets.coco import load_coco
+    from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
+
+    if args.set is not None:
+        if args.preview is not None:
+            raise InputError("--preview goes with --out (a proposal), not with --set")
+        dest = set_dataset_mask(args.dir, args.set, frame=args.frame, overwrite=args.overwrite)
+        print(f"stored {args.set} as {dest}")
+        return 0
+    if args.frame is not None:
+        raise InputError("--frame goes with --set")
+    for p, what in ((args.out, "--out"), (args.preview, "--preview")):
+        if p is not None:
+            check_output(p, overwrite=args.overwrite, suffixes=(".png",), what=what)
+    if args.max_frames < 4:
+        raise InputError(f"--max-frames must be >= 4, got {args.max_frames}")
+    ds = load_coco(args.dir)
+    idx = np.unique(np.linspace(0, len(ds) - 1, min(args.max_frames, len(ds))).round().astype(int))
+    frames = [ds.image(int(i)) for i in idx]
+    mask = propose_mask(frames)
+    write_mask(args.out, mask, overwrite=args.overwrite)
+    print(f"proposed ignore mask from {len(frames)} frames: {100.0 * mask.mean():.1f} % of the frame -> {args.out}")
+    if args.preview is not None:
+        write_image(args.preview, mask_preview(frames[0], mask), overwrite=args.overwrite)
+        print(f"preview: {args.preview}")
+    print(f"check and edit it (white = ignored), then: weather-gym dataset mask {args.dir} --set {args.out}")
     return 0

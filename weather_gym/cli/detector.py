@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from weather_gym._io import atomic_write_json, check_output, write_image
+from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError, LimitError, MissingDependencyError
 from weather_gym.limits import check_image_size
@@ -43,7 +44,7 @@ def register(sub) -> None:
 
     e = cmds.add_parser("eval", help="score the detector on a COCO folder (optionally under weather)")
     e.add_argument("dataset", type=Path)
-    e.add_argument("--model", type=Path, default=None, help="ONNX model (default: the shipped one)")
+    add_detector_args(e, legacy_model=True)
     e.add_argument("--effect", default=None, help="weather effect name (e.g. droplets, dim)")
     e.add_argument("--k", type=float, default=None, help="severity of --effect in [0, 1]")
     e.add_argument("--weather", default=None, help="any weather spec instead of --effect/--k, e.g. 'droplets:0.55,dim:0.3'")
@@ -57,7 +58,7 @@ def register(sub) -> None:
     pr = cmds.add_parser("predict", help="detect cones in one image and draw them")
     pr.add_argument("image", type=Path)
     pr.add_argument("--out", type=Path, required=True, help="annotated PNG to write")
-    pr.add_argument("--model", type=Path, default=None)
+    add_detector_args(pr, legacy_model=True)
     pr.add_argument("--effect", default=None)
     pr.add_argument("--k", type=float, default=None)
     pr.add_argument("--seed", type=int, default=0)
@@ -67,7 +68,7 @@ def register(sub) -> None:
 
     sw = cmds.add_parser("sweep", help="mAP versus k for droplets and dim (the study's Figures 3 and 5)")
     sw.add_argument("dataset", type=Path)
-    sw.add_argument("--model", type=Path, default=None)
+    add_detector_args(sw, legacy_model=True)
     sw.add_argument("--ks", default="0,0.2,0.4,0.55,0.7,0.78,0.9", help="comma-separated k values")
     sw.add_argument("--effects", default="droplets,dim")
     sw.add_argument("--seed", type=int, default=0)
@@ -81,7 +82,7 @@ def register(sub) -> None:
     fg = cmds.add_parser("figure", help="one frame with detections: clean | droplets 0.55 | dim 0.78")
     fg.add_argument("dataset", type=Path)
     fg.add_argument("--index", type=int, default=0, help="image index in the dataset")
-    fg.add_argument("--model", type=Path, default=None)
+    add_detector_args(fg, legacy_model=True)
     fg.add_argument("--seed", type=int, default=0)
     fg.add_argument("--out", type=Path, required=True, help="PNG to write")
     add_overwrite_arg(fg, help="replace an existing --out")
@@ -121,7 +122,6 @@ def _train(args) -> int:
 
 def _eval(args) -> int:
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.scoring import score_dataset
 
     _check_limit(args.limit)
@@ -135,13 +135,13 @@ def _eval(args) -> int:
         check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     ds = load_coco(args.dataset)
     _check_not_empty(ds)
-    det = ConeDetector(args.model, threads=args.threads)
+    det = detector_from_args(args, threads=args.threads)
     result = score_dataset(ds, det, weather, seed=args.seed, limit=args.limit, progress=True)
     label = "clear" if weather is None else (args.weather or f"{args.effect} k={args.k}")
-    print(f"{args.dataset} | {det.path.name} | weather: {label} | seed {args.seed}")
+    print(f"{args.dataset} | {det.name} | weather: {label} | seed {args.seed}")
     print(result.table())
     if args.json is not None:
-        atomic_write_json(args.json, {"dataset": str(args.dataset), "model": str(det.path), "weather": label,
+        atomic_write_json(args.json, {"dataset": str(args.dataset), "detector": det.name, "weather": label,
                                       **result.to_dict()}, indent=2, default=str, overwrite=args.overwrite)
     return 0
 
@@ -168,7 +168,6 @@ def _predict(args) -> int:
     import numpy as np
 
     from weather_gym.datasets.coco import read_image
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.draw import draw_detections
 
     check_output(args.out, overwrite=args.overwrite, suffixes=(".png", ".jpg", ".jpeg"), what="--out")
@@ -183,7 +182,9 @@ def _predict(args) -> int:
         eff = parse_weather(weather)
         eff.reset(args.seed)
         image = eff(image, rng=np.random.default_rng(args.seed))
-    det = ConeDetector(args.model, score_threshold=args.threshold)
+    if args.threshold is not None:
+        args.detector_threshold = args.threshold
+    det = detector_from_args(args)
     d = det(image)
     write_image(args.out, draw_detections(image, d), overwrite=args.overwrite)
     print(f"{len(d)} cones -> {args.out}")
@@ -192,7 +193,6 @@ def _predict(args) -> int:
 
 def _sweep(args) -> int:
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.report import STUDY_CLEAN_MAP, STUDY_POINTS, plot_map_vs_k, sweep_map_vs_k
 
     try:
@@ -209,10 +209,10 @@ def _sweep(args) -> int:
         check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     ds = load_coco(args.dataset, cache_images=True)
     _check_not_empty(ds)
-    det = ConeDetector(args.model, threads=args.threads)
+    det = detector_from_args(args, threads=args.threads)
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     sweep = sweep_map_vs_k(ds, det, ks, effects, seed=args.seed, limit=args.limit)
-    print(f"{args.dataset} | {det.path.name} | seed {args.seed}")
+    print(f"{args.dataset} | {det.name} | seed {args.seed}")
     print("effect     k      mAP@0.5  mAP@.5:.95  relative   study (relative)")
     for e, rows in sweep.items():
         clean = next((r["map50"] for r in rows if r["k"] == 0), float("nan"))
@@ -233,7 +233,6 @@ def _sweep(args) -> int:
 
 def _figure(args) -> int:
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.detector import ConeDetector
     from weather_gym.perception.report import detections_figure
 
     check_output(args.out, overwrite=args.overwrite, suffixes=(".png",), what="--out")
@@ -243,7 +242,7 @@ def _figure(args) -> int:
         raise InputError(f"--index must be in 0..{len(ds) - 1}, got {args.index}")
     rec = ds.record(args.index)
     state = {"speed": float(rec.get("speed", 0.0)), "yaw_rate": float(rec.get("yaw_rate", 0.0))}
-    out = detections_figure(ds.image(args.index), ConeDetector(args.model), args.out, depth=ds.depth(args.index),
+    out = detections_figure(ds.image(args.index), detector_from_args(args), args.out, depth=ds.depth(args.index),
                             state=state, seed=args.seed, overwrite=args.overwrite)
     print(f"wrote {out}")
     return 0

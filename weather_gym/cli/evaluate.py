@@ -20,6 +20,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
@@ -78,6 +79,7 @@ def register(sub) -> None:
     e.add_argument("--env-kwargs", default=None, help='JSON object of gymnasium.make arguments, e.g. \'{"camera": {"width": 336, "height": 188}}\'')
     e.add_argument("--perception-kwargs", default=None, help="JSON object of the perception wrapper's arguments (DetectorWrapper / GroundTruthConeWrapper)")
     e.add_argument("--presets", type=Path, default=None, help="presets TOML (default: the shipped one)")
+    add_detector_args(e, what="for --perception detector; the same as the detector keys of --perception-kwargs")
     r = p.add_argument_group("run")
     r.add_argument("--out", type=Path, required=True, help="output folder (results.csv, report.md, plots/)")
     add_overwrite_arg(r, help="replace a report.md or plots/ in --out that no earlier run of this grid wrote "
@@ -101,9 +103,26 @@ def build_config(args):
         seeds=seeds, tracks=_names(args.tracks), env_id=args.env_id, perception=args.perception, laps=args.laps,
         max_steps=args.max_steps, agent_kwargs=_json_arg("--agent-kwargs", args.agent_kwargs),
         env_kwargs=_json_arg("--env-kwargs", args.env_kwargs),
-        perception_kwargs=_json_arg("--perception-kwargs", args.perception_kwargs),
+        perception_kwargs=_perception_kwargs(args),
         presets=str(args.presets) if args.presets is not None else None,
     )
+
+
+def _perception_kwargs(args) -> dict:
+    """``--perception-kwargs`` plus the ``--detector*`` options (as the DetectorWrapper's keywords)."""
+    kw = _json_arg("--perception-kwargs", args.perception_kwargs) or {}
+    given = {"detector": args.detector, "detector_classes": args.detector_classes,
+             "detector_resize": args.detector_resize, "detector_input": args.detector_input,
+             "score_threshold": args.detector_threshold}
+    given = {k: v for k, v in given.items() if v is not None}
+    if given and args.perception != "detector":
+        raise InputError(f"--detector options go with --perception detector, not {args.perception}")
+    clash = sorted(set(given) & set(kw))
+    if clash:
+        raise InputError(f"{', '.join(clash)} given both as --detector options and in --perception-kwargs; give each once")
+    if given:
+        detector_spec_from_args(args)  # a bad spec or a missing file fails here, before any cell runs
+    return {**kw, **given}
 
 
 def _run(args) -> int:

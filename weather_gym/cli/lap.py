@@ -17,7 +17,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.errors import InputError
 from weather_gym.pipeline import PERCEPTION_MODES
 
 PERCEPTION_CHOICES = ("auto", *PERCEPTION_MODES)
@@ -66,8 +67,7 @@ def register(sub) -> None:
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
     p.add_argument("--perception", choices=PERCEPTION_CHOICES, default="auto", help="what the agent sees (see below)")
-    p.add_argument("--detector", type=Path, metavar="MODEL.onnx",
-                   help="ONNX detector for --perception detector (default: the shipped model)")
+    add_detector_args(p, what="for --perception detector")
     p.add_argument("--laps", type=int, default=1, help="laps to drive (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default %(default)s)")
     p.add_argument("--max-steps", type=int,
@@ -115,12 +115,11 @@ def _run(args) -> int:
         check_output_path(args.strip, overwrite=args.overwrite, suffixes=(".png",))
     if args.video is not None and args.strip is not None and args.video.resolve() == args.strip.resolve():
         raise InputError("--video and --strip must be different files")
-    if args.detector is not None and not args.detector.is_file():
-        raise MissingInputError(f"--detector: model file {args.detector} not found")
+    detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
-        perception=args.perception, detector=args.detector, laps=args.laps, seed=args.seed,
+        perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
         overwrite=args.overwrite, progress=True,
     )

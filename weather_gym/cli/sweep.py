@@ -18,6 +18,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import MissingInputError
@@ -40,7 +41,7 @@ def register(sub) -> None:
     seeds.add_argument("--seed-list", default=None, help="explicit seeds, comma-separated (instead of --seeds)")
     p.add_argument("--dataset", type=Path, required=True,
                    help="COCO evaluation set (weather-gym dataset render), e.g. a held-out track with the default look")
-    p.add_argument("--model", type=Path, default=None, help="ONNX detector (default: the shipped model)")
+    add_detector_args(p, legacy_model=True)
     p.add_argument("--out", type=Path, required=True, help="output folder (curves.csv is resumed, never clobbered)")
     p.add_argument("--no-plot", action="store_true", help="do not draw curves.png")
     add_overwrite_arg(p, help="replace plots or sweep.json in --out that no earlier sweep there wrote "
@@ -69,12 +70,13 @@ def _run(args) -> int:
     check_runner_args(args)
     if not args.dataset.exists():
         raise MissingInputError(f"--dataset {args.dataset} not found (render one with `weather-gym dataset render`)")
-    cells = make_sweep_cells(effects, ks, seeds, args.dataset, args.model)  # validates set and model first
+    detector = detector_spec_from_args(args)
+    cells = make_sweep_cells(effects, ks, seeds, args.dataset, detector)  # validates set and detector first
     check_results_path(args.out / CURVE_FILE)
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "sweep" in sys.argv[1:2] else None
     print(f"{len(cells)} cells ({len(effects)} effect(s) x {len(ks)} k x {len(seeds)} seeds) -> "
           f"{args.out / CURVE_FILE} ({args.backend}, {args.workers} workers)", file=sys.stderr)
-    rows = run_sweep(effects, ks, seeds, args.dataset, args.out, model=args.model, workers=args.workers,
+    rows = run_sweep(effects, ks, seeds, args.dataset, args.out, model=detector, workers=args.workers,
                      backend=args.backend, progress=not args.no_progress, retry_failed=not args.skip_failed,
                      ray_address=args.ray_address, plot=not args.no_plot, command=command, overwrite=args.overwrite)
     failed = [r for r in rows if r["status"] != "ok"]

@@ -1,4 +1,4 @@
-"""COCO datasets of rendered cone frames: ``load_coco`` (validated), ``CocoWriter``, ``render_dataset``.
+"""COCO datasets of cone frames: ``load_coco`` (validated), ``CocoWriter``, ``render_dataset``, ``import_dataset`` (KITTI, YOLO, COCO recordings) and ignore masks.
 
 Example:
     >>> from weather_gym.datasets import load_coco
@@ -19,6 +19,11 @@ _LAZY = {
     "read_image": "weather_gym.datasets.coco",
     "read_depth_png": "weather_gym.datasets.coco",
     "render_dataset": "weather_gym.datasets.render",
+    "import_dataset": "weather_gym.datasets.importers",
+    "propose_mask": "weather_gym.datasets.masks",
+    "read_mask": "weather_gym.datasets.masks",
+    "write_mask": "weather_gym.datasets.masks",
+    "set_dataset_mask": "weather_gym.datasets.masks",
     "ViewRenderer": "weather_gym.datasets.render",
 }
 

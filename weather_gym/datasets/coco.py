@@ -13,6 +13,12 @@ Annotations carry ``bbox`` [x, y, w, h] (visible part, from the segmentation mas
 ``MIN_BOX_HEIGHT_PX``, ignored in training and scoring), ``range``, ``bearing``, ``cone_id``,
 ``pixels`` (visible pixel count).
 
+Imported datasets (``weather-gym dataset import``) also have ignore regions (annotations with
+``ignore``: the source class that was not mapped, and ``any_class``: they ignore detections of
+every class), per-record ``intrinsics`` / ``camera`` / ``condition`` / ``severity``, and the
+too-small rule in ``info.too_small``. An ignore mask (``info.ignore_mask``, per record
+``ignore_mask``; see ``weather_gym.datasets.masks``) is applied by ``gt(i)``'s ``ignore_mask``.
+
 Example:
     >>> import numpy as np, tempfile
     >>> from weather_gym.datasets.coco import CocoWriter, load_coco
@@ -111,6 +117,7 @@ class CocoDataset:
         for a in data["annotations"]:
             self._anns[a["image_id"]].append(a)
         self._renderer = None
+        self._masks: dict[str, np.ndarray] = {}
 
     def __len__(self) -> int:
         return len(self.images)
@@ -159,25 +166,77 @@ class CocoDataset:
     def annotations(self, i: int) -> list[dict]:
         return self._anns[self.images[i]["id"]]
 
+    @property
+    def info(self) -> dict:
+        """The ``info`` object of ``annotations.json`` (``{}`` when absent)."""
+        info = self.data.get("info")
+        return info if isinstance(info, dict) else {}
+
+    def _mask(self, rel: str, rec: dict) -> np.ndarray:
+        from weather_gym.datasets.masks import read_mask
+
+        m = self._masks.get(rel)
+        if m is None:
+            m = read_mask(resolve_inside(self.root, rel, what=f"{self.annotations_path}: ignore mask"),
+                          (int(rec["width"]), int(rec["height"])))
+            m.setflags(write=False)
+            self._masks[rel] = m
+        if m.shape != (int(rec["height"]), int(rec["width"])):
+            raise FileFormatError(f"{self.root / rel}: ignore mask is {m.shape[1]}x{m.shape[0]} but image {rec['id']} "
+                             f"is {rec['width']}x{rec['height']}")
+        return m
+
+    @property
+    def has_ignore_mask(self) -> bool:
+        return bool(self.info.get("ignore_mask")) or any(r.get("ignore_mask") for r in self.images)
+
+    def ignore_mask(self, i: int) -> np.ndarray | None:
+        """Boolean ``(H, W)`` ignore mask of frame ``i`` (dataset-wide OR per-frame), or None (read-only)."""
+        rec = self.images[i]
+        rels = [r for r in (self.info.get("ignore_mask"), rec.get("ignore_mask")) if r]
+        if not rels:
+            return None
+        if len(rels) == 1:
+            return self._mask(rels[0], rec)
+        both = self._mask(rels[0], rec) | self._mask(rels[1], rec)
+        both.setflags(write=False)
+        return both
+
     def gt(self, i: int) -> dict[str, np.ndarray]:
-        """Ground truth of frame ``i`` as arrays (the in-memory format ``evaluate`` also takes)."""
+        """Ground truth of frame ``i`` as arrays (the in-memory format ``evaluate`` also takes).
+
+        Keys: ``boxes`` (xyxy), ``classes``, ``iscrowd``, ``ignore`` / ``any_class`` (ignore regions),
+        ``ranges``, ``bearings``, ``cone_ids``, and ``ignore_mask`` when the frame has one.
+        """
         anns = self.annotations(i)
         boxes = xywh_to_xyxy(np.array([a["bbox"] for a in anns], dtype=np.float64).reshape(-1, 4))
-        return {
+        out = {
             "boxes": boxes.astype(np.float32),
             "classes": np.array([self._cat_to_class[a["category_id"]] for a in anns], dtype=np.int64),
             "iscrowd": np.array([int(a.get("iscrowd", 0)) for a in anns], dtype=np.int64),
+            "ignore": np.array([bool(a.get("ignore")) for a in anns], dtype=bool),
+            "any_class": np.array([bool(a.get("any_class")) for a in anns], dtype=bool),
             "ranges": np.array([a.get("range", np.nan) for a in anns], dtype=np.float32),
             "bearings": np.array([a.get("bearing", np.nan) for a in anns], dtype=np.float32),
             "cone_ids": np.array([a.get("cone_id", -1) for a in anns], dtype=np.int64),
         }
+        mask = self.ignore_mask(i)
+        if mask is not None:
+            out["ignore_mask"] = mask
+        return out
 
     def camera(self, i: int):
         """The ``CameraConfig`` of frame ``i`` (default camera when the record has none)."""
         from weather_gym.camera import CameraConfig
 
-        cam = self.images[i].get("camera")
-        return CameraConfig(**cam) if cam else CameraConfig().scaled(self.images[i]["width"], self.images[i]["height"])
+        rec = self.images[i]
+        cam = rec.get("camera")
+        if cam:
+            return CameraConfig(**cam)
+        k = rec.get("intrinsics")
+        if k:
+            return CameraConfig.from_intrinsics(rec["width"], rec["height"], k["fx"], k["fy"], k["cx"], k["cy"])
+        return CameraConfig().scaled(rec["width"], rec["height"])
 
     def render_view(self, i: int | dict) -> dict[str, Any]:
         """Re-render frame ``i`` (or an image record) at the same pose with the same look.
@@ -271,6 +330,8 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
             record_path(root, im, "depth_file")
         if isinstance(im.get("track"), str) and is_track_file(im["track"]):
             record_path(root, im, "track")
+        if im.get("ignore_mask") is not None:
+            record_path(root, im, "ignore_mask")
         if check_files:
             if not f.is_file():
                 raise MissingInputError(f"{path}: image {im['id']} points to {f}, which does not exist")
@@ -287,6 +348,11 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
         if (not isinstance(b, list) or len(b) != 4 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in b)
                 or b[2] < 0 or b[3] < 0):
             _fail(path, f"annotation {a.get('id')} has an invalid bbox {b!r} (expected [x, y, w, h], w, h >= 0)")
+    info = data.get("info") if isinstance(data.get("info"), dict) else {}
+    if info.get("ignore_mask") is not None:
+        mask_file = resolve_inside(root, info["ignore_mask"], what=f"{path}: info.ignore_mask")
+        if check_files and not mask_file.is_file():
+            raise MissingInputError(f"{path}: info.ignore_mask points to {mask_file}, which does not exist")
     return CocoDataset(root, data, cache_images=cache_images)
 
 

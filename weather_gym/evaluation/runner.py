@@ -19,7 +19,8 @@ given, so an interrupted-and-resumed run ends with the same file as an uninterru
 timing columns).
 
 Backends: ``"process"`` (default; ``ProcessPoolExecutor`` on a ``spawn`` context, workers limited
-to one thread each), ``"ray"`` (``ray.remote`` tasks on a local instance or ``ray_address``) and
+to one thread each, ending with their parent however it ends: Ctrl-C, SIGTERM, ``kill -9``; see
+``docs/reliability.md``), ``"ray"`` (``ray.remote`` tasks on a local instance or ``ray_address``) and
 ``"serial"`` (in-process, for debugging; a segfault there ends the run).
 
 Example:

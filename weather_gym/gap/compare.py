@@ -10,6 +10,11 @@ unpaired: difference of means).
 biases, every signal family weighing the same: ``gap = sqrt(sum_s w_s b_s^2 / sum_s w_s)``.
 A gap of 1 means the simulation is off by one scene-to-scene spread on a typical signal.
 
+**Difference in differences** (``reference`` and ``base`` given): the bias is the change the model
+makes to clean simulator frames minus the change measured from the clear reference to the measured
+frames, ``b_s = [mean(sim_s - base_s) - (mean(measured_s) - mean(reference_s))] / sigma_s``: what
+already differs between the clear reference and the simulator (the domain) cancels.
+
 **Significance.** The difference of every signal (image and perception) is bootstrapped over
 frames (resampling frames jointly in paired mode, each set on its own in unpaired mode). The
 effect size is ``difference / bootstrap std``; its two-sided p-value (normal approximation) is
@@ -42,7 +47,7 @@ from weather_gym.gap.perception import FrameMatches, perception_stats
 from weather_gym.gap.signals import SIGNALS
 
 __all__ = ["ALPHA", "MIN_EFFECT", "GapMeter", "signal_scale", "bootstrap_weights", "compare_signals",
-           "compare_perception", "holm", "gap_test"]
+           "compare_perception", "compare_perception_did", "holm", "gap_test"]
 
 ALPHA = 0.01
 MIN_EFFECT = 0.5
@@ -94,21 +99,51 @@ class GapMeter:
     the same frames, in unpaired mode ``(M, S)`` of other frames.
     """
 
-    def __init__(self, measured: np.ndarray, *, scale: np.ndarray, weights: np.ndarray, paired: bool) -> None:
+    def __init__(self, measured: np.ndarray, *, scale: np.ndarray, weights: np.ndarray, paired: bool,
+                 reference: np.ndarray | None = None, base: np.ndarray | None = None,
+                 ref_paired: bool = False) -> None:
         self.measured = np.asarray(measured, np.float64)
         self.scale = np.asarray(scale, np.float64)
         self.weights = np.asarray(weights, np.float64)
         self.paired = paired
+        self.reference = None if reference is None else np.asarray(reference, np.float64)
+        self.base = None if base is None else np.asarray(base, np.float64)
+        self.ref_paired = ref_paired
+
+    @property
+    def did(self) -> bool:
+        """Difference in differences (a clear reference and clean simulator signals are set)."""
+        return self.reference is not None
 
     def _check(self, sim: np.ndarray) -> np.ndarray:
         sim = np.asarray(sim, np.float64)
-        if self.paired and sim.shape != self.measured.shape:
+        if self.did:
+            if self.base is None or sim.shape != self.base.shape:
+                raise InputError("difference in differences needs the clean simulator signals (base) of the same "
+                                 f"frames: base {None if self.base is None else self.base.shape}, sim {sim.shape}")
+        elif self.paired and sim.shape != self.measured.shape:
             raise InputError(f"paired comparison needs sim signals of shape {self.measured.shape}, got {sim.shape}")
         return sim
+
+    def measured_change(self) -> np.ndarray:
+        """DiD: the measured change ``mean(measured) - mean(reference)`` of every signal."""
+        if self.ref_paired:
+            return _nanmean(self.measured - self.reference)
+        with np.errstate(invalid="ignore"):
+            return _nanmean(self.measured) - _nanmean(self.reference)
+
+    def summary(self, sim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(sim, measured)`` per signal as reported: the means, or (DiD) the two changes."""
+        sim = self._check(sim)
+        if self.did:
+            return _nanmean(sim - self.base), self.measured_change()
+        return _nanmean(sim), _nanmean(self.measured)
 
     def biases(self, sim: np.ndarray) -> np.ndarray:
         """Standardised bias ``b_s`` of every signal."""
         sim = self._check(sim)
+        if self.did:
+            return (_nanmean(sim - self.base) - self.measured_change()) / self.scale
         if self.paired:
             d = sim - self.measured
             ok = np.isfinite(d)
@@ -133,6 +168,14 @@ class GapMeter:
         """``(b, S)`` bootstrap biases for each of ``sims``, all on the same resamples of frames."""
         sims = [self._check(s) for s in sims]
         wm = bootstrap_weights(self.measured.shape[0], b, rng)
+        if self.did:
+            ws = bootstrap_weights(sims[0].shape[0], b, rng) if sims else None
+            if self.ref_paired:
+                target = _wmean(wm, self.measured - self.reference)
+            else:
+                wr = bootstrap_weights(self.reference.shape[0], b, rng)
+                target = _wmean(wm, self.measured) - _wmean(wr, self.reference)
+            return [(_wmean(ws, s - self.base) - target) / self.scale for s in sims]
         if self.paired:
             return [_wmean(wm, s - self.measured) / self.scale for s in sims]
         ws = bootstrap_weights(sims[0].shape[0], b, rng) if sims else None
@@ -197,7 +240,7 @@ def compare_signals(meter: GapMeter, sim: np.ndarray, *, b: int = 1000, seed: in
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0]))
     boot = meter.bootstrap_biases([sim], b, rng)[0] * meter.scale
     bias = meter.biases(sim)
-    sim_mean, meas_mean = _nanmean(np.asarray(sim, np.float64)), _nanmean(meter.measured)
+    sim_mean, meas_mean = meter.summary(sim)
     rows = []
     for j, s in enumerate(SIGNALS):
         diff = float(bias[j] * meter.scale[j])
@@ -230,6 +273,36 @@ def compare_perception(sim: FrameMatches, measured: FrameMatches, *, paired: boo
         need = PERCEPTION_MIN_DIFF.get(r["signal"], PERCEPTION_DEFAULT_MIN_DIFF)
         r["significant"] = bool(s and abs(r["difference"]) >= need)
     return rows
+
+
+def compare_perception_did(sim: FrameMatches, sim_clean: FrameMatches, measured: FrameMatches,
+                           reference: FrameMatches, *, ref_paired: bool, b: int = 300, seed: int = 0,
+                           alpha: float = ALPHA) -> tuple[list[dict[str, Any]], dict[str, dict[str, float]]]:
+    """Difference in differences of every detector statistic: ``(sim - sim_clean) - (measured -
+    reference)``; rows as :func:`compare_perception` (``sim`` / ``measured`` hold the two changes)
+    and the four sets' statistics."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xD1D]))
+    stats = {"sim": perception_stats(sim), "sim_clean": perception_stats(sim_clean),
+             "measured": perception_stats(measured), "reference": perception_stats(reference)}
+    ws = bootstrap_weights(sim.n_frames, b, rng)
+    wm = bootstrap_weights(measured.n_frames, b, rng)
+    wr = wm if ref_paired else bootstrap_weights(reference.n_frames, b, rng)
+    names = list(stats["sim"])
+    boot = np.empty((b, len(names)))
+    for i in range(b):
+        s1, s0 = perception_stats(sim, ws[i]), perception_stats(sim_clean, ws[i])
+        m1, m0 = perception_stats(measured, wm[i]), perception_stats(reference, wr[i])
+        boot[i] = [(s1[n] - s0[n]) - (m1[n] - m0[n]) for n in names]
+    rows = []
+    for j, n in enumerate(names):
+        ds_ = stats["sim"][n] - stats["sim_clean"][n]
+        dm = stats["measured"][n] - stats["reference"][n]
+        rows.append(_row(n, "perception", "perception", ds_, dm, ds_ - dm, boot[:, j], None))
+    sig = holm(np.array([r["p_value"] for r in rows]), alpha)
+    for r, s_ in zip(rows, sig):
+        need = PERCEPTION_MIN_DIFF.get(r["signal"], PERCEPTION_DEFAULT_MIN_DIFF)
+        r["significant"] = bool(s_ and abs(r["difference"]) >= need)
+    return rows, stats
 
 
 def gap_test(meter: GapMeter, before: np.ndarray, after: np.ndarray, *, b: int = 1000,

@@ -28,8 +28,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,26 +39,48 @@ import numpy as np
 
 from weather_gym.gap.compare import GapMeter
 from weather_gym.gap.model import apply_chain, insert_position
-from weather_gym.gap.signals import frame_signals
+from weather_gym.gap.signals import SignalMask, frame_signals, signal_mask
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
 __all__ = ["K_GRID", "PENALTY", "SCALE_PARAMS", "Candidate", "FitResult", "Evaluator", "candidates", "screen", "fit",
-           "refit", "refit_joint", "fit_summary"]
+           "refit", "refit_joint", "fit_summary", "bounds_hit", "scale_params"]
 
 K_GRID: tuple[float, ...] = (0.08, 0.2, 0.4, 0.7, 1.0)
 PENALTY = 0.05
 
 #: The parameter of an effect that only rescales k (the output depends on their product): it is
-#: fitted only when k ends at 1, to extend k's range, and never together with k.
-SCALE_PARAMS: dict[str, str] = {
+#: fitted only when k ends at 1, to extend k's range, and never together with k. Where an effect has
+#: several (one per kind), the first that changes the output is used.
+SCALE_PARAMS: dict[str, str | tuple[str, ...]] = {
     "blur": "max_radius_frac",
     "noise": "max_gain",
     "exposure": "max_stops",
     "fog": "min_visibility_m",
     "jpeg": "min_quality",
-    "motion_blur": "exposure_s",
+    "motion_blur": ("exposure_s", "max_length_frac"),
     "dim": "stops",
 }
+
+
+def scale_params(name: str) -> tuple[str, ...]:
+    """The scale parameter(s) of effect ``name`` (see :data:`SCALE_PARAMS`)."""
+    v = SCALE_PARAMS.get(name, ())
+    return (v,) if isinstance(v, str) else tuple(v)
+
+
+def bounds_hit(effect: KnobEffect, extras: Sequence[str] = ()) -> list[str]:
+    """Where a fitted effect ends on the edge of its range: ``k`` at 1 without its scale parameter
+    extending the range, or a fitted parameter (``extras``) at a bound. A fit on a bound means the
+    effect cannot reproduce the difference inside its range: usually it is not this effect."""
+    out = []
+    if effect.k >= 0.995 and not any(p in extras for p in scale_params(effect.name)):
+        out.append("k = 1 (the top of its range)")
+    for p in extras:
+        lo, hi = type(effect).bounds_of(p)
+        u = _to_unit(float(getattr(effect, p)), lo, hi)
+        if u <= 0.005 or u >= 0.995:
+            out.append(f"{p} = {getattr(effect, p):.4g} (bound of {lo:g}..{hi:g})")
+    return out
 
 
 @dataclass(frozen=True)
@@ -107,6 +131,21 @@ class FitResult:
         return self.fit_gap * (1.0 + PENALTY * self.n_params)
 
 
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _map(fn: Callable[[int], Any], n: int) -> list:
+    """``[fn(i) for i in range(n)]`` on a small thread pool (OpenCV and numpy release the GIL; every
+    frame has its own seeded generator, so the result does not depend on the order)."""
+    global _POOL
+    workers = min(os.cpu_count() or 1, 4)
+    if n < 4 or workers < 2:
+        return [fn(i) for i in range(n)]
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="gap")
+    return list(_POOL.map(fn, range(n)))
+
+
 def _key(effects: Sequence[KnobEffect]) -> tuple:
     return tuple((e.name, tuple(sorted(e.params().items()))) for e in effects)
 
@@ -123,9 +162,15 @@ class Evaluator:
     def __init__(self, images: Sequence[np.ndarray], depths: Sequence[np.ndarray | None],
                  states: Sequence[dict], ids: Sequence[int], signal_depths: Sequence[np.ndarray | None],
                  signal_boxes: Sequence[np.ndarray | None], meter: GapMeter, *, seed: int = 0,
-                 cache_size: int = 3) -> None:
+                 cache_size: int = 3, signal_masks: Sequence[np.ndarray | None] | None = None) -> None:
         self.images, self.depths, self.states, self.ids = list(images), list(depths), list(states), list(ids)
         self.signal_depths, self.signal_boxes = list(signal_depths), list(signal_boxes)
+        prepared: dict[int, SignalMask | None] = {}
+        self.signal_masks: list[SignalMask | None] = []
+        for m in (signal_masks if signal_masks is not None else [None] * len(self.images)):
+            if m is not None and id(m) not in prepared:
+                prepared[id(m)] = signal_mask(m)
+            self.signal_masks.append(None if m is None else prepared[id(m)])
         self.meter = meter
         self.seed = int(seed)
         self.n_evals = 0
@@ -136,8 +181,14 @@ class Evaluator:
         return len(self.images)
 
     def _apply(self, effects: Sequence[KnobEffect], frames: Sequence[np.ndarray]) -> list[np.ndarray]:
-        return [apply_chain(effects, f, depth=self.depths[i], state=self.states[i], seed=self.seed,
-                            frame_id=self.ids[i]) if effects else f for i, f in enumerate(frames)]
+        if not effects:
+            return list(frames)
+
+        def one(i: int) -> np.ndarray:  # own copies: an effect's episode state is not shared between threads
+            return apply_chain([dataclasses.replace(e) for e in effects], frames[i], depth=self.depths[i],
+                               state=self.states[i], seed=self.seed, frame_id=self.ids[i])
+
+        return _map(one, len(frames))
 
     def prefix(self, effects: Sequence[KnobEffect]) -> list[np.ndarray]:
         key = _key(effects)
@@ -159,7 +210,8 @@ class Evaluator:
     def signals(self, model: Sequence[KnobEffect], split: int | None = None) -> np.ndarray:
         frames = self.frames(model, split)
         self.n_evals += 1
-        return np.stack([frame_signals(f, self.signal_depths[i], self.signal_boxes[i]) for i, f in enumerate(frames)])
+        return np.stack(_map(lambda i: frame_signals(frames[i], self.signal_depths[i], self.signal_boxes[i],
+                                                     self.signal_masks[i]), len(frames)))
 
     def gap(self, model: Sequence[KnobEffect], split: int | None = None) -> float:
         return self.meter.gap(self.signals(model, split))
@@ -274,8 +326,8 @@ def _fit_params(obj: _Objective, effect: KnobEffect, k_lo: float, k_hi: float, e
     used: list[str] = []
     probe = int(np.argmax([float(im.std()) for im in ev.images[:4]])) if ev.images else 0
     live = live_params(effect, ev.images[probe], ev.depths[probe], ev.states[probe]) if ev.images else []
-    scale = SCALE_PARAMS.get(effect.name)
-    if scale in live and effect.k >= 0.98:
+    scale = next((p for p in scale_params(effect.name) if p in live), None)
+    if scale is not None and effect.k >= 0.98:
         lo, hi = type(effect).bounds_of(scale)
         u, _ = _brent(lambda u: obj(_with(effect, k=1.0, **{scale: _from_unit(u, lo, hi)})), 0.0, 1.0, maxiter=10)
         cand = _with(effect, k=1.0, **{scale: _from_unit(u, lo, hi)})

@@ -211,10 +211,44 @@ def markdown(report: dict[str, Any]) -> str:
               f"- mode: **{r.get('mode')}** ({r.get('mode_reason', '')})",
               f"- frames: {fr.get('fit', '?')} for fitting (of which {fr.get('fit_used', '?')} used by the search), "
               f"{fr.get('held_out', '?')} held out; every gap below is on the held-out frames"]
+    if r.get("reference"):
+        lines.insert(3, f"- measured clear reference: `{r['reference']}` ({fr.get('reference', '?')} frames)")
     for n in r.get("notes", []):
         lines.append(f"- note: {n}")
     missing = r.get("missing_effects", [])
-    lines += ["", f"**Missing effects:** {', '.join(missing) if missing else 'none'}", ""]
+    lines += ["", f"**Verdict:** {r.get('verdict', '')}", "",
+              f"**Missing effects:** {', '.join(missing) if missing else 'none'}", ""]
+    if r.get("confounded"):
+        lines += [f"**Confounded.** {r.get('confounded_reason', '')}", ""]
+    if r.get("perception_warning"):
+        lines += [f"**Perception:** {r['perception_warning']}", ""]
+    dom = r.get("domain")
+    if dom:
+        lines += ["## Domain differences (not weather, never fitted)" if not r.get("confounded") else
+                  "## Differences from the clean simulator (domain or weather: cannot tell)", "",
+                  f"Compared: {dom.get('compared', '')}.", ""]
+        if dom.get("differences"):
+            lines += ["| difference | signals | detail |", "|---|---|---|"]
+            for d in dom["differences"]:
+                lines.append(f"| {d['name']} | {', '.join(d.get('signals', [])[:6])} | {d['detail']} |")
+        else:
+            lines.append("None significant.")
+        if dom.get("perception"):
+            lines += ["", "Detector mAP@0.5 (held-out): " + ", ".join(f"{k.replace('map50_', '')} {_f(v)}"
+                                                                      for k, v in dom["perception"].items())]
+        lines.append("")
+    if r.get("flagged"):
+        lines += ["## Flagged (fit on a bound, not added)", ""]
+        for f in r["flagged"]:
+            lines.append(f"- step {f['step']}: `{f['describe']}` ends on {', '.join(f['bounds'])}; held-out gap "
+                         f"{_f(f['gap_before'])} -> {_f(f['gap_after'])}. {f['why']}")
+        lines.append("")
+    if r.get("pruned"):
+        lines += ["## Dropped by the parsimony check", ""]
+        for p_ in r["pruned"]:
+            lines.append(f"- `{p_['name']}`: held-out gap {_f(p_['gap_without'])} without it, {_f(p_['gap_with'])} "
+                         f"with it (p = {_f(p_['p_value'], '.4f')}): not significantly better with it")
+        lines.append("")
 
     pb, pa = r.get("perception_before"), r.get("perception_after")
     lines += ["## Perception gap", ""]

@@ -31,6 +31,10 @@ cones      ``cone_contrast`` (cone colour against its surroundings), ``cone_shar
            energy inside the boxes over their variance)
 =========  ==================================================================================
 
+**Ignore masks.** ``frame_signals(..., mask=M)`` (``M`` True = ignored, e.g. the ego vehicle) skips
+the masked pixels in every signal (a pixel next to the mask's edge too, where a filter would reach
+into it); :func:`signal_mask` prepares a mask once for many frames.
+
 Example:
     >>> import numpy as np
     >>> from weather_gym.gap.signals import SIGNAL_NAMES, frame_signals
@@ -52,7 +56,8 @@ import numpy as np
 
 from weather_gym.errors import InputError
 
-__all__ = ["SIGNALS", "SIGNAL_NAMES", "FAMILIES", "Signal", "frame_signals", "signal_table", "signal_weights"]
+__all__ = ["SIGNALS", "SIGNAL_NAMES", "FAMILIES", "Signal", "SignalMask", "signal_mask", "frame_signals",
+           "signal_table", "signal_weights"]
 
 
 @dataclass(frozen=True)
@@ -155,22 +160,43 @@ def _radial_masks(h: int, w: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return masks
 
 
-def _grid_steps(y: np.ndarray, period: int) -> float:
-    """log (mean |step| across the ``period`` grid / mean |step| elsewhere), columns and rows averaged."""
+def _step_pairs(valid: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """Per axis (columns, rows): float32 weights of the steps between two used pixels, and their counts."""
+    out = []
+    for axis in (1, 0):
+        va, vb = (valid[:, 1:], valid[:, :-1]) if axis == 1 else (valid[1:], valid[:-1])
+        pair = ((va > 0) & (vb > 0)).astype(np.float32)
+        out.append((pair, cv2.reduce(pair, 1 - axis, cv2.REDUCE_SUM).ravel()))
+    return tuple(out)
+
+
+def _grid_steps(y: np.ndarray, period: int, pairs: tuple | None = None) -> float:
+    """log (mean |step| across the ``period`` grid / mean |step| elsewhere), columns and rows averaged;
+    ``pairs`` (from :func:`_step_pairs`): only steps between two used pixels count."""
     out = []
     for axis in (1, 0):
         n = y.shape[axis]
         if n <= period + 1:
             continue
         a, b = (y[:, 1:], y[:, :-1]) if axis == 1 else (y[1:], y[:-1])
-        steps = cv2.reduce(cv2.absdiff(a, b), 1 - axis, cv2.REDUCE_AVG).ravel()  # step j: between j and j + 1
+        d = cv2.absdiff(a, b)
+        if pairs is None:
+            steps = cv2.reduce(d, 1 - axis, cv2.REDUCE_AVG).ravel()  # step j: between j and j + 1
+            ok = np.ones(steps.shape[0], bool)
+        else:
+            pair, den = pairs[0 if axis == 1 else 1]
+            num = cv2.reduce(cv2.multiply(d, pair), 1 - axis, cv2.REDUCE_SUM).ravel()
+            ok = den >= 4
+            steps = np.where(ok, num / np.maximum(den, 1.0), 0.0)
         on = np.zeros(steps.shape[0], bool)
         on[period - 1::period] = True
-        out.append(_log_ratio(float(steps[on].mean()), float(steps[~on].mean()), 0.05))
+        if not (on & ok).any() or not (~on & ok).any():
+            continue
+        out.append(_log_ratio(float(steps[on & ok].mean()), float(steps[~on & ok].mean()), 0.05))
     return float(np.mean(out)) if out else math.nan
 
 
-def _noise(y: np.ndarray, yh: np.ndarray) -> tuple[float, float, float]:
+def _noise(y: np.ndarray, yh: np.ndarray, valid: np.ndarray | None = None) -> tuple[float, float, float]:
     """Noise sigma (log) in flat regions: all, darkest third, brightest third.
 
     Immerkaer's response is taken at full resolution and averaged over 2x2 blocks; the flat regions
@@ -184,6 +210,8 @@ def _noise(y: np.ndarray, yh: np.ndarray) -> tuple[float, float, float]:
     gx, gy = _grad(local)
     structure = cv2.add(gx, gy)
     usable = (local > 3.0) & (local < 250.0)
+    if valid is not None:
+        usable &= valid > 0
     n_usable = int(np.count_nonzero(usable))
     if n_usable < _MIN_PIXELS:
         return math.nan, math.nan, math.nan
@@ -215,14 +243,24 @@ def _depth_bins(depth: np.ndarray | None, shape: tuple[int, int]) -> tuple[np.nd
     return near.astype(np.uint8) * 255, far.astype(np.uint8) * 255
 
 
+def _and(a: np.ndarray, valid: np.ndarray | None) -> np.ndarray:
+    return a if valid is None else cv2.bitwise_and(a, valid)
+
+
 def _masked_sharpness(energy: np.ndarray, y: np.ndarray, mask: np.ndarray) -> float:
     mean, std = cv2.meanStdDev(y, mask=mask)
     return _log_ratio(_mean(energy, mask), float(std[0, 0]) ** 2, 1.0)
 
 
-def _cones(y: np.ndarray, rgb: np.ndarray, boxes: np.ndarray | None) -> tuple[float, float]:
+def _cones(y: np.ndarray, rgb: np.ndarray, boxes: np.ndarray | None,
+           ignored: np.ndarray | None = None) -> tuple[float, float]:
     if boxes is None or len(boxes) == 0:
         return math.nan, math.nan
+    if ignored is not None:
+        from weather_gym.perception.ignore import inside_mask
+
+        boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+        boxes = boxes[~inside_mask(ignored, boxes)]
     h, w = y.shape
     contrast, sharp = [], []
     for x1, y1, x2, y2 in np.asarray(boxes, dtype=np.float64).reshape(-1, 4):
@@ -252,13 +290,63 @@ def _cones(y: np.ndarray, rgb: np.ndarray, boxes: np.ndarray | None) -> tuple[fl
     return float(np.mean(contrast)), float(np.mean(sharp))
 
 
+@dataclass(frozen=True)
+class SignalMask:
+    """The pixels the signals use (uint8, 255 = used) at full, half and quarter resolution, each
+    shrunk by one pixel so that no filter reaches into the ignored region; ``ignored``: the mask."""
+
+    ignored: np.ndarray
+    full: np.ndarray
+    half: np.ndarray
+    quarter: np.ndarray
+    tiles: np.ndarray
+    pairs: tuple = ()
+
+    @property
+    def used_fraction(self) -> float:
+        return float(np.count_nonzero(self.full)) / self.full.size
+
+
+def signal_mask(mask: np.ndarray | None) -> SignalMask | None:
+    """Prepare an ignore mask (True = ignored, ``H x W``) for :func:`frame_signals` (None: no mask)."""
+    if mask is None:
+        return None
+    ignored = np.asarray(mask, bool)
+    if not ignored.any():
+        return None
+    h, w = ignored.shape
+    used = np.where(ignored, 0, 255).astype(np.uint8)
+    k = np.ones((3, 3), np.uint8)
+
+    def level(width: int, height: int) -> np.ndarray:
+        m = cv2.resize(used, (width, height), interpolation=cv2.INTER_AREA)
+        return cv2.erode(np.where(m >= 255, 255, 0).astype(np.uint8), k, borderType=cv2.BORDER_REPLICATE)
+
+    full = cv2.erode(used, k, borderType=cv2.BORDER_REPLICATE)
+    half = level(w // 2, h // 2)
+    th, tw = (h // 2) // 8, (w // 2) // 8
+    tiles = cv2.resize(half[:th * 8, :tw * 8], (tw, th), interpolation=cv2.INTER_AREA) >= 255 if th and tw else \
+        np.zeros((0, 0), bool)
+    out = SignalMask(ignored, full, half, level(w // 4, h // 4), tiles, _step_pairs(full))
+    for a in (out.ignored, out.full, out.half, out.quarter, out.tiles):
+        a.setflags(write=False)
+    return out
+
+
+def _masked_var(a: np.ndarray, valid: np.ndarray | None) -> float:
+    if valid is None:
+        return float(a.var())
+    _, std = cv2.meanStdDev(a, mask=valid)
+    return float(std[0, 0]) ** 2
+
+
 def frame_signals(image: np.ndarray, depth: np.ndarray | None = None,
-                  boxes: np.ndarray | None = None) -> np.ndarray:
+                  boxes: np.ndarray | None = None, mask: np.ndarray | SignalMask | None = None) -> np.ndarray:
     """The signal vector of one RGB uint8 frame (order of :data:`SIGNAL_NAMES`).
 
     ``depth``: z-depth in metres (``H x W``) for the haze and near/far signals (rows are used
     without it); ``boxes``: ground-truth cone boxes ``(K, 4)`` xyxy for the cone signals (NaN
-    without them).
+    without them); ``mask``: ignored pixels (True; or a prepared :class:`SignalMask`).
     """
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
@@ -267,6 +355,10 @@ def frame_signals(image: np.ndarray, depth: np.ndarray | None = None,
     if h < 32 or w < 32:
         raise InputError(f"frame_signals: image {w}x{h} is too small (at least 32x32)")
     image = np.ascontiguousarray(image)
+    sm = mask if isinstance(mask, SignalMask) or mask is None else signal_mask(mask)
+    if sm is not None and sm.ignored.shape != (h, w):
+        raise InputError(f"frame_signals: mask is {sm.ignored.shape[1]}x{sm.ignored.shape[0]}, the image {w}x{h}")
+    vf, vh, vq = (None, None, None) if sm is None else (sm.full, sm.half, sm.quarter)
     y8 = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
     y = y8.astype(np.float32)
     half = cv2.resize(image, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
@@ -275,50 +367,53 @@ def frame_signals(image: np.ndarray, depth: np.ndarray | None = None,
     out: dict[str, float] = {}
 
     # tone
-    hist = cv2.calcHist([y8], [0], None, [256], [0, 256]).ravel().astype(np.float64)
-    cdf = np.cumsum(hist) / hist.sum()
-    mean, std = cv2.meanStdDev(y)
+    hist = cv2.calcHist([y8], [0], vf, [256], [0, 256]).ravel().astype(np.float64)
+    cdf = np.cumsum(hist) / max(hist.sum(), 1.0)
+    mean, std = cv2.meanStdDev(y, mask=vf)
     out["brightness"] = float(mean[0, 0])
     for q, name in ((0.05, "tone_p05"), (0.5, "tone_p50"), (0.95, "tone_p95")):
         out[name] = _hist_quantile(cdf, q)
     out["contrast"] = float(std[0, 0])
 
     # colour
-    m = cv2.mean(half)
+    m = cv2.mean(half, vh)
     out["color_rg"] = _log_ratio(m[0], m[1], 1.0)
     out["color_bg"] = _log_ratio(m[2], m[1], 1.0)
-    out["saturation"] = _mean(cv2.cvtColor(half, cv2.COLOR_RGB2HSV)[..., 1]) / 255.0
+    out["saturation"] = _mean(cv2.cvtColor(half, cv2.COLOR_RGB2HSV)[..., 1], vh) / 255.0
 
     # sharpness over the contrast of the frame, so that a global gain does not move it
-    var_f, var_h, var_q = float(std[0, 0]) ** 2, float(yh.var()), float(yq.var())
+    var_f, var_h, var_q = float(std[0, 0]) ** 2, _masked_var(yh, vh), _masked_var(yq, vq)
     lap = cv2.Laplacian(y, cv2.CV_32F, ksize=1)
-    out["sharp_fine"] = _log_ratio(_mean(cv2.multiply(lap, lap)), var_f, 1e-3)
+    out["sharp_fine"] = _log_ratio(_mean(cv2.multiply(lap, lap), vf), var_f, 1e-3)
     gxh, gyh = _grad(yh)
     energy = cv2.add(gxh, gyh)
-    out["sharp_half"] = _log_ratio(_mean(energy), var_h, 1e-3)
+    out["sharp_half"] = _log_ratio(_mean(energy, vh), var_h, 1e-3)
     gxq, gyq = _grad(yq)
-    out["sharp_quarter"] = _log_ratio(_mean(cv2.add(gxq, gyq)), var_q, 1e-3)
+    out["sharp_quarter"] = _log_ratio(_mean(cv2.add(gxq, gyq), vq), var_q, 1e-3)
     gmag = cv2.sqrt(energy)
-    ghist = cv2.calcHist([gmag], [0], None, [512], [0, 128]).ravel()
+    ghist = cv2.calcHist([gmag], [0], vh, [512], [0, 128]).ravel()
     p99 = float(np.searchsorted(np.cumsum(ghist) / max(ghist.sum(), 1.0), 0.99)) * 0.25
     out["edge_p99"] = _log_ratio(p99, out["tone_p95"] - out["tone_p05"], 1.0)
 
     # motion: direction of the smear, and where it is (periphery, near)
-    centre, periphery, corners = _radial_masks(*yh.shape)
-    out["motion_dir"] = _log_ratio(_mean(gxh), _mean(gyh), 1e-3)
-    out["radial_sharp"] = _log_ratio(_mean(energy, periphery), _mean(energy, centre), 1e-3)
-    near, far = _depth_bins(depth, yh.shape)
+    centre, periphery, corners = (_and(m_, vh) for m_ in _radial_masks(*yh.shape))
+    out["motion_dir"] = _log_ratio(_mean(gxh, vh), _mean(gyh, vh), 1e-3)
+    radial_ok = cv2.countNonZero(periphery) >= _MIN_PIXELS and cv2.countNonZero(centre) >= _MIN_PIXELS
+    out["radial_sharp"] = (_log_ratio(_mean(energy, periphery), _mean(energy, centre), 1e-3)
+                           if radial_ok else math.nan)
+    near, far = (_and(m_, vh) for m_ in _depth_bins(depth, yh.shape))
     n_near, n_far = cv2.countNonZero(near), cv2.countNonZero(far)
     both = n_near >= _MIN_PIXELS and n_far >= _MIN_PIXELS
     out["sharp_near_far"] = (_masked_sharpness(energy, yh, near) - _masked_sharpness(energy, yh, far)
                              if both else math.nan)
 
     # noise in flat regions
-    out["noise_flat"], out["noise_dark"], out["noise_bright"] = _noise(y, yh)
+    out["noise_flat"], out["noise_dark"], out["noise_bright"] = _noise(y, yh, vh)
 
     # block artefacts (full resolution: the grid is in original pixels)
-    out["blockiness"] = _grid_steps(y, 8)
-    out["block_chroma"] = _grid_steps(cv2.subtract(image[..., 0].astype(np.float32), y), 16)
+    pairs = None if sm is None else sm.pairs
+    out["blockiness"] = _grid_steps(y, 8, pairs)
+    out["block_chroma"] = _grid_steps(cv2.subtract(image[..., 0].astype(np.float32), y), 16, pairs)
 
     # haze: far against near
     if both:
@@ -329,7 +424,8 @@ def frame_signals(image: np.ndarray, depth: np.ndarray | None = None,
     else:
         out["haze_lift"] = out["haze_contrast"] = math.nan
 
-    out["vignette"] = _log_ratio(_mean(yh, corners), _mean(yh, centre), 1.0)
+    vig_ok = cv2.countNonZero(corners) >= _MIN_PIXELS // 4 and cv2.countNonZero(centre) >= _MIN_PIXELS
+    out["vignette"] = _log_ratio(_mean(yh, corners), _mean(yh, centre), 1.0) if vig_ok else math.nan
 
     # bright featureless 8x8 tiles (droplets, glare)
     th, tw = yh.shape[0] // 8, yh.shape[1] // 8
@@ -337,18 +433,30 @@ def frame_signals(image: np.ndarray, depth: np.ndarray | None = None,
     tmean = cv2.resize(crop, (tw, th), interpolation=cv2.INTER_AREA)
     tsq = cv2.resize(cv2.multiply(crop, crop), (tw, th), interpolation=cv2.INTER_AREA)
     tvar = tsq - tmean * tmean
-    out["bright_flat"] = float(((tmean > 170.0) & (tvar < 16.0)).mean())
+    bright = (tmean > 170.0) & (tvar < 16.0)
+    if sm is None:
+        out["bright_flat"] = float(bright.mean())
+    else:
+        n_tiles = int(np.count_nonzero(sm.tiles))
+        out["bright_flat"] = float(np.count_nonzero(bright & sm.tiles)) / n_tiles if n_tiles else math.nan
 
-    out["cone_contrast"], out["cone_sharp"] = _cones(y, image, boxes)
+    out["cone_contrast"], out["cone_sharp"] = _cones(y, image, boxes, None if sm is None else sm.ignored)
     return np.array([out[n] for n in SIGNAL_NAMES], dtype=np.float64)
 
 
 def signal_table(images: Sequence[np.ndarray], depths: Sequence[np.ndarray | None] | None = None,
-                 boxes: Sequence[np.ndarray | None] | None = None) -> np.ndarray:
-    """``(N, S)`` signals of ``N`` frames (depths and boxes per frame, or None)."""
+                 boxes: Sequence[np.ndarray | None] | None = None,
+                 masks: Sequence[np.ndarray | SignalMask | None] | None = None) -> np.ndarray:
+    """``(N, S)`` signals of ``N`` frames (depths, boxes and ignore masks per frame, or None)."""
     n = len(images)
     out = np.empty((n, len(SIGNALS)), np.float64)
+    prepared: dict[int, SignalMask | None] = {}
     for i in range(n):
+        m = None if masks is None else masks[i]
+        if m is not None and not isinstance(m, SignalMask):
+            if id(m) not in prepared:
+                prepared[id(m)] = signal_mask(m)
+            m = prepared[id(m)]
         out[i] = frame_signals(images[i], None if depths is None else depths[i],
-                               None if boxes is None else boxes[i])
+                               None if boxes is None else boxes[i], m)
     return out

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,15 +33,29 @@ import numpy as np
 
 from weather_gym.errors import InputError
 
-__all__ = ["FrameSet", "GapData", "load_frames", "paired_check", "simulate", "split_indices", "frame_state"]
+__all__ = ["FrameSet", "GapData", "MIN_FRAMES", "COMPARE_WIDTH", "MODES", "load_frames", "paired_check", "simulate",
+           "split_indices", "frame_state", "same_views", "is_real"]
 
 _PAIRED_KEYS = ("track", "pose")
 _CACHE_VERSION = 1
 
 
+MIN_FRAMES = 8
+"""Fewest frames per set the workflow accepts: half of them fit, half are held out, and a bootstrap
+over fewer than four frames per half says nothing."""
+
+COMPARE_WIDTH = 672
+"""Frames wider than this are scaled down once, on loading, by the smallest whole factor that brings
+them to at most this width (1024x768 -> 512x384; a whole factor averages exact pixel blocks): the
+signals, effects and detector then work at about the simulator's own width."""
+
+MODES = ("auto", "paired", "unpaired", "same-camera", "did")
+
+
 @dataclass
 class FrameSet:
-    """Frames in memory: RGB images, depth (metres or None), ground truth, effect state, image ids."""
+    """Frames in memory: RGB images, depth (metres or None), ground truth, effect state, image ids,
+    ignore masks (True = ignored, or None), and how they were scaled on loading."""
 
     images: list[np.ndarray]
     depths: list[np.ndarray | None]
@@ -48,6 +63,14 @@ class FrameSet:
     states: list[dict[str, float]]
     ids: list[int]
     root: str
+    masks: list[np.ndarray | None] = field(default_factory=list)
+    scale: float = 1.0
+    original_size: tuple[int, int] | None = None
+    real: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.masks:
+            self.masks = [None] * len(self.images)
 
     def __len__(self) -> int:
         return len(self.images)
@@ -58,13 +81,21 @@ class FrameSet:
         h, w = self.images[0].shape[:2]
         return w, h
 
+    def shared_mask(self) -> np.ndarray | None:
+        """The one ignore mask every frame has (a dataset-wide mask), else None."""
+        ids = {id(m) for m in self.masks}
+        return self.masks[0] if len(ids) == 1 and self.masks[0] is not None else None
+
 
 @dataclass
 class GapData:
-    """Measured frames and their clean simulated counterparts, with the fitting / held-out split.
+    """Measured frames and the frames the model is applied to, with the fitting / held-out split.
 
-    In paired mode frame ``i`` of ``sim`` is the view of frame ``i`` of ``measured``, and the split
-    indexes both. In unpaired mode each set has its own split.
+    ``mode``: ``paired`` / ``unpaired`` (the clean simulator), ``same-camera`` (``sim`` holds the
+    measured *clear* reference frames of the same camera; no simulator) or ``did``
+    (difference-in-differences: ``sim`` holds the clean simulator frames, ``reference`` the measured
+    clear frames). ``paired``: ``sim[i]`` shows the view of ``measured[i]`` (then the split indexes
+    both); ``ref_paired``: ``reference[i]`` shows the view of ``measured[i]``.
     """
 
     mode: str
@@ -77,64 +108,170 @@ class GapData:
     sim_held: np.ndarray
     notes: list[str] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
+    reference: FrameSet | None = None
+    ref_fit: np.ndarray | None = None
+    ref_held: np.ndarray | None = None
+    pairs: bool | None = None
+    ref_paired: bool = False
+    confounded: bool = False
+    confounded_reason: str = ""
 
     @property
     def paired(self) -> bool:
-        return self.mode == "paired"
+        return self.mode == "paired" if self.pairs is None else bool(self.pairs)
+
+    @property
+    def did(self) -> bool:
+        return self.mode == "did"
+
+    def _set(self, which: str) -> FrameSet:
+        return {"measured": self.measured, "sim": self.sim, "reference": self.reference}[which]
 
     def signal_depths(self, which: str) -> list[np.ndarray | None]:
-        """Depth maps the image signals use for ``which`` ("measured"/"sim").
+        """Depth maps the image signals use for ``which`` ("measured", "sim" or "reference").
 
-        Paired: the rendered depth of the view for both sets (the same geometry for both sides).
-        Unpaired: each set's own depth when both have it for every frame, else None (rows).
+        Paired: the depth of the ``sim`` view for both sets (the same geometry for both sides).
+        Otherwise each set's own depth when every frame of the compared sets has one, else None.
         """
-        if self.paired:
+        if self.paired and which != "reference":
             return self.sim.depths
-        have = all(d is not None for d in self.measured.depths) and all(d is not None for d in self.sim.depths)
-        frames = self.measured if which == "measured" else self.sim
+        frames = self._set(which)
+        others = [self.measured, self.sim] + ([self.reference] if self.reference is not None else [])
+        have = all(d is not None for f in others for d in f.depths)
         return frames.depths if have else [None] * len(frames)
 
     def signal_boxes(self, which: str) -> list[np.ndarray]:
         """Cone boxes for the cone signals: the measured ground truth for both sets when paired."""
-        frames = self.measured if (self.paired or which == "measured") else self.sim
+        frames = self.measured if (self.paired and which == "sim") else self._set(which)
         return [g["boxes"] for g in frames.gts]
 
+    def signal_masks(self, which: str) -> list[np.ndarray | None]:
+        """Ignore masks of the image signals: each set's own; simulator frames, which show no ego
+        vehicle, skip the measured set's dataset-wide mask (so that both sides are compared on the
+        same part of the frame); paired frames skip the measured frame's mask."""
+        frames = self._set(which)
+        if which == "sim":
+            if self.paired:
+                return self.measured.masks
+            if self.mode in ("unpaired", "did") and frames.size == self.measured.size:
+                shared = self.measured.shared_mask()
+                if shared is not None:
+                    return [shared] * len(frames)
+        return frames.masks
 
-def frame_state(record: dict) -> dict[str, float]:
-    """The weather ``state`` of a frame: ``speed``, ``yaw_rate`` and ``fx`` from its record.
+
+def frame_state(record: dict, fx_scale: float = 1.0) -> dict[str, float]:
+    """The weather ``state`` of a frame: ``speed``, ``yaw_rate`` and ``fx`` from its record (``fx``
+    times ``fx_scale`` for a frame scaled on loading).
 
     The exposure time is deliberately left out: it is a parameter of the weather model (what the
     gap workflow fits), so ``motion_blur`` uses its own ``exposure_s``.
     """
     state = {"speed": float(record.get("speed", 0.0) or 0.0), "yaw_rate": float(record.get("yaw_rate", 0.0) or 0.0)}
     cam = record.get("camera")
+    k = record.get("intrinsics")
     if cam:
         from weather_gym.camera import CameraConfig
 
         state["fx"] = CameraConfig(**cam).fx
+    elif k:
+        state["fx"] = float(k["fx"])
     else:
         state["fx"] = record["width"] / 2.0  # 90 degree field of view
+    state["fx"] *= fx_scale
+    if fx_scale < 1.0:
+        state["binning"] = 1.0 / fx_scale  # the frame was scaled down from the sensor's pixels
     return state
 
 
-def load_frames(ds: Any, *, progress: bool = False, desc: str = "load") -> FrameSet:
-    """Read every frame of a ``CocoDataset`` into memory."""
+def is_real(ds: Any) -> bool:
+    """Whether a dataset looks like a real recording (imported, or records without a simulator track)
+    rather than the simulator's own frames."""
+    info = ds.info if hasattr(ds, "info") else {}
+    if info.get("origin") in ("import", "external"):
+        return True
+    return not any(rec.get("track") for rec in ds.images)
+
+
+def load_frames(ds: Any, *, max_width: int | None = None, progress: bool = False, desc: str = "load") -> FrameSet:
+    """Read every frame of a ``CocoDataset`` into memory, scaled down once by a whole factor to at most
+    ``max_width`` when wider (boxes, depth, ignore masks and focal length scaled with it)."""
+    import cv2
     from tqdm import tqdm
 
-    images, depths, gts, states, ids = [], [], [], [], []
+    sizes = {(int(r["width"]), int(r["height"])) for r in ds.images}
+    if len(sizes) > 1:
+        raise InputError(f"{ds.annotations_path}: frames have different sizes {sorted(sizes)}; the gap workflow "
+                         "needs one camera resolution")
+    w0, h0 = next(iter(sizes))
+    if max_width is not None and w0 > max_width:
+        n = math.ceil(w0 / max_width)
+        w1, h1 = max(w0 // n, 1), max(h0 // n, 1)
+    else:
+        w1, h1 = w0, h0
+    sx, sy = w1 / w0, h1 / h0
+    images, depths, gts, states, ids, masks = [], [], [], [], [], []
+    scaled_masks: dict[int, np.ndarray] = {}
     for i in tqdm(range(len(ds)), desc=desc, unit="frame", disable=not progress):
         img = ds.image(i)
+        if img.shape[:2] != (h0, w0):
+            raise InputError(f"{ds.image_path(i)} is {img.shape[1]}x{img.shape[0]} but its record says {w0}x{h0}")
+        depth = ds.depth(i)
+        gt = ds.gt(i)
+        mask = gt.pop("ignore_mask", None)
+        if (w1, h1) != (w0, h0):
+            img = cv2.resize(img, (w1, h1), interpolation=cv2.INTER_AREA)
+            if depth is not None:
+                depth = cv2.resize(depth, (w1, h1), interpolation=cv2.INTER_NEAREST)
+            gt["boxes"] = (gt["boxes"] * np.array([sx, sy, sx, sy], np.float32)).astype(np.float32)
+            if mask is not None:
+                if id(mask) not in scaled_masks:
+                    m = cv2.resize(mask.astype(np.uint8) * 255, (w1, h1), interpolation=cv2.INTER_AREA) >= 128
+                    m.setflags(write=False)
+                    scaled_masks[id(mask)] = m
+                mask = scaled_masks[id(mask)]
+        if mask is not None:
+            gt["ignore_mask"] = mask
         images.append(np.ascontiguousarray(img))
-        depths.append(ds.depth(i))
-        gts.append(ds.gt(i))
-        states.append(frame_state(ds.record(i)))
+        depths.append(depth)
+        gts.append(gt)
+        masks.append(mask)
+        states.append(frame_state(ds.record(i), sx))
         ids.append(int(ds.record(i)["id"]))
-    if images:
-        shapes = {im.shape for im in images}
-        if len(shapes) > 1:
-            raise InputError(f"{ds.root}: frames have different sizes {sorted(shapes)}; the gap workflow "
-                             "needs one camera resolution")
-    return FrameSet(images, depths, gts, states, ids, str(ds.root))
+    return FrameSet(images, depths, gts, states, ids, str(ds.root), masks, sx, (w0, h0), is_real(ds))
+
+
+def same_views(a: FrameSet, b: FrameSet, *, threshold: float = 0.5) -> tuple[bool, float]:
+    """Whether frame ``i`` of ``a`` and of ``b`` show the same view (one is the other with weather
+    on it), and the score: the median over frame pairs of the median zero-normalised
+    cross-correlation of 10x10 patches of luma at 160 px width (outside the ignore masks). Different
+    frames of one drive score about 0.1, a frame and itself under heavy fog or blur above 0.5."""
+    import cv2
+
+    if len(a) != len(b) or a.size != b.size or not len(a):
+        return False, math.nan
+    w, h, p = 160, max(int(round(160 * a.size[1] / a.size[0])), 10), 10
+    hh, ww = (h // p) * p, (w // p) * p
+
+    def luma(img: np.ndarray) -> np.ndarray:
+        return cv2.resize(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+
+    def patches(x: np.ndarray) -> np.ndarray:
+        return x[:hh, :ww].reshape(hh // p, p, ww // p, p).transpose(0, 2, 1, 3).reshape(-1, p * p)
+
+    scores = []
+    for ia, ib, ma, mb in zip(a.images, b.images, a.masks, b.masks):
+        m = ma if ma is not None else mb
+        keep = np.ones((h, w), bool) if m is None else cv2.resize(
+            m.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) == 0
+        pa, pb = patches(luma(ia)), patches(luma(ib))
+        ok = patches(keep).all(1)
+        pa, pb = pa - pa.mean(1, keepdims=True), pb - pb.mean(1, keepdims=True)
+        na, nb = np.linalg.norm(pa, axis=1), np.linalg.norm(pb, axis=1)
+        ok &= (na >= p) & (nb >= p)
+        scores.append(float(np.median((pa[ok] * pb[ok]).sum(1) / (na[ok] * nb[ok]))) if ok.sum() >= 5 else 0.0)
+    score = float(np.median(scores))
+    return score >= threshold, score
 
 
 def paired_check(ds: Any) -> tuple[bool, str]:
@@ -166,10 +303,8 @@ def _key(obj: Any) -> str:
 
 
 def _camera_of(ds: Any) -> Any:
-    from weather_gym.camera import CameraConfig
-
     rec = ds.images[0]
-    cam = CameraConfig(**rec["camera"]) if rec.get("camera") else CameraConfig().scaled(rec["width"], rec["height"])
+    cam = ds.camera(0)
     if (cam.width, cam.height) != (rec["width"], rec["height"]):
         raise InputError(f"{ds.annotations_path}: image {rec['id']} is {rec['width']}x{rec['height']} but its "
                          f"camera record says {cam.width}x{cam.height}")
@@ -229,12 +364,11 @@ def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) ->
     return out
 
 
-def _render_unpaired(ds: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
+def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
                      progress: bool) -> Path:
     from weather_gym.datasets.coco import ANNOTATIONS, JOURNAL
     from weather_gym.datasets.render import render_dataset
 
-    camera = _camera_of(ds)
     key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict()})
     out = cache_dir / f"unpaired-{key}"
     if not (out / ANNOTATIONS).is_file():
@@ -243,57 +377,145 @@ def _render_unpaired(ds: Any, cache_dir: Path, tracks: list[str], frames: int, s
     return out
 
 
-def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike, mode: str = "auto",
-             tracks: list[str] | None = None, sim_frames: int | None = None, held_out: float = 0.5,
-             seed: int = 0, progress: bool = False) -> GapData:
-    """Load the measured frames and their clean simulated counterparts (step 1 of the workflow).
+def _check_count(ds: Any, what: str) -> None:
+    if len(ds) < MIN_FRAMES:
+        raise InputError(f"{ds.root}: the gap workflow needs at least {MIN_FRAMES} {what} frames (half to fit, half "
+                         f"held out), found {len(ds)}")
 
-    Args:
-        measured: a COCO folder (or an open ``CocoDataset``).
-        cache_dir: where the clean renders are kept (reused on the next run).
-        mode: ``"auto"`` (paired when every record has a track and a pose), ``"paired"`` or ``"unpaired"``.
-        tracks: tracks to render in unpaired mode (default: the records' ``track`` values).
-        sim_frames: frames to render in unpaired mode (default: as many as measured).
-        held_out: fraction of frames held out for the final comparison.
-    """
-    from weather_gym.datasets.coco import load_coco
 
-    if mode not in ("auto", "paired", "unpaired"):
-        raise InputError(f"mode must be 'auto', 'paired' or 'unpaired', got {mode!r}")
-    ds = measured if hasattr(measured, "render_view") else load_coco(measured)
-    if len(ds) < 4:
-        raise InputError(f"{ds.root}: the gap workflow needs at least 4 measured frames, found {len(ds)}")
-    can_pair, why = paired_check(ds)
+def _resolve_mode(mode: str, reference: Any, can_pair: bool, why: str, ds: Any) -> tuple[str, str]:
+    if mode not in MODES:
+        raise InputError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if reference is not None:
+        if mode in ("paired", "unpaired"):
+            raise InputError(f"--reference (measured clear frames) goes with mode same-camera or did, not {mode}")
+        if mode == "did":
+            return "did", ("difference-in-differences: the change from the measured clear reference to the measured "
+                           "frames is compared with the change the model makes to clean simulator frames; what "
+                           "already differs between the clear reference and the simulator is a domain difference, "
+                           "reported apart and never fitted as weather")
+        return "same-camera", ("a measured clear reference of the same camera was given: the model's effects are "
+                               "applied to the clear frames and compared with the measured frames; scene and camera "
+                               "cancel, no simulator in the loop")
+    if mode in ("same-camera", "did"):
+        raise InputError(f"mode {mode} needs --reference CLEAR_DIR: measured clear frames of the same camera")
     if mode == "paired" and not can_pair:
         raise InputError(f"{ds.annotations_path}: paired mode needs 'track' and 'pose' in every image record; {why}")
     use_paired = can_pair if mode == "auto" else mode == "paired"
     if mode == "unpaired" and can_pair:
         why = "unpaired mode was asked for: distributions over the whole sets are compared"
+    return ("paired" if use_paired else "unpaired"), why
+
+
+def _tracks_of(ds: Any, tracks: list[str] | None) -> list[str]:
+    if tracks is None:
+        tracks = sorted({ds.track_spec(i) for i, r in enumerate(ds.images) if r.get("track")})
+    if not tracks:
+        raise InputError(f"{ds.annotations_path}: the records name no track; the simulator needs one to render "
+                         "(--track NAME)")
+    return list(tracks)
+
+
+def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike, mode: str = "auto",
+             reference: str | os.PathLike | Any | None = None, tracks: list[str] | None = None,
+             sim_frames: int | None = None, held_out: float = 0.5, seed: int = 0, progress: bool = False,
+             compare_width: int | None = COMPARE_WIDTH) -> GapData:
+    """Load the measured frames and the frames the model is applied to (step 1 of the workflow).
+
+    Args:
+        measured: a COCO folder (or an open ``CocoDataset``).
+        cache_dir: where the clean renders are kept (reused on the next run).
+        mode: ``"auto"`` (same-camera with a ``reference``, else paired when every record has a track
+            and a pose, else unpaired), ``"paired"``, ``"unpaired"``, ``"same-camera"`` or ``"did"``.
+        reference: measured clear frames of the same camera (same-camera and did modes).
+        tracks: tracks to render in unpaired and did modes (default: the records' ``track`` values).
+        sim_frames: frames to render in unpaired / did mode (default: as many as measured / reference).
+        held_out: fraction of frames held out for the final comparison.
+        compare_width: frames wider than this are scaled down once on loading (None: never).
+    """
+    from weather_gym.datasets.coco import load_coco
+
+    def opened(x: Any) -> Any:
+        return x if hasattr(x, "render_view") else load_coco(x)
+
+    if mode in ("same-camera", "did") and reference is None:
+        raise InputError(f"mode {mode} needs --reference CLEAR_DIR: measured clear frames of the same camera")
+    if mode in ("paired", "unpaired") and reference is not None:
+        raise InputError(f"--reference (measured clear frames) goes with mode same-camera or did, not {mode}")
+    ds = opened(measured)
+    _check_count(ds, "measured")
+    ref_ds = opened(reference) if reference is not None else None
+    if ref_ds is not None:
+        _check_count(ref_ds, "clear reference")
+    can_pair, why = paired_check(ds)
+    mode_name, why = _resolve_mode(mode, ref_ds, can_pair, why, ds)
     cache = Path(cache_dir)
-    cache.mkdir(parents=True, exist_ok=True)
     notes: set[str] = set()
-    measured_frames = load_frames(ds, progress=progress, desc="load measured")
+    measured_frames = load_frames(ds, max_width=compare_width, progress=progress, desc="load measured")
+    if measured_frames.scale != 1.0:
+        w0, h0 = measured_frames.original_size
+        notes.add(f"measured frames scaled once from {w0}x{h0} to {measured_frames.size[0]}x{measured_frames.size[1]} "
+                  "(the comparison size)")
     fit, held = split_indices(len(ds), held_out=held_out, seed=seed)
-    if use_paired:
-        sim_root = _render_paired(ds, cache, progress, notes)
+    meta: dict[str, Any] = {"measured": str(ds.root), "size": list(measured_frames.size)}
+    out = dict(mode=mode_name, mode_reason=why, measured=measured_frames, fit=fit, held=held)
+    ref_frames = None
+    if ref_ds is not None:
+        ref_frames = load_frames(ref_ds, max_width=compare_width, progress=progress, desc="load reference")
+        if ref_frames.size != measured_frames.size:
+            raise InputError(f"the clear reference {ref_ds.root} has {ref_frames.original_size[0]}x"
+                             f"{ref_frames.original_size[1]} frames but the measured {ds.root} has "
+                             f"{measured_frames.original_size[0]}x{measured_frames.original_size[1]}: a reference "
+                             "must come from the same camera at the same size")
+        meta["reference"] = str(ref_ds.root)
+        same, score = same_views(measured_frames, ref_frames)
+        meta["same_views_score"] = score
+        view_note = (f"every measured frame shows the view of its reference frame (patch correlation {score:.2f}): "
+                     "frames are compared one to one" if same else
+                     "the reference shows other views than the measured frames: distributions are compared")
+    if mode_name == "same-camera":
+        sim_frames_set = ref_frames
+        if same:
+            sim_fit, sim_held = fit, held
+        else:
+            sim_fit, sim_held = split_indices(len(ref_frames), held_out=held_out, seed=seed + 1)
+        out.update(sim=sim_frames_set, sim_fit=sim_fit, sim_held=sim_held, pairs=same,
+                   mode_reason=f"{why}; {view_note}")
+        meta["sim"] = str(ref_ds.root)
+    elif mode_name == "did":
+        ref_fit, ref_held = (fit, held) if same else split_indices(len(ref_frames), held_out=held_out, seed=seed + 2)
+        tr = _tracks_of(ref_ds if any(r.get("track") for r in ref_ds.images) else ds, tracks)
+        camera = _camera_of(ref_ds).scaled(*measured_frames.size)
+        n_sim = int(sim_frames or len(ref_ds))
+        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress)
         sim_ds = load_coco(sim_root)
-        sim_fit, sim_held = fit, held
-        mode_name = "paired"
-    else:
-        if tracks is None:
-            tracks = sorted({ds.track_spec(i) for i, r in enumerate(ds.images) if r.get("track")})
-        if not tracks:
-            raise InputError(f"{ds.annotations_path}: the records name no track; unpaired mode needs one "
-                             "(--track NAME)")
-        n_sim = int(sim_frames or len(ds))
-        sim_root = _render_unpaired(ds, cache, list(tracks), n_sim, seed, progress)
-        sim_ds = load_coco(sim_root)
+        sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
         sim_fit, sim_held = split_indices(len(sim_ds), held_out=held_out, seed=seed + 1)
-        mode_name = "unpaired"
-    sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
+        out.update(sim=sim_frames_set, sim_fit=sim_fit, sim_held=sim_held, pairs=False, reference=ref_frames,
+                   ref_fit=ref_fit, ref_held=ref_held, ref_paired=same, mode_reason=f"{why}; {view_note}")
+        meta.update(sim=str(sim_root), tracks=tr)
+    elif mode_name == "paired":
+        sim_root = _render_paired(ds, cache, progress, notes)
+        sim_frames_set = load_frames(load_coco(sim_root), max_width=compare_width, progress=progress, desc="load sim")
+        out.update(sim=sim_frames_set, sim_fit=fit, sim_held=held)
+        meta["sim"] = str(sim_root)
+    else:
+        tr = _tracks_of(ds, tracks)
+        camera = _camera_of(ds).scaled(*measured_frames.size)
+        n_sim = int(sim_frames or len(ds))
+        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress)
+        sim_ds = load_coco(sim_root)
+        sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
+        sim_fit, sim_held = split_indices(len(sim_ds), held_out=held_out, seed=seed + 1)
+        out.update(sim=sim_frames_set, sim_fit=sim_fit, sim_held=sim_held)
+        meta.update(sim=str(sim_root), tracks=tr)
+        if measured_frames.real:
+            out.update(confounded=True, confounded_reason=(
+                "the measured frames look like a real recording (another camera and scene than the simulator) and "
+                "no clear reference of the same camera was given: a difference from the clean simulator may be "
+                "weather or the camera, lens, scene, exposure or car - the data cannot tell them apart. Give "
+                "--reference CLEAR_DIR (measured clear frames of the same camera) to name missing weather"))
     if sim_frames_set.size != measured_frames.size:
         raise InputError(f"simulated frames are {sim_frames_set.size}, measured {measured_frames.size}")
-    meta = {"measured": str(ds.root), "sim": str(sim_root), "tracks": sorted({str(r.get("track")) for r in sim_ds.images}),
-            "size": list(measured_frames.size)}
-    return GapData(mode_name, why, measured_frames, sim_frames_set, fit, held, sim_fit, sim_held,
-                   notes=sorted(notes), meta=meta)
+    meta.setdefault("tracks", sorted({str(r.get("track")) for r in ds.images if r.get("track")}))
+    return GapData(notes=sorted(notes), meta=meta, **out)

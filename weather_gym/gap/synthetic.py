@@ -18,7 +18,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from weather_gym._io import atomic_write, atomic_write_json, check_output, write_image
+from weather_gym._io import atomic_write, atomic_write_json, check_output, resolve_inside, write_image
 from weather_gym.errors import InputError
 from weather_gym.gap.model import apply_chain
 from weather_gym.gap.simulate import frame_state
@@ -58,11 +58,19 @@ def degrade_dataset(src: str | os.PathLike, dst: str | os.PathLike, weather: Any
         rec = ds.record(i)
         img = apply_chain(effects, ds.image(i), depth=ds.depth(i), state=frame_state(rec), seed=seed,
                           frame_id=int(rec["id"]))
-        # the same relative names, confined to dst: a dataset cannot make us write elsewhere
-        write_image(record_path(dst, rec, "file_name"), img, overwrite=overwrite)
-        if rec.get("depth_file"):
-            atomic_write(record_path(dst, rec, "depth_file"), record_path(src, rec, "depth_file").read_bytes(),
-                         overwrite=overwrite)
+        # the same relative names (as lossless PNG: no compression on top of the weather), confined to dst
+        name = str(Path(rec["file_name"]).with_suffix(".png"))
+        data["images"][i]["file_name"] = name
+        write_image(resolve_inside(dst, name, what=f"{src}: image {rec.get('id')!r} 'file_name'"), img,
+                    overwrite=overwrite)
+        for key in ("depth_file", "ignore_mask"):
+            if rec.get(key):
+                atomic_write(record_path(dst, rec, key), record_path(src, rec, key).read_bytes(), overwrite=overwrite)
+    mask = (data.get("info") or {}).get("ignore_mask")
+    if mask:
+        where = f"{src}: info.ignore_mask"
+        atomic_write(resolve_inside(dst, mask, what=where), resolve_inside(src, mask, what=where).read_bytes(),
+                     overwrite=overwrite)
     if strip_poses:
         for rec in data["images"]:
             for key in ("pose", "look", "seed", "episode", "step"):

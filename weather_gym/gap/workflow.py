@@ -33,7 +33,7 @@ import math
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,7 @@ from weather_gym.gap.compare import (
     MIN_EFFECT,
     GapMeter,
     compare_perception,
+    compare_perception_did,
     compare_signals,
     gap_test,
     signal_scale,
@@ -55,6 +56,7 @@ from weather_gym.gap.fit import (
     PENALTY,
     Evaluator,
     FitResult,
+    bounds_hit,
     candidates,
     fit,
     fit_summary,
@@ -65,12 +67,18 @@ from weather_gym.gap.fit import (
 from weather_gym.gap.model import describe, model_tables, read_model, write_model
 from weather_gym.gap.perception import detect_frames, match_frames, perception_stats
 from weather_gym.gap.signals import SIGNAL_NAMES, signal_table, signal_weights
-from weather_gym.gap.simulate import GapData, simulate
+from weather_gym.gap.simulate import COMPARE_WIDTH, MIN_FRAMES, MODES, GapData, simulate
 from weather_gym.weather import KnobEffect
 
 __all__ = ["GapConfig", "Comparison", "GapSession", "run_gap", "REPORT_VERSION"]
 
-REPORT_VERSION = 1
+REPORT_VERSION = 2
+
+MIN_GAP_CUT = 0.1
+"""Smallest held-out gap cut (in scene-to-scene spreads) for which an effect is added or kept."""
+
+PERCEPTION_MIN_MAP = 0.3
+"""Below this mAP@0.5 on the measured clear frames the perception gap means nothing (the report says so)."""
 
 
 @dataclass(frozen=True)
@@ -79,9 +87,11 @@ class GapConfig:
 
     Attributes:
         seed: seeds the split, the bootstrap and every effect's random numbers.
-        mode: ``auto`` / ``paired`` / ``unpaired``.
-        tracks: tracks to render in unpaired mode (default: the records' tracks).
-        sim_frames: frames to render in unpaired mode (default: as many as measured).
+        mode: ``auto`` / ``paired`` / ``unpaired`` / ``same-camera`` / ``did`` (the last two need a
+            clear reference; see :func:`~weather_gym.gap.simulate.simulate`).
+        tracks: tracks to render in unpaired and did modes (default: the records' tracks).
+        sim_frames: frames to render in unpaired / did mode (default: as many as measured).
+        compare_width: frames wider than this are scaled down once on loading.
         held_out: fraction of the frames held out for the reported gaps.
         fit_frames: at most this many fitting frames are used by the parameter search.
         max_steps: at most this many effects are added.
@@ -91,7 +101,10 @@ class GapConfig:
         min_effect: smallest standardised bias reported as a disagreement.
         bootstrap: bootstrap resamples of the image signals (perception uses 300).
         perception: run the detector (the report's perception level).
-        detector: ONNX model path (default: the shipped detector).
+        detector: a detector spec (``"yolov8:model.onnx"``, a ``DetectorSpec``; default: the shipped
+            detector; see ``weather_gym.perception.load_detector``).
+        prune: after the loop, drop every added effect whose removal does not worsen the held-out
+            gap significantly.
     """
 
     seed: int = 0
@@ -107,7 +120,9 @@ class GapConfig:
     min_effect: float = MIN_EFFECT
     bootstrap: int = 1000
     perception: bool = True
-    detector: str | None = None
+    detector: Any = None
+    prune: bool = True
+    compare_width: int | None = COMPARE_WIDTH
     progress: bool = False
 
     def __post_init__(self) -> None:
@@ -115,10 +130,12 @@ class GapConfig:
 
         if not 0.0 < self.held_out < 1.0:
             raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
-        if self.mode not in ("auto", "paired", "unpaired"):
-            raise InputError(f"mode must be 'auto', 'paired' or 'unpaired', got {self.mode!r}")
-        if self.sim_frames is not None and self.sim_frames < 4:
-            raise InputError(f"sim_frames must be >= 4, got {self.sim_frames}")
+        if self.mode not in MODES:
+            raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.sim_frames is not None and self.sim_frames < MIN_FRAMES:
+            raise InputError(f"sim_frames must be >= {MIN_FRAMES}, got {self.sim_frames}")
+        if self.compare_width is not None and self.compare_width < 64:
+            raise InputError(f"compare_width must be >= 64 pixels (or None), got {self.compare_width}")
         if self.fit_frames < 4:
             raise InputError(f"fit_frames must be >= 4, got {self.fit_frames}")
         if self.max_steps < 0:
@@ -178,11 +195,18 @@ class GapSession:
         self.history: list[tuple[str, list[KnobEffect]]] = [("input model", list(model))]
         self.timings: dict[str, float] = {}
         self.log: list[str] = []
+        self.pruned: list[dict[str, Any]] = []
+        self.flagged: list[dict[str, Any]] = []
         cfg = self.config
         t0 = time.perf_counter()
         m = data.measured
-        depths_m, boxes_m = data.signal_depths("measured"), data.signal_boxes("measured")
-        self.measured_signals = signal_table(m.images, depths_m, boxes_m)
+        self.measured_signals = signal_table(m.images, data.signal_depths("measured"), data.signal_boxes("measured"),
+                                             data.signal_masks("measured"))
+        self.reference_signals = None
+        if data.did:
+            r = data.reference
+            self.reference_signals = signal_table(r.images, data.signal_depths("reference"),
+                                                  data.signal_boxes("reference"), data.signal_masks("reference"))
         self.scale = signal_scale(self.measured_signals)
         self.weights = signal_weights()
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xF17]))
@@ -190,21 +214,28 @@ class GapSession:
         if len(fit_sim) > cfg.fit_frames:
             fit_sim = np.sort(rng.choice(fit_sim, cfg.fit_frames, replace=False))
         fit_meas = fit_sim if data.paired else data.fit
-        self.fit_ev = self._evaluator(fit_sim, fit_meas)
-        self.held_ev = self._evaluator(data.sim_held, data.held)
+        fit_ref = (fit_meas if data.ref_paired else data.ref_fit) if data.did else None
+        self.fit_ev = self._evaluator(fit_sim, fit_meas, fit_ref)
+        self.held_ev = self._evaluator(data.sim_held, data.held, data.ref_held if data.did else None)
         self.timings["signals_measured_s"] = time.perf_counter() - t0
         self._detector = None
-        self._measured_matches = None
+        self._fixed_matches: dict[str, Any] = {}
         self._comparisons: dict[tuple, Comparison] = {}
 
     # ------------------------------------------------------------------ plumbing
-    def _evaluator(self, sim_idx: np.ndarray, meas_idx: np.ndarray) -> Evaluator:
+    def _evaluator(self, sim_idx: np.ndarray, meas_idx: np.ndarray, ref_idx: np.ndarray | None = None) -> Evaluator:
         d, s = self.data, self.data.sim
-        depths, boxes = d.signal_depths("sim"), d.signal_boxes("sim")
-        meter = GapMeter(self.measured_signals[meas_idx], scale=self.scale, weights=self.weights, paired=d.paired)
-        return Evaluator([s.images[i] for i in sim_idx], [s.depths[i] for i in sim_idx],
-                         [s.states[i] for i in sim_idx], [s.ids[i] for i in sim_idx],
-                         [depths[i] for i in sim_idx], [boxes[i] for i in sim_idx], meter, seed=self.config.seed)
+        depths, boxes, masks = d.signal_depths("sim"), d.signal_boxes("sim"), d.signal_masks("sim")
+        meter = GapMeter(self.measured_signals[meas_idx], scale=self.scale, weights=self.weights, paired=d.paired,
+                         reference=None if ref_idx is None else self.reference_signals[ref_idx],
+                         ref_paired=d.ref_paired)
+        ev = Evaluator([s.images[i] for i in sim_idx], [s.depths[i] for i in sim_idx],
+                       [s.states[i] for i in sim_idx], [s.ids[i] for i in sim_idx],
+                       [depths[i] for i in sim_idx], [boxes[i] for i in sim_idx], meter, seed=self.config.seed,
+                       signal_masks=[masks[i] for i in sim_idx])
+        if meter.did:
+            meter.base = ev.signals([])  # the clean simulator frames: the baseline of the simulated change
+        return ev
 
     def _say(self, msg: str) -> None:
         self.log.append(msg)
@@ -216,19 +247,33 @@ class GapSession:
     @property
     def detector(self):
         if self._detector is None:
-            from weather_gym.perception import ConeDetector
+            from weather_gym.perception.detectors import load_detector
 
-            self._detector = ConeDetector(self.config.detector, threads=1)
+            self._detector = load_detector(self.config.detector, threads=1)
         return self._detector
 
+    @property
+    def min_box_height(self) -> float:
+        """The too-small rule at the comparison size and the detector's input scale (image pixels)."""
+        from weather_gym.perception.labels import SmallRule
+
+        return SmallRule.for_image(self.data.measured.size, self.detector).min_height_px
+
+    def _match(self, images: Sequence[np.ndarray], gts: Sequence[dict]):
+        dets = detect_frames(self.detector, images)
+        return match_frames(gts, dets, score_threshold=self.detector.score_threshold,
+                            min_box_height=self.min_box_height)
+
+    def _fixed(self, which: str):
+        """Detector matches of a set that no model changes: the held-out measured (and reference) frames."""
+        if which not in self._fixed_matches:
+            d = self.data
+            frames, idx = (d.measured, d.held) if which == "measured" else (d.reference, d.ref_held)
+            self._fixed_matches[which] = self._match([frames.images[i] for i in idx], [frames.gts[i] for i in idx])
+        return self._fixed_matches[which]
+
     def _measured_perception(self):
-        if self._measured_matches is None:
-            m = self.data.measured
-            ims = [m.images[i] for i in self.data.held]
-            dets = detect_frames(self.detector, ims)
-            self._measured_matches = match_frames([m.gts[i] for i in self.data.held], dets,
-                                                  score_threshold=self.detector.score_threshold)
-        return self._measured_matches
+        return self._fixed("measured")
 
     # ------------------------------------------------------------------ steps
     def compare(self, model: Sequence[KnobEffect] | None = None, *, perception: bool | None = None) -> Comparison:
@@ -245,14 +290,21 @@ class GapSession:
                                min_effect=cfg.min_effect)
         comp = Comparison(model, sig, rows, self.held_ev.meter.gap(sig))
         if perception:
-            frames = self.held_ev.frames(model)
-            dets = detect_frames(self.detector, frames)
             gts = [self.data.sim.gts[i] for i in self.data.sim_held]
-            sm = match_frames(gts, dets, score_threshold=self.detector.score_threshold)
+            sm = self._match(self.held_ev.frames(model), gts)
             mm = self._measured_perception()
-            prow = compare_perception(sm, mm, paired=self.data.paired, seed=cfg.seed, alpha=cfg.alpha)
-            comp.perception_rows = prow
-            comp.perception = _perception_summary(prow, perception_stats(sm), perception_stats(mm))
+            if self.data.did:
+                if "sim_clean" not in self._fixed_matches:
+                    self._fixed_matches["sim_clean"] = self._match(self.held_ev.frames([]), gts)
+                prow, st = compare_perception_did(sm, self._fixed_matches["sim_clean"], mm, self._fixed("reference"),
+                                                  ref_paired=self.data.ref_paired, seed=cfg.seed, alpha=cfg.alpha)
+                comp.perception_rows = prow
+                comp.perception = _perception_summary(prow, st["sim"], st["measured"], st["sim_clean"],
+                                                      st["reference"])
+            else:
+                prow = compare_perception(sm, mm, paired=self.data.paired, seed=cfg.seed, alpha=cfg.alpha)
+                comp.perception_rows = prow
+                comp.perception = _perception_summary(prow, perception_stats(sm), perception_stats(mm))
         self.timings["compare_s"] = self.timings.get("compare_s", 0.0) + time.perf_counter() - t0
         self._comparisons[key] = comp
         return comp
@@ -335,8 +387,9 @@ class GapSession:
         """Add a candidate from :meth:`diagnose` if it shrinks the held-out gap significantly.
 
         Significant: the bootstrap p-value of "the reduction is not positive" is below ``alpha``
-        divided by the number of candidates fully fitted, and the gap falls by at least PENALTY per
-        parameter. Returns the step record, or None (nothing added) unless ``force``.
+        divided by the number of candidates fully fitted, the gap falls by at least PENALTY per
+        parameter and by at least :data:`MIN_GAP_CUT` (a change smaller than a tenth of a
+        scene-to-scene spread is not worth an effect, however certain it is). Returns the step record, or None (nothing added) unless ``force``.
         """
         cfg = self.config
         f: FitResult = found["fit"]
@@ -346,11 +399,23 @@ class GapSession:
         n_tested = max(len(alternatives), 1)
         needed = 1.0 - PENALTY * f.n_params
         ev = evidence(before.rows, after.rows, f.effect.name)
-        ok = test["p_value"] < cfg.alpha / n_tested and test["gap_after"] <= needed * test["gap_before"]
+        ok = (test["p_value"] < cfg.alpha / n_tested and test["gap_after"] <= needed * test["gap_before"]
+              and test["gap_before"] - test["gap_after"] >= MIN_GAP_CUT)
         why = "added" if ok else "not significant"
         if ok and not (ev["fixed"] or ev["improved"]):
             ok, why = False, "fixes no significant disagreement"
         what = describe(f.effect)
+        hit = bounds_hit(f.effect, f.extras)
+        if ok and hit and not force:
+            self._say(f"best candidate {what}: held-out gap {test['gap_before']:.3f} -> {test['gap_after']:.3f}, but "
+                      f"the fit ends on a bound ({'; '.join(hit)}): not added (flagged)")
+            self.flagged.append({"candidate": f.candidate.describe(), "describe": what, "bounds": hit,
+                                 "gap_before": test["gap_before"], "gap_after": test["gap_after"],
+                                 "p_value": test["p_value"], "step": len(self.steps) + 1,
+                                 "why": "a fit on the edge of the effect's range: the effect cannot reproduce the "
+                                        "difference inside its range, so the difference is probably something else "
+                                        "(another effect, or the camera and scene rather than weather)"})
+            return None
         self._say(f"best candidate {what}: held-out gap {test['gap_before']:.3f} -> {test['gap_after']:.3f} "
                   f"(p = {test['p_value']:.4f}, {why})")
         if not ok and not force:
@@ -393,17 +458,105 @@ class GapSession:
         if not found:
             self._say("no candidate lowers the gap on the fitting frames")
             return None
-        return self.add(found[0], found)
+        for cand in found:  # best first; a candidate flagged for a fit on a bound gives way to the next
+            n_flagged = len(self.flagged)
+            step = self.add(cand, found)
+            if step is not None or len(self.flagged) == n_flagged:
+                return step
+        return None
+
+    def prune(self) -> list[dict[str, Any]]:
+        """Parsimony: try removing each effect the loop added (re-fitting the others without it); drop
+        it when the held-out gap without it is not significantly worse (bootstrap p >= alpha, less than PENALTY worse, or worse by less than
+        :data:`MIN_GAP_CUT`), the weakest
+        first, until every remaining one earns its place. Returns one record per dropped effect."""
+        t0 = time.perf_counter()
+        cfg = self.config
+        dropped = []
+        while True:
+            added = [st["added"]["name"] for st in self.steps
+                     if st["added"]["name"] in {e.name for e in self.model}
+                     and st["added"]["name"] not in {p["name"] for p in self.pruned}]
+            weakest = None
+            for name in added:
+                without = [e for e in self.model if e.name != name]
+                if without:  # the others re-fitted without it: they may take over what it did
+                    without, _ = refit_joint(self.fit_ev, without)
+                test = gap_test(self.held_ev.meter, self.held_ev.signals(without), self.held_ev.signals(self.model),
+                                b=cfg.bootstrap, seed=cfg.seed)
+                earns = (test["p_value"] < cfg.alpha and test["gap_after"] <= (1.0 - PENALTY) * test["gap_before"]
+                         and test["gap_before"] - test["gap_after"] >= MIN_GAP_CUT)
+                if not earns and (weakest is None or test["p_value"] > weakest[2]["p_value"]):
+                    weakest = (name, without, test)
+            if weakest is None:
+                break
+            name, without, test = weakest
+            self._say(f"parsimony: without {name} the held-out gap is {test['gap_before']:.3f} against "
+                      f"{test['gap_after']:.3f} with it (p = {test['p_value']:.4f}): not significantly worse, dropped")
+            rec = {"name": name, "gap_without": test["gap_before"], "gap_with": test["gap_after"],
+                   "p_value": test["p_value"], "params": next(e.params() for e in self.model if e.name == name)}
+            self.model = without
+            self.pruned.append(rec)
+            dropped.append(rec)
+            self.history.append((f"- {name}", list(self.model)))
+        if dropped and self.model:
+            self.refit()
+        self.timings["prune_s"] = self.timings.get("prune_s", 0.0) + time.perf_counter() - t0
+        return dropped
 
     def run(self) -> dict[str, Any]:
-        """The whole loop (until no candidate helps significantly); returns the report dict."""
+        """The whole loop (until no candidate helps significantly), then parsimony; returns the report
+        dict. Confounded data (a real recording without a clear reference) is compared and its
+        differences reported, but nothing is fitted as weather."""
         t0 = time.perf_counter()
         first = self.compare()
-        while self.step() is not None:
-            pass
+        if self.data.confounded:
+            self._say("confounded: " + self.data.confounded_reason)
+        else:
+            while self.step() is not None:
+                pass
+            if self.config.prune:
+                self.prune()
         last = self.compare()
         self.timings["loop_s"] = time.perf_counter() - t0
         return self.report(first, last)
+
+    # ------------------------------------------------------------------ domain
+    def domain(self) -> dict[str, Any] | None:
+        """Domain differences (see :mod:`~weather_gym.gap.domain`): the measured clear reference against
+        clean simulator frames (did mode), or the measured frames against them when the comparison is
+        confounded; None in the other modes (same camera, or the simulator's own frames)."""
+        from weather_gym.gap.domain import clutter, compare_clutter, ego_vehicle, name_differences
+
+        d, cfg = self.data, self.config
+        if d.did:
+            base, sig, label, which = d.reference, self.reference_signals, "measured clear reference", "reference"
+        elif d.confounded:
+            base, sig, label, which = d.measured, self.measured_signals, "measured frames", "measured"
+        else:
+            return None
+        sim_masks = d.signal_masks("sim")
+        sim_sig = signal_table(d.sim.images, d.signal_depths("sim"), d.signal_boxes("sim"), sim_masks)
+        meter = GapMeter(sig, scale=signal_scale(sig), weights=self.weights, paired=False)
+        rows = compare_signals(meter, sim_sig, b=cfg.bootstrap, seed=cfg.seed, alpha=cfg.alpha,
+                               min_effect=cfg.min_effect)
+        extra = []
+        cl = compare_clutter([clutter(im, m) for im, m in zip(d.sim.images, sim_masks)],
+                             [clutter(im, m) for im, m in zip(base.images, d.signal_masks(which))],
+                             seed=cfg.seed, alpha=cfg.alpha)
+        if cl is not None:
+            extra.append(cl)
+        ego = ego_vehicle(base.images, base.masks) if base.real else None
+        if ego is not None:
+            extra.append(ego)
+        out = {"compared": f"clean simulator frames against the {label}", "differences": name_differences(rows, extra),
+               "rows": [r for r in rows if r["significant"]]}
+        if cfg.perception:
+            sim_gts = [d.sim.gts[i] for i in d.sim_held]
+            sim_m = self._fixed_matches.get("sim_clean") or self._match(self.held_ev.frames([]), sim_gts)
+            out["perception"] = {"map50_sim": perception_stats(sim_m)["map50"],
+                                 f"map50_{which}": perception_stats(self._fixed(which))["map50"]}
+        return out
 
     # ------------------------------------------------------------------ report
     def stages(self) -> list[dict[str, Any]]:
@@ -417,17 +570,56 @@ class GapSession:
                         "map50_diff_ci95": None if c.perception is None else c.perception["diff_ci95"]})
         return out
 
+    def perception_warning(self, first: Comparison) -> str | None:
+        """A sentence when the detector scores too low on the measured clear frames for the perception
+        gap to mean anything (mAP@0.5 below :data:`PERCEPTION_MIN_MAP`), else None."""
+        p = first.perception
+        if p is None:
+            return None
+        d = self.data
+        if d.did:
+            value, what = p.get("map50_reference"), "the measured clear reference"
+        elif d.mode == "same-camera":
+            value, what = self.compare([]).perception["map50_sim"], "the measured clear reference"
+        else:
+            value, what = p.get("map50_measured"), "the measured frames"
+        if value is None or not math.isfinite(value) or value >= PERCEPTION_MIN_MAP:
+            return None
+        return (f"the detector ({self.detector.name}) scores mAP@0.5 {value:.3f} on {what}: too low for the "
+                "perception gap to mean anything (a detector that does not find the cones in clear frames cannot "
+                "show what weather does to them); judge the run by the image signals, or use a detector that works "
+                "on this camera (--detector yolov8:PATH)")
+
     def report(self, first: Comparison | None = None, last: Comparison | None = None) -> dict[str, Any]:
         """The report dict (``report.json``'s content, without file paths)."""
         first = first or self.compare(self.input_model)
         last = last or self.compare()
         d = self.data
+        missing = [s["added"]["name"] for s in self.steps if s["added"]["name"] not in {p["name"] for p in self.pruned}]
+        if d.confounded:
+            verdict = ("confounded: the measured frames differ from the clean simulator, but without a clear "
+                       "reference of the same camera the difference cannot be told apart from the camera and scene; "
+                       "nothing was fitted as weather")
+        elif missing:
+            verdict = f"missing weather: {', '.join(missing)}"
+        else:
+            verdict = "no missing weather: the model explains the measured frames"
+        if self.flagged:
+            verdict += f"; flagged (fit on a bound, not added): {', '.join(f['candidate'] for f in self.flagged)}"
         return {
             "version": REPORT_VERSION,
             "mode": d.mode,
             "mode_reason": d.mode_reason,
+            "verdict": verdict,
+            "confounded": d.confounded,
+            "confounded_reason": d.confounded_reason or None,
+            "perception_warning": self.perception_warning(first),
+            "domain": self.domain(),
+            "flagged": self.flagged,
+            "pruned": self.pruned,
             "notes": list(d.notes),
-            "frames": {"measured": len(d.measured), "simulated": len(d.sim), "fit": int(len(d.fit)),
+            "frames": {"measured": len(d.measured), "simulated": len(d.sim),
+                       "reference": None if d.reference is None else len(d.reference), "fit": int(len(d.fit)),
                        "held_out": int(len(d.held)), "fit_used": len(self.fit_ev), "size": list(d.measured.size),
                        "tracks": d.meta.get("tracks", [])},
             "gap_metric": {
@@ -448,20 +640,29 @@ class GapSession:
             "refits": self.refits,
             "steps": self.steps,
             "stages": self.stages(),
-            "missing_effects": [s["added"]["name"] for s in self.steps],
+            "missing_effects": missing,
             "model_in": model_tables(self.input_model),
             "model_effects": model_tables(self.model),
             "signals": [{"name": n, "scale": float(s)} for n, s in zip(SIGNAL_NAMES, self.scale)],
-            "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.config).items()
-                         if k != "progress"},
+            "settings": {f.name: _setting(getattr(self.config, f.name)) for f in fields(self.config)
+                         if f.name != "progress"},
             "log": list(self.log),
         }
 
 
-def _perception_summary(rows: list[dict[str, Any]], sim: dict[str, float], meas: dict[str, float]) -> dict[str, Any]:
+def _perception_summary(rows: list[dict[str, Any]], sim: dict[str, float], meas: dict[str, float],
+                        sim_clean: dict[str, float] | None = None,
+                        reference: dict[str, float] | None = None) -> dict[str, Any]:
+    """The perception level of a comparison; in difference-in-differences mode (``sim_clean`` and
+    ``reference`` given) ``diff`` is ``(sim - sim_clean) - (measured - reference)`` of mAP@0.5."""
     by = {r["signal"]: r for r in rows}
     m = by["map50"]
+    extra = {}
+    if sim_clean is not None and reference is not None:
+        extra = {"map50_sim_clean": sim_clean["map50"], "map50_reference": reference["map50"],
+                 "change_sim": sim["map50"] - sim_clean["map50"], "change_measured": meas["map50"] - reference["map50"]}
     return {
+        **extra,
         "map50_sim": sim["map50"], "map50_measured": meas["map50"], "diff": m["difference"],
         "abs_diff": abs(m["difference"]) if math.isfinite(m["difference"]) else math.nan,
         "diff_ci95": m["ci95"], "significant": m["significant"],
@@ -472,6 +673,15 @@ def _perception_summary(rows: list[dict[str, Any]], sim: dict[str, float], meas:
                            for n in sim if n.startswith("recall.size.")},
         "scores": {n: {"sim": sim[n], "measured": meas[n]} for n in ("score_tp_mean", "score_fp_mean", "fp_per_frame")},
     }
+
+
+def _setting(v: Any) -> Any:
+    """A GapConfig value for the report: tuples as lists, a detector spec as its text."""
+    if isinstance(v, tuple):
+        return list(v)
+    if v is None or isinstance(v, bool | int | float | str):
+        return v
+    return str(v)
 
 
 def _changes(before: dict[str, Any], after: dict[str, Any]) -> str:
@@ -493,12 +703,13 @@ def _jsonable(x: Any) -> Any:
 
 
 def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: str | os.PathLike,
-            config: GapConfig | None = None, *, cache_dir: str | os.PathLike | None = None,
-            overwrite: bool = False, plots: bool = True) -> dict[str, Any]:
+            config: GapConfig | None = None, *, reference: str | os.PathLike | None = None,
+            cache_dir: str | os.PathLike | None = None, overwrite: bool = False, plots: bool = True) -> dict[str, Any]:
     """Run the whole workflow and write ``report.json``, ``model.toml``, ``report.md`` and plots to ``out``.
 
-    ``model`` None is the clean simulator. The clean renders are cached in ``cache_dir`` (default
-    ``out/cache``); an existing report in ``out`` is never overwritten unless ``overwrite``.
+    ``model`` None is the clean simulator. ``reference``: measured clear frames of the same camera
+    (same-camera mode, or ``config.mode="did"``). The clean renders are cached in ``cache_dir``
+    (default ``out/cache``); an existing report in ``out`` is never overwritten unless ``overwrite``.
     Returns the report dict as written to ``report.json``.
     """
     from weather_gym.gap.report import write_markdown, write_plots
@@ -515,9 +726,10 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
     out.mkdir(parents=True, exist_ok=True)
     cache = Path(cache_dir) if cache_dir is not None else out / "cache"
     t0 = time.perf_counter()
-    data = simulate(measured, cache_dir=cache, mode=config.mode, tracks=list(config.tracks) if config.tracks else None,
-                    sim_frames=config.sim_frames, held_out=config.held_out, seed=config.seed,
-                    progress=config.progress)
+    data = simulate(measured, cache_dir=cache, mode=config.mode, reference=reference,
+                    tracks=list(config.tracks) if config.tracks else None, sim_frames=config.sim_frames,
+                    held_out=config.held_out, seed=config.seed, progress=config.progress,
+                    compare_width=config.compare_width)
     t_sim = time.perf_counter() - t0
     session = GapSession(data, effects, config)
     report = session.run()
@@ -542,6 +754,7 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
                 header=f"weather model written by `weather-gym gap` from {model if model is not None else 'the clean simulator'}\n"
                        f"measured data: {data.meta['measured']} ({data.mode} mode)", overwrite=overwrite)
     report["measured"] = str(measured)
+    report["reference"] = None if reference is None else str(reference)
     report["model_input"] = None if model is None else str(model)
     report["model"] = str(model_path)
     session.timings["simulate_s"] = t_sim

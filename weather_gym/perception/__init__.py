@@ -18,6 +18,12 @@ from weather_gym._lazy import lazy_exports
 
 _LAZY = {
     "ConeDetector": "weather_gym.perception.detector",
+    "Detector": "weather_gym.perception.detectors",
+    "DetectorSpec": "weather_gym.perception.detectors",
+    "load_detector": "weather_gym.perception.detectors",
+    "as_detector": "weather_gym.perception.detectors",
+    "YoloDetector": "weather_gym.perception.yolo",
+    "SmallRule": "weather_gym.perception.labels",
     "Detections": "weather_gym.perception.detector",
     "DEFAULT_MODEL": "weather_gym.perception.detector",
     "detections_to_cones": "weather_gym.perception.ranging",

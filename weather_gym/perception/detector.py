@@ -52,6 +52,16 @@ class Detections:
         return {"boxes": self.boxes, "scores": self.scores, "classes": self.classes}
 
 
+def check_frame(image: Any, where: str) -> np.ndarray:
+    """``image`` when it is an RGB uint8 ``(H, W, 3)`` array; InputError naming ``where`` otherwise."""
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+        got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
+        raise InputError(f"{where}: expected an RGB uint8 image of shape (H, W, 3), got {got}")
+    if image.shape[0] < 1 or image.shape[1] < 1:
+        raise InputError(f"{where}: image is empty (shape {image.shape})")
+    return image
+
+
 def load_model_metadata(model_path: str | os.PathLike) -> dict[str, Any]:
     """The sidecar JSON of ``model_path`` (``{}`` when there is none)."""
     side = Path(model_path).with_suffix(".json")
@@ -78,8 +88,11 @@ class ConeDetector:
         nms_iou: IoU of the class-agnostic box NMS after the heatmap peak filter (None = off).
 
     Call with one frame ``(H, W, 3)`` -> ``Detections``, or a batch ``(N, H, W, 3)`` / list of
-    frames -> ``list[Detections]``. Boxes are in the original frame's pixels.
+    frames -> ``list[Detections]``. Boxes are in the original frame's pixels. It follows the
+    :class:`~weather_gym.perception.detectors.Detector` protocol (``resize`` is always ``letterbox``).
     """
+
+    resize = "letterbox"
 
     def __init__(
         self,
@@ -143,6 +156,7 @@ class ConeDetector:
         self.max_detections = int(max_detections)
         self.nms_iou = nms_iou
         self.threads = threads
+        self.name = f"conenet:{path.name}"
 
     def __repr__(self) -> str:
         return (f"ConeDetector({str(self.path)!r}, input={self.input_size[0]}x{self.input_size[1]}, "
@@ -150,12 +164,7 @@ class ConeDetector:
 
     # ------------------------------------------------------------------ inference
     def _check(self, image: Any, where: str) -> np.ndarray:
-        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-            got = f"{image.dtype} {image.shape}" if isinstance(image, np.ndarray) else type(image).__name__
-            raise InputError(f"{where}: expected an RGB uint8 image of shape (H, W, 3), got {got}")
-        if image.shape[0] < 1 or image.shape[1] < 1:
-            raise InputError(f"{where}: image is empty (shape {image.shape})")
-        return image
+        return check_frame(image, where)
 
     def raw(self, images: list[np.ndarray]) -> tuple[np.ndarray, list]:
         """Letterbox ``images`` and run the graph; returns (output, letterboxes)."""

@@ -5,8 +5,11 @@ dataset order) or in-memory per-frame lists: ``gt[i]`` a dict of arrays ``boxes`
 ``classes`` and optionally ``iscrowd``, ``ranges`` (e.g. ``info["gt"]`` of the env), and
 ``detections[i]`` a ``Detections`` or a dict with ``boxes``, ``scores``, ``classes``.
 
-Conventions: cones shorter than ``MIN_BOX_HEIGHT_PX`` are ``iscrowd`` (ignored: a detection on one
-is neither a hit nor a false positive). ``map50`` is pycocotools' AP at IoU 0.5 (101-point
+Conventions: cones too small for the detector (``weather_gym.perception.labels.SmallRule``: shorter
+than 6.1 px at its input scale, 8 px in the default camera image), cones in ignore regions (classes
+a dataset import did not map) and cones inside the frame's ignore mask are ``iscrowd`` (ignored: a
+detection on one is neither a hit nor a false positive); detections inside the ignore mask are
+dropped. ``map50`` is pycocotools' AP at IoU 0.5 (101-point
 interpolated precision, area "all", 100 detections per image) averaged over the classes present in
 the ground truth - the single-threshold "VOC-style" mAP the reference study reports
 (``map50_blue_yellow``: the same over blue and yellow only, the two classes the study scored); ``map`` is
@@ -36,9 +39,9 @@ import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import InputError
-from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xyxy_to_xywh
+from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, SmallRule, tiny_mask, xyxy_to_xywh
 
-__all__ = ["EvalResult", "evaluate", "score_dataset", "coco_lists", "coco_eval", "DEFAULT_RANGE_BINS"]
+__all__ = ["EvalResult", "evaluate", "score_dataset", "small_rule", "coco_lists", "coco_eval", "DEFAULT_RANGE_BINS"]
 
 DEFAULT_RANGE_BINS: tuple[float, ...] = (0.0, 5.0, 10.0, 15.0, 20.0, math.inf)
 
@@ -59,6 +62,8 @@ class EvalResult:
     n_detections: int
     score_threshold: float
     map50_blue_yellow: float = math.nan  # mean AP@0.5 of the two colour classes the study scored
+    ignored: dict[str, int] = field(default_factory=dict)  # reason (small, ignore, masked) -> cones
+    too_small: str = f"box height < {MIN_BOX_HEIGHT_PX:g} px"  # the too-small rule that was applied
     extra: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -67,17 +72,28 @@ class EvalResult:
             "ap_per_class": dict(self.ap_per_class),
             "recall_by_range": {k: {"recall": r, "n": n} for k, (r, n) in self.recall_by_range.items()},
             "recall": self.recall, "n_images": self.n_images, "n_gt": self.n_gt, "n_ignored": self.n_ignored,
-            "n_detections": self.n_detections, "score_threshold": self.score_threshold, **self.extra,
+            "n_detections": self.n_detections, "score_threshold": self.score_threshold,
+            "ignored": dict(self.ignored), "too_small": self.too_small, **self.extra,
         }
+
+    def ignored_text(self) -> str:
+        """``"12 too small (box height < 16.3 px (...)), 3 in ignore regions, 40 in the ignore mask"``."""
+        ig = self.ignored
+        parts = [f"{ig.get('small', 0)} too small ({self.too_small})"]
+        if ig.get("ignore"):
+            parts.append(f"{ig['ignore']} in ignore regions (unmapped classes)")
+        if ig.get("masked"):
+            parts.append(f"{ig['masked']} in the ignore mask")
+        return ", ".join(parts)
 
     def table(self) -> str:
         """A plain-text table (what ``weather-gym detector eval`` prints)."""
         def f(v: float) -> str:
             return "  n/a" if not np.isfinite(v) else f"{v:.3f}"
 
-        lines = [
-            f"images {self.n_images}, cones {self.n_gt} scored + {self.n_ignored} ignored (< {MIN_BOX_HEIGHT_PX:g} px), "
-            f"detections {self.n_detections}",
+        lines = [f"images {self.n_images}, cones {self.n_gt} scored + {self.n_ignored} ignored, "
+                 f"detections {self.n_detections}", f"ignored: {self.ignored_text()}"]
+        lines += [
             f"mAP@0.5      {f(self.map50)}",
             f"mAP@.5:.95   {f(self.map)}",
             f"mAP@0.5 blue+yellow (the study's two classes) {f(self.map50_blue_yellow)}",
@@ -107,14 +123,26 @@ def _label(lo: float, hi: float) -> str:
     return f"{lo:g}+ m" if math.isinf(hi) else f"{lo:g}-{hi:g} m"
 
 
+def _flags(g: dict, key: str, n: int) -> np.ndarray:
+    return np.asarray(g[key], dtype=bool).reshape(-1) if key in g else np.zeros(n, bool)
+
+
 def coco_lists(frames: Sequence[Any], detections: Sequence[Any], *,
-               min_box_height: float = MIN_BOX_HEIGHT_PX) -> tuple[list[dict], list[dict], list[dict]]:
+               min_box_height: float | None = None) -> tuple[list[dict], list[dict], list[dict]]:
     """``(images, gt_anns, dt_anns)`` in COCO form for per-frame ground truth and detections.
 
     Image ``i`` has id ``i``; annotation ids count from 1. A ground-truth annotation also carries
-    its cone's ``range`` (m, NaN unknown) and box ``height`` (px), which pycocotools ignores. Cones
-    without an ``iscrowd`` flag are crowd (ignored) when shorter than ``min_box_height``.
+    its cone's ``range`` (m, NaN unknown), box ``height`` (px) and, when it is ignored, ``reason``
+    (``small``, ``ignore`` region, ``masked``), which pycocotools ignores.
+
+    Which cones are ignored (``iscrowd``): boxes flagged ``ignore`` (ignore regions, e.g. unmapped
+    classes; ``any_class`` ones ignore detections of every class), boxes at least half inside the
+    frame's ``ignore_mask`` (detections there are dropped), and boxes too small: shorter than
+    ``min_box_height`` when it is given (the rule at the detector's input scale), else the frame's
+    stored ``iscrowd`` flags, else shorter than ``MIN_BOX_HEIGHT_PX``.
     """
+    from weather_gym.perception.ignore import inside_mask
+
     if len(frames) != len(detections):
         raise InputError(f"got {len(frames)} ground-truth frames but {len(detections)} detection lists")
     images, gt_anns, dt_anns = [], [], []
@@ -124,13 +152,33 @@ def coco_lists(frames: Sequence[Any], detections: Sequence[Any], *,
         images.append({"id": i})
         gb = np.asarray(g["boxes"], dtype=np.float64).reshape(-1, 4)
         gc = np.asarray(g["classes"], dtype=np.int64).reshape(-1)
-        crowd = np.asarray(g["iscrowd"], dtype=bool).reshape(-1) if "iscrowd" in g else tiny_mask(gb, min_box_height)
-        gr = np.asarray(g["ranges"], dtype=np.float64).reshape(-1) if "ranges" in g else np.full(len(gb), np.nan)
-        for b, c, cr, r in zip(xyxy_to_xywh(gb), gc, crowd, gr, strict=True):
-            gt_anns.append({"id": len(gt_anns) + 1, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
-                            "area": float(b[2] * b[3]), "iscrowd": int(cr), "range": float(r), "height": float(b[3])})
-        db = xyxy_to_xywh(np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4))
-        for b, sc, c in zip(db, np.asarray(d["scores"]).reshape(-1), np.asarray(d["classes"]).reshape(-1), strict=True):
+        n = len(gb)
+        ignore, any_class = _flags(g, "ignore", n), _flags(g, "any_class", n)
+        if min_box_height is not None:
+            small = tiny_mask(gb, min_box_height)
+        elif "iscrowd" in g:
+            small = _flags(g, "iscrowd", n) & ~ignore
+        else:
+            small = tiny_mask(gb, MIN_BOX_HEIGHT_PX)
+        mask = g.get("ignore_mask")
+        masked = inside_mask(mask, gb)
+        gr = np.asarray(g["ranges"], dtype=np.float64).reshape(-1) if "ranges" in g else np.full(n, np.nan)
+        for k, (b, c, r) in enumerate(zip(xyxy_to_xywh(gb), gc, gr, strict=True)):
+            reason = "ignore" if ignore[k] else "masked" if masked[k] else "small" if small[k] else None
+            ann = {"id": len(gt_anns) + 1, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
+                   "area": float(b[2] * b[3]), "iscrowd": int(reason is not None), "range": float(r),
+                   "height": float(b[3])}
+            if reason is not None:
+                ann["reason"] = reason
+            gt_anns.append(ann)
+            if reason is not None and any_class[k]:  # an ignore region for every class
+                for other in range(len(CONE_CLASSES)):
+                    if other != int(c):
+                        gt_anns.append({**ann, "id": len(gt_anns) + 1, "category_id": other + 1, "copy": True})
+        db = np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4)
+        keep = ~inside_mask(mask, db)
+        for b, sc, c in zip(xyxy_to_xywh(db[keep]), np.asarray(d["scores"]).reshape(-1)[keep],
+                            np.asarray(d["classes"]).reshape(-1)[keep], strict=True):
             dt_anns.append({"id": len(dt_anns) + 1, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
                             "area": float(b[2] * b[3]), "score": float(sc), "iscrowd": 0})
     return images, gt_anns, dt_anns
@@ -171,18 +219,25 @@ def evaluate(
     *,
     score_threshold: float = 0.3,
     range_bins: Sequence[float] = DEFAULT_RANGE_BINS,
-    min_box_height: float = MIN_BOX_HEIGHT_PX,
+    min_box_height: float | None = None,
+    too_small: str | None = None,
 ) -> EvalResult:
-    """Score ``detections`` against ``gt`` (a ``CocoDataset`` or a list of per-frame dicts)."""
+    """Score ``detections`` against ``gt`` (a ``CocoDataset`` or a list of per-frame dicts).
+
+    ``min_box_height``: the too-small rule in image pixels (see :func:`coco_lists`; default: the
+    frames' stored flags); ``too_small``: its description for the report.
+    """
     if hasattr(gt, "gt") and hasattr(gt, "images"):  # a CocoDataset
         frames = [gt.gt(i) for i in range(len(gt))]
     else:
         frames = list(gt)
     images, gt_anns, dt_anns = coco_lists(frames, list(detections), min_box_height=min_box_height)
     ranges = {a["id"]: a["range"] for a in gt_anns}
-    n_ignored = sum(a["iscrowd"] for a in gt_anns)
+    originals = [a for a in gt_anns if not a.get("copy")]
+    n_ignored = sum(a["iscrowd"] for a in originals)
+    ignored = {r: sum(a.get("reason") == r for a in originals) for r in ("small", "ignore", "masked")}
     ev = coco_eval(images, gt_anns, dt_anns)
-    n_gt = len(gt_anns) - n_ignored
+    n_gt = len(originals) - n_ignored
     # precision: [T iou, R recall, K class, A area, M maxDets]; area 0 = all, maxDets -1 = 100
     prec = ev.eval["precision"][:, :, :, 0, -1] if images else np.full((10, 101, len(CONE_CLASSES)), -1.0)
 
@@ -215,8 +270,17 @@ def evaluate(
         rbr[_label(lo, hi)] = (float(np.mean([matched[g] for g in ids])) if ids else math.nan, len(ids))
     recall = float(np.mean(list(matched.values()))) if matched else math.nan
     return EvalResult(map50=map50, map=mapall, ap50_per_class=ap50, ap_per_class=apall, recall_by_range=rbr,
-                      recall=recall, n_images=len(images), n_gt=n_gt, n_ignored=n_ignored,
+                      recall=recall, n_images=len(images), n_gt=n_gt, n_ignored=n_ignored, ignored=ignored,
+                      too_small=too_small or (f"box height < {min_box_height:.3g} px" if min_box_height is not None
+                                              else f"box height < {MIN_BOX_HEIGHT_PX:g} px, as stored"),
                       n_detections=len(dt_anns), score_threshold=float(score_threshold), map50_blue_yellow=map50_by)
+
+
+def small_rule(dataset: Any, detector: Any = None) -> SmallRule | None:
+    """The too-small rule for ``dataset``'s frames at ``detector``'s input scale (None when the
+    frames have several sizes: then the stored flags are used)."""
+    sizes = {(int(r["width"]), int(r["height"])) for r in dataset.images}
+    return SmallRule.for_image(next(iter(sizes)), detector) if len(sizes) == 1 else None
 
 
 def _resolve_effect(effect: Any) -> Callable | None:
@@ -275,6 +339,9 @@ def score_dataset(
         dets += detector.detect_batch(ims, score_threshold=keep_threshold)
     gts = [dataset.gt(i) for i in range(n)]
     evaluate_kwargs.setdefault("score_threshold", float(getattr(detector, "score_threshold", 0.3)))
+    rule = small_rule(dataset, detector)
+    if rule is not None and "min_box_height" not in evaluate_kwargs:
+        evaluate_kwargs.update(min_box_height=rule.min_height_px, too_small=rule.describe())
     result = evaluate(gts, dets, **evaluate_kwargs)
     result.extra.update(effect=None if eff is None else getattr(eff, "params", lambda: str(eff))(), seed=int(seed))
     return result

@@ -60,7 +60,12 @@ class CameraSensor:
         self.renderer = renderer
         self.shadows = shadows
         c = config
-        self._proj = p.computeProjectionMatrixFOV(c.vfov_deg, c.width / c.height, c.near, c.far)
+        if c.centred:
+            self._proj = p.computeProjectionMatrixFOV(c.vfov_deg, c.width / c.height, c.near, c.far)
+        else:  # measured intrinsics: an off-centre frustum with the principal point where the camera has it
+            n = c.near
+            self._proj = p.computeProjectionMatrix(-c.cx * n / c.fx, (c.width - c.cx) * n / c.fx,
+                                                   -(c.height - c.cy) * n / c.fy, c.cy * n / c.fy, n, c.far)
         self.look: Look | None = None
         self._sky_rows: np.ndarray | None = None
         self._pano: np.ndarray | None = None

@@ -265,9 +265,13 @@ _BOX_VAR = {3: 8 / 12, 5: 24 / 12}
 _RESAMPLE_VAR = 1.0
 
 
-def _box_passes(var: float) -> tuple[list[int], float]:
-    """Box sizes whose variances add up to ``var`` within 10 % (fewest passes), else those just below
-    and the fraction of one more 3x3 pass to blend in for the rest."""
+def _box_passes(var: float, exact: bool = False) -> tuple[list[int], float]:
+    """Box sizes whose variances add up to ``var`` within 10 % (fewest passes), else (or always with
+    ``exact``) those just below and the fraction of one more 3x3 pass to blend in for the rest."""
+    if exact:
+        f = int(var // _BOX_VAR[5])
+        t = int((var - f * _BOX_VAR[5]) // _BOX_VAR[3])
+        return [5] * f + [3] * t, (var - f * _BOX_VAR[5] - t * _BOX_VAR[3]) / _BOX_VAR[3]
     combos = [(f, t) for f in range(4) for t in range(4) if f + t]
     f, t = min(combos, key=lambda c: (abs(c[0] * _BOX_VAR[5] + c[1] * _BOX_VAR[3] - var) > 0.1 * var,
                                       sum(c), abs(c[0] * _BOX_VAR[5] + c[1] * _BOX_VAR[3] - var)))
@@ -278,13 +282,15 @@ def _box_passes(var: float) -> tuple[list[int], float]:
     return [5] * f + [3] * t, (var - f * _BOX_VAR[5] - t * _BOX_VAR[3]) / _BOX_VAR[3]
 
 
-def smooth(img: np.ndarray, sigma: float, out: np.ndarray | None = None) -> np.ndarray:
+def smooth(img: np.ndarray, sigma: float, out: np.ndarray | None = None, *, exact: bool = False) -> np.ndarray:
     """Gaussian-like blur of standard deviation ``sigma`` px, into ``out`` (new when None).
 
     The variance ``sigma**2`` is made of OpenCV's fast 5x5 and 3x3 box passes (a box pass is
     ``(n^2 - 1) / 12`` px^2 per axis), the remainder a fraction of one more 3x3 pass blended in;
     above ``sigma = 2.5`` the frame is halved first (area average) and enlarged back (linear),
-    which adds about 1 px^2 itself. Border: reflected.
+    which adds about 1 px^2 itself. Border: reflected. Without ``exact``, a combination of passes
+    within 10 % of the variance is used as it is (fewest passes); with it the result changes
+    continuously with ``sigma`` (what fitting a blur needs).
     """
     if out is None:
         out = np.empty_like(img)
@@ -295,9 +301,9 @@ def smooth(img: np.ndarray, sigma: float, out: np.ndarray | None = None) -> np.n
     var = sigma * sigma
     if sigma > 2.5 and min(h, w) >= 8:
         small = cv2.resize(img, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-        small = smooth(small, math.sqrt(var - _RESAMPLE_VAR) / 2)
+        small = smooth(small, math.sqrt(var - _RESAMPLE_VAR) / 2, exact=exact)
         return into(cv2.resize(small, (w, h), dst=out, interpolation=cv2.INTER_LINEAR), out)
-    sizes, frac = _box_passes(var)
+    sizes, frac = _box_passes(var, exact)
     src = img
     for i, n in enumerate(sizes):
         last = i == len(sizes) - 1 and not frac

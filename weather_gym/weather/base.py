@@ -9,8 +9,10 @@ the few stateful effects, per-episode state. Every effect is called the same way
 * ``image``: uint8 ``H x W x 3`` RGB (or a batch ``N x H x W x 3``), C-contiguous or not, never
   modified. The result is a new array of the same shape and dtype.
 * ``depth``: optional float ``H x W`` (``N x H x W`` for a batch) metric z-depth in metres.
-* ``state``: optional mapping with any of ``speed`` (m/s), ``yaw_rate`` (rad/s), ``exposure_s``
-  and ``fx`` (focal length, px); effects that need them use documented defaults otherwise. A batch
+* ``state``: optional mapping with any of ``speed`` (m/s), ``yaw_rate`` (rad/s), ``exposure_s``,
+  ``fx`` (focal length, px) and ``binning`` (the frame was scaled down from the sensor's pixels by
+  this factor: sensor noise then acts at the sensor's pixels, as if before the scaling); effects
+  that need them use documented defaults otherwise. A batch
   takes one mapping for all frames or a sequence of ``N`` mappings.
 * ``rng``: optional ``numpy.random.Generator``. Without it the effect draws from its episode
   generator, ``numpy.random.default_rng(seed)`` from the last ``reset(seed)``; if ``reset`` was
@@ -46,7 +48,7 @@ __all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "Effect", "KnobEffect",
 DEFAULT_SEED = 20220607
 
 #: Keys of the vehicle ``state`` mapping that effects read (others are ignored).
-STATE_KEYS = ("speed", "yaw_rate", "exposure_s", "fx")
+STATE_KEYS = ("speed", "yaw_rate", "exposure_s", "fx", "binning")
 
 #: Physical range of each state value (checked up front: a yaw rate of 1e8 rad/s would otherwise
 #: ask for a blur kernel millions of pixels wide).

@@ -4,7 +4,8 @@
 ``radius = k * max_radius_frac * W`` pixels (6.7 px at k = 1 and 672 px width), so the same k
 blurs cones the same at any resolution. The disk-shaped defocus PSF is approximated by a
 Gaussian-like blur of the same second moment (``sigma = radius / 2``): OpenCV's fast 3x3 and 5x5
-box passes whose variances add up to ``sigma**2``, at half resolution for large blurs
+box passes whose variances add up to ``sigma**2`` (the rest a fraction of one more pass, so that
+the output changes continuously with k), at half resolution for large blurs
 (:func:`~weather_gym.weather._common.smooth`).
 
 Example:
@@ -39,4 +40,4 @@ class Blur(KnobEffect):
     PARAM_BOUNDS: ClassVar = {"max_radius_frac": (0.001, 0.05)}
 
     def _apply_into(self, img, depth, state, rng, out):
-        smooth(img, 0.5 * self.k * self.max_radius_frac * img.shape[1], out)
+        smooth(img, 0.5 * self.k * self.max_radius_frac * img.shape[1], out, exact=True)

@@ -2,9 +2,12 @@
 
 **Meaning of k**: the exposure error as a fraction of ``max_stops``: linear light is multiplied by
 ``2 ** (-k * max_stops)`` (``direction="under"``) or ``2 ** (+k * max_stops)`` (``"over"``: highlights
-clip), then re-encoded with a tone curve whose gamma is off by ``k * gamma_error`` (relative) and
-whose black level is lifted by ``k * flare`` (veiling flare washes out the shadows). One look-up
-table per k: about as cheap as an effect can be.
+clip), then re-encoded with a tone curve whose gamma is off by ``k * gamma_error`` (relative), whose contrast
+is changed by ``k * contrast`` (positive: an S-curve, darker shadows and brighter highlights, as a
+camera's tone mapping adds; negative: the inverse, flatter curve) and whose black level is lifted by
+``k * flare`` (veiling flare washes out the shadows). Together these fit the common tone curves of
+real cameras (gain, gamma, S-curve, lifted blacks). One look-up table per k: about as cheap as an
+effect can be.
 
 Example:
     >>> import numpy as np
@@ -30,11 +33,24 @@ from weather_gym.weather.registry import register_effect
 __all__ = ["Exposure", "exposure_lut"]
 
 
+def s_curve(v: np.ndarray, contrast: float) -> np.ndarray:
+    """Monotone contrast curve on [0, 1]: a blend with smoothstep (``contrast`` > 0) or its inverse (< 0)."""
+    a = min(abs(float(contrast)), 1.0)
+    if a == 0.0:
+        return v
+    if contrast > 0:
+        s = v * v * (3.0 - 2.0 * v)
+    else:
+        s = 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * v, -1.0, 1.0)) / 3.0)
+    return (1.0 - a) * v + a * s
+
+
 @lru_cache(maxsize=256)
-def exposure_lut(stops: float, gamma_error: float, flare: float) -> np.ndarray:
-    """8-bit tone curve: gain of ``stops`` in linear light, gamma off by ``gamma_error``, black lift ``flare``."""
+def exposure_lut(stops: float, gamma_error: float, flare: float, contrast: float = 0.0) -> np.ndarray:
+    """8-bit tone curve: gain of ``stops`` in linear light, gamma off by ``gamma_error``, contrast curve
+    ``contrast``, black lift ``flare``."""
     y = np.clip(linear_of_code() * 2.0 ** stops, 0.0, 1.0)
-    v = srgb_encode(y) ** (1.0 + gamma_error)
+    v = s_curve(srgb_encode(y) ** (1.0 + gamma_error), contrast)
     v = flare + (1.0 - flare) * v
     return readonly(np.clip(np.rint(255.0 * v), 0, 255).astype(np.uint8))
 
@@ -50,13 +66,16 @@ class Exposure(KnobEffect):
     direction: str = "under"
     gamma_error: float = 0.0
     flare: float = 0.0
+    contrast: float = 0.0
 
     CHOICES: ClassVar = {"direction": ("under", "over")}
-    PARAM_BOUNDS: ClassVar = {"max_stops": (0.25, 8.0), "gamma_error": (-0.5, 1.0), "flare": (0.0, 0.3)}
+    PARAM_BOUNDS: ClassVar = {"max_stops": (0.25, 8.0), "gamma_error": (-0.5, 1.0), "flare": (0.0, 0.3),
+                              "contrast": (-1.0, 1.0)}
 
     def _lut(self) -> np.ndarray:
         sign = -1.0 if self.direction == "under" else 1.0
-        return exposure_lut(sign * self.k * self.max_stops, self.k * self.gamma_error, self.k * self.flare)
+        return exposure_lut(sign * self.k * self.max_stops, self.k * self.gamma_error, self.k * self.flare,
+                            self.k * self.contrast)
 
     def _apply_into(self, img, depth, state, rng, out):
         into(cv2.LUT(flat(img), self._lut(), dst=flat(out)), flat(out))

@@ -10,6 +10,12 @@ magnitude (256 equiprobable levels) read from a fixed table through a window the
 every frame (:func:`~weather_gym.weather._common.add_sensor_noise`): independent within a frame,
 uncorrelated between frames.
 
+**Binned frames**: with ``state['binning'] = n`` (the frame is the sensor image scaled down n times,
+e.g. by the gap workflow), the noise is what it would be at the sensor's pixels after the scaling:
+each value's expected clipped noisy level (noise at the ends of the range is clipped, which shifts
+the mean: a white over-exposed sky gets darker, black shadows lighter) plus noise of the clipped
+spread over n.
+
 Example:
     >>> import numpy as np
     >>> from weather_gym.weather import make
@@ -21,6 +27,7 @@ Example:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import ClassVar
@@ -47,6 +54,30 @@ def noise_sigma_lut(gain: float, full_well_e: float, read_noise_e: float, base_g
     return readonly(sigma.astype(np.float32))
 
 
+def _phi(z: np.ndarray) -> np.ndarray:
+    return np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi)
+
+
+def _cdf(z: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0)))
+
+
+@lru_cache(maxsize=64)
+def binned_noise_luts(sigma: tuple[float, ...], binning: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(mean, sigma)`` float32 LUTs of sensor noise ``sigma`` (per code value) clipped to [0, 255] and
+    averaged over ``binning``**2 pixels: the mean of the clipped Gaussian, and its spread over ``binning``."""
+    x = np.arange(256, dtype=np.float64)
+    s = np.maximum(np.asarray(sigma, np.float64), 1e-6)
+    a, b = (0.0 - x) / s, (255.0 - x) / s
+    pa, pb, ca, cb = _phi(a), _phi(b), _cdf(a), _cdf(b)
+    inside = cb - ca
+    mean = x * inside + s * (pa - pb) + 255.0 * (1.0 - cb)
+    second = ((x * x + s * s) * inside + 2.0 * x * s * (pa - pb) + s * s * (a * pa - b * pb)
+              + 255.0 ** 2 * (1.0 - cb))
+    spread = np.sqrt(np.maximum(second - mean * mean, 0.0)) / max(float(binning), 1.0)
+    return readonly(mean.astype(np.float32)), readonly(spread.astype(np.float32))
+
+
 @register_effect
 @dataclass(frozen=True)
 class Noise(KnobEffect):
@@ -65,9 +96,16 @@ class Noise(KnobEffect):
         return noise_sigma_lut(self.k * self.max_gain, self.full_well_e, self.read_noise_e)
 
     def _apply_into(self, img, depth, state, rng, out):
+        n = float(state.get("binning", 1.0) or 1.0)
+        if n > 1.0:
+            mean, sigma = binned_noise_luts(tuple(float(v) for v in self._sigma()), n)
+            add_sensor_noise(img, mean, sigma, rng, out)
+            return
         add_sensor_noise(img, None, self._sigma(), rng, out)
 
     def _run_batch(self, imgs, depth, states, rng):
         if self.k == 0.0:
             return imgs.copy()
+        if any(float(s.get("binning", 1.0) or 1.0) > 1.0 for s in states):
+            return super()._run_batch(imgs, depth, states, rng)
         return add_sensor_noise(imgs, None, self._sigma(), rng)  # one draw, shared tables

@@ -53,13 +53,18 @@ class DetectorWrapper(gym.ObservationWrapper):
 
     Args:
         env: an env whose observation is an RGB image Box or a Dict with one under ``image_key``.
-        detector: a ``ConeDetector``, a path to an ONNX model, or None (the shipped model).
+        detector: any :class:`~weather_gym.perception.detectors.Detector` (a callable
+            ``frame -> Detections``), a detector spec (``"yolov8:model.onnx"``, ``"conenet:PATH"``,
+            a ConeNet ``.onnx`` path; see ``weather_gym.perception.load_detector``), or None (the
+            shipped model).
         max_cones: rows of the cone list (nearest cones kept).
         camera: the camera model for bearing/range (default: the env's ``config.camera``, else the
             default camera scaled to the image size).
         use_depth: take range from the ``depth_key`` observation when present.
         keep_image: keep the image in the observation (for viewing; most policies do not need it).
-        score_threshold, threads: passed to a detector the wrapper creates.
+        score_threshold, threads, detector_classes, detector_resize, detector_input: passed to a
+            detector the wrapper creates from a spec (``detector_classes``: a YOLO class map, e.g.
+            ``"0=blue,1=yellow"``; ``detector_resize``: letterbox / stretch; ``detector_input``: ``"640x640"``).
         latency_in_info: also put ``detector_latency_ms`` into ``info``.
     """
 
@@ -76,11 +81,14 @@ class DetectorWrapper(gym.ObservationWrapper):
         keep_image: bool = False,
         score_threshold: float | None = None,
         threads: int = 1,
+        detector_classes: str | None = None,
+        detector_resize: str | None = None,
+        detector_input: str | tuple[int, int] | None = None,
         latency_in_info: bool = False,
     ) -> None:
         super().__init__(env)
         self.latency_in_info = bool(latency_in_info)
-        from weather_gym.perception.detector import ConeDetector
+        from weather_gym.perception.detectors import DetectorSpec, as_detector, load_detector
 
         if not isinstance(max_cones, int) or max_cones < 1:
             raise InputError(f"DetectorWrapper: max_cones must be a positive integer, got {max_cones!r}")
@@ -106,9 +114,10 @@ class DetectorWrapper(gym.ObservationWrapper):
         if (camera.width, camera.height) != (w, h):
             raise InputError(f"DetectorWrapper: camera is {camera.width}x{camera.height} but the image observation is {w}x{h}")
         self.camera = camera
-        if detector is None or isinstance(detector, (str, os.PathLike)):
-            detector = ConeDetector(detector, score_threshold=score_threshold, threads=threads)
-        self.detector = detector
+        if detector is None or isinstance(detector, (str, os.PathLike, DetectorSpec)):
+            detector = load_detector(detector, classes=detector_classes, score_threshold=score_threshold,
+                                     resize=detector_resize, input_size=detector_input, threads=threads)
+        self.detector = as_detector(detector)
         self.image_key = image_key
         self.depth_key = depth_key if (use_depth and self._is_dict and depth_key in space.spaces) else None
         self.max_cones = max_cones

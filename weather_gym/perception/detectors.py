@@ -1,0 +1,243 @@
+"""Any detector, one protocol: ``frame -> Detections``; :func:`load_detector` picks one from a spec.
+
+A :class:`Detector` is anything called with an RGB uint8 frame ``(H, W, 3)`` that returns
+:class:`~weather_gym.perception.detector.Detections` (boxes xyxy in the frame's pixels, scores,
+classes as indices into ``CONE_CLASSES``). :func:`as_detector` gives any such callable what the rest
+of weather-gym uses (``detect_batch``, ``score_threshold``, ``input_size`` for the too-small rule).
+
+Specs (the CLI's ``--detector``, :func:`load_detector`):
+
+=======================  ====================================================================
+``None`` / ``conenet``   the ONNX cone detector shipped in the package (``ConeDetector``)
+``conenet:PATH``         another ConeNet export (or a bare ``PATH.onnx``)
+``yolov8:PATH``          a YOLOv8 / v11 ONNX export: output ``(1, 4+nc, N)`` (or NMS in the graph)
+``yolov5:PATH``          a YOLOv5 ONNX export: output ``(1, N, 5+nc)`` (or NMS in the graph)
+``yolo:PATH``            a YOLO-family export, layout recognised from its outputs
+a ``Detector`` object    used as it is
+=======================  ====================================================================
+
+YOLO options: ``classes`` (``"0=blue,1=yellow,2=orange,3=big_orange,4=ignore"``, by output index or
+class name; default: the export's class names mapped like a dataset import), ``resize``
+(``letterbox``, the default, or ``stretch``), ``input_size`` (for exports with a dynamic input),
+``score_threshold``, ``nms_iou``. See :mod:`weather_gym.perception.yolo`.
+
+Example:
+    >>> import numpy as np
+    >>> from weather_gym.perception.detectors import load_detector, as_detector
+    >>> det = load_detector("conenet")                  # the shipped model
+    >>> det.input_size, det.resize
+    ((512, 288), 'letterbox')
+    >>> from weather_gym.perception import Detections
+    >>> mine = as_detector(lambda frame: Detections())  # your own function frame -> Detections
+    >>> len(mine(np.zeros((40, 60, 3), np.uint8))), mine.score_threshold
+    (0, 0.3)
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from weather_gym.errors import InputError, MissingInputError
+from weather_gym.perception.detector import Detections, check_frame
+
+__all__ = ["Detector", "DetectorBase", "CallableDetector", "DetectorSpec", "KINDS", "as_detector", "load_detector",
+           "parse_detector_spec", "detector_id"]
+
+KINDS = ("conenet", "yolov8", "yolov5", "yolo")
+_ALIASES = {"shipped": "conenet", "cone": "conenet", "yolov11": "yolov8", "yolo11": "yolov8", "yolov10": "yolov8"}
+
+
+@runtime_checkable
+class Detector(Protocol):
+    """``detector(frame) -> Detections`` for an RGB uint8 frame ``(H, W, 3)``."""
+
+    def __call__(self, frame: np.ndarray) -> Detections: ...
+
+
+class DetectorBase:
+    """What every detector offers; a subclass implements :meth:`detect_batch`.
+
+    Attributes: ``score_threshold`` (operating threshold), ``input_size`` (W, H) of the network or
+    None, ``resize`` (``letterbox``/``stretch``), ``name``.
+    """
+
+    score_threshold: float = 0.3
+    input_size: tuple[int, int] | None = None
+    resize: str = "letterbox"
+    name: str = "detector"
+
+    def detect_batch(self, images: Sequence[np.ndarray] | np.ndarray,
+                     score_threshold: float | None = None) -> list[Detections]:
+        raise NotImplementedError
+
+    def detect(self, image: np.ndarray, score_threshold: float | None = None) -> Detections:
+        """Detections of one frame ``(H, W, 3)``."""
+        return self.detect_batch([check_frame(image, "image")], score_threshold)[0]
+
+    def __call__(self, images, score_threshold: float | None = None):
+        """One frame -> ``Detections``; a batch (4-D array or list) -> ``list[Detections]``."""
+        if isinstance(images, np.ndarray) and images.ndim == 3:
+            return self.detect(images, score_threshold)
+        return self.detect_batch(images, score_threshold)
+
+
+class CallableDetector(DetectorBase):
+    """A plain function ``frame -> Detections`` (or dict of arrays) as a full detector."""
+
+    def __init__(self, fn: Callable[[np.ndarray], Any], *, score_threshold: float = 0.3,
+                 input_size: tuple[int, int] | None = None, name: str | None = None) -> None:
+        self.fn = fn
+        self.score_threshold = float(score_threshold)
+        self.input_size = input_size
+        self.name = name or getattr(fn, "__name__", type(fn).__name__)
+
+    def detect_batch(self, images, score_threshold: float | None = None) -> list[Detections]:
+        thr = self.score_threshold if score_threshold is None else float(score_threshold)
+        out = []
+        for i, im in enumerate(list(images)):
+            d = self.fn(check_frame(im, f"frame {i}"))
+            if isinstance(d, Mapping):
+                d = Detections(np.asarray(d["boxes"], np.float32).reshape(-1, 4),
+                               np.asarray(d["scores"], np.float32).reshape(-1),
+                               np.asarray(d["classes"], np.int64).reshape(-1))
+            if not isinstance(d, Detections):
+                raise InputError(f"detector {self.name} returned {type(d).__name__}; expected Detections "
+                                 "(boxes, scores, classes)")
+            out.append(d.above(thr))
+        return out
+
+
+def as_detector(obj: Any) -> Any:
+    """``obj`` with ``detect_batch`` / ``score_threshold`` / ``input_size``: detectors pass through,
+    a plain callable ``frame -> Detections`` is wrapped in :class:`CallableDetector`."""
+    if hasattr(obj, "detect_batch") and hasattr(obj, "score_threshold"):
+        return obj
+    if callable(obj):
+        return CallableDetector(obj)
+    raise InputError(f"expected a detector (a callable frame -> Detections), got {type(obj).__name__}")
+
+
+@dataclass(frozen=True)
+class DetectorSpec:
+    """A detector by description (picklable: sweep cells and gap runs carry it to worker processes)."""
+
+    kind: str = "conenet"
+    path: str | None = None
+    classes: str | None = None
+    resize: str | None = None
+    input_size: tuple[int, int] | None = None
+    score_threshold: float | None = None
+
+    def __str__(self) -> str:
+        s = self.kind if self.path is None else f"{self.kind}:{self.path}"
+        opts = [f"{k}={v}" for k, v in (("classes", self.classes), ("resize", self.resize),
+                                         ("input", None if self.input_size is None else "x".join(map(str, self.input_size))),
+                                         ("threshold", self.score_threshold)) if v is not None]
+        return s + (f" ({', '.join(opts)})" if opts else "")
+
+    def load(self, threads: int = 1) -> Any:
+        if self.kind == "conenet":
+            from weather_gym.perception.detector import ConeDetector
+
+            if self.classes is not None or self.resize not in (None, "letterbox") or self.input_size is not None:
+                raise InputError(f"detector {self}: classes, resize and input size are options of YOLO detectors; "
+                                 "the ConeNet detector has its own (from its sidecar JSON)")
+            return ConeDetector(self.path, threads=threads, score_threshold=self.score_threshold)
+        from weather_gym.perception.yolo import YoloDetector
+
+        layout = {"yolov8": "v8", "yolov5": "v5", "yolo": "auto"}[self.kind]
+        return YoloDetector(self.path, layout=layout, classes=self.classes, resize=self.resize or "letterbox",
+                            input_size=self.input_size, score_threshold=self.score_threshold, threads=threads)
+
+
+def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classes: str | Mapping | None = None,
+                        resize: str | None = None, input_size: tuple[int, int] | str | None = None,
+                        score_threshold: float | None = None) -> DetectorSpec:
+    """A :class:`DetectorSpec` from ``"kind:PATH"``, a bare ONNX path, or None (the shipped model)."""
+    if isinstance(spec, DetectorSpec):
+        if (classes, resize, input_size, score_threshold) == (None, None, None, None):
+            return spec
+        from dataclasses import replace
+
+        if isinstance(classes, Mapping):
+            classes = ",".join(f"{k}={v}" for k, v in classes.items())
+        changes = {k: v for k, v in (("classes", classes), ("resize", resize), ("score_threshold", score_threshold),
+                                     ("input_size", _parse_size(input_size) if isinstance(input_size, str)
+                                      else input_size)) if v is not None}
+        return replace(spec, **changes)
+    if isinstance(classes, Mapping):
+        classes = ",".join(f"{k}={v}" for k, v in classes.items())
+    if isinstance(input_size, str):
+        input_size = _parse_size(input_size)
+    if resize not in (None, "letterbox", "stretch"):
+        raise InputError(f"detector resize must be 'letterbox' or 'stretch', got {resize!r}")
+    if score_threshold is not None and not 0.0 <= float(score_threshold) <= 1.0:
+        raise InputError(f"detector score threshold must be in [0, 1], got {score_threshold}")
+    kind, path = "conenet", None
+    if spec is not None:
+        text = os.fspath(spec)
+        head, sep, tail = text.partition(":")
+        head_l = _ALIASES.get(head.lower(), head.lower())
+        if sep and head_l in KINDS:
+            kind, path = head_l, tail
+            if not path:
+                raise InputError(f"detector {text!r}: give the ONNX file after the colon, e.g. {head_l}:model.onnx")
+        elif sep and not Path(text).is_file():
+            raise InputError(f"detector {text!r}: unknown kind {head!r}; expected conenet, conenet:PATH, yolov8:PATH, "
+                             "yolov5:PATH, yolo:PATH or a path to a ConeNet .onnx file")
+        elif not sep and head_l in KINDS:
+            if head_l != "conenet":
+                raise InputError(f"detector {text!r}: a YOLO detector needs its ONNX file, e.g. {head_l}:model.onnx")
+        elif text.lower().endswith(".onnx") or Path(text).is_file():
+            path = text
+        else:
+            raise InputError(f"detector {text!r}: expected conenet, conenet:PATH, yolov8:PATH, yolov5:PATH, yolo:PATH "
+                             "or a path to a ConeNet .onnx file")
+    if path is not None and not Path(path).is_file():
+        raise MissingInputError(f"detector model {path} not found")
+    return DetectorSpec(kind, path, classes, resize, tuple(input_size) if input_size else None,
+                        None if score_threshold is None else float(score_threshold))
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    w, sep, h = text.lower().partition("x")
+    try:
+        size = (int(w), int(h))
+    except ValueError:
+        size = (0, 0)
+    if not sep or min(size) < 1:
+        raise InputError(f"detector input size {text!r}: expected WxH in pixels, e.g. 640x640")
+    return size
+
+
+def load_detector(spec: Any = None, *, classes: str | Mapping | None = None, resize: str | None = None,
+                  input_size: tuple[int, int] | str | None = None, score_threshold: float | None = None,
+                  threads: int = 1) -> Any:
+    """A ready detector from a spec (see module doc), a ``DetectorSpec``, or a detector / callable (as is)."""
+    if spec is not None and not isinstance(spec, str | os.PathLike | DetectorSpec):
+        if classes is not None or resize is not None or input_size is not None:
+            raise InputError("classes / resize / input size are options of a detector spec, not of a detector object")
+        return as_detector(spec)
+    return parse_detector_spec(spec, classes=classes, resize=resize, input_size=input_size,
+                               score_threshold=score_threshold).load(threads=threads)
+
+
+def detector_id(spec: Any) -> str:
+    """12 hex digits identifying a detector spec: its model file's SHA-256 and its options."""
+    from weather_gym.perception.detector import DEFAULT_MODEL
+
+    s = parse_detector_spec(spec)
+    h = hashlib.sha256()
+    with open(s.path or DEFAULT_MODEL, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    if s.kind != "conenet" or s.score_threshold is not None:
+        h.update(repr((s.kind, s.classes, s.resize, s.input_size, s.score_threshold)).encode())
+    return h.hexdigest()[:12]
