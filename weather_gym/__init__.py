@@ -11,6 +11,8 @@ Example:
 
 from __future__ import annotations
 
+from weather_gym.envs.registration import register_envs as _register
+
 __version__ = "0.1.0"
 
 from weather_gym._lazy import lazy_exports
@@ -23,7 +25,6 @@ __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 def register_envs() -> list[str]:
     """Register every scenario in ``envs/`` as a Gymnasium id; returns the ids (idempotent)."""
-    from weather_gym.envs.registration import register_envs as _register
 
     return _register()
 

@@ -43,6 +43,10 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
+import cv2
+import matplotlib.pyplot as plt
+import numpy as np
+
 from weather_gym.errors import InputError, OutputExistsError, OutputPathError, OutsideRootError
 
 __all__ = [
@@ -335,8 +339,6 @@ def write_image(path: str | os.PathLike, image: Any, *, overwrite: bool = False,
         >>> p.stat().st_size > 0
         True
     """
-    import cv2
-    import numpy as np
 
     p = Path(path)
     arr = np.asarray(image)
@@ -362,7 +364,5 @@ def save_figure(fig: Any, path: str | os.PathLike, *, overwrite: bool = False, c
             fig.savefig(f, format=(p.suffix[1:].lower() or "png"), **savefig_kwargs)
     finally:
         if close:
-            import matplotlib.pyplot as plt
-
             plt.close(fig)
     return p

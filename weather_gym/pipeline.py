@@ -31,12 +31,16 @@ Example:
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import partial
 from typing import Any
 
 import gymnasium as gym
 
+from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.scenario import Scenario, build_config, load_scenario
 from weather_gym.errors import InputError
+from weather_gym.weather import parse_weather, to_spec
+from weather_gym.wrappers import DetectorWrapper, EpisodeStatistics, GroundTruthConeWrapper, WeatherWrapper
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
 
@@ -78,12 +82,8 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
         kwargs["detector"] = detector
     images = isinstance(env.observation_space, gym.spaces.Dict) and "image" in env.observation_space.spaces
     if weather is not None:
-        from weather_gym.weather import parse_weather, to_spec
-
         effect = parse_weather(weather)  # a bad spec fails here, with the parser's message
         if images:
-            from weather_gym.wrappers import WeatherWrapper
-
             env = WeatherWrapper(env, weather=effect)
         elif to_spec(effect):  # clear weather on an env without images is no weather at all
             raise InputError(f"weather {weather!r} acts on camera images, and this env renders none (perception "
@@ -91,12 +91,9 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
     if perception == "detector":
         if not images:
             raise InputError("perception 'detector' needs camera images (camera_images=True)")
-        from weather_gym.wrappers import DetectorWrapper
 
         return DetectorWrapper(env, **kwargs)
     if perception in ("oracle", "gt_cones"):
-        from weather_gym.wrappers import GroundTruthConeWrapper
-
         return GroundTruthConeWrapper(env, **kwargs)
     if kwargs:
         raise InputError(f"perception_kwargs {sorted(kwargs)} given, but perception 'camera' takes none")
@@ -122,7 +119,6 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     the rest override the scenario's ``EnvConfig`` (``track=``, ``camera={"width": 336, "height":
     188}``, ``laps=``...).
     """
-    from weather_gym.envs.cone_track import ConeTrackEnv
 
     sc = load_scenario(scenario)
     sc_mode, sc_detector, sc_kwargs = _scenario_perception(sc)
@@ -185,7 +181,6 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
         episode_statistics: add :class:`~weather_gym.wrappers.EpisodeStatistics`.
         env_kwargs: ``EnvConfig`` overrides (``track``, ``laps``, ``camera``, ``sim``, ...).
     """
-    import weather_gym  # noqa: F401 - registers the ids
 
     if env_id not in gym.registry:
         ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
@@ -202,8 +197,6 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
         kwargs["max_episode_steps"] = max_episode_steps
     env = gym.make(env_id, **kwargs)
     if episode_statistics:
-        from weather_gym.wrappers import EpisodeStatistics
-
         env = EpisodeStatistics(env)
     return env
 
@@ -217,7 +210,6 @@ def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorizati
     ``context`` (``forkserver`` by default: a fresh process that keeps the EGL renderer; see
     :mod:`weather_gym.sim.renderer`). Seed with ``reset(seed=s)``: env i gets ``s + i``.
     """
-    from functools import partial
 
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise InputError(f"num_envs must be an integer >= 1, got {num_envs!r}")

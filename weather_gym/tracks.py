@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
+import matplotlib.pyplot as plt
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -260,7 +261,6 @@ class Track:
 
     def plot(self, ax=None, *, title: str | None = None):
         """Draw cones in their colours, the centerline and the start pose; returns the matplotlib axes."""
-        import matplotlib.pyplot as plt
 
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 7))

@@ -31,7 +31,12 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.agents._checks import check_action
+from weather_gym.agents.episode import EpisodeResult, run_episode
+from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
+from weather_gym.agents.sb3 import SB3Agent
+from weather_gym.agents.stack import MapperPurePursuit
+from weather_gym.paths import PPO_CONES_MODEL
 from weather_gym.registry import Registry
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,16 +60,6 @@ class Agent(Protocol):
 AGENTS: Registry = Registry("agent")
 
 
-def check_action(action: Any, who: str = "agent") -> np.ndarray:
-    """Validate an agent's output: a finite float32 ``(2,)`` array in [-1, 1] (nothing is clamped)."""
-    a = np.asarray(action, dtype=np.float32)
-    if a.shape != (2,):
-        raise InputError(f"{who} returned an action of shape {a.shape}; expected (2,) = (steering, throttle/brake)")
-    if not np.isfinite(a).all() or (np.abs(a) > 1.0).any():
-        raise InputError(f"{who} returned {a.tolist()}; both components must be finite and in [-1, 1]")
-    return a
-
-
 def make_agent(name: str, track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     """Build the registered agent ``name`` (``ValueError`` lists the valid names)."""
     return AGENTS.get(name)(track, camera, **kwargs)
@@ -72,31 +67,20 @@ def make_agent(name: str, track: Track, camera: CameraConfig, **kwargs: Any) -> 
 
 @AGENTS.register("gt_pure_pursuit")
 def _gt_pure_pursuit(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
-    from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
-
     return GroundTruthPurePursuit(track, camera, **kwargs)
 
 
 @AGENTS.register("mapper_pure_pursuit")
 def _mapper_pure_pursuit(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
-    from weather_gym.agents.stack import MapperPurePursuit
-
     return MapperPurePursuit(track, camera, **kwargs)
 
 
 @AGENTS.register("sb3")
 def _sb3(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
-    from weather_gym.agents.sb3 import SB3Agent
-
     return SB3Agent(track, camera, **kwargs)
 
 
 @AGENTS.register("ppo_cones")
 def _ppo_cones(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
-    from weather_gym.agents.sb3 import SB3Agent
-    from weather_gym.paths import PPO_CONES_MODEL
-
     return SB3Agent(track, camera, path=PPO_CONES_MODEL, algo="PPO", **kwargs)
 
-
-from weather_gym.agents.episode import EpisodeResult, run_episode  # noqa: E402  (needs check_action above)

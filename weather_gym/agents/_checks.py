@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
 
 from weather_gym.errors import InputError
 
@@ -35,3 +38,13 @@ def check_fields(obj, *, positive: Iterable[str] = (), non_negative: Iterable[st
         v = getattr(obj, name)
         if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
             raise InputError(f"{kind}.{name} must be an integer >= 1, got {v!r}")
+
+
+def check_action(action: Any, who: str = "agent") -> np.ndarray:
+    """Validate an agent's output: a finite float32 ``(2,)`` array in [-1, 1] (nothing is clamped)."""
+    a = np.asarray(action, dtype=np.float32)
+    if a.shape != (2,):
+        raise InputError(f"{who} returned an action of shape {a.shape}; expected (2,) = (steering, throttle/brake)")
+    if not np.isfinite(a).all() or (np.abs(a) > 1.0).any():
+        raise InputError(f"{who} returned {a.tolist()}; both components must be finite and in [-1, 1]")
+    return a

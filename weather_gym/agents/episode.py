@@ -30,8 +30,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from weather_gym.agents import check_action
+from weather_gym.agents._checks import check_action
 from weather_gym.errors import InputError
+from weather_gym.wrappers.episode import EpisodeStatistics, latencies
 
 __all__ = ["EpisodeResult", "run_episode"]
 
@@ -94,7 +95,6 @@ def run_episode(env: gym.Env, agent: Any, *, seed: int | None = None, options: d
     ``env`` must end its episodes by itself: a ``TimeLimit`` in its wrapper chain (every env made by
     ``weather_gym.make_env`` / ``gym.make`` of a weather-gym id has one).
     """
-    from weather_gym.wrappers.episode import EpisodeStatistics, latencies
 
     if _find(env, gym.wrappers.TimeLimit) is None:
         raise InputError("run_episode needs an env with a time limit (gymnasium.wrappers.TimeLimit; "

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from weather_gym.agents import check_action
+from weather_gym.agents._checks import check_action
 from weather_gym.errors import InputError, MissingInputError
 
 if TYPE_CHECKING:  # pragma: no cover

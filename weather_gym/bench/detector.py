@@ -20,14 +20,20 @@ from __future__ import annotations
 import os
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from weather_gym._io import atomic_write, check_output
+from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.perception.detector import ConeDetector
+from weather_gym.perception.ranging import detections_to_cones
+from weather_gym.pipeline import make_env
+from weather_gym.weather import make
 
 
 def register(targets) -> None:
@@ -61,7 +67,6 @@ def _frame() -> np.ndarray:
 
 def yolov3_tiny_onnx(path: str | os.PathLike, width: int = 608, height: int = 352, classes: int = 2) -> Path:
     """Export the YOLOv3-tiny layout (Redmon & Farhadi 2018) with random weights, for timing only."""
-    import warnings
 
     import torch
     from torch import nn
@@ -108,8 +113,6 @@ def _session(path, threads: int):
 
 def run_benchmark(model=None, repeats: int = 100, batch: int = 8, baseline: bool = True, step: bool = False,
                   steps: int = 150) -> dict[str, Any]:
-    from weather_gym.perception.detector import ConeDetector
-
     frame = _frame()
     det1 = ConeDetector(model, threads=1)
     det2 = ConeDetector(model, threads=2)
@@ -152,11 +155,6 @@ def run_benchmark(model=None, repeats: int = 100, batch: int = 8, baseline: bool
 
 
 def _time_step(det1, det2, steps: int) -> dict[str, Any]:
-    from weather_gym.agents import AGENTS
-    from weather_gym.perception.ranging import detections_to_cones
-    from weather_gym.pipeline import make_env
-    from weather_gym.weather import make
-
     settings = {"track": "small_track", "laps": 0, "max_episode_steps": 10**6, "episode_statistics": False}
     env = make_env(**settings)
     cfg = env.unwrapped.config

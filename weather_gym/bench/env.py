@@ -22,12 +22,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
+from tqdm import tqdm
 
 from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
+from weather_gym.weather import parse_weather
 
 PIPELINES = ("clean", "weather+detector")
 MODES = ("sync", "async")
@@ -94,10 +97,6 @@ class _Factory:
         self.args = (env_id, track, size, pipeline, weather)
 
     def __call__(self):
-        import gymnasium as gym
-
-        import weather_gym  # noqa: F401 - registers the ids
-
         env_id, track, (w, h), pipeline, weather = self.args
         kwargs: dict[str, Any] = {"track": track, "camera": {"width": w, "height": h}, "laps": 0,
                                   "terminate_off_track": False, "max_episode_steps": 10**7}
@@ -110,7 +109,6 @@ def time_vector(make_env: Callable[[], Any], num_envs: int, mode: str | None, *,
                 warmup: int) -> tuple[list[float], str]:
     """Env-steps/s of each timed block, and the renderer(s) in use: ``mode`` None = one plain env,
     else a gymnasium vector env."""
-    import gymnasium as gym
 
     if mode is None:
         env = make_env()
@@ -142,8 +140,6 @@ def time_vector(make_env: Callable[[], Any], num_envs: int, mode: str | None, *,
 
 
 def _run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     if args.out is not None:
         check_output(args.out, overwrite=args.overwrite, what="--out")
 
@@ -154,8 +150,6 @@ def _run(args: argparse.Namespace) -> int:
     if args.steps < 1 or args.repeats < 1 or args.warmup < 0:
         raise InputError("--steps and --repeats must be >= 1, --warmup >= 0")
     if pipelines.count("weather+detector"):
-        from weather_gym.weather import parse_weather
-
         parse_weather(args.weather)
     plan = [(p, s, n, m) for p in pipelines for s in sizes for n, m in [(1, None)] + [(n, m) for m in modes for n in envs]]
     load_before = os.getloadavg()

@@ -24,10 +24,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from weather_gym._io import check_output
+from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.camera import CameraConfig
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.datasets import render_dataset
+from weather_gym.datasets.coco import ANNOTATIONS
 from weather_gym.errors import InputError
+from weather_gym.gap.synthetic import degrade_dataset
+from weather_gym.gap.workflow import GapConfig, run_gap
 
 
 def register(targets) -> None:
@@ -46,10 +51,6 @@ def register(targets) -> None:
 
 def make_sets(root: Path, frames: int, size: tuple[int, int], effect: str) -> tuple[Path, Path, float]:
     """``(clear, adverse, seconds)``: rendered clear frames and a copy with ``effect`` (reused when present)."""
-    from weather_gym.camera import CameraConfig
-    from weather_gym.datasets import render_dataset
-    from weather_gym.datasets.coco import ANNOTATIONS
-    from weather_gym.gap.synthetic import degrade_dataset
 
     t0 = time.perf_counter()
     clear, adverse = root / "clear", root / f"adverse_{effect.replace(':', '_').replace(',', '_')}"
@@ -63,7 +64,6 @@ def make_sets(root: Path, frames: int, size: tuple[int, int], effect: str) -> tu
 
 def time_run(clear: Path, adverse: Path, out: Path, compare_width: int | None) -> tuple[float, dict[str, Any]]:
     """Wall time (s) of one same-camera gap run, and its report."""
-    from weather_gym.gap.workflow import GapConfig, run_gap
 
     shutil.rmtree(out, ignore_errors=True)
     t0 = time.perf_counter()
@@ -107,8 +107,6 @@ def _run(args) -> int:
                 f"median of {args.repeats}\n{machine_line()}\n\n{table}\n")
         print(text)
         if args.out is not None:
-            from weather_gym._io import atomic_write
-
             atomic_write(args.out, text, overwrite=args.overwrite)
     finally:
         if tmp is not None:

@@ -26,9 +26,13 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.camera import CameraConfig
 from weather_gym.errors import InputError
+from weather_gym.pipeline import make_env
+from weather_gym.sim.world import World
+from weather_gym.tracks import load_track
 
 BIG_PX = 20
 """Cones with at least this many rendered pixels are the ones whose pixel counts are compared."""
@@ -60,9 +64,6 @@ def compare_ground_truth(track_name: str, camera: CameraConfig, steps: int = 900
     Returns the counts (``rendered``, ``geometric``, ``both``, ``big``, ``big_missed``) and the
     per-cone lists ``iou`` and ``pixel_err`` (geometric / rendered - 1).
     """
-    from weather_gym.agents import AGENTS
-    from weather_gym.sim.world import World
-    from weather_gym.tracks import load_track
 
     track = load_track(track_name)
     world = World(track, camera=camera)
@@ -105,8 +106,6 @@ def agreement_row(track: str, s: dict[str, Any]) -> list[Any]:
 
 def steps_per_s(perception: str, camera: CameraConfig, block: int, repeats: int) -> float:
     """Median env-steps/s of one env of ``perception`` driving the ground-truth lap of small_track."""
-    from weather_gym.agents import AGENTS
-    from weather_gym.pipeline import make_env
 
     env = make_env(perception=perception, camera=camera, laps=0, max_episode_steps=10**9, episode_statistics=False)
     try:

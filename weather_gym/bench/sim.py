@@ -11,6 +11,11 @@ import argparse
 import numpy as np
 
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
+from weather_gym.camera import CameraConfig
+from weather_gym.pipeline import make_env
+from weather_gym.sim.config import SimConfig
+from weather_gym.sim.world import World
+from weather_gym.tracks import load_track
 
 
 def register(targets) -> None:
@@ -24,12 +29,6 @@ def register(targets) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from weather_gym.camera import CameraConfig
-    from weather_gym.pipeline import make_env
-    from weather_gym.sim.config import SimConfig
-    from weather_gym.sim.world import World
-    from weather_gym.tracks import load_track
-
     track = load_track(args.track)
     rows = []
     physics_ms = None

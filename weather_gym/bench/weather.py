@@ -31,12 +31,16 @@ import time
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
+from weather_gym.weather import EFFECTS, make
+from weather_gym.weather.reference import study_dim, study_droplets
+from weather_gym.weather.sample import sample_frame
 
 DEFAULT_SIZES = ((608, 352), (672, 376), (1280, 720))
 STUDY_K = {"droplets": 0.55, "dim": 0.78}
@@ -73,8 +77,6 @@ def _parse_sizes(text: str) -> list[tuple[int, int]]:
 
 
 def _cases(names: list[str]) -> list[tuple[str, Any]]:
-    from weather_gym.weather import make
-
     cases = []
     for name in names:
         k = STUDY_K.get(name, 0.5)
@@ -115,8 +117,6 @@ def interleaved_ms(fns: dict[str, Any], repeats: int, warmup: int, budget_s: flo
 def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batch: int,
                rows: dict, batch_rows: dict, run: int = 4) -> None:
     """Time every row at one size (``batch`` > 0: also the loop-vs-batch columns)."""
-    from weather_gym.weather.reference import study_dim, study_droplets
-    from weather_gym.weather.sample import sample_frame
 
     frame, depth = sample_frame(h, w, seed=0)
     state = {"speed": 10.0, "yaw_rate": 0.3}
@@ -154,9 +154,7 @@ def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batc
 def run_benchmark(sizes=DEFAULT_SIZES, repeats: int = 200, warmup: int = 10, batch: int = 8,
                   effects: list[str] | None = None, cold: bool = False) -> dict[str, Any]:
     """Time everything; returns ``{"sizes", "rows": {label: {size: ms}}, "batch": {...}, "machine"}``."""
-    import cv2
 
-    from weather_gym.weather import EFFECTS
 
     names = EFFECTS.names() if effects is None else effects
     for n in names:
@@ -205,7 +203,6 @@ def format_table(res: dict[str, Any]) -> str:
 def _run(args) -> int:
     if args.out is not None:
         check_output(args.out, overwrite=args.overwrite, what="--out")
-    from weather_gym.weather import EFFECTS
 
     names = None if args.effects == "all" else [n.strip() for n in args.effects.split(",") if n.strip()]
     if names is not None:

@@ -41,7 +41,10 @@ from weather_gym._io import atomic_write, check_output
 from weather_gym._toml import toml_value
 from weather_gym.calibration.curve import Curve, invert
 from weather_gym.calibration.measured import MeasuredLevel, levels_by_condition
+from weather_gym.calibration.sweep import KEY_FIELDS, SweepEffect, make_sweep_cells, run_sweep_cell
 from weather_gym.errors import InputError
+from weather_gym.evaluation.runner import run_cells
+from weather_gym.weather.presets import CONDITIONS, SEVERITIES, canonical_condition, load_presets
 
 __all__ = ["DEFAULT_USE", "MATCHES", "PresetCalibration", "calibrate", "parse_use", "remeasure",
            "write_presets"]
@@ -101,7 +104,6 @@ class PresetCalibration:
 
 def parse_use(values: Sequence[str] | None) -> dict[str, str]:
     """``["low_light=dim_physical"]`` -> the condition -> curve mapping (defaults filled in)."""
-    from weather_gym.weather.presets import canonical_condition
 
     use = dict(DEFAULT_USE)
     for v in values or []:
@@ -176,8 +178,6 @@ def remeasure(calibs: Sequence[PresetCalibration], curves: Mapping[str, Curve], 
     same set) and ``achieved_sd`` in place; rows go to ``results_path`` through the evaluation runner
     (resumable). Returns the rows.
     """
-    from weather_gym.calibration.sweep import KEY_FIELDS, SweepEffect, make_sweep_cells, run_sweep_cell
-    from weather_gym.evaluation.runner import run_cells
 
     wanted: dict[str, set[float]] = {}
     for c in calibs:
@@ -270,7 +270,6 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
     calibrated before (not measured in this run) with a note saying so. ``path`` is never overwritten
     unless ``overwrite``.
     """
-    from weather_gym.weather.presets import CONDITIONS, SEVERITIES, load_presets
 
     path = check_output(path, overwrite=overwrite, suffixes=(".toml",))
     done = {(c.condition, c.severity): c for c in calibs}

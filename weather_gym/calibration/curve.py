@@ -42,7 +42,9 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.calibration import sweep as _sweep  # cyclic pair: attributes used at call time
 from weather_gym.errors import InputError, MissingInputError
+from weather_gym.weather import EFFECTS
 
 __all__ = ["Curve", "Inversion", "REQUIRED_COLUMNS", "effect_name", "invert", "load_curves", "monotone_decreasing"]
 
@@ -103,9 +105,8 @@ class Curve:
 
     def table(self, k: float) -> dict[str, Any]:
         """The effect table (``{name, k, ...params}``) of this curve at ``k``."""
-        from weather_gym.calibration.sweep import SweepEffect
 
-        return SweepEffect(self.name or self.label, dict(self.params)).table(k)
+        return _sweep.SweepEffect(self.name or self.label, dict(self.params)).table(k)
 
 
 @dataclass
@@ -201,7 +202,6 @@ def invert(ks: Sequence[float], mean: Sequence[float], target: float, sd: Sequen
 # ---------------------------------------------------------------------------------------- reading
 def effect_name(label: str) -> str:
     """The registered effect a curve label belongs to (``dim_physical`` -> ``dim``), or the label itself."""
-    from weather_gym.weather import EFFECTS
 
     names = [n for n in EFFECTS.names() if label == n or label.startswith(n + "_")]
     return max(names, key=len) if names else label

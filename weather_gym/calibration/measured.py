@@ -31,7 +31,14 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
+from weather_gym.datasets import load_coco
 from weather_gym.errors import InputError, MissingInputError
+from weather_gym.perception import evaluate
+from weather_gym.perception.detectors import load_detector
+from weather_gym.perception.scoring import small_rule
+from weather_gym.weather.presets import ALIASES, CONDITIONS, SEVERITIES, canonical_condition
 
 __all__ = ["IDEAL", "MeasuredLevel", "levels_by_condition", "load_measured", "measure_datasets",
            "parse_measured_arg", "read_measured_table"]
@@ -56,8 +63,6 @@ class MeasuredLevel:
 
 
 def _condition(text: str, where: str) -> str:
-    from weather_gym.weather.presets import ALIASES, CONDITIONS, canonical_condition
-
     t = (text or "").strip()
     if t.lower() in _IDEAL_ALIASES:
         return IDEAL
@@ -70,8 +75,6 @@ def _condition(text: str, where: str) -> str:
 
 
 def _severity(text: str, where: str) -> int:
-    from weather_gym.weather.presets import SEVERITIES
-
     try:
         s = int(str(text).strip())
     except ValueError:
@@ -185,10 +188,6 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
     """Score the detector (a spec or detector, see ``weather_gym.perception.load_detector``) on labelled
     measured image sets; one level per (condition, severity) group. Ignore masks and ignore regions of
     the sets apply; the too-small rule is the detector's."""
-    from weather_gym.datasets import load_coco
-    from weather_gym.perception import evaluate
-    from weather_gym.perception.detectors import load_detector
-    from weather_gym.perception.scoring import small_rule
 
     det = load_detector(model)
     rules: dict[tuple[str, int], Any] = {}
@@ -213,7 +212,6 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
             if rule is None or rules.setdefault(key, rule).min_height_px != rule.min_height_px:
                 raise InputError(f"{folder}: frames of one level must have one size (the too-small rule depends "
                                  "on it); import each camera size into its own folder")
-        from tqdm import tqdm
 
         dets = []
         for start in tqdm(range(0, len(ds), 8), desc=f"measure {Path(folder).name}", unit="batch",

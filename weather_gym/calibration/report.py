@@ -23,14 +23,18 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from weather_gym._io import atomic_write, save_figure
-from weather_gym.calibration.curve import Curve
 from weather_gym.calibration.shapes import STUDY_SHAPE, ShapeFit, fit_shapes
 from weather_gym.errors import InputError, MissingInputError
+
+if TYPE_CHECKING:  # pragma: no cover - annotations only (curve imports sweep, which imports this module)
+    from weather_gym.calibration.curve import Curve
 
 __all__ = ["agreement", "plot_calibration", "plot_curves", "plot_recall_by_range", "plot_study_comparison",
            "study_points", "write_report"]
@@ -40,10 +44,7 @@ SEV_COLORS = {1: "#4c9a2a", 2: "#c9a227", 3: "#d9622b", 4: "#8e2c8e"}
 
 
 def _plt():
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     return plt
 

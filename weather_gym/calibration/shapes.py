@@ -31,6 +31,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import curve_fit
 
 from weather_gym.errors import InputError
 
@@ -75,7 +76,6 @@ def _round(params: dict[str, float]) -> dict[str, float]:
 
 def fit_shapes(k: Sequence[float], y: Sequence[float]) -> dict[str, ShapeFit]:
     """Least-squares fits of :data:`SHAPES` to the points ``(k, y)``; see the module doc."""
-    from scipy.optimize import curve_fit
 
     k = np.asarray(k, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)

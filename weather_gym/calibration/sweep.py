@@ -34,11 +34,19 @@ import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from dataclasses import replace as _replace
 from pathlib import Path
 from typing import Any
 
-from weather_gym._io import atomic_write_json
+from weather_gym._io import atomic_write_json, derived_outputs_replaceable
+from weather_gym.calibration import curve as _curve  # cyclic pair: attributes used at call time
+from weather_gym.calibration.report import plot_curves
+from weather_gym.datasets.coco import ANNOTATIONS, load_coco
 from weather_gym.errors import InputError
+from weather_gym.evaluation.runner import check_results_path, run_cells
+from weather_gym.perception import score_dataset
+from weather_gym.perception.detectors import detector_id, load_detector, parse_detector_spec
+from weather_gym.weather import EFFECTS, make
 
 __all__ = [
     "CURVE_FILE",
@@ -101,7 +109,6 @@ class SweepEffect:
             >>> parse_effect("dim").table(0.3)
             {'name': 'dim', 'k': 0.3, 'mode': 'faithful'}
         """
-        from weather_gym.weather import EFFECTS
 
         cls = EFFECTS.get(self.name)
         effect = cls(k=float(k), **self.params)
@@ -109,8 +116,6 @@ class SweepEffect:
         return {"name": self.name, "k": float(k), **explicit, **self.params}
 
     def make(self, k: float):
-        from weather_gym.weather import make
-
         return make(self.name, k=float(k), **self.params)
 
 
@@ -120,7 +125,6 @@ def parse_effect(text: str) -> SweepEffect:
     Unknown effects raise ``ValueError`` listing the valid names; unknown or invalid parameters name
     the parameter. ``k`` may not be fixed here (it is what the sweep varies).
     """
-    from weather_gym.weather import EFFECTS, make
 
     if not isinstance(text, str) or not text.strip():
         raise InputError(f"--effect must be NAME or NAME:PARAM=VALUE,..., got {text!r}")
@@ -235,9 +239,6 @@ def _dataset_and_detector(dataset: str, model: Any) -> tuple[Any, Any]:
     """Load once per worker process: the evaluation set (frames kept in memory) and the detector."""
     key = (dataset, model)
     if key not in _CACHE:
-        from weather_gym.datasets import load_coco
-        from weather_gym.perception.detectors import load_detector
-
         _CACHE.clear()
         _CACHE[key] = (load_coco(dataset, cache_images=True), load_detector(model or None, threads=1))
     return _CACHE[key]
@@ -249,8 +250,6 @@ def _metric_name(label: str) -> str:
 
 def run_sweep_cell(cell: SweepCell) -> dict[str, Any]:
     """Score the detector on the evaluation set under ``cell``'s effect at ``cell.k`` (the cell function)."""
-    from weather_gym.perception import score_dataset
-    from weather_gym.weather import make
 
     ds, det = _dataset_and_detector(cell.dataset, cell.model)
     effect = make(cell.name, k=float(cell.k), **json.loads(cell.spec))
@@ -270,10 +269,7 @@ def make_sweep_cells(effects: Sequence[SweepEffect], ks: Sequence[float], seeds:
     ``model``: a detector spec (``"yolov8:model.onnx"``, a ``DetectorSpec``, a ConeNet ``.onnx`` path;
     None: the shipped detector). ``model_id`` identifies its file and options.
     """
-    from dataclasses import replace as _replace
 
-    from weather_gym.datasets.coco import ANNOTATIONS, load_coco
-    from weather_gym.perception.detectors import detector_id, parse_detector_spec
 
     ds_path = Path(dataset)
     load_coco(ds_path)  # validates (missing folder / annotations / images -> a clear error)
@@ -300,8 +296,6 @@ def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequen
 
     When ``out`` holds no curves.csv yet, an existing plot or sweep.json there is refused before any
     cell runs, unless ``overwrite``."""
-    from weather_gym._io import derived_outputs_replaceable
-    from weather_gym.evaluation.runner import check_results_path, run_cells
 
     cells = make_sweep_cells(effects, ks, seeds, dataset, model)
     out = Path(out)
@@ -315,10 +309,7 @@ def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequen
     wall = time.perf_counter() - t0
     _write_meta(out, cells, effects, ks, seeds, dataset, model, wall, command, replace)
     if plot:
-        from weather_gym.calibration.curve import load_curves
-        from weather_gym.calibration.report import plot_curves
-
-        curves = load_curves(out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
+        curves = _curve.load_curves(out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
         plot_curves(curves, out / "curves.png", recall_out=out / "curves_recall.png", overwrite=replace)
     return rows
 
@@ -334,7 +325,6 @@ def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, 
         except json.JSONDecodeError:
             meta = {}
     c0 = cells[0]
-    from weather_gym.datasets.coco import load_coco
 
     info = load_coco(dataset).data.get("info", {})
     meta.setdefault("curves", {})

@@ -24,6 +24,7 @@ import signal
 import sys
 import traceback
 
+import weather_gym.cli as pkg
 from weather_gym import __version__
 from weather_gym.errors import InputError, WeatherGymError
 
@@ -47,7 +48,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"weather-gym {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    import weather_gym.cli as pkg
 
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):

@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from weather_gym.errors import InputError
+from weather_gym.perception.detectors import parse_detector_spec
 
 
 def add_detector_args(p, *, what: str | None = None, legacy_model: bool = False) -> None:
@@ -36,7 +37,6 @@ def add_detector_args(p, *, what: str | None = None, legacy_model: bool = False)
 
 def detector_spec_from_args(args) -> Any:
     """The :class:`~weather_gym.perception.detectors.DetectorSpec` the options describe (checked)."""
-    from weather_gym.perception.detectors import parse_detector_spec
 
     spec = getattr(args, "detector", None)
     model = getattr(args, "detector_model", None)

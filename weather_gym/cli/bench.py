@@ -8,12 +8,13 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
+import weather_gym.bench as pkg
+
 
 def register(sub) -> None:
     p = sub.add_parser("bench", help="run a speed benchmark and print its table",
                        description="Speed benchmarks: median of many runs, with a baseline in the same run.")
     targets = p.add_subparsers(dest="target", metavar="TARGET", required=True)
-    import weather_gym.bench as pkg
 
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):

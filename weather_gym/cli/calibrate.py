@@ -21,10 +21,16 @@ import shlex
 import sys
 from pathlib import Path
 
+from weather_gym._io import check_output, derived_outputs_replaceable
+from weather_gym.calibration.calibrate import calibrate, fill_from_curves, parse_use, remeasure, write_presets
+from weather_gym.calibration.curve import load_curves
+from weather_gym.calibration.measured import load_measured
+from weather_gym.calibration.report import REPORT_FILES, study_points, write_report
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
+from weather_gym.weather.presets import load_presets
 
 
 def register(sub) -> None:
@@ -67,8 +73,6 @@ def register(sub) -> None:
 
 
 def _merge_curves(paths, metric, dataset_id, model_id):
-    from weather_gym.calibration.curve import load_curves
-
     curves = {}
     for path in paths:
         for label, c in load_curves(path, metric=metric, dataset_id=dataset_id, model_id=model_id).items():
@@ -79,18 +83,6 @@ def _merge_curves(paths, metric, dataset_id, model_id):
 
 
 def _run(args) -> int:
-    from weather_gym._io import check_output, derived_outputs_replaceable
-    from weather_gym.calibration.calibrate import (
-        calibrate,
-        fill_from_curves,
-        parse_use,
-        remeasure,
-        write_presets,
-    )
-    from weather_gym.calibration.measured import load_measured
-    from weather_gym.calibration.report import REPORT_FILES, study_points, write_report
-    from weather_gym.weather.presets import load_presets
-
     check_output(args.out, overwrite=args.overwrite, suffixes=(".toml",), what="--out")
     report_dir = args.report or args.out.with_name(args.out.stem + "_report")
     replace_report = derived_outputs_replaceable(report_dir / "remeasured.csv",

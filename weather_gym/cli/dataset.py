@@ -12,11 +12,24 @@ Examples:
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
+import numpy as np
+
+from weather_gym._io import check_output, write_image
+from weather_gym.camera import CameraConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.datasets.coco import load_coco
+from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS, import_dataset
+from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
+from weather_gym.datasets.render import render_dataset
 from weather_gym.errors import InputError
+from weather_gym.perception.ignore import inside_mask
+from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
+from weather_gym.perception.scoring import small_rule
 
 
 def register(sub) -> None:
@@ -46,7 +59,6 @@ def register(sub) -> None:
     add_detector_args(i, what="the too-small rule is stated at this detector's input scale")
     i.set_defaults(func=_info)
 
-    from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS
 
     im = cmds.add_parser("import", help="import labelled frames (KITTI, YOLO txt, COCO) into a COCO folder",
                          description="Read a folder of frames and labels, validate it, copy the frames into "
@@ -89,9 +101,6 @@ def register(sub) -> None:
 
 
 def _render(args) -> int:
-    from weather_gym.camera import CameraConfig
-    from weather_gym.datasets.render import render_dataset
-
     cam = CameraConfig()
     if args.width or args.height:
         cam = cam.scaled(args.width or cam.width, args.height or cam.height)
@@ -103,16 +112,6 @@ def _render(args) -> int:
 
 
 def _info(args) -> int:
-    from collections import Counter
-
-    import numpy as np
-
-    from weather_gym.cone_spec import CONE_CLASSES
-    from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.ignore import inside_mask
-    from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
-    from weather_gym.perception.scoring import small_rule
-
     ds = load_coco(args.dir)
     anns = ds.data["annotations"]
     info = ds.info
@@ -168,8 +167,6 @@ def _info(args) -> int:
 
 
 def _import(args) -> int:
-    from weather_gym.datasets.importers import import_dataset
-
     det = detector_from_args(args, required=False)
     r = import_dataset(args.format, args.src, args.out, classes=args.classes, condition=args.condition,
                        severity=args.severity, intrinsics=args.intrinsics, detector=det, mask=args.mask,
@@ -189,12 +186,6 @@ def _import(args) -> int:
 
 
 def _mask(args) -> int:
-    import numpy as np
-
-    from weather_gym._io import check_output, write_image
-    from weather_gym.datasets.coco import load_coco
-    from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
-
     if args.set is not None:
         if args.preview is not None:
             raise InputError("--preview goes with --out (a proposal), not with --set")

@@ -27,8 +27,17 @@ import json
 import zlib
 from pathlib import Path
 
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from weather_gym._io import atomic_path, check_output, write_image
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.datasets.coco import read_image
 from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
+from weather_gym.limits import check_image_size
+from weather_gym.viz.video import VideoWriter
+from weather_gym.weather import make, parse_weather
 
 IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_EXTS = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
@@ -65,7 +74,6 @@ def _param_value(text: str):
 
 def build_weather(effect: str | None, k: float | None, params: list[str], weather: str | None):
     """The effect the options describe (``--weather`` or ``--effect/--k/--param``)."""
-    from weather_gym.weather import make, parse_weather
 
     if weather is not None:
         if effect is not None or k is not None or params:
@@ -97,15 +105,10 @@ def _target(src: Path, output: Path) -> Path:
 
 
 def _read_rgb(path: Path):
-    from weather_gym.datasets.coco import read_image
-
     return read_image(path)
 
 
 def _read_depth(path: Path, shape):
-    import cv2
-    import numpy as np
-
     raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
     if raw is None or raw.ndim != 2:
         raise FileFormatError(f"{path}: expected a single-channel uint16 depth PNG in millimetres")
@@ -117,15 +120,10 @@ def _read_depth(path: Path, shape):
 
 
 def _image_seed(seed: int, rel: Path):
-    import numpy as np
-
     return np.random.SeedSequence(seed, spawn_key=(zlib.crc32(rel.as_posix().encode()),))
 
 
 def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path, overwrite: bool) -> None:
-    from weather_gym._io import write_image
-    from weather_gym.limits import check_image_size
-
     img = _read_rgb(src)
     check_image_size(img.shape, what=str(src))
     d = _read_depth(depth, img.shape) if depth is not None else None
@@ -134,8 +132,6 @@ def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel
 
 
 def _folder(weather, args) -> int:
-    from tqdm import tqdm
-
     src_root, out_root = args.input, args.output
     if _same(src_root, out_root) or out_root.resolve().is_relative_to(src_root.resolve()):
         raise InputError(f"{out_root}: the output folder must not be the input folder or inside it")
@@ -177,10 +173,6 @@ class _Cv2Video:
     """Non-MP4 outputs (.avi, .mkv, ...) through OpenCV, to a temporary file moved into place on close."""
 
     def __init__(self, dst: Path, fps: float, size: tuple[int, int], overwrite: bool) -> None:
-        import cv2
-
-        from weather_gym._io import atomic_path
-
         self._cv2 = cv2
         self._output = atomic_path(dst, overwrite=overwrite)
         tmp = self._output.__enter__()
@@ -203,11 +195,6 @@ class _Cv2Video:
 
 
 def _video(weather, src: Path, dst: Path, args) -> int:
-    import cv2
-    from tqdm import tqdm
-
-    from weather_gym.limits import check_image_size
-
     cap = cv2.VideoCapture(str(src))
     try:
         if not cap.isOpened():
@@ -218,8 +205,6 @@ def _video(weather, src: Path, dst: Path, args) -> int:
         check_image_size((h, w, 3), what=f"video {src}")
         total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
         if dst.suffix.lower() == ".mp4":  # H.264 (PyAV), falling back to mp4v with a warning
-            from weather_gym.viz.video import VideoWriter
-
             writer = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
         else:
             writer = _Cv2Video(dst, fps, (w, h), args.overwrite)
@@ -248,8 +233,6 @@ def _video(weather, src: Path, dst: Path, args) -> int:
 
 
 def _run(args) -> int:
-    from weather_gym._io import check_output
-
     weather = build_weather(args.effect, args.k, args.param, args.weather)
     src = args.input
     if not src.exists():

@@ -12,13 +12,27 @@ Examples:
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+import numpy as np
 
 from weather_gym._io import atomic_write_json, check_output, write_image
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.datasets.coco import load_coco, read_image
 from weather_gym.errors import InputError, LimitError, MissingDependencyError
 from weather_gym.limits import check_image_size
+from weather_gym.perception.draw import draw_detections
+from weather_gym.perception.report import (
+    STUDY_CLEAN_MAP,
+    STUDY_POINTS,
+    detections_figure,
+    plot_map_vs_k,
+    sweep_map_vs_k,
+)
+from weather_gym.perception.scoring import score_dataset
+from weather_gym.weather import make, parse_weather
 
 
 def register(sub) -> None:
@@ -98,7 +112,6 @@ def _weather(args):
         if args.k is not None:
             raise InputError("--k needs --effect")
         return None
-    from weather_gym.weather import make
 
     if args.k is None:
         raise InputError(f"--effect {args.effect} needs --k (severity in [0, 1])")
@@ -121,15 +134,10 @@ def _train(args) -> int:
 
 
 def _eval(args) -> int:
-    from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.scoring import score_dataset
-
     _check_limit(args.limit)
     _check_threads(args.threads)
     weather = _weather(args)
     if isinstance(weather, str):
-        from weather_gym.weather import parse_weather
-
         parse_weather(weather)  # a bad spec fails now, not after loading everything
     if args.json is not None:
         check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
@@ -152,8 +160,6 @@ def _check_limit(limit: int | None) -> None:
 
 
 def _check_threads(threads: int) -> None:
-    import os
-
     most = 4 * (os.cpu_count() or 1)
     if not 1 <= threads <= most:
         raise LimitError(f"--threads must be in 1..{most} (4 per CPU core), got {threads}")
@@ -165,11 +171,6 @@ def _check_not_empty(ds) -> None:
 
 
 def _predict(args) -> int:
-    import numpy as np
-
-    from weather_gym.datasets.coco import read_image
-    from weather_gym.perception.draw import draw_detections
-
     check_output(args.out, overwrite=args.overwrite, suffixes=(".png", ".jpg", ".jpeg"), what="--out")
     if args.threshold is not None and not 0 <= args.threshold <= 1:
         raise InputError(f"--threshold must be a score in [0, 1], got {args.threshold}")
@@ -177,8 +178,6 @@ def _predict(args) -> int:
     check_image_size(image.shape, what=str(args.image))
     weather = _weather(args)
     if weather is not None:
-        from weather_gym.weather import parse_weather
-
         eff = parse_weather(weather)
         eff.reset(args.seed)
         image = eff(image, rng=np.random.default_rng(args.seed))
@@ -192,9 +191,6 @@ def _predict(args) -> int:
 
 
 def _sweep(args) -> int:
-    from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.report import STUDY_CLEAN_MAP, STUDY_POINTS, plot_map_vs_k, sweep_map_vs_k
-
     try:
         ks = sorted({float(v) for v in args.ks.split(",")})
     except ValueError:
@@ -232,9 +228,6 @@ def _sweep(args) -> int:
 
 
 def _figure(args) -> int:
-    from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.report import detections_figure
-
     check_output(args.out, overwrite=args.overwrite, suffixes=(".png",), what="--out")
     ds = load_coco(args.dataset)
     _check_not_empty(ds)

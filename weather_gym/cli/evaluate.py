@@ -24,6 +24,8 @@ from weather_gym.cli._detector_args import add_detector_args, detector_spec_from
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
+from weather_gym.evaluation.evaluate import EvalConfig, evaluate, make_cells
+from weather_gym.evaluation.runner import check_results_path
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -90,7 +92,6 @@ def register(sub) -> None:
 
 def build_config(args):
     """The ``EvalConfig`` of parsed arguments (validated by ``make_cells`` afterwards)."""
-    from weather_gym.evaluation.evaluate import EvalConfig
 
     if args.seed_list is not None:
         seeds = _ints("--seed-list", args.seed_list)
@@ -126,9 +127,6 @@ def _perception_kwargs(args) -> dict:
 
 
 def _run(args) -> int:
-    from weather_gym.evaluation.evaluate import evaluate, make_cells
-    from weather_gym.evaluation.runner import check_results_path
-
     check_runner_args(args)
     if args.presets is not None and not args.presets.is_file():
         raise MissingInputError(f"--presets: {args.presets} not found")

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.errors import InputError, MissingInputError
+from weather_gym.gap.workflow import GapConfig, run_gap
 
 
 def register(sub) -> None:
@@ -59,8 +60,6 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    from weather_gym.gap.workflow import GapConfig, run_gap
-
     if not args.measured.is_dir():
         raise MissingInputError(f"measured data folder {args.measured} not found")
     if args.reference is not None and not args.reference.is_dir():

@@ -13,13 +13,25 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from tqdm import tqdm
+
+from weather_gym.agents import AGENTS, run_episode
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.envs.registration import scenario_of
+from weather_gym.envs.scenario import build_config
 from weather_gym.errors import InputError
-from weather_gym.pipeline import PERCEPTION_MODES
+from weather_gym.perception import evaluate as score
+from weather_gym.pipeline import PERCEPTION_MODES, check_perception, make_env
+from weather_gym.tracks import load_track
+from weather_gym.viz.overlay import TopDownView, compose_frame, cone_list_boxes, draw_boxes
+from weather_gym.viz.video import FrameSampler, VideoWriter, check_output_path, save_strip
+from weather_gym.weather import parse_weather
 
 PERCEPTION_CHOICES = ("auto", *PERCEPTION_MODES)
 PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit", "ppo_cones"})
@@ -101,8 +113,6 @@ def parse_agent_args(items: list[str]) -> dict[str, Any]:
 
 
 def _run(args) -> int:
-    from weather_gym.viz.video import check_output_path
-
     if args.laps < 1:
         raise InputError(f"--laps must be >= 1, got {args.laps}")
     if args.max_steps is not None and args.max_steps < 1:
@@ -129,9 +139,6 @@ def _run(args) -> int:
 
 def default_max_steps(env_id: str, track: str | None, laps: int) -> int:
     """The lap command's time limit: every lap may take up to max(60 s, length / 2 m/s)."""
-    from weather_gym.envs.registration import scenario_of
-    from weather_gym.envs.scenario import build_config
-    from weather_gym.tracks import load_track
 
     cfg = build_config(scenario_of(env_id), {"track": track} if track is not None else None)
     length = load_track(cfg.track, seed=cfg.track_seed).length
@@ -148,8 +155,6 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
     and the episode from :func:`weather_gym.agents.run_episode`.
     """
-    from weather_gym.agents import AGENTS, run_episode
-    from weather_gym.pipeline import check_perception, make_env
 
     if perception != "auto":
         check_perception(perception)
@@ -165,8 +170,6 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     if track is not None:
         env_kwargs["track"] = track
     if weather is not None:
-        from weather_gym.weather import parse_weather
-
         parse_weather(weather)  # a bad spec fails here, with the parser's message
     perception_kwargs = {"keep_image": True} if recording and mode != "camera" else None
     env = make_env(env_id, perception=mode, weather=weather, detector=detector if mode == "detector" else None,
@@ -246,8 +249,6 @@ class _SeenByPerception:
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
         if self.gts:
-            from weather_gym.perception import evaluate as score
-
             res = score(self.gts, self.dets)
             out.update(det_map50=float(res.map50), det_recall=float(res.recall), det_frames=int(res.n_images))
         return out
@@ -259,18 +260,12 @@ class _LapProgress:
     EVERY_S = 10.0
 
     def __init__(self, total_m: float, desc: str, *, enabled: bool) -> None:
-        import sys
-
-        from tqdm import tqdm
-
         self.enabled, self.desc = enabled, desc
         self.tty = enabled and sys.stderr.isatty()
         self.bar = tqdm(total=round(total_m), unit="m", desc=desc, leave=False, disable=not self.tty)
         self.t0 = self.last = time.perf_counter()
 
     def update(self, info: dict, laps: int) -> None:
-        import sys
-
         done = max(0.0, float(info.get("progress", 0.0)))
         lap = min(int(info["lap"]) + 1, laps)
         if self.tty:
@@ -329,11 +324,6 @@ class _Recorder:
     """Composes the frames of ``--video`` / ``--strip``: camera image, cone boxes, map inset, HUD."""
 
     def __init__(self, video, strip, strip_frames, overwrite, fps, track, driver, agent_name, weather) -> None:
-        import numpy as np
-
-        from weather_gym.viz.overlay import TopDownView
-        from weather_gym.viz.video import FrameSampler, VideoWriter
-
         self.video = VideoWriter(video, fps=fps, overwrite=overwrite) if video is not None else None
         self.sampler = FrameSampler(strip_frames) if strip is not None else None
         self.strip, self.overwrite = strip, overwrite
@@ -343,10 +333,6 @@ class _Recorder:
         self.trajectory: list[tuple[float, float]] = []
 
     def add(self, obs, info, laps: int) -> None:
-        import numpy as np
-
-        from weather_gym.viz.overlay import compose_frame, cone_list_boxes, draw_boxes
-
         if not isinstance(obs, dict) or "image" not in obs:
             raise InputError("recording needs the camera image in the observation (a Dict with 'image')")
         image = np.asarray(obs["image"])
@@ -388,8 +374,6 @@ class _Recorder:
             self.video.abort()
 
     def close(self) -> None:
-        from weather_gym.viz.video import save_strip
-
         if self.video is not None:
             self.video.close()
         if self.sampler is not None and self.sampler.frames():

@@ -18,10 +18,22 @@ import shlex
 import sys
 from pathlib import Path
 
+import numpy as np
+
+from weather_gym.calibration.curve import load_curves
+from weather_gym.calibration.sweep import (
+    CURVE_FILE,
+    make_sweep_cells,
+    parse_effect,
+    parse_k_range,
+    parse_seeds,
+    run_sweep,
+)
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import MissingInputError
+from weather_gym.evaluation.runner import check_results_path
 
 
 def register(sub) -> None:
@@ -51,19 +63,6 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    import numpy as np
-
-    from weather_gym.calibration.curve import load_curves
-    from weather_gym.calibration.sweep import (
-        CURVE_FILE,
-        make_sweep_cells,
-        parse_effect,
-        parse_k_range,
-        parse_seeds,
-        run_sweep,
-    )
-    from weather_gym.evaluation.runner import check_results_path
-
     effects = [parse_effect(e) for e in args.effect]
     ks = parse_k_range(args.k)
     seeds = parse_seeds(args.seeds, args.seed_list)

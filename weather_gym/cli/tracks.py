@@ -12,9 +12,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
+
 from weather_gym._io import check_output, save_figure
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
+from weather_gym.tracks import TRACKS, load_track
 
 ALL_SEED = 7
 """Seed of the random track drawn by ``show --all``."""
@@ -47,8 +51,6 @@ def register(sub) -> None:
 
 
 def _list(args) -> int:
-    from weather_gym.tracks import TRACKS, load_track
-
     print(f"{'name':<16}{'cones':>7}{'length m':>10}  {'event':<13}source")
     for name in TRACKS.names():
         t = load_track(name, seed=args.seed)
@@ -65,12 +67,8 @@ def _short(source: str) -> str:
 
 
 def _show(args) -> int:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    from weather_gym.tracks import TRACKS, load_track
 
     if args.all == (args.track is not None):
         raise InputError("give either a TRACK or --all")
@@ -106,8 +104,6 @@ def _legend(axes):
 
 
 def _export(args) -> int:
-    from weather_gym.tracks import load_track
-
     check_output(args.out, overwrite=args.overwrite, suffixes=(".csv",), what="--out")
     track = load_track(args.track, seed=args.seed)
     track.to_csv(args.out, overwrite=args.overwrite)

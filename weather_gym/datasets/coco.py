@@ -44,7 +44,10 @@ import cv2
 import numpy as np
 
 from weather_gym._io import atomic_write_json, open_append, resolve_inside, write_image
+from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.datasets import masks as _masks  # cyclic pair: attributes used at call time
+from weather_gym.datasets import render as _render  # cyclic pair: attributes used at call time
 from weather_gym.errors import (
     FileFormatError,
     InputError,
@@ -173,11 +176,9 @@ class CocoDataset:
         return info if isinstance(info, dict) else {}
 
     def _mask(self, rel: str, rec: dict) -> np.ndarray:
-        from weather_gym.datasets.masks import read_mask
-
         m = self._masks.get(rel)
         if m is None:
-            m = read_mask(resolve_inside(self.root, rel, what=f"{self.annotations_path}: ignore mask"),
+            m = _masks.read_mask(resolve_inside(self.root, rel, what=f"{self.annotations_path}: ignore mask"),
                           (int(rec["width"]), int(rec["height"])))
             m.setflags(write=False)
             self._masks[rel] = m
@@ -227,7 +228,6 @@ class CocoDataset:
 
     def camera(self, i: int):
         """The ``CameraConfig`` of frame ``i`` (default camera when the record has none)."""
-        from weather_gym.camera import CameraConfig
 
         rec = self.images[i]
         cam = rec.get("camera")
@@ -244,10 +244,9 @@ class CocoDataset:
         Returns ``{"image", "depth", "gt"}``. Needs the simulator (PyBullet); envs are cached per
         (track, camera) until ``close()``.
         """
-        from weather_gym.datasets.render import ViewRenderer
 
         if self._renderer is None:
-            self._renderer = ViewRenderer()
+            self._renderer = _render.ViewRenderer()
         if isinstance(i, dict):
             rec = i
         else:

@@ -47,9 +47,13 @@ from typing import Any
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from weather_gym._io import atomic_write, atomic_write_json, resolve_inside
+from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.datasets.coco import ANNOTATIONS
+from weather_gym.datasets.masks import MASK_FILE, read_mask, write_mask
 from weather_gym.errors import (
     FileFormatError,
     InputError,
@@ -57,7 +61,8 @@ from weather_gym.errors import (
     OutputExistsError,
     OutputPathError,
 )
-from weather_gym.perception.labels import DEFAULT_CLASSES, IGNORE, parse_class_map
+from weather_gym.perception.labels import CATEGORIES, DEFAULT_CLASSES, IGNORE, SmallRule, parse_class_map
+from weather_gym.weather.presets import CONDITIONS, canonical_condition
 
 __all__ = ["FORMATS", "DEFAULT_CLASSES", "IGNORE", "parse_class_map", "parse_intrinsics", "import_dataset"]
 
@@ -92,7 +97,6 @@ def _condition(condition: str | None, severity: int | None) -> tuple[str | None,
         if severity is not None:
             raise InputError("--severity needs --condition (clear, or a weather condition such as droplets)")
         return None, None
-    from weather_gym.weather.presets import CONDITIONS, canonical_condition
 
     if condition.strip().lower() in ("clear", "ideal", "none"):
         if severity not in (None, 0):
@@ -402,8 +406,6 @@ def _range_bearing(loc: tuple[float, float, float], frame: str) -> tuple[float, 
 
 # ------------------------------------------------------------------------------------ import
 def _prepare_out(out: Path, src: Path, overwrite: bool) -> None:
-    from weather_gym.datasets.coco import ANNOTATIONS
-
     o, s = out.resolve(), src.resolve()
     if o == s or s in o.parents or o in s.parents:
         raise InputError(f"--out {out} and the source {src} must not contain each other")
@@ -426,12 +428,7 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
     ``resize``, e.g. a loaded detector; default: the shipped detector's 512x288 letterbox).
     ``mask``: an ignore-mask PNG stored with the dataset.
     """
-    from tqdm import tqdm
 
-    from weather_gym.camera import CameraConfig
-    from weather_gym.datasets.coco import ANNOTATIONS
-    from weather_gym.datasets.masks import MASK_FILE, read_mask, write_mask
-    from weather_gym.perception.labels import CATEGORIES, SmallRule
 
     if fmt not in FORMATS:
         raise InputError(f"unknown dataset format {fmt!r}; expected one of {', '.join(FORMATS)}")

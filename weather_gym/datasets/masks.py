@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from weather_gym._io import atomic_write, atomic_write_json, resolve_inside
+from weather_gym.datasets import coco as _coco  # cyclic pair: attributes used at call time
 from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputExistsError
 
 __all__ = ["MASK_FILE", "read_mask", "write_mask", "propose_mask", "mask_preview", "set_dataset_mask"]
@@ -167,9 +168,8 @@ def set_dataset_mask(root: str | os.PathLike, mask_path: str | os.PathLike, *, f
     The mask is checked against the frames' size first; an existing mask is replaced only with
     ``overwrite``.
     """
-    from weather_gym.datasets.coco import ANNOTATIONS, load_coco
 
-    ds = load_coco(root)
+    ds = _coco.load_coco(root)
     root = Path(root)
     if frame is None:
         sizes = {(int(r["width"]), int(r["height"])) for r in ds.images}
@@ -180,7 +180,7 @@ def set_dataset_mask(root: str | os.PathLike, mask_path: str | os.PathLike, *, f
     else:
         rec = next((r for r in ds.images if r["file_name"] == frame), None)
         if rec is None:
-            raise InputError(f"{root / ANNOTATIONS}: no image with file_name {frame!r}")
+            raise InputError(f"{root / _coco.ANNOTATIONS}: no image with file_name {frame!r}")
         size = (int(rec["width"]), int(rec["height"]))
         rel = f"masks/{Path(frame).stem}.png"
     mask = read_mask(mask_path, size)
@@ -189,10 +189,10 @@ def set_dataset_mask(root: str | os.PathLike, mask_path: str | os.PathLike, *, f
     if (current or dest.exists()) and not overwrite:
         raise OutputExistsError(f"{root} already has an ignore mask ({current or rel}); pass --overwrite to replace it")
     atomic_write(dest, _png(mask), overwrite=overwrite)
-    data = json.loads((root / ANNOTATIONS).read_text())
+    data = json.loads((root / _coco.ANNOTATIONS).read_text())
     if rec is None:
         data.setdefault("info", {})["ignore_mask"] = rel
     else:
         next(r for r in data["images"] if r["file_name"] == frame)["ignore_mask"] = rel
-    atomic_write_json(root / ANNOTATIONS, data, overwrite=True)  # the dataset's own index, one key added
+    atomic_write_json(root / _coco.ANNOTATIONS, data, overwrite=True)  # the dataset's own index, one key added
     return dest

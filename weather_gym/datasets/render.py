@@ -20,10 +20,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from weather_gym._io import atomic_write
+from weather_gym.agents import AGENTS
 from weather_gym.camera import CameraConfig
-from weather_gym.datasets.coco import CocoWriter
+from weather_gym.datasets import coco as _coco  # cyclic pair: attributes used at call time
 from weather_gym.errors import InputError
+from weather_gym.pipeline import make_env
+from weather_gym.sim.look import DEFAULT_LOOK, sample_look
+from weather_gym.tracks import is_track_file, load_track
 
 __all__ = ["render_dataset", "ViewRenderer", "episode_plan"]
 
@@ -47,8 +53,6 @@ def episode_plan(tracks: Sequence[str], frames: int, frames_per_episode: int) ->
 
 
 def _make_env(track: str, camera: CameraConfig, max_steps: int):
-    from weather_gym.pipeline import make_env
-
     return make_env(track=track, camera=camera, laps=0, terminate_off_track=True, max_episode_steps=max_steps,
                     episode_statistics=False)
 
@@ -88,10 +92,7 @@ def render_dataset(
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
         frames_per_episode: frames saved per episode before a new start point / look is drawn.
     """
-    from tqdm import tqdm
 
-    from weather_gym.agents import AGENTS
-    from weather_gym.sim.look import DEFAULT_LOOK, sample_look
 
     if every < 1:
         raise InputError(f"every must be >= 1, got {every}")
@@ -99,7 +100,7 @@ def render_dataset(
     plan = episode_plan(list(tracks), int(frames), int(frames_per_episode))
     # every episode's seed comes from the master seed, so resuming replays exactly the same episodes
     episode_seeds = np.random.SeedSequence(seed).generate_state(len(plan), dtype=np.uint32).tolist()
-    writer = CocoWriter(out, overwrite=overwrite, resume=resume, info={
+    writer = _coco.CocoWriter(out, overwrite=overwrite, resume=resume, info={
         "tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
         "every": int(every), "frames_per_episode": int(frames_per_episode)})
     recorded = _record_tracks(Path(out), list(tracks))
@@ -170,8 +171,6 @@ def _record_tracks(out: Path, tracks: list[str]) -> dict[str, str]:
     """How each track spec is recorded in the image records: names as they are; a cone CSV is copied
     into ``out/tracks/`` and recorded by that relative path, so the dataset is self-contained (and a
     dataset's track path never leads outside it, see ``weather_gym.datasets.coco.record_path``)."""
-    from weather_gym._io import atomic_write
-    from weather_gym.tracks import is_track_file, load_track
 
     recorded: dict[str, str] = {}
     used: set[str] = set()

@@ -39,6 +39,7 @@ from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError, StateError
 from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
 from weather_gym.sim.world import World
+from weather_gym.tracks import load_track
 
 STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
 """Names of ``obs["state"]``: wheel-speed odometry (m/s), gyro yaw rate (rad/s), odometry pose."""
@@ -66,8 +67,6 @@ class ConeTrackEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 30}
 
     def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None, **overrides: Any) -> None:
-        from weather_gym.tracks import load_track  # tracks is below the env layer
-
         config = config or EnvConfig()
         if overrides:
             config = replace(config, **overrides)

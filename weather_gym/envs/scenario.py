@@ -36,6 +36,8 @@ from weather_gym.envs.config import EnvConfig, RewardConfig
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.paths import data_dir
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
+from weather_gym.tracks import is_track_file
+from weather_gym.weather import parse_weather
 
 SECTIONS: dict[str, type] = {
     "sim": SimConfig,
@@ -130,7 +132,6 @@ def load_scenario(path: str | Path) -> Scenario:
 def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) -> dict[str, Any]:
     """A file named in a scenario (a track CSV, a detector model) is read relative to the scenario's
     folder and must stay inside it (``weather_gym._io.resolve_inside``); names are kept as they are."""
-    from weather_gym.tracks import is_track_file
 
     value = table.get(key)
     if not isinstance(value, str) or (key == "track" and not is_track_file(value)):
@@ -141,7 +142,6 @@ def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) ->
 
 def _check_weather(path: Path, weather: dict[str, Any]) -> None:
     """The scenario's weather must parse now, naming the file (not fail later, at ``gym.make``)."""
-    from weather_gym.weather import parse_weather
 
     if "spec" in weather and ("condition" in weather or "severity" in weather):
         raise FileFormatError(f"{path}: [weather] takes either spec or condition/severity, not both")

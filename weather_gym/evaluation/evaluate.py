@@ -34,10 +34,21 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
+from scipy.spatial import cKDTree
 
+from weather_gym._io import derived_outputs_replaceable
+from weather_gym.agents import AGENTS, make_agent, run_episode
+from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.errors import InputError
-from weather_gym.pipeline import PERCEPTION_MODES
+from weather_gym.evaluation.metrics import MAP_MATCH_RADIUS_M, METRICS
+from weather_gym.evaluation.report import report_paths, write_report
+from weather_gym.evaluation.runner import check_results_path, run_cells
+from weather_gym.perception import evaluate as score
+from weather_gym.pipeline import PERCEPTION_MODES, make_env
+from weather_gym.tracks import load_track
+from weather_gym.weather.presets import canonical_condition, preset_spec
 
 __all__ = [
     "CELL_KEY_FIELDS",
@@ -57,31 +68,6 @@ __all__ = [
 DEFAULT_ENV_ID = "WeatherGym/ConeTrack-v0"
 DEFAULT_TRACK = "small_track"
 PERCEPTIONS = tuple(PERCEPTION_MODES)
-MAP_MATCH_RADIUS_M = 0.5
-"""A mapped cone counts as correct within this distance of a true cone (and vice versa for recall)."""
-
-METRICS: dict[str, str] = {
-    "laps_completed": "laps finished in the episode",
-    "completed": "1 if all requested laps were finished, else 0",
-    "lap_time_s": "mean time of the finished laps (s; empty if none)",
-    "progress": "distance driven along the centre line / (track length x laps), 0..1",
-    "cones_hit": "distinct cones touched",
-    "off_track_events": "times the car left the track",
-    "cte_mean_m": "mean cross-track error over the steps (m)",
-    "cte_max_m": "max cross-track error (m)",
-    "end_reason": "laps | off_track | time_limit (weather_gym.envs.END_REASONS)",
-    "steps": "env steps driven",
-    "sim_time_s": "simulated time (s)",
-    "map_cones": "confirmed cones in the agent's map at the end (empty if the agent has no map)",
-    "map_precision": f"share of mapped cones within {MAP_MATCH_RADIUS_M} m of a true cone",
-    "map_recall": f"share of the track's cones within {MAP_MATCH_RADIUS_M} m of a mapped cone",
-    "det_map50": "detector mAP@0.5 (pycocotools) pooled over the frames seen (empty unless perception=detector)",
-    "det_recall": "detector recall at its operating threshold over the frames seen",
-    "det_frames": "frames scored for det_map50",
-    "weather_latency_ms": "mean time the weather added per step (ms)",
-    "detector_latency_ms": "mean time the detector added per step (ms; 0 without a detector)",
-    "added_latency_ms": "weather_latency_ms + detector_latency_ms",
-}
 """Every metric ``run_cell`` returns, with its meaning (the columns after the key fields)."""
 
 
@@ -190,17 +176,12 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     Raises ``ValueError`` for an unknown agent, effect, env id or perception (listing the valid ones),
     a severity outside the preset scale, an empty list, a repeated entry, or non-JSON kwargs.
     """
-    import gymnasium as gym
 
-    import weather_gym  # noqa: F401 - registers the env ids
-    from weather_gym.agents import AGENTS
-    from weather_gym.weather.presets import canonical_condition, preset_spec
 
     agents = _check_names("agents", config.agents)
     for a in agents:
         AGENTS.get(a)  # ValueError lists the valid names
     tracks = _check_names("tracks", config.tracks)
-    from weather_gym.tracks import load_track
 
     for t in tracks:
         if not isinstance(t, str) or not t:
@@ -231,8 +212,6 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         raise InputError(f"env_kwargs may not set {', '.join(clash)}: use EvalConfig.perception / perception_kwargs")
     scenario = (gym.registry[config.env_id].kwargs or {}).get("scenario")
     if scenario is not None:  # camera sizes and other overrides are checked now, not in every cell
-        from weather_gym.envs.scenario import build_config, load_scenario
-
         try:
             build_config(load_scenario(scenario), dict(config.env_kwargs))
         except InputError as exc:
@@ -263,7 +242,6 @@ def map_precision_recall(mapped_xy: np.ndarray, true_xy: np.ndarray,
         >>> map_precision_recall(np.array([[0, 0.3], [5, 5]]), np.array([[0, 0], [1, 0], [2, 0], [3, 0.]]))
         (0.5, 0.25)
     """
-    from scipy.spatial import cKDTree
 
     mapped_xy = np.asarray(mapped_xy, dtype=np.float64).reshape(-1, 2)
     true_xy = np.asarray(true_xy, dtype=np.float64).reshape(-1, 2)
@@ -286,8 +264,6 @@ def _agent_map_xy(agent: Any) -> np.ndarray | None:
 
 def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
     """Drive one episode of ``cell`` and return the metrics in :data:`METRICS` (NaN/None where not defined)."""
-    from weather_gym.agents import make_agent, run_episode
-    from weather_gym.pipeline import make_env
 
     if isinstance(cell, Mapping):
         cell = EvalCell(**cell)
@@ -331,8 +307,6 @@ def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
             precision, recall = map_precision_recall(mapped, track.cones_xy)
             out.update(map_cones=len(mapped), map_precision=precision, map_recall=recall)
         if score_detector and gts:
-            from weather_gym.perception import evaluate as score
-
             r = score(gts, dets)
             out.update(det_map50=r.map50, det_recall=r.recall, det_frames=r.n_images)
         else:
@@ -354,9 +328,6 @@ def evaluate(config: EvalConfig, out_dir: str | Path, *, workers: int | None = N
     rewritten from them when ``report`` is true; when ``out_dir`` holds no results.csv yet, an
     existing report or plot there is refused before any cell runs, unless ``overwrite``.
     """
-    from weather_gym._io import derived_outputs_replaceable
-    from weather_gym.evaluation.report import report_paths
-    from weather_gym.evaluation.runner import check_results_path, run_cells
 
     cells = make_cells(config)
     out = Path(out_dir)
@@ -366,8 +337,6 @@ def evaluate(config: EvalConfig, out_dir: str | Path, *, workers: int | None = N
     rows = run_cells(cells, run_cell, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
                      ray_address=ray_address, progress=progress, retry_failed=retry_failed, desc="evaluate")
     if report:
-        from weather_gym.evaluation.report import write_report
-
         write_report(rows, out, config=config, wall_s=time.perf_counter() - started, command=command,
                      overwrite=replace)
     return rows

@@ -18,12 +18,17 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, is_dataclass
 from pathlib import Path
 from typing import Any
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from weather_gym._io import atomic_write, save_figure
+from weather_gym.evaluation.metrics import METRICS
+from weather_gym.weather.presets import DEFAULT_PRESETS, preset_entry
 
 __all__ = ["PLOT_METRICS", "TABLE_METRICS", "aggregate", "plot_metric", "report_paths", "write_report"]
 
@@ -121,10 +126,8 @@ def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path
     the individual rows. Lines whose ``line`` fields are constant over all rows are labelled by the
     varying fields only.
     """
-    import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     ok = [r for r in rows if r.get("status") == "ok"]
     panels = list(dict.fromkeys(_hashable(r.get(panel)) for r in rows))
@@ -170,8 +173,6 @@ def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> l
     seen = list(dict.fromkeys((r.get("effect"), r.get("severity"), _hashable(r.get("weather"))) for r in rows))
     lines = ["| effect | severity | weather (preset effect list) | k |", "|---|---|---|---|"]
     try:
-        from weather_gym.weather.presets import DEFAULT_PRESETS, preset_entry
-
         def status(e: Any, s: Any) -> str:
             try:
                 return "calibrated" if preset_entry(str(e), int(s), presets)["calibrated"] else "nominal"
@@ -214,8 +215,6 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
         summary += f"; this invocation took {wall_s:.0f} s (cells already in results.csv were not re-run)"
     md += [summary + ". Raw rows: [results.csv](results.csv).", ""]
     if config is not None:
-        from dataclasses import asdict, is_dataclass
-
         cfg = asdict(config) if is_dataclass(config) else dict(config)
         md += ["| setting | value |", "|---|---|"]
         for k, v in cfg.items():
@@ -252,7 +251,6 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
             err = str(r.get("error") or "").replace("|", "\\|")
             md.append("| " + " | ".join([*(str(r.get(g)) for g in group_by), str(r.get("seed")), err]) + " |")
         md.append("")
-    from weather_gym.evaluation.evaluate import METRICS
 
     md += ["## Metrics", ""] + [f"- `{k}`: {v}" for k, v in METRICS.items()] + [""]
     return atomic_write(out / "report.md", "\n".join(md), overwrite=overwrite)

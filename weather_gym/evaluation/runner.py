@@ -41,22 +41,27 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import csv
+import ctypes
 import dataclasses
 import io
 import json
 import multiprocessing as mp
 import os
+import pickle
 import re
 import signal
 import sys
 import tempfile
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
+from tqdm.auto import tqdm
 
 from weather_gym._io import atomic_file, open_append
 from weather_gym.errors import (
@@ -331,8 +336,6 @@ def _worker_init(parent_pid: int | None = None) -> None:
     # Ctrl-C is the parent's to handle: it stops submitting, and the pool is torn down.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     with contextlib.suppress(Exception):
-        import cv2
-
         cv2.setNumThreads(1)
     if "torch" in sys.modules:
         with contextlib.suppress(Exception):
@@ -352,8 +355,6 @@ def _die_with_parent(parent_pid: int | None) -> None:
     """
     if sys.platform.startswith("linux"):
         try:
-            import ctypes
-
             libc = ctypes.CDLL(None, use_errno=True)
             if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
                 raise OSError(ctypes.get_errno(), "prctl failed")
@@ -363,7 +364,6 @@ def _die_with_parent(parent_pid: int | None) -> None:
             if parent_pid is not None and os.getppid() != parent_pid:
                 os._exit(1)  # the parent died before the death signal was armed
             return
-    import threading
 
     original = os.getppid() if parent_pid is None else parent_pid
 
@@ -523,8 +523,6 @@ def _ray_execute(cell_fn: CellFn, cell: Cell, key_fields: Sequence[str]) -> tupl
 def _worker_init_env_only() -> None:
     os.environ.update(THREAD_ENV_VARS)
     with contextlib.suppress(Exception):
-        import cv2
-
         cv2.setNumThreads(1)
 
 
@@ -716,8 +714,6 @@ def run_cells(
         n_failed = 0
         bar = None
         if progress:
-            from tqdm.auto import tqdm
-
             bar = tqdm(total=len(cells), initial=len(cells) - len(todo), desc=desc, unit="cell",
                        dynamic_ncols=True)
 
@@ -750,7 +746,6 @@ def run_cells(
 
 def _check_picklable(cell_fn: CellFn, cell: Cell) -> None:
     """Worker processes receive the cell function and cells by pickle: refuse what cannot travel."""
-    import pickle
 
     try:
         pickle.dumps(cell_fn)

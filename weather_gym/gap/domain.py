@@ -29,6 +29,9 @@ from typing import Any
 import cv2
 import numpy as np
 
+from weather_gym.datasets.masks import propose_mask
+from weather_gym.gap.compare import _z_and_p, bootstrap_weights
+
 __all__ = ["DOMAIN_NAMES", "name_differences", "clutter", "compare_clutter", "ego_vehicle"]
 
 DOMAIN_NAMES: dict[str, str] = {
@@ -92,7 +95,6 @@ def compare_clutter(sim: Sequence[float], measured: Sequence[float], *, b: int =
                     alpha: float = 0.01) -> dict[str, Any] | None:
     """A domain entry when the simulator's clutter differs significantly from the measured (bootstrap
     of the difference of means; at least half the measured spread), else None."""
-    from weather_gym.gap.compare import _z_and_p, bootstrap_weights
 
     s, m = np.asarray(sim, np.float64), np.asarray(measured, np.float64)
     s, m = s[np.isfinite(s)], m[np.isfinite(m)]
@@ -127,7 +129,6 @@ def ego_vehicle(frames: Sequence[np.ndarray], masks: Sequence[np.ndarray | None]
                           "mask (skipped by every comparison); the simulator's camera sees none"}
     if len(frames) < 4:
         return None
-    from weather_gym.datasets.masks import propose_mask
 
     try:
         share = float(propose_mask(list(frames)[:60]).mean())

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.optimize import least_squares, minimize_scalar
 
 from weather_gym.gap.compare import GapMeter
 from weather_gym.gap.model import apply_chain, insert_position
@@ -269,8 +270,6 @@ def _with(effect: KnobEffect, **params: float) -> KnobEffect:
 
 
 def _brent(f: Callable[[float], float], lo: float, hi: float, maxiter: int) -> tuple[float, float]:
-    from scipy.optimize import minimize_scalar
-
     if hi - lo < 1e-3:
         return lo, f(lo)
     r = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 0.005, "maxiter": maxiter})
@@ -279,7 +278,6 @@ def _brent(f: Callable[[float], float], lo: float, hi: float, maxiter: int) -> t
 
 def _least_squares(f: Callable[[np.ndarray], np.ndarray], u0: np.ndarray, max_nfev: int) -> np.ndarray:
     """Bounded Gauss-Newton (trust region, finite-difference Jacobian) in unit coordinates."""
-    from scipy.optimize import least_squares
 
     u0 = np.clip(u0, 1e-6, 1.0 - 1e-6)
     r = least_squares(f, u0, bounds=(0.0, 1.0), method="trf", diff_step=0.05, max_nfev=max_nfev,

@@ -23,6 +23,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from weather_gym._io import atomic_write, save_figure
@@ -48,10 +50,8 @@ PLOT_NAMES = ("gap_before_after.png", "perception.png", "disagreements.png", "fr
 
 def write_plots(report: dict[str, Any], session: Any, out: str | os.PathLike, *, overwrite: bool = False) -> list[str]:
     """Write the plots (see module doc); returns their file names."""
-    import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     out = Path(out)
     names = []

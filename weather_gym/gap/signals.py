@@ -55,6 +55,7 @@ import cv2
 import numpy as np
 
 from weather_gym.errors import InputError
+from weather_gym.perception.ignore import inside_mask
 
 __all__ = ["SIGNALS", "SIGNAL_NAMES", "FAMILIES", "Signal", "SignalMask", "signal_mask", "frame_signals",
            "signal_table", "signal_weights"]
@@ -257,8 +258,6 @@ def _cones(y: np.ndarray, rgb: np.ndarray, boxes: np.ndarray | None,
     if boxes is None or len(boxes) == 0:
         return math.nan, math.nan
     if ignored is not None:
-        from weather_gym.perception.ignore import inside_mask
-
         boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
         boxes = boxes[~inside_mask(ignored, boxes)]
     h, w = y.shape

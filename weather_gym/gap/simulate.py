@@ -29,9 +29,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
+from tqdm import tqdm
 
+from weather_gym.camera import CameraConfig
+from weather_gym.datasets.coco import ANNOTATIONS, JOURNAL, CocoWriter, load_coco
+from weather_gym.datasets.render import ViewRenderer, render_dataset
 from weather_gym.errors import InputError
+from weather_gym.sim.look import DEFAULT_LOOK
 
 __all__ = ["FrameSet", "GapData", "MIN_FRAMES", "COMPARE_WIDTH", "MODES", "load_frames", "paired_check", "simulate",
            "split_indices", "frame_state", "same_views", "is_real"]
@@ -171,8 +177,6 @@ def frame_state(record: dict, fx_scale: float = 1.0) -> dict[str, float]:
     cam = record.get("camera")
     k = record.get("intrinsics")
     if cam:
-        from weather_gym.camera import CameraConfig
-
         state["fx"] = CameraConfig(**cam).fx
     elif k:
         state["fx"] = float(k["fx"])
@@ -196,8 +200,6 @@ def is_real(ds: Any) -> bool:
 def load_frames(ds: Any, *, max_width: int | None = None, progress: bool = False, desc: str = "load") -> FrameSet:
     """Read every frame of a ``CocoDataset`` into memory, scaled down once by a whole factor to at most
     ``max_width`` when wider (boxes, depth, ignore masks and focal length scaled with it)."""
-    import cv2
-    from tqdm import tqdm
 
     sizes = {(int(r["width"]), int(r["height"])) for r in ds.images}
     if len(sizes) > 1:
@@ -246,7 +248,6 @@ def same_views(a: FrameSet, b: FrameSet, *, threshold: float = 0.5) -> tuple[boo
     on it), and the score: the median over frame pairs of the median zero-normalised
     cross-correlation of 10x10 patches of luma at 160 px width (outside the ignore masks). Different
     frames of one drive score about 0.1, a frame and itself under heavy fog or blur above 0.5."""
-    import cv2
 
     if len(a) != len(b) or a.size != b.size or not len(a):
         return False, math.nan
@@ -312,8 +313,6 @@ def _camera_of(ds: Any) -> Any:
 
 
 def _view_record(rec: dict, camera: Any, notes: set[str]) -> dict:
-    from weather_gym.sim.look import DEFAULT_LOOK
-
     view = {k: rec[k] for k in ("track", "pose", "speed", "yaw_rate", "seed", "look", "camera") if k in rec}
     if view.get("look") is None:
         view["look"] = DEFAULT_LOOK.to_dict()
@@ -327,10 +326,7 @@ def _view_record(rec: dict, camera: Any, notes: set[str]) -> dict:
 
 def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) -> Path:
     """Re-render every view of ``ds`` into a cached COCO folder; returns the folder."""
-    from tqdm import tqdm
 
-    from weather_gym.datasets.coco import ANNOTATIONS, JOURNAL, CocoWriter
-    from weather_gym.datasets.render import ViewRenderer
 
     camera = _camera_of(ds)
     views = [_view_record(rec, camera, notes) for rec in ds.images]
@@ -366,9 +362,6 @@ def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) ->
 
 def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
                      progress: bool) -> Path:
-    from weather_gym.datasets.coco import ANNOTATIONS, JOURNAL
-    from weather_gym.datasets.render import render_dataset
-
     key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict()})
     out = cache_dir / f"unpaired-{key}"
     if not (out / ANNOTATIONS).is_file():
@@ -433,7 +426,6 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         held_out: fraction of frames held out for the final comparison.
         compare_width: frames wider than this are scaled down once on loading (None: never).
     """
-    from weather_gym.datasets.coco import load_coco
 
     def opened(x: Any) -> Any:
         return x if hasattr(x, "render_view") else load_coco(x)

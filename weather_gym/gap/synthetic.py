@@ -18,17 +18,19 @@ import os
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from weather_gym._io import atomic_write, atomic_write_json, check_output, resolve_inside, write_image
+from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
 from weather_gym.errors import InputError
 from weather_gym.gap.model import apply_chain
 from weather_gym.gap.simulate import frame_state
+from weather_gym.weather import Compose, KnobEffect, parse_weather
 
 __all__ = ["degrade_dataset"]
 
 
 def _effects(weather: Any) -> list:
-    from weather_gym.weather import Compose, KnobEffect, parse_weather
-
     w = weather if isinstance(weather, list) and all(isinstance(e, KnobEffect) for e in weather) else None
     if w is not None:
         return w
@@ -43,9 +45,7 @@ def degrade_dataset(src: str | os.PathLike, dst: str | os.PathLike, weather: Any
     ``weather``: a list of effects or any weather spec (``"blur:0.6"``, ``[{"name": "dim", "k": 0.5}]``).
     Returns the path of the new ``annotations.json``.
     """
-    from tqdm import tqdm
 
-    from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
 
     ds = load_coco(src)  # every file name is checked to stay inside src (record_path)
     dst = Path(dst)

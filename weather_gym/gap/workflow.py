@@ -38,8 +38,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
-from weather_gym._io import atomic_write_json
+from weather_gym._io import atomic_write_json, check_output
 from weather_gym.errors import InputError
 from weather_gym.gap.compare import (
     ALPHA,
@@ -52,6 +53,7 @@ from weather_gym.gap.compare import (
     signal_scale,
 )
 from weather_gym.gap.diagnose import evidence, significant_signals
+from weather_gym.gap.domain import clutter, compare_clutter, ego_vehicle, name_differences
 from weather_gym.gap.fit import (
     PENALTY,
     Evaluator,
@@ -66,9 +68,12 @@ from weather_gym.gap.fit import (
 )
 from weather_gym.gap.model import describe, model_tables, read_model, write_model
 from weather_gym.gap.perception import detect_frames, match_frames, perception_stats
+from weather_gym.gap.report import PLOT_NAMES, write_markdown, write_plots
 from weather_gym.gap.signals import SIGNAL_NAMES, signal_table, signal_weights
 from weather_gym.gap.simulate import COMPARE_WIDTH, MIN_FRAMES, MODES, GapData, simulate
-from weather_gym.weather import KnobEffect
+from weather_gym.perception.detectors import load_detector
+from weather_gym.perception.labels import SmallRule
+from weather_gym.weather import EFFECTS, KnobEffect
 
 __all__ = ["GapConfig", "Comparison", "GapSession", "run_gap", "REPORT_VERSION"]
 
@@ -126,8 +131,6 @@ class GapConfig:
     progress: bool = False
 
     def __post_init__(self) -> None:
-        from weather_gym.weather import EFFECTS
-
         if not 0.0 < self.held_out < 1.0:
             raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
         if self.mode not in MODES:
@@ -240,22 +243,17 @@ class GapSession:
     def _say(self, msg: str) -> None:
         self.log.append(msg)
         if self.config.progress:
-            from tqdm import tqdm
-
             tqdm.write(f"gap: {msg}")
 
     @property
     def detector(self):
         if self._detector is None:
-            from weather_gym.perception.detectors import load_detector
-
             self._detector = load_detector(self.config.detector, threads=1)
         return self._detector
 
     @property
     def min_box_height(self) -> float:
         """The too-small rule at the comparison size and the detector's input scale (image pixels)."""
-        from weather_gym.perception.labels import SmallRule
 
         return SmallRule.for_image(self.data.measured.size, self.detector).min_height_px
 
@@ -356,7 +354,6 @@ class GapSession:
         model with it inserted), ``held_gap`` and ``penalized`` (held-out gap times 1 + PENALTY per
         parameter), plus ``screened``: every candidate's best k on the grid.
         """
-        from tqdm import tqdm
 
         t0 = time.perf_counter()
         names = names if names is not None else self.config.candidates
@@ -526,7 +523,6 @@ class GapSession:
         """Domain differences (see :mod:`~weather_gym.gap.domain`): the measured clear reference against
         clean simulator frames (did mode), or the measured frames against them when the comparison is
         confounded; None in the other modes (same camera, or the simulator's own frames)."""
-        from weather_gym.gap.domain import clutter, compare_clutter, ego_vehicle, name_differences
 
         d, cfg = self.data, self.config
         if d.did:
@@ -712,13 +708,10 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
     (default ``out/cache``); an existing report in ``out`` is never overwritten unless ``overwrite``.
     Returns the report dict as written to ``report.json``.
     """
-    from weather_gym.gap.report import write_markdown, write_plots
 
     config = config or GapConfig()
     out = Path(out)
     t_start = time.perf_counter()
-    from weather_gym._io import check_output
-    from weather_gym.gap.report import PLOT_NAMES
 
     for name in ("report.json", "model.toml", "report.md", *(PLOT_NAMES if plots else ())):
         check_output(out / name, overwrite=overwrite)

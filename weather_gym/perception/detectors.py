@@ -37,55 +37,23 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 
 from weather_gym.errors import InputError, MissingInputError
-from weather_gym.perception.detector import Detections, check_frame
+from weather_gym.perception.detector import DEFAULT_MODEL, ConeDetector, Detections, check_frame
+from weather_gym.perception.detector_base import Detector, DetectorBase
+from weather_gym.perception.yolo import YoloDetector
 
 __all__ = ["Detector", "DetectorBase", "CallableDetector", "DetectorSpec", "KINDS", "as_detector", "load_detector",
            "parse_detector_spec", "detector_id"]
 
 KINDS = ("conenet", "yolov8", "yolov5", "yolo")
 _ALIASES = {"shipped": "conenet", "cone": "conenet", "yolov11": "yolov8", "yolo11": "yolov8", "yolov10": "yolov8"}
-
-
-@runtime_checkable
-class Detector(Protocol):
-    """``detector(frame) -> Detections`` for an RGB uint8 frame ``(H, W, 3)``."""
-
-    def __call__(self, frame: np.ndarray) -> Detections: ...
-
-
-class DetectorBase:
-    """What every detector offers; a subclass implements :meth:`detect_batch`.
-
-    Attributes: ``score_threshold`` (operating threshold), ``input_size`` (W, H) of the network or
-    None, ``resize`` (``letterbox``/``stretch``), ``name``.
-    """
-
-    score_threshold: float = 0.3
-    input_size: tuple[int, int] | None = None
-    resize: str = "letterbox"
-    name: str = "detector"
-
-    def detect_batch(self, images: Sequence[np.ndarray] | np.ndarray,
-                     score_threshold: float | None = None) -> list[Detections]:
-        raise NotImplementedError
-
-    def detect(self, image: np.ndarray, score_threshold: float | None = None) -> Detections:
-        """Detections of one frame ``(H, W, 3)``."""
-        return self.detect_batch([check_frame(image, "image")], score_threshold)[0]
-
-    def __call__(self, images, score_threshold: float | None = None):
-        """One frame -> ``Detections``; a batch (4-D array or list) -> ``list[Detections]``."""
-        if isinstance(images, np.ndarray) and images.ndim == 3:
-            return self.detect(images, score_threshold)
-        return self.detect_batch(images, score_threshold)
 
 
 class CallableDetector(DetectorBase):
@@ -144,13 +112,10 @@ class DetectorSpec:
 
     def load(self, threads: int = 1) -> Any:
         if self.kind == "conenet":
-            from weather_gym.perception.detector import ConeDetector
-
             if self.classes is not None or self.resize not in (None, "letterbox") or self.input_size is not None:
                 raise InputError(f"detector {self}: classes, resize and input size are options of YOLO detectors; "
                                  "the ConeNet detector has its own (from its sidecar JSON)")
             return ConeDetector(self.path, threads=threads, score_threshold=self.score_threshold)
-        from weather_gym.perception.yolo import YoloDetector
 
         layout = {"yolov8": "v8", "yolov5": "v5", "yolo": "auto"}[self.kind]
         return YoloDetector(self.path, layout=layout, classes=self.classes, resize=self.resize or "letterbox",
@@ -164,7 +129,6 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
     if isinstance(spec, DetectorSpec):
         if (classes, resize, input_size, score_threshold) == (None, None, None, None):
             return spec
-        from dataclasses import replace
 
         if isinstance(classes, Mapping):
             classes = ",".join(f"{k}={v}" for k, v in classes.items())
@@ -231,7 +195,6 @@ def load_detector(spec: Any = None, *, classes: str | Mapping | None = None, res
 
 def detector_id(spec: Any) -> str:
     """12 hex digits identifying a detector spec: its model file's SHA-256 and its options."""
-    from weather_gym.perception.detector import DEFAULT_MODEL
 
     s = parse_detector_spec(spec)
     h = hashlib.sha256()

@@ -13,10 +13,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import cv2
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from weather_gym._io import save_figure, write_image
 from weather_gym.perception.draw import draw_detections
+from weather_gym.perception.scoring import score_dataset
+from weather_gym.weather import make
 
 STUDY_CLEAN_MAP = 0.715
 """The study's detector on its simulator, clean (Fursa et al., Fig. 7)."""
@@ -27,10 +33,7 @@ STUDY_POINTS: dict[str, tuple[float, float]] = {"droplets": (0.55, 0.490), "dim"
 def sweep_map_vs_k(dataset, detector, ks: Sequence[float], effects: Sequence[str] = ("droplets", "dim"), seed: int = 0,
                    limit: int | None = None, progress: bool = True) -> dict[str, list[dict[str, Any]]]:
     """mAP@0.5 and COCO mAP of ``detector`` on ``dataset`` for each effect at each k."""
-    from tqdm import tqdm
 
-    from weather_gym.perception.scoring import score_dataset
-    from weather_gym.weather import make
 
     out: dict[str, list[dict[str, Any]]] = {}
     jobs = [(e, float(k)) for e in effects for k in ks]
@@ -43,10 +46,8 @@ def sweep_map_vs_k(dataset, detector, ks: Sequence[float], effects: Sequence[str
 def plot_map_vs_k(sweep: dict[str, list[dict[str, Any]]], out: str | os.PathLike, title: str = "", *,
                   overwrite: bool = False) -> Path:
     """Plot the sweep, relative to clean, with the study's relative drops at its two points."""
-    import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=110)
     colors = {"droplets": "tab:blue", "dim": "tab:orange"}
@@ -73,9 +74,7 @@ def detections_figure(image: np.ndarray, detector, out: str | os.PathLike, *, de
                       state: dict | None = None, seed: int = 0, captions: dict[str, str] | None = None,
                       overwrite: bool = False) -> Path:
     """Three panels of one frame with detected boxes: clean | droplets k=0.55 | dim k=0.78."""
-    import cv2
 
-    from weather_gym.weather import make
 
     panels = []
     for name, k in (("clean", 0.0), ("droplets", 0.55), ("dim", 0.78)):

@@ -36,10 +36,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
+from tqdm import tqdm
 
+from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import InputError
+from weather_gym.perception.ignore import inside_mask
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, SmallRule, tiny_mask, xyxy_to_xywh
+from weather_gym.weather import parse_weather
 
 __all__ = ["EvalResult", "evaluate", "score_dataset", "small_rule", "coco_lists", "coco_eval", "DEFAULT_RANGE_BINS"]
 
@@ -141,7 +147,6 @@ def coco_lists(frames: Sequence[Any], detections: Sequence[Any], *,
     ``min_box_height`` when it is given (the rule at the detector's input scale), else the frame's
     stored ``iscrowd`` flags, else shorter than ``MIN_BOX_HEIGHT_PX``.
     """
-    from weather_gym.perception.ignore import inside_mask
 
     if len(frames) != len(detections):
         raise InputError(f"got {len(frames)} ground-truth frames but {len(detections)} detection lists")
@@ -191,8 +196,6 @@ def coco_eval(images: list[dict], gt_anns: list[dict], dt_anns: list[dict], *,
     ``iou_50_only``: match at IoU 0.5 only, one area range ("all") and 100 detections per image,
     the matching the gap workflow bootstraps.
     """
-    from pycocotools.coco import COCO
-    from pycocotools.cocoeval import COCOeval
 
     with contextlib.redirect_stdout(io.StringIO()):
         coco_gt = COCO()
@@ -286,7 +289,6 @@ def small_rule(dataset: Any, detector: Any = None) -> SmallRule | None:
 def _resolve_effect(effect: Any) -> Callable | None:
     if effect is None or callable(effect):
         return effect
-    from weather_gym.weather import parse_weather  # specs: "droplets:0.55", {"dim": 0.78}, presets ...
 
     return parse_weather(effect)
 
@@ -311,7 +313,6 @@ def score_dataset(
     gives the same degraded frames. Detections are kept down to ``keep_threshold`` (low, so the AP
     curve is complete); recall by range uses the detector's operating ``score_threshold``.
     """
-    from tqdm import tqdm
 
     eff = _resolve_effect(effect)
     n = len(dataset) if limit is None else min(len(dataset), int(limit))
@@ -327,8 +328,6 @@ def score_dataset(
                 state = {"speed": float(rec.get("speed", 0.0)), "yaw_rate": float(rec.get("yaw_rate", 0.0))}
                 cam = rec.get("camera")
                 if cam:
-                    from weather_gym.camera import CameraConfig
-
                     c = CameraConfig(**cam)
                     state.update(exposure_s=c.exposure_s, fx=c.fx)
                 if hasattr(eff, "reset"):

@@ -27,12 +27,16 @@ from typing import Any
 import cv2
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from weather_gym._io import atomic_path, atomic_write_json, check_output
 from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.datasets.coco import load_coco
 from weather_gym.errors import FileFormatError, InputError
+from weather_gym.perception.detector import Detections
 from weather_gym.perception.model import NUM_CLASSES, STRIDE, ConeNet, ConeNetExport
-from weather_gym.perception.preprocess import PAD_VALUE, letterbox_params
+from weather_gym.perception.preprocess import PAD_VALUE, decode, letterbox, letterbox_params
+from weather_gym.perception.scoring import evaluate
 
 __all__ = ["TrainConfig", "train_detector", "export_onnx", "build_targets", "augment", "detection_loss"]
 
@@ -290,9 +294,6 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
 # ----------------------------------------------------------------------------------- training
 def _eval_map(net: ConeNet, val, cfg: TrainConfig, max_images: int = 200) -> float:
     """mAP@0.5 of the torch model on (up to ``max_images`` frames of) ``val``, via the runtime decoder."""
-    from weather_gym.perception.detector import Detections
-    from weather_gym.perception.preprocess import decode, letterbox
-    from weather_gym.perception.scoring import evaluate
 
     model = ConeNetExport(net).eval()
     n = min(len(val), max_images)
@@ -327,9 +328,7 @@ def train_detector(
     training continues from it. It is removed once the ONNX file is written. An existing ``out``
     (or its sidecar) is refused before training unless ``overwrite``.
     """
-    from tqdm import tqdm
 
-    from weather_gym.datasets.coco import load_coco
 
     if not data:
         raise InputError("no training data given")

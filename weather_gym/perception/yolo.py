@@ -43,8 +43,9 @@ import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.perception.detector import Detections
-from weather_gym.perception.detectors import DetectorBase, check_frame
+from weather_gym.perception.detector import Detections, check_frame
+from weather_gym.perception.detector_base import DetectorBase
+from weather_gym.perception.labels import DEFAULT_CLASSES, IGNORE, parse_class_map
 from weather_gym.perception.preprocess import letterbox
 
 __all__ = ["YoloDetector", "resolve_class_map", "LAYOUTS"]
@@ -56,7 +57,6 @@ _PAD = 114
 def resolve_class_map(classes: str | Mapping[str, str] | None, nc: int | None, names: Sequence[str] | None,
                       where: str) -> np.ndarray:
     """Output class index -> cone class id (-1: dropped) for ``nc`` output classes (see module doc)."""
-    from weather_gym.perception.labels import DEFAULT_CLASSES, IGNORE, parse_class_map
 
     if classes is None:
         if not names:
@@ -340,7 +340,6 @@ def _map_size(classes: Any) -> int | None:
     """Number of output classes a by-index class map implies (None when it names classes or has ``*``)."""
     if classes is None:
         return None
-    from weather_gym.perception.labels import parse_class_map
 
     cmap = parse_class_map(classes)
     if "*" in cmap or not all(k.isdigit() for k in cmap):

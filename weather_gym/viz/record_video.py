@@ -37,6 +37,14 @@ from weather_gym.viz.video import VideoWriter
 __all__ = ["RecordVideo"]
 
 
+def capped_cubic_video_schedule(episode_id: int) -> bool:
+    """Gymnasium's default trigger (episodes 0, 1, 8, 27, ... below 1000, then every 1000th),
+    kept here because ``gymnasium.utils.save_video`` needs moviepy, which this wrapper does not."""
+    if episode_id < 1000:
+        return int(round(episode_id ** (1.0 / 3))) ** 3 == episode_id
+    return episode_id % 1000 == 0
+
+
 class RecordVideo(gym.Wrapper):
     """Record ``env.render()`` frames of chosen episodes or step ranges to MP4 files (see the module doc).
 
@@ -59,8 +67,6 @@ class RecordVideo(gym.Wrapper):
         if env.render_mode != "rgb_array":
             raise InputError(f"RecordVideo needs render_mode='rgb_array' (frames as arrays), got {env.render_mode!r}")
         if episode_trigger is None and step_trigger is None:
-            from gymnasium.utils.save_video import capped_cubic_video_schedule
-
             episode_trigger = capped_cubic_video_schedule
         if isinstance(video_length, bool) or not isinstance(video_length, int) or video_length < 0:
             raise InputError(f"RecordVideo: video_length must be an integer >= 0 (0 = whole episodes), got {video_length!r}")

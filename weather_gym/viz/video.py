@@ -30,6 +30,7 @@ from collections.abc import Sequence
 from fractions import Fraction
 from pathlib import Path
 
+import av
 import cv2
 import numpy as np
 
@@ -62,8 +63,6 @@ class _AvStream:
     codec = "h264"
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
-        import av
-
         self._container = av.open(str(path), mode="w", format="mp4", options={"movflags": H264_OPTIONS["movflags"]})
         rate = Fraction(fps).limit_denominator(1001)
         self._stream = self._container.add_stream("libx264", rate=rate)

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.weather import spec as _spec  # spec imports this module: attribute use at call time
 
 try:
     import tomllib
@@ -72,8 +73,6 @@ def _check_severity(severity: Any) -> int:
 
 
 def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
-    from weather_gym.weather.spec import parse_weather  # spec imports this module
-
     tables = data.get("presets")
     if not isinstance(tables, list):
         raise FileFormatError(f"{path}: expected [[presets]] tables")
@@ -93,7 +92,7 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
             sev = _check_severity(t["severity"])
             if not isinstance(t["effects"], list):
                 raise FileFormatError(f"effects must be a list of {{name, k, ...}} tables, got {t['effects']!r}")
-            parse_weather(t["effects"])
+            _spec.parse_weather(t["effects"])
         except ValueError as exc:
             raise FileFormatError(f"{where}: {exc}") from None
         if sev in out[cond]:

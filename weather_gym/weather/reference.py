@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+from PIL import Image, ImageEnhance
 
 __all__ = ["STUDY_FOG_COEF", "fog_layout", "study_dim", "study_droplets", "study_fog_positions"]
 
@@ -92,6 +93,5 @@ def study_droplets(image: np.ndarray, k: float, rng: np.random.Generator,
 
 def study_dim(image: np.ndarray, k: float) -> np.ndarray:
     """The study's light dimming: Pillow's brightness enhancement with factor ``1 - k``."""
-    from PIL import Image, ImageEnhance  # Pillow is a dev/benchmark dependency only
 
     return np.asarray(ImageEnhance.Brightness(Image.fromarray(image)).enhance(1.0 - k))

@@ -29,14 +29,15 @@ Example:
 
 from __future__ import annotations
 
+import json
 import numbers
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from weather_gym.errors import InputError
+from weather_gym.weather import presets as _presets  # presets imports this module: attribute use at call time
 from weather_gym.weather.base import Effect, KnobEffect
 from weather_gym.weather.compose import Compose
-from weather_gym.weather.presets import preset_spec
 from weather_gym.weather.registry import EFFECTS, make
 from weather_gym.weather.schedule import Ramp
 
@@ -79,12 +80,10 @@ def _from_item(name: Any, value: Any) -> Effect:
 
 
 def _preset(condition: Any, severity: Any) -> list[Effect]:
-    return [_from_table(t) for t in preset_spec(condition, severity)]
+    return [_from_table(t) for t in _presets.preset_spec(condition, severity)]
 
 
 def _param_value(text: str) -> Any:
-    import json
-
     try:
         return json.loads(text)
     except json.JSONDecodeError:

@@ -43,6 +43,7 @@ from weather_gym.camera import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
+from weather_gym.perception.detectors import DetectorSpec, as_detector, load_detector
 from weather_gym.perception.ranging import cones_to_observation, detections_to_cones
 
 __all__ = ["DetectorWrapper"]
@@ -88,7 +89,6 @@ class DetectorWrapper(gym.ObservationWrapper):
     ) -> None:
         super().__init__(env)
         self.latency_in_info = bool(latency_in_info)
-        from weather_gym.perception.detectors import DetectorSpec, as_detector, load_detector
 
         if not isinstance(max_cones, int) or max_cones < 1:
             raise InputError(f"DetectorWrapper: max_cones must be a positive integer, got {max_cones!r}")

@@ -35,6 +35,9 @@ from typing import Any
 
 import gymnasium as gym
 
+from weather_gym.wrappers.detector import DetectorWrapper
+from weather_gym.wrappers.weather import WeatherWrapper
+
 __all__ = ["EpisodeStatistics", "latencies"]
 
 
@@ -97,8 +100,6 @@ class EpisodeStatistics(gym.Wrapper):
 def latencies(env: gym.Env) -> dict[str, float]:
     """Milliseconds the weather and the detector wrappers in ``env``'s chain took on the last step
     (``{"weather_ms": ..., "detector_ms": ...}``, 0 for a stage that is not there)."""
-    from weather_gym.wrappers.detector import DetectorWrapper
-    from weather_gym.wrappers.weather import WeatherWrapper
 
     out = {"weather_ms": 0.0, "detector_ms": 0.0}
     e: Any = env

@@ -36,6 +36,9 @@ import gymnasium as gym
 import numpy as np
 
 from weather_gym.errors import InputError
+from weather_gym.weather import make
+from weather_gym.weather.presets import canonical_condition, preset_spec
+from weather_gym.wrappers.weather import WeatherWrapper
 
 __all__ = ["RandomWeather", "SCHEDULES", "WeatherRandomizer"]
 
@@ -82,9 +85,6 @@ class RandomWeather:
     every: int = 300
 
     def __post_init__(self) -> None:
-        from weather_gym.weather import make
-        from weather_gym.weather.presets import canonical_condition, preset_spec
-
         presets = (self.presets,) if isinstance(self.presets, str) else tuple(self.presets)
         object.__setattr__(self, "presets", tuple(canonical_condition(c) for c in presets))
         object.__setattr__(self, "severities", tuple(self.severities))
@@ -118,7 +118,6 @@ class RandomWeather:
 
         Every draw takes the same count of numbers from ``rng``, whatever it draws.
         """
-        from weather_gym.weather.presets import preset_spec
 
         u_clear = rng.random()
         c_idx = int(rng.integers(len(self.presets))) if self.presets else 0
@@ -162,8 +161,6 @@ class WeatherRandomizer(gym.Wrapper):
         try:
             env.get_wrapper_attr("set_weather")
         except AttributeError:
-            from weather_gym.wrappers.weather import WeatherWrapper
-
             try:
                 env = WeatherWrapper(env)
             except ValueError as exc:
