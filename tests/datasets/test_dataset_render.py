@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from weather_gym.datasets import coco as coco_mod
 from weather_gym.datasets import load_coco, render_dataset
-from weather_gym.datasets import render as render_mod
 from weather_gym.datasets.render import episode_plan
 
 pytestmark = pytest.mark.slow
@@ -39,13 +39,13 @@ def test_records_and_annotations_carry_the_contract_fields(rendered):
 
 
 def test_same_seed_same_bytes_and_interrupted_render_resumes(rendered, tmp_path, monkeypatch):
-    class Crash(render_mod.CocoWriter):
+    class Crash(coco_mod.CocoWriter):
         def add(self, *a, **k):
             if self.done >= 3:
                 raise KeyboardInterrupt
             return super().add(*a, **k)
 
-    monkeypatch.setattr(render_mod, "CocoWriter", Crash)
+    monkeypatch.setattr(coco_mod, "CocoWriter", Crash)  # render writes through coco.CocoWriter
     with pytest.raises(KeyboardInterrupt):
         render_dataset(tmp_path / "b", **KW)
     monkeypatch.undo()
