@@ -128,7 +128,9 @@ class EvalConfig:
         env_id: a Gymnasium id registered by weather-gym (a scenario).
         perception: a mode of ``weather_gym.pipeline.PERCEPTION_MODES``: ``detector`` (the ONNX
             detector), ``oracle`` (the rendered ground truth as a cone list), ``gt_cones`` (ground-truth
-            cones from geometry; nothing rendered, so no weather) or ``camera`` (no perception).
+            cones from geometry; nothing rendered, so no weather), ``surrogate`` (the detector's
+            statistics in the cell's weather, drawn from ``weather_gym.surrogate``; nothing rendered)
+            or ``camera`` (no perception).
         laps: laps per episode; max_steps: the episode's time limit in steps (``TimeLimit``).
         agent_kwargs, env_kwargs, perception_kwargs: JSON-able keyword arguments of the agent factory,
             of ``gymnasium.make`` (e.g. ``{"camera": {"width": 336, "height": 188}}``) and of the
