@@ -3,7 +3,7 @@
 Examples:
     weather-gym surrogate log --track small_track --weather droplets@3 --seeds 0,1 --steps 600 --out logs/d3.npz
     weather-gym surrogate fit logs/*.npz --out model.npz
-    weather-gym surrogate validate --track hairpin --seeds 0,1,2 --out docs/surrogate
+    weather-gym surrogate validate --track hairpin --full-logs scratch/val_logs --out docs/surrogate/validation
 """
 
 from __future__ import annotations
@@ -43,7 +43,12 @@ def register(sub) -> None:
     lg.add_argument("--weather", action="append", default=None, metavar="SPEC",
                     help="weather spec, repeatable (e.g. clear, droplets@3, low_light@2; default clear)")
     lg.add_argument("--seeds", default="0", help="comma-separated episode seeds (default %(default)s)")
-    lg.add_argument("--steps", type=int, default=600, help="steps per episode (default %(default)s)")
+    lg.add_argument("--steps", type=int, default=600, help="steps per episode, at most (default %(default)s)")
+    lg.add_argument("--agent", default="gt_pure_pursuit", choices=("gt_pure_pursuit", "mapper_pure_pursuit"),
+                    help="driver: gt_pure_pursuit (the true track) or mapper_pure_pursuit (drives on the cone "
+                         "list; its lap metrics are kept) (default %(default)s)")
+    lg.add_argument("--perception", default="detector", choices=("detector", "surrogate"),
+                    help="detector: the full pipeline (default); surrogate: the same tables from the surrogate")
     add_detector_args(lg, what="the detector whose errors are logged")
     lg.add_argument("--out", type=Path, required=True, metavar="LOG.npz", help="output log")
     add_overwrite_arg(lg)
@@ -60,11 +65,12 @@ def register(sub) -> None:
     va.add_argument("--track", default="hairpin", help="track (not used for fitting; default %(default)s)")
     va.add_argument("--conditions", default="droplets,low_light", help="conditions (default %(default)s)")
     va.add_argument("--severities", default="0,1,2,3,4", help="severities (default %(default)s)")
-    va.add_argument("--seeds", default="0,1,2", help="episode seeds (default %(default)s)")
-    va.add_argument("--steps", type=int, default=400, help="steps per cone-statistics episode (default %(default)s)")
-    va.add_argument("--lap-seeds", default="0,1,2", help="seeds of the mapper_pure_pursuit laps (default %(default)s)")
-    va.add_argument("--full-logs", type=Path, default=None, metavar="LOG.npz",
-                    help="reuse a full-pipeline log of this track (else it is recorded)")
+    va.add_argument("--seeds", default="0,1,2", help="full-pipeline seeds (default %(default)s)")
+    va.add_argument("--surrogate-seeds", default="0,1,2,3,4,5,6,7,8,9", help="surrogate seeds (default %(default)s)")
+    va.add_argument("--steps", type=int, default=900, help="steps per lap, at most (default %(default)s)")
+    va.add_argument("--full-logs", type=Path, default=None, metavar="DIR",
+                    help="folder of full-pipeline logs of this track (clear.npz, droplets_3.npz, ...): reused, "
+                         "missing ones recorded there (default OUT/full_logs)")
     va.add_argument("--out", type=Path, required=True, metavar="DIR", help="report folder (report.md, PNGs, JSON)")
     add_overwrite_arg(va)
     va.set_defaults(func=_validate)
@@ -85,7 +91,8 @@ def _log(args) -> int:
     for t in tracks:
         load_track(t)
     log = record(tracks=tracks, weathers=args.weather or ["clear"], seeds=_ints(args.seeds, "--seeds"),
-                 steps=args.steps, detector=detector_spec_from_args(args),
+                 steps=args.steps, detector=detector_spec_from_args(args) if args.perception == "detector" else None,
+                 agent=args.agent, perception=args.perception,
                  progress=lambda line: print(line, file=sys.stderr, flush=True))
     save_log(log, args.out, overwrite=args.overwrite)
     print(f"wrote {args.out}: {len(log.episodes)} episodes, {len(log)} frames, {len(log.cones['frame'])} cone rows, "
@@ -107,11 +114,14 @@ def _fit(args) -> int:
 
 
 def _validate(args) -> int:
+    if args.steps < 1:
+        raise InputError(f"--steps must be >= 1, got {args.steps}")
     from weather_gym.surrogate.validate import validate
 
     validate(model=args.model, track=args.track, conditions=_names(args.conditions),
              severities=_ints(args.severities, "--severities"), seeds=_ints(args.seeds, "--seeds"),
-             steps=args.steps, lap_seeds=_ints(args.lap_seeds, "--lap-seeds"), full_logs=args.full_logs,
+             surrogate_seeds=_ints(args.surrogate_seeds, "--surrogate-seeds"), steps=args.steps,
+             full_logs=args.full_logs,
              out=args.out, overwrite=args.overwrite,
              progress=lambda line: print(line, file=sys.stderr, flush=True))
     return 0

@@ -222,13 +222,19 @@ def _stack(parts: dict[str, list], columns: dict[str, str]) -> dict[str, np.ndar
 
 
 def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[int], steps: int,
-           detector: Any = None, env_kwargs: dict[str, Any] | None = None,
+           detector: Any = None, env_kwargs: dict[str, Any] | None = None, perception: str = "detector",
+           agent: str = "gt_pure_pursuit", perception_kwargs: dict[str, Any] | None = None,
            progress: Callable[[str], None] | None = None) -> SurrogateLog:
-    """Drive ``steps`` steps per (track, weather, seed) through the full pipeline and log them.
+    """Drive ``steps`` steps (at most) per (track, weather, seed) and log them.
 
-    ``detector``: the ``DetectorWrapper``'s detector (None: the shipped model). ``env_kwargs``:
-    further ``EnvConfig`` overrides (``camera=...``).
+    ``perception``: ``detector`` (the full pipeline, the default) or ``surrogate`` (the same tables
+    from the surrogate, for validation). ``agent``: the driver (``gt_pure_pursuit``: the true
+    track; ``mapper_pure_pursuit``: drives on the cone list it receives). ``detector``: the
+    ``DetectorWrapper``'s detector (None: the shipped model). ``env_kwargs``: further ``EnvConfig``
+    overrides (``camera=...``). Each episode's lap metrics are kept in ``episodes``.
     """
+    if perception not in ("detector", "surrogate"):
+        raise InputError(f"surrogate log: perception must be 'detector' or 'surrogate', got {perception!r}")
     from weather_gym.agents import make_agent, run_episode
     from weather_gym.pipeline import make_env
 
@@ -243,21 +249,26 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
     camera_cfg = None
     for track in tracks:
         for weather in weathers:
-            env = make_env(perception="detector", weather=weather, detector=detector, track=track,
-                           ground_truth="geometry", max_episode_steps=steps, **dict(env_kwargs or {}))
+            extra = {"ground_truth": "geometry", "detector": detector} if perception == "detector" else {}
+            env = make_env(perception=perception, weather=weather, track=track, max_episode_steps=steps,
+                           perception_kwargs=perception_kwargs, **extra, **dict(env_kwargs or {}))
             try:
                 base = env.unwrapped
                 camera_cfg = base.config.camera
                 for seed in seeds:
                     rec = _Recorder(len(episodes), camera_cfg)
-                    agent = make_agent("gt_pure_pursuit", base.track, camera_cfg)
-                    res = run_episode(env, agent, seed=int(seed), on_step=rec)
+                    driver = make_agent(agent, base.track, camera_cfg)
+                    res = run_episode(env, driver, seed=int(seed), on_step=rec)
                     spec = env.get_wrapper_attr("weather")
                     from weather_gym.weather import current_spec
 
                     cond, k = condition_of(weather)
                     episodes.append({"track": str(track), "weather": current_spec(spec), "condition": cond, "k": k,
-                                     "seed": int(seed), "steps": int(res.steps), "end": res.end_reason})
+                                     "seed": int(seed), "steps": int(res.steps), "end": res.end_reason, "agent": agent,
+                                     "perception": perception, "completed": bool(res.completed),
+                                     "lap_time_s": res.lap_times_s[0] if res.lap_times_s else None,
+                                     "cones_hit": int(res.cones_hit), "cte_mean_m": float(res.cte_mean_m),
+                                     "progress": float(res.progress)})
                     parts.append(rec)
                     if progress is not None:
                         progress(f"{track} {weather} seed {seed}: {res.steps} steps, "
@@ -357,3 +368,36 @@ def load_log(path: str | os.PathLike) -> SurrogateLog:
         if len(t["episode"]) and (t["episode"].min() < 0 or t["episode"].max() >= len(episodes)):
             raise FileFormatError(f"surrogate log {p}: table {name!r} names an episode outside 0..{len(episodes) - 1}")
     return SurrogateLog(tables["cones"], tables["fps"], tables["frames"], episodes, meta)
+
+
+LOOSE_IOU = 0.1
+"""A false positive overlapping a missed cone by at least this IoU is that cone's *loose* detection."""
+
+
+def loose_matches(log: SurrogateLog, iou: float = LOOSE_IOU) -> np.ndarray:
+    """For each false positive the ``cones`` row of the missed cone it loosely matches (-1: none).
+
+    Most of the detector's false positives are small, far cones boxed a pixel or two off (IoU
+    between 0.1 and 0.5 with the true box): a scoring miss plus a false positive, but to a planner
+    a cone roughly where it is. Greedy by score, IoU >= ``iou``, among the cones of the same frame
+    that no detection matched.
+    """
+    c, f = log.cones, log.fps
+    out = np.full(len(f["frame"]), -1, np.int64)
+    if not len(out):
+        return out
+    ckey = c["episode"].astype(np.int64) * 10_000_000 + c["frame"]
+    fkey = f["episode"].astype(np.int64) * 10_000_000 + f["frame"]
+    corder = np.argsort(ckey, kind="stable")
+    cks = ckey[corder]
+    for key in np.unique(fkey):
+        fi = np.flatnonzero(fkey == key)
+        lo, hi = np.searchsorted(cks, key), np.searchsorted(cks, key, side="right")
+        rows = corder[lo:hi]
+        rows = rows[~c["detected"][rows]]
+        if not len(rows):
+            continue
+        to = match_detections(c["box"][rows], f["box"][fi], f["score"][fi], iou=iou)
+        hit = to >= 0
+        out[fi[hit]] = rows[to[hit]]
+    return out

@@ -49,6 +49,7 @@ from weather_gym._io import atomic_file, check_output
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.surrogate.conditions import condition_of, effect_params
+from weather_gym.surrogate.log import loose_matches
 
 __all__ = ["MODEL_SCHEMA", "SHIPPED_MODEL", "SurrogateModel", "Point", "design", "fit_logistic", "fit_point",
            "fit", "save_model", "load_model", "ERR_RANGE_EDGES", "QUANTILES"]
@@ -175,15 +176,24 @@ class Point:
     fp_mean: float
     fp_var: float
     fp_rows: np.ndarray  # (M, 8): range, bearing, cls, score, x1, y1, x2, y2
+    coef_loose: np.ndarray
+    loose_range_err_q: np.ndarray
+    loose_bearing_err_q: np.ndarray
+    loose_score_q: np.ndarray
+    det_box_d: np.ndarray  # (M, 4): reported box - true box, in units of the true box height
+    loose_box_d: np.ndarray
     stats: dict[str, float] = field(default_factory=dict)
 
-    ARRAYS = ("coef", "confusion", "range_err_q", "bearing_err_q", "score_q", "fp_rows")
+    ARRAYS = ("coef", "confusion", "range_err_q", "bearing_err_q", "score_q", "fp_rows", "coef_loose",
+              "loose_range_err_q", "loose_bearing_err_q", "loose_score_q", "det_box_d", "loose_box_d")
 
-    def detection_probability(self, ranges, bearings, box_h, vis, classes) -> np.ndarray:
-        """Marginal P(detected) of each cone (the same as ``design(...) @ coef``, summed term by term:
-        a hat basis times its coefficients is the piecewise-linear interpolation of them)."""
-        w = self.coef
-        terms = self.__dict__.get("_terms")
+    def detection_probability(self, ranges, bearings, box_h, vis, classes, *, loose: bool = False) -> np.ndarray:
+        """Marginal P(detected) of each cone (``loose``: P(loosely detected | not detected)); the same
+        as ``sigmoid(design(...) @ coef)``, summed term by term: a hat basis times its coefficients
+        is the piecewise-linear interpolation of them."""
+        w = self.coef_loose if loose else self.coef
+        name = "_terms_loose" if loose else "_terms"
+        terms = self.__dict__.get(name)
         if terms is None:
             i = 1
             terms = []
@@ -191,7 +201,7 @@ class Point:
                 terms.append((knots, np.r_[0.0, w[i:i + len(knots) - 1]]))
                 i += len(knots) - 1
             terms.append(np.r_[0.0, w[i:]])
-            self.__dict__["_terms"] = terms
+            self.__dict__[name] = terms
         (rk, rv), (bk, bv), (hk, hv), (vk, vv), cls = terms
         z = (w[0] + np.interp(ranges, rk, rv) + np.interp(np.abs(bearings), bk, bv)
              + np.interp(np.log(np.maximum(box_h, 1e-3)), hk, hv) + np.interp(vis, vk, vv)
@@ -199,41 +209,80 @@ class Point:
         return _sigmoid(z)
 
 
+def _box_deltas(reported: np.ndarray, true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    h = np.maximum(true[:, 3] - true[:, 1], 1.0)[:, None]
+    d = (np.asarray(reported, np.float64) - true) / h
+    d = d[np.all(np.isfinite(d), axis=1)]
+    if len(d) > MAX_FP_ROWS:
+        d = d[np.sort(rng.choice(len(d), MAX_FP_ROWS, replace=False))]
+    return d if len(d) else np.zeros((1, 4))
+
+
 def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: dict[str, np.ndarray],
-              rng: np.random.Generator | None = None) -> Point:
-    """Fit one point from the rows of one condition and k."""
+              rng: np.random.Generator | None = None, loose: np.ndarray | None = None) -> Point:
+    """Fit one point from the rows of one condition and k.
+
+    ``loose``: for each false positive the ``cones`` row it loosely matches, -1 for none
+    (:func:`weather_gym.surrogate.log.loose_matches`; None: no loose detections).
+    """
+    rng = rng or np.random.default_rng(0)
     if not len(cones["frame"]):
         raise InputError("surrogate fit: a condition has no logged cones")
+    loose = np.full(len(fps["frame"]), -1, np.int64) if loose is None else np.asarray(loose, np.int64)
     X = design(cones["range"], cones["bearing"], cones["box_h"], cones["visibility"], cones["cls"])
     y = cones["detected"].astype(bool)
     coef = fit_logistic(X, y)
     p = _sigmoid(X @ coef)
     prev, cur = _pairs(cones)
     rho = _fit_rho(p[cur], y[prev], y[cur])
+    is_loose = loose >= 0
+    lrow = loose[is_loose]
+    y_loose = np.zeros(len(y), bool)
+    y_loose[lrow] = True
+    coef_loose = fit_logistic(X[~y], y_loose[~y]) if (~y).any() else np.full(N_COEF, 0.0)
+    if not y_loose.any():
+        coef_loose = np.r_[-20.0, np.zeros(N_COEF - 1)]
     conf = np.full((N_CLASSES, N_CLASSES), 0.0)
     np.add.at(conf, (cones["cls"][y].astype(np.int64), cones["det_cls"][y].astype(np.int64)), 1.0)
+    np.add.at(conf, (cones["cls"][lrow].astype(np.int64), fps["cls"][is_loose].astype(np.int64)), 1.0)
     conf += CONFUSION_PRIOR * np.eye(N_CLASSES)
     conf /= conf.sum(axis=1, keepdims=True)
     rr = cones["range"][y]
+    free = ~is_loose
     rows = np.column_stack([fps["range"], fps["bearing"], fps["cls"], fps["score"], fps["box"]]).astype(np.float64)
+    rows = rows[free]
     rows = rows[np.all(np.isfinite(rows), axis=1)]
     if len(rows) > MAX_FP_ROWS:
-        rng = rng or np.random.default_rng(0)
         rows = rows[np.sort(rng.choice(len(rows), MAX_FP_ROWS, replace=False))]
-    n_fp = frames["n_fp"].astype(np.float64)
+    fkey = fps["episode"].astype(np.int64) * 10_000_000 + fps["frame"]
+    frkey = frames["episode"].astype(np.int64) * 10_000_000 + frames["frame"]
+    n_free = np.zeros(len(frkey))
+    if free.any():
+        pos = np.searchsorted(frkey, fkey[free])  # frames are in (episode, frame) order
+        np.add.at(n_free, np.clip(pos, 0, len(frkey) - 1), 1.0)
     miss_prev = ~y[prev]
+    n_fp = frames["n_fp"].astype(np.float64)
     stats = {
         "frames": float(len(frames["frame"])), "cones": float(len(y)), "recall": float(y.mean()),
         "p_miss_after_miss": float(np.mean(~y[cur][miss_prev])) if miss_prev.any() else math.nan,
         "p_miss_after_detected": float(np.mean(~y[cur][~miss_prev])) if (~miss_prev).any() else math.nan,
-        "false_positives": float(n_fp.sum()),
+        "false_positives": float(n_fp.sum()), "loose": float(is_loose.sum()),
     }
+    lr = cones["range"][lrow]
     return Point(coef=coef, rho=rho, confusion=conf,
                  range_err_q=_quantiles(cones["range_err"][y], rr, ERR_RANGE_EDGES),
                  bearing_err_q=_quantiles(cones["bearing_err"][y], rr, ERR_RANGE_EDGES),
                  score_q=np.quantile(cones["det_score"][y], QUANTILES) if y.any() else np.full(len(QUANTILES), 0.5),
-                 fp_mean=float(n_fp.mean()) if len(n_fp) else 0.0,
-                 fp_var=float(n_fp.var(ddof=1)) if len(n_fp) > 1 else 0.0, fp_rows=rows, stats=stats)
+                 fp_mean=float(n_free.mean()) if len(n_free) else 0.0,
+                 fp_var=float(n_free.var(ddof=1)) if len(n_free) > 1 else 0.0, fp_rows=rows,
+                 coef_loose=coef_loose,
+                 loose_range_err_q=_quantiles(fps["range"][is_loose] - lr, lr, ERR_RANGE_EDGES),
+                 loose_bearing_err_q=_quantiles(fps["bearing"][is_loose] - cones["bearing"][lrow], lr, ERR_RANGE_EDGES),
+                 loose_score_q=np.quantile(fps["score"][is_loose], QUANTILES) if is_loose.any()
+                 else np.full(len(QUANTILES), 0.5),
+                 det_box_d=np.zeros((1, 4)),  # the log keeps no matched box: reported = true box (IoU 1)
+                 loose_box_d=_box_deltas(fps["box"][is_loose], cones["box"][lrow].astype(np.float64), rng),
+                 stats=stats)
 
 
 def _mix(a: Point, b: Point, w: float) -> Point:
@@ -247,10 +296,16 @@ def _mix(a: Point, b: Point, w: float) -> Point:
         return (1.0 - w) * np.asarray(x) + w * np.asarray(y)
 
     conf = lerp(a.confusion, b.confusion)
+    near = b if w >= 0.5 else a  # box deltas: resampled from the nearer point
     out = Point(coef=lerp(a.coef, b.coef), rho=float(lerp(a.rho, b.rho)), confusion=conf / conf.sum(1, keepdims=True),
                 range_err_q=lerp(a.range_err_q, b.range_err_q), bearing_err_q=lerp(a.bearing_err_q, b.bearing_err_q),
                 score_q=lerp(a.score_q, b.score_q), fp_mean=float(lerp(a.fp_mean, b.fp_mean)),
-                fp_var=float(lerp(a.fp_var, b.fp_var)), fp_rows=np.vstack([a.fp_rows, b.fp_rows]))
+                fp_var=float(lerp(a.fp_var, b.fp_var)), fp_rows=np.vstack([a.fp_rows, b.fp_rows]),
+                coef_loose=lerp(a.coef_loose, b.coef_loose),
+                loose_range_err_q=lerp(a.loose_range_err_q, b.loose_range_err_q),
+                loose_bearing_err_q=lerp(a.loose_bearing_err_q, b.loose_bearing_err_q),
+                loose_score_q=lerp(a.loose_score_q, b.loose_score_q), det_box_d=near.det_box_d,
+                loose_box_d=near.loose_box_d)
     out.stats = {"fp_weight_b": w, "fp_rows_a": float(len(a.fp_rows))}
     return out
 
@@ -304,13 +359,14 @@ class SurrogateModel:
 
     def summary(self) -> str:
         """One line per fitted point: recall, P(miss | miss), P(miss | detected), rho, false positives per frame."""
-        lines = ["condition    k       frames  cones   recall  P(miss|miss) P(miss|det) rho    FP/frame"]
+        lines = ["condition    k       frames  cones   recall  P(miss|miss) P(miss|det) rho    FP/frame loose/frame"]
         rows = [("clear", 0.0, self.clear)] + [(c, k, p) for c, pts in self.points.items() for k, p in pts]
         for cond, k, p in rows:
             s = p.stats
             lines.append(f"{cond:<12} {k:<7.3f} {s.get('frames', 0):>6.0f} {s.get('cones', 0):>7.0f} "
                          f"{s.get('recall', math.nan):>6.3f}  {s.get('p_miss_after_miss', math.nan):>11.3f} "
-                         f"{s.get('p_miss_after_detected', math.nan):>11.3f} {p.rho:.3f}  {p.fp_mean:.2f}")
+                         f"{s.get('p_miss_after_detected', math.nan):>11.3f} {p.rho:.3f}  {p.fp_mean:>8.2f} "
+                         f"{s.get('loose', math.nan) / max(s.get('frames', 1.0), 1.0):>11.2f}")
         return "\n".join(lines)
 
 
@@ -333,7 +389,7 @@ def fit(log: Any, sources: Sequence[str] = ()) -> SurrogateModel:
     fitted: dict[tuple[str, float], Point] = {}
     for key, eps in sorted(groups.items()):
         part = log.select(eps)
-        fitted[key] = fit_point(part.cones, part.fps, part.frames, rng)
+        fitted[key] = fit_point(part.cones, part.fps, part.frames, rng, loose=loose_matches(part))
     points: dict[str, list[tuple[float, Point]]] = {}
     for (cond, k), p in sorted(fitted.items()):
         if cond != "clear":
@@ -371,9 +427,12 @@ def save_model(model: SurrogateModel, path: str | os.PathLike, *, overwrite: boo
     return str(path)
 
 
-_SHAPES = {"coef": (N_COEF,), "confusion": (N_CLASSES, N_CLASSES),
-           "range_err_q": (len(ERR_RANGE_EDGES) - 1, len(QUANTILES)),
-           "bearing_err_q": (len(ERR_RANGE_EDGES) - 1, len(QUANTILES)), "score_q": (len(QUANTILES),)}
+_QSHAPE = (len(ERR_RANGE_EDGES) - 1, len(QUANTILES))
+_SHAPES = {"coef": (N_COEF,), "coef_loose": (N_COEF,), "confusion": (N_CLASSES, N_CLASSES),
+           "range_err_q": _QSHAPE, "bearing_err_q": _QSHAPE, "loose_range_err_q": _QSHAPE,
+           "loose_bearing_err_q": _QSHAPE, "score_q": (len(QUANTILES),), "loose_score_q": (len(QUANTILES),),
+           "scalars": (3,)}
+_ROWS = {"fp_rows": 8, "det_box_d": 4, "loose_box_d": 4}
 
 
 def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any) -> Point:
@@ -383,17 +442,21 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
         if key not in data:
             raise FileFormatError(f"{where}: missing array {key!r}")
         a = np.asarray(data[key], np.float64)
-        want = _SHAPES.get(name, (8,) if name == "fp_rows" else (3,))
-        shape_ok = a.shape[1:] == (8,) and a.ndim == 2 if name == "fp_rows" else a.shape == want
+        if name in _ROWS:
+            want: Any = f"(M, {_ROWS[name]})"
+            shape_ok = a.ndim == 2 and a.shape[1] == _ROWS[name]
+        else:
+            want = _SHAPES[name]
+            shape_ok = a.shape == want
         if not shape_ok:
-            raise FileFormatError(f"{where}: array {key!r} has shape {a.shape}, expected {want if name != 'fp_rows' else '(M, 8)'}")
+            raise FileFormatError(f"{where}: array {key!r} has shape {a.shape}, expected {want}")
         if not np.all(np.isfinite(a)):
             raise FileFormatError(f"{where}: array {key!r} has non-finite values")
         arrays[name] = a
     conf = arrays["confusion"]
     if np.any(conf < 0) or not np.allclose(conf.sum(axis=1), 1.0, atol=1e-6):
         raise FileFormatError(f"{where}: {prefix}/confusion must have non-negative rows summing to 1")
-    for name in ("range_err_q", "bearing_err_q", "score_q"):
+    for name in ("range_err_q", "bearing_err_q", "score_q", "loose_range_err_q", "loose_bearing_err_q", "loose_score_q"):
         if np.any(np.diff(arrays[name], axis=-1) < -1e-9):
             raise FileFormatError(f"{where}: {prefix}/{name} quantiles must be non-decreasing")
     rho, fp_mean, fp_var = arrays["scalars"]
@@ -405,9 +468,12 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
         raise FileFormatError(f"{where}: {prefix}/fp_rows has classes outside 0..{N_CLASSES - 1}")
     if fp_mean > 0 and not len(rows):
         raise FileFormatError(f"{where}: {prefix} has false positives per frame {fp_mean} but no false-positive rows")
-    return Point(coef=arrays["coef"], rho=float(rho), confusion=conf, range_err_q=arrays["range_err_q"],
-                 bearing_err_q=arrays["bearing_err_q"], score_q=arrays["score_q"], fp_mean=float(fp_mean),
-                 fp_var=float(fp_var), fp_rows=rows, stats=dict(stats) if isinstance(stats, dict) else {})
+    for name in ("det_box_d", "loose_box_d"):
+        if not len(arrays[name]):
+            raise FileFormatError(f"{where}: {prefix}/{name} has no rows")
+    named = {n: arrays[n] for n in Point.ARRAYS}
+    return Point(**named, rho=float(rho), fp_mean=float(fp_mean), fp_var=float(fp_var),
+                 stats=dict(stats) if isinstance(stats, dict) else {})
 
 
 _CACHE: dict[tuple[str, float, int], SurrogateModel] = {}

@@ -93,20 +93,29 @@ class FrameSampler:
             before = self._last_det[ids]
             rho = p.rho
             q = np.where(seen_before, np.where(before, prob + rho * (1.0 - prob), prob * (1.0 - rho)), prob)
-            u = rng.random((5, n))
+            u = rng.random((7, n))
             det = u[0] < q
             self._last_step[ids] = step
             self._last_det[ids] = det
-            k = int(det.sum())
-            c = cls[det]
+            # a cone not detected may still be reported "loosely": a box a little off (a scoring miss
+            # plus a false positive), near the cone's true place
+            loose = ~det & (u[5] < p.detection_probability(rng_, brg, box_h, vis, cls, loose=True))
+            rep_any = det | loose
+            c = cls[rep_any]
             cum = np.cumsum(p.confusion[c], axis=1)
-            rep = np.minimum((u[1, det][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
-            r_true = rng_[det]
+            rep = np.minimum((u[1, rep_any][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
+            r_true = rng_[rep_any]
             b = np.minimum(np.searchsorted(ERR_RANGE_EDGES, r_true, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
-            ranges = r_true + _draw(p.range_err_q[b], u[2, det])
-            bearings = brg[det] + _draw(p.bearing_err_q[b], u[3, det])
-            scores = _draw(np.broadcast_to(p.score_q, (k, len(QUANTILES))), u[4, det])
-            out_boxes = boxes[det]
+            lz = loose[rep_any]
+            ur, ub, us = u[2, rep_any], u[3, rep_any], u[4, rep_any]
+            ranges = r_true + np.where(lz, _draw(p.loose_range_err_q[b], ur), _draw(p.range_err_q[b], ur))
+            bearings = brg[rep_any] + np.where(lz, _draw(p.loose_bearing_err_q[b], ub), _draw(p.bearing_err_q[b], ub))
+            sq = np.where(lz[:, None], p.loose_score_q[None, :], p.score_q[None, :])
+            scores = _draw(sq, us)
+            out_boxes = boxes[rep_any]
+            if lz.any():
+                d = p.loose_box_d[(u[6, rep_any][lz] * len(p.loose_box_d)).astype(np.int64)]
+                out_boxes[lz] = out_boxes[lz] + d * box_h[rep_any][lz][:, None]
         else:
             rep = np.zeros(0, np.int64)
             ranges = bearings = scores = np.zeros(0)
