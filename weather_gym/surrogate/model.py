@@ -6,13 +6,18 @@ quantiles, rates; false-positive rows as a mixture), beyond the last fitted ``k`
 extrapolated (an :class:`~weather_gym.errors.InputError`). Each point holds:
 
 * **detection probability**: logistic regression on a linear B-spline ("hat") basis of range,
-  |bearing|, log box height and visibility, plus the class (``coef``; L2-penalised maximum
-  likelihood with scipy's L-BFGS);
+  |bearing|, log box height, visibility and crowding (the largest IoU of the cone's box with
+  another cone's: what non-maximum suppression merges), plus the class (``coef``; L2-penalised
+  maximum likelihood with scipy's L-BFGS);
+* **loose detections**: a cone not detected may be boxed a little off (IoU 0.1-0.5: a scoring
+  miss plus a false positive near the cone): their probability (``coef_loose``, the same basis),
+  range/bearing error and score quantiles, and box offsets (``loose_box_d``);
 * **time correlation**: a per-cone two-state Markov chain with persistence ``rho``:
   P(detected | detected before) = p + rho (1 - p), P(detected | missed before) = p (1 - rho), so a
   cone keeps its marginal p; ``rho`` by maximum likelihood on consecutive frames of the same cone
   (the empirical P(miss | miss) and P(miss | detected) are kept for the report);
-* **class confusion** ``confusion[true, reported]`` (rows sum to 1; a little smoothing to the diagonal);
+* **class confusion** ``confusion[range bin, true, reported]`` (rows sum to 1; a little smoothing to
+  the diagonal);
 * **range and bearing errors** (reported - true) as 41 quantiles per range bin
   (:data:`ERR_RANGE_EDGES`); **score** quantiles of true detections;
 * **false positives**: count per frame, negative binomial by moments (Poisson when not
@@ -60,9 +65,10 @@ RANGE_KNOTS = np.array([0.0, 4.0, 8.0, 12.0, 16.0, 22.0, 30.0, 45.0, 80.0])
 BEARING_KNOTS = np.array([0.0, 0.3, 0.6, 0.9])
 LOGH_KNOTS = np.log(np.array([2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 160.0]))
 VIS_KNOTS = np.array([0.0, 0.4, 0.7, 0.9, 1.0])
+CROWD_KNOTS = np.array([0.0, 0.05, 0.15, 0.3, 0.6, 1.0])
 N_CLASSES = len(CONE_CLASSES)
 N_COEF = 1 + (len(RANGE_KNOTS) - 1) + (len(BEARING_KNOTS) - 1) + (len(LOGH_KNOTS) - 1) + (len(VIS_KNOTS) - 1) \
-    + (N_CLASSES - 1)
+    + (len(CROWD_KNOTS) - 1) + (N_CLASSES - 1)
 ERR_RANGE_EDGES = np.array([0.0, 5.0, 10.0, 15.0, 20.0, 30.0, np.inf])
 QUANTILES = np.linspace(0.0, 1.0, 41)
 MAX_FP_ROWS = 400
@@ -83,9 +89,44 @@ def _hat(x: np.ndarray, knots: np.ndarray) -> np.ndarray:
     return out
 
 
+def crowding(boxes: np.ndarray) -> np.ndarray:
+    """Each box's largest IoU with another box of the same frame (0 when alone): cones boxed together
+    are what non-maximum suppression merges.
+
+    Example:
+        >>> import numpy as np
+        >>> crowding(np.array([[0, 0, 10, 10.], [5, 0, 15, 10.], [50, 50, 60, 60.]])).round(2).tolist()
+        [0.33, 0.33, 0.0]
+    """
+    from weather_gym.surrogate.log import _iou_matrix
+
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    if len(b) < 2:
+        return np.zeros(len(b))
+    m = _iou_matrix(b, b)
+    np.fill_diagonal(m, 0.0)
+    return m.max(axis=1)
+
+
+def crowding_column(cones: dict[str, np.ndarray]) -> np.ndarray:
+    """:func:`crowding` of every row of a log's ``cones`` table, frame by frame."""
+    key = cones["episode"].astype(np.int64) * 10_000_000 + cones["frame"]
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    cuts = np.flatnonzero(np.r_[True, k[1:] != k[:-1], True])
+    out = np.zeros(len(key))
+    boxes = np.asarray(cones["box"], np.float64)
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        rows = order[a:b]
+        out[rows] = crowding(boxes[rows])
+    return out
+
+
 def design(ranges: np.ndarray, bearings: np.ndarray, box_h: np.ndarray, vis: np.ndarray,
-           classes: np.ndarray) -> np.ndarray:
-    """The (N, ``N_COEF``) design matrix: intercept, hat bases (first column of each dropped), class."""
+           classes: np.ndarray, crowd: np.ndarray | None = None) -> np.ndarray:
+    """The (N, ``N_COEF``) design matrix: intercept, hat bases (first column of each dropped), class.
+
+    ``crowd``: :func:`crowding` of each cone (None: 0, every cone alone)."""
     n = len(ranges)
     cls = np.zeros((n, N_CLASSES))
     cls[np.arange(n), np.asarray(classes, np.int64)] = 1.0
@@ -95,6 +136,7 @@ def design(ranges: np.ndarray, bearings: np.ndarray, box_h: np.ndarray, vis: np.
         _hat(np.abs(bearings), BEARING_KNOTS)[:, 1:],
         _hat(np.log(np.maximum(box_h, 1e-3)), LOGH_KNOTS)[:, 1:],
         _hat(vis, VIS_KNOTS)[:, 1:],
+        _hat(np.zeros(n) if crowd is None else crowd, CROWD_KNOTS)[:, 1:],
         cls[:, 1:],
     ])
 
@@ -149,6 +191,11 @@ def _fit_rho(p: np.ndarray, prev: np.ndarray, cur: np.ndarray) -> float:
     return float(minimize_scalar(nll, bounds=(0.0, 0.98), method="bounded").x)
 
 
+def _range_bin(ranges: np.ndarray) -> np.ndarray:
+    """Index of each range's bin of :data:`ERR_RANGE_EDGES`."""
+    return np.minimum(np.searchsorted(ERR_RANGE_EDGES, ranges, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
+
+
 def _quantiles(values: np.ndarray, bins: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(len(edges) - 1, len(QUANTILES)) quantiles of ``values`` per bin; pooled where a bin is thin."""
     v = np.asarray(values, np.float64)
@@ -187,7 +234,8 @@ class Point:
     ARRAYS = ("coef", "confusion", "range_err_q", "bearing_err_q", "score_q", "fp_rows", "coef_loose",
               "loose_range_err_q", "loose_bearing_err_q", "loose_score_q", "det_box_d", "loose_box_d")
 
-    def detection_probability(self, ranges, bearings, box_h, vis, classes, *, loose: bool = False) -> np.ndarray:
+    def detection_probability(self, ranges, bearings, box_h, vis, classes, crowd=None, *,
+                              loose: bool = False) -> np.ndarray:
         """Marginal P(detected) of each cone (``loose``: P(loosely detected | not detected)); the same
         as ``sigmoid(design(...) @ coef)``, summed term by term: a hat basis times its coefficients
         is the piecewise-linear interpolation of them."""
@@ -197,15 +245,15 @@ class Point:
         if terms is None:
             i = 1
             terms = []
-            for knots in (RANGE_KNOTS, BEARING_KNOTS, LOGH_KNOTS, VIS_KNOTS):
+            for knots in (RANGE_KNOTS, BEARING_KNOTS, LOGH_KNOTS, VIS_KNOTS, CROWD_KNOTS):
                 terms.append((knots, np.r_[0.0, w[i:i + len(knots) - 1]]))
                 i += len(knots) - 1
             terms.append(np.r_[0.0, w[i:]])
             self.__dict__[name] = terms
-        (rk, rv), (bk, bv), (hk, hv), (vk, vv), cls = terms
+        (rk, rv), (bk, bv), (hk, hv), (vk, vv), (ck, cv), cls = terms
         z = (w[0] + np.interp(ranges, rk, rv) + np.interp(np.abs(bearings), bk, bv)
              + np.interp(np.log(np.maximum(box_h, 1e-3)), hk, hv) + np.interp(vis, vk, vv)
-             + cls[np.asarray(classes, np.int64)])
+             + (cv[0] if crowd is None else np.interp(crowd, ck, cv)) + cls[np.asarray(classes, np.int64)])
         return _sigmoid(z)
 
 
@@ -229,7 +277,8 @@ def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: 
     if not len(cones["frame"]):
         raise InputError("surrogate fit: a condition has no logged cones")
     loose = np.full(len(fps["frame"]), -1, np.int64) if loose is None else np.asarray(loose, np.int64)
-    X = design(cones["range"], cones["bearing"], cones["box_h"], cones["visibility"], cones["cls"])
+    X = design(cones["range"], cones["bearing"], cones["box_h"], cones["visibility"], cones["cls"],
+               crowding_column(cones))
     y = cones["detected"].astype(bool)
     coef = fit_logistic(X, y)
     p = _sigmoid(X @ coef)
@@ -242,11 +291,14 @@ def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: 
     coef_loose = fit_logistic(X[~y], y_loose[~y]) if (~y).any() else np.full(N_COEF, 0.0)
     if not y_loose.any():
         coef_loose = np.r_[-20.0, np.zeros(N_COEF - 1)]
-    conf = np.full((N_CLASSES, N_CLASSES), 0.0)
-    np.add.at(conf, (cones["cls"][y].astype(np.int64), cones["det_cls"][y].astype(np.int64)), 1.0)
-    np.add.at(conf, (cones["cls"][lrow].astype(np.int64), fps["cls"][is_loose].astype(np.int64)), 1.0)
-    conf += CONFUSION_PRIOR * np.eye(N_CLASSES)
-    conf /= conf.sum(axis=1, keepdims=True)
+    nb = len(ERR_RANGE_EDGES) - 1
+    conf = np.full((nb, N_CLASSES, N_CLASSES), 0.0)
+    np.add.at(conf, (_range_bin(cones["range"][y]), cones["cls"][y].astype(np.int64),
+                     cones["det_cls"][y].astype(np.int64)), 1.0)
+    np.add.at(conf, (_range_bin(cones["range"][lrow]), cones["cls"][lrow].astype(np.int64),
+                     fps["cls"][is_loose].astype(np.int64)), 1.0)
+    conf += CONFUSION_PRIOR * np.eye(N_CLASSES)[None]
+    conf /= conf.sum(axis=2, keepdims=True)
     rr = cones["range"][y]
     free = ~is_loose
     rows = np.column_stack([fps["range"], fps["bearing"], fps["cls"], fps["score"], fps["box"]]).astype(np.float64)
@@ -297,7 +349,7 @@ def _mix(a: Point, b: Point, w: float) -> Point:
 
     conf = lerp(a.confusion, b.confusion)
     near = b if w >= 0.5 else a  # box deltas: resampled from the nearer point
-    out = Point(coef=lerp(a.coef, b.coef), rho=float(lerp(a.rho, b.rho)), confusion=conf / conf.sum(1, keepdims=True),
+    out = Point(coef=lerp(a.coef, b.coef), rho=float(lerp(a.rho, b.rho)), confusion=conf / conf.sum(-1, keepdims=True),
                 range_err_q=lerp(a.range_err_q, b.range_err_q), bearing_err_q=lerp(a.bearing_err_q, b.bearing_err_q),
                 score_q=lerp(a.score_q, b.score_q), fp_mean=float(lerp(a.fp_mean, b.fp_mean)),
                 fp_var=float(lerp(a.fp_var, b.fp_var)), fp_rows=np.vstack([a.fp_rows, b.fp_rows]),
@@ -419,7 +471,8 @@ def save_model(model: SurrogateModel, path: str | os.PathLike, *, overwrite: boo
             index.append({"condition": cond, "k": k, "key": f"{cond}/{j}", "stats": p.stats})
     meta = {**model.meta, "schema": MODEL_SCHEMA, "points": index, "clear_stats": model.clear.stats,
             "effects": model.effects, "basis": {"range": RANGE_KNOTS.tolist(), "bearing": BEARING_KNOTS.tolist(),
-                                                "log_box_h": LOGH_KNOTS.tolist(), "visibility": VIS_KNOTS.tolist()},
+                                                "log_box_h": LOGH_KNOTS.tolist(), "visibility": VIS_KNOTS.tolist(),
+                                                "crowding": CROWD_KNOTS.tolist()},
             "err_range_edges": [float(x) for x in ERR_RANGE_EDGES[:-1]], "quantiles": len(QUANTILES)}
     arrays["meta"] = np.array(json.dumps(meta))
     with atomic_file(path, "wb", overwrite=overwrite, encoding=None) as f:
@@ -428,7 +481,7 @@ def save_model(model: SurrogateModel, path: str | os.PathLike, *, overwrite: boo
 
 
 _QSHAPE = (len(ERR_RANGE_EDGES) - 1, len(QUANTILES))
-_SHAPES = {"coef": (N_COEF,), "coef_loose": (N_COEF,), "confusion": (N_CLASSES, N_CLASSES),
+_SHAPES = {"coef": (N_COEF,), "coef_loose": (N_COEF,), "confusion": (len(ERR_RANGE_EDGES) - 1, N_CLASSES, N_CLASSES),
            "range_err_q": _QSHAPE, "bearing_err_q": _QSHAPE, "loose_range_err_q": _QSHAPE,
            "loose_bearing_err_q": _QSHAPE, "score_q": (len(QUANTILES),), "loose_score_q": (len(QUANTILES),),
            "scalars": (3,)}
@@ -454,7 +507,7 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
             raise FileFormatError(f"{where}: array {key!r} has non-finite values")
         arrays[name] = a
     conf = arrays["confusion"]
-    if np.any(conf < 0) or not np.allclose(conf.sum(axis=1), 1.0, atol=1e-6):
+    if np.any(conf < 0) or not np.allclose(conf.sum(axis=-1), 1.0, atol=1e-6):
         raise FileFormatError(f"{where}: {prefix}/confusion must have non-negative rows summing to 1")
     for name in ("range_err_q", "bearing_err_q", "score_q", "loose_range_err_q", "loose_bearing_err_q", "loose_score_q"):
         if np.any(np.diff(arrays[name], axis=-1) < -1e-9):

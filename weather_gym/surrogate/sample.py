@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym.surrogate.log import _HEIGHTS
-from weather_gym.surrogate.model import ERR_RANGE_EDGES, QUANTILES, Point
+from weather_gym.surrogate.model import ERR_RANGE_EDGES, QUANTILES, Point, crowding
 
 __all__ = ["FrameSampler"]
 
@@ -87,7 +87,8 @@ class FrameSampler:
             box_h = boxes[:, 3] - boxes[:, 1]
             full = self._fy_h[cls] / np.maximum(rng_ * np.cos(brg), 0.1)
             vis = np.minimum(box_h / full, 1.0)  # = log.visibility, inlined (this runs every step)
-            prob = p.detection_probability(rng_, brg, box_h, vis, cls)
+            crowd = crowding(boxes) if n > 1 else None
+            prob = p.detection_probability(rng_, brg, box_h, vis, cls, crowd)
             self._grow(int(ids.max()))
             seen_before = self._last_step[ids] == step - 1
             before = self._last_det[ids]
@@ -99,13 +100,13 @@ class FrameSampler:
             self._last_det[ids] = det
             # a cone not detected may still be reported "loosely": a box a little off (a scoring miss
             # plus a false positive), near the cone's true place
-            loose = ~det & (u[5] < p.detection_probability(rng_, brg, box_h, vis, cls, loose=True))
+            loose = ~det & (u[5] < p.detection_probability(rng_, brg, box_h, vis, cls, crowd, loose=True))
             rep_any = det | loose
             c = cls[rep_any]
-            cum = np.cumsum(p.confusion[c], axis=1)
-            rep = np.minimum((u[1, rep_any][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
             r_true = rng_[rep_any]
             b = np.minimum(np.searchsorted(ERR_RANGE_EDGES, r_true, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
+            cum = np.cumsum(p.confusion[b, c], axis=1)
+            rep = np.minimum((u[1, rep_any][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
             lz = loose[rep_any]
             ur, ub, us = u[2, rep_any], u[3, rep_any], u[4, rep_any]
             ranges = r_true + np.where(lz, _draw(p.loose_range_err_q[b], ur), _draw(p.range_err_q[b], ur))
