@@ -6,8 +6,16 @@ import numpy as np
 import pytest
 
 from weather_gym.errors import FileFormatError, InputError
-from weather_gym.surrogate.log import (CONE_COLUMNS, FP_COLUMNS, FRAME_COLUMNS, load_log, loose_matches,
-                                       match_detections, record, save_log)
+from weather_gym.surrogate.log import (
+    CONE_COLUMNS,
+    FP_COLUMNS,
+    FRAME_COLUMNS,
+    load_log,
+    loose_matches,
+    match_detections,
+    record,
+    save_log,
+)
 
 
 @pytest.fixture(scope="module")

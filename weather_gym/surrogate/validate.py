@@ -119,7 +119,7 @@ def _bootstrap(log: SurrogateLog, rng: np.random.Generator) -> dict[str, tuple[f
     c_idx = {blk: np.flatnonzero(cb == blk) for blk in blocks}
     f_idx = {blk: np.flatnonzero(fb == blk) for blk in blocks}
     draws: dict[str, list[float]] = {k: [] for k in STAT_NAMES}
-    for r in range(BOOT):
+    for _ in range(BOOT):
         pick = rng.choice(blocks, len(blocks), replace=True)
         ci = np.concatenate([c_idx[p] for p in pick])
         fi = np.concatenate([f_idx[p] for p in pick])
