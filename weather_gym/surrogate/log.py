@@ -135,7 +135,7 @@ def visibility(boxes: np.ndarray, classes: np.ndarray, ranges: np.ndarray, beari
     Example:
         >>> import numpy as np
         >>> from weather_gym.camera import CameraConfig
-        >>> v = visibility(np.array([[0, 0, 5, 21.]]), np.array([1]), np.array([5.0]), np.array([0.0]), CameraConfig())
+        >>> v = visibility(np.array([[0, 0, 5, 14.]]), np.array([1]), np.array([5.0]), np.array([0.0]), CameraConfig())
         >>> round(float(v[0]), 2)
         0.64
     """
