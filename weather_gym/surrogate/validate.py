@@ -43,6 +43,9 @@ __all__ = ["cone_stats", "miss_runs", "validate", "STAT_NAMES", "LAP_METRICS"]
 
 BLOCK = 50
 BOOT = 300
+MIN_CONES = 30
+"""A recall bin with fewer cones (of one episode, or pooled) is not scored (n/a)."""
+RATES = ("recall", "wrong class rate")
 LAP_METRICS = ("completed", "lap_time_s", "cones_hit", "cte_mean_m")
 
 
@@ -89,7 +92,7 @@ def cone_stats(log: SurrogateLog, cones: dict[str, np.ndarray] | None = None,
     b = np.clip(np.searchsorted(edges, c["range"], side="right") - 1, 0, len(edges) - 2)
     for i, label in enumerate(BIN_LABELS):
         sel = b == i
-        out[f"recall {label}"] = float(det[sel].mean()) if sel.any() else math.nan
+        out[f"recall {label}"] = float(det[sel].mean()) if sel.sum() >= MIN_CONES else math.nan
     out["FP per frame"] = float(fr["n_fp"].sum() / max(len(fr["n_fp"]), 1))
     err = c["range_err"][det]
     err = err[np.isfinite(err)]
@@ -241,6 +244,9 @@ def validate(*, model: str | os.PathLike | None = None, track: str = "hairpin",
             los = [v for v in (lo_s, lo_b) if np.isfinite(v)]
             his = [v for v in (hi_s, hi_b) if np.isfinite(v)]
             lo, hi = (min(los), max(his)) if los and his else (math.nan, math.nan)
+            lo = max(lo, 0.0)  # every statistic is >= 0, the rates <= 1
+            if k.startswith(RATES):
+                hi = min(hi, 1.0)
             v = sur_pooled[k]
             ok = None if not (np.isfinite(v) and np.isfinite(lo)) else bool(lo - 1e-9 <= v <= hi + 1e-9)
             row["stats"][k] = {"full": full_pooled[k], "lo": lo, "hi": hi, "surrogate": v, "pass": ok}
@@ -260,7 +266,8 @@ def _markdown(res: dict[str, Any], model: Any) -> str:
     lines = [f"# Perception surrogate validation: track {res['track']}", "",
              f"Model `{res['model']}` (fitted on {', '.join(model.meta.get('tracks', []))}); full pipeline seeds "
              f"{res['seeds']}, surrogate seeds {res['surrogate_seeds']}; `mapper_pure_pursuit`, one lap, at most "
-             f"{res['steps']} steps. Statistics over cones of at least {MIN_BOX_HEIGHT_PX:g} px (the scored ones).",
+             f"{res['steps']} steps. Statistics over cones of at least {MIN_BOX_HEIGHT_PX:g} px (the scored ones); a recall bin with fewer "
+             f"than {MIN_CONES} cones is n/a.",
              "", "A cell reads `surrogate (full-pipeline 95 % interval)`, marked **x** when outside.", "",
              "## Cone-list statistics", ""]
     names = list(STAT_NAMES)
@@ -275,7 +282,8 @@ def _markdown(res: dict[str, Any], model: Any) -> str:
             if s["pass"] is not None:
                 n_all += 1
                 n_pass += bool(s["pass"])
-            cells.append(f"{_fmt(s['surrogate'], 2)} ({_fmt(s['lo'], 2)}-{_fmt(s['hi'], 2)}){mark}")
+            nd = 3 if k.startswith(("range error", "wrong class")) else 2
+            cells.append(f"{_fmt(s['surrogate'], nd)} ({_fmt(s['lo'], nd)}-{_fmt(s['hi'], nd)}){mark}")
         lines.append(f"| {row['weather']} | " + " | ".join(cells) + " |")
     lines += ["", f"Inside the interval: {n_pass} of {n_all} checks.", "", "## Lap metrics (mapper_pure_pursuit)", "",
               "Full pipeline mean +- sd across seeds vs surrogate mean +- sd; **x**: the means differ by more than "
