@@ -218,7 +218,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,
         "cones_hit": res.cones_hit, "off_track_events": res.off_track_events,
         "cte_mean_m": res.cte_mean_m, "cte_max_m": res.cte_max_m, "max_steps": max_steps, "renderer": renderer,
-        "weather_latency_ms": res.weather_latency_ms if state["weathered"] else None,
+        "weather_latency_ms": res.weather_latency_ms if state["weathered"] and mode != "surrogate" else None,
         "detector_latency_ms": res.detector_latency_ms if mode == "detector" else None,
     }
     result.update(seen.summary())
