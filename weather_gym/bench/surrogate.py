@@ -7,7 +7,10 @@ render-free ground truth the surrogate builds on) and ``surrogate``; each the me
 (its actions are recorded first and replayed). Then Gymnasium vector envs of the surrogate
 (``--num-envs``, async: one process per env; a constant action, with the vector env's automatic
 resets): env-steps/s summed over the envs. The machine's load average is printed with the
-tables: other processes on the same cores lower every number.
+tables: other processes on the same cores lower every number; the single-env rows also give
+env-steps per second of the process's own CPU time, what one unloaded core would come close to
+(the full pipeline's renderer and onnxruntime may use more than one thread, so its CPU-time rate is
+per CPU-second of all its threads).
 
 Example:
     $ weather-gym bench surrogate --weather droplets@3 --num-envs 1,2,4
@@ -39,8 +42,9 @@ def register(targets) -> None:
     p.set_defaults(func=run)
 
 
-def steps_per_s(perception: str, track: str, weather: str | None, block: int, repeats: int) -> float:
-    """Median env-steps/s of one env of ``perception`` driving the ground-truth lap of ``track``."""
+def steps_per_s(perception: str, track: str, weather: str | None, block: int, repeats: int) -> tuple[float, float]:
+    """Median env-steps/s of one env of ``perception`` driving the ground-truth lap of ``track``: per
+    second of wall time and per second of this process's CPU time (what one unloaded core would give)."""
     from weather_gym.agents import make_agent
     from weather_gym.pipeline import make_env
 
@@ -60,15 +64,16 @@ def steps_per_s(perception: str, track: str, weather: str | None, block: int, re
                 obs, info = env.reset(seed=0)
                 agent.reset(seed=0, info=info)
         env.reset(seed=0)
-        rates = []
+        rates, cpu_rates = [], []
         for r in range(repeats + 1):
             chunk = actions[r * block:(r + 1) * block]
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             for a in chunk:
                 env.step(a)
             if r:  # the first block is the warm-up
                 rates.append(len(chunk) / (time.perf_counter() - t0))
-        return statistics.median(rates)
+                cpu_rates.append(len(chunk) / max(time.process_time() - c0, 1e-9))
+        return statistics.median(rates), statistics.median(cpu_rates)
     finally:
         env.close()
 
@@ -114,13 +119,16 @@ def run(args: argparse.Namespace) -> int:
     full = steps_per_s("detector", args.track, args.weather, args.full_block, args.full_repeats)
     gt = steps_per_s("gt_cones", args.track, None, args.block, args.repeats)
     sur = steps_per_s("surrogate", args.track, args.weather, args.block, args.repeats)
-    rows = [[f"detector (full pipeline, {args.weather})", f"{full:.1f}", "1.0x",
+    rows = [[f"detector (full pipeline, {args.weather})", f"{full[0]:.1f}", f"{full[1]:.1f}", "1.0x",
              f"{args.full_repeats} x {args.full_block}"],
-            ["gt_cones (ground truth, no errors)", f"{gt:.0f}", f"{gt / full:.0f}x", f"{args.repeats} x {args.block}"],
-            [f"surrogate ({args.weather})", f"{sur:.0f}", f"{sur / full:.0f}x", f"{args.repeats} x {args.block}"]]
+            ["gt_cones (ground truth, no errors)", f"{gt[0]:.0f}", f"{gt[1]:.0f}", f"{gt[0] / full[0]:.0f}x",
+             f"{args.repeats} x {args.block}"],
+            [f"surrogate ({args.weather})", f"{sur[0]:.0f}", f"{sur[1]:.0f}", f"{sur[0] / full[0]:.0f}x",
+             f"{args.repeats} x {args.block}"]]
     print(f"\nOne env (one process), {args.track}, ground-truth lap, median of the blocks "
           f"(load average {os.getloadavg()[0]:.1f}):")
-    print(markdown_table(["perception", "env-steps/s", "vs full pipeline", "blocks x steps"], rows))
+    print(markdown_table(["perception", "env-steps/s (wall)", "env-steps per CPU-second", "vs full pipeline (wall)",
+                          "blocks x steps"], rows))
     if sizes:
         vrows = []
         for n in sizes:
