@@ -91,3 +91,19 @@ def test_bad_settings_are_typed_errors(tmp_path):
         make_env(perception="surrogate", camera={"width": 96, "height": 54})
     with pytest.raises(InputError, match="does not exist"):
         make_env(perception="surrogate", perception_kwargs={"model": str(tmp_path / "none.npz")})
+
+
+def test_vector_envs_set_the_weather_per_env(no_render):
+    from weather_gym.pipeline import make_vec_env
+
+    envs = make_vec_env(num_envs=2, perception="surrogate", vectorization_mode="sync", max_episode_steps=20)
+    try:
+        envs.reset(seed=0)
+        envs.set_attr("weather", ["clear", "low_light@4"])
+        total = np.zeros(2)
+        for _ in range(15):
+            obs, *_ = envs.step(np.tile(ACTION, (2, 1)))
+            total += obs["mask"].sum(axis=1)
+        assert total[1] < 0.5 * total[0]  # almost nothing is seen at low_light@4
+    finally:
+        envs.close()
