@@ -17,7 +17,7 @@ extrapolated (an :class:`~weather_gym.errors.InputError`). Each point holds:
   cone keeps its marginal p; ``rho`` by maximum likelihood on consecutive frames of the same cone
   (the empirical P(miss | miss) and P(miss | detected) are kept for the report);
 * **class confusion** ``confusion[range bin, true, reported]`` (rows sum to 1; a little smoothing to
-  the diagonal);
+  the diagonal), and ``confusion_loose`` of the loose detections;
 * **range and bearing errors** (reported - true) as 41 quantiles per range bin
   (:data:`ERR_RANGE_EDGES`); **score** quantiles of true detections;
 * **false positives**: count per frame, negative binomial by moments (Poisson when not
@@ -191,6 +191,14 @@ def _fit_rho(p: np.ndarray, prev: np.ndarray, cur: np.ndarray) -> float:
     return float(minimize_scalar(nll, bounds=(0.0, 0.98), method="bounded").x)
 
 
+def _confusion(ranges: np.ndarray, true: np.ndarray, reported: np.ndarray) -> np.ndarray:
+    """``confusion[range bin, true, reported]``, rows summing to 1 (``CONFUSION_PRIOR`` on the diagonal)."""
+    conf = np.zeros((len(ERR_RANGE_EDGES) - 1, N_CLASSES, N_CLASSES))
+    np.add.at(conf, (_range_bin(ranges), np.asarray(true, np.int64), np.asarray(reported, np.int64)), 1.0)
+    conf += CONFUSION_PRIOR * np.eye(N_CLASSES)[None]
+    return conf / conf.sum(axis=2, keepdims=True)
+
+
 def _range_bin(ranges: np.ndarray) -> np.ndarray:
     """Index of each range's bin of :data:`ERR_RANGE_EDGES`."""
     return np.minimum(np.searchsorted(ERR_RANGE_EDGES, ranges, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
@@ -229,10 +237,12 @@ class Point:
     loose_score_q: np.ndarray
     det_box_d: np.ndarray  # (M, 4): reported box - true box, in units of the true box height
     loose_box_d: np.ndarray
+    confusion_loose: np.ndarray
     stats: dict[str, float] = field(default_factory=dict)
 
     ARRAYS = ("coef", "confusion", "range_err_q", "bearing_err_q", "score_q", "fp_rows", "coef_loose",
-              "loose_range_err_q", "loose_bearing_err_q", "loose_score_q", "det_box_d", "loose_box_d")
+              "loose_range_err_q", "loose_bearing_err_q", "loose_score_q", "det_box_d", "loose_box_d",
+              "confusion_loose")
 
     def detection_probability(self, ranges, bearings, box_h, vis, classes, crowd=None, *,
                               loose: bool = False) -> np.ndarray:
@@ -291,14 +301,8 @@ def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: 
     coef_loose = fit_logistic(X[~y], y_loose[~y]) if (~y).any() else np.full(N_COEF, 0.0)
     if not y_loose.any():
         coef_loose = np.r_[-20.0, np.zeros(N_COEF - 1)]
-    nb = len(ERR_RANGE_EDGES) - 1
-    conf = np.full((nb, N_CLASSES, N_CLASSES), 0.0)
-    np.add.at(conf, (_range_bin(cones["range"][y]), cones["cls"][y].astype(np.int64),
-                     cones["det_cls"][y].astype(np.int64)), 1.0)
-    np.add.at(conf, (_range_bin(cones["range"][lrow]), cones["cls"][lrow].astype(np.int64),
-                     fps["cls"][is_loose].astype(np.int64)), 1.0)
-    conf += CONFUSION_PRIOR * np.eye(N_CLASSES)[None]
-    conf /= conf.sum(axis=2, keepdims=True)
+    conf = _confusion(cones["range"][y], cones["cls"][y], cones["det_cls"][y])
+    conf_loose = _confusion(cones["range"][lrow], cones["cls"][lrow], fps["cls"][is_loose])
     rr = cones["range"][y]
     free = ~is_loose
     rows = np.column_stack([fps["range"], fps["bearing"], fps["cls"], fps["score"], fps["box"]]).astype(np.float64)
@@ -334,7 +338,7 @@ def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: 
                  else np.full(len(QUANTILES), 0.5),
                  det_box_d=np.zeros((1, 4)),  # the log keeps no matched box: reported = true box (IoU 1)
                  loose_box_d=_box_deltas(fps["box"][is_loose], cones["box"][lrow].astype(np.float64), rng),
-                 stats=stats)
+                 confusion_loose=conf_loose, stats=stats)
 
 
 def _mix(a: Point, b: Point, w: float) -> Point:
@@ -348,6 +352,7 @@ def _mix(a: Point, b: Point, w: float) -> Point:
         return (1.0 - w) * np.asarray(x) + w * np.asarray(y)
 
     conf = lerp(a.confusion, b.confusion)
+    conf_loose = lerp(a.confusion_loose, b.confusion_loose)
     near = b if w >= 0.5 else a  # box deltas: resampled from the nearer point
     out = Point(coef=lerp(a.coef, b.coef), rho=float(lerp(a.rho, b.rho)), confusion=conf / conf.sum(-1, keepdims=True),
                 range_err_q=lerp(a.range_err_q, b.range_err_q), bearing_err_q=lerp(a.bearing_err_q, b.bearing_err_q),
@@ -357,7 +362,7 @@ def _mix(a: Point, b: Point, w: float) -> Point:
                 loose_range_err_q=lerp(a.loose_range_err_q, b.loose_range_err_q),
                 loose_bearing_err_q=lerp(a.loose_bearing_err_q, b.loose_bearing_err_q),
                 loose_score_q=lerp(a.loose_score_q, b.loose_score_q), det_box_d=near.det_box_d,
-                loose_box_d=near.loose_box_d)
+                loose_box_d=near.loose_box_d, confusion_loose=conf_loose / conf_loose.sum(-1, keepdims=True))
     out.stats = {"fp_weight_b": w, "fp_rows_a": float(len(a.fp_rows))}
     return out
 
@@ -481,7 +486,8 @@ def save_model(model: SurrogateModel, path: str | os.PathLike, *, overwrite: boo
 
 
 _QSHAPE = (len(ERR_RANGE_EDGES) - 1, len(QUANTILES))
-_SHAPES = {"coef": (N_COEF,), "coef_loose": (N_COEF,), "confusion": (len(ERR_RANGE_EDGES) - 1, N_CLASSES, N_CLASSES),
+_CSHAPE = (len(ERR_RANGE_EDGES) - 1, N_CLASSES, N_CLASSES)
+_SHAPES = {"coef": (N_COEF,), "coef_loose": (N_COEF,), "confusion": _CSHAPE, "confusion_loose": _CSHAPE,
            "range_err_q": _QSHAPE, "bearing_err_q": _QSHAPE, "loose_range_err_q": _QSHAPE,
            "loose_bearing_err_q": _QSHAPE, "score_q": (len(QUANTILES),), "loose_score_q": (len(QUANTILES),),
            "scalars": (3,)}
@@ -506,9 +512,10 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
         if not np.all(np.isfinite(a)):
             raise FileFormatError(f"{where}: array {key!r} has non-finite values")
         arrays[name] = a
-    conf = arrays["confusion"]
-    if np.any(conf < 0) or not np.allclose(conf.sum(axis=-1), 1.0, atol=1e-6):
-        raise FileFormatError(f"{where}: {prefix}/confusion must have non-negative rows summing to 1")
+    for name in ("confusion", "confusion_loose"):
+        conf = arrays[name]
+        if np.any(conf < 0) or not np.allclose(conf.sum(axis=-1), 1.0, atol=1e-6):
+            raise FileFormatError(f"{where}: {prefix}/{name} must have non-negative rows summing to 1")
     for name in ("range_err_q", "bearing_err_q", "score_q", "loose_range_err_q", "loose_bearing_err_q", "loose_score_q"):
         if np.any(np.diff(arrays[name], axis=-1) < -1e-9):
             raise FileFormatError(f"{where}: {prefix}/{name} quantiles must be non-decreasing")

@@ -105,9 +105,9 @@ class FrameSampler:
             c = cls[rep_any]
             r_true = rng_[rep_any]
             b = np.minimum(np.searchsorted(ERR_RANGE_EDGES, r_true, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
-            cum = np.cumsum(p.confusion[b, c], axis=1)
-            rep = np.minimum((u[1, rep_any][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
             lz = loose[rep_any]
+            cum = np.cumsum(np.where(lz[:, None], p.confusion_loose[b, c], p.confusion[b, c]), axis=1)
+            rep = np.minimum((u[1, rep_any][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
             ur, ub, us = u[2, rep_any], u[3, rep_any], u[4, rep_any]
             ranges = r_true + np.where(lz, _draw(p.loose_range_err_q[b], ur), _draw(p.range_err_q[b], ur))
             bearings = brg[rep_any] + np.where(lz, _draw(p.loose_bearing_err_q[b], ub), _draw(p.bearing_err_q[b], ub))
