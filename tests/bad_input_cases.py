@@ -330,6 +330,9 @@ CASES: list[Case] = [
     _cli("lap-surrogate-video", "perception surrogate renders none", "lap", "--perception", "surrogate",
          "--video", "{w}/o/s.mp4", out="o"),
     # ---- surrogate
+    _cli("evaluate-surrogate-unmodelled-effect", "no model of weather effect 'fog'", "evaluate", "--agent",
+         "gt_pure_pursuit", "--perception", "surrogate", "--effects", "fog", "--severities", "0,2", "--seeds", "1",
+         "--backend", "serial", "--no-progress", "--out", "{w}/o_ev_sur", out="o_ev_sur"),
     _cli("surrogate-log-unmodelled-weather", "fog", "surrogate", "log", "--weather", "fog@1", "--steps", "5",
          "--out", "{w}/o/l.npz", out="o"),
     _cli("surrogate-log-zero-steps", "--steps", "surrogate", "log", "--steps", "0", "--out", "{w}/o/l.npz", out="o"),

@@ -240,6 +240,15 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         except InputError as exc:
             raise type(exc)(f"env_kwargs: {exc}") from None
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
+    if config.perception == "surrogate":  # a weather the surrogate has no model of fails now, not in every cell
+        from weather_gym.surrogate.model import load_model
+
+        model = load_model(dict(config.perception_kwargs).get("model"))
+        for (e, s), w in weather.items():
+            try:
+                model.point(json.loads(w))
+            except InputError as exc:
+                raise type(exc)(f"perception surrogate, {e}@{s}: {exc}") from None
     if config.perception == "gt_cones":
         wet = sorted(f"{e}@{s}" for (e, s), w in weather.items() if json.loads(w))
         if wet:

@@ -26,8 +26,7 @@ EFFECT_CONDITION = {"droplets": "droplets", "dim": "low_light"}
 
 
 def _tables(weather: Any) -> list[dict[str, Any]]:
-    if isinstance(weather, list) and all(isinstance(t, dict) for t in weather):
-        return [dict(t) for t in weather]
+    """The spec as effect tables with every parameter filled in (defaults included)."""
     return current_spec(parse_weather(weather))
 
 
