@@ -9,6 +9,9 @@ weathered frame, so the trained policy is evaluated through weather and the dete
 ``weather-gym evaluate --agent sb3 --perception detector`` (see ``docs/rl.md``). Training on
 detector cones (``--perception detector``, with ``WeatherRandomizer`` weather per episode) or on
 pixels costs a rendered frame and a detector pass per step: 20-40 steps/s here, days for a policy.
+``--perception surrogate`` trains on the detector's fitted statistics instead of ``OracleNoise``
+(``weather_gym.surrogate``; env ``i`` in ``--surrogate-weathers[i % len]``), nothing rendered;
+``--init PATH`` starts from a saved policy (fine-tuning).
 
 **Tracks.** Env ``i`` drives ``--tracks[i % len]``, each episode from a random point of its track
 (``reset(options={"start_s": ...})``, drawn from the reset seed); the ``EvalCallback`` drives the
