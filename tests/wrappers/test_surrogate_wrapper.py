@@ -107,3 +107,19 @@ def test_vector_envs_set_the_weather_per_env(no_render):
         assert total[1] < 0.5 * total[0]  # almost nothing is seen at low_light@4
     finally:
         envs.close()
+
+
+def test_weather_randomizer_drives_the_surrogate(no_render):
+    from weather_gym.wrappers import RandomWeather, WeatherRandomizer
+
+    env = WeatherRandomizer(make_env(perception="surrogate", max_episode_steps=30),
+                            RandomWeather(presets=("droplets", "low_light"), severities=(1, 2, 3, 4)))
+    try:
+        names = set()
+        for seed in range(4):
+            _, info = env.reset(seed=seed)
+            names.add(info["weather"][0]["name"])
+            assert info["weather_draw"].split("@")[0] in ("droplets", "low_light")
+        assert names == {"droplets", "dim"}
+    finally:
+        env.close()
