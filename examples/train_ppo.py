@@ -9,6 +9,9 @@ weathered frame, so the trained policy is evaluated through weather and the dete
 ``weather-gym evaluate --agent sb3 --perception detector`` (see ``docs/rl.md``). Training on
 detector cones (``--perception detector``, with ``WeatherRandomizer`` weather per episode) or on
 pixels costs a rendered frame and a detector pass per step: 20-40 steps/s here, days for a policy.
+``--perception surrogate`` trains on the detector's fitted statistics instead of ``OracleNoise``
+(``weather_gym.surrogate``; env ``i`` in ``--surrogate-weathers[i % len]``), nothing rendered;
+``--init PATH`` starts from a saved policy (fine-tuning).
 
 **Tracks.** Env ``i`` drives ``--tracks[i % len]``, each episode from a random point of its track
 (``reset(options={"start_s": ...})``, drawn from the reset seed); the ``EvalCallback`` drives the
@@ -46,7 +49,7 @@ DEFAULT_EVAL_TRACK = "small_track"
 DEFAULT_NOISE = {"miss_prob": 0.15, "range_noise": 0.05, "bearing_noise": 0.01, "false_positives": 0.3,
                  "swap_prob": 0.02, "max_range": 22.0}
 """OracleNoise of training: roughly what the detector does wrong on clean frames (see docs/rl.md)."""
-PERCEPTIONS = ("gt_cones", "oracle", "detector")
+PERCEPTIONS = ("gt_cones", "oracle", "detector", "surrogate")
 EVAL_MAX_STEPS = 1800
 """Step limit of a held-out evaluation episode (60 s: a lap of small_track takes about 20 s)."""
 _SPAWN_KEY = (0x57A27,)  # the start-point draw, apart from the env's own streams for the same seed
@@ -83,7 +86,7 @@ class LapSuccess(gym.Wrapper):
 
 def make_training_env(env_id: str, track: str, perception: str, noise: dict[str, Any], max_steps: int,
                       env_kwargs: dict[str, Any], weather: dict[str, Any] | None = None,
-                      random_start: bool = True) -> gym.Env:
+                      random_start: bool = True, surrogate_weather: str = "clear") -> gym.Env:
     """One env of the run (module level, so vector-env workers can build it)."""
     from weather_gym.pipeline import make_env
 
@@ -91,8 +94,9 @@ def make_training_env(env_id: str, track: str, perception: str, noise: dict[str,
     pk = dict(noise) if perception in ("gt_cones", "oracle") else {}
     env = make_env(env_id, track=track, perception=perception, perception_kwargs=pk or None,
                    max_episode_steps=max_steps, episode_statistics=False,
-                   weather="clear" if perception != "gt_cones" else None, **kwargs)
-    if weather and perception != "gt_cones":
+                   weather=surrogate_weather if perception == "surrogate" else
+                   "clear" if perception != "gt_cones" else None, **kwargs)
+    if weather and perception not in ("gt_cones", "surrogate"):
         from weather_gym.wrappers import WeatherRandomizer
 
         env = WeatherRandomizer(env, **weather)
@@ -217,6 +221,10 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--eval-episodes", type=int, default=2, help="held-out episodes per evaluation")
     p.add_argument("--checkpoint-freq", type=int, default=25_000, help="env steps between checkpoints")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--surrogate-weathers", default="clear,droplets@2,droplets@4,low_light@1,low_light@2",
+                   help="--perception surrogate: weathers, env i drives the i-th (cycled); the eval env the first")
+    p.add_argument("--init", type=Path, default=None,
+                   help="start from this saved PPO model (e.g. weather_gym/agents/models/ppo_cones.zip): fine-tuning")
     p.add_argument("--torch-threads", type=int, default=1,
                    help="torch threads (1: the envs share this process's cores)")
     args = p.parse_args(argv)
@@ -247,10 +255,18 @@ def _settings(args: argparse.Namespace) -> dict[str, Any]:
         raise InputError("--tracks is empty")
     if args.eval_track in tracks:
         raise InputError(f"--eval-track {args.eval_track} is also a training track: it would not be held out")
-    if weather and args.perception == "gt_cones":
-        raise InputError("--weather acts on camera images; gt_cones renders none (use --perception detector)")
-    return {"env_id": args.env_id, "perception": args.perception, "noise": noise if args.perception != "detector" else {},
-            "max_steps": args.max_steps, "env_kwargs": env_kwargs, "weather": weather, "tracks": tracks}
+    if weather and args.perception in ("gt_cones", "surrogate"):
+        raise InputError(f"--weather acts on camera images; {args.perception} renders none (use --perception detector, "
+                         "or --surrogate-weathers)")
+    sw = [w.strip() for w in args.surrogate_weathers.split(",") if w.strip()] if args.perception == "surrogate" else []
+    out = {"env_id": args.env_id, "perception": args.perception,
+           "noise": noise if args.perception in ("gt_cones", "oracle") else {},
+           "max_steps": args.max_steps, "env_kwargs": env_kwargs, "weather": weather, "tracks": tracks}
+    if sw:
+        out["surrogate_weathers"] = sw
+    if args.init is not None:
+        out["init"] = str(args.init)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -288,8 +304,10 @@ def _train(args: argparse.Namespace) -> int:
                                     "or give another --out (a run folder is never overwritten)")
         ckpt, run = None, {"settings": s, "segments": []}
     tracks = s["tracks"]
+    sw = s.get("surrogate_weathers") or ["clear"]
     make = [lambda i=i: make_training_env(s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"],
-                                          s["max_steps"], s["env_kwargs"], s["weather"])
+                                          s["max_steps"], s["env_kwargs"], s["weather"],
+                                          surrogate_weather=sw[i % len(sw)])
             for i in range(args.n_envs)]
     make[0]().close()  # a bad setting fails here, in this process, with its message
     vec = VecMonitor((SubprocVecEnv if args.vec == "subproc" else DummyVecEnv)(make))
@@ -298,14 +316,19 @@ def _train(args: argparse.Namespace) -> int:
     vec = VecNormalize(vec, norm_obs=False, norm_reward=True, gamma=args.gamma)
     eval_env = VecNormalize(VecMonitor(DummyVecEnv([lambda: make_training_env(
         s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
-        random_start=False)])), norm_obs=False, norm_reward=False, training=False)  # rewards as they are
+        random_start=False, surrogate_weather=sw[0])])), norm_obs=False, norm_reward=False, training=False)
     segment = f"steps{_checkpoint_steps(ckpt):09d}"
     logger = configure(str(out / "logs" / segment), ["csv", "tensorboard"])
     started = time.time()
     model = None
     start_steps = 0
     try:
-        if ckpt is None:
+        if ckpt is None and args.init is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            vec.seed(args.seed)
+            model = PPO.load(str(args.init), env=vec, device="cpu")
+            model.num_timesteps = 0
+        elif ckpt is None:
             out.mkdir(parents=True, exist_ok=True)
             vec.seed(args.seed)
             model = PPO("MultiInputPolicy", vec, n_steps=args.n_steps, batch_size=args.batch_size,

@@ -17,7 +17,13 @@ Perception modes (``PERCEPTION_MODES``), i.e. what the agent observes:
   through the camera model (frustum, range, occlusion; :mod:`weather_gym.sim.visibility`). Thousands
   of steps per second: for training controllers on cone lists.
 
-``oracle`` and ``gt_cones`` take ``OracleNoise`` fields in ``perception_kwargs`` (``miss_prob``, ...).
+* ``surrogate`` - ``SurrogatePerceptionWrapper``: the same render-free ground truth as ``gt_cones``, turned
+  into what the shipped detector reports in the weather (misses, class confusion, range and bearing
+  errors, false positives, misses that persist over frames) by a model fitted on full-pipeline runs
+  (:mod:`weather_gym.surrogate`; ``docs/surrogate.md``). Same observation and ``info`` as ``detector``.
+
+``oracle`` and ``gt_cones`` take ``OracleNoise`` fields in ``perception_kwargs`` (``miss_prob``, ...);
+``surrogate`` takes ``model`` (a model path), ``max_cones``, ``latency_in_info``.
 
 Example:
     >>> from weather_gym.pipeline import make_env
@@ -51,6 +57,7 @@ PERCEPTION_MODES: dict[str, str] = {
     "detector": "the cone detector on the (weathered) image -> cone list",
     "oracle": "the rendered frame's ground truth (pixel-exact visibility) -> cone list",
     "gt_cones": "ground-truth cones from geometry, nothing rendered (fast; for training controllers)",
+    "surrogate": "the detector's cone list in the weather, drawn from a fitted statistical model; nothing rendered",
 }
 """Every perception mode, with what the agent observes."""
 
@@ -81,13 +88,20 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
             raise InputError("give the detector once: detector= or perception_kwargs['detector'], not both")
         kwargs["detector"] = detector
     images = isinstance(env.observation_space, gym.spaces.Dict) and "image" in env.observation_space.spaces
+    if perception == "surrogate":
+        if images:
+            raise InputError("perception 'surrogate' renders nothing: build the env with camera_images=False, "
+                             "ground_truth='geometry' (make_env does)")
+        from weather_gym.wrappers import SurrogatePerceptionWrapper
+
+        return SurrogatePerceptionWrapper(env, weather=weather, **kwargs)
     if weather is not None:
         effect = parse_weather(weather)  # a bad spec fails here, with the parser's message
         if images:
             env = WeatherWrapper(env, weather=effect)
         elif to_spec(effect):  # clear weather on an env without images is no weather at all
             raise InputError(f"weather {weather!r} acts on camera images, and this env renders none (perception "
-                             f"{perception!r}); take perception 'oracle' or 'detector' to drive in weather")
+                             f"{perception!r}); take perception 'oracle', 'detector' or 'surrogate' to drive in weather")
     if perception == "detector":
         if not images:
             raise InputError("perception 'detector' needs camera images (camera_images=True)")
@@ -136,7 +150,7 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     if perception == sc_mode:
         detector = sc_detector if detector is None else detector
         perception_kwargs = {**sc_kwargs, **dict(perception_kwargs or {})}
-    if perception == "gt_cones":
+    if perception in ("gt_cones", "surrogate"):
         overrides = {**_RENDER_FREE, **overrides}
     env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
     try:

@@ -73,13 +73,14 @@ def register(sub) -> None:
     g.add_argument("--tracks", default="small_track", help="track names / 'random:SEED' / cone CSV paths, comma-separated")
     e = p.add_argument_group("episode")
     e.add_argument("--env-id", default="WeatherGym/ConeTrack-v0", help="Gymnasium id of the scenario")
-    e.add_argument("--perception", default="detector", choices=("detector", "oracle", "camera"),
-                   help="detector: the ONNX detector; oracle: ground-truth cone list; camera: raw weathered image")
+    e.add_argument("--perception", default="detector", choices=("detector", "oracle", "camera", "surrogate"),
+                   help="detector: the ONNX detector; oracle: ground-truth cone list; camera: raw weathered image; "
+                        "surrogate: the detector's statistics in the weather, nothing rendered (docs/surrogate.md)")
     e.add_argument("--laps", type=int, default=1, help="laps per episode")
     e.add_argument("--max-steps", type=int, default=3000, help="step limit per episode (30 steps = 1 s)")
     e.add_argument("--agent-kwargs", default=None, help="JSON object of agent factory arguments")
     e.add_argument("--env-kwargs", default=None, help='JSON object of gymnasium.make arguments, e.g. \'{"camera": {"width": 336, "height": 188}}\'')
-    e.add_argument("--perception-kwargs", default=None, help="JSON object of the perception wrapper's arguments (DetectorWrapper / GroundTruthConeWrapper)")
+    e.add_argument("--perception-kwargs", default=None, help="JSON object of the perception wrapper's arguments (DetectorWrapper / GroundTruthConeWrapper / SurrogatePerceptionWrapper)")
     e.add_argument("--presets", type=Path, default=None, help="presets TOML (default: the shipped one)")
     add_detector_args(e, what="for --perception detector; the same as the detector keys of --perception-kwargs")
     r = p.add_argument_group("run")

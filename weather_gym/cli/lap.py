@@ -7,6 +7,7 @@ Examples:
     weather-gym lap --track small_track --weather droplets:0.55 --agent mapper_pure_pursuit --video out.mp4
     weather-gym lap --agent sb3 --agent-arg path=runs/ppo.zip --perception detector
     weather-gym lap --agent mapper_pure_pursuit --perception gt_cones     # nothing rendered: fast
+    weather-gym lap --agent mapper_pure_pursuit --perception surrogate --weather droplets@3
 """
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ perception (what the agent sees; the modes of weather_gym.pipeline.PERCEPTION_MO
   detector  the ONNX cone detector on the (weathered) camera image -> cone list
   oracle    the rendered frame's ground truth as a perfect cone list
   gt_cones  ground-truth cones from geometry; no frame is rendered (fast; no weather, no video)
+  surrogate the detector's cone list in the weather drawn from a fitted model (docs/surrogate.md);
+            no frame is rendered (fast; no video)
 
 weather: a spec for weather_gym.weather.parse_weather, e.g. droplets:0.55, "droplets:0.55,dim:0.3",
   droplets@3 (a calibrated preset, severity 0-4), low_light@2, clear.
@@ -161,8 +164,8 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     factory = AGENTS.get(agent)
     mode = perception if perception != "auto" else ("detector" if agent in PERCEPTION_AGENTS else "camera")
     recording = video is not None or strip is not None
-    if recording and mode == "gt_cones":
-        raise InputError("--video/--strip record the camera, and perception gt_cones renders none; "
+    if recording and mode in ("gt_cones", "surrogate"):
+        raise InputError(f"--video/--strip record the camera, and perception {mode} renders none; "
                          "take --perception oracle for a video of ground-truth driving")
     if max_steps is None:
         max_steps = default_max_steps(env_id, track, laps)
@@ -218,7 +221,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,
         "cones_hit": res.cones_hit, "off_track_events": res.off_track_events,
         "cte_mean_m": res.cte_mean_m, "cte_max_m": res.cte_max_m, "max_steps": max_steps, "renderer": renderer,
-        "weather_latency_ms": res.weather_latency_ms if state["weathered"] else None,
+        "weather_latency_ms": res.weather_latency_ms if state["weathered"] and mode != "surrogate" else None,
         "detector_latency_ms": res.detector_latency_ms if mode == "detector" else None,
     }
     result.update(seen.summary())

@@ -114,7 +114,9 @@ class EvalConfig:
         env_id: a Gymnasium id registered by weather-gym (a scenario).
         perception: a mode of ``weather_gym.pipeline.PERCEPTION_MODES``: ``detector`` (the ONNX
             detector), ``oracle`` (the rendered ground truth as a cone list), ``gt_cones`` (ground-truth
-            cones from geometry; nothing rendered, so no weather) or ``camera`` (no perception).
+            cones from geometry; nothing rendered, so no weather), ``surrogate`` (the detector's
+            statistics in the cell's weather, drawn from ``weather_gym.surrogate``; nothing rendered)
+            or ``camera`` (no perception).
         laps: laps per episode; max_steps: the episode's time limit in steps (``TimeLimit``).
         agent_kwargs, env_kwargs, perception_kwargs: JSON-able keyword arguments of the agent factory,
             of ``gymnasium.make`` (e.g. ``{"camera": {"width": 336, "height": 188}}``) and of the
@@ -217,6 +219,15 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         except InputError as exc:
             raise type(exc)(f"env_kwargs: {exc}") from None
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
+    if config.perception == "surrogate":  # a weather the surrogate has no model of fails now, not in every cell
+        from weather_gym.surrogate.model import load_model
+
+        model = load_model(dict(config.perception_kwargs).get("model"))
+        for (e, s), w in weather.items():
+            try:
+                model.point(json.loads(w))
+            except InputError as exc:
+                raise type(exc)(f"perception surrogate, {e}@{s}: {exc}") from None
     if config.perception == "gt_cones":
         wet = sorted(f"{e}@{s}" for (e, s), w in weather.items() if json.loads(w))
         if wet:

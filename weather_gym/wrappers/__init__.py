@@ -1,6 +1,6 @@
 """Gymnasium wrappers: ``WeatherWrapper`` (weather on image observations), ``WeatherRandomizer``
 (random weather per episode or step), ``DetectorWrapper``, ``GroundTruthConeWrapper`` (oracle /
-ground-truth cone lists), ``EpisodeStatistics`` (a summary of each episode in its last info), and
+ground-truth cone lists), ``SurrogatePerceptionWrapper`` (the detector's statistics, nothing rendered), ``EpisodeStatistics`` (a summary of each episode in its last info), and
 ``RecordVideo`` (H.264 videos of ``render()``, defined in ``weather_gym.viz``).
 
 Imports are lazy (``__getattr__``) so ``import weather_gym.wrappers`` stays light; a new wrapper is
@@ -22,6 +22,7 @@ _LAZY = {
     "OracleNoise": "weather_gym.wrappers.ground_truth",
     "EpisodeStatistics": "weather_gym.wrappers.episode",
     "latencies": "weather_gym.wrappers.episode",
+    "SurrogatePerceptionWrapper": "weather_gym.wrappers.surrogate",
     "RandomWeather": "weather_gym.wrappers.weather_randomizer",
     "RecordVideo": "weather_gym.viz.record_video",
     "WeatherRandomizer": "weather_gym.wrappers.weather_randomizer",

@@ -1,0 +1,125 @@
+"""perception="surrogate": the detector path's observation and info, nothing rendered, same seed same bytes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from weather_gym.errors import InputError
+from weather_gym.pipeline import make_env
+
+ACTION = np.array([0.4, 0.05], np.float32)
+
+
+def _run(env, seed, steps=25, options=None):
+    obs, info = env.reset(seed=seed, options=options)
+    out = [obs["cones"].tobytes() + obs["mask"].tobytes()]
+    for _ in range(steps):
+        obs, _, _, _, info = env.step(ACTION)
+        out.append(obs["cones"].tobytes() + obs["mask"].tobytes())
+    return out, info
+
+
+@pytest.fixture
+def no_render(monkeypatch):
+    from weather_gym.sim.world import World
+
+    def boom(*a, **k):
+        raise AssertionError("the camera was rendered")
+
+    monkeypatch.setattr(World, "render", boom)
+
+
+def test_same_space_and_info_keys_as_the_detector_path():
+    sur = make_env(perception="surrogate", weather="droplets@2", max_episode_steps=5)
+    det = make_env(perception="detector", weather="droplets@2", max_episode_steps=5)
+    try:
+        assert sur.observation_space == det.observation_space
+        assert sur.action_space == det.action_space
+        o1, i1 = sur.reset(seed=0)
+        o2, i2 = det.reset(seed=0)
+        assert sorted(i1) == sorted(i2)
+        assert sorted(i1["detections"]) == sorted(i2["detections"])
+        for k in i1["detections"]:
+            assert i1["detections"][k].dtype == i2["detections"][k].dtype, k
+        assert sur.observation_space.contains(o1)
+    finally:
+        sur.close()
+        det.close()
+
+
+def test_nothing_rendered_and_same_seed_same_bytes(no_render):
+    env = make_env(perception="surrogate", weather="low_light@2", max_episode_steps=100)
+    try:
+        assert env.unwrapped.renderer == "none"
+        a, _ = _run(env, seed=3)
+        b, _ = _run(env, seed=3)
+        c, _ = _run(env, seed=4)
+        assert a == b
+        assert a != c
+        assert sum(np.frombuffer(x[-64:], np.int8).sum() for x in a) > 0  # it reports cones
+    finally:
+        env.close()
+
+
+def test_weather_changes_pick_the_condition(no_render):
+    env = make_env(perception="surrogate", max_episode_steps=100)
+    try:
+        _, info = env.reset(seed=0)
+        assert "weather" not in info  # no weather given: as the detector path without a WeatherWrapper
+        _, info = env.reset(seed=0, options={"weather": "low_light@3"})
+        assert info["weather"][0]["name"] == "dim"
+        wrapper = env.get_wrapper_attr("set_weather")
+        assert wrapper("droplets@1")[0]["name"] == "droplets"
+        _, _, _, _, info = env.step(ACTION)
+        assert info["weather"][0]["k"] == pytest.approx(0.259)
+        with pytest.raises(InputError, match="no model of weather effect 'fog'"):
+            wrapper("fog@2")
+        # darker: fewer cones reported than in clear weather, on the same frames
+        clear, _ = _run(env, seed=1, steps=60, options={"weather": "clear"})
+        dark, _ = _run(env, seed=1, steps=60, options={"weather": "low_light@3"})
+        count = lambda frames: sum(int(np.frombuffer(x[-64:], np.int8).sum()) for x in frames)  # noqa: E731
+        assert count(dark) < 0.5 * count(clear)
+    finally:
+        env.close()
+
+
+def test_bad_settings_are_typed_errors(tmp_path):
+    with pytest.raises(InputError, match="k=0.95 is beyond"):
+        make_env(perception="surrogate", weather={"droplets": 0.95})
+    with pytest.raises(InputError, match="refit it for this camera"):
+        make_env(perception="surrogate", camera={"width": 96, "height": 54})
+    with pytest.raises(InputError, match="does not exist"):
+        make_env(perception="surrogate", perception_kwargs={"model": str(tmp_path / "none.npz")})
+
+
+def test_vector_envs_set_the_weather_per_env(no_render):
+    from weather_gym.pipeline import make_vec_env
+
+    envs = make_vec_env(num_envs=2, perception="surrogate", vectorization_mode="sync", max_episode_steps=20)
+    try:
+        envs.reset(seed=0)
+        envs.set_attr("weather", ["clear", "low_light@4"])
+        total = np.zeros(2)
+        for _ in range(15):
+            obs, *_ = envs.step(np.tile(ACTION, (2, 1)))
+            total += obs["mask"].sum(axis=1)
+        assert total[1] < 0.5 * total[0]  # almost nothing is seen at low_light@4
+    finally:
+        envs.close()
+
+
+def test_weather_randomizer_drives_the_surrogate(no_render):
+    from weather_gym.wrappers import RandomWeather, WeatherRandomizer
+
+    env = WeatherRandomizer(make_env(perception="surrogate", max_episode_steps=30),
+                            RandomWeather(presets=("droplets", "low_light"), severities=(1, 2, 3, 4)))
+    try:
+        names = set()
+        for seed in range(4):
+            _, info = env.reset(seed=seed)
+            names.add(info["weather"][0]["name"])
+            assert info["weather_draw"].split("@")[0] in ("droplets", "low_light")
+        assert names == {"droplets", "dim"}
+    finally:
+        env.close()

@@ -1,0 +1,140 @@
+"""``weather-gym bench surrogate``: env-steps/s of the perception surrogate vs the full pipeline.
+
+One env (one process, so one core) driving the ground-truth lap of ``--track`` in ``--weather``:
+the full pipeline (render -> weather -> ONNX detector, the baseline, same run), ``gt_cones`` (the
+render-free ground truth the surrogate builds on) and ``surrogate``; each the median of
+``--repeats`` blocks of ``--block`` steps after a warm-up block, the agent's time not counted
+(its actions are recorded first and replayed). Then Gymnasium vector envs of the surrogate
+(``--num-envs``, async: one process per env; a constant action, with the vector env's automatic
+resets): env-steps/s summed over the envs. The machine's load average is printed with the
+tables: other processes on the same cores lower every number; the single-env rows also give
+env-steps per second of the process's own CPU time, what one unloaded core would come close to
+(the full pipeline's renderer and onnxruntime may use more than one thread, so its CPU-time rate is
+per CPU-second of all its threads).
+
+Example:
+    $ weather-gym bench surrogate --weather droplets@3 --num-envs 1,2,4
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+import numpy as np
+
+from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.errors import InputError
+
+
+def register(targets) -> None:
+    p = targets.add_parser("surrogate", help="perception surrogate vs full pipeline: env-steps/s, vector envs",
+                           description=__doc__.split("\n\n")[1])
+    p.add_argument("--track", default="small_track", help="track (default %(default)s)")
+    p.add_argument("--weather", default="droplets@3", help="weather (default %(default)s)")
+    p.add_argument("--block", type=int, default=500, help="steps per timed block (default %(default)s)")
+    p.add_argument("--repeats", type=int, default=7, help="timed blocks per row (default %(default)s)")
+    p.add_argument("--full-block", type=int, default=30, help="steps per block of the full pipeline (default %(default)s)")
+    p.add_argument("--full-repeats", type=int, default=3, help="blocks of the full pipeline (default %(default)s)")
+    p.add_argument("--num-envs", default="1,2,4", help="vector env sizes (default %(default)s; empty: none)")
+    p.set_defaults(func=run)
+
+
+def steps_per_s(perception: str, track: str, weather: str | None, block: int, repeats: int) -> tuple[float, float]:
+    """Median env-steps/s of one env of ``perception`` driving the ground-truth lap of ``track``: per
+    second of wall time and per second of this process's CPU time (what one unloaded core would give)."""
+    from weather_gym.agents import make_agent
+    from weather_gym.pipeline import make_env
+
+    env = make_env(perception=perception, weather=weather, track=track, laps=0, max_episode_steps=10**9,
+                   episode_statistics=False)
+    try:
+        u = env.unwrapped
+        agent = make_agent("gt_pure_pursuit", u.track, u.config.camera)
+        obs, info = env.reset(seed=0)
+        agent.reset(seed=0, info=info)
+        actions = []
+        for _ in range(block * (repeats + 1)):  # the lap's actions, recorded: the agent is not timed
+            a = agent.act(obs, info)
+            actions.append(a)
+            obs, _, term, trunc, info = env.step(a)
+            if term or trunc:
+                obs, info = env.reset(seed=0)
+                agent.reset(seed=0, info=info)
+        env.reset(seed=0)
+        rates, cpu_rates = [], []
+        for r in range(repeats + 1):
+            chunk = actions[r * block:(r + 1) * block]
+            t0, c0 = time.perf_counter(), time.process_time()
+            for a in chunk:
+                env.step(a)
+            if r:  # the first block is the warm-up
+                rates.append(len(chunk) / (time.perf_counter() - t0))
+                cpu_rates.append(len(chunk) / max(time.process_time() - c0, 1e-9))
+        return statistics.median(rates), statistics.median(cpu_rates)
+    finally:
+        env.close()
+
+
+def vector_steps_per_s(num_envs: int, track: str, weather: str | None, block: int, repeats: int) -> float:
+    """Median env-steps/s (summed over the envs) of an async vector env of ``num_envs`` surrogate envs."""
+    from weather_gym.pipeline import make_vec_env
+
+    venv = make_vec_env(num_envs=num_envs, perception="surrogate", weather=weather, track=track,
+                        max_episode_steps=400, episode_statistics=False)
+    try:
+        venv.reset(seed=0)
+        action = np.tile(np.array([0.3, 0.02], np.float32), (num_envs, 1))
+        rates = []
+        for r in range(repeats + 1):
+            t0 = time.perf_counter()
+            for _ in range(block):
+                venv.step(action)
+            if r:
+                rates.append(num_envs * block / (time.perf_counter() - t0))
+        return statistics.median(rates)
+    finally:
+        venv.close()
+
+
+def run(args: argparse.Namespace) -> int:
+    for name in ("block", "repeats", "full_block", "full_repeats"):
+        if getattr(args, name) < 1:
+            raise InputError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    try:
+        sizes = [int(x) for x in args.num_envs.split(",") if x.strip()]
+    except ValueError:
+        raise InputError(f"--num-envs: expected comma-separated integers, got {args.num_envs!r}") from None
+    if any(n < 1 for n in sizes):
+        raise InputError(f"--num-envs: sizes must be >= 1, got {args.num_envs!r}")
+    from weather_gym.tracks import load_track
+
+    load_track(args.track)
+    from weather_gym.surrogate.model import load_model
+
+    load_model().point(args.weather)  # an unmodelled weather fails here
+    print(f"Machine: {machine_line()}; load average {os.getloadavg()[0]:.1f}")
+    full = steps_per_s("detector", args.track, args.weather, args.full_block, args.full_repeats)
+    gt = steps_per_s("gt_cones", args.track, None, args.block, args.repeats)
+    sur = steps_per_s("surrogate", args.track, args.weather, args.block, args.repeats)
+    rows = [[f"detector (full pipeline, {args.weather})", f"{full[0]:.1f}", f"{full[1]:.1f}", "1.0x",
+             f"{args.full_repeats} x {args.full_block}"],
+            ["gt_cones (ground truth, no errors)", f"{gt[0]:.0f}", f"{gt[1]:.0f}", f"{gt[0] / full[0]:.0f}x",
+             f"{args.repeats} x {args.block}"],
+            [f"surrogate ({args.weather})", f"{sur[0]:.0f}", f"{sur[1]:.0f}", f"{sur[0] / full[0]:.0f}x",
+             f"{args.repeats} x {args.block}"]]
+    print(f"\nOne env (one process), {args.track}, ground-truth lap, median of the blocks "
+          f"(load average {os.getloadavg()[0]:.1f}):")
+    print(markdown_table(["perception", "env-steps/s (wall)", "env-steps per CPU-second", "vs full pipeline (wall)",
+                          "blocks x steps"], rows))
+    if sizes:
+        vrows = []
+        for n in sizes:
+            rate = vector_steps_per_s(n, args.track, args.weather, max(args.block // 5, 20), args.repeats)
+            vrows.append([n, f"{rate:.0f}", f"{rate / n:.0f}"])
+        print(f"\nAsync vector envs of the surrogate ({args.weather}), constant action, automatic resets "
+              f"(load average {os.getloadavg()[0]:.1f}):")
+        print(markdown_table(["envs", "env-steps/s (all envs)", "per env"], vrows))
+    return 0

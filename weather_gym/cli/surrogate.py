@@ -1,0 +1,127 @@
+"""``weather-gym surrogate``: log the full pipeline, fit the perception surrogate, validate it.
+
+Examples:
+    weather-gym surrogate log --track small_track --weather droplets@3 --seeds 0,1 --steps 600 --out logs/d3.npz
+    weather-gym surrogate fit logs/*.npz --out model.npz
+    weather-gym surrogate validate --track hairpin --full-logs scratch/val_logs --out docs/surrogate/validation
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.errors import InputError
+
+
+def _ints(text: str, what: str) -> list[int]:
+    try:
+        out = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise InputError(f"{what}: expected comma-separated integers, got {text!r}") from None
+    if not out:
+        raise InputError(f"{what}: no value given")
+    return out
+
+
+def _names(text: str) -> list[str]:
+    return [x.strip() for x in text.split(",") if x.strip()]
+
+
+def register(sub) -> None:
+    p = sub.add_parser("surrogate", help="perception surrogate: log the full pipeline, fit, validate",
+                       description="A statistical model of what the detector reports in each weather "
+                                   "(docs/surrogate.md): log full-pipeline runs, fit the model, validate it.")
+    s = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+
+    lg = s.add_parser("log", help="drive the full pipeline and log every true cone and false positive (.npz)",
+                      formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n")[1])
+    lg.add_argument("--track", default="small_track", help="comma-separated tracks (default %(default)s)")
+    lg.add_argument("--weather", action="append", default=None, metavar="SPEC",
+                    help="weather spec, repeatable (e.g. clear, droplets@3, low_light@2; default clear)")
+    lg.add_argument("--seeds", default="0", help="comma-separated episode seeds (default %(default)s)")
+    lg.add_argument("--steps", type=int, default=600, help="steps per episode, at most (default %(default)s)")
+    lg.add_argument("--agent", default="gt_pure_pursuit", choices=("gt_pure_pursuit", "mapper_pure_pursuit"),
+                    help="driver: gt_pure_pursuit (the true track) or mapper_pure_pursuit (drives on the cone "
+                         "list; its lap metrics are kept) (default %(default)s)")
+    lg.add_argument("--perception", default="detector", choices=("detector", "surrogate"),
+                    help="detector: the full pipeline (default); surrogate: the same tables from the surrogate")
+    add_detector_args(lg, what="the detector whose errors are logged")
+    lg.add_argument("--out", type=Path, required=True, metavar="LOG.npz", help="output log")
+    add_overwrite_arg(lg)
+    lg.set_defaults(func=_log)
+
+    ft = s.add_parser("fit", help="fit the surrogate model from logs")
+    ft.add_argument("logs", nargs="+", type=Path, metavar="LOG.npz", help="logs written by `surrogate log`")
+    ft.add_argument("--out", type=Path, required=True, metavar="MODEL.npz", help="output model")
+    add_overwrite_arg(ft)
+    ft.set_defaults(func=_fit)
+
+    va = s.add_parser("validate", help="surrogate vs full pipeline on a track: report (markdown + PNG)")
+    va.add_argument("--model", type=Path, default=None, help="surrogate model (default: the shipped one)")
+    va.add_argument("--track", default="hairpin", help="track (not used for fitting; default %(default)s)")
+    va.add_argument("--conditions", default="droplets,low_light", help="conditions (default %(default)s)")
+    va.add_argument("--severities", default="0,1,2,3,4", help="severities (default %(default)s)")
+    va.add_argument("--seeds", default="0,1,2", help="full-pipeline seeds (default %(default)s)")
+    va.add_argument("--surrogate-seeds", default="0,1,2,3,4,5,6,7,8,9", help="surrogate seeds (default %(default)s)")
+    va.add_argument("--steps", type=int, default=900, help="steps per lap, at most (default %(default)s)")
+    va.add_argument("--full-logs", type=Path, default=None, metavar="DIR",
+                    help="folder of full-pipeline logs of this track (clear.npz, droplets_3.npz, ...): reused, "
+                         "missing ones recorded there (default OUT/full_logs)")
+    va.add_argument("--out", type=Path, required=True, metavar="DIR", help="report folder (report.md, PNGs, JSON)")
+    add_overwrite_arg(va)
+    va.set_defaults(func=_validate)
+
+
+def _log(args) -> int:
+    from weather_gym._io import check_output
+    from weather_gym.surrogate.log import record, save_log
+
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".npz",), what="surrogate log")
+    if args.steps < 1:
+        raise InputError(f"--steps must be >= 1, got {args.steps}")
+    tracks = _names(args.track)
+    if not tracks:
+        raise InputError("--track: no track given")
+    from weather_gym.tracks import load_track
+
+    for t in tracks:
+        load_track(t)
+    log = record(tracks=tracks, weathers=args.weather or ["clear"], seeds=_ints(args.seeds, "--seeds"),
+                 steps=args.steps, detector=detector_spec_from_args(args) if args.perception == "detector" else None,
+                 agent=args.agent, perception=args.perception,
+                 progress=lambda line: print(line, file=sys.stderr, flush=True))
+    save_log(log, args.out, overwrite=args.overwrite)
+    print(f"wrote {args.out}: {len(log.episodes)} episodes, {len(log)} frames, {len(log.cones['frame'])} cone rows, "
+          f"{len(log.fps['frame'])} false positives")
+    return 0
+
+
+def _fit(args) -> int:
+    from weather_gym._io import check_output
+    from weather_gym.surrogate.log import concat_logs, load_log
+    from weather_gym.surrogate.model import fit, save_model
+
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".npz",), what="surrogate model")
+    model = fit(concat_logs([load_log(p) for p in args.logs]), sources=[str(p) for p in args.logs])
+    save_model(model, args.out, overwrite=args.overwrite)
+    print(model.summary())
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _validate(args) -> int:
+    if args.steps < 1:
+        raise InputError(f"--steps must be >= 1, got {args.steps}")
+    from weather_gym.surrogate.validate import validate
+
+    validate(model=args.model, track=args.track, conditions=_names(args.conditions),
+             severities=_ints(args.severities, "--severities"), seeds=_ints(args.seeds, "--seeds"),
+             surrogate_seeds=_ints(args.surrogate_seeds, "--surrogate-seeds"), steps=args.steps,
+             full_logs=args.full_logs,
+             out=args.out, overwrite=args.overwrite,
+             progress=lambda line: print(line, file=sys.stderr, flush=True))
+    return 0

@@ -1,0 +1,20 @@
+"""Perception surrogate: a statistical model of what the shipped detector reports in each weather.
+
+The full pipeline (render -> weather -> ONNX detector) is the reference; the surrogate replays its
+statistics on the render-free ground truth (``perception="gt_cones"``'s geometry), thousands of
+steps per second, for training controllers on cone lists.
+
+* :mod:`~weather_gym.surrogate.conditions` - weather spec -> (condition, k) of the model.
+* :mod:`~weather_gym.surrogate.log` - full-pipeline runs -> per-cone / false-positive logs (``.npz``).
+* :mod:`~weather_gym.surrogate.model` - fit the model from logs, save / load it (validated).
+* :mod:`~weather_gym.surrogate.sample` - draw one frame's cone list from the model.
+* :mod:`~weather_gym.surrogate.validate` - surrogate vs full pipeline on a held-out track.
+
+The wrapper that uses it is :class:`weather_gym.wrappers.SurrogatePerceptionWrapper`
+(``make_env(perception="surrogate", weather="droplets@3")``); see ``docs/surrogate.md``.
+
+Example:
+    >>> from weather_gym.surrogate.conditions import condition_of
+    >>> condition_of("droplets@3")
+    ('droplets', 0.379)
+"""

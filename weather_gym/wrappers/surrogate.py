@@ -1,0 +1,151 @@
+"""``SurrogatePerceptionWrapper``: the detector's cone list in a weather, drawn from a statistical model.
+
+Built on the render-free ground truth (``camera_images=False, ground_truth="geometry"``, the
+``gt_cones`` path): no camera frame is rendered and no weather is drawn. Each step the visible cones
+of ``info["gt"]`` go through :class:`~weather_gym.surrogate.sample.FrameSampler` with the model's
+parameters for the current weather (``weather_gym.surrogate.model``; the shipped model by default),
+giving the same observation as ``DetectorWrapper`` (``Dict(cones, mask, state)``) and the same
+``info`` keys: ``info["detections"]`` (a ``ConeArrays`` of boxes, scores, classes, ranges,
+bearings) and, when a weather is given, ``info["weather"]``.
+
+The weather changes like the ``WeatherWrapper``'s: ``reset(options={"weather": spec})``,
+``set_weather(spec)`` (through other wrappers: ``env.get_wrapper_attr("set_weather")(...)``; vector
+envs: ``envs.call("set_weather", ...)``) or assigning ``weather``. A weather the model does not
+cover (another effect, k beyond the fitted range, other effect parameters) is an ``InputError``
+when it is set.
+
+Randomness: a child of the env's generator seeded at ``reset(seed=...)``: same seed, same bytes.
+
+Example:
+    >>> from weather_gym.pipeline import make_env
+    >>> env = make_env(perception="surrogate", weather="droplets@3", max_episode_steps=50)
+    >>> obs, info = env.reset(seed=0)
+    >>> sorted(obs), obs["cones"].shape, env.unwrapped.renderer, info["weather"][0]["name"]
+    (['cones', 'mask', 'state'], (64, 14), 'none', 'droplets')
+    >>> env.close()
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import time
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from weather_gym.camera import CameraConfig
+from weather_gym.cone_arrays import ConeArrays
+from weather_gym.errors import InputError
+from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
+from weather_gym.weather import current_spec, parse_weather
+
+__all__ = ["SurrogatePerceptionWrapper"]
+
+
+class SurrogatePerceptionWrapper(gym.Wrapper):
+    """Replace the observation by a cone list drawn from the perception surrogate; see the module doc.
+
+    Args:
+        env: a ``ConeTrackEnv`` (possibly wrapped) whose info carries ``gt`` and ``camera`` and
+            whose observation is a Dict with ``state``.
+        weather: the weather to model (any spec; None: clear, and no ``info["weather"]``).
+        model: a model path or a loaded ``SurrogateModel`` (None: the shipped one).
+        max_cones: rows of the padded cone list.
+        latency_in_info: put the surrogate's time per step in ``info["detector_latency_ms"]``.
+    """
+
+    def __init__(self, env: gym.Env, weather: Any = None, *, model: Any = None, max_cones: int = DEFAULT_MAX_CONES,
+                 latency_in_info: bool = False) -> None:
+        super().__init__(env)
+        from weather_gym.surrogate.model import SurrogateModel, load_model
+        from weather_gym.surrogate.sample import FrameSampler
+
+        if not (isinstance(max_cones, int) and not isinstance(max_cones, bool) and max_cones >= 1):
+            raise InputError(f"SurrogatePerceptionWrapper: max_cones must be an integer >= 1, got {max_cones!r}")
+        inner = env.observation_space
+        if not isinstance(inner, spaces.Dict) or "state" not in inner.spaces:
+            raise InputError("SurrogatePerceptionWrapper needs an env whose observation is a Dict with a 'state' entry")
+        if model is None or isinstance(model, str | os.PathLike):
+            model = load_model(model)
+        if not isinstance(model, SurrogateModel):
+            raise InputError(f"SurrogatePerceptionWrapper: model must be a path or a SurrogateModel, got "
+                             f"{type(model).__name__}")
+        self.model = model
+        camera = getattr(getattr(env.unwrapped, "config", None), "camera", None)
+        self.camera = camera if isinstance(camera, CameraConfig) else CameraConfig()
+        size = model.camera_size
+        if size is not None and size != (self.camera.width, self.camera.height):
+            raise InputError(f"the surrogate model was fitted for a {size[0]}x{size[1]} camera, the env's is "
+                             f"{self.camera.width}x{self.camera.height}; refit it for this camera (docs/surrogate.md)")
+        self.max_cones = max_cones
+        self.latency_in_info = bool(latency_in_info)
+        self.observation_space = spaces.Dict({**cone_list_space(max_cones).spaces, "state": inner["state"]})
+        self._report_weather = weather is not None
+        self._effect = parse_weather(weather)
+        self._sampler = FrameSampler(model.point(current_spec(self._effect)), self.camera)
+        self._rng: np.random.Generator | None = None
+        self._step = 0
+        self._latency = 0.0
+        self._last: ConeArrays | None = None
+
+    # -- weather -----------------------------------------------------------------------------
+    @property
+    def weather(self) -> Any:
+        """The weather effect being modelled (assigning a spec calls ``set_weather``)."""
+        return self._effect
+
+    @weather.setter
+    def weather(self, spec: Any) -> None:
+        self.set_weather(spec)
+
+    def set_weather(self, spec: Any) -> list[dict[str, Any]]:
+        """Model ``spec`` from the next frame on; returns it as a list of effect tables."""
+        effect = copy.deepcopy(parse_weather(spec))
+        self._sampler.set_point(self.model.point(current_spec(effect)))  # an unmodelled weather fails here
+        self._effect = effect
+        self._report_weather = True
+        return current_spec(effect)
+
+    @property
+    def latency_ms(self) -> float:
+        """Milliseconds the surrogate took on the last step."""
+        return self._latency
+
+    # -- episode -----------------------------------------------------------------------------
+    def _convert(self, obs: dict, info: dict) -> tuple[dict, dict]:
+        t0 = time.perf_counter()
+        if "gt" not in info:
+            raise InputError('SurrogatePerceptionWrapper needs info["gt"] (the visible cones) from the env')
+        det = self._sampler(info["gt"], self._rng, self._step)
+        cones, mask = pack_cones(classes=det["classes"], ranges=det["ranges"], bearings=det["bearings"],
+                                 scores=det["scores"], boxes=det["boxes"], camera=self.camera,
+                                 max_cones=self.max_cones)
+        self._last = ConeArrays(det)
+        self._step += 1
+        out_info = dict(info)
+        if self._report_weather:
+            out_info["weather"] = current_spec(self._effect)
+        out_info["detections"] = self._last
+        self._latency = 1000.0 * (time.perf_counter() - t0)
+        if self.latency_in_info:
+            out_info["detector_latency_ms"] = self._latency
+        return {"cones": cones, "mask": mask, "state": np.asarray(obs["state"], dtype=np.float32)}, out_info
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        options = dict(options or {})
+        if "weather" in options:
+            self.set_weather(options.pop("weather"))
+        obs, info = self.env.reset(seed=seed, options=options or None)
+        if seed is not None or self._rng is None:
+            self._rng = self.env.unwrapped.np_random.spawn(1)[0]
+        self._sampler.reset()
+        self._step = 0
+        return self._convert(obs, info)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        obs, info = self._convert(obs, info)
+        return obs, reward, terminated, truncated, info
