@@ -25,8 +25,10 @@ PLUMBING = {"registry", "_io", "errors", "limits", "paths", "cone_spec", "cone_a
 """Shared plumbing with no layer of its own: importable from anywhere, imports no layer."""
 
 SUBLAYERS = {"perception.train": "perception_tools", "perception.model": "perception_tools",
-             "perception.report": "perception_tools"}
-"""Modules that sit above their package's layer: training and dataset-level reports need datasets."""
+             "perception.report": "perception_tools",
+             "surrogate.record": "surrogate_tools", "surrogate.validate": "surrogate_tools"}
+"""Modules that sit above their package's layer: training and dataset-level reports need datasets;
+the surrogate's logging and validation drive full-pipeline episodes (a top layer, like evaluation)."""
 
 LOWER = {"plumbing"}
 ALLOWED: dict[str, set[str]] = {
@@ -37,7 +39,8 @@ ALLOWED: dict[str, set[str]] = {
     "sim": {"tracks", "camera"},
     "envs": {"sim", "tracks", "camera", "weather"},
     "perception": {"camera", "weather"},
-    "wrappers": {"weather", "perception", "camera"},
+    "surrogate": {"perception", "weather", "camera"},
+    "wrappers": {"weather", "perception", "camera", "surrogate"},
     "pipeline": {"envs", "weather", "wrappers", "root"},
     "agents": {"tracks", "camera", "perception", "wrappers"},
     "datasets": {"envs", "sim", "tracks", "camera", "weather", "perception", "pipeline", "agents"},
@@ -48,7 +51,7 @@ ALLOWED: dict[str, set[str]] = {
 (evaluation, calibration, gap, bench, cli, the package root) sit on top and may import any layer below
 them, but not the CLI (only ``cli`` itself does)."""
 
-TOP = {"evaluation", "calibration", "gap", "bench", "cli", "root"}
+TOP = {"evaluation", "calibration", "gap", "bench", "cli", "root", "surrogate_tools"}
 
 HEAVY: dict[str, set[str]] = {
     "pybullet": {"sim"},

@@ -46,7 +46,13 @@ from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.scenario import Scenario, build_config, load_scenario
 from weather_gym.errors import InputError
 from weather_gym.weather import parse_weather, to_spec
-from weather_gym.wrappers import DetectorWrapper, EpisodeStatistics, GroundTruthConeWrapper, WeatherWrapper
+from weather_gym.wrappers import (
+    DetectorWrapper,
+    EpisodeStatistics,
+    GroundTruthConeWrapper,
+    SurrogatePerceptionWrapper,
+    WeatherWrapper,
+)
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
 
@@ -92,7 +98,6 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
         if images:
             raise InputError("perception 'surrogate' renders nothing: build the env with camera_images=False, "
                              "ground_truth='geometry' (make_env does)")
-        from weather_gym.wrappers import SurrogatePerceptionWrapper
 
         return SurrogatePerceptionWrapper(env, weather=weather, **kwargs)
     if weather is not None:

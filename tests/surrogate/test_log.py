@@ -13,9 +13,9 @@ from weather_gym.surrogate.log import (
     load_log,
     loose_matches,
     match_detections,
-    record,
     save_log,
 )
+from weather_gym.surrogate.record import record
 
 
 @pytest.fixture(scope="module")

@@ -25,8 +25,12 @@ import time
 
 import numpy as np
 
+from weather_gym.agents import make_agent
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.errors import InputError
+from weather_gym.pipeline import make_env, make_vec_env
+from weather_gym.surrogate.model import load_model
+from weather_gym.tracks import load_track
 
 
 def register(targets) -> None:
@@ -45,8 +49,6 @@ def register(targets) -> None:
 def steps_per_s(perception: str, track: str, weather: str | None, block: int, repeats: int) -> tuple[float, float]:
     """Median env-steps/s of one env of ``perception`` driving the ground-truth lap of ``track``: per
     second of wall time and per second of this process's CPU time (what one unloaded core would give)."""
-    from weather_gym.agents import make_agent
-    from weather_gym.pipeline import make_env
 
     env = make_env(perception=perception, weather=weather, track=track, laps=0, max_episode_steps=10**9,
                    episode_statistics=False)
@@ -80,7 +82,6 @@ def steps_per_s(perception: str, track: str, weather: str | None, block: int, re
 
 def vector_steps_per_s(num_envs: int, track: str, weather: str | None, block: int, repeats: int) -> float:
     """Median env-steps/s (summed over the envs) of an async vector env of ``num_envs`` surrogate envs."""
-    from weather_gym.pipeline import make_vec_env
 
     venv = make_vec_env(num_envs=num_envs, perception="surrogate", weather=weather, track=track,
                         max_episode_steps=400, episode_statistics=False)
@@ -109,10 +110,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--num-envs: expected comma-separated integers, got {args.num_envs!r}") from None
     if any(n < 1 for n in sizes):
         raise InputError(f"--num-envs: sizes must be >= 1, got {args.num_envs!r}")
-    from weather_gym.tracks import load_track
 
     load_track(args.track)
-    from weather_gym.surrogate.model import load_model
 
     load_model().point(args.weather)  # an unmodelled weather fails here
     print(f"Machine: {machine_line()}; load average {os.getloadavg()[0]:.1f}")

@@ -12,9 +12,15 @@ import argparse
 import sys
 from pathlib import Path
 
+from weather_gym._io import check_output
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
+from weather_gym.surrogate.log import concat_logs, load_log, save_log
+from weather_gym.surrogate.model import fit, save_model
+from weather_gym.surrogate.record import record
+from weather_gym.surrogate.validate import validate
+from weather_gym.tracks import load_track
 
 
 def _ints(text: str, what: str) -> list[int]:
@@ -77,16 +83,12 @@ def register(sub) -> None:
 
 
 def _log(args) -> int:
-    from weather_gym._io import check_output
-    from weather_gym.surrogate.log import record, save_log
-
     check_output(args.out, overwrite=args.overwrite, suffixes=(".npz",), what="surrogate log")
     if args.steps < 1:
         raise InputError(f"--steps must be >= 1, got {args.steps}")
     tracks = _names(args.track)
     if not tracks:
         raise InputError("--track: no track given")
-    from weather_gym.tracks import load_track
 
     for t in tracks:
         load_track(t)
@@ -101,10 +103,6 @@ def _log(args) -> int:
 
 
 def _fit(args) -> int:
-    from weather_gym._io import check_output
-    from weather_gym.surrogate.log import concat_logs, load_log
-    from weather_gym.surrogate.model import fit, save_model
-
     check_output(args.out, overwrite=args.overwrite, suffixes=(".npz",), what="surrogate model")
     model = fit(concat_logs([load_log(p) for p in args.logs]), sources=[str(p) for p in args.logs])
     save_model(model, args.out, overwrite=args.overwrite)
@@ -116,7 +114,6 @@ def _fit(args) -> int:
 def _validate(args) -> int:
     if args.steps < 1:
         raise InputError(f"--steps must be >= 1, got {args.steps}")
-    from weather_gym.surrogate.validate import validate
 
     validate(model=args.model, track=args.track, conditions=_names(args.conditions),
              severities=_ints(args.severities, "--severities"), seeds=_ints(args.seeds, "--seeds"),

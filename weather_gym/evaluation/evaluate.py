@@ -47,6 +47,7 @@ from weather_gym.evaluation.report import report_paths, write_report
 from weather_gym.evaluation.runner import check_results_path, run_cells
 from weather_gym.perception import evaluate as score
 from weather_gym.pipeline import PERCEPTION_MODES, make_env
+from weather_gym.surrogate.model import load_model
 from weather_gym.tracks import load_track
 from weather_gym.weather.presets import canonical_condition, preset_spec
 
@@ -220,8 +221,6 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
             raise type(exc)(f"env_kwargs: {exc}") from None
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
     if config.perception == "surrogate":  # a weather the surrogate has no model of fails now, not in every cell
-        from weather_gym.surrogate.model import load_model
-
         model = load_model(dict(config.perception_kwargs).get("model"))
         for (e, s), w in weather.items():
             try:

@@ -35,7 +35,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,9 +45,8 @@ from weather_gym._io import atomic_file, check_output
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.surrogate.conditions import condition_of
 
-__all__ = ["LOG_SCHEMA", "SurrogateLog", "match_detections", "visibility", "record", "save_log", "load_log",
+__all__ = ["LOG_SCHEMA", "SurrogateLog", "match_detections", "visibility", "save_log", "load_log",
            "concat_logs", "CONE_COLUMNS", "FP_COLUMNS", "FRAME_COLUMNS"]
 
 LOG_SCHEMA = 1
@@ -219,87 +218,6 @@ def _stack(parts: dict[str, list], columns: dict[str, str]) -> dict[str, np.ndar
         else:
             out[key] = (np.concatenate(chunks) if chunks else np.zeros(0)).astype(dtype)
     return out
-
-
-def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[int], steps: int,
-           detector: Any = None, env_kwargs: dict[str, Any] | None = None, perception: str = "detector",
-           agent: str = "gt_pure_pursuit", perception_kwargs: dict[str, Any] | None = None,
-           progress: Callable[[str], None] | None = None) -> SurrogateLog:
-    """Drive ``steps`` steps (at most) per (track, weather, seed) and log them.
-
-    ``perception``: ``detector`` (the full pipeline, the default) or ``surrogate`` (the same tables
-    from the surrogate, for validation). ``agent``: the driver (``gt_pure_pursuit``: the true
-    track; ``mapper_pure_pursuit``: drives on the cone list it receives). ``detector``: the
-    ``DetectorWrapper``'s detector (None: the shipped model). ``env_kwargs``: further ``EnvConfig``
-    overrides (``camera=...``). Each episode's lap metrics are kept in ``episodes``.
-    """
-    if perception not in ("detector", "surrogate"):
-        raise InputError(f"surrogate log: perception must be 'detector' or 'surrogate', got {perception!r}")
-    from weather_gym.agents import make_agent, run_episode
-    from weather_gym.pipeline import make_env
-
-    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-        raise InputError(f"steps must be an integer >= 1, got {steps!r}")
-    if not tracks or not weathers or not seeds:
-        raise InputError("surrogate log needs at least one track, one weather and one seed")
-    for w in weathers:
-        condition_of(w)  # an unmodelled weather fails before any driving
-    parts: list[_Recorder] = []
-    episodes: list[dict[str, Any]] = []
-    camera_cfg = None
-    for track in tracks:
-        for weather in weathers:
-            extra = {"ground_truth": "geometry", "detector": detector} if perception == "detector" else {}
-            env = make_env(perception=perception, weather=weather, track=track, max_episode_steps=steps,
-                           perception_kwargs=perception_kwargs, **extra, **dict(env_kwargs or {}))
-            try:
-                base = env.unwrapped
-                camera_cfg = base.config.camera
-                for seed in seeds:
-                    rec = _Recorder(len(episodes), camera_cfg)
-                    driver = make_agent(agent, base.track, camera_cfg)
-                    res = run_episode(env, driver, seed=int(seed), on_step=rec)
-                    spec = env.get_wrapper_attr("weather")
-                    from weather_gym.weather import current_spec
-
-                    cond, k = condition_of(weather)
-                    episodes.append({"track": str(track), "weather": current_spec(spec), "condition": cond, "k": k,
-                                     "seed": int(seed), "steps": int(res.steps), "end": res.end_reason, "agent": agent,
-                                     "perception": perception, "completed": bool(res.completed),
-                                     "lap_time_s": res.lap_times_s[0] if res.lap_times_s else None,
-                                     "cones_hit": int(res.cones_hit), "cte_mean_m": float(res.cte_mean_m),
-                                     "progress": float(res.progress)})
-                    parts.append(rec)
-                    if progress is not None:
-                        progress(f"{track} {weather} seed {seed}: {res.steps} steps, "
-                                 f"{int(sum(len(x) for x in rec.cones['episode']))} cone rows, "
-                                 f"{int(sum(len(x) for x in rec.fps['episode']))} false positives")
-            finally:
-                env.close()
-    merged = {name: {k: [x for r in parts for x in getattr(r, name)[k]] for k in cols} for name, cols in _TABLES.items()}
-    meta = {"schema": LOG_SCHEMA, "camera": _camera_dict(camera_cfg), "detector": _detector_name(detector),
-            "iou": IOU_MATCH}
-    return SurrogateLog(_stack(merged["cones"], CONE_COLUMNS), _stack(merged["fps"], FP_COLUMNS),
-                        _stack(merged["frames"], FRAME_COLUMNS), episodes, meta)
-
-
-def _detector_name(detector: Any) -> str:
-    if detector is None:
-        from weather_gym.perception.detectors import detector_id
-
-        try:
-            return f"shipped:{detector_id(None)}"
-        except Exception:  # noqa: BLE001 - only a label
-            return "shipped"
-    return str(detector)
-
-
-def _camera_dict(camera: CameraConfig | None) -> dict[str, Any]:
-    if camera is None:
-        return {}
-    from dataclasses import asdict
-
-    return {k: v for k, v in asdict(camera).items() if isinstance(v, int | float | str | bool)}
 
 
 def concat_logs(logs: Sequence[SurrogateLog]) -> SurrogateLog:

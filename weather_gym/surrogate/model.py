@@ -49,12 +49,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.optimize import minimize, minimize_scalar
 
 from weather_gym._io import atomic_file, check_output
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.surrogate.conditions import condition_of, effect_params
-from weather_gym.surrogate.log import loose_matches
+from weather_gym.surrogate.log import _iou_matrix, loose_matches
 
 __all__ = ["MODEL_SCHEMA", "SHIPPED_MODEL", "SurrogateModel", "Point", "design", "fit_logistic", "fit_point",
            "fit", "save_model", "load_model", "ERR_RANGE_EDGES", "QUANTILES"]
@@ -98,7 +99,6 @@ def crowding(boxes: np.ndarray) -> np.ndarray:
         >>> crowding(np.array([[0, 0, 10, 10.], [5, 0, 15, 10.], [50, 50, 60, 60.]])).round(2).tolist()
         [0.33, 0.33, 0.0]
     """
-    from weather_gym.surrogate.log import _iou_matrix
 
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     if len(b) < 2:
@@ -143,7 +143,6 @@ def design(ranges: np.ndarray, bearings: np.ndarray, box_h: np.ndarray, vis: np.
 
 def fit_logistic(X: np.ndarray, y: np.ndarray, l2: float = L2) -> np.ndarray:
     """L2-penalised logistic regression (intercept unpenalised) by L-BFGS; the coefficients."""
-    from scipy.optimize import minimize
 
     y = np.asarray(y, np.float64)
     pen = np.full(X.shape[1], l2)
@@ -177,8 +176,6 @@ def _pairs(cones: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _fit_rho(p: np.ndarray, prev: np.ndarray, cur: np.ndarray) -> float:
-    from scipy.optimize import minimize_scalar
-
     if not len(p):
         return 0.0
     p = np.clip(p, 1e-4, 1 - 1e-4)

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym.camera import CameraConfig
 from weather_gym.surrogate.log import _HEIGHTS
 from weather_gym.surrogate.model import ERR_RANGE_EDGES, QUANTILES, Point, crowding
 
@@ -53,8 +54,6 @@ class FrameSampler:
     """
 
     def __init__(self, point: Point, camera: Any = None) -> None:
-        from weather_gym.camera import CameraConfig
-
         self.camera = camera if camera is not None else CameraConfig()
         self.point = point
         self._fy_h = self.camera.fy * _HEIGHTS

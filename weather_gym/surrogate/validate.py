@@ -2,7 +2,7 @@
 
 For every condition and severity, ``mapper_pure_pursuit`` drives one lap per seed through the full
 pipeline (render -> weather -> detector) and through the surrogate, both logged the same way
-(:func:`weather_gym.surrogate.log.record`). From the logs, the cone-list statistics
+(:func:`weather_gym.surrogate.record.record`). From the logs, the cone-list statistics
 (:func:`cone_stats`): recall per range bin, false positives per frame, range-error spread (IQR),
 wrong-class rate, mean run length of misses; from the episodes, the lap metrics (completion, lap
 time, cones hit, mean cross-track error).
@@ -32,12 +32,19 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from scipy.stats import t
 
+from weather_gym._io import atomic_write, check_output, save_figure
 from weather_gym.errors import InputError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
 from weather_gym.perception.scoring import DEFAULT_RANGE_BINS
-from weather_gym.surrogate.log import SurrogateLog, load_log, record, save_log
+from weather_gym.surrogate.log import SurrogateLog, load_log, save_log
+from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
+from weather_gym.surrogate.record import record
+from weather_gym.weather.presets import canonical_condition
 
 __all__ = ["cone_stats", "miss_runs", "validate", "STAT_NAMES", "LAP_METRICS"]
 
@@ -142,8 +149,6 @@ def _bootstrap(log: SurrogateLog, rng: np.random.Generator) -> dict[str, tuple[f
 
 
 def _seed_interval(values: Sequence[float]) -> tuple[float, float]:
-    from scipy.stats import t
-
     a = np.asarray([v for v in values if np.isfinite(v)], np.float64)
     if len(a) < 2:
         return (math.nan, math.nan)
@@ -174,8 +179,6 @@ def _lap_check(full: Sequence[float], sur: Sequence[float]) -> tuple[float, floa
 
 
 def _weathers(conditions: Sequence[str], severities: Sequence[int]) -> list[str]:
-    from weather_gym.weather.presets import canonical_condition
-
     out = []
     if 0 in severities:
         out.append("clear")
@@ -201,8 +204,6 @@ def validate(*, model: str | os.PathLike | None = None, track: str = "hairpin",
     ``full_logs``: a folder of full-pipeline logs of this track (``clear.npz``, ``droplets_3.npz``...):
     the ones there are reused, the missing ones recorded and saved there (default ``OUT/full_logs``).
     """
-    from weather_gym._io import atomic_write, check_output
-    from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 
     for s in severities:
         if not (isinstance(s, int) and 0 <= s <= 4):
@@ -306,12 +307,8 @@ def _markdown(res: dict[str, Any], model: Any) -> str:
 
 
 def _plots(res: dict[str, Any], out: Path, overwrite: bool) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    from weather_gym._io import save_figure
 
     rows = res["rows"]
     conds = sorted({r["weather"].split("@")[0] for r in rows if r["weather"] != "clear"})

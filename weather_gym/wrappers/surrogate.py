@@ -40,6 +40,8 @@ from weather_gym.camera import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
+from weather_gym.surrogate.model import SurrogateModel, load_model
+from weather_gym.surrogate.sample import FrameSampler
 from weather_gym.weather import current_spec, parse_weather
 
 __all__ = ["SurrogatePerceptionWrapper"]
@@ -60,8 +62,6 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
     def __init__(self, env: gym.Env, weather: Any = None, *, model: Any = None, max_cones: int = DEFAULT_MAX_CONES,
                  latency_in_info: bool = False) -> None:
         super().__init__(env)
-        from weather_gym.surrogate.model import SurrogateModel, load_model
-        from weather_gym.surrogate.sample import FrameSampler
 
         if not (isinstance(max_cones, int) and not isinstance(max_cones, bool) and max_cones >= 1):
             raise InputError(f"SurrogatePerceptionWrapper: max_cones must be an integer >= 1, got {max_cones!r}")
