@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from weather_gym.errors import InputError
+from weather_gym.sim.ego import EGO_VARIANTS
+from weather_gym.sim.scenery import CLUTTER_LAYOUTS
 
 RGB = tuple[float, float, float]
 
@@ -44,6 +46,11 @@ class Look:
     camera_height_offset: float = 0.0
     camera_pitch_offset_deg: float = 0.0
     camera_yaw_offset_deg: float = 0.0
+    # the realistic scene (SimConfig(scene="realistic")) only; the plain scene ignores these
+    clutter_seed: int = 0
+    clutter_tint: RGB = (1.0, 1.0, 1.0)
+    ego_seed: int = -1
+    cone_sheen: float = 0.35
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -52,6 +59,13 @@ class Look:
                 raise InputError(f"look.{f.name} must be finite, got {getattr(self, f.name)!r}")
         if np.linalg.norm(self.light_direction) == 0:
             raise InputError("look.light_direction must not be the zero vector")
+        if not (isinstance(self.clutter_seed, (int, np.integer)) and 0 <= self.clutter_seed < CLUTTER_LAYOUTS):
+            raise InputError(f"look.clutter_seed must be an integer in [0, {CLUTTER_LAYOUTS}), got {self.clutter_seed!r}")
+        if not (isinstance(self.ego_seed, (int, np.integer)) and -1 <= self.ego_seed < EGO_VARIANTS):
+            raise InputError(f"look.ego_seed must be -1 (no ego car) or an integer in [0, {EGO_VARIANTS}), "
+                             f"got {self.ego_seed!r}")
+        if not 0.0 <= self.cone_sheen <= 1.0:
+            raise InputError(f"look.cone_sheen must lie in [0, 1], got {self.cone_sheen!r}")
         if len(self.cone_shade) != 4:
             raise InputError(f"look.cone_shade needs one RGB multiplier per cone class (4), got {len(self.cone_shade)}")
 
