@@ -61,6 +61,7 @@ class CameraModel:
         contrast: slope of the filmic tone curve at mid-grey (1 = the renderer's sRGB curve).
         vignetting: light fall-off at the image corners (0.3 = 30 % darker there, cos^4-like).
         k1, k2: radial lens distortion (Brown model on coordinates normalised by fx); k1 < 0 = barrel.
+            A barrel-distorted frame is zoomed in just enough to stay filled (``CameraPipeline.zoom``).
         defocus_px: Gaussian blur sigma in pixels (slight defocus / lens softness).
         read_noise: sensor read noise, standard deviation in 8-bit levels.
         shot_noise: photon noise: standard deviation at full scale in levels, growing as sqrt(signal).
@@ -175,19 +176,44 @@ class CameraPipeline:
         self._vig_on = m.vignetting > 0
         # distortion: for every output (distorted) pixel the undistorted source pixel
         self._map = None
+        self.zoom = 1.0
         if m.distorts:
             K = np.array([[self.fx, 0, self.cx], [0, self.fx, self.cy], [0, 0, 1]], np.float64)
-            pts = np.stack([xx + 0.5, yy + 0.5], -1).reshape(-1, 1, 2).astype(np.float64)
-            und = cv2.undistortPoints(pts, K, np.array([m.k1, m.k2, 0, 0], np.float64), P=K)
-            und = und.reshape(self.height, self.width, 2) - 0.5
+            dist = np.array([m.k1, m.k2, 0, 0], np.float64)
+            # zoom in just enough that every output pixel has a rendered source pixel (barrel
+            # distortion would otherwise pull in content from outside the rendered frame)
+            border = np.concatenate([np.stack([np.linspace(0, self.width, 17), np.full(17, e)], 1)
+                                     for e in (0.0, self.height)] + [
+                                     np.stack([np.full(17, e), np.linspace(0, self.height, 17)], 1)
+                                     for e in (0.0, self.width)])
+
+            def inside(z: float) -> bool:
+                src = self._source(border, K, dist, z)
+                return bool((src[:, 0] >= -0.5).all() and (src[:, 0] <= self.width + 0.5).all()
+                            and (src[:, 1] >= -0.5).all() and (src[:, 1] <= self.height + 0.5).all())
+
+            lo, hi = 1.0, 2.0
+            if not inside(lo):
+                for _ in range(30):
+                    mid = 0.5 * (lo + hi)
+                    lo, hi = (lo, mid) if inside(mid) else (mid, hi)
+                self.zoom = hi
+            pts = np.stack([xx + 0.5, yy + 0.5], -1).reshape(-1, 2)
+            und = self._source(pts, K, dist, self.zoom).reshape(self.height, self.width, 2) - 0.5
             self._map = (und[..., 0].astype(np.float32), und[..., 1].astype(np.float32))
-            self._map_nearest = (np.round(self._map[0]), np.round(self._map[1]))
         # noise: sigma per output level (read + shot), in 1/8 levels (a uint8 table for cv2.LUT)
         levels = np.arange(256) / 255.0
         sigma = np.sqrt(m.read_noise ** 2 + (m.shot_noise ** 2) * levels)
         self._sigma8 = np.clip(np.round(sigma * 8), 0, 255).astype(np.uint8)
         self._noise_on = m.read_noise > 0 or m.shot_noise > 0
         self._bank: np.ndarray | None = None
+
+    def _source(self, pts: np.ndarray, K: np.ndarray, dist: np.ndarray, zoom: float) -> np.ndarray:
+        """Rendered (undistorted) pixel positions of output pixel positions ``pts`` (n, 2)."""
+        Kd = K.copy()
+        Kd[0, 0] = Kd[1, 1] = self.fx * zoom
+        out = cv2.undistortPoints(np.asarray(pts, np.float64).reshape(-1, 1, 2), Kd, dist, P=K)
+        return out.reshape(-1, 2)
 
     # ------------------------------------------------------------------ frames
     def reseed(self, rng: np.random.Generator) -> None:
@@ -208,7 +234,7 @@ class CameraPipeline:
             raise InputError(f"camera model prepared for {self.width}x{self.height}, got an image of shape {rgb.shape}")
         img = rgb
         if self._map is not None:
-            img = cv2.remap(img, self._map[0], self._map[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+            img = cv2.remap(img, self._map[0], self._map[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         if m.defocus_px > 0:
             img = cv2.GaussianBlur(img, (0, 0), m.defocus_px)
         if self._vig_on:
@@ -253,7 +279,7 @@ class CameraPipeline:
         x = (uv[:, 0] - self.cx) / self.fx
         y = (uv[:, 1] - self.cy) / self.fx
         r2 = x * x + y * y
-        f = 1 + self.model.k1 * r2 + self.model.k2 * r2 * r2
+        f = (1 + self.model.k1 * r2 + self.model.k2 * r2 * r2) * self.zoom
         return np.stack([x * f * self.fx + self.cx, y * f * self.fx + self.cy], 1)
 
     def distort_boxes(self, boxes: np.ndarray) -> np.ndarray:
