@@ -258,10 +258,11 @@ class CameraPipeline:
                 raise RuntimeError("JPEG encoding failed")
             img = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
         elif m.chroma_subsampling:
-            ycc = cv2.cvtColor(img, cv2.COLOR_RGB2YCrCb)
-            small = cv2.resize(ycc[..., 1:], (self.width // 2, self.height // 2), interpolation=cv2.INTER_AREA)
-            ycc[..., 1:] = cv2.resize(small, (self.width, self.height), interpolation=cv2.INTER_LINEAR)
-            img = cv2.cvtColor(ycc, cv2.COLOR_YCrCb2RGB)
+            y, cr, cb = cv2.split(cv2.cvtColor(img, cv2.COLOR_RGB2YCrCb))
+            half, full = (max(1, self.width // 2), max(1, self.height // 2)), (self.width, self.height)
+            cr, cb = (cv2.resize(cv2.resize(c, half, interpolation=cv2.INTER_AREA), full,
+                                 interpolation=cv2.INTER_LINEAR) for c in (cr, cb))
+            img = cv2.cvtColor(cv2.merge([y, cr, cb]), cv2.COLOR_YCrCb2RGB)
         return img
 
     def remap_nearest(self, a: np.ndarray, border) -> np.ndarray:
