@@ -140,3 +140,18 @@ def test_realistic_cones_show_their_stripe(realistic_env):
         assert (patch.max(axis=1) < 70).any()
     else:  # a white stripe
         assert (patch.min(axis=1) > 170).any()
+
+
+def test_scenario_camera_model_table(tmp_path):
+    from weather_gym.envs.scenario import build_config, load_scenario, scenario_files
+
+    real = next(p for p in scenario_files() if p.name == "cone_track_realistic.toml")
+    cfg = build_config(load_scenario(real))
+    assert cfg.sim.scene == "realistic" and cfg.camera_model.enabled and cfg.camera_model.white_balance[2] == 1.04
+    bad = tmp_path / "bad.toml"
+    bad.write_text('id = "WeatherGym/X-v0"\n[camera_model]\nenabled = true\nexposure_ev = 40\n')
+    with pytest.raises(FileFormatError, match="exposure_ev"):
+        load_scenario(bad)
+    bad.write_text('id = "WeatherGym/X-v0"\n[camera_model]\nexposure = 1\n')
+    with pytest.raises(InputError, match="exposure"):
+        load_scenario(bad)

@@ -39,6 +39,7 @@ from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError, StateError
 from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
+from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
 
 STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
@@ -199,13 +200,20 @@ class ConeTrackEnv(gym.Env):
         self._pipeline_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
         pipe.reseed(self._pipeline_rng)
 
+    def _sample_look(self, rng: np.random.Generator) -> Look:
+        """A random look: the plain world's ``sample_look``, or in the realistic scene the look of
+        ``weather_gym.sim.randomize.sample_realistic`` (clutter layout, ego car, ...)."""
+        if self._sim.scene == "realistic":
+            return sample_realistic(rng).look
+        return sample_look(rng)
+
     def _resolve_look(self, look: Any, rng: np.random.Generator) -> Look:
         if look is None:
-            return sample_look(rng) if self.config.randomize_look else DEFAULT_LOOK
+            return self._sample_look(rng) if self.config.randomize_look else DEFAULT_LOOK
         if isinstance(look, Look):
             return look
         if look == "random":
-            return sample_look(rng)
+            return self._sample_look(rng)
         if isinstance(look, dict):
             return Look.from_dict(look)
         raise InputError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")

@@ -70,12 +70,19 @@ def ego_overlay(variant: int, width: int, height: int) -> EgoOverlay:
         cov[sel] = 1.0
 
     # front wheels: black tyres at the lower corners, partly out of the frame
-    ww = w * float(rng.uniform(0.16, 0.24))
-    wt = h - (h - y_top) * float(rng.uniform(0.55, 0.85))
+    ww = w * float(rng.uniform(0.2, 0.28))
+    wt = h - (h - y_top) * float(rng.uniform(0.75, 1.1))
     for side in (-1, 1):
         xc = cx + side * w * float(rng.uniform(0.40, 0.48))
-        poly([(xc - ww / 2, h), (xc - ww / 2, wt + 12 * s), (xc - ww / 2 + 8 * s, wt), (xc + ww / 2 - 8 * s, wt),
-              (xc + ww / 2, wt + 12 * s), (xc + ww / 2, h)], dark * 1.3, grad=-0.3)
+        # the tyre: a rounded slab seen from above and behind (tread lit on top, darker sidewall)
+        ay = (h - wt) * 1.1
+        for k, (shrink, col) in enumerate(((1.0, dark * 1.2), (0.8, dark * 1.9))):
+            axes = (int(ww / 2 * shrink), int(ay * (1.0 if k == 0 else 0.9)))
+            centre = (int(xc), int(wt + ay))
+            cv2.ellipse(img, centre, axes, 0, 0, 360, col.tolist(), -1, cv2.LINE_AA)
+            cv2.ellipse(cov, centre, axes, 0, 0, 360, 1.0, -1, cv2.LINE_AA)
+        cv2.ellipse(img, (int(xc), int(wt + ay)), (int(ww * 0.3), int(ay * 0.75)), 0, 200, 340,
+                    (dark * 0.6).tolist(), max(1, s), cv2.LINE_AA)  # a tread groove
         # suspension arms from the nose to the wheel
         for k in (0.25, 0.55):
             y = wt + (h - wt) * k

@@ -27,7 +27,12 @@ RGB = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class Look:
-    """Scene appearance. Colours are 0..255 RGB; ``cone_shade`` multiplies each class's colours."""
+    """Scene appearance. Colours are 0..255 RGB; ``cone_shade`` multiplies each class's colours.
+
+    The last four fields only matter in the realistic scene (``SimConfig(scene="realistic")``):
+    ``clutter_seed`` (track-side clutter layout, 0-63), ``clutter_tint`` (RGB multiplier of the
+    clutter), ``ego_seed`` (the ego car's overlay, 0-15; -1 = none) and ``cone_sheen`` (cone specular).
+    """
 
     light_direction: tuple[float, float, float] = (0.35, 0.25, 1.0)
     light_color: RGB = (1.0, 1.0, 1.0)
