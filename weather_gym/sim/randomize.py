@@ -44,7 +44,7 @@ _LIMITS: dict[str, tuple[float, float]] = {
     "white_balance": (0.5, 2.0), "contrast": (0.5, 2.0), "vignetting": (0.0, 0.8), "k1": (-0.3, 0.3),
     "defocus_px": (0.0, 3.0), "read_noise": (0.0, 20.0), "shot_noise": (0.0, 8.0), "jpeg_quality": (10.0, 100.0),
 }
-_PROBABILITIES = ("p_ego", "p_grass", "p_jpeg", "p_shadows")
+_PROBABILITIES = ("p_ego", "p_grass", "p_jpeg")
 
 ASPHALT_PALETTE: tuple[tuple[float, float, float], ...] = (
     (96.0, 96.0, 100.0), (120.0, 120.0, 118.0), (140.0, 138.0, 134.0), (78.0, 78.0, 82.0), (110.0, 106.0, 100.0),
@@ -73,9 +73,9 @@ class RandomizeRanges:
     sky_brightness: Range = (0.85, 1.25)
     clutter_tint: Range = (0.75, 1.1)
     camera_height_offset: Range = (-0.1, 0.3)
-    camera_pitch_offset_deg: Range = (-2.0, 4.0)
+    camera_pitch_offset_deg: Range = (-2.0, 8.0)
     camera_yaw_offset_deg: Range = (-2.0, 2.0)
-    hfov_deg: Range = (90.0, 90.0)
+    hfov_deg: Range = (55.0, 95.0)
     exposure_ev: Range = (-1.0, 2.0)
     white_balance: Range = (0.88, 1.12)
     contrast: Range = (0.85, 1.35)
@@ -88,7 +88,6 @@ class RandomizeRanges:
     p_ego: float = 0.7
     p_grass: float = 0.35
     p_jpeg: float = 0.7
-    p_shadows: float = 0.0
 
     def __post_init__(self) -> None:
         for name, (lo, hi) in _LIMITS.items():
@@ -145,12 +144,11 @@ class RandomizeRanges:
 
 @dataclass(frozen=True)
 class RealisticDraw:
-    """One draw: the ``look``, the ``camera_model``, the camera's field of view and shadows on/off."""
+    """One draw: the ``look``, the ``camera_model`` and the camera's horizontal field of view."""
 
     look: Look
     camera_model: CameraModel
     hfov_deg: float
-    shadows: bool
 
     def camera(self, base: CameraConfig) -> CameraConfig:
         return base if self.hfov_deg == base.hfov_deg else replace(base, hfov_deg=self.hfov_deg)
@@ -200,5 +198,4 @@ def sample_realistic(rng: np.random.Generator, ranges: RandomizeRanges | None = 
         chroma_subsampling=True,
         jpeg_quality=int(round(_u(rng, r.jpeg_quality))) if rng.random() < r.p_jpeg else 0,
     )
-    return RealisticDraw(look=look, camera_model=model, hfov_deg=_u(rng, r.hfov_deg),
-                         shadows=bool(rng.random() < r.p_shadows))
+    return RealisticDraw(look=look, camera_model=model, hfov_deg=_u(rng, r.hfov_deg))
