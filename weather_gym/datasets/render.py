@@ -89,7 +89,7 @@ def render_dataset(
         randomize: draw a random appearance per episode: in the plain scene a random ``Look``
             (``weather_gym.sim.look.sample_look``), in the realistic one a ``Look``, a camera model and a
             field of view from ``ranges`` (``weather_gym.sim.randomize.sample_realistic``); otherwise
-            every frame uses the default look (realistic scene: with the ``CameraModel.realistic()`` camera).
+            every frame uses the default look (realistic scene: ``REALISTIC_LOOK`` and ``CameraModel.realistic()``).
         scene: ``"plain"`` (the default world) or ``"realistic"`` (``SimConfig.scene``).
         ranges: ``RandomizeRanges`` of the realistic randomisation (None: the defaults).
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
@@ -100,7 +100,7 @@ def render_dataset(
     from weather_gym.agents import AGENTS
     from weather_gym.camera_model import CameraModel
     from weather_gym.sim.config import SCENES
-    from weather_gym.sim.look import DEFAULT_LOOK, sample_look
+    from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, sample_look
     from weather_gym.sim.randomize import RandomizeRanges, sample_realistic
 
     if scene not in SCENES:
@@ -137,7 +137,7 @@ def render_dataset(
                 draw = sample_realistic(rng, ranges)
                 look, model, ep_camera = draw.look, draw.camera_model, draw.camera(camera)
             elif realistic:
-                look, model = DEFAULT_LOOK, CameraModel.realistic()
+                look, model = REALISTIC_LOOK, CameraModel.realistic()
             else:
                 look = sample_look(rng) if randomize else DEFAULT_LOOK
             if env_track != (track_spec, ep_camera):

@@ -38,7 +38,7 @@ from weather_gym.camera_model import CameraModel, CameraPipeline
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError, StateError
-from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
+from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look, sample_look
 from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
 
@@ -209,7 +209,9 @@ class ConeTrackEnv(gym.Env):
 
     def _resolve_look(self, look: Any, rng: np.random.Generator) -> Look:
         if look is None:
-            return self._sample_look(rng) if self.config.randomize_look else DEFAULT_LOOK
+            if self.config.randomize_look:
+                return self._sample_look(rng)
+            return REALISTIC_LOOK if self._sim.scene == "realistic" else DEFAULT_LOOK
         if isinstance(look, Look):
             return look
         if look == "random":

@@ -110,6 +110,15 @@ GROUND_STYLES: tuple[tuple[RGB, RGB], ...] = (
 DEFAULT_LOOK = Look()
 """Bright overcast: soft light, few shadows, high contrast (like the study's simulated ideal set)."""
 
+REALISTIC_LOOK = Look(
+    light_direction=(0.3, 0.45, 1.0), ambient=0.6, diffuse=0.45, specular=0.03,
+    asphalt_rgb=(120.0, 120.0, 118.0), grass_rgb=(132.0, 130.0, 126.0), ground_seed=0,
+    sky_top_rgb=(170.0, 190.0, 215.0), sky_horizon_rgb=(225.0, 230.0, 236.0), cloud_cover=0.7, sky_seed=1,
+    clutter_seed=1, ego_seed=0, cone_sheen=0.35,
+)
+"""The realistic scene's default: a bright overcast day on a paved paddock, the ego car in view
+(``ConeTrackEnv`` uses it when ``SimConfig.scene == "realistic"`` and no look is given)."""
+
 
 def _jitter_rgb(rng: np.random.Generator, base: RGB, rel: float) -> RGB:
     return tuple(float(np.clip(c * (1 + rng.uniform(-rel, rel)), 0, 255)) for c in base)  # type: ignore[return-value]
