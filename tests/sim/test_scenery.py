@@ -155,3 +155,13 @@ def test_scenario_camera_model_table(tmp_path):
     bad.write_text('id = "WeatherGym/X-v0"\n[camera_model]\nexposure = 1\n')
     with pytest.raises(InputError, match="exposure"):
         load_scenario(bad)
+
+
+def test_realistic_scene_defaults_to_the_realistic_look(realistic_env):
+    from weather_gym.sim.look import REALISTIC_LOOK
+
+    realistic_env.reset(seed=1)
+    assert realistic_env.world.look == REALISTIC_LOOK and REALISTIC_LOOK.ego_seed >= 0
+    realistic_env.reset(seed=1, options={"look": "random"})
+    random_look = realistic_env.world.look
+    assert random_look != REALISTIC_LOOK and 0 <= random_look.clutter_seed < 64
