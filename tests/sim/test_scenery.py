@@ -165,3 +165,28 @@ def test_realistic_scene_defaults_to_the_realistic_look(realistic_env):
     realistic_env.reset(seed=1, options={"look": "random"})
     random_look = realistic_env.world.look
     assert random_look != REALISTIC_LOOK and 0 <= random_look.clutter_seed < 64
+
+
+def test_knocked_cone_leaves_no_contact_shadow_and_reset_restores_it():
+    import pybullet as p
+
+    from weather_gym.camera import CameraConfig
+    from weather_gym.sim.config import SimConfig
+    from weather_gym.sim.world import World
+
+    track = load_track("acceleration")
+    w = World(track, sim=SimConfig(scene="realistic"), camera=CameraConfig(width=96, height=54))
+    try:
+        idx = 5
+        cx, cy = track.cones_xy[idx]
+        z = lambda: p.getBasePositionAndOrientation(w._shadow_bodies[idx], physicsClientId=w.client)[0][2]  # noqa: E731
+        w.reset((cx - 6.0, cy, 0.0), speed=6.0)
+        assert z() == 0.0
+        touched = set()
+        for _ in range(60):
+            touched |= w.step(0.0, 0.3)
+        assert idx in touched and z() < -10
+        w.reset(track.start_pose)
+        assert z() == 0.0 and w.cone_displacement().max() == 0.0
+    finally:
+        w.close()

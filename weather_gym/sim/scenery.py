@@ -290,3 +290,13 @@ def asphalt_strip_obj(track, runoff_m: float = ASPHALT_RUNOFF_M, tile_m: float =
         lines.append(f"f {b}/{b}/1 {d}/{d}/1 {cc}/{cc}/1")
         lines.append(f"f {b}/{b}/1 {cc}/{cc}/1 {a}/{a}/1")
     return "\n".join(lines) + "\n"
+
+
+def shadow_disc_obj(radius: float, segments: int = 20, z: float = 0.008) -> str:
+    """A flat disc just above the asphalt: a cone's soft contact shadow (drawn translucent)."""
+    a = np.linspace(0, 2 * math.pi, segments, endpoint=False)
+    lines = ["# weather-gym contact shadow", f"v 0 0 {z}"]
+    lines += [f"v {radius * math.cos(t):.4f} {radius * math.sin(t):.4f} {z}" for t in a]
+    lines.append("vn 0 0 1")
+    lines += [f"f 1//1 {i + 2}//1 {(i + 1) % segments + 2}//1" for i in range(segments)]
+    return "\n".join(lines) + "\n"

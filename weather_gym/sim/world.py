@@ -239,6 +239,17 @@ class World:
                                   physicsClientId=c)
         self._car_visual = p.createMultiBody(0, -1, vis, [0, 0, -10], physicsClientId=c)
 
+        self._shadow_bodies: list[int] = []
+        if self.realistic:  # soft contact shadows: translucent dark discs under the cones
+            shadow_shapes = []
+            for name in CONE_CLASSES:
+                obj = mesh_file(f"shadow_{name}", scenery.shadow_disc_obj(0.75 * CONE_BASE_M[name]))
+                shadow_shapes.append(p.createVisualShape(p.GEOM_MESH, fileName=str(obj), rgbaColor=[0, 0, 0, 0.3],
+                                                         physicsClientId=c))
+            for (x, y), cls in zip(xy, self.cone_classes):
+                self._shadow_bodies.append(p.createMultiBody(0, -1, shadow_shapes[cls], [float(x), float(y), 0.0],
+                                                             physicsClientId=c))
+        self._shadow_offset = np.zeros(2)
         self._cone_lut = np.full(1, -1, dtype=np.int32)
         self._grow_lut()
         self._cone_xy = xy.copy()
@@ -287,6 +298,9 @@ class World:
                 self._grow_lut()
             if new_clutter or old is None or old.clutter_tint != look.clutter_tint:
                 p.changeVisualShape(self._clutter_body, -1, rgbaColor=[*look.clutter_tint, 1.0], physicsClientId=c)
+            if old is None or (old.light_direction, old.ambient, old.diffuse) != (
+                    look.light_direction, look.ambient, look.diffuse):
+                self._place_shadows(look)
             if old is None or old.cone_sheen != look.cone_sheen:
                 sheen = [look.cone_sheen] * 3
                 for b in self._cone_bodies:
@@ -313,6 +327,22 @@ class World:
         }
         self._look = look
 
+    def _place_shadows(self, look: Look) -> None:
+        """Shift the contact shadows away from the sun (more for a low sun) and darken them with the
+        share of direct light."""
+        d = np.asarray(look.light_direction, dtype=np.float64)
+        d = d / np.linalg.norm(d)
+        horiz = float(np.hypot(d[0], d[1]))
+        away = -d[:2] / horiz if horiz > 1e-9 else np.zeros(2)
+        self._shadow_offset = away * min(0.12, 0.06 * horiz / max(d[2], 0.2))
+        strength = float(np.clip(0.15 + 0.45 * look.diffuse / max(look.ambient + look.diffuse, 1e-6), 0.1, 0.5))
+        c = self._client
+        for i, b in enumerate(self._shadow_bodies):
+            if i not in self._dynamic_cones:
+                x, y = self._cone_home[i] + self._shadow_offset
+                p.resetBasePositionAndOrientation(b, [float(x), float(y), 0.0], [0, 0, 0, 1], physicsClientId=c)
+            p.changeVisualShape(b, -1, rgbaColor=[0, 0, 0, strength], physicsClientId=c)
+
     @property
     def look(self) -> Look:
         assert self._look is not None
@@ -330,6 +360,10 @@ class World:
             p.resetBasePositionAndOrientation(b, [float(x), float(y), float(self._cone_com_z[i])], [0, 0, 0, 1],
                                               physicsClientId=c)
             p.resetBaseVelocity(b, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+        for i in self._dynamic_cones if self._shadow_bodies else ():
+            x, y = self._cone_home[i] + self._shadow_offset
+            p.resetBasePositionAndOrientation(self._shadow_bodies[i], [float(x), float(y), 0.0], [0, 0, 0, 1],
+                                              physicsClientId=c)
         self._dynamic_cones.clear()
         self._cone_tilt.clear()
         self._cone_xy = self._cone_home.copy()
@@ -397,6 +431,9 @@ class World:
                 mass, inertia = self._cone_dynamics[i]
                 p.changeDynamics(self._cone_bodies[i], -1, mass=mass, localInertiaDiagonal=inertia, physicsClientId=c)
                 self._dynamic_cones.add(i)
+                if self._shadow_bodies:  # a knocked cone leaves its contact shadow behind: hide it
+                    p.resetBasePositionAndOrientation(self._shadow_bodies[i], [0, 0, -20], [0, 0, 0, 1],
+                                                      physicsClientId=c)
         if self._dynamic_cones:
             for i in self._dynamic_cones:
                 com, quat = p.getBasePositionAndOrientation(self._cone_bodies[i], physicsClientId=c)
