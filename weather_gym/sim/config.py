@@ -20,8 +20,8 @@ from weather_gym.errors import InputError
 RENDERERS = ("auto", "egl", "tiny", "none")
 SCENES = ("plain", "realistic")
 """``SimConfig.scene``: the plain world (flat textured ground, clouds, plain-striped cones: the default
-every calibration and the shipped detector were made with) or the realistic one (FS cone stripes with
-a sheen, asphalt with patches and painted lines, run-off, track-side clutter and distractors, a
+every calibration and the shipped detector were made with) or the realistic one (FS cone stripes,
+contact shadows, asphalt with patches and painted lines, run-off, track-side clutter and distractors, a
 skyline, the ego car's nose in view: ``weather_gym.sim.scenery``, ``weather_gym.sim.ego``)."""
 
 

@@ -38,7 +38,7 @@ Range = tuple[float, float]
 _LIMITS: dict[str, tuple[float, float]] = {
     "sun_elevation_deg": (1.0, 90.0), "sun_azimuth_deg": (-360.0, 720.0), "light_warmth": (-1.0, 1.0),
     "ambient": (0.0, 1.5), "diffuse": (0.0, 1.5), "specular": (0.0, 1.0), "cone_shade": (0.3, 1.0),
-    "cone_sheen": (0.0, 1.0), "cloud_cover": (0.0, 1.0), "sky_brightness": (0.5, 1.5),
+    "cloud_cover": (0.0, 1.0), "sky_brightness": (0.5, 1.5),
     "clutter_tint": (0.3, 1.5), "camera_height_offset": (-0.8, 1.0), "camera_pitch_offset_deg": (-15.0, 15.0),
     "camera_yaw_offset_deg": (-10.0, 10.0), "hfov_deg": (30.0, 140.0), "exposure_ev": (-4.0, 4.0),
     "white_balance": (0.5, 2.0), "contrast": (0.5, 2.0), "vignetting": (0.0, 0.8), "k1": (-0.3, 0.3),
@@ -68,7 +68,6 @@ class RandomizeRanges:
     diffuse: Range = (0.25, 0.7)
     specular: Range = (0.0, 0.1)
     cone_shade: Range = (0.75, 1.0)
-    cone_sheen: Range = (0.1, 0.6)
     cloud_cover: Range = (0.2, 1.0)
     sky_brightness: Range = (0.85, 1.25)
     clutter_tint: Range = (0.75, 1.1)
@@ -188,7 +187,6 @@ def sample_realistic(rng: np.random.Generator, ranges: RandomizeRanges | None = 
         clutter_seed=int(rng.integers(0, CLUTTER_LAYOUTS)),
         clutter_tint=(tint * _u(rng, (0.9, 1.1)), tint, tint * _u(rng, (0.9, 1.1))),
         ego_seed=int(rng.integers(0, EGO_VARIANTS)) if rng.random() < r.p_ego else -1,
-        cone_sheen=_u(rng, r.cone_sheen),
     )
     wb = _u(rng, r.white_balance)
     model = CameraModel(

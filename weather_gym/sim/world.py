@@ -301,10 +301,6 @@ class World:
             if old is None or (old.light_direction, old.ambient, old.diffuse) != (
                     look.light_direction, look.ambient, look.diffuse):
                 self._place_shadows(look)
-            if old is None or old.cone_sheen != look.cone_sheen:
-                sheen = [look.cone_sheen] * 3
-                for b in self._cone_bodies:
-                    p.changeVisualShape(b, -1, specularColor=sheen, physicsClientId=c)
         if old is None or old.cone_shade != look.cone_shade:
             for b, cls in zip(self._cone_bodies, self.cone_classes):
                 p.changeVisualShape(b, -1, rgbaColor=[*look.cone_shade[cls], 1.0], physicsClientId=c)
