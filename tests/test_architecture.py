@@ -95,6 +95,8 @@ def layer_of(module: str) -> str | None:
         return "plumbing"
     if head in ("tracks", "_track_geometry"):
         return "tracks"
+    if head in ("camera", "camera_model"):
+        return "camera"
     if head == "__version__":
         return "root"
     return head
