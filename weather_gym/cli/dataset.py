@@ -148,6 +148,8 @@ def _info(args) -> int:
         print("ignore regions (not misses): " + ", ".join(f"{c} {n}" for c, n in sorted(by.items())))
     for what, n in (info.get("rows_left_out") or {}).items():
         print(f"{what}: {n}")
+    if info.get("projected_3d"):
+        print(info["projected_3d"])
     if ds.has_ignore_mask:
         m = ds.ignore_mask(0)
         print(f"ignore mask: {info.get('ignore_mask') or 'per frame'} "
@@ -182,6 +184,8 @@ def _import(args) -> int:
         print("ignore regions: " + ", ".join(f"{c} {n}" for c, n in sorted(r["ignore_regions"].items())))
     for what, n in r["rows_left_out"].items():
         print(f"{what}: {n}")
+    if r.get("projected_3d"):
+        print(r["projected_3d"])
     print(f"intrinsics: {r['intrinsics']}" + (f"; 3D locations: {r['location_frame']}" if args.format == "kitti" else ""))
     if r["condition"] is not None:
         print(f"condition: {r['condition']} (severity {r['severity']})")
