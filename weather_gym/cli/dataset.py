@@ -65,6 +65,8 @@ def register(sub) -> None:
                     help="camera intrinsics in pixels at the image size (else from KITTI calib/ files, else unknown)")
     im.add_argument("--mask", type=Path, default=None, help="ignore-mask PNG (white = ignored) to store with the dataset")
     im.add_argument("--annotations", type=Path, default=None, help="COCO: the JSON file (default: the only *.json in SRC)")
+    im.add_argument("--no-project-3d", action="store_true",
+                    help="KITTI: leave 3D-only cones out entirely instead of projecting them into ignore regions")
     im.add_argument("--location-frame", default="auto", choices=("auto", "camera", "vehicle", "none"),
                     help="KITTI: frame of the 3D locations used for cone range (default: recognised from the boxes)")
     add_overwrite_arg(im, help="replace an existing dataset in --out")
@@ -176,6 +178,7 @@ def _import(args) -> int:
     r = import_dataset(args.format, args.src, args.out, classes=args.classes, condition=args.condition,
                        severity=args.severity, intrinsics=args.intrinsics, detector=det, mask=args.mask,
                        annotations=args.annotations, location_frame=args.location_frame, overwrite=args.overwrite,
+                       project_3d=not args.no_project_3d,
                        progress=not args.quiet)
     cones = ", ".join(f"{c} {n}" for c, n in sorted(r["cones"].items())) or "none"
     print(f"imported {r['frames']} frames ({r['size'][0]}x{r['size'][1]}) into {r['out']}")

@@ -38,6 +38,10 @@ def register(sub) -> None:
     t.add_argument("--recipe", default="sim", choices=("sim", "real"),
                    help="augmentation recipe: sim (mild jitter, the first shipped model's) or real (wide scale, "
                         "shift, unlabelled clutter, real-camera exposure/tone/blur/noise/JPEG)")
+    t.add_argument("--distractors", type=float, default=None, metavar="P",
+                   help="probability of pasting unlabelled clutter into a training crop (default: the recipe's)")
+    t.add_argument("--camera-look", type=float, default=None, metavar="P",
+                   help="probability of a random real-camera rendition of a crop (default: the recipe's)")
     t.add_argument("--init", type=Path, default=None, metavar="MODEL.onnx",
                    help="start from this ConeNet ONNX model (fine-tuning; its batch norms stay frozen)")
     t.add_argument("--warmup", type=int, default=200, help="warm-up steps of the learning rate (default %(default)s)")
@@ -131,10 +135,12 @@ def _train(args) -> int:
         raise InputError("--epoch-frames needs --mix")
     if args.init is not None and not args.init.is_file():
         raise MissingInputError(f"--init {args.init} does not exist")
+    extra = {k: v for k, v in (("distractors", args.distractors), ("camera", args.camera_look)) if v is not None}
     cfg = TrainConfig.recipe(args.recipe, input_size=tuple(args.input_size), epochs=args.epochs,
                              batch_size=args.batch_size, lr=args.lr, seed=args.seed, threads=args.threads,
                              max_steps=args.max_steps, mix=mix, epoch_frames=args.epoch_frames,
-                             warmup_iters=args.warmup, crop_size=tuple(args.crop_size), init=None if args.init is None else str(args.init))
+                             warmup_iters=args.warmup, crop_size=tuple(args.crop_size),
+                             init=None if args.init is None else str(args.init), **extra)
     result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
                             overwrite=args.overwrite)
     print(f"wrote {result['model']} ({result['steps']} steps, {result['train_time_s']:.0f} s)")

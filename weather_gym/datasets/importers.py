@@ -489,12 +489,14 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
                    classes: str | Mapping[str, str] | None = None, condition: str | None = None,
                    severity: int | None = None, intrinsics: Any = None, detector: Any = None,
                    mask: str | os.PathLike | None = None, annotations: str | os.PathLike | None = None,
-                   location_frame: str = "auto", overwrite: bool = False, progress: bool = False) -> dict[str, Any]:
+                   location_frame: str = "auto", project_3d: bool = True, overwrite: bool = False,
+                   progress: bool = False) -> dict[str, Any]:
     """Import ``src`` (format ``fmt``) into the COCO folder ``out``; returns a summary dict (see module doc).
 
     ``detector``: whose input scale the too-small rule is stated at (an object with ``input_size`` and
     ``resize``, e.g. a loaded detector; default: the shipped detector's 512x288 letterbox).
-    ``mask``: an ignore-mask PNG stored with the dataset.
+    ``mask``: an ignore-mask PNG stored with the dataset. ``project_3d``: KITTI rows with only a 3D box
+    become ignore regions where the fitted camera sees them (False: they are only left out).
     """
     from tqdm import tqdm
 
@@ -552,7 +554,7 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
                 raise FileFormatError(f"{fr.image}: {exc}") from None
             fr.intrinsics = k
     loc_frame, loc_why = _location_frame(frames, location_frame) if fmt == "kitti" else ("none", "none")
-    projected = _project_only3d(frames, loc_frame) if fmt == "kitti" else None
+    projected = _project_only3d(frames, loc_frame) if fmt == "kitti" and project_3d else None
     rule = SmallRule.for_image(size, detector)
     mask_arr = read_mask(mask, size) if mask is not None else None
 
