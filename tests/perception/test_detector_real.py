@@ -15,6 +15,8 @@ import pytest
 from weather_gym.datasets import load_coco
 from weather_gym.perception import ConeDetector, score_dataset
 
+pytestmark = pytest.mark.slow  # the import and the mask proposal read 23 real frames
+
 MAP50_BLUE_YELLOW_FLOOR = 0.60  # measured: see docs/model_card.md ("Real camera frames")
 
 

@@ -193,6 +193,17 @@ def test_a_shipped_onnx_model_loads_back_into_torch(tmp_path):
         load_onnx_weights(ConeNet(), tmp_path / "bad.onnx")
 
 
+def test_clear_day_camera_look_never_darkens_much_but_the_degrading_one_does():
+    from weather_gym.perception.augment import camera_look
+
+    img = np.full((64, 64, 3), 90, np.uint8)
+    img[20:44, 28:36] = (30, 60, 200)
+    clear = [camera_look(img, np.random.default_rng(s)).mean() for s in range(40)]
+    degraded = [camera_look(img, np.random.default_rng(s), degrade=True).mean() for s in range(40)]
+    assert min(clear) > 0.7 * img.mean() and max(clear) > 1.4 * img.mean()  # normal up to blown-out
+    assert min(degraded) < 0.55 * img.mean()  # the degrading look also under-exposes (as dimming does)
+
+
 def test_real_recipe_augments_with_clutter_and_camera_looks_but_keeps_the_boxes():
     img = np.full((376, 672, 3), 100, np.uint8)
     img[200:260, 300:340] = (30, 60, 200)
@@ -206,5 +217,6 @@ def test_real_recipe_augments_with_clutter_and_camera_looks_but_keeps_the_boxes(
         changed += int(not np.array_equal(out, plain))
         np.testing.assert_array_equal(augment(img, box, cfg, np.random.default_rng(seed))[0], out)  # seeded
     assert changed >= 4
+    assert not cfg.camera_degrade and TrainConfig.recipe("real_robust").camera_degrade
     with pytest.raises(InputError, match="recipe"):
         TrainConfig.recipe("nosuch")

@@ -35,9 +35,10 @@ def register(sub) -> None:
                    help="share of each --data folder in every epoch, in --data order (e.g. 0.7,0.3); "
                         "default: every frame once per epoch")
     t.add_argument("--epoch-frames", type=int, default=None, help="frames per epoch with --mix (default: all frames)")
-    t.add_argument("--recipe", default="sim", choices=("sim", "real"),
-                   help="augmentation recipe: sim (mild jitter, the first shipped model's) or real (wide scale, "
-                        "shift, unlabelled clutter, real-camera exposure/tone/blur/noise/JPEG)")
+    t.add_argument("--recipe", default="sim", choices=("sim", "real", "real_robust"),
+                   help="augmentation recipe: sim (mild jitter, the first shipped model's), real (wide scale, "
+                        "shift, unlabelled clutter, a clear-day camera: exposure to blown-out, tone, noise, JPEG) or "
+                        "real_robust (real + under-exposure, blur, strong noise: robust to the weather effects too)")
     t.add_argument("--distractors", type=float, default=None, metavar="P",
                    help="probability of pasting unlabelled clutter into a training crop (default: the recipe's)")
     t.add_argument("--camera-look", type=float, default=None, metavar="P",

@@ -136,15 +136,19 @@ def paste_distractors(image: np.ndarray, boxes: np.ndarray, rng: np.random.Gener
     return out
 
 
-def camera_look(image: np.ndarray, rng: np.random.Generator, *, strength: float = 1.0) -> np.ndarray:
-    """A random real-camera rendition of ``image`` (H, W, 3 uint8 RGB): white balance, exposure with
-    clipping, tone curve, saturation, blur, noise, JPEG. ``strength`` scales the ranges (0 = identity)."""
+def camera_look(image: np.ndarray, rng: np.random.Generator, *, strength: float = 1.0,
+                degrade: bool = False) -> np.ndarray:
+    """A random real-camera rendition of ``image`` (H, W, 3 uint8 RGB) on a clear day: white balance,
+    exposure from normal to blown-out (highlights clipped), tone curve, saturation, mild sensor noise,
+    JPEG. ``degrade`` adds what the weather effects also do - under-exposure, defocus or motion blur,
+    strong noise - which makes a detector robust to them too (and hides the drop the simulator's weather
+    is meant to show). ``strength`` scales the ranges (0 = identity)."""
     if strength <= 0:
         return image
     s = float(strength)
     lin = (image.astype(np.float32) / 255.0) ** 2.2
     lin *= (1.0 + rng.uniform(-0.15, 0.15, 3) * s).astype(np.float32)  # white balance
-    ev = rng.uniform(-1.0, 1.6) * s  # exposure: under- to blown-out (clipped below)
+    ev = rng.uniform(-1.0 if degrade else 0.0, 1.6) * s  # exposure (+: blown-out, clipped below)
     lin *= np.float32(2.0 ** ev)
     gamma = 1 / 2.2 * (1.0 + rng.uniform(-0.2, 0.2) * s)
     img = np.clip(lin, 0, 1) ** np.float32(gamma)
@@ -154,7 +158,7 @@ def camera_look(image: np.ndarray, rng: np.random.Generator, *, strength: float 
     grey = img.mean(axis=2, keepdims=True)
     img = np.clip(grey + (img - grey) * np.float32(sat), 0, 1)
     out = (img * 255 + 0.5).astype(np.uint8)
-    r = rng.random()
+    r = rng.random() if degrade else 1.0
     if r < 0.3 * s:
         sigma = rng.uniform(0.4, 1.6)
         out = cv2.GaussianBlur(out, (0, 0), sigma)
@@ -164,7 +168,7 @@ def camera_look(image: np.ndarray, rng: np.random.Generator, *, strength: float 
         kernel[k // 2, :] = 1.0 / k
         out = cv2.filter2D(out, -1, kernel)
     if rng.random() < 0.5 * s:
-        sd = rng.uniform(1, 8)
+        sd = rng.uniform(1, 8 if degrade else 3)
         out = np.clip(out.astype(np.float32) + rng.normal(0, sd, out.shape).astype(np.float32), 0, 255).astype(np.uint8)
     if rng.random() < 0.4 * s:
         ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 95))])

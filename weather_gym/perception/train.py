@@ -69,7 +69,8 @@ class TrainConfig:
     repeat_threshold: float | None = 0.5  # repeat-factor sampling of frames with rare classes (LVIS); None = off
     max_steps: int | None = None  # stop after this many optimizer steps (smoke tests)
     distractors: float = 0.0  # probability of pasting unlabelled clutter into a training crop (augment.py)
-    camera: float = 0.0  # probability of a random real-camera rendition (exposure, tone, blur, noise, JPEG)
+    camera: float = 0.0  # probability of a random real-camera rendition (exposure, tone, noise, JPEG)
+    camera_degrade: bool = False  # the rendition also under-exposes, blurs and adds strong noise (weather-like)
     mix: tuple[float, ...] | None = None  # share of each --data folder in every epoch (None: all frames once)
     epoch_frames: int | None = None  # frames per epoch with ``mix`` (default: as many as without it)
     init: str | None = None  # start from this ConeNet ONNX model (its batch norms stay frozen)
@@ -106,8 +107,12 @@ RECIPES: dict[str, dict[str, Any]] = {
     # the shipped model's first recipe: rendered frames, mild jitter
     "sim": {},
     # for real cameras: near cones big and far ones tiny, the horizon anywhere, clutter that is not a
-    # cone, exposure to blown-out, tone, blur, noise and JPEG
+    # cone, a clear-day camera (exposure to blown-out, white balance, tone, desaturation, mild noise, JPEG)
     "real": {"scale_range": (0.6, 2.2), "shift": 0.25, "hue": 4, "distractors": 0.7, "camera": 0.85},
+    # the same plus what the weather effects do (under-exposure, blur, strong noise): robust to the
+    # simulator's weather too, so it no longer shows the weather's drop (ablation only)
+    "real_robust": {"scale_range": (0.6, 2.2), "shift": 0.25, "hue": 4, "distractors": 0.7, "camera": 0.85,
+                    "camera_degrade": True},
 }
 
 
@@ -161,7 +166,7 @@ def augment(image: np.ndarray, boxes: np.ndarray, cfg: TrainConfig, rng: np.rand
     if rng is not None and cfg.distractors and rng.random() < cfg.distractors:
         out = paste_distractors(out, nb[visible > 0], rng)
     if rng is not None and cfg.camera and rng.random() < cfg.camera:
-        out = camera_look(out, rng)
+        out = camera_look(out, rng, degrade=cfg.camera_degrade)
     if mask is None:
         return out, nb, visible
     moved = cv2.warpAffine(mask.astype(np.uint8), M, (W, H), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
