@@ -20,6 +20,9 @@ def register(targets) -> None:
                                        "renderer, and whole env steps (physics + camera + ground truth).")
     p.add_argument("--track", default="small_track", help="track to time on (default: small_track)")
     p.add_argument("--repeats", type=int, default=40, help="timed calls per measurement (median is reported)")
+    p.add_argument("--worlds", action="store_true",
+                   help="only the world comparison: plain (baseline) vs realistic scene with EGL at 672x376, "
+                        "with and without the segmentation pass, and the camera model's cost")
     p.set_defaults(func=run)
 
 
@@ -30,7 +33,13 @@ def run(args: argparse.Namespace) -> int:
     from weather_gym.sim.world import World
     from weather_gym.tracks import load_track
 
+    if args.repeats < 1:
+        from weather_gym.errors import InputError
+
+        raise InputError(f"--repeats must be >= 1, got {args.repeats}")
     track = load_track(args.track)
+    if args.worlds:
+        return _worlds(args, track)
     rows = []
     physics_ms = None
     for renderer in ("tiny", "egl"):
@@ -65,4 +74,49 @@ def run(args: argparse.Namespace) -> int:
           f"({8000.0 / physics_ms:.0f} physics steps/s)")
     print(markdown_table(["renderer", "resolution", "camera frame ms", "frames/s", "env step ms", "env steps/s",
                           "real-time factor (30 Hz)"], rows))
+    return 0
+
+
+def _worlds(args: argparse.Namespace, track) -> int:
+    """Plain vs realistic world (EGL, 672x376): camera frame with / without segmentation, and the
+    camera model's finishing stage; the plain world is the baseline of the same run."""
+    import os
+    from dataclasses import replace
+
+    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_model import CameraModel, CameraPipeline
+    from weather_gym.sim.config import SimConfig
+    from weather_gym.sim.look import DEFAULT_LOOK
+    from weather_gym.sim.world import World
+
+    cam = CameraConfig()
+    looks = {"plain": DEFAULT_LOOK, "realistic": replace(DEFAULT_LOOK, ego_seed=3, clutter_seed=5),
+             "realistic, no ego car": replace(DEFAULT_LOOK, clutter_seed=5)}
+    rows = []
+    renderer = None
+    for name, look in looks.items():
+        scene = "plain" if name == "plain" else "realistic"
+        world = World(track, sim=SimConfig(renderer="egl" if renderer is None else renderer, scene=scene), camera=cam,
+                      look=look)
+        renderer = world.renderer_name
+        try:
+            x, y, h = track.point_at(10.0)
+            world.reset((float(x), float(y), float(h)))
+            seg = median_ms(world.render, repeats=args.repeats)
+            noseg = median_ms(lambda w=world: w.render(segmentation=False), repeats=args.repeats)
+            geo = median_ms(lambda w=world: (w.render(segmentation=False), w.ground_truth()), repeats=args.repeats)
+            rgb = world.render(segmentation=False).rgb
+        finally:
+            world.close()
+        rows.append([name, seg, noseg, geo])
+    rng = np.random.default_rng(0)
+    cm = []
+    for label, model in (("camera model: realistic preset (JPEG 90)", CameraModel.realistic()),
+                         ("camera model: realistic preset, no JPEG", replace(CameraModel.realistic(), jpeg_quality=0))):
+        pipe = CameraPipeline(model, cam.width, cam.height, fx=cam.fx)
+        cm.append([label, median_ms(lambda p=pipe: p.apply(rgb, rng), repeats=max(args.repeats, 50))])
+    print(f"Machine: {machine_line()}; load average {os.getloadavg()[0]:.2f} at the end")
+    print(f"Track: {args.track}; renderer {renderer}; 672x376; median of {args.repeats} calls after warm-up")
+    print(markdown_table(["world", "frame + segmentation GT ms", "frame only ms", "frame + geometric GT ms"], rows))
+    print(markdown_table(["finishing stage", "ms per 672x376 frame"], cm))
     return 0

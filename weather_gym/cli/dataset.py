@@ -31,7 +31,16 @@ def register(sub) -> None:
     r.add_argument("--out", type=Path, required=True, help="output folder (never overwritten without --overwrite)")
     r.add_argument("--seed", type=int, default=0, help="master seed (default %(default)s): same seed, same bytes")
     r.add_argument("--randomize", action="store_true",
-                   help="random look per episode: light direction/colour, ground and sky, cone shades, camera jitter")
+                   help="domain randomisation per episode in the realistic world (unless --scene plain): light, "
+                        "ground/sky/clutter textures and colours, distractors, ego car, camera pose/FOV, camera "
+                        "model (exposure, white balance, distortion, noise, JPEG); see docs/world.md")
+    r.add_argument("--scene", choices=("auto", "plain", "realistic"), default="auto",
+                   help="world to render: plain (the default world) or realistic; auto = realistic with "
+                        "--randomize, else plain")
+    r.add_argument("--randomize-ranges", type=Path, default=None, metavar="FILE.toml",
+                   help="TOML file of randomisation ranges (key = [low, high]; keys as in RandomizeRanges)")
+    r.add_argument("--randomize-set", action="append", default=[], metavar="KEY=LOW,HIGH",
+                   help="override one randomisation range (repeatable), e.g. exposure_ev=-1,2.5")
     r.add_argument("--every", type=int, default=3, help="save one frame every N env steps (default %(default)s)")
     r.add_argument("--frames-per-episode", type=int, default=20,
                    help="frames per episode before a new start point/look (default %(default)s)")
@@ -93,13 +102,27 @@ def register(sub) -> None:
 def _render(args) -> int:
     from weather_gym.camera import CameraConfig
     from weather_gym.datasets.render import render_dataset
+    from weather_gym.errors import InputError
+    from weather_gym.sim.randomize import RandomizeRanges
 
     cam = CameraConfig()
     if args.width or args.height:
         cam = cam.scaled(args.width or cam.width, args.height or cam.height)
+    ranges = RandomizeRanges.from_toml(args.randomize_ranges) if args.randomize_ranges else RandomizeRanges()
+    sets = {}
+    for item in args.randomize_set:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise InputError(f"--randomize-set expects KEY=LOW,HIGH (e.g. exposure_ev=-1,2), got {item!r}")
+        sets[key.strip()] = value
+    ranges = ranges.override(sets)
+    if (args.randomize_ranges or sets) and not args.randomize:
+        raise InputError("--randomize-ranges / --randomize-set need --randomize")
+    scene = ("realistic" if args.randomize else "plain") if args.scene == "auto" else args.scene
     path = render_dataset(args.out, tracks=args.track, frames=args.frames, seed=args.seed, randomize=args.randomize,
                           camera=cam, every=args.every, frames_per_episode=args.frames_per_episode,
-                          progress=not args.quiet, overwrite=args.overwrite, resume=args.resume)
+                          progress=not args.quiet, overwrite=args.overwrite, resume=args.resume, scene=scene,
+                          ranges=ranges)
     print(f"wrote {path}")
     return 0
 

@@ -46,11 +46,12 @@ def episode_plan(tracks: Sequence[str], frames: int, frames_per_episode: int) ->
     return plan
 
 
-def _make_env(track: str, camera: CameraConfig, max_steps: int):
+def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "plain"):
     from weather_gym.pipeline import make_env
+    from weather_gym.sim.config import SimConfig
 
     return make_env(track=track, camera=camera, laps=0, terminate_off_track=True, max_episode_steps=max_steps,
-                    episode_statistics=False)
+                    episode_statistics=False, sim=SimConfig(scene=scene))
 
 
 def _start_pose(track, rng: np.random.Generator, lateral_max: float) -> tuple[float, float, float]:
@@ -77,22 +78,37 @@ def render_dataset(
     progress: bool = True,
     overwrite: bool = False,
     resume: bool = False,
+    scene: str = "plain",
+    ranges=None,
 ) -> Path:
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
     Args:
         tracks: track specs (registered names, ``"random:SEED"`` or cone CSV paths; a CSV is copied into
             ``out/tracks/`` and the records name that copy).
-        randomize: draw a random ``Look`` per episode (``weather_gym.sim.look.sample_look``);
-            otherwise every frame uses the default bright-overcast look.
+        randomize: draw a random appearance per episode: in the plain scene a random ``Look``
+            (``weather_gym.sim.look.sample_look``), in the realistic one a ``Look``, a camera model and a
+            field of view from ``ranges`` (``weather_gym.sim.randomize.sample_realistic``); otherwise
+            every frame uses the default look (realistic scene: ``REALISTIC_LOOK`` and ``CameraModel.realistic()``).
+        scene: ``"plain"`` (the default world) or ``"realistic"`` (``SimConfig.scene``).
+        ranges: ``RandomizeRanges`` of the realistic randomisation (None: the defaults).
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
         frames_per_episode: frames saved per episode before a new start point / look is drawn.
     """
     from tqdm import tqdm
 
     from weather_gym.agents import AGENTS
-    from weather_gym.sim.look import DEFAULT_LOOK, sample_look
+    from weather_gym.camera_model import CameraModel
+    from weather_gym.sim.config import SCENES
+    from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, sample_look
+    from weather_gym.sim.randomize import RandomizeRanges, sample_realistic
 
+    if scene not in SCENES:
+        raise InputError(f"scene must be one of {SCENES}, got {scene!r}")
+    if ranges is not None and not isinstance(ranges, RandomizeRanges):
+        raise InputError(f"ranges must be a RandomizeRanges, got {type(ranges).__name__}")
+    realistic = scene == "realistic"
+    ranges = ranges or RandomizeRanges()
     if every < 1:
         raise InputError(f"every must be >= 1, got {every}")
     camera = camera or CameraConfig()
@@ -101,7 +117,8 @@ def render_dataset(
     episode_seeds = np.random.SeedSequence(seed).generate_state(len(plan), dtype=np.uint32).tolist()
     writer = CocoWriter(out, overwrite=overwrite, resume=resume, info={
         "tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
-        "every": int(every), "frames_per_episode": int(frames_per_episode)})
+        "every": int(every), "frames_per_episode": int(frames_per_episode), "scene": scene,
+        **({"randomize_ranges": ranges.to_dict()} if randomize and realistic else {})})
     recorded = _record_tracks(Path(out), list(tracks))
     done_before = writer.done
     bar = tqdm(total=int(frames), initial=done_before, desc=f"render {Path(out).name}", unit="frame",
@@ -114,17 +131,25 @@ def render_dataset(
             if written + n_frames <= done_before:  # this whole episode was written before the interruption
                 written += n_frames
                 continue
-            if env_track != track_spec:
+            rng = np.random.default_rng(ep_seed)
+            ep_camera, model = camera, CameraModel()
+            if realistic and randomize:
+                draw = sample_realistic(rng, ranges)
+                look, model, ep_camera = draw.look, draw.camera_model, draw.camera(camera)
+            elif realistic:
+                look, model = REALISTIC_LOOK, CameraModel.realistic()
+            else:
+                look = sample_look(rng) if randomize else DEFAULT_LOOK
+            if env_track != (track_spec, ep_camera):
                 if env is not None:
                     env.close()
-                env = _make_env(track_spec, camera, max_steps=every * frames_per_episode * 4 + 50)
-                env_track = track_spec
-            rng = np.random.default_rng(ep_seed)
-            look = sample_look(rng) if randomize else DEFAULT_LOOK
+                env = _make_env(track_spec, ep_camera, max_steps=every * frames_per_episode * 4 + 50, scene=scene)
+                env_track = (track_spec, ep_camera)
             pose = _start_pose(env.unwrapped.track, rng, lateral_max)
             speed = float(rng.uniform(0.0, 6.0))
-            obs, info = env.reset(seed=int(ep_seed), options={"look": look, "start_pose": pose, "start_speed": speed})
-            agent = AGENTS.get("gt_pure_pursuit")(env.unwrapped.track, camera)
+            obs, info = env.reset(seed=int(ep_seed), options={"look": look, "start_pose": pose, "start_speed": speed,
+                                                              "camera_model": model})
+            agent = AGENTS.get("gt_pure_pursuit")(env.unwrapped.track, ep_camera)
             agent.reset(seed=int(ep_seed), info=info)
             saved = 0
             step = 0
@@ -136,8 +161,10 @@ def render_dataset(
                             "pose": [float(v) for v in info["pose"]],
                             "speed": float(info["speed"]),
                             "yaw_rate": float(info["yaw_rate"]),
-                            "camera": camera.to_dict(),
+                            "camera": ep_camera.to_dict(),
                             "look": look.to_dict(),
+                            "scene": scene,
+                            "camera_model": model.to_dict(),
                             "seed": int(ep_seed),
                             "episode": ep,
                             "step": step,
@@ -153,7 +180,8 @@ def render_dataset(
                 if terminated or truncated:
                     # left the track or ran out of steps: fill the rest of this episode's quota from a new start
                     pose = _start_pose(env.unwrapped.track, rng, lateral_max)
-                    obs, info = env.reset(options={"look": look, "start_pose": pose, "start_speed": 0.0})
+                    obs, info = env.reset(options={"look": look, "start_pose": pose, "start_speed": 0.0,
+                                                   "camera_model": model})
                     agent.reset(seed=int(ep_seed), info=info)
                     step = 0
     except BaseException:
@@ -202,12 +230,15 @@ class ViewRenderer:
             if key not in record:
                 raise InputError(f"image record {record.get('id')!r} has no {key!r}: it cannot be re-rendered")
         camera = CameraConfig(**record["camera"])
-        key = (record["track"], tuple(sorted(record["camera"].items())))
+        scene = str(record.get("scene", "plain"))
+        key = (record["track"], tuple(sorted(record["camera"].items())), scene)
         env = self._envs.get(key)
         if env is None:
-            env = self._envs[key] = _make_env(record["track"], camera, max_steps=10)
-        obs, info = env.reset(seed=int(record.get("seed", 0)), options={
-            "look": record["look"], "start_pose": record["pose"], "start_speed": float(record.get("speed", 0.0))})
+            env = self._envs[key] = _make_env(record["track"], camera, max_steps=10, scene=scene)
+        options = {"look": record["look"], "start_pose": record["pose"], "start_speed": float(record.get("speed", 0.0))}
+        if "camera_model" in record:
+            options["camera_model"] = record["camera_model"]
+        obs, info = env.reset(seed=int(record.get("seed", 0)), options=options)
         return {"image": obs["image"], "depth": obs["depth"], "gt": info["gt"]}
 
     def close(self) -> None:

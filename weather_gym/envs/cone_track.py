@@ -34,16 +34,18 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from weather_gym.camera_model import CameraModel, CameraPipeline
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError, StateError
-from weather_gym.sim.look import DEFAULT_LOOK, Look, sample_look
+from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look, sample_look
+from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
 
 STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
 """Names of ``obs["state"]``: wheel-speed odometry (m/s), gyro yaw rate (rad/s), odometry pose."""
 
-RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction")
+RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction", "camera_model")
 
 END_REASONS: tuple[str, ...] = ("laps", "off_track", "time_limit")
 """Why an episode ends: ``laps`` (the requested laps driven, or an open event's finish line
@@ -98,6 +100,9 @@ class ConeTrackEnv(gym.Env):
         self._depth: np.ndarray | None = None
         self._gt: ConeArrays | None = None
         self._episode_started = False
+        self._pipelines: dict[CameraModel, CameraPipeline] = {}
+        self._pipeline: CameraPipeline | None = None
+        self._pipeline_rng: np.random.Generator | None = None
 
     # ------------------------------------------------------------------ properties
     @property
@@ -146,6 +151,12 @@ class ConeTrackEnv(gym.Env):
         if not (isinstance(friction, (int, float)) and math.isfinite(friction) and friction > 0):
             raise InputError(f"reset option friction must be a finite number > 0, got {friction!r}")
         self._friction = float(friction)
+        model = options.get("camera_model", self.config.camera_model)
+        try:
+            model = CameraModel.from_dict(model)
+        except TypeError as exc:
+            raise InputError(f"reset option camera_model: {exc}") from None
+        self._set_pipeline(model, rng)
         world = self.world
         world.set_look(look)
         world.reset(pose, speed=speed)
@@ -173,13 +184,38 @@ class ConeTrackEnv(gym.Env):
         self._episode_started = True
         return self._observation(meas), self._info(proj, new_hits=0, end_reason=None)
 
+    def _set_pipeline(self, model: CameraModel, rng: np.random.Generator) -> None:
+        """This episode's camera pipeline; its noise comes from a generator seeded from the episode's
+        RNG (nothing is drawn when the camera model is off, so the ideal camera changes no stream)."""
+        if not model.enabled:
+            self._pipeline = self._pipeline_rng = None
+            return
+        pipe = self._pipelines.get(model)
+        if pipe is None:
+            cam = self.config.camera
+            if len(self._pipelines) >= 16:
+                self._pipelines.pop(next(iter(self._pipelines)))
+            pipe = self._pipelines[model] = CameraPipeline(model, cam.width, cam.height, fx=cam.fx, cx=cam.cx, cy=cam.cy)
+        self._pipeline = pipe
+        self._pipeline_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
+        pipe.reseed(self._pipeline_rng)
+
+    def _sample_look(self, rng: np.random.Generator) -> Look:
+        """A random look: the plain world's ``sample_look``, or in the realistic scene the look of
+        ``weather_gym.sim.randomize.sample_realistic`` (clutter layout, ego car, ...)."""
+        if self._sim.scene == "realistic":
+            return sample_realistic(rng).look
+        return sample_look(rng)
+
     def _resolve_look(self, look: Any, rng: np.random.Generator) -> Look:
         if look is None:
-            return sample_look(rng) if self.config.randomize_look else DEFAULT_LOOK
+            if self.config.randomize_look:
+                return self._sample_look(rng)
+            return REALISTIC_LOOK if self._sim.scene == "realistic" else DEFAULT_LOOK
         if isinstance(look, Look):
             return look
         if look == "random":
-            return sample_look(rng)
+            return self._sample_look(rng)
         if isinstance(look, dict):
             return Look.from_dict(look)
         raise InputError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
@@ -273,6 +309,14 @@ class ConeTrackEnv(gym.Env):
             self._image, self._depth, self._gt = frame.rgb, frame.depth, frame.gt
         if cfg.ground_truth == "geometry":
             self._gt = world.ground_truth()
+        pipe = self._pipeline
+        if pipe is not None and cfg.camera_images:
+            assert self._pipeline_rng is not None and self._image is not None
+            self._image = pipe.apply(self._image, self._pipeline_rng)
+            if pipe.model.distorts:  # the lens moves pixels: depth and boxes follow
+                self._depth = pipe.remap_nearest(self._depth, float(cfg.camera.far))
+                if self._gt is not None and self._gt.count:
+                    self._gt = ConeArrays({**self._gt, "boxes": pipe.distort_boxes(self._gt["boxes"])})
 
     def _observation(self, meas: tuple[float, float]) -> dict[str, np.ndarray]:
         state = np.array([meas[0], meas[1], *self._odom], dtype=np.float32)

@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass, field
 
 from weather_gym.camera import CameraConfig
+from weather_gym.camera_model import CameraModel
 from weather_gym.errors import InputError
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 
@@ -64,6 +65,9 @@ class EnvConfig:
             camera behind the car, for people) or ``"camera"`` (the car's camera frame; through a
             ``WeatherWrapper`` it is the weathered frame the agent sees, so Gymnasium's and our
             ``RecordVideo`` record the weather).
+        camera_model: the camera's image pipeline applied to every frame before anything else sees it
+            (``weather_gym.camera_model``; off by default = the ideal camera). Weather wrappers act
+            on the finished frame.
 
     The episode's time limit is not here: Gymnasium's ``TimeLimit`` owns truncation
     (``gym.make(id, max_episode_steps=...)``; each scenario registers its default).
@@ -83,6 +87,7 @@ class EnvConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     reward: RewardConfig = field(default_factory=RewardConfig)
+    camera_model: CameraModel = field(default_factory=CameraModel)
 
     def __post_init__(self) -> None:
         if not isinstance(self.track, str) or not self.track:
@@ -103,7 +108,7 @@ class EnvConfig:
         if self.render_view not in RENDER_VIEWS:
             raise InputError(f"EnvConfig.render_view must be one of {', '.join(RENDER_VIEWS)}, got {self.render_view!r}")
         for name, cls in (("sim", SimConfig), ("car", CarConfig), ("camera", CameraConfig),
-                          ("odometry", OdometryConfig), ("reward", RewardConfig)):
+                          ("odometry", OdometryConfig), ("reward", RewardConfig), ("camera_model", CameraModel)):
             if not isinstance(getattr(self, name), cls):
                 raise InputError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
         if self.camera_images and self.sim.renderer == "none":

@@ -11,6 +11,7 @@ A scenario file::
     [camera]      # CameraConfig fields
     [odometry]    # OdometryConfig fields
     [reward]      # RewardConfig fields
+    [camera_model]  # CameraModel fields (weather_gym.camera_model; enabled = true to switch it on)
     [weather]     # optional: spec = "droplets@2" (any weather spec), or condition/severity
     [perception]  # optional: mode = "detector" (see weather_gym.pipeline.PERCEPTION_MODES),
                   # detector = "model.onnx", and the perception wrapper's keyword arguments
@@ -32,6 +33,7 @@ from typing import Any
 
 from weather_gym._io import resolve_inside
 from weather_gym.camera import CameraConfig
+from weather_gym.camera_model import CameraModel
 from weather_gym.envs.config import EnvConfig, RewardConfig
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.paths import data_dir
@@ -43,6 +45,7 @@ SECTIONS: dict[str, type] = {
     "camera": CameraConfig,
     "odometry": OdometryConfig,
     "reward": RewardConfig,
+    "camera_model": CameraModel,
 }
 ENV_KEYS = tuple(f.name for f in fields(EnvConfig) if f.name not in SECTIONS)
 TOP_KEYS = ("id", "description", "env", "weather", "perception", *SECTIONS)
@@ -161,14 +164,15 @@ def _check_weather(path: Path, weather: dict[str, Any]) -> None:
 
 def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
     if override is None:
-        return cls(**base)
+        return cls.from_dict(base) if cls is CameraModel else cls(**base)
     if is_dataclass(override):
         if not isinstance(override, cls):
             raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {type(override).__name__}")
         return override
     if isinstance(override, dict):
         _check_keys(f"override {name}", override, {f.name for f in fields(cls)})
-        return cls(**{**base, **override})
+        merged = {**base, **override}
+        return cls.from_dict(merged) if cls is CameraModel else cls(**merged)
     raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {override!r}")
 
 

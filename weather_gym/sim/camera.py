@@ -103,8 +103,10 @@ class CameraSensor:
         light: dict,
         *,
         segmentation: bool = True,
+        hide: np.ndarray | None = None,
     ) -> CameraFrame:
-        """Render the frame; with ``segmentation`` also the cone segmentation and its ground truth."""
+        """Render the frame; with ``segmentation`` also the cone segmentation and its ground truth
+        (pixels where ``hide`` (H, W bool) is set are never cones: the ego car covers them)."""
         c = self.config
         eye, heading, pitch = self.mount_pose(car_pose)
         fwd = np.array([math.cos(heading) * math.cos(pitch), math.sin(heading) * math.cos(pitch), -math.sin(pitch)])
@@ -133,6 +135,8 @@ class CameraSensor:
         self._composite_sky(rgb, seg < 0, heading)
         # body id -> cone index; ids outside the table clip onto its last entry, which is -1
         cone_seg = np.take(cone_lut, seg + 1, mode="clip")
+        if hide is not None:
+            cone_seg[hide] = -1
         gt = self._ground_truth(cone_seg, eye, heading, cone_xy, cone_classes)
         return CameraFrame(rgb=rgb, depth=depth, segmentation=cone_seg, gt=gt)
 

@@ -18,6 +18,11 @@ from dataclasses import asdict, dataclass, fields
 from weather_gym.errors import InputError
 
 RENDERERS = ("auto", "egl", "tiny", "none")
+SCENES = ("plain", "realistic")
+"""``SimConfig.scene``: the plain world (flat textured ground, clouds, plain-striped cones: the default
+every calibration and the shipped detector were made with) or the realistic one (FS cone stripes with
+a sheen, asphalt with patches and painted lines, run-off, track-side clutter and distractors, a
+skyline, the ego car's nose in view: ``weather_gym.sim.scenery``, ``weather_gym.sim.ego``)."""
 
 
 def _check_finite_positive(obj, names: tuple[str, ...], allow_zero: bool = False) -> None:
@@ -41,7 +46,8 @@ class SimConfig:
             (no camera rendering at all: physics only; ground truth from geometry).
         gui: open the PyBullet GUI (needs a display) instead of DIRECT mode.
         cone_mass: kg per small cone (big cones weigh 1.5x).
-        shadows: TinyRenderer shadows (about doubles the frame time).
+        shadows: cast shadows (PyBullet's shadow map; see ``weather-gym bench sim`` for the cost).
+        scene: ``"plain"`` (default) or ``"realistic"`` (see ``SCENES``).
     """
 
     physics_hz: float = 240.0
@@ -51,9 +57,14 @@ class SimConfig:
     cone_mass: float = 0.6
     shadows: bool = False
     gravity: float = 9.81
+    scene: str = "plain"
 
     def __post_init__(self) -> None:
         _check_finite_positive(self, ("physics_hz", "control_hz", "cone_mass", "gravity"))
+        if self.scene not in SCENES:
+            raise InputError(f"SimConfig.scene must be one of {SCENES}, got {self.scene!r}")
+        if not isinstance(self.shadows, bool):
+            raise InputError(f"SimConfig.shadows must be true or false, got {self.shadows!r}")
         if self.renderer not in RENDERERS:
             raise InputError(f"SimConfig.renderer must be one of {RENDERERS}, got {self.renderer!r}")
         ratio = self.physics_hz / self.control_hz

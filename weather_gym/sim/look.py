@@ -19,13 +19,20 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from weather_gym.errors import InputError
+from weather_gym.sim.ego import EGO_VARIANTS
+from weather_gym.sim.scenery import CLUTTER_LAYOUTS
 
 RGB = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
 class Look:
-    """Scene appearance. Colours are 0..255 RGB; ``cone_shade`` multiplies each class's colours."""
+    """Scene appearance. Colours are 0..255 RGB; ``cone_shade`` multiplies each class's colours.
+
+    The last four fields only matter in the realistic scene (``SimConfig(scene="realistic")``):
+    ``clutter_seed`` (track-side clutter layout, 0-63), ``clutter_tint`` (RGB multiplier of the
+    clutter), ``ego_seed`` (the ego car's overlay, 0-15; -1 = none) and ``cone_sheen`` (cone specular).
+    """
 
     light_direction: tuple[float, float, float] = (0.35, 0.25, 1.0)
     light_color: RGB = (1.0, 1.0, 1.0)
@@ -44,6 +51,11 @@ class Look:
     camera_height_offset: float = 0.0
     camera_pitch_offset_deg: float = 0.0
     camera_yaw_offset_deg: float = 0.0
+    # the realistic scene (SimConfig(scene="realistic")) only; the plain scene ignores these
+    clutter_seed: int = 0
+    clutter_tint: RGB = (1.0, 1.0, 1.0)
+    ego_seed: int = -1
+    cone_sheen: float = 0.35
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -52,6 +64,13 @@ class Look:
                 raise InputError(f"look.{f.name} must be finite, got {getattr(self, f.name)!r}")
         if np.linalg.norm(self.light_direction) == 0:
             raise InputError("look.light_direction must not be the zero vector")
+        if not (isinstance(self.clutter_seed, (int, np.integer)) and 0 <= self.clutter_seed < CLUTTER_LAYOUTS):
+            raise InputError(f"look.clutter_seed must be an integer in [0, {CLUTTER_LAYOUTS}), got {self.clutter_seed!r}")
+        if not (isinstance(self.ego_seed, (int, np.integer)) and -1 <= self.ego_seed < EGO_VARIANTS):
+            raise InputError(f"look.ego_seed must be -1 (no ego car) or an integer in [0, {EGO_VARIANTS}), "
+                             f"got {self.ego_seed!r}")
+        if not 0.0 <= self.cone_sheen <= 1.0:
+            raise InputError(f"look.cone_sheen must lie in [0, 1], got {self.cone_sheen!r}")
         if len(self.cone_shade) != 4:
             raise InputError(f"look.cone_shade needs one RGB multiplier per cone class (4), got {len(self.cone_shade)}")
 
@@ -90,6 +109,15 @@ GROUND_STYLES: tuple[tuple[RGB, RGB], ...] = (
 
 DEFAULT_LOOK = Look()
 """Bright overcast: soft light, few shadows, high contrast (like the study's simulated ideal set)."""
+
+REALISTIC_LOOK = Look(
+    light_direction=(0.3, 0.45, 1.0), ambient=0.6, diffuse=0.45, specular=0.03,
+    asphalt_rgb=(120.0, 120.0, 118.0), grass_rgb=(132.0, 130.0, 126.0), ground_seed=0,
+    sky_top_rgb=(170.0, 190.0, 215.0), sky_horizon_rgb=(225.0, 230.0, 236.0), cloud_cover=0.7, sky_seed=1,
+    clutter_seed=1, ego_seed=0, cone_sheen=0.35,
+)
+"""The realistic scene's default: a bright overcast day on a paved paddock, the ego car in view
+(``ConeTrackEnv`` uses it when ``SimConfig.scene == "realistic"`` and no look is given)."""
 
 
 def _jitter_rgb(rng: np.random.Generator, base: RGB, rel: float) -> RGB:

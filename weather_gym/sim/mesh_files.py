@@ -77,8 +77,12 @@ def mesh_file(stem: str, obj_text: str, texture_rgb: np.ndarray | None = None) -
     if png is None:
         _write_atomic(obj, obj_text.encode())
         return obj
-    _write_atomic(folder / f"{name}.png", png)
+    # the texture is named by its own content: meshes with the same texture share one file (and one
+    # entry in PyBullet's texture cache)
+    tex_name = f"tex_{hashlib.sha1(png).hexdigest()[:20]}.png"
+    if not (folder / tex_name).exists():
+        _write_atomic(folder / tex_name, png)
     _write_atomic(folder / f"{name}.mtl",
-                  f"newmtl mat\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nmap_Kd {name}.png\n".encode())
+                  f"newmtl mat\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nmap_Kd {tex_name}\n".encode())
     _write_atomic(obj, f"mtllib {name}.mtl\nusemtl mat\n{obj_text}".encode())
     return obj

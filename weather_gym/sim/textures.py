@@ -108,7 +108,8 @@ def sky_panorama(look, width: int = 2048, height: int = 256, max_elevation_deg: 
     sky = hor * (1 - t) + top * t
     sky = np.broadcast_to(sky, (height, width, 3)).copy()
     # clouds: thresholded smooth noise, wrapped horizontally so the panorama is seamless
-    n = _periodic_noise(rng, height, width, 48) + 0.5 * _periodic_noise(rng, height, width, 16)
+    f = width // 2048 if width % 2048 == 0 and width >= 2048 else 1  # a finer panorama: same clouds, more pixels
+    n = _periodic_noise(rng, height, width, 48 * f) + 0.5 * _periodic_noise(rng, height, width, 16 * f)
     thresh = 1.0 - 2.0 * look.cloud_cover
     cloud = np.clip((n - thresh) * 2.0, 0, 1)[..., None] * (elev > 0.5)
     cloud_rgb = np.array([235, 237, 240], np.float32)

@@ -31,13 +31,22 @@ import pybullet as p
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.sim import renderer as _renderer
+from weather_gym.sim import scenery
 from weather_gym.sim.camera import CameraFrame, CameraSensor
 from weather_gym.sim.car import Car
 from weather_gym.sim.config import CarConfig, SimConfig
+from weather_gym.sim.ego import EGO_DEPTH_M, clip_ground_truth, composite, ego_overlay
 from weather_gym.sim.look import DEFAULT_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
 from weather_gym.sim.meshes import box_obj, cone_obj, quad_obj
 from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
+from weather_gym.sim.scenery_textures import (
+    add_skyline,
+    asphalt_tile,
+    clutter_atlas,
+    realistic_cone_texture,
+    runoff_tile,
+)
 from weather_gym.sim.textures import cone_texture, ground_texture, sky_panorama
 
 GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
@@ -69,6 +78,42 @@ def _ground_file(track, extent: tuple[float, float, float, float], look: Look) -
             _GROUND_FILES.pop(next(iter(_GROUND_FILES)))
         _GROUND_FILES[key] = path
     return path
+
+
+_REALISTIC_FILES: dict[tuple, Path] = {}
+
+
+def _cached_file(key: tuple, make) -> Path:
+    """A content-named mesh file made once per process for ``key`` (bounded: oldest dropped)."""
+    path = _REALISTIC_FILES.get(key)
+    if path is None or not path.exists():
+        path = make()
+        if len(_REALISTIC_FILES) >= 256:
+            _REALISTIC_FILES.pop(next(iter(_REALISTIC_FILES)))
+        _REALISTIC_FILES[key] = path
+    return path
+
+
+def _track_key(track) -> tuple:
+    return tuple(np.ascontiguousarray(a, dtype=np.float64).tobytes()
+                 for a in (track.centerline, track.half_width_left, track.half_width_right)) + (bool(track.closed),)
+
+
+def _realistic_ground_files(track, extent: tuple[float, float, float, float], look: Look) -> list[Path]:
+    """The realistic ground: a run-off quad (grass / gravel / paved, tiled) and the asphalt strip
+    along the track (tiled, with patches and painted lines)."""
+    x0, y0, x1, y1 = extent
+    runoff = _cached_file(("runoff", extent, look.grass_rgb, look.ground_seed), lambda: mesh_file(
+        "runoff", quad_obj(x0, y0, x1, y1, uv_repeat=(x1 - x0) / scenery.RUNOFF_TILE_M),
+        runoff_tile(look.grass_rgb, look.ground_seed)))
+    strip = _cached_file(("asphalt", _track_key(track), look.asphalt_rgb, look.ground_seed), lambda: mesh_file(
+        "asphalt", scenery.asphalt_strip_obj(track), asphalt_tile(look.asphalt_rgb, look.ground_seed)))
+    return [runoff, strip]
+
+
+def _clutter_file(track, layout: int) -> Path:
+    return _cached_file(("clutter", _track_key(track), int(layout)), lambda: mesh_file(
+        "clutter", scenery.clutter_obj(scenery.clutter_layout(track, int(layout))), clutter_atlas(0)))
 
 
 class World:
@@ -139,14 +184,19 @@ class World:
         # Textures: PyBullet's per-body texture switching is broken under EGL and changeTexture does
         # nothing in DIRECT mode, so every texture comes with its mesh through an OBJ + MTL pair, and
         # the ground's visual body is swapped when the look's ground changes (shapes cached per look).
-        self._ground_shapes: dict[tuple, int] = {}
-        self._ground_visual: int | None = None
+        self._ground_shapes: dict[tuple, list[int]] = {}
+        self._ground_visuals: list[int] = []
         self._ground_key: tuple | None = None
+        self._clutter_shapes: dict[int, int] = {}
+        self._clutter_body: int | None = None
+        self._clutter_key: int | None = None
 
         # cones: one textured visual/collision shape per class, one body per cone
         shapes = []
+        self.realistic = self.sim.scene == "realistic"
         for name in CONE_CLASSES:
-            f = str(mesh_file(f"cone_{name}", cone_obj(CONE_HEIGHT_M[name], CONE_BASE_M[name]), cone_texture(name)))
+            tex = realistic_cone_texture(name) if self.realistic else cone_texture(name)
+            f = str(mesh_file(f"cone_{name}", cone_obj(CONE_HEIGHT_M[name], CONE_BASE_M[name]), tex))
             vis = p.createVisualShape(p.GEOM_MESH, fileName=f, physicsClientId=c)
             col = p.createCollisionShape(p.GEOM_MESH, fileName=f, physicsClientId=c)
             shapes.append((vis, col))
@@ -189,6 +239,17 @@ class World:
                                   physicsClientId=c)
         self._car_visual = p.createMultiBody(0, -1, vis, [0, 0, -10], physicsClientId=c)
 
+        self._shadow_bodies: list[int] = []
+        if self.realistic:  # soft contact shadows: translucent dark discs under the cones
+            shadow_shapes = []
+            for name in CONE_CLASSES:
+                obj = mesh_file(f"shadow_{name}", scenery.shadow_disc_obj(0.75 * CONE_BASE_M[name]))
+                shadow_shapes.append(p.createVisualShape(p.GEOM_MESH, fileName=str(obj), rgbaColor=[0, 0, 0, 0.3],
+                                                         physicsClientId=c))
+            for (x, y), cls in zip(xy, self.cone_classes):
+                self._shadow_bodies.append(p.createMultiBody(0, -1, shadow_shapes[cls], [float(x), float(y), 0.0],
+                                                             physicsClientId=c))
+        self._shadow_offset = np.zeros(2)
         self._cone_lut = np.full(1, -1, dtype=np.int32)
         self._grow_lut()
         self._cone_xy = xy.copy()
@@ -211,23 +272,50 @@ class World:
         c = self._client
         ground_key = (look.asphalt_rgb, look.grass_rgb, look.kerb_rgb, look.ground_seed)
         if ground_key != self._ground_key:
-            shape = self._ground_shapes.get(ground_key)
-            if shape is None:
-                path = _ground_file(track, self._ground_extent, look)
-                shape = p.createVisualShape(p.GEOM_MESH, fileName=str(path), physicsClientId=c)
-                self._ground_shapes[ground_key] = shape
-            if self._ground_visual is not None:
-                p.removeBody(self._ground_visual, physicsClientId=c)
-            self._ground_visual = p.createMultiBody(0, -1, shape, physicsClientId=c)
+            shapes = self._ground_shapes.get(ground_key)
+            if shapes is None:
+                paths = (_realistic_ground_files(track, self._ground_extent, look) if self.realistic
+                         else [_ground_file(track, self._ground_extent, look)])
+                shapes = [p.createVisualShape(p.GEOM_MESH, fileName=str(f), physicsClientId=c) for f in paths]
+                self._ground_shapes[ground_key] = shapes
+            for b in self._ground_visuals:
+                p.removeBody(b, physicsClientId=c)
+            self._ground_visuals = [p.createMultiBody(0, -1, shape, physicsClientId=c) for shape in shapes]
             self._ground_key = ground_key
             self._grow_lut()
+        if self.realistic:
+            new_clutter = look.clutter_seed != self._clutter_key
+            if new_clutter:
+                shape = self._clutter_shapes.get(look.clutter_seed)
+                if shape is None:
+                    shape = p.createVisualShape(p.GEOM_MESH, fileName=str(_clutter_file(track, look.clutter_seed)),
+                                                physicsClientId=c)
+                    self._clutter_shapes[look.clutter_seed] = shape
+                if self._clutter_body is not None:
+                    p.removeBody(self._clutter_body, physicsClientId=c)
+                self._clutter_body = p.createMultiBody(0, -1, shape, physicsClientId=c)
+                self._clutter_key = look.clutter_seed
+                self._grow_lut()
+            if new_clutter or old is None or old.clutter_tint != look.clutter_tint:
+                p.changeVisualShape(self._clutter_body, -1, rgbaColor=[*look.clutter_tint, 1.0], physicsClientId=c)
+            if old is None or (old.light_direction, old.ambient, old.diffuse) != (
+                    look.light_direction, look.ambient, look.diffuse):
+                self._place_shadows(look)
+            if old is None or old.cone_sheen != look.cone_sheen:
+                sheen = [look.cone_sheen] * 3
+                for b in self._cone_bodies:
+                    p.changeVisualShape(b, -1, specularColor=sheen, physicsClientId=c)
         if old is None or old.cone_shade != look.cone_shade:
             for b, cls in zip(self._cone_bodies, self.cone_classes):
                 p.changeVisualShape(b, -1, rgbaColor=[*look.cone_shade[cls], 1.0], physicsClientId=c)
         if old is None or (old.sky_top_rgb, old.sky_horizon_rgb, old.cloud_cover, old.sky_seed, old.grass_rgb) != (
             look.sky_top_rgb, look.sky_horizon_rgb, look.cloud_cover, look.sky_seed, look.grass_rgb
         ):
-            self._panorama = sky_panorama(look)
+            if self.realistic:  # finer, with a skyline (buildings, trees, poles) on the horizon
+                pano = sky_panorama(look, width=4096, height=512)
+                self._panorama = add_skyline(pano, look.sky_seed, ground_rgb=look.grass_rgb)
+            else:
+                self._panorama = sky_panorama(look)
         self.camera.set_look(look, self._panorama)
         d = np.asarray(look.light_direction, dtype=np.float64)
         self._light = {
@@ -238,6 +326,22 @@ class World:
             "lightSpecularCoeff": look.specular,
         }
         self._look = look
+
+    def _place_shadows(self, look: Look) -> None:
+        """Shift the contact shadows away from the sun (more for a low sun) and darken them with the
+        share of direct light."""
+        d = np.asarray(look.light_direction, dtype=np.float64)
+        d = d / np.linalg.norm(d)
+        horiz = float(np.hypot(d[0], d[1]))
+        away = -d[:2] / horiz if horiz > 1e-9 else np.zeros(2)
+        self._shadow_offset = away * min(0.12, 0.06 * horiz / max(d[2], 0.2))
+        strength = float(np.clip(0.15 + 0.45 * look.diffuse / max(look.ambient + look.diffuse, 1e-6), 0.1, 0.5))
+        c = self._client
+        for i, b in enumerate(self._shadow_bodies):
+            if i not in self._dynamic_cones:
+                x, y = self._cone_home[i] + self._shadow_offset
+                p.resetBasePositionAndOrientation(b, [float(x), float(y), 0.0], [0, 0, 0, 1], physicsClientId=c)
+            p.changeVisualShape(b, -1, rgbaColor=[0, 0, 0, strength], physicsClientId=c)
 
     @property
     def look(self) -> Look:
@@ -256,6 +360,10 @@ class World:
             p.resetBasePositionAndOrientation(b, [float(x), float(y), float(self._cone_com_z[i])], [0, 0, 0, 1],
                                               physicsClientId=c)
             p.resetBaseVelocity(b, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+        for i in self._dynamic_cones if self._shadow_bodies else ():
+            x, y = self._cone_home[i] + self._shadow_offset
+            p.resetBasePositionAndOrientation(self._shadow_bodies[i], [float(x), float(y), 0.0], [0, 0, 0, 1],
+                                              physicsClientId=c)
         self._dynamic_cones.clear()
         self._cone_tilt.clear()
         self._cone_xy = self._cone_home.copy()
@@ -323,6 +431,9 @@ class World:
                 mass, inertia = self._cone_dynamics[i]
                 p.changeDynamics(self._cone_bodies[i], -1, mass=mass, localInertiaDiagonal=inertia, physicsClientId=c)
                 self._dynamic_cones.add(i)
+                if self._shadow_bodies:  # a knocked cone leaves its contact shadow behind: hide it
+                    p.resetBasePositionAndOrientation(self._shadow_bodies[i], [0, 0, -20], [0, 0, 0, 1],
+                                                      physicsClientId=c)
         if self._dynamic_cones:
             for i in self._dynamic_cones:
                 com, quat = p.getBasePositionAndOrientation(self._cone_bodies[i], physicsClientId=c)
@@ -348,13 +459,34 @@ class World:
             raise RuntimeError("this world renders no camera frames (renderer 'none'); "
                                "use ground_truth() for the visible cones")
         self._activate()
-        return self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
-                                  segmentation=segmentation)
+        frame = self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
+                                   segmentation=segmentation, hide=self._ego_mask())
+        overlay = self._ego()
+        if overlay is not None and frame.rgb is not None:
+            composite(frame.rgb, overlay)
+            if frame.depth is not None:
+                frame.depth[overlay.mask] = np.float32(EGO_DEPTH_M)
+        return frame
+
+    def _ego(self):
+        """The ego car's overlay for the current look and camera (None: none in view)."""
+        if not self.realistic or self._look is None or self._look.ego_seed < 0:
+            return None
+        cam = self.camera_config
+        return ego_overlay(self._look.ego_seed, cam.width, cam.height)
+
+    def _ego_mask(self):
+        overlay = self._ego()
+        return None if overlay is None else overlay.mask
 
     def ground_truth(self):
-        """The cones the car camera sees now, from geometry (``ConeArrays``; nothing is rendered)."""
-        return self.camera.geometric_ground_truth(self.car.pose, self._cone_xy, self.cone_classes,
-                                                  tilted=self._cone_tilt or None)
+        """The cones the car camera sees now, from geometry (``ConeArrays``; nothing is rendered).
+        Occlusion by clutter is not modelled (see :mod:`weather_gym.sim.scenery`); the ego car's
+        overlay cuts the boxes (:func:`weather_gym.sim.ego.clip_ground_truth`)."""
+        gt = self.camera.geometric_ground_truth(self.car.pose, self._cone_xy, self.cone_classes,
+                                                tilted=self._cone_tilt or None)
+        overlay = self._ego()
+        return gt if overlay is None else clip_ground_truth(gt, overlay)
 
     def render_chase(self, width: int = 640, height: int = 360, distance: float = 7.0, height_m: float = 3.5) -> np.ndarray:
         """A third-person view from behind and above the car, for humans (videos, ``render()``)."""

@@ -1,0 +1,72 @@
+"""The camera model finishing stage: off is the identity, on is deterministic, boxes follow distortion."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from weather_gym.camera_model import CameraModel, CameraPipeline
+from weather_gym.errors import InputError
+
+
+def _scene(h=120, w=200) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    return (rng.random((h, w, 3)) * 200 + 20).astype(np.uint8)
+
+
+def test_off_is_the_identity():
+    img = _scene()
+    out = CameraPipeline(CameraModel(), 200, 120).apply(img, np.random.default_rng(0))
+    assert out is img  # the ideal camera: untouched, not even copied
+
+
+def test_on_is_deterministic_with_the_seed_and_changes_the_frame():
+    img = _scene()
+    model = CameraModel.realistic()
+    a = CameraPipeline(model, 200, 120).apply(img, np.random.default_rng(5))
+    b = CameraPipeline(model, 200, 120).apply(img, np.random.default_rng(5))
+    c = CameraPipeline(model, 200, 120).apply(img, np.random.default_rng(6))
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)  # the noise comes from the RNG
+    assert a.shape == img.shape and a.dtype == np.uint8 and not np.array_equal(a, img)
+
+
+def test_exposure_clips_highlights_and_underexposure_darkens():
+    img = np.full((20, 30, 3), 200, np.uint8)
+    bright = CameraPipeline(CameraModel(enabled=True, exposure_ev=2.0), 30, 20).apply(img, np.random.default_rng(0))
+    dark = CameraPipeline(CameraModel(enabled=True, exposure_ev=-2.0), 30, 20).apply(img, np.random.default_rng(0))
+    assert (bright == 255).all()
+    assert dark.mean() < 150
+
+
+def test_distorted_boxes_cover_the_distorted_object():
+    h, w = 120, 200
+    img = np.zeros((h, w, 3), np.uint8)
+    box = np.array([[14.0, 10.0, 40.0, 50.0], [150.0, 70.0, 190.0, 112.0], [95.0, 50.0, 105.0, 70.0]], np.float32)
+    for x0, y0, x1, y1 in box.astype(int):
+        img[y0:y1, x0:x1] = 255
+    pipe = CameraPipeline(CameraModel(enabled=True, k1=-0.2, k2=0.02), w, h)
+    out = pipe.apply(img, np.random.default_rng(0))
+    got = pipe.distort_boxes(box)
+    assert not np.allclose(got[:2], box[:2], atol=1.0)  # the corners moved a visible amount
+    labels = (out[..., 0] > 127).astype(np.uint8)
+    from scipy import ndimage
+
+    lab, n = ndimage.label(labels)
+    assert n == 3
+    for sl in ndimage.find_objects(lab):
+        measured = np.array([sl[1].start, sl[0].start, sl[1].stop, sl[0].stop], np.float32)
+        err = np.abs(got - measured).max(axis=1).min()
+        assert err <= 1.5, (measured, got)
+
+
+@pytest.mark.parametrize("field, value", [("exposure_ev", 9.0), ("k1", float("nan")), ("jpeg_quality", 101),
+                                          ("enabled", 1), ("white_balance", (1.0, 1.0))])
+def test_bad_parameters_are_input_errors_naming_the_field(field, value):
+    with pytest.raises(InputError, match=field):
+        CameraModel(**{field: value})
+
+
+def test_unknown_key_names_it():
+    with pytest.raises(InputError, match="nosuch"):
+        CameraModel.from_dict({"enabled": True, "nosuch": 1})
