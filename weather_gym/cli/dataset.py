@@ -161,7 +161,7 @@ def _info(args) -> int:
 
     small = [a for a in anns if not a.get("ignore") and is_small(a)]
     per_class = Counter(CONE_CLASSES[a["category_id"] - 1] for a in anns if not a.get("ignore") and not is_small(a))
-    heights = np.array([a["bbox"][3] for a in anns]) if anns else np.zeros(0)
+    heights = np.array([a["bbox"][3] for a in anns if not a.get("ignore")]) if anns else np.zeros(0)  # labelled cones
     origin = info.get("origin", "render" if any("track" in im for im in ds.images) else "?")
     print(f"{args.dir}: {len(ds)} images ({', '.join(f'{s} ({n})' for s, n in sizes.items())}), {origin}, "
           f"{len(anns)} boxes")
