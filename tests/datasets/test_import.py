@@ -189,3 +189,52 @@ def test_real_kitti_frames_import(real_frames_src, tmp_path, capsys):
     assert ds.info["location_frame"].startswith("vehicle")
     ranges = np.concatenate([ds.gt(i)["ranges"] for i in range(len(ds))])
     assert np.isfinite(ranges).sum() == 188 and 2.0 < np.nanmedian(ranges) < 40.0  # boxes with a 3D location
+
+
+def _pitched_box(loc, fx=300.0, cx=320.0, cy=240.0, pitch_deg=12.0, h=0.36, w=0.25):
+    """The 2D box of a cone at vehicle-frame ``loc`` (x forward, y left, z up; bottom centre) seen by a camera
+    pitched down by ``pitch_deg`` (an independent pinhole, not the importer's code)."""
+    t = math.radians(pitch_deg)
+
+    def px(x, y, z):
+        r, d0, f0 = -y, -z, x
+        d, f = d0 * math.cos(t) - f0 * math.sin(t), d0 * math.sin(t) + f0 * math.cos(t)
+        return fx * r / f + cx, fx * d / f + cy, f
+
+    ub, vb, f = px(*loc)
+    _, vt, _ = px(loc[0], loc[1], loc[2] + h)
+    half = fx * w / 2 / f
+    return ub - half, vt, ub + half, vb
+
+
+def test_3d_only_kitti_cones_become_ignore_regions_where_the_fitted_camera_sees_them(tmp_path):
+    """A pitched camera (as on a race car): the pose is fitted to the rows with both boxes, and each
+    3D-only cone in view becomes an ignore region over its true box; repeats and cones behind are skipped."""
+    src = tmp_path / "kitti"
+    _image(src / "images" / "000001.png", 640, 480)
+    both = [(x, y, -1.0) for x in (4.0, 6.0, 9.0, 13.0) for y in (-2.0, 2.0)]
+    rows = [_kitti_row("blue_cone" if loc[1] > 0 else "yellow_cone", _pitched_box(loc), loc) for loc in both]
+    only = [(7.5, 1.0, -1.0), (11.0, -3.0, -1.0)]
+    rows += [_kitti_row("blue_cone", (0, 0, 0, 0), loc) for loc in only]
+    rows.append(_kitti_row("blue_cone", (0, 0, 0, 0), both[0]))  # the same cone again, 3D only
+    rows.append(_kitti_row("blue_cone", (0, 0, 0, 0), (-5.0, 1.0, -1.0)))  # behind the car
+    (src / "labels").mkdir()
+    (src / "labels" / "000001.txt").write_text("\n".join(rows) + "\n")
+    r = import_dataset("kitti", src, tmp_path / "out", intrinsics="300,300,320,240")
+    assert r["rows_left_out"] == {"rows without a 2D box (3D only): left out": 4}
+    assert r["projected_3d"].startswith("2 3D-only cones in view projected into ignore regions (1 behind or out of "
+                                        "the frame, 1 repeating a cone with a 2D box)")
+    gt = load_coco(tmp_path / "out").gt(0)
+    regions = gt["boxes"][gt["ignore"] & gt["any_class"]]
+    assert len(regions) == 2 and gt["iscrowd"][gt["ignore"]].all()
+    for loc, region in zip(only, regions, strict=True):
+        true = np.array(_pitched_box(loc))
+        assert (region[:2] <= true[:2] + 1).all() and (region[2:] >= true[2:] - 1).all()  # covers the cone
+        assert (region[2] - region[0]) < 2.5 * (true[2] - true[0])  # and not much more
+
+
+def test_3d_only_cones_are_left_out_when_too_few_rows_fix_the_camera(kitti_src, tmp_path):
+    r = import_dataset("kitti", kitti_src, tmp_path / "out", intrinsics="150,149,70.5,62")
+    assert r["projected_3d"] is None
+    anns = load_coco(tmp_path / "out").annotations(0)
+    assert [a["source_class"] for a in anns if a.get("ignore")] == ["unknown_cone"]  # no projected region

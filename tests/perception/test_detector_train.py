@@ -12,6 +12,7 @@ pytest.importorskip("onnx")
 
 from cone_synth import write_synth_dataset  # noqa: E402
 
+from weather_gym.errors import FileFormatError, InputError  # noqa: E402
 from weather_gym.perception.detector import ConeDetector  # noqa: E402
 from weather_gym.perception.train import TrainConfig, augment, build_targets, train_detector  # noqa: E402
 
@@ -85,3 +86,137 @@ def test_interrupted_training_resumes_from_its_checkpoint(tmp_path):
     assert (tmp_path / "m.onnx.ckpt").is_file() and not out.exists()
     res = train_detector([data], out, cfg, progress=False, log=logs.append)
     assert any("resuming" in str(m) for m in logs) and res["history"][-1]["epoch"] == 2 and out.is_file()
+
+
+# ---------------------------------------------------------------------------------------------- mixing
+def _kitti_import(tmp_path, n: int = 3, size: tuple[int, int] = (320, 240), seed: int = 4):
+    """An imported recording: ``n`` synthetic frames of another size, written as KITTI and imported, with a
+    bottom ego mask stored (like ``weather-gym dataset import kitti`` + ``dataset mask --set``)."""
+    import cv2
+    from cone_synth import synth_frame
+
+    from weather_gym.cone_spec import CONE_CLASSES
+    from weather_gym.datasets.importers import import_dataset
+    from weather_gym.datasets.masks import set_dataset_mask, write_mask
+
+    src = tmp_path / "kitti"
+    (src / "images").mkdir(parents=True)
+    (src / "labels").mkdir()
+    rng = np.random.default_rng(seed)
+    names = {"blue": "blue_cone", "yellow": "yellow_cone", "orange": "orange_cone", "big_orange": "large_orange_cone"}
+    for i in range(n):
+        img, gt = synth_frame(rng, size=size)
+        cv2.imwrite(str(src / "images" / f"{i:06d}.png"), img[..., ::-1])
+        rows = [f"{names[CONE_CLASSES[c]]} 0 0 0 {b[0]:.1f} {b[1]:.1f} {b[2]:.1f} {b[3]:.1f} 0 0 0 0 0 0 0"
+                for b, c in zip(gt["boxes"], gt["classes"], strict=True)]
+        (src / "labels" / f"{i:06d}.txt").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "imported"
+    import_dataset("kitti", src, out, condition="clear")
+    mask = np.zeros((size[1], size[0]), bool)
+    mask[int(size[1] * 0.8):] = True
+    write_mask(tmp_path / "ego.png", mask)
+    set_dataset_mask(out, tmp_path / "ego.png")
+    return out
+
+
+def test_mix_draws_each_folders_share_of_every_epoch_seeded(tmp_path):
+    from weather_gym.datasets.coco import load_coco
+    from weather_gym.perception.train import _Frames
+
+    a = load_coco(write_synth_dataset(tmp_path / "a", 6, seed=1))
+    b = load_coco(_kitti_import(tmp_path, n=2))
+    cfg = TrainConfig(mix=(0.25, 0.75), epoch_frames=40, repeat_threshold=None)
+    frames = _Frames([a, b], cfg, train=True)
+    order = frames.epoch_order(0)
+    assert len(order) == 40 and frames.epoch_size() == 40
+    assert (frames.source[order] == 0).sum() == 10 and (frames.source[order] == 1).sum() == 30
+    assert set(order[frames.source[order] == 0]) == set(range(6))  # without replacement while enough frames
+    np.testing.assert_array_equal(order, _Frames([a, b], cfg, train=True).epoch_order(0))  # same seed, same order
+    assert not np.array_equal(order, frames.epoch_order(1))
+    only_b = _Frames([a, b], TrainConfig(mix=(0.0, 1.0), epoch_frames=8), train=True).epoch_order(0)
+    assert (frames.source[only_b] == 1).all()
+    with pytest.raises(InputError, match="2 data folders"):
+        _Frames([a, b], TrainConfig(mix=(1.0,)), train=True)
+    with pytest.raises(InputError, match="mix"):
+        TrainConfig(mix=(-1.0, 2.0))
+
+
+def test_an_imported_set_trains_with_its_ignore_mask_and_regions_as_no_loss(tmp_path):
+    from weather_gym.datasets.coco import load_coco
+    from weather_gym.perception.train import _Frames
+
+    ds = load_coco(_kitti_import(tmp_path, n=1))
+    assert ds.image(0).shape == (240, 320, 3)
+    frames = _Frames([ds], TrainConfig(crop_size=None), train=False)
+    x, heat, ign, *_ = frames[0]
+    assert tuple(x.shape) == (3, 288, 512)
+    # 320x240 letterboxed into 512x288: scale 1.2, 64 px bars left and right; the mask is the bottom 20 %
+    assert ign[-3:, 20:100].min() == 1.0 and ign[: int(72 * 0.7), 20:100].sum() == 0
+    assert ign[:, :10].max() == 0.0  # the letterbox bars are plain negatives
+
+
+@pytest.mark.slow
+def test_cli_trains_on_a_rendered_and_an_imported_set_mixed(tmp_path, capsys):
+    from weather_gym.cli import main
+
+    a = write_synth_dataset(tmp_path / "a", 3, seed=1)
+    b = _kitti_import(tmp_path, n=2)
+    out = tmp_path / "m.onnx"
+    assert main(["detector", "train", "--data", str(a), "--data", str(b), "--mix", "0.5,0.5", "--epoch-frames", "4",
+                 "--epochs", "1", "--batch-size", "2", "--input-size", "256", "160", "--crop-size", "128", "96",
+                 "--recipe", "real",
+                 "--out", str(out)]) == 0
+    meta = json.loads(out.with_suffix(".json").read_text())
+    cfg = meta["training"]["config"]
+    assert cfg["mix"] == [0.5, 0.5] and cfg["distractors"] > 0 and meta["training"]["steps"] == 2
+    assert meta["training"]["frames_per_data"] == [3, 2]
+
+
+def test_a_shipped_onnx_model_loads_back_into_torch(tmp_path):
+    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.train import export_onnx, load_onnx_weights
+
+    torch.manual_seed(3)
+    net = ConeNet()
+    for m in net.modules():  # non-trivial batch-norm statistics, so that folding matters
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.5, 0.5)
+            m.running_var.uniform_(0.5, 2.0)
+            m.bias.data.uniform_(-0.2, 0.2)
+    path = export_onnx(net.eval(), tmp_path / "m.onnx", (128, 64))
+    back = load_onnx_weights(ConeNet(), path).eval()
+    x = torch.rand(1, 3, 64, 128) * 255
+    with torch.no_grad():
+        np.testing.assert_allclose(ConeNetExport(back)(x).numpy(), ConeNetExport(net)(x).numpy(), atol=1e-4)
+    with pytest.raises(FileFormatError):
+        (tmp_path / "bad.onnx").write_bytes(b"not onnx")
+        load_onnx_weights(ConeNet(), tmp_path / "bad.onnx")
+
+
+def test_clear_day_camera_look_never_darkens_much_but_the_degrading_one_does():
+    from weather_gym.perception.augment import camera_look
+
+    img = np.full((64, 64, 3), 90, np.uint8)
+    img[20:44, 28:36] = (30, 60, 200)
+    clear = [camera_look(img, np.random.default_rng(s)).mean() for s in range(40)]
+    degraded = [camera_look(img, np.random.default_rng(s), degrade=True).mean() for s in range(40)]
+    assert min(clear) > 0.7 * img.mean() and max(clear) > 1.4 * img.mean()  # normal up to blown-out
+    assert min(degraded) < 0.55 * img.mean()  # the degrading look also under-exposes (as dimming does)
+
+
+def test_real_recipe_augments_with_clutter_and_camera_looks_but_keeps_the_boxes():
+    img = np.full((376, 672, 3), 100, np.uint8)
+    img[200:260, 300:340] = (30, 60, 200)
+    box = np.array([[300, 200, 340, 260.]])
+    cfg = TrainConfig.recipe("real", crop_size=None)
+    assert cfg.distractors > 0 and cfg.camera > 0 and cfg.scale_range[1] > 2
+    changed = 0
+    for seed in range(6):
+        out, b, vis = augment(img, box, cfg, np.random.default_rng(seed))
+        plain, *_ = augment(img, box, TrainConfig(crop_size=None), np.random.default_rng(seed))
+        changed += int(not np.array_equal(out, plain))
+        np.testing.assert_array_equal(augment(img, box, cfg, np.random.default_rng(seed))[0], out)  # seeded
+    assert changed >= 4
+    assert not cfg.camera_degrade and TrainConfig.recipe("real_robust").camera_degrade
+    with pytest.raises(InputError, match="recipe"):
+        TrainConfig.recipe("nosuch")

@@ -87,6 +87,8 @@ def register(sub) -> None:
                     help="camera intrinsics in pixels at the image size (else from KITTI calib/ files, else unknown)")
     im.add_argument("--mask", type=Path, default=None, help="ignore-mask PNG (white = ignored) to store with the dataset")
     im.add_argument("--annotations", type=Path, default=None, help="COCO: the JSON file (default: the only *.json in SRC)")
+    im.add_argument("--no-project-3d", action="store_true",
+                    help="KITTI: leave 3D-only cones out entirely instead of projecting them into ignore regions")
     im.add_argument("--location-frame", default="auto", choices=("auto", "camera", "vehicle", "none"),
                     help="KITTI: frame of the 3D locations used for cone range (default: recognised from the boxes)")
     add_overwrite_arg(im, help="replace an existing dataset in --out")
@@ -157,7 +159,7 @@ def _info(args) -> int:
 
     small = [a for a in anns if not a.get("ignore") and is_small(a)]
     per_class = Counter(CONE_CLASSES[a["category_id"] - 1] for a in anns if not a.get("ignore") and not is_small(a))
-    heights = np.array([a["bbox"][3] for a in anns]) if anns else np.zeros(0)
+    heights = np.array([a["bbox"][3] for a in anns if not a.get("ignore")]) if anns else np.zeros(0)  # labelled cones
     origin = info.get("origin", "render" if any("track" in im for im in ds.images) else "?")
     print(f"{args.dir}: {len(ds)} images ({', '.join(f'{s} ({n})' for s, n in sizes.items())}), {origin}, "
           f"{len(anns)} boxes")
@@ -169,6 +171,8 @@ def _info(args) -> int:
         print("ignore regions (not misses): " + ", ".join(f"{c} {n}" for c, n in sorted(by.items())))
     for what, n in (info.get("rows_left_out") or {}).items():
         print(f"{what}: {n}")
+    if info.get("projected_3d"):
+        print(info["projected_3d"])
     if ds.has_ignore_mask:
         m = ds.ignore_mask(0)
         print(f"ignore mask: {info.get('ignore_mask') or 'per frame'} "
@@ -193,6 +197,7 @@ def _import(args) -> int:
     r = import_dataset(args.format, args.src, args.out, classes=args.classes, condition=args.condition,
                        severity=args.severity, intrinsics=args.intrinsics, detector=det, mask=args.mask,
                        annotations=args.annotations, location_frame=args.location_frame, overwrite=args.overwrite,
+                       project_3d=not args.no_project_3d,
                        progress=not args.quiet)
     cones = ", ".join(f"{c} {n}" for c, n in sorted(r["cones"].items())) or "none"
     print(f"imported {r['frames']} frames ({r['size'][0]}x{r['size'][1]}) into {r['out']}")
@@ -201,6 +206,8 @@ def _import(args) -> int:
         print("ignore regions: " + ", ".join(f"{c} {n}" for c, n in sorted(r["ignore_regions"].items())))
     for what, n in r["rows_left_out"].items():
         print(f"{what}: {n}")
+    if r.get("projected_3d"):
+        print(r["projected_3d"])
     print(f"intrinsics: {r['intrinsics']}" + (f"; 3D locations: {r['location_frame']}" if args.format == "kitti" else ""))
     if r["condition"] is not None:
         print(f"condition: {r['condition']} (severity {r['severity']})")

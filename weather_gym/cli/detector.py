@@ -21,7 +21,7 @@ from weather_gym._io import atomic_write_json, check_output, write_image
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.datasets.coco import load_coco, read_image
-from weather_gym.errors import InputError, LimitError, MissingDependencyError
+from weather_gym.errors import InputError, LimitError, MissingDependencyError, MissingInputError
 from weather_gym.limits import check_image_size
 from weather_gym.perception.draw import draw_detections
 from weather_gym.perception.report import (
@@ -42,7 +42,24 @@ def register(sub) -> None:
     cmds = p.add_subparsers(dest="detector_command", metavar="ACTION", required=True)
 
     t = cmds.add_parser("train", help="train ConeNet on rendered COCO data and export ONNX")
-    t.add_argument("--data", type=Path, action="append", required=True, help="training COCO folder (repeatable)")
+    t.add_argument("--data", type=Path, action="append", required=True,
+                   help="training COCO folder (repeatable): rendered sets or imported recordings (any frame size; "
+                        "their ignore regions and ignore masks carry no loss)")
+    t.add_argument("--mix", default=None, metavar="W,W,...",
+                   help="share of each --data folder in every epoch, in --data order (e.g. 0.7,0.3); "
+                        "default: every frame once per epoch")
+    t.add_argument("--epoch-frames", type=int, default=None, help="frames per epoch with --mix (default: all frames)")
+    t.add_argument("--recipe", default="sim", choices=("sim", "real", "real_robust"),
+                   help="augmentation recipe: sim (mild jitter, the first shipped model's), real (wide scale, "
+                        "shift, unlabelled clutter, a clear-day camera: exposure to blown-out, tone, noise, JPEG) or "
+                        "real_robust (real + under-exposure, blur, strong noise: robust to the weather effects too)")
+    t.add_argument("--distractors", type=float, default=None, metavar="P",
+                   help="probability of pasting unlabelled clutter into a training crop (default: the recipe's)")
+    t.add_argument("--camera-look", type=float, default=None, metavar="P",
+                   help="probability of a random real-camera rendition of a crop (default: the recipe's)")
+    t.add_argument("--init", type=Path, default=None, metavar="MODEL.onnx",
+                   help="start from this ConeNet ONNX model (fine-tuning; its batch norms stay frozen)")
+    t.add_argument("--warmup", type=int, default=200, help="warm-up steps of the learning rate (default %(default)s)")
     t.add_argument("--val", type=Path, default=None, help="validation COCO folder (mAP@0.5 logged every 5 epochs)")
     t.add_argument("--epochs", type=int, default=30)
     t.add_argument("--batch-size", type=int, default=16)
@@ -50,6 +67,8 @@ def register(sub) -> None:
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--threads", type=int, default=1, help="torch CPU threads (default %(default)s; 2 only on an idle machine)")
     t.add_argument("--input-size", type=int, nargs=2, default=(512, 288), metavar=("W", "H"))
+    t.add_argument("--crop-size", type=int, nargs=2, default=(320, 192), metavar=("W", "H"),
+                   help="train on random crops of this size of the input (multiples of 32; default %(default)s)")
     t.add_argument("--max-steps", type=int, default=None, help="stop after this many optimizer steps")
     t.add_argument("--out", type=Path, required=True, help="ONNX file to write (+ .json sidecar)")
     add_overwrite_arg(t, help="replace an existing --out")
@@ -125,12 +144,35 @@ def _train(args) -> int:
         raise MissingDependencyError(f"training needs the 'train' extra (torch, onnx): {exc}") from None
     check_output(args.out, overwrite=args.overwrite, suffixes=(".onnx",), what="--out")
     check_output(args.out.with_suffix(".json"), overwrite=args.overwrite, what="model sidecar")
-    cfg = TrainConfig(input_size=tuple(args.input_size), epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
-                      seed=args.seed, threads=args.threads, max_steps=args.max_steps)
+    mix = _parse_mix(args.mix, len(args.data))
+    if args.epoch_frames is not None and mix is None:
+        raise InputError("--epoch-frames needs --mix")
+    if args.init is not None and not args.init.is_file():
+        raise MissingInputError(f"--init {args.init} does not exist")
+    extra = {k: v for k, v in (("distractors", args.distractors), ("camera", args.camera_look)) if v is not None}
+    cfg = TrainConfig.recipe(args.recipe, input_size=tuple(args.input_size), epochs=args.epochs,
+                             batch_size=args.batch_size, lr=args.lr, seed=args.seed, threads=args.threads,
+                             max_steps=args.max_steps, mix=mix, epoch_frames=args.epoch_frames,
+                             warmup_iters=args.warmup, crop_size=tuple(args.crop_size),
+                             init=None if args.init is None else str(args.init), **extra)
     result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
                             overwrite=args.overwrite)
     print(f"wrote {result['model']} ({result['steps']} steps, {result['train_time_s']:.0f} s)")
     return 0
+
+
+def _parse_mix(spec: str | None, n: int) -> tuple[float, ...] | None:
+    if spec is None:
+        return None
+    try:
+        shares = tuple(float(v) for v in spec.split(","))
+    except ValueError:
+        raise InputError(f"--mix must be comma-separated numbers, one per --data, got {spec!r}") from None
+    if len(shares) != n:
+        raise InputError(f"--mix gives {len(shares)} shares for {n} --data folders: give one per folder")
+    if any(not (v >= 0) or v == float("inf") for v in shares) or sum(shares) <= 0:
+        raise InputError(f"--mix shares must be finite, >= 0 and not all 0, got {spec!r}")
+    return shares
 
 
 def _eval(args) -> int:

@@ -13,6 +13,9 @@ of frames and labels, validates all of it first, then copies the frames (byte fo
   are their names (``classes.txt``, ``obj.names`` or ``data.yaml``) or their indices.
 * **KITTI**: rows ``type truncated occluded alpha x1 y1 x2 y2 h w l x y z rotation_y [score]``;
   a row whose 2D box is all zeros carries only a 3D box: it is left out (not a miss) and counted.
+  When the frames have intrinsics and at least :data:`MIN_POSE_ROWS` rows carry both boxes, the
+  camera's pose in the 3D frame is fitted to those rows and each 3D-only cone in view is projected
+  into an *ignore region* (a detection on a real but unlabelled cone is then not a false positive).
   Range and bearing come from the 3D location when it is given (its frame is recognised from
   where the 2D boxes are: KITTI's camera frame, x right / z forward, or a vehicle frame,
   x forward / y left; ``location_frame`` forces one). Intrinsics from ``calib/*.txt`` (``P2``).
@@ -47,6 +50,8 @@ from typing import Any
 
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from weather_gym._io import atomic_write, atomic_write_json, resolve_inside
@@ -122,6 +127,7 @@ class _Box:
     bearing: float = math.nan
     crowd: bool = False
     location: tuple[float, float, float] | None = None
+    size3d: tuple[float, float] | None = None  # KITTI (h, w) in metres
 
 
 @dataclass
@@ -129,6 +135,7 @@ class _Frame:
     image: Path
     rel: str
     boxes: list[_Box] = field(default_factory=list)
+    only3d: list[tuple[str, tuple[float, float, float], tuple[float, float, float], str]] = field(default_factory=list)
     intrinsics: dict[str, float] | None = None
     size: tuple[int, int] = (0, 0)
 
@@ -197,9 +204,12 @@ def _read_kitti(src: Path) -> tuple[list[_Frame], Counter]:
             x1, y1, x2, y2 = v[3:7]
             if x1 == y1 == x2 == y2 == 0.0:
                 stats["rows without a 2D box (3D only): left out"] += 1
+                if any(v[10:13]) and all(d > 0 for d in v[7:9]):  # (h, w, l), location: projected later
+                    fr.only3d.append((parts[0], tuple(v[7:10]), tuple(v[10:13]), where))
                 continue
             loc = tuple(v[10:13]) if any(v[7:13]) else None
-            fr.boxes.append(_Box(parts[0], _check_box(x1, y1, x2, y2, where), where, location=loc))
+            size3d = (v[7], v[8]) if v[7] > 0 and v[8] > 0 else None
+            fr.boxes.append(_Box(parts[0], _check_box(x1, y1, x2, y2, where), where, location=loc, size3d=size3d))
         if calib is not None:
             fr.intrinsics = _kitti_calib((calib / img.relative_to(images)).with_suffix(".txt"))
         frames.append(fr)
@@ -393,6 +403,66 @@ def _location_frame(frames: list[_Frame], requested: str) -> tuple[str, str]:
     return best, f"{best} (recognised: {hits} of {n} cones on the side of their 2D box)"
 
 
+MIN_POSE_ROWS = 8
+"""Rows with both a 2D box and a 3D location needed to fit the camera pose for projecting 3D-only cones."""
+
+
+def _camera_axes(loc: np.ndarray, h: np.ndarray, frame: str) -> tuple[np.ndarray, np.ndarray]:
+    """Bottom and top centre of cones in camera-like axes (x right, y down, z forward)."""
+    x, y, z = loc.T
+    if frame == "camera":  # KITTI: the location is the bottom centre, y down
+        bottom = np.c_[x, y, z]
+    else:  # vehicle: x forward, y left, z up
+        bottom = np.c_[-y, -z, x]
+    top = bottom - np.c_[np.zeros_like(h), h, np.zeros_like(h)]
+    return bottom, top
+
+
+def _project(pose: np.ndarray, k: Mapping[str, float], loc: np.ndarray, hw: np.ndarray, frame: str):
+    """xyxy boxes and forward distances of cones (locations ``loc``, sizes ``hw`` = (h, w)) under ``pose``
+    (rotation vector, translation of the 3D frame into the camera)."""
+
+    rot = Rotation.from_rotvec(pose[:3])
+    bottom, top = (rot.apply(p) + pose[3:] for p in _camera_axes(loc, hw[:, 0], frame))
+    zb = np.maximum(bottom[:, 2], 1e-6)
+    zt = np.maximum(top[:, 2], 1e-6)
+    ub = k["fx"] * bottom[:, 0] / zb + k["cx"]
+    vb = k["fy"] * bottom[:, 1] / zb + k["cy"]
+    vt = k["fy"] * top[:, 1] / zt + k["cy"]
+    half = k["fx"] * hw[:, 1] / 2 / zb
+    return np.c_[ub - half, vt, ub + half, vb], bottom[:, 2]
+
+
+def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    x1, y1 = np.maximum(box[0], boxes[:, 0]), np.maximum(box[1], boxes[:, 1])
+    x2, y2 = np.minimum(box[2], boxes[:, 2]), np.minimum(box[3], boxes[:, 3])
+    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
+    area = lambda b: (b[..., 2] - b[..., 0]) * (b[..., 3] - b[..., 1])  # noqa: E731
+    return inter / np.maximum(area(box) + area(boxes) - inter, 1e-9)
+
+
+def _fit_pose(frames: list[_Frame], frame: str) -> tuple[np.ndarray, float] | None:
+    """The 3D frame's pose in the camera, fitted (robust least squares) to the rows that carry both a 2D box
+    and a 3D location; with the median absolute error in pixels. None with too few rows or no intrinsics."""
+
+    rows = [(b.box, b.location, b.size3d, fr.intrinsics) for fr in frames for b in fr.boxes
+            if b.location is not None and b.size3d is not None and fr.intrinsics is not None]
+    if frame not in ("camera", "vehicle") or len(rows) < MIN_POSE_ROWS:
+        return None
+    k = rows[0][3]
+    if any(r[3] != k for r in rows):
+        return None
+    boxes = np.array([r[0] for r in rows], float)
+    loc = np.array([r[1] for r in rows], float)
+    hw = np.array([r[2] for r in rows], float)
+
+    def residual(p):
+        return (_project(p, k, loc, hw, frame)[0] - boxes).ravel()
+
+    fit = least_squares(residual, np.zeros(6), loss="soft_l1", f_scale=5.0)
+    return fit.x, float(np.median(np.abs(residual(fit.x))))
+
+
 def _range_bearing(loc: tuple[float, float, float], frame: str) -> tuple[float, float]:
     x, y, z = loc
     if frame == "camera":
@@ -421,12 +491,14 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
                    classes: str | Mapping[str, str] | None = None, condition: str | None = None,
                    severity: int | None = None, intrinsics: Any = None, detector: Any = None,
                    mask: str | os.PathLike | None = None, annotations: str | os.PathLike | None = None,
-                   location_frame: str = "auto", overwrite: bool = False, progress: bool = False) -> dict[str, Any]:
+                   location_frame: str = "auto", project_3d: bool = True, overwrite: bool = False,
+                   progress: bool = False) -> dict[str, Any]:
     """Import ``src`` (format ``fmt``) into the COCO folder ``out``; returns a summary dict (see module doc).
 
     ``detector``: whose input scale the too-small rule is stated at (an object with ``input_size`` and
     ``resize``, e.g. a loaded detector; default: the shipped detector's 512x288 letterbox).
-    ``mask``: an ignore-mask PNG stored with the dataset.
+    ``mask``: an ignore-mask PNG stored with the dataset. ``project_3d``: KITTI rows with only a 3D box
+    become ignore regions where the fitted camera sees them (False: they are only left out).
     """
 
 
@@ -479,6 +551,7 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
                 raise FileFormatError(f"{fr.image}: {exc}") from None
             fr.intrinsics = k
     loc_frame, loc_why = _location_frame(frames, location_frame) if fmt == "kitti" else ("none", "none")
+    projected = _project_only3d(frames, loc_frame) if fmt == "kitti" and project_3d else None
     rule = SmallRule.for_image(size, detector)
     mask_arr = read_mask(mask, size) if mask is not None else None
 
@@ -518,11 +591,17 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
             if math.isfinite(rng):
                 a["range"], a["bearing"] = float(rng), float(bear)
             anns.append(a)
+        for cls, box in (projected or {}).get(i, []):
+            x1, y1, x2, y2 = box
+            anns.append({"id": len(anns) + 1, "image_id": i, "category_id": 1, "bbox": [x1, y1, x2 - x1, y2 - y1],
+                         "area": (x2 - x1) * (y2 - y1), "iscrowd": 1, "source_class": f"{cls} (3D only, projected)",
+                         "ignore": f"3D only {cls} (projected)", "any_class": True})
     info: dict[str, Any] = {
         "description": f"imported from {fmt} by weather-gym dataset import", "origin": "import", "format": fmt,
         "source": str(src.resolve()), "class_map": cmap, "too_small": rule.to_dict(),
         "min_box_height_px": rule.min_height_px, "size": list(size),
         "rows_left_out": dict(stats), "ignore_regions": dict(ignored),
+        "projected_3d": None if projected is None else projected["summary"],
         "location_frame": loc_why if fmt == "kitti" else None,
         "intrinsics": "given" if given_k else ("calibration files" if any(f.intrinsics for f in frames) else "unknown"),
     }
@@ -536,4 +615,45 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
     return {"out": str(out), "frames": len(images), "size": list(size), "cones": dict(per_class),
             "too_small": n_small, "ignore_regions": dict(ignored), "rows_left_out": dict(stats),
             "rule": rule.describe(), "location_frame": loc_why, "intrinsics": info["intrinsics"],
-            "condition": cond, "severity": sev, "ignore_mask": info.get("ignore_mask")}
+            "condition": cond, "severity": sev, "ignore_mask": info.get("ignore_mask"),
+            "projected_3d": info["projected_3d"]}
+
+
+def _project_only3d(frames: list[_Frame], loc_frame: str) -> dict | None:
+    """Ignore regions for the 3D-only rows: ``{frame index: [(class, xyxy)], "summary": str}``, or None when
+    the camera pose cannot be fitted. Each projected box is grown by the fit's median error plus a quarter
+    of its size on every side (a region, not a label), clipped to the frame; cones behind the camera, out
+    of the frame or nearer than 0.5 m are skipped, and so are rows that repeat a cone with a 2D box (the
+    projection overlaps one at IoU >= 0.3)."""
+    if not any(fr.only3d for fr in frames):
+        return None
+    fitted = _fit_pose(frames, loc_frame)
+    if fitted is None:
+        return None
+    pose, err = fitted
+    out: dict[Any, Any] = {}
+    n = n_out = n_dup = 0
+    for i, fr in enumerate(frames):
+        if not fr.only3d or fr.intrinsics is None:
+            continue
+        loc = np.array([r[2] for r in fr.only3d], float)
+        hw = np.array([r[1][:2] for r in fr.only3d], float)
+        boxes, fwd = _project(pose, fr.intrinsics, loc, hw, loc_frame)
+        labelled = np.array([b.box for b in fr.boxes], float).reshape(-1, 4)
+        w, h = fr.size
+        for (cls, *_), b, z in zip(fr.only3d, boxes, fwd, strict=True):
+            if len(labelled) and _iou(b, labelled).max() >= 0.3:
+                n_dup += 1
+                continue
+            grow = np.array([-1, -1, 1, 1]) * (err + 0.25 * np.array([b[2] - b[0], b[3] - b[1]] * 2))
+            g = b + grow
+            if z < 0.5 or g[2] <= 0 or g[3] <= 0 or g[0] >= w or g[1] >= h:
+                n_out += 1
+                continue
+            g = (max(0.0, g[0]), max(0.0, g[1]), min(float(w), g[2]), min(float(h), g[3]))
+            out.setdefault(i, []).append((cls, tuple(float(v) for v in g)))
+            n += 1
+    out["summary"] = (f"{n} 3D-only cones in view projected into ignore regions ({n_out} behind or out of the frame, "
+                      f"{n_dup} repeating a cone with a 2D box); "
+                      f"camera pose fitted to the rows with both boxes, median error {err:.1f} px")
+    return out

@@ -87,7 +87,7 @@ class EvalResult:
         ig = self.ignored
         parts = [f"{ig.get('small', 0)} too small ({self.too_small})"]
         if ig.get("ignore"):
-            parts.append(f"{ig['ignore']} in ignore regions (unmapped classes)")
+            parts.append(f"{ig['ignore']} in ignore regions (unmapped classes, projected 3D-only cones)")
         if ig.get("masked"):
             parts.append(f"{ig['masked']} in the ignore mask")
         return ", ".join(parts)

@@ -4,7 +4,11 @@ Training is seeded and deterministic in its data order and augmentation (a ``num
 sample from ``(seed, epoch, index)``, ``torch.manual_seed(seed)``); it checkpoints every epoch and
 resumes from ``<out>.ckpt`` after an interruption. Augmentation is geometric (scale, shift,
 left-right flip: colours keep their meaning) and photometric (small hue, saturation and brightness
-jitter). The detector is trained on clean frames only - never on weather effects - so that, like the
+jitter); the ``real`` recipe (:meth:`TrainConfig.recipe`) adds what a real camera and a real track
+side do (``weather_gym.perception.augment``: exposure to blown-out, tone, blur, noise, JPEG, wide scale
+jitter, unlabelled clutter in cone colours). Several COCO folders can be mixed at given ratios
+(``mix``): rendered sets, and imported recordings of a team's own camera (their ignore regions and
+ignore masks carry no loss). Training can start from a shipped ONNX model (``init``). The detector is trained on clean frames only - never on weather effects - so that, like the
 reference study's detector, its accuracy falls when the weather degrades the image.
 
 Example:
@@ -32,13 +36,15 @@ from tqdm import tqdm
 from weather_gym._io import atomic_path, atomic_write_json, check_output
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
-from weather_gym.errors import FileFormatError, InputError
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.perception.augment import camera_look, paste_distractors
 from weather_gym.perception.detector import Detections
 from weather_gym.perception.model import NUM_CLASSES, STRIDE, ConeNet, ConeNetExport
 from weather_gym.perception.preprocess import PAD_VALUE, decode, letterbox, letterbox_params
 from weather_gym.perception.scoring import evaluate
 
-__all__ = ["TrainConfig", "train_detector", "export_onnx", "build_targets", "augment", "detection_loss"]
+__all__ = ["TrainConfig", "train_detector", "export_onnx", "build_targets", "augment", "detection_loss",
+           "load_onnx_weights", "RECIPES"]
 
 MAX_OBJECTS = 128
 
@@ -66,8 +72,30 @@ class TrainConfig:
     score_threshold: float = 0.3
     repeat_threshold: float | None = 0.5  # repeat-factor sampling of frames with rare classes (LVIS); None = off
     max_steps: int | None = None  # stop after this many optimizer steps (smoke tests)
+    distractors: float = 0.0  # probability of pasting unlabelled clutter into a training crop (augment.py)
+    camera: float = 0.0  # probability of a random real-camera rendition (exposure, tone, noise, JPEG)
+    camera_degrade: bool = False  # the rendition also under-exposes, blurs and adds strong noise (weather-like)
+    mix: tuple[float, ...] | None = None  # share of each --data folder in every epoch (None: all frames once)
+    epoch_frames: int | None = None  # frames per epoch with ``mix`` (default: as many as without it)
+    init: str | None = None  # start from this ConeNet ONNX model (its batch norms stay frozen)
+
+    @classmethod
+    def recipe(cls, name: str, **overrides) -> TrainConfig:
+        """A named recipe (``RECIPES``) with ``overrides``: ``sim`` (the defaults) or ``real``."""
+        if name not in RECIPES:
+            raise InputError(f"unknown training recipe {name!r}; expected one of {sorted(RECIPES)}")
+        return cls(**{**RECIPES[name], **overrides})
 
     def __post_init__(self) -> None:
+        for name in ("distractors", "camera"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise InputError(f"{name} must be a probability in [0, 1], got {getattr(self, name)}")
+        if self.mix is not None and (not self.mix or any(not (w >= 0) for w in self.mix) or sum(self.mix) <= 0):
+            raise InputError(f"mix must be non-negative shares with a positive sum, got {self.mix}")
+        if self.epoch_frames is not None and self.epoch_frames < 1:
+            raise InputError(f"epoch_frames must be >= 1, got {self.epoch_frames}")
+        if not 0 < self.scale_range[0] <= self.scale_range[1]:
+            raise InputError(f"scale_range must be 0 < low <= high, got {self.scale_range}")
         w, h = self.input_size
         if w % 32 or h % 32:
             raise InputError(f"input_size must be multiples of 32, got {self.input_size}")
@@ -79,12 +107,28 @@ class TrainConfig:
             raise InputError("epochs and batch_size must be >= 1")
 
 
-# ----------------------------------------------------------------------------------- samples
-def augment(image: np.ndarray, boxes: np.ndarray, cfg: TrainConfig, rng: np.random.Generator | None):
-    """Letterbox ``image`` into the input size with a random scale/shift/flip and colour jitter,
-    then (with ``cfg.crop_size``) cut a random crop of it.
+RECIPES: dict[str, dict[str, Any]] = {
+    # the shipped model's first recipe: rendered frames, mild jitter
+    "sim": {},
+    # for real cameras: near cones big and far ones tiny, the horizon anywhere, clutter that is not a
+    # cone, a clear-day camera (exposure to blown-out, white balance, tone, desaturation, mild noise, JPEG)
+    "real": {"scale_range": (0.6, 2.2), "shift": 0.25, "hue": 4, "distractors": 0.7, "camera": 0.85},
+    # the same plus what the weather effects do (under-exposure, blur, strong noise): robust to the
+    # simulator's weather too, so it no longer shows the weather's drop (ablation only)
+    "real_robust": {"scale_range": (0.6, 2.2), "shift": 0.25, "hue": 4, "distractors": 0.7, "camera": 0.85,
+                    "camera_degrade": True},
+}
 
-    Returns (image uint8 (h, w, 3), boxes xyxy in its pixels, visible fraction of each box).
+
+# ----------------------------------------------------------------------------------- samples
+def augment(image: np.ndarray, boxes: np.ndarray, cfg: TrainConfig, rng: np.random.Generator | None,
+            mask: np.ndarray | None = None):
+    """Letterbox ``image`` into the input size with a random scale/shift/flip and colour jitter,
+    then (with ``cfg.crop_size``) cut a random crop of it; with ``cfg.distractors`` / ``cfg.camera``
+    paste unlabelled clutter and apply a random real-camera rendition.
+
+    Returns (image uint8 (h, w, 3), boxes xyxy in its pixels, visible fraction of each box), plus the
+    ignore ``mask`` (bool (H, W) of the source image) moved the same way when one is given.
     ``rng=None`` gives the plain letterbox (evaluation).
     """
     ih, iw = image.shape[:2]
@@ -123,7 +167,15 @@ def augment(image: np.ndarray, boxes: np.ndarray, cfg: TrainConfig, rng: np.rand
         hsv[..., 1] *= float(rng.uniform(1 - cfg.saturation, 1 + cfg.saturation))
         hsv[..., 2] *= float(rng.uniform(1 - cfg.brightness, 1 + cfg.brightness))
         out = cv2.cvtColor(np.clip(hsv, 0, 255).astype(np.uint8), cv2.COLOR_HSV2RGB)
-    return out, nb, visible
+    if rng is not None and cfg.distractors and rng.random() < cfg.distractors:
+        out = paste_distractors(out, nb[visible > 0], rng)
+    if rng is not None and cfg.camera and rng.random() < cfg.camera:
+        out = camera_look(out, rng, degrade=cfg.camera_degrade)
+    if mask is None:
+        return out, nb, visible
+    moved = cv2.warpAffine(mask.astype(np.uint8), M, (W, H), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                           borderValue=0)
+    return out, nb, visible, moved.astype(bool)
 
 
 def _gaussian(heat: np.ndarray, cx: int, cy: int, sx: float, sy: float) -> None:
@@ -179,6 +231,13 @@ class _Frames(torch.utils.data.Dataset):
 
     def __init__(self, datasets: list, cfg: TrainConfig, train: bool) -> None:
         self.items = [(d, i) for d in datasets for i in range(len(d))]
+        self.source = np.array([k for k, d in enumerate(datasets) for _ in range(len(d))], np.int64)
+        if cfg.mix is not None and len(cfg.mix) != len(datasets):
+            raise InputError(f"mix gives {len(cfg.mix)} shares for {len(datasets)} data folders: give one per folder")
+        if cfg.mix is not None:
+            for k, (d, w) in enumerate(zip(datasets, cfg.mix, strict=True)):
+                if w > 0 and len(d) == 0:
+                    raise InputError(f"data folder {k + 1} ({d.root}) has no images but a mix share of {w}")
         self.cfg = cfg
         self.train = train
         self.epoch = 0
@@ -195,11 +254,31 @@ class _Frames(torch.utils.data.Dataset):
             per_class = np.maximum(1.0, np.sqrt(cfg.repeat_threshold / freq))
             self.repeat = np.where(present, per_class[None, :], 1.0).max(axis=1)
 
+    def epoch_size(self) -> int:
+        """Frames per epoch: the repeat-factor sum, or ``cfg.epoch_frames`` when mixing."""
+        if self.cfg.mix is not None and self.cfg.epoch_frames is not None:
+            return self.cfg.epoch_frames
+        return int(round(float(self.repeat.sum())))
+
     def epoch_order(self, epoch: int) -> np.ndarray:
-        """Frame indices of one epoch: repeat factors rounded stochastically, then shuffled (seeded)."""
+        """Frame indices of one epoch, shuffled (seeded). Without ``mix``: every frame, repeat factors
+        rounded stochastically. With ``mix``: each folder's share of ``epoch_size()`` frames, drawn
+        from that folder in proportion to the repeat factors (without replacement while it has enough)."""
         rng = np.random.default_rng([self.cfg.seed, epoch, 7])
-        counts = np.floor(self.repeat + rng.random(len(self.repeat))).astype(np.int64)
-        return rng.permutation(np.repeat(np.arange(len(self.repeat)), counts))
+        if self.cfg.mix is None:
+            counts = np.floor(self.repeat + rng.random(len(self.repeat))).astype(np.int64)
+            return rng.permutation(np.repeat(np.arange(len(self.repeat)), counts))
+        shares = np.asarray(self.cfg.mix, float) / float(sum(self.cfg.mix))
+        n = self.epoch_size()
+        picks = []
+        for k, share in enumerate(shares):
+            idx = np.flatnonzero(self.source == k)
+            want = int(round(share * n))
+            if want == 0 or len(idx) == 0:
+                continue
+            p = self.repeat[idx] / self.repeat[idx].sum()
+            picks.append(rng.choice(idx, size=want, replace=want > len(idx), p=p))
+        return rng.permutation(np.concatenate(picks)) if picks else np.zeros(0, np.int64)
 
     def __len__(self) -> int:
         return len(self.items)
@@ -213,10 +292,21 @@ class _Frames(torch.utils.data.Dataset):
                 self._cache[idx] = image
         gt = ds.gt(i)
         rng = np.random.default_rng([self.cfg.seed, self.epoch, idx]) if self.train else None
-        img, boxes, visible = augment(image, gt["boxes"], self.cfg, rng)
-        # crowd (tiny) cones and cones mostly pushed out of the frame are ignored, not negatives
+        mask = gt.get("ignore_mask")
+        if mask is None:
+            img, boxes, visible = augment(image, gt["boxes"], self.cfg, rng)
+        else:
+            img, boxes, visible, mask = augment(image, gt["boxes"], self.cfg, rng, mask=mask)
+        # crowd (tiny) cones, ignore regions of imported sets and cones mostly pushed out of the frame
+        # are ignored, not negatives
         ignore = (gt["iscrowd"] > 0) | (visible < 0.5)
+        if "ignore" in gt:
+            ignore = ignore | gt["ignore"] | gt["any_class"]
         targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]))
+        if mask is not None:  # the ignore mask (e.g. the ego vehicle): no negative loss under it
+            h, w = targets[1].shape
+            cover = cv2.resize(mask.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+            np.maximum(targets[1], (cover > 0.5).astype(np.float32), out=targets[1])
         x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
         return (x, *[torch.from_numpy(t) for t in targets])
 
@@ -291,6 +381,68 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
     return path
 
 
+# ----------------------------------------------------------------------------------- start weights
+def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
+    """Load the weights of a ConeNet ONNX export (``export_onnx``) into ``net`` and return it.
+
+    The export folds each batch norm into its convolution, so the convolutions get the folded weights
+    and each batch norm becomes the identity with the folded bias (mean 0, variance 1 - eps, scale 1);
+    train such a net with its batch norms in eval mode (``train_detector`` does with ``init``).
+    Convolutions are matched in execution order and checked by shape.
+    """
+    import onnx
+    from onnx import numpy_helper
+
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"start model {path} does not exist")
+    try:
+        model = onnx.load(str(path))
+    except Exception as exc:  # noqa: BLE001 - onnx raises several types for a bad file
+        raise FileFormatError(f"{path} is not an ONNX model ({type(exc).__name__})") from None
+    inits = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
+    onnx_convs = [n for n in model.graph.node if n.op_type == "Conv"]
+    order: list[torch.nn.Conv2d] = []
+    hooks = [m.register_forward_hook(lambda mod, *_: order.append(mod)) for m in net.modules()
+             if isinstance(m, torch.nn.Conv2d)]
+    w, h = 128, 64
+    with torch.no_grad():
+        net.eval()(torch.zeros(1, 3, h, w))
+    for hk in hooks:
+        hk.remove()
+    if len(order) != len(onnx_convs):
+        raise FileFormatError(f"{path}: {len(onnx_convs)} convolutions, but ConeNet has {len(order)}: not a ConeNet export")
+    bn_after = {}
+    for mod in net.modules():
+        if isinstance(mod, torch.nn.Sequential):
+            kids = list(mod)
+            for a, b in zip(kids, kids[1:], strict=False):
+                if isinstance(a, torch.nn.Conv2d) and isinstance(b, torch.nn.BatchNorm2d):
+                    bn_after[a] = b
+    with torch.no_grad():
+        for conv, node in zip(order, onnx_convs, strict=True):
+            weight = inits.get(node.input[1])
+            bias = inits.get(node.input[2]) if len(node.input) > 2 else None
+            if weight is None or tuple(weight.shape) != tuple(conv.weight.shape):
+                raise FileFormatError(f"{path}: convolution {node.name} does not match ConeNet's {tuple(conv.weight.shape)}")
+            conv.weight.copy_(torch.from_numpy(weight.copy()))
+            bn = bn_after.get(conv)
+            if bn is not None:
+                bn.running_mean.zero_()
+                bn.running_var.fill_(1.0 - bn.eps)
+                bn.weight.fill_(1.0)
+                bn.bias.copy_(torch.from_numpy(bias.copy()) if bias is not None else torch.zeros_like(bn.bias))
+            elif conv.bias is not None and bias is not None:
+                conv.bias.copy_(torch.from_numpy(bias.copy()))
+    return net
+
+
+def _freeze_bn(net: ConeNet) -> None:
+    for m in net.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.eval()
+
+
 # ----------------------------------------------------------------------------------- training
 def _eval_map(net: ConeNet, val, cfg: TrainConfig, max_images: int = 200) -> float:
     """mAP@0.5 of the torch model on (up to ``max_images`` frames of) ``val``, via the runtime decoder."""
@@ -342,9 +494,12 @@ def train_detector(
     frames = _Frames(train_sets, cfg, train=True)
     if len(frames) == 0:
         raise InputError(f"the training data {', '.join(map(str, data))} has no images")
-    net = ConeNet().to(memory_format=torch.channels_last)  # much faster convolutions on CPU
+    net = ConeNet()
+    if cfg.init is not None:
+        load_onnx_weights(net, cfg.init)
+    net = net.to(memory_format=torch.channels_last)  # much faster convolutions on CPU
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    steps_per_epoch = math.ceil(float(frames.repeat.sum()) / cfg.batch_size)
+    steps_per_epoch = math.ceil(frames.epoch_size() / cfg.batch_size)
     total_steps = steps_per_epoch * cfg.epochs if cfg.max_steps is None else min(cfg.max_steps, steps_per_epoch * cfg.epochs)
 
     def lr_at(step: int) -> float:
@@ -374,6 +529,8 @@ def train_detector(
         frames.epoch = epoch
         order = frames.epoch_order(epoch)
         net.train()
+        if cfg.init is not None:
+            _freeze_bn(net)
         sums: dict[str, float] = {}
         nb = 0
         bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress,
@@ -413,6 +570,7 @@ def train_detector(
             "data": [str(d) for d in data],
             "tracks": sorted({str(im.get("track")) for d in train_sets for im in d.images}),
             "frames": len(frames),
+            "frames_per_data": [len(d) for d in train_sets],
             "val": str(val) if val is not None else None,
             "config": asdict(cfg),
             "steps": step,
