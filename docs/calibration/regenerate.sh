@@ -5,7 +5,7 @@
 #
 #   bash docs/calibration/regenerate.sh            # from the repository root, in the venv
 #
-# Resumable: a finished sweep cell is never run again (delete docs/calibration/curves.csv to start over, e.g.
+# Resumable: a finished sweep cell is never run again (delete docs/calibration/curves.csv and sweep.json to start over, e.g.
 # after the detector changes - a new model gets new rows, and the old ones are ignored by model_id).
 set -euo pipefail
 SET=${SET:-scratch/calib/eval_peanut}     # the fixed evaluation set (git-ignored; rendered deterministically)
@@ -18,7 +18,7 @@ if [ ! -f "$SET/annotations.json" ]; then
 fi
 
 weather-gym sweep --effect droplets --effect dim --effect dim:mode=physical --k 0:1:0.05 --seeds 5 \
-  --dataset "$SET" --out "$OUT" --workers "$WORKERS"
+  --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite
 
 weather-gym calibrate --curve "$OUT/curves.csv" --measured "$OUT/study_table2.csv" \
   --study-points "$OUT/study_figure7.csv" --dataset "$SET" --seeds 5 --workers "$WORKERS" \
