@@ -50,6 +50,8 @@ _R1 = np.array([d["r1"] for d in _DIMS])
 _CORNERS = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
 _RADIUS = _PLATE_HALF * math.sqrt(2.0)  # the plate's half-diagonal: a cone fits in this circle
 _FACE_SIGN = np.array([[1.0], [-1.0]])
+_LEFT_RIGHT = (np.array([12, 13]), np.array([13, 12]))
+_BOX_SIGN = np.array([-1.0, 1.0, -1.0, 1.0])
 
 
 def _template() -> np.ndarray:
@@ -123,7 +125,8 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     # the eye (perpendicular to the line of sight, where a circle's silhouette is widest)
     fwd_h = fwd[:2] / max(math.hypot(fwd[0], fwd[1]), 1e-9)
     template = _TEMPLATE.copy()
-    template[:, 8:12, :2] = np.stack([right[:2], -right[:2], -fwd_h, fwd_h])[None] * _R1[:, None, None]
+    rx, ry, hx, hy = float(right[0]), float(right[1]), float(fwd_h[0]), float(fwd_h[1])
+    template[:, 8:12, :2] = np.array([[rx, ry], [-rx, -ry], [-hx, -hy], [hx, hy]])[None] * _R1[:, None, None]
     pts = template[c]
     los = d[idx]
     perp = np.stack([-los[:, 1], los[:, 0]], axis=1) * (_R0[c] / np.maximum(np.hypot(los[:, 0], los[:, 1]), 1e-9))[:, None]
@@ -154,7 +157,7 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     u1, u2 = u[:, :12].min(axis=1), u[:, :12].max(axis=1)
     v1 = v[:, :12].min(axis=1)
     rows = np.arange(k)[:, None]
-    base = np.where(u[:, 12:13] <= u[:, 13:14], [12, 13], [13, 12])  # (K, 2): left, right extreme
+    base = np.where(u[:, 12:13] <= u[:, 13:14], *_LEFT_RIGHT)  # (K, 2): left, right extreme
     ub, vb = u[rows, base], v[rows, base]
     tl, tr = np.minimum(u[:, 8], u[:, 9]), np.maximum(u[:, 8], u[:, 9])
     # plate outlines: the lower chain of the bottom face and the upper chain of the top face (its v
@@ -163,15 +166,16 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     uq = u[:, :8].reshape(k, 2, 4)  # [bottom face, top face]
     vq = v[:, :8].reshape(k, 2, 4) * _FACE_SIGN
     by_u = np.argsort(uq, axis=2)
-    uq, vq = np.take_along_axis(uq, by_u, axis=2), np.take_along_axis(vq, by_u, axis=2)
+    sel = (rows[:, :, None], np.arange(2)[None, :, None], by_u)  # = take_along_axis(., by_u, axis=2)
+    uq, vq = uq[sel], vq[sel]
     with np.errstate(divide="ignore", invalid="ignore"):
         chord = (vq[..., 3:] - vq[..., :1]) / (uq[..., 3:] - uq[..., :1])
         chord = np.where(np.isfinite(chord), chord, 0.0)
         vq[..., 1:3] = np.maximum(vq[..., 1:3], vq[..., :1] + chord * (uq[..., 1:3] - uq[..., :1]))
-        slope = np.diff(vq, axis=2) / np.diff(uq, axis=2)  # (K, 2, 3)
+        slope = (vq[..., 1:] - vq[..., :-1]) / (uq[..., 1:] - uq[..., :-1])  # (K, 2, 3)
     slope = np.where(np.isfinite(slope), slope, 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        side = np.where(tl[:, None] - ub[:, :1] > 0, (vb - v1[:, None]) / np.abs(np.c_[tl, tr] - ub), 0.0)
+        side = np.where(tl[:, None] - ub[:, :1] > 0, (vb - v1[:, None]) / np.abs(np.stack([tl, tr], axis=1) - ub), 0.0)
     side[:, 1] = np.where(ub[:, 1] > tr, side[:, 1], 0.0)
 
     # pixel columns whose centre lies inside [u1, u2], clipped to the image; cones ordered nearest
@@ -222,8 +226,8 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     count = np.maximum(row_b - row_a, 0.0)
     seen = count > 0
     never = -float(width + height + 10)
-    extents = np.column_stack([np.where(seen, -col, never), np.where(seen, col + 1, never),
-                               np.where(seen, -row_a, never), np.where(seen, row_b, never), count])
+    extents = np.where(seen[:, None], np.stack([-col, col + 1, -row_a, row_b], axis=1), never)
+    extents = np.concatenate([extents, count[:, None]], axis=1)
     ext = np.maximum.reduceat(extents, starts, axis=0)
     pixels = np.add.reduceat(count, starts)
     vis = pixels > 0
@@ -233,9 +237,9 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     by_id = np.argsort(ids)
     ids = ids[by_id]
     ext = ext[vis][by_id]
-    boxes = (ext[:, :4] * [-1.0, 1.0, -1.0, 1.0] + 0.0).astype(np.float32)[:, [0, 2, 1, 3]]  # (+0: no -0.0)
+    boxes = (ext[:, :4] * _BOX_SIGN + 0.0).astype(np.float32)[:, [0, 2, 1, 3]]  # (+0: no -0.0)
     dxy = d[ids]
     bearings = (np.arctan2(dxy[:, 1], dxy[:, 0]) - heading + np.pi) % (2 * np.pi) - np.pi
-    return ConeArrays(boxes=boxes, classes=cls[ids], cone_ids=ids,
-                      ranges=np.hypot(dxy[:, 0], dxy[:, 1]).astype(np.float32), bearings=bearings.astype(np.float32),
-                      pixels=pixels[vis][by_id].astype(np.int64))
+    return ConeArrays.trusted({"boxes": boxes, "classes": cls[ids], "cone_ids": ids,
+                               "ranges": np.hypot(dxy[:, 0], dxy[:, 1]).astype(np.float32),
+                               "bearings": bearings.astype(np.float32), "pixels": pixels[vis][by_id].astype(np.int64)})
