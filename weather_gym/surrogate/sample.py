@@ -102,13 +102,13 @@ class FrameSampler:
             # a cone not detected may still be reported "loosely": a box a little off (a scoring miss
             # plus a false positive), near the cone's true place
             loose = ~det & (u[5] < p.probability_of(feats, cls, loose=True))
-            rep_any = det | loose
+            rep_any = np.flatnonzero(det | loose)  # indices: cheaper than a boolean mask, used many times
             c = cls[rep_any]
             r_true = rng_[rep_any]
             b = np.minimum(np.searchsorted(ERR_RANGE_EDGES, r_true, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
             lz = loose[rep_any]
             cum = np.cumsum(np.where(lz[:, None], p.confusion_loose[b, c], p.confusion[b, c]), axis=1)
-            rep = np.minimum((u[1, rep_any][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
+            rep = np.minimum(np.add.reduce(u[1, rep_any][:, None] > cum, axis=1), cum.shape[1] - 1)
             # range error, bearing error and score: one inverse-CDF draw over the three stacked
             # (each row from the loose or the matched quantiles)
             lz2 = lz[:, None]
@@ -121,9 +121,11 @@ class FrameSampler:
             bearings = brg[rep_any] + drawn[k:2 * k]
             scores = drawn[2 * k:]
             out_boxes = boxes[rep_any]
-            if lz.any():
-                d = p.loose_box_d[(u[6, rep_any][lz] * len(p.loose_box_d)).astype(np.int64)]
-                out_boxes[lz] = out_boxes[lz] + d * box_h[rep_any][lz][:, None]
+            lz_i = np.flatnonzero(lz)
+            if lz_i.size:
+                li = rep_any[lz_i]
+                d = p.loose_box_d[(u[6, li] * len(p.loose_box_d)).astype(np.int64)]
+                out_boxes[lz_i] = out_boxes[lz_i] + d * box_h[li][:, None]
         else:
             rep = np.zeros(0, np.int64)
             ranges = bearings = scores = np.zeros(0)
