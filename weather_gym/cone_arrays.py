@@ -54,6 +54,16 @@ class ConeArrays(Mapping):
             out[key] = a
         self._arrays = out
 
+    @classmethod
+    def trusted(cls, arrays: dict[str, np.ndarray]) -> ConeArrays:
+        """Wrap ``arrays`` (numpy arrays of one length, made by the caller: not checked) read-only;
+        the per-step fast path of the env and the wrappers."""
+        out = cls.__new__(cls)
+        for a in arrays.values():
+            a.flags.writeable = False
+        out._arrays = arrays
+        return out
+
     @property
     def count(self) -> int:
         """Number of cones (rows)."""

@@ -227,11 +227,12 @@ class ConeTrackEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2,):
             raise InputError(f"action must have shape (2,) = (steering, throttle/brake), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
+        a0, a1 = float(a[0]), float(a[1])  # plain floats: these checks run every step
+        if not (math.isfinite(a0) and math.isfinite(a1)):
             raise InputError(f"action must be finite, got {a.tolist()}")
-        if np.any(np.abs(a) > 1.0 + 1e-6):
+        if abs(a0) > 1.0 + 1e-6 or abs(a1) > 1.0 + 1e-6:
             raise InputError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
-        steer, pedal = float(np.clip(a[0], -1, 1)), float(np.clip(a[1], -1, 1))  # only float rounding is clipped
+        steer, pedal = min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)  # only float rounding is clipped
 
         touched = self._world.step(steer, pedal, self._friction)  # reset() made the world
         new_hits = len(touched - self._cones_hit)

@@ -50,6 +50,11 @@ _R1 = np.array([d["r1"] for d in _DIMS])
 _CORNERS = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
 _RADIUS = _PLATE_HALF * math.sqrt(2.0)  # the plate's half-diagonal: a cone fits in this circle
 _FACE_SIGN = np.array([[1.0], [-1.0]])
+_LEFT_RIGHT = (np.array([12, 13]), np.array([13, 12]))
+_BOX_SIGN = np.array([-1.0, 1.0, -1.0, 1.0])
+_XYXY = np.array([0, 2, 1, 3])
+_TWO = np.arange(2)[None, :, None]
+_min, _max = np.minimum.reduce, np.maximum.reduce  # ufunc reductions: no Python wrapper per call
 
 
 def _template() -> np.ndarray:
@@ -123,12 +128,16 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     # the eye (perpendicular to the line of sight, where a circle's silhouette is widest)
     fwd_h = fwd[:2] / max(math.hypot(fwd[0], fwd[1]), 1e-9)
     template = _TEMPLATE.copy()
-    template[:, 8:12, :2] = np.stack([right[:2], -right[:2], -fwd_h, fwd_h])[None] * _R1[:, None, None]
+    rx, ry, hx, hy = float(right[0]), float(right[1]), float(fwd_h[0]), float(fwd_h[1])
+    template[:, 8:12, :2] = np.array([[rx, ry], [-rx, -ry], [-hx, -hy], [hx, hy]])[None] * _R1[:, None, None]
     pts = template[c]
     los = d[idx]
-    perp = np.stack([-los[:, 1], los[:, 0]], axis=1) * (_R0[c] / np.maximum(np.hypot(los[:, 0], los[:, 1]), 1e-9))[:, None]
+    perp = np.empty((k, 2))
+    np.negative(los[:, 1], out=perp[:, 0])
+    perp[:, 1] = los[:, 0]
+    perp *= (_R0[c] / np.maximum(np.hypot(los[:, 0], los[:, 1]), 1e-9))[:, None]
     pts[:, 12, :2] = perp
-    pts[:, 13, :2] = -perp
+    np.negative(perp, out=pts[:, 13, :2])
     origin = np.zeros((k, 3))
     origin[:, :2] = los
     origin[:, 2] = -eye[2]
@@ -141,9 +150,11 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
             origin[j] = np.asarray(org, dtype=np.float64).reshape(3) - eye
             pts[j] = pts[j] @ rot.T
             upright[j] = rot[2, 2] > math.cos(math.radians(3.0))  # standing (slid, not tipped)
-    cam_xyz = (pts + origin[:, None, :]) @ np.stack([right, up, fwd], axis=1)
+    pts += origin[:, None, :]
+    cam_xyz = pts @ np.array([right, up, fwd]).T.copy()  # = np.stack([right, up, fwd], axis=1)
     zc = cam_xyz[..., 2]
-    in_front = (zc > near).all(axis=1) & (zc.min(axis=1) < far)
+    z_min = _min(zc, axis=1)
+    in_front = (z_min > near) & (z_min < far)  # every key point beyond the near plane, one before the far
     zc = np.maximum(zc, near)
     u = cx + fx * cam_xyz[..., 0] / zc
     v = cy - fy * cam_xyz[..., 1] / zc
@@ -151,10 +162,10 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     # silhouette parameters per cone (pixels): its box; the flat top; the frustum's sides from the
     # top disc to the plate; the plate's upper outline (top face) and lower outline (bottom face),
     # each: leftmost corner -> highest / lowest corner -> rightmost corner
-    u1, u2 = u[:, :12].min(axis=1), u[:, :12].max(axis=1)
-    v1 = v[:, :12].min(axis=1)
+    u1, u2 = _min(u[:, :12], axis=1), _max(u[:, :12], axis=1)
+    v1 = _min(v[:, :12], axis=1)
     rows = np.arange(k)[:, None]
-    base = np.where(u[:, 12:13] <= u[:, 13:14], [12, 13], [13, 12])  # (K, 2): left, right extreme
+    base = np.where(u[:, 12:13] <= u[:, 13:14], *_LEFT_RIGHT)  # (K, 2): left, right extreme
     ub, vb = u[rows, base], v[rows, base]
     tl, tr = np.minimum(u[:, 8], u[:, 9]), np.maximum(u[:, 8], u[:, 9])
     # plate outlines: the lower chain of the bottom face and the upper chain of the top face (its v
@@ -163,20 +174,23 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     uq = u[:, :8].reshape(k, 2, 4)  # [bottom face, top face]
     vq = v[:, :8].reshape(k, 2, 4) * _FACE_SIGN
     by_u = np.argsort(uq, axis=2)
-    uq, vq = np.take_along_axis(uq, by_u, axis=2), np.take_along_axis(vq, by_u, axis=2)
+    sel = (rows[:, :, None], _TWO, by_u)  # = take_along_axis(., by_u, axis=2)
+    uq, vq = uq[sel], vq[sel]
     with np.errstate(divide="ignore", invalid="ignore"):
         chord = (vq[..., 3:] - vq[..., :1]) / (uq[..., 3:] - uq[..., :1])
         chord = np.where(np.isfinite(chord), chord, 0.0)
         vq[..., 1:3] = np.maximum(vq[..., 1:3], vq[..., :1] + chord * (uq[..., 1:3] - uq[..., :1]))
-        slope = np.diff(vq, axis=2) / np.diff(uq, axis=2)  # (K, 2, 3)
-    slope = np.where(np.isfinite(slope), slope, 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        side = np.where(tl[:, None] - ub[:, :1] > 0, (vb - v1[:, None]) / np.abs(np.c_[tl, tr] - ub), 0.0)
+        slope = (vq[..., 1:] - vq[..., :-1]) / (uq[..., 1:] - uq[..., :-1])  # (K, 2, 3)
+        slope = np.where(np.isfinite(slope), slope, 0.0)
+        t_lr = np.empty((k, 2))
+        t_lr[:, 0] = tl
+        t_lr[:, 1] = tr
+        side = np.where(tl[:, None] - ub[:, :1] > 0, (vb - v1[:, None]) / np.abs(t_lr - ub), 0.0)
     side[:, 1] = np.where(ub[:, 1] > tr, side[:, 1], 0.0)
 
     # pixel columns whose centre lies inside [u1, u2], clipped to the image; cones ordered nearest
     # first (lowest point of the plate), so that within a column the pairs run from near to far
-    bottom_low = vq[:, 0].max(axis=1)
+    bottom_low = _max(vq[:, 0], axis=1)
     j_lo = np.maximum(np.ceil(u1 - 0.5), 0).astype(np.int64)
     n_cols = np.minimum(np.floor(u2 - 0.5), width - 1).astype(np.int64) - j_lo + 1
     n_cols = np.where(in_front & (v1 < height) & (bottom_low > 0), np.maximum(n_cols, 0), 0)
@@ -185,25 +199,25 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     if near_first.size == 0:
         return empty_ground_truth()
     widths = n_cols[near_first]
-    m = int(widths.sum())
+    m = int(np.add.reduce(widths))
     starts = np.cumsum(widths) - widths
     slot = np.repeat(np.arange(near_first.size), widths)
     cone = near_first[slot]
     col = j_lo[cone] + (np.arange(m) - starts[slot])
-    outline = np.concatenate([uq[..., 1:3], vq[..., 1:3], slope], axis=2).reshape(k, 14)
-    params = np.column_stack([v1, tl, tr, ub, side, upright, outline])[cone]
-    vt, ptl, ptr, pbl, pbr, psl, psr, up_ = params[:, :8].T
-    b_u1, b_u2, b_v1, b_v2, b_s01, b_s12, b_s23, t_u1, t_u2, t_v1, t_v2, t_s01, t_s12, t_s23 = params[:, 8:].T
+    # each plate face's outline (bottom face, top face): u1, u2, v1, v2 and the slopes s01, s12, s23
+    outline = np.concatenate([uq[..., 1:3], vq[..., 1:3], slope], axis=2)[cone]  # (M, 2, 7)
+    vt, ptl, ptr, pbl, pbr, psl, psr, up_ = np.column_stack([v1, tl, tr, ub, side, upright])[cone].T
     uc = col + 0.5
 
     # the silhouette in each column: top = min(frustum, plate top face), bottom = plate bottom face
     frustum_top = np.where(uc < ptl, vt + psl * (ptl - uc), np.where(uc > ptr, vt + psr * (uc - ptr), vt))
     frustum_top[(uc < pbl) | (uc > pbr)] = np.inf
-    plate_top = -np.where(uc < t_u1, t_v1 + t_s01 * (uc - t_u1),
-                          np.where(uc < t_u2, t_v1 + t_s12 * (uc - t_u1), t_v2 + t_s23 * (uc - t_u2)))
-    top = np.where(up_ > 0, np.minimum(frustum_top, plate_top), vt)
-    bottom = np.where(uc < b_u1, b_v1 + b_s01 * (uc - b_u1),
-                      np.where(uc < b_u2, b_v1 + b_s12 * (uc - b_u1), b_v2 + b_s23 * (uc - b_u2)))
+    uc2 = uc[:, None]
+    o_u1, o_u2, o_v1, o_v2, o_s01, o_s12, o_s23 = np.moveaxis(outline, 2, 0)  # each (M, 2)
+    du1 = uc2 - o_u1
+    chain = np.where(uc2 < o_u1, o_v1 + o_s01 * du1, np.where(uc2 < o_u2, o_v1 + o_s12 * du1, o_v2 + o_s23 * (uc2 - o_u2)))
+    bottom = chain[:, 0]
+    top = np.where(up_ > 0, np.minimum(frustum_top, -chain[:, 1]), vt)
 
     # occlusion: going near to far in each column, a cone shows only above the nearer cones' tops
     order = np.argsort(col, kind="stable")
@@ -211,7 +225,7 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     new_col = np.empty(m, dtype=bool)
     new_col[0] = True
     np.not_equal(col_s[1:], col_s[:-1], out=new_col[1:])
-    shift = np.cumsum(new_col) * (4.0 * (height + 1) + 4.0 * np.abs(top).max())
+    shift = np.cumsum(new_col) * (4.0 * (height + 1) + 4.0 * _max(np.abs(top)))
     running = np.minimum.accumulate(top[order] - shift) + shift
     sky = np.empty(m)
     sky[order[1:]] = np.where(new_col[1:], np.inf, running[:-1])
@@ -222,20 +236,25 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     count = np.maximum(row_b - row_a, 0.0)
     seen = count > 0
     never = -float(width + height + 10)
-    extents = np.column_stack([np.where(seen, -col, never), np.where(seen, col + 1, never),
-                               np.where(seen, -row_a, never), np.where(seen, row_b, never), count])
+    extents = np.empty((m, 5))
+    np.negative(col, out=extents[:, 0], casting="unsafe")
+    np.add(col, 1, out=extents[:, 1], casting="unsafe")
+    np.negative(row_a, out=extents[:, 2])
+    extents[:, 3] = row_b
+    np.copyto(extents[:, :4], never, where=~seen[:, None])
+    extents[:, 4] = count
     ext = np.maximum.reduceat(extents, starts, axis=0)
     pixels = np.add.reduceat(count, starts)
     vis = pixels > 0
-    if not vis.any():
+    if not np.logical_or.reduce(vis):
         return empty_ground_truth()
     ids = idx[near_first[vis]]
     by_id = np.argsort(ids)
     ids = ids[by_id]
     ext = ext[vis][by_id]
-    boxes = (ext[:, :4] * [-1.0, 1.0, -1.0, 1.0] + 0.0).astype(np.float32)[:, [0, 2, 1, 3]]  # (+0: no -0.0)
+    boxes = (ext[:, :4] * _BOX_SIGN + 0.0).astype(np.float32)[:, _XYXY]  # (+0: no -0.0)
     dxy = d[ids]
     bearings = (np.arctan2(dxy[:, 1], dxy[:, 0]) - heading + np.pi) % (2 * np.pi) - np.pi
-    return ConeArrays(boxes=boxes, classes=cls[ids], cone_ids=ids,
-                      ranges=np.hypot(dxy[:, 0], dxy[:, 1]).astype(np.float32), bearings=bearings.astype(np.float32),
-                      pixels=pixels[vis][by_id].astype(np.int64))
+    return ConeArrays.trusted({"boxes": boxes, "classes": cls[ids], "cone_ids": ids,
+                               "ranges": np.hypot(dxy[:, 0], dxy[:, 1]).astype(np.float32),
+                               "bearings": bearings.astype(np.float32), "pixels": pixels[vis][by_id].astype(np.int64)})

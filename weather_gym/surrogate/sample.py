@@ -87,7 +87,8 @@ class FrameSampler:
             full = self._fy_h[cls] / np.maximum(rng_ * np.cos(brg), 0.1)
             vis = np.minimum(box_h / full, 1.0)  # = log.visibility, inlined (this runs every step)
             crowd = crowding(boxes) if n > 1 else None
-            prob = p.detection_probability(rng_, brg, box_h, vis, cls, crowd)
+            feats = p.features(rng_, brg, box_h, vis, crowd)
+            prob = p.probability_of(feats, cls)
             self._grow(int(ids.max()))
             seen_before = self._last_step[ids] == step - 1
             before = self._last_det[ids]
@@ -99,23 +100,31 @@ class FrameSampler:
             self._last_det[ids] = det
             # a cone not detected may still be reported "loosely": a box a little off (a scoring miss
             # plus a false positive), near the cone's true place
-            loose = ~det & (u[5] < p.detection_probability(rng_, brg, box_h, vis, cls, crowd, loose=True))
-            rep_any = det | loose
+            loose = ~det & (u[5] < p.probability_of(feats, cls, loose=True))
+            rep_any = np.flatnonzero(det | loose)  # indices: cheaper than a boolean mask, used many times
             c = cls[rep_any]
             r_true = rng_[rep_any]
             b = np.minimum(np.searchsorted(ERR_RANGE_EDGES, r_true, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
             lz = loose[rep_any]
             cum = np.cumsum(np.where(lz[:, None], p.confusion_loose[b, c], p.confusion[b, c]), axis=1)
-            rep = np.minimum((u[1, rep_any][:, None] > cum).sum(axis=1), cum.shape[1] - 1)
-            ur, ub, us = u[2, rep_any], u[3, rep_any], u[4, rep_any]
-            ranges = r_true + np.where(lz, _draw(p.loose_range_err_q[b], ur), _draw(p.range_err_q[b], ur))
-            bearings = brg[rep_any] + np.where(lz, _draw(p.loose_bearing_err_q[b], ub), _draw(p.bearing_err_q[b], ub))
-            sq = np.where(lz[:, None], p.loose_score_q[None, :], p.score_q[None, :])
-            scores = _draw(sq, us)
+            rep = np.minimum(np.add.reduce(u[1, rep_any][:, None] > cum, axis=1), cum.shape[1] - 1)
+            # range error, bearing error and score: one inverse-CDF draw over the three stacked
+            # (each row from the loose or the matched quantiles)
+            lz2 = lz[:, None]
+            q = np.concatenate([np.where(lz2, p.loose_range_err_q[b], p.range_err_q[b]),
+                                np.where(lz2, p.loose_bearing_err_q[b], p.bearing_err_q[b]),
+                                np.where(lz2, p.loose_score_q[None, :], p.score_q[None, :])])
+            k = len(r_true)
+            drawn = _draw(q, u[2:5, rep_any].reshape(-1))
+            ranges = r_true + drawn[:k]
+            bearings = brg[rep_any] + drawn[k:2 * k]
+            scores = drawn[2 * k:]
             out_boxes = boxes[rep_any]
-            if lz.any():
-                d = p.loose_box_d[(u[6, rep_any][lz] * len(p.loose_box_d)).astype(np.int64)]
-                out_boxes[lz] = out_boxes[lz] + d * box_h[rep_any][lz][:, None]
+            lz_i = np.flatnonzero(lz)
+            if lz_i.size:
+                li = rep_any[lz_i]
+                d = p.loose_box_d[(u[6, li] * len(p.loose_box_d)).astype(np.int64)]
+                out_boxes[lz_i] = out_boxes[lz_i] + d * box_h[li][:, None]
         else:
             rep = np.zeros(0, np.int64)
             ranges = bearings = scores = np.zeros(0)

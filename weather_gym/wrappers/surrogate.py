@@ -85,7 +85,8 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         self.observation_space = spaces.Dict({**cone_list_space(max_cones).spaces, "state": inner["state"]})
         self._report_weather = weather is not None
         self._effect = parse_weather(weather)
-        self._sampler = FrameSampler(model.point(current_spec(self._effect)), self.camera)
+        self._spec = current_spec(self._effect)
+        self._sampler = FrameSampler(model.point(self._spec), self.camera)
         self._rng: np.random.Generator | None = None
         self._step = 0
         self._latency = 0.0
@@ -104,10 +105,12 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
     def set_weather(self, spec: Any) -> list[dict[str, Any]]:
         """Model ``spec`` from the next frame on; returns it as a list of effect tables."""
         effect = copy.deepcopy(parse_weather(spec))
-        self._sampler.set_point(self.model.point(current_spec(effect)))  # an unmodelled weather fails here
+        tables = current_spec(effect)
+        self._sampler.set_point(self.model.point(tables))  # an unmodelled weather fails here
         self._effect = effect
+        self._spec = tables
         self._report_weather = True
-        return current_spec(effect)
+        return [dict(t) for t in tables]
 
     @property
     def latency_ms(self) -> float:
@@ -123,11 +126,11 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         cones, mask = pack_cones(classes=det["classes"], ranges=det["ranges"], bearings=det["bearings"],
                                  scores=det["scores"], boxes=det["boxes"], camera=self.camera,
                                  max_cones=self.max_cones)
-        self._last = ConeArrays(det)
+        self._last = ConeArrays.trusted(det)
         self._step += 1
         out_info = dict(info)
         if self._report_weather:
-            out_info["weather"] = current_spec(self._effect)
+            out_info["weather"] = [dict(t) for t in self._spec]  # nothing is drawn: the spec only changes when set
         out_info["detections"] = self._last
         self._latency = 1000.0 * (time.perf_counter() - t0)
         if self.latency_in_info:
