@@ -16,6 +16,7 @@ from weather_gym.surrogate.log import (
     save_log,
 )
 from weather_gym.surrogate.record import record
+from weather_gym.weather.presets import preset_spec
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +46,8 @@ def test_schema(small_log):
     ids1 = set(c["cone_id"][c["frame"] == 1].tolist())
     assert len(ids0 & ids1) >= 0.8 * len(ids0)
     ep = log.episodes[0]
-    assert (ep["condition"], ep["k"], ep["track"], ep["steps"]) == ("droplets", 0.338, "hairpin", 12)
+    k2 = preset_spec("droplets", 2)[0]["k"]  # the calibrated preset of the shipped detector
+    assert (ep["condition"], ep["k"], ep["track"], ep["steps"]) == ("droplets", k2, "hairpin", 12)
     assert len(loose_matches(log)) == len(log.fps["frame"])
 
 

@@ -7,6 +7,7 @@ import pytest
 
 from weather_gym.errors import InputError
 from weather_gym.pipeline import make_env
+from weather_gym.weather.presets import preset_spec
 
 ACTION = np.array([0.4, 0.05], np.float32)
 
@@ -72,7 +73,7 @@ def test_weather_changes_pick_the_condition(no_render):
         wrapper = env.get_wrapper_attr("set_weather")
         assert wrapper("droplets@1")[0]["name"] == "droplets"
         _, _, _, _, info = env.step(ACTION)
-        assert info["weather"][0]["k"] == pytest.approx(0.259)
+        assert info["weather"][0]["k"] == pytest.approx(preset_spec("droplets", 1)[0]["k"])
         with pytest.raises(InputError, match="no model of weather effect 'fog'"):
             wrapper("fog@2")
         # darker: fewer cones reported than in clear weather, on the same frames
@@ -85,8 +86,8 @@ def test_weather_changes_pick_the_condition(no_render):
 
 
 def test_bad_settings_are_typed_errors(tmp_path):
-    with pytest.raises(InputError, match="k=0.95 is beyond"):
-        make_env(perception="surrogate", weather={"droplets": 0.95})
+    with pytest.raises(InputError, match="k=0.99 is beyond"):
+        make_env(perception="surrogate", weather={"dim": 0.99})  # the model's low light ends at low_light@4
     with pytest.raises(InputError, match="refit it for this camera"):
         make_env(perception="surrogate", camera={"width": 96, "height": 54})
     with pytest.raises(InputError, match="does not exist"):

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from weather_gym.cone_arrays import ConeArrays
+from weather_gym.errors import InputError
 
 EGO_VARIANTS = 16
 """Number of distinct ego-car overlays (``Look.ego_seed`` in ``[0, EGO_VARIANTS)``)."""
@@ -46,7 +47,7 @@ class EgoOverlay:
 def ego_overlay(variant: int, width: int, height: int) -> EgoOverlay:
     """The overlay of ``variant`` at ``width`` x ``height`` (cached; the arrays are read-only)."""
     if not 0 <= int(variant) < EGO_VARIANTS:
-        raise ValueError(f"ego overlay variant must lie in [0, {EGO_VARIANTS}), got {variant}")
+        raise InputError(f"ego overlay variant must lie in [0, {EGO_VARIANTS}), got {variant}")
     rng = np.random.default_rng([int(variant), 31])
     W, H = int(width), int(height)
     s = 4  # draw at 4x and downsample: anti-aliased edges

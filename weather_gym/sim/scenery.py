@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from weather_gym.errors import InputError
 from weather_gym.sim import scenery_textures as tx
 
 CLUTTER_LAYOUTS = 64
@@ -191,7 +192,7 @@ def _items(kind: str, rng: np.random.Generator, x: float, y: float, yaw: float, 
 def clutter_layout(track, seed: int, density: float = 1.0) -> list[Prism]:
     """The clutter of layout ``seed`` along ``track`` (``density`` scales the number of items)."""
     if not 0 <= int(seed) < CLUTTER_LAYOUTS:
-        raise ValueError(f"clutter layout must lie in [0, {CLUTTER_LAYOUTS}), got {seed}")
+        raise InputError(f"clutter layout must lie in [0, {CLUTTER_LAYOUTS}), got {seed}")
     rng = np.random.default_rng([int(seed), 2024])
     c, h, left, right = _dense(track, 1.0)
     names = list(KINDS)

@@ -18,6 +18,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from weather_gym.errors import InputError
+
 # FS cones (FSG handbook): blue with a white stripe, yellow with a black stripe, small orange with two
 # white stripes, big orange with two white stripes. (v_from, v_to) fractions of the frustum height.
 REALISTIC_STRIPES: dict[str, tuple[tuple[float, float], ...]] = {
@@ -57,7 +59,7 @@ def realistic_cone_texture(cls: str, rows: int = 128, cols: int = 8) -> np.ndarr
     """Vertical strip (rows x cols x RGB) for the cone mesh: body colour, the class's stripes, a little
     dirt towards the base and a slightly darker top (row 0 = top of the cone)."""
     if cls not in BODY_RGB:
-        raise ValueError(f"unknown cone class {cls!r}")
+        raise InputError(f"unknown cone class {cls!r}; expected one of {sorted(BODY_RGB)}")
     rng = np.random.default_rng(sum(map(ord, cls)))
     tex = np.empty((rows, cols, 3), np.float32)
     tex[:] = BODY_RGB[cls]

@@ -15,6 +15,6 @@ The wrapper that uses it is :class:`weather_gym.wrappers.SurrogatePerceptionWrap
 
 Example:
     >>> from weather_gym.surrogate.conditions import condition_of
-    >>> condition_of("droplets@3")
-    ('droplets', 0.379)
+    >>> condition_of({"droplets": 0.5})
+    ('droplets', 0.5)
 """

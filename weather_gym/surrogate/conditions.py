@@ -8,8 +8,11 @@ surrogate knows nothing about it.
 
 Example:
     >>> from weather_gym.surrogate.conditions import condition_of
-    >>> condition_of("clear"), condition_of("low_light@2"), condition_of({"droplets": 0.3})
+    >>> condition_of("clear"), condition_of({"dim": 0.8}), condition_of({"droplets": 0.3})
     (('clear', 0.0), ('low_light', 0.8), ('droplets', 0.3))
+    >>> from weather_gym.weather.presets import preset_spec
+    >>> condition_of("low_light@2") == ("low_light", preset_spec("low_light", 2)[0]["k"])
+    True
 """
 
 from __future__ import annotations

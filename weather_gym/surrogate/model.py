@@ -183,7 +183,10 @@ def _pairs(cones: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _fit_rho(p: np.ndarray, prev: np.ndarray, cur: np.ndarray) -> float:
-    if not len(p):
+    """Persistence by maximum likelihood; 0 where it cannot be told (no frame pair, or the cones were
+    never / always detected: then every rho explains the data equally and the optimiser would drift
+    to its bound, making a weather change mid-episode keep the last weather's detections)."""
+    if not len(p) or cur.all() or not cur.any() or prev.all() or not prev.any():
         return 0.0
     p = np.clip(p, 1e-4, 1 - 1e-4)
 
