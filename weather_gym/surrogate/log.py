@@ -248,25 +248,33 @@ def save_log(log: SurrogateLog, path: str | os.PathLike, *, overwrite: bool = Fa
     return str(path)
 
 
-def load_log(path: str | os.PathLike) -> SurrogateLog:
-    """Read a log written by :func:`save_log`; :class:`FileFormatError` naming what is wrong."""
-    p = os.fspath(path)
-    if not os.path.isfile(p):
-        raise MissingInputError(f"surrogate log {p} does not exist")
+def read_npz(path: str, where: str, kind: str, schema: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The arrays and the JSON ``meta`` of a surrogate ``.npz`` file (a log or a model) whose
+    ``meta.schema`` is ``schema``; :class:`FileFormatError` (or :class:`MissingInputError`) naming
+    ``where`` and what is wrong."""
+    if not os.path.isfile(path):
+        raise MissingInputError(f"{where} does not exist")
     try:
-        with np.load(p, allow_pickle=False) as z:
+        with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (OSError, ValueError, EOFError) as exc:
-        raise FileFormatError(f"surrogate log {p}: not a readable .npz file ({exc})") from None
+        raise FileFormatError(f"{where}: not a readable .npz file ({exc})") from None
     if "meta" not in data:
-        raise FileFormatError(f"surrogate log {p}: no 'meta' entry (not a weather-gym surrogate log)")
+        raise FileFormatError(f"{where}: no 'meta' entry (not a weather-gym {kind})")
     try:
         meta = json.loads(str(data["meta"]))
     except json.JSONDecodeError as exc:
-        raise FileFormatError(f"surrogate log {p}: 'meta' is not JSON ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("schema") != LOG_SCHEMA:
-        raise FileFormatError(f"surrogate log {p}: schema {meta.get('schema') if isinstance(meta, dict) else None!r}, "
-                              f"expected {LOG_SCHEMA}")
+        raise FileFormatError(f"{where}: 'meta' is not JSON ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("schema") != schema:
+        got = meta.get("schema") if isinstance(meta, dict) else None
+        raise FileFormatError(f"{where}: schema {got!r}, expected {schema}")
+    return data, meta
+
+
+def load_log(path: str | os.PathLike) -> SurrogateLog:
+    """Read a log written by :func:`save_log`; :class:`FileFormatError` naming what is wrong."""
+    p = os.fspath(path)
+    data, meta = read_npz(p, f"surrogate log {p}", "surrogate log", LOG_SCHEMA)
     tables = {}
     for name, cols in _TABLES.items():
         t = {}

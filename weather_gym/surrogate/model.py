@@ -55,7 +55,7 @@ from weather_gym._io import atomic_file, check_output
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.surrogate.conditions import condition_of, effect_params
-from weather_gym.surrogate.log import loose_matches
+from weather_gym.surrogate.log import loose_matches, read_npz
 
 __all__ = ["MODEL_SCHEMA", "SHIPPED_MODEL", "SurrogateModel", "Point", "design", "fit_logistic", "fit_point",
            "fit", "save_model", "load_model", "ERR_RANGE_EDGES", "QUANTILES"]
@@ -569,20 +569,7 @@ def load_model(path: str | os.PathLike | None = None) -> SurrogateModel:
     key = (os.path.abspath(p), st.st_mtime, st.st_size)
     if key in _CACHE:
         return _CACHE[key]
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError) as exc:
-        raise FileFormatError(f"{where}: not a readable .npz file ({exc})") from None
-    if "meta" not in data:
-        raise FileFormatError(f"{where}: no 'meta' entry (not a weather-gym surrogate model)")
-    try:
-        meta = json.loads(str(data["meta"]))
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{where}: 'meta' is not JSON ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("schema") != MODEL_SCHEMA:
-        got = meta.get("schema") if isinstance(meta, dict) else None
-        raise FileFormatError(f"{where}: schema {got!r}, expected {MODEL_SCHEMA}")
+    data, meta = read_npz(p, where, "surrogate model", MODEL_SCHEMA)
     index = meta.get("points")
     if not isinstance(index, list):
         raise FileFormatError(f"{where}: meta 'points' must be a list")
