@@ -1,4 +1,4 @@
-"""Writing TOML values (Python's ``tomllib`` reads TOML but does not write it).
+"""Reading a TOML file with typed errors, and writing TOML values (``tomllib`` only reads).
 
 Example:
     >>> from weather_gym._toml import toml_value
@@ -12,12 +12,25 @@ from __future__ import annotations
 
 import json
 import math
+import tomllib
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
-from weather_gym.errors import InputError
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 
-__all__ = ["toml_value"]
+__all__ = ["read_toml", "toml_value"]
+
+
+def read_toml(path: Path, what: str) -> dict[str, Any]:
+    """The TOML file ``path`` as a dict; :class:`MissingInputError` ("``what`` PATH does not exist")
+    or :class:`FileFormatError` ("PATH: malformed TOML: ...")."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise MissingInputError(f"{what} {path} does not exist") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise FileFormatError(f"{path}: malformed TOML: {exc}") from None
 
 
 def toml_value(v: Any, *, digits: int | None = None, finite: bool = False, none: str | None = None) -> str:

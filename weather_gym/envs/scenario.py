@@ -26,16 +26,16 @@ Example:
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any
 
 from weather_gym._io import resolve_inside
+from weather_gym._toml import read_toml
 from weather_gym.camera import CameraConfig
 from weather_gym.camera_model import CameraModel
 from weather_gym.envs.config import EnvConfig, RewardConfig
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.errors import FileFormatError, InputError
 from weather_gym.paths import data_dir
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 from weather_gym.tracks import is_track_file
@@ -82,12 +82,7 @@ def _check_keys(where: str, got: dict, valid: tuple[str, ...] | set[str]) -> Non
 def load_scenario(path: str | Path) -> Scenario:
     """Parse and validate a scenario TOML file; errors name the file and the key."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MissingInputError(f"scenario file {path} does not exist") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise FileFormatError(f"{path}: malformed TOML: {exc}") from None
+    data = read_toml(path, "scenario file")
     if "detector" in data:
         raise FileFormatError(f"{path}: the [detector] table is now [perception] with mode = \"detector\" "
                               "(and the DetectorWrapper keyword arguments)")

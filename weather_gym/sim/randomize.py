@@ -19,15 +19,15 @@ Example:
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
 
+from weather_gym._toml import read_toml
 from weather_gym.camera import CameraConfig
 from weather_gym.camera_model import CameraModel
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.errors import FileFormatError, InputError
 from weather_gym.sim.ego import EGO_VARIANTS
 from weather_gym.sim.look import Look
 from weather_gym.sim.scenery import CLUTTER_LAYOUTS
@@ -126,12 +126,7 @@ class RandomizeRanges:
     def from_toml(cls, path: str | Path) -> RandomizeRanges:
         """Ranges from a TOML file of ``key = [low, high]`` (and ``p_* = probability``) lines."""
         path = Path(path)
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise MissingInputError(f"randomize ranges file {path} does not exist") from None
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise FileFormatError(f"{path}: malformed TOML: {exc}") from None
+        data = read_toml(path, "randomize ranges file")
         try:
             return cls().override(data)
         except InputError as exc:
