@@ -96,3 +96,14 @@ def test_a_csv_track_travels_with_the_dataset(tmp_path):
     view = ds.render_view(0)
     ds.close()
     assert view["image"].shape == (36, 64, 3)
+
+
+def test_start_window_renders_the_approach_to_the_start_line(tmp_path):
+    # a user who needs more frames of the start line's big orange cones (rare in a uniform render)
+    # asks for start points just before it; the window is recorded with the dataset
+    path = render_dataset(tmp_path / "ds", tracks=["small_track"], frames=6, seed=3, start_window=(-20.0, -5.0),
+                          frames_per_episode=3, progress=False)
+    ds = load_coco(path.parent)
+    assert ds.data["info"]["start_window"] == [-20.0, -5.0]
+    big = [a for a in ds.data["annotations"] if a["category_id"] == 4 and not a["iscrowd"]]
+    assert len({a["image_id"] for a in big}) == 6  # the start line's big orange cones are in every frame

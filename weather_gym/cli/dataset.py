@@ -58,6 +58,9 @@ def register(sub) -> None:
     r.add_argument("--every", type=int, default=3, help="save one frame every N env steps (default %(default)s)")
     r.add_argument("--frames-per-episode", type=int, default=20,
                    help="frames per episode before a new start point/look (default %(default)s)")
+    r.add_argument("--start-window", default=None, metavar="LOW,HIGH",
+                   help="draw start points LOW..HIGH metres of arc length around the start line (negative: before "
+                        "it), e.g. -35,-3 for frames approaching the start line; default: anywhere on the track")
     r.add_argument("--width", type=int, default=None, help="camera width in pixels (default 672)")
     r.add_argument("--height", type=int, default=None, help="camera height in pixels (default 376)")
     r.add_argument("--resume", action="store_true", help="continue an interrupted render in --out")
@@ -127,10 +130,19 @@ def _render(args) -> int:
     if (args.randomize_ranges or sets) and not args.randomize:
         raise InputError("--randomize-ranges / --randomize-set need --randomize")
     scene = ("realistic" if args.randomize else "plain") if args.scene == "auto" else args.scene
+    window = None
+    if args.start_window is not None:
+        parts = args.start_window.split(",")
+        try:
+            window = tuple(float(v) for v in parts)
+        except ValueError:
+            window = ()
+        if len(window) != 2:
+            raise InputError(f"--start-window expects LOW,HIGH in metres (e.g. -35,-3), got {args.start_window!r}")
     path = render_dataset(args.out, tracks=args.track, frames=args.frames, seed=args.seed, randomize=args.randomize,
                           camera=cam, every=args.every, frames_per_episode=args.frames_per_episode,
                           progress=not args.quiet, overwrite=args.overwrite, resume=args.resume, scene=scene,
-                          ranges=ranges)
+                          ranges=ranges, start_window=window)
     print(f"wrote {path}")
     return 0
 

@@ -60,9 +60,28 @@ def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "pl
                     episode_statistics=False, sim=SimConfig(scene=scene))
 
 
-def _start_pose(track, rng: np.random.Generator, lateral_max: float) -> tuple[float, float, float]:
-    end = float(track.length) if track.closed else max(float(track.finish_s) - 25.0, 1.0)
-    s = float(rng.uniform(0.0, end))
+def check_start_window(track, window: tuple[float, float] | None) -> None:
+    """Refuse a start window that is empty or, on an open track, leaves the drivable arc length."""
+    if window is None:
+        return
+    low, high = (float(v) for v in window)
+    if not (math.isfinite(low) and math.isfinite(high)) or low >= high:
+        raise InputError(f"start window must be two finite metres LOW < HIGH around the start line, got {window}")
+    if not track.closed:
+        end = max(float(track.finish_s) - 25.0, 1.0)
+        a, b = float(track.start_line_s) + low, float(track.start_line_s) + high
+        if a < 0.0 or b > end:
+            raise InputError(f"start window {low:g},{high:g} m around the start line of open track {track.name!r} "
+                             f"covers arc length {a:g}..{b:g} m; its start points must lie in 0..{end:g} m")
+
+
+def _start_pose(track, rng: np.random.Generator, lateral_max: float,
+                window: tuple[float, float] | None = None) -> tuple[float, float, float]:
+    if window is None:
+        end = float(track.length) if track.closed else max(float(track.finish_s) - 25.0, 1.0)
+        s = float(rng.uniform(0.0, end))
+    else:  # metres of arc length relative to the start line (negative: before it)
+        s = float(track.start_line_s) + float(rng.uniform(float(window[0]), float(window[1])))
     x, y, h = track.point_at(s)
     left, right = track.half_widths_at(s)
     off = float(rng.uniform(-1.0, 1.0)) * min(lateral_max, 0.5 * min(left, right))
@@ -86,6 +105,7 @@ def render_dataset(
     resume: bool = False,
     scene: str = "plain",
     ranges=None,
+    start_window: tuple[float, float] | None = None,
 ) -> Path:
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
@@ -100,6 +120,9 @@ def render_dataset(
         ranges: ``RandomizeRanges`` of the realistic randomisation (None: the defaults).
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
         frames_per_episode: frames saved per episode before a new start point / look is drawn.
+        start_window: ``(low, high)`` metres of arc length around the start line (negative: before it) to
+            draw start points from instead of the whole track, e.g. ``(-35, -3)`` for frames approaching
+            the start line and its big orange cones (None: uniform over the track).
     """
 
 
@@ -118,7 +141,8 @@ def render_dataset(
     writer = _coco.CocoWriter(out, overwrite=overwrite, resume=resume, info={
         "tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
         "every": int(every), "frames_per_episode": int(frames_per_episode), "scene": scene,
-        **({"randomize_ranges": ranges.to_dict()} if randomize and realistic else {})})
+        **({"randomize_ranges": ranges.to_dict()} if randomize and realistic else {}),
+        **({"start_window": [float(v) for v in start_window]} if start_window is not None else {})})
     recorded = _record_tracks(Path(out), list(tracks))
     done_before = writer.done
     bar = tqdm(total=int(frames), initial=done_before, desc=f"render {Path(out).name}", unit="frame",
@@ -145,7 +169,8 @@ def render_dataset(
                     env.close()
                 env = _make_env(track_spec, ep_camera, max_steps=every * frames_per_episode * 4 + 50, scene=scene)
                 env_track = (track_spec, ep_camera)
-            pose = _start_pose(env.unwrapped.track, rng, lateral_max)
+                check_start_window(env.unwrapped.track, start_window)
+            pose = _start_pose(env.unwrapped.track, rng, lateral_max, start_window)
             speed = float(rng.uniform(0.0, 6.0))
             obs, info = env.reset(seed=int(ep_seed), options={"look": look, "start_pose": pose, "start_speed": speed,
                                                               "camera_model": model})
@@ -179,7 +204,7 @@ def render_dataset(
                 step += 1
                 if terminated or truncated:
                     # left the track or ran out of steps: fill the rest of this episode's quota from a new start
-                    pose = _start_pose(env.unwrapped.track, rng, lateral_max)
+                    pose = _start_pose(env.unwrapped.track, rng, lateral_max, start_window)
                     obs, info = env.reset(options={"look": look, "start_pose": pose, "start_speed": 0.0,
                                                    "camera_model": model})
                     agent.reset(seed=int(ep_seed), info=info)
