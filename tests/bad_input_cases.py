@@ -345,6 +345,12 @@ CASES: list[Case] = [
     _cli("tracks-show-neither-track-nor-all", "--all", "tracks", "show", "--out", "{w}/o/t.png", out="o"),
     _cli("tracks-export-bad-random-seed", "random:x", "tracks", "export", "random:x", "--out", "{w}/o/t.csv",
          out="o"),
+    _cli("tracks-export-random-unknown-arg", "start_pair", "tracks", "export", "random:3,pairs=0.3", "--out",
+         "{w}/o/t.csv", out="o"),
+    _cli("tracks-export-random-arg-not-a-number", "start_pair", "tracks", "export", "random:3,start_pair=x",
+         "--out", "{w}/o/t.csv", out="o"),
+    _cli("tracks-export-random-pair-out-of-range", "start_pair", "tracks", "export", "random:3,start_pair=9",
+         "--out", "{w}/o/t.csv", out="o"),
     _cli("tracks-export-out-exists", "exists.csv", "tracks", "export", "oval", "--out", "{w}/exists.csv"),
     # ---- lap
     _cli("lap-zero-laps", "--laps", "lap", "--laps", "0"),

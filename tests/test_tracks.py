@@ -165,6 +165,23 @@ def test_random_track_is_repeatable_and_seeded():
     assert 2 * abs(short.project(*short.cones_xy[5]).lateral) == pytest.approx(3.2, abs=0.02)
 
 
+def test_random_track_spec_with_a_start_line_of_big_orange_pairs():
+    # the start line as FS events and EUFS layouts such as peanut set it: two big orange cones per side,
+    # close together; everything else is the same track as "random:SEED"
+    plain = load_track("random:4")
+    pairs = load_track("random:4,start_pair=0.3")
+    assert pairs.source == "generated:random(seed=4, start_pair=0.3)"
+    assert pairs.centerline.tobytes() == plain.centerline.tobytes()
+    big = pairs.cones_xy[pairs.cone_classes == BIG]
+    assert len(big) == 4 and (plain.cone_classes == BIG).sum() == 2
+    p = pairs.project(big[:, 0], big[:, 1])
+    for sign in (1, -1):
+        side = big[np.sign(p.lateral) == sign]
+        assert np.linalg.norm(side[0] - side[1]) == pytest.approx(0.3, abs=1e-9)
+    assert np.array_equal(pairs.cones_xy[pairs.cone_classes != BIG], plain.cones_xy[plain.cone_classes != BIG])
+    assert load_track("random:4, width=3.5 ,spacing=4").source == "generated:random(seed=4, width=3.5, spacing=4)"
+
+
 def test_csv_round_trip_and_user_track(tmp_path):
     t = generate_random_track(5)
     path = t.to_csv(tmp_path / "mine.csv")

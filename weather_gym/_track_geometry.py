@@ -516,19 +516,28 @@ def skidpad_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> di
 
 
 
-def ring_layout(line: np.ndarray, width: float, spacing: float | None, min_radius: float) -> dict:
+def ring_layout(line: np.ndarray, width: float, spacing: float | None, min_radius: float,
+                start_pair: float | None = None) -> dict:
     """Cones, widths and start of a generated closed track around ``line`` (s = 0 at line[0]).
 
-    Blue cones at +width/2 (left), yellow at -width/2; one big orange cone per side marks the
-    start line. Spacing: ``spacing`` metres, or 4.5 m on straights down to 3.5 m in the tightest
-    corners (``min_radius``) when ``None``.
+    Blue cones at +width/2 (left), yellow at -width/2; the start line is marked on each side by one
+    big orange cone, or with ``start_pair`` by two big orange cones ``start_pair`` metres apart along
+    the track (as FS events and several EUFS layouts set it). Spacing: ``spacing`` metres, or 4.5 m on
+    straights down to 3.5 m in the tightest corners (``min_radius``) when ``None``.
     """
     k = np.abs(curvatures(line, closed=True))
     target = (np.full(len(line), float(spacing)) if spacing is not None
               else 4.5 - 1.0 * np.clip(k * min_radius, 0.0, 1.0))
     sides = [place_on(offset(line, True, sign * width / 2.0), target, 0.0) for sign in (1.0, -1.0)]
-    cones = np.concatenate([sides[0][:1], sides[1][:1], sides[0][1:], sides[1][1:]])
-    classes = np.concatenate([[BIG_ORANGE, BIG_ORANGE], np.full(len(sides[0]) - 1, BLUE),
+    starts = [side[:1] for side in sides]
+    if start_pair is not None:
+        starts = []
+        for side in sides:
+            d = side[1] - side[0]
+            d = d / np.linalg.norm(d) * (0.5 * float(start_pair))
+            starts.append(np.stack([side[0] - d, side[0] + d]))
+    cones = np.concatenate([starts[0], starts[1], sides[0][1:], sides[1][1:]])
+    classes = np.concatenate([np.full(len(starts[0]) + len(starts[1]), BIG_ORANGE), np.full(len(sides[0]) - 1, BLUE),
                               np.full(len(sides[1]) - 1, YELLOW)]).astype(np.int64)
     hwl, hwr = half_widths(line, sides[0], sides[1], closed=True)
     length = polyline_length(line, closed=True)

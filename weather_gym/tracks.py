@@ -447,14 +447,16 @@ def oval(straight: float = 40.0, radius: float = 15.0, width: float = 3.5, spaci
 
 
 def generate_random_track(seed: int, *, length: float | None = None, width: float | None = None,
-                          spacing: float | None = None) -> Track:
+                          spacing: float | None = None, start_pair: float | None = None) -> Track:
     """A random closed track: same seed and arguments, same bytes.
 
     ``length`` (m, default: drawn in [150, 400]) and ``width`` (default: drawn in [3, 4]) come
     from their own child streams of ``SeedSequence(seed)``, so fixing one leaves the others as
     they were. Cone spacing: ``spacing`` metres, or 4.5 m on straights tightening to 3.5 m in
     the tightest corners. The centerline radius stays >= 7 m (so >= :data:`MIN_RADIUS_M`), the
-    track never comes within ``width + 3`` m of itself, and the start line is on its straightest part.
+    track never comes within ``width + 3`` m of itself, and the start line is on its straightest part,
+    marked by one big orange cone per side or, with ``start_pair``, by two ``start_pair`` metres apart.
+    As a track spec: ``"random:SEED"`` or with arguments, ``"random:SEED,start_pair=0.3,width=3.5"``.
 
     Example:
         >>> t = generate_random_track(3)
@@ -469,21 +471,24 @@ def generate_random_track(seed: int, *, length: float | None = None, width: floa
         width = _check_range("random track width", width, 2.0, 8.0)
     if spacing is not None:
         spacing = _check_range("random track spacing", spacing, 1.0, 10.0)
-    return _random_track(int(seed), length, width, spacing)
+    if start_pair is not None:
+        start_pair = _check_range("random track start_pair", start_pair, 0.2, 3.0)
+    return _random_track(int(seed), length, width, spacing, start_pair)
 
 
 @functools.lru_cache(maxsize=32)
-def _random_track(seed: int, length: float | None, width: float | None, spacing: float | None) -> Track:
+def _random_track(seed: int, length: float | None, width: float | None, spacing: float | None,
+                  start_pair: float | None = None) -> Track:
     r_len, r_width, r_shape = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3))
     length_m = float(r_len.uniform(150.0, 400.0)) if length is None else length
     width_m = float(r_width.uniform(3.0, 4.0)) if width is None else width
     line = geo.random_centerline(r_shape, length_m, min_radius=MIN_RADIUS_M + 1.0, clearance=width_m + 3.0)
     i0 = geo.straightest_index(line, closed=True)
     line = geo.resample(line, closed=True, start_s=float(geo.cumulative_length(line, True)[0][i0]))
-    extras = "".join(f", {k}={v:g}" for k, v in (("length", length), ("width", width), ("spacing", spacing))
-                     if v is not None)
+    extras = "".join(f", {k}={v:g}" for k, v in (("length", length), ("width", width), ("spacing", spacing),
+                                                  ("start_pair", start_pair)) if v is not None)
     return Track(name="random", source=f"generated:random(seed={seed}{extras})",
-                 **geo.ring_layout(line, width_m, spacing, MIN_RADIUS_M))
+                 **geo.ring_layout(line, width_m, spacing, MIN_RADIUS_M, start_pair))
 
 
 # ---------------------------------------------------------------------------------------------- registry
@@ -531,6 +536,24 @@ def is_track_file(spec: str | os.PathLike) -> bool:
     return name.lower().endswith(".csv") or "/" in name or os.sep in name or Path(name).is_file()
 
 
+RANDOM_TRACK_ARGS = ("length", "width", "spacing", "start_pair")
+"""Keyword arguments of :func:`generate_random_track` a ``random:SEED,KEY=VALUE,...`` spec may set."""
+
+
+def _random_args(spec: str, args: list[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in args:
+        key, eq, raw = (part.strip() for part in item.partition("="))
+        if not eq or key not in RANDOM_TRACK_ARGS:
+            raise InputError(f"track {spec!r}: expected KEY=VALUE with KEY in {', '.join(RANDOM_TRACK_ARGS)} after "
+                             f"'random:SEED,', got {item!r}")
+        try:
+            out[key] = float(raw)
+        except ValueError:
+            raise InputError(f"track {spec!r}: {key} must be a number (metres), got {raw!r}") from None
+    return out
+
+
 def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, event: str | None = None) -> Track:
     """A track from a registered name, ``"random:SEED"`` (or ``"random"`` with ``seed=``), a CSV path,
     or a :class:`Track` (returned as is). ``seed`` only matters for ``"random"``; ``"random:SEED"``
@@ -548,15 +571,17 @@ def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, even
         raise InputError(f"track spec must be a track name, 'random:SEED', a CSV path or a Track; got {spec!r}")
     name = spec.strip()
     if name == "random" or name.startswith("random:"):
+        kwargs: dict[str, float] = {}
         if ":" in name:
-            raw = name.split(":", 1)[1]
+            raw, *args = name.split(":", 1)[1].split(",")
             try:
                 seed = int(raw)
             except ValueError:
                 raise InputError(f"track {spec!r}: 'random:SEED' needs an integer seed, got {raw!r}") from None
+            kwargs = _random_args(spec, args)
         elif seed is None:
             raise InputError("track 'random' needs a seed: use 'random:SEED' or load_track('random', seed=SEED)")
-        return generate_random_track(seed)
+        return generate_random_track(seed, **kwargs)
     if name in TRACKS:
         track = TRACKS.get(name)()
         if event is not None and event != track.event:
