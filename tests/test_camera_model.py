@@ -16,8 +16,16 @@ def _scene(h=120, w=200) -> np.ndarray:
 
 def test_off_is_the_identity():
     img = _scene()
-    out = CameraPipeline(CameraModel(), 200, 120).apply(img, np.random.default_rng(0))
-    assert out is img  # the ideal camera: untouched, not even copied
+    for off in (CameraModel(enabled=False), CameraModel.ideal(), CameraModel.from_dict({"enabled": False})):
+        out = CameraPipeline(off, 200, 120).apply(img, np.random.default_rng(0))
+        assert out is img  # the ideal camera: untouched, not even copied
+
+
+def test_the_default_camera_is_the_realistic_one_and_a_table_changes_only_what_it_names():
+    assert CameraModel() == CameraModel.realistic() and CameraModel().enabled
+    tweaked = CameraModel.from_dict({"jpeg_quality": 0})  # a scenario table / reset option naming one key
+    assert tweaked == CameraModel.realistic().with_(jpeg_quality=0)
+    assert not CameraModel.ideal().enabled and CameraModel.ideal().with_(enabled=True).k1 == 0.0
 
 
 def test_on_is_deterministic_with_the_seed_and_changes_the_frame():
@@ -33,8 +41,8 @@ def test_on_is_deterministic_with_the_seed_and_changes_the_frame():
 
 def test_exposure_clips_highlights_and_underexposure_darkens():
     img = np.full((20, 30, 3), 200, np.uint8)
-    bright = CameraPipeline(CameraModel(enabled=True, exposure_ev=2.0), 30, 20).apply(img, np.random.default_rng(0))
-    dark = CameraPipeline(CameraModel(enabled=True, exposure_ev=-2.0), 30, 20).apply(img, np.random.default_rng(0))
+    bright = CameraPipeline(CameraModel.ideal().with_(enabled=True, exposure_ev=2.0), 30, 20).apply(img, np.random.default_rng(0))
+    dark = CameraPipeline(CameraModel.ideal().with_(enabled=True, exposure_ev=-2.0), 30, 20).apply(img, np.random.default_rng(0))
     assert (bright == 255).all()
     assert dark.mean() < 150
 
@@ -45,7 +53,7 @@ def test_distorted_boxes_cover_the_distorted_object():
     box = np.array([[14.0, 10.0, 40.0, 50.0], [150.0, 70.0, 190.0, 112.0], [95.0, 50.0, 105.0, 70.0]], np.float32)
     for x0, y0, x1, y1 in box.astype(int):
         img[y0:y1, x0:x1] = 255
-    pipe = CameraPipeline(CameraModel(enabled=True, k1=-0.2, k2=0.02), w, h)
+    pipe = CameraPipeline(CameraModel.ideal().with_(enabled=True, k1=-0.2, k2=0.02), w, h)
     out = pipe.apply(img, np.random.default_rng(0))
     got = pipe.distort_boxes(box)
     assert not np.allclose(got[:2], box[:2], atol=1.0)  # the corners moved a visible amount

@@ -2,8 +2,10 @@
 distortion and slight defocus, vignetting, exposure with highlight clipping, white balance, a tone
 curve, sensor noise, and chroma subsampling / JPEG compression.
 
-``CameraModel`` holds the parameters (frozen; the scenario TOML's ``[camera_model]`` table);
-``enabled=False`` (the default, the study's "ideal" camera) leaves frames untouched.
+``CameraModel`` holds the parameters (frozen; the scenario TOML's ``[camera_model]`` table). Its
+defaults are the default camera of every env (``CameraModel() == CameraModel.realistic()``): a table or
+dict changes only the fields it names. ``enabled=False`` (``CameraModel.ideal()``, the study's "ideal"
+camera) leaves frames untouched.
 :class:`CameraPipeline` applies it to one camera size: per-channel look-up tables, a precomputed
 remap and vignetting gain, and a noise bank drawn from the episode's RNG, so a frame costs a few
 milliseconds at 672x376 and the same seed gives the same bytes. Lens distortion moves pixels, so
@@ -14,11 +16,11 @@ Example:
     >>> import numpy as np
     >>> from weather_gym.camera_model import CameraModel, CameraPipeline
     >>> img = np.full((40, 60, 3), 128, np.uint8)
-    >>> off = CameraPipeline(CameraModel(), 60, 40)
+    >>> off = CameraPipeline(CameraModel(enabled=False), 60, 40)
     >>> bool((off.apply(img, np.random.default_rng(0)) == img).all())
     True
-    >>> a = CameraPipeline(CameraModel.realistic(), 60, 40).apply(img, np.random.default_rng(1))
-    >>> b = CameraPipeline(CameraModel.realistic(), 60, 40).apply(img, np.random.default_rng(1))
+    >>> a = CameraPipeline(CameraModel(), 60, 40).apply(img, np.random.default_rng(1))
+    >>> b = CameraPipeline(CameraModel(), 60, 40).apply(img, np.random.default_rng(1))
     >>> bool((a == b).all()), bool((a != img).any())
     (True, True)
 """
@@ -51,7 +53,7 @@ _BOUNDS: dict[str, tuple[float, float]] = {
 
 @dataclass(frozen=True)
 class CameraModel:
-    """Parameters of the finishing stage.
+    """Parameters of the finishing stage; the defaults are the default camera (``realistic()``).
 
     Attributes:
         enabled: False = the ideal camera (frames pass unchanged; every other field is ignored).
@@ -69,18 +71,18 @@ class CameraModel:
         jpeg_quality: JPEG compression at this quality (1-100); 0 = no JPEG.
     """
 
-    enabled: bool = False
-    exposure_ev: float = 0.0
-    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    contrast: float = 1.0
-    vignetting: float = 0.0
-    k1: float = 0.0
+    enabled: bool = True
+    exposure_ev: float = 0.6
+    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.04)
+    contrast: float = 1.15
+    vignetting: float = 0.25
+    k1: float = -0.06
     k2: float = 0.0
-    defocus_px: float = 0.0
-    read_noise: float = 0.0
-    shot_noise: float = 0.0
-    chroma_subsampling: bool = False
-    jpeg_quality: int = 0
+    defocus_px: float = 0.6
+    read_noise: float = 2.0
+    shot_noise: float = 3.0
+    chroma_subsampling: bool = True
+    jpeg_quality: int = 90
 
     def __post_init__(self) -> None:
         for name in ("enabled", "chroma_subsampling"):
@@ -101,11 +103,20 @@ class CameraModel:
 
     @classmethod
     def realistic(cls) -> CameraModel:
-        """A plausible machine-vision camera: a little over-exposed (bright skies clip), mild barrel
-        distortion and vignetting, slight softness, visible noise, 4:2:0 colour and JPEG at 90."""
+        """The default camera (``CameraModel()``): a plausible machine-vision camera, a little
+        over-exposed (bright skies clip), mild barrel distortion and vignetting, slight softness,
+        visible noise, 4:2:0 colour and JPEG at 90."""
         return cls(enabled=True, exposure_ev=0.6, white_balance=(1.0, 1.0, 1.04), contrast=1.15, vignetting=0.25,
                    k1=-0.06, k2=0.0, defocus_px=0.6, read_noise=2.0, shot_noise=3.0, chroma_subsampling=True,
                    jpeg_quality=90)
+
+    @classmethod
+    def ideal(cls) -> CameraModel:
+        """The study's ideal camera: off, and every stage neutral (``.with_(enabled=True, k1=-0.1)`` is
+        then a camera with that one stage)."""
+        return cls(enabled=False, exposure_ev=0.0, white_balance=(1.0, 1.0, 1.0), contrast=1.0, vignetting=0.0,
+                   k1=0.0, k2=0.0, defocus_px=0.0, read_noise=0.0, shot_noise=0.0, chroma_subsampling=False,
+                   jpeg_quality=0)
 
     @property
     def distorts(self) -> bool:

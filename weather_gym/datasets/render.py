@@ -55,7 +55,7 @@ def episode_plan(tracks: Sequence[str], frames: int, frames_per_episode: int) ->
     return plan
 
 
-def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "plain"):
+def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "realistic"):
     return make_env(track=track, camera=camera, laps=0, terminate_off_track=True, max_episode_steps=max_steps,
                     episode_statistics=False, sim=SimConfig(scene=scene))
 
@@ -103,7 +103,7 @@ def render_dataset(
     progress: bool = True,
     overwrite: bool = False,
     resume: bool = False,
-    scene: str = "plain",
+    scene: str = "realistic",
     ranges=None,
     start_window: tuple[float, float] | None = None,
 ) -> Path:
@@ -115,8 +115,9 @@ def render_dataset(
         randomize: draw a random appearance per episode: in the plain scene a random ``Look``
             (``weather_gym.sim.look.sample_look``), in the realistic one a ``Look``, a camera model and a
             field of view from ``ranges`` (``weather_gym.sim.randomize.sample_realistic``); otherwise
-            every frame uses the default look (realistic scene: ``REALISTIC_LOOK`` and ``CameraModel.realistic()``).
-        scene: ``"plain"`` (the default world) or ``"realistic"`` (``SimConfig.scene``).
+            every frame uses the default look (realistic scene: ``REALISTIC_LOOK`` and ``CameraModel.realistic()``;
+            plain scene: ``DEFAULT_LOOK`` and the camera model off, as the plain world always had).
+        scene: ``"realistic"`` (the default world) or ``"plain"`` (``SimConfig.scene``).
         ranges: ``RandomizeRanges`` of the realistic randomisation (None: the defaults).
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
         frames_per_episode: frames saved per episode before a new start point / look is drawn.
@@ -156,7 +157,7 @@ def render_dataset(
                 written += n_frames
                 continue
             rng = np.random.default_rng(ep_seed)
-            ep_camera, model = camera, CameraModel()
+            ep_camera, model = camera, CameraModel.ideal()
             if realistic and randomize:
                 draw = sample_realistic(rng, ranges)
                 look, model, ep_camera = draw.look, draw.camera_model, draw.camera(camera)
@@ -253,14 +254,14 @@ class ViewRenderer:
             if key not in record:
                 raise InputError(f"image record {record.get('id')!r} has no {key!r}: it cannot be re-rendered")
         camera = CameraConfig(**record["camera"])
-        scene = str(record.get("scene", "plain"))
+        scene = str(record.get("scene", "plain"))  # records before the "scene" key are of the plain world
         key = (record["track"], tuple(sorted(record["camera"].items())), scene)
         env = self._envs.get(key)
         if env is None:
             env = self._envs[key] = _make_env(record["track"], camera, max_steps=10, scene=scene)
         options = {"look": record["look"], "start_pose": record["pose"], "start_speed": float(record.get("speed", 0.0))}
-        if "camera_model" in record:
-            options["camera_model"] = record["camera_model"]
+        # records before the "camera_model" key were rendered without one (the ideal camera)
+        options["camera_model"] = record.get("camera_model", CameraModel.ideal())
         obs, info = env.reset(seed=int(record.get("seed", 0)), options=options)
         return {"image": obs["image"], "depth": obs["depth"], "gt": info["gt"]}
 

@@ -185,8 +185,10 @@ class ConeTrackEnv(gym.Env):
 
     def _set_pipeline(self, model: CameraModel, rng: np.random.Generator) -> None:
         """This episode's camera pipeline; its noise comes from a generator seeded from the episode's
-        RNG (nothing is drawn when the camera model is off, so the ideal camera changes no stream)."""
-        if not model.enabled:
+        RNG. The seed is drawn with the camera model on or off, so the study's ideal camera
+        (``enabled=False``) and the default one see the same episode (odometry noise, random looks)."""
+        noise_seed = int(rng.integers(0, 2**63 - 1))
+        if not model.enabled or not self.config.camera_images:  # render-free: no frame to finish
             self._pipeline = self._pipeline_rng = None
             return
         pipe = self._pipelines.get(model)
@@ -196,7 +198,7 @@ class ConeTrackEnv(gym.Env):
                 self._pipelines.pop(next(iter(self._pipelines)))
             pipe = self._pipelines[model] = CameraPipeline(model, cam.width, cam.height, fx=cam.fx, cx=cam.cx, cy=cam.cy)
         self._pipeline = pipe
-        self._pipeline_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
+        self._pipeline_rng = np.random.default_rng(noise_seed)
         pipe.reseed(self._pipeline_rng)
 
     def _sample_look(self, rng: np.random.Generator) -> Look:

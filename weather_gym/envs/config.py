@@ -66,8 +66,9 @@ class EnvConfig:
             ``WeatherWrapper`` it is the weathered frame the agent sees, so Gymnasium's and our
             ``RecordVideo`` record the weather).
         camera_model: the camera's image pipeline applied to every frame before anything else sees it
-            (``weather_gym.camera_model``; off by default = the ideal camera). Weather wrappers act
-            on the finished frame.
+            (``weather_gym.camera_model``; on by default, ``CameraModel.realistic()``;
+            ``CameraModel(enabled=False)`` = the study's ideal camera). Weather wrappers act on the
+            finished frame.
 
     The episode's time limit is not here: Gymnasium's ``TimeLimit`` owns truncation
     (``gym.make(id, max_episode_steps=...)``; each scenario registers its default).

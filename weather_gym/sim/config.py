@@ -8,6 +8,8 @@ Example:
     8
     >>> CarConfig(friction=0.6).friction
     0.6
+    >>> SimConfig().scene, SimConfig(scene="plain").scene
+    ('realistic', 'plain')
 """
 
 from __future__ import annotations
@@ -19,10 +21,10 @@ from weather_gym.errors import InputError
 
 RENDERERS = ("auto", "egl", "tiny", "none")
 SCENES = ("plain", "realistic")
-"""``SimConfig.scene``: the plain world (flat textured ground, clouds, plain-striped cones: the default
-every calibration and the shipped detector were made with) or the realistic one (FS cone stripes,
-contact shadows, asphalt with patches and painted lines, run-off, track-side clutter and distractors, a
-skyline, the ego car's nose in view: ``weather_gym.sim.scenery``, ``weather_gym.sim.ego``)."""
+"""``SimConfig.scene``: the realistic world (the default: FS cone stripes, contact shadows, asphalt with
+patches and painted lines, run-off, track-side clutter and distractors, a skyline, the ego car's nose in
+view: ``weather_gym.sim.scenery``, ``weather_gym.sim.ego``) or the plain one (flat textured ground,
+clouds, plain-striped cones: the world of the earlier calibrations and detectors; faster)."""
 
 
 def _check_finite_positive(obj, names: tuple[str, ...], allow_zero: bool = False) -> None:
@@ -47,7 +49,7 @@ class SimConfig:
         gui: open the PyBullet GUI (needs a display) instead of DIRECT mode.
         cone_mass: kg per small cone (big cones weigh 1.5x).
         shadows: cast shadows (PyBullet's shadow map; see ``weather-gym bench sim`` for the cost).
-        scene: ``"plain"`` (default) or ``"realistic"`` (see ``SCENES``).
+        scene: ``"realistic"`` (default) or ``"plain"`` (see ``SCENES``).
     """
 
     physics_hz: float = 240.0
@@ -57,7 +59,7 @@ class SimConfig:
     cone_mass: float = 0.6
     shadows: bool = False
     gravity: float = 9.81
-    scene: str = "plain"
+    scene: str = "realistic"
 
     def __post_init__(self) -> None:
         _check_finite_positive(self, ("physics_hz", "control_hz", "cone_mass", "gravity"))

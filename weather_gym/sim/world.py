@@ -36,7 +36,7 @@ from weather_gym.sim.camera import CameraFrame, CameraSensor
 from weather_gym.sim.car import Car
 from weather_gym.sim.config import CarConfig, SimConfig
 from weather_gym.sim.ego import EGO_DEPTH_M, clip_ground_truth, composite, ego_overlay
-from weather_gym.sim.look import DEFAULT_LOOK, Look
+from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
 from weather_gym.sim.meshes import box_obj, cone_obj, quad_obj
 from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
@@ -126,7 +126,7 @@ class World:
         sim: SimConfig | None = None,
         car: CarConfig | None = None,
         camera: CameraConfig | None = None,
-        look: Look = DEFAULT_LOOK,
+        look: Look | None = None,
     ) -> None:
         self.track = track
         self.sim = sim or SimConfig()
@@ -148,7 +148,7 @@ class World:
             self._build()
             self.camera = CameraSensor(self.camera_config, self._client, renderer_flag(self.renderer_name), self.sim.shadows)
             self._look: Look | None = None
-            self.set_look(look)
+            self.set_look(look if look is not None else (REALISTIC_LOOK if self.realistic else DEFAULT_LOOK))
         except BaseException:
             self.close()
             raise
