@@ -198,9 +198,7 @@ class Track:
         """
         a, d, seg_len, len2, s_a, _ = self._segs
         if isinstance(x, float | int) and isinstance(y, float | int):  # one point (every env step)
-            px = None
-            scalar = True
-            pts = np.array([[float(x), float(y)]])
+            return self._project_one(float(x), float(y), s_hint, window)
         else:
             px, py = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
             scalar = px.ndim == 0
@@ -240,6 +238,53 @@ class Track:
         assert px is not None
         shape = px.shape
         return Projection(s.reshape(shape), lateral.reshape(shape), heading.reshape(shape), idx.reshape(shape))
+
+    @functools.cached_property
+    def _seg_columns(self) -> tuple[np.ndarray, ...]:
+        a, d, seg_len, _, _, _ = self._segs
+        return (np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1]), np.ascontiguousarray(d[:, 0]),
+                np.ascontiguousarray(d[:, 1]), seg_len / 2.0)
+
+    def _project_one(self, x: float, y: float, s_hint: float | None, window: float) -> Projection:
+        """:meth:`project` of one point: the same arithmetic on 1-D arrays and floats, fewer array calls."""
+        _, d, seg_len, len2, s_a, _ = self._segs
+        ax, ay, dx, dy, half = self._seg_columns
+        if s_hint is None:
+            cand = None
+        else:
+            ds = s_a - float(s_hint)
+            if self.closed:
+                ds = np.mod(ds + self.length / 2.0, self.length) - self.length / 2.0
+            near = np.abs(ds + half) <= window + half
+            cand = np.flatnonzero(near)
+            if not cand.size:
+                cand = np.array([int(np.argmin(np.abs(ds)))])
+        if cand is None:
+            relx, rely, dcx, dcy, l2 = x - ax, y - ay, dx, dy, len2
+        else:
+            relx, rely, dcx, dcy, l2 = x - ax[cand], y - ay[cand], dx[cand], dy[cand], len2[cand]
+        t = (relx * dcx + rely * dcy) / l2
+        if self.closed:
+            t = np.minimum(np.maximum(t, 0.0), 1.0)
+        else:
+            n = len(ax)
+            idx_all = np.arange(n) if cand is None else cand
+            lo = np.where(idx_all == 0, -np.inf, 0.0)
+            hi = np.where(idx_all == n - 1, np.inf, 1.0)
+            t = np.minimum(np.maximum(t, lo), hi)
+        fx = relx - t * dcx
+        fy = rely - t * dcy
+        dist2 = fx * fx + fy * fy
+        k = int(np.argmin(dist2))
+        idx = k if cand is None else int(cand[k])
+        tk = float(t[k])
+        cross = float(dx[idx]) * float(rely[k]) - float(dy[idx]) * float(relx[k])
+        lateral = math.copysign(math.sqrt(float(dist2[k])), cross)
+        s = float(s_a[idx]) + tk * float(seg_len[idx])
+        if self.closed:
+            s = s % self.length
+        heading = self._heading_at(np.array([idx]), np.array([tk]))
+        return Projection(s, lateral, float(heading[0]), idx)
 
     def half_widths_at(self, s: float | np.ndarray) -> tuple:
         """Left and right half widths interpolated at arc length ``s``."""

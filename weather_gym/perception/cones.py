@@ -35,6 +35,8 @@ CONE_FIELDS: tuple[str, ...] = (
 FIELD = {name: i for i, name in enumerate(CONE_FIELDS)}
 DEFAULT_MAX_CONES = 64
 
+_BOX_FIELDS = slice(FIELD["x1"], FIELD["y2"] + 1)
+
 
 def cone_list_space(max_cones: int = DEFAULT_MAX_CONES) -> spaces.Dict:
     """Gymnasium space of ``{"cones", "mask"}`` (state is added by the wrapper that passes it through)."""
@@ -82,16 +84,13 @@ def pack_cones(
     mask = np.zeros((max_cones,), dtype=np.int8)
     if k:
         c = classes[order]
+        r, br, b = ranges[order], bearings[order], boxes[order]
         out[np.arange(k), c] = 1.0
-        out[:k, FIELD["range"]] = ranges[order]
-        out[:k, FIELD["bearing"]] = bearings[order]
+        out[:k, FIELD["range"]] = r
+        out[:k, FIELD["bearing"]] = br
         out[:k, FIELD["score"]] = scores[order]
-        b = boxes[order]
-        out[:k, FIELD["x1"]] = b[:, 0] / camera.width
-        out[:k, FIELD["y1"]] = b[:, 1] / camera.height
-        out[:k, FIELD["x2"]] = b[:, 2] / camera.width
-        out[:k, FIELD["y2"]] = b[:, 3] / camera.height
-        xb, yb = body_xy(ranges[order], bearings[order], camera)
+        out[:k, _BOX_FIELDS] = b / np.array([camera.width, camera.height, camera.width, camera.height], np.float64)
+        xb, yb = body_xy(r, br, camera)
         out[:k, FIELD["x_body"]] = xb
         out[:k, FIELD["y_body"]] = yb
         out[:k, FIELD["size_px"]] = b[:, 3] - b[:, 1]

@@ -51,6 +51,7 @@ class Car:
         self.config = config or CarConfig()
         self.gravity = gravity
         self.state = CarState()
+        self._constants: tuple = (None, None)
 
     # ---- pose of the reference point (rear axle) -------------------------------------------------
     def reset(self, x: float, y: float, yaw: float, speed: float = 0.0) -> None:
@@ -77,9 +78,11 @@ class Car:
         """Advance by ``dt`` seconds. ``steer`` and ``pedal`` are normalised commands in [-1, 1]
         (pedal > 0 throttle, < 0 brake)."""
         cfg, s = self.config, self.state
+        k = self._constants
+        if k[0] is not cfg or k[1] != self.gravity:
+            k = self._constants = self._make_constants()
+        _, g, lf, lr, m, wheelbase, m_accel, m_brake, roll, fz_f, fz_r = k
         mu = cfg.friction if friction is None else friction
-        g = self.gravity
-        lf, lr, m = cfg.cg_to_front, cfg.cg_to_rear, cfg.mass
 
         target = steer * cfg.max_steer
         max_delta = cfg.steer_rate * dt
@@ -89,14 +92,12 @@ class Car:
         vx = max(s.vx, 0.0)
         # longitudinal force: drive on the rear axle (power limited), brakes on both, drag, rolling
         if pedal >= 0:
-            f_drive = min(m * cfg.max_accel * pedal, cfg.max_power / max(vx, 1.0))
+            f_drive = min(m_accel * pedal, cfg.max_power / max(vx, 1.0))
             f_brake = 0.0
         else:
             f_drive = 0.0
-            f_brake = m * cfg.max_brake * (-pedal) if vx > 0 else 0.0
-        f_resist = cfg.drag * vx * vx + cfg.rolling_resistance * m * g if vx > 0 else 0.0
-        fz_f = m * g * lr / cfg.wheelbase
-        fz_r = m * g * lf / cfg.wheelbase
+            f_brake = m_brake * (-pedal) if vx > 0 else 0.0
+        f_resist = cfg.drag * vx * vx + roll if vx > 0 else 0.0
         # traction / braking limited by friction on each axle
         f_drive = min(f_drive, mu * fz_r)
         f_brake = min(f_brake, mu * m * g)
@@ -106,32 +107,45 @@ class Car:
         fy_max_f = math.sqrt(max((mu * fz_f) ** 2 - fx_f**2, 0.0)) / max(mu, 1e-9)
         fy_max_r = math.sqrt(max((mu * fz_r) ** 2 - fx_r**2, 0.0)) / max(mu, 1e-9)
 
+        yaw_rate, vy = s.yaw_rate, s.vy
         if vx > 0.1:
-            a_f = math.atan2(s.vy + lf * s.yaw_rate, vx) - delta
-            a_r = math.atan2(s.vy - lr * s.yaw_rate, vx)
+            a_f = math.atan2(vy + lf * yaw_rate, vx) - delta
+            a_r = math.atan2(vy - lr * yaw_rate, vx)
         else:
             a_f = a_r = 0.0
         fy_f = _fiala(a_f, cfg.cornering_stiffness_front, fy_max_f, mu)
         fy_r = _fiala(a_r, cfg.cornering_stiffness_rear, fy_max_r, mu)
 
-        ax = (fx_r + fx_f * math.cos(delta) - fy_f * math.sin(delta) - f_resist) / m + s.vy * s.yaw_rate
-        ay = (fy_r + fy_f * math.cos(delta) + fx_f * math.sin(delta)) / m - vx * s.yaw_rate
-        r_dot = (lf * (fy_f * math.cos(delta) + fx_f * math.sin(delta)) - lr * fy_r) / cfg.yaw_inertia
+        cd, sd = math.cos(delta), math.sin(delta)
+        ax = (fx_r + fx_f * cd - fy_f * sd - f_resist) / m + vy * yaw_rate
+        ay = (fy_r + fy_f * cd + fx_f * sd) / m - vx * yaw_rate
+        r_dot = (lf * (fy_f * cd + fx_f * sd) - lr * fy_r) / cfg.yaw_inertia
 
         vx_new = min(max(vx + ax * dt, 0.0), cfg.max_speed)  # brakes stop the car, they do not reverse it
-        vy_dyn = s.vy + ay * dt
-        r_dyn = s.yaw_rate + r_dot * dt
+        vy_dyn = vy + ay * dt
+        r_dyn = yaw_rate + r_dot * dt
         # kinematic bicycle at low speed, blended into the dynamic model
-        beta = math.atan(lr * math.tan(delta) / cfg.wheelbase)
+        td = math.tan(delta)
+        beta = math.atan(lr * td / wheelbase)
         v_kin = vx_new
-        r_kin = v_kin * math.cos(beta) * math.tan(delta) / cfg.wheelbase
+        r_kin = v_kin * math.cos(beta) * td / wheelbase
         vy_kin = v_kin * math.sin(beta)
         w = min(max((vx_new - _LOW_SPEED) / _BLEND, 0.0), 1.0)
         s.vx = vx_new
         s.vy = w * vy_dyn + (1 - w) * vy_kin
         s.yaw_rate = w * r_dyn + (1 - w) * r_kin
 
-        c, si = math.cos(s.yaw), math.sin(s.yaw)
-        s.x += (s.vx * c - s.vy * si) * dt
-        s.y += (s.vx * si + s.vy * c) * dt
-        s.yaw = math.atan2(math.sin(s.yaw + s.yaw_rate * dt), math.cos(s.yaw + s.yaw_rate * dt))
+        yaw = s.yaw
+        c, si = math.cos(yaw), math.sin(yaw)
+        vx, vy = s.vx, s.vy
+        s.x += (vx * c - vy * si) * dt
+        s.y += (vx * si + vy * c) * dt
+        turned = yaw + s.yaw_rate * dt
+        s.yaw = math.atan2(math.sin(turned), math.cos(turned))
+
+    def _make_constants(self) -> tuple:
+        """The config's products that :meth:`step` needs, computed as it computed them (same floats)."""
+        cfg, g = self.config, self.gravity
+        lf, lr, m = cfg.cg_to_front, cfg.cg_to_rear, cfg.mass
+        return (cfg, g, lf, lr, m, cfg.wheelbase, m * cfg.max_accel, m * cfg.max_brake,
+                cfg.rolling_resistance * m * g, m * g * lr / cfg.wheelbase, m * g * lf / cfg.wheelbase)

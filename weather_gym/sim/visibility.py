@@ -103,7 +103,10 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     eye = np.asarray(eye, dtype=np.float64).reshape(3)
     xy = np.asarray(cone_xy, dtype=np.float64).reshape(-1, 2)
     cls = np.asarray(classes, dtype=np.int64).reshape(-1)
-    fwd, right, up = _camera_axes(heading, pitch)
+    ch, sh, cp, sp = math.cos(heading), math.sin(heading), math.cos(pitch), math.sin(pitch)
+    # the rows of (right, up, fwd) as columns (see _camera_axes), built from floats in one call
+    axes = np.array([[sh, ch * sp, ch * cp], [-ch, sh * sp, sh * cp], [0.0, cp, -sp]])
+    fwd, right = axes[:, 2], axes[:, 0]
     fx, fy, cx, cy, near, far = cam.fx, cam.fy, cam.cx, cam.cy, cam.near, cam.far
     width, height = int(cam.width), int(cam.height)
 
@@ -151,7 +154,7 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
             pts[j] = pts[j] @ rot.T
             upright[j] = rot[2, 2] > math.cos(math.radians(3.0))  # standing (slid, not tipped)
     pts += origin[:, None, :]
-    cam_xyz = pts @ np.array([right, up, fwd]).T.copy()  # = np.stack([right, up, fwd], axis=1)
+    cam_xyz = pts @ axes
     zc = cam_xyz[..., 2]
     z_min = _min(zc, axis=1)
     in_front = (z_min > near) & (z_min < far)  # every key point beyond the near plane, one before the far
@@ -167,7 +170,12 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     rows = np.arange(k)[:, None]
     base = np.where(u[:, 12:13] <= u[:, 13:14], *_LEFT_RIGHT)  # (K, 2): left, right extreme
     ub, vb = u[rows, base], v[rows, base]
-    tl, tr = np.minimum(u[:, 8], u[:, 9]), np.maximum(u[:, 8], u[:, 9])
+    # every per-cone parameter of the column stage in one (K, 11, 2) array, gathered per column in
+    # one indexing: (v1, upright), (tl, tr), ub, side, then the plate outlines' u1, u2, v1, v2, s01,
+    # s12, s23 (each: bottom face, top face)
+    par = np.empty((k, 11, 2))
+    t_lr = par[:, 1]
+    tl, tr = np.minimum(u[:, 8], u[:, 9], out=t_lr[:, 0]), np.maximum(u[:, 8], u[:, 9], out=t_lr[:, 1])
     # plate outlines: the lower chain of the bottom face and the upper chain of the top face (its v
     # negated, so both are "the largest v"), through the face's corners sorted by u: corners off
     # the chain are lifted onto the chord between the outer two (the face is convex)
@@ -182,9 +190,6 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
         vq[..., 1:3] = np.maximum(vq[..., 1:3], vq[..., :1] + chord * (uq[..., 1:3] - uq[..., :1]))
         slope = (vq[..., 1:] - vq[..., :-1]) / (uq[..., 1:] - uq[..., :-1])  # (K, 2, 3)
         slope = np.where(np.isfinite(slope), slope, 0.0)
-        t_lr = np.empty((k, 2))
-        t_lr[:, 0] = tl
-        t_lr[:, 1] = tr
         side = np.where(tl[:, None] - ub[:, :1] > 0, (vb - v1[:, None]) / np.abs(t_lr - ub), 0.0)
     side[:, 1] = np.where(ub[:, 1] > tr, side[:, 1], 0.0)
 
@@ -204,16 +209,22 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     slot = np.repeat(np.arange(near_first.size), widths)
     cone = near_first[slot]
     col = j_lo[cone] + (np.arange(m) - starts[slot])
-    # each plate face's outline (bottom face, top face): u1, u2, v1, v2 and the slopes s01, s12, s23
-    outline = np.concatenate([uq[..., 1:3], vq[..., 1:3], slope], axis=2)[cone]  # (M, 2, 7)
-    vt, ptl, ptr, pbl, pbr, psl, psr, up_ = np.column_stack([v1, tl, tr, ub, side, upright])[cone].T
+    par[:, 0, 0] = v1
+    par[:, 0, 1] = upright
+    par[:, 2] = ub
+    par[:, 3] = side
+    par[:, 4:6] = uq[..., 1:3].transpose(0, 2, 1)  # each plate face's outline: u1, u2, v1, v2, s01, s12, s23
+    par[:, 6:8] = vq[..., 1:3].transpose(0, 2, 1)
+    par[:, 8:11] = slope.transpose(0, 2, 1)
+    q = par[cone]  # (M, 11, 2)
+    vt, up_, ptl, ptr, pbl, pbr, psl, psr = q[:, 0, 0], q[:, 0, 1], *q[:, 1:4].reshape(m, 6).T
     uc = col + 0.5
 
     # the silhouette in each column: top = min(frustum, plate top face), bottom = plate bottom face
     frustum_top = np.where(uc < ptl, vt + psl * (ptl - uc), np.where(uc > ptr, vt + psr * (uc - ptr), vt))
     frustum_top[(uc < pbl) | (uc > pbr)] = np.inf
     uc2 = uc[:, None]
-    o_u1, o_u2, o_v1, o_v2, o_s01, o_s12, o_s23 = np.moveaxis(outline, 2, 0)  # each (M, 2)
+    o_u1, o_u2, o_v1, o_v2, o_s01, o_s12, o_s23 = q[:, 4:].transpose(1, 0, 2)  # each (M, 2)
     du1 = uc2 - o_u1
     chain = np.where(uc2 < o_u1, o_v1 + o_s01 * du1, np.where(uc2 < o_u2, o_v1 + o_s12 * du1, o_v2 + o_s23 * (uc2 - o_u2)))
     bottom = chain[:, 0]
