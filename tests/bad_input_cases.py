@@ -443,6 +443,7 @@ CASES: list[Case] = [
     _cli("gap-too-few-frames", "at least 8", "gap", "{w}/ds", "--out", "{w}/o_gap", out="o_gap"),
     _cli("gap-same-camera-without-reference", "--reference", "gap", "{w}/ds", "--mode", "same-camera", "--out",
          "{w}/o_gap", out="o_gap"),
+    _cli("gap-bad-scene", "cartoon", "gap", "{w}/ds", "--scene", "cartoon", "--out", "{w}/o_gap", out="o_gap"),
     _cli("gap-missing-reference", "nope", "gap", "{w}/ds", "--reference", "{w}/nope", "--out", "{w}/o_gap",
          out="o_gap"),
     # ---- gap

@@ -235,6 +235,13 @@ class CameraPipeline:
             bank = rng.standard_normal((self.height + 64, self.width + 64, 3), dtype=np.float32) * 32
             self._bank = np.clip(np.round(bank), -127, 127).astype(np.int8)
 
+    def skip(self, rng: np.random.Generator, frames: int) -> None:
+        """Draw from ``rng`` what :meth:`apply` draws for ``frames`` frames, so the next frame gets the
+        noise frame number ``frames`` of the episode had (a recorded frame re-rendered exactly)."""
+        if self.model.enabled and self._noise_on:
+            for _ in range(frames):
+                rng.integers(0, 64, 2)
+
     def apply(self, rgb: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The finished frame (a new uint8 array; ``rgb`` itself when the model is off). Draws from
         ``rng`` only for the noise."""

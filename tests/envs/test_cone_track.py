@@ -117,6 +117,9 @@ def test_bad_reset_options_name_the_option(make_env):
         env.reset(seed=0, options={"friction": -1.0})
     with pytest.raises(ValueError, match="look"):
         env.reset(seed=0, options={"look": {"sky_colour": 1}})
+    for bad in (-1, 2.5, True):
+        with pytest.raises(ValueError, match="camera_frame"):
+            env.reset(seed=0, options={"camera_frame": bad})
 
 
 def test_unknown_env_id_and_bad_kwargs():

@@ -17,12 +17,14 @@ def gap_root(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def clean_dir(gap_root):
-    """40 clean frames at 336x188 on small_track, random looks, rendered once."""
+    """40 clean frames at 336x188 on small_track, random looks, rendered once: the plain world with the
+    ideal camera, so that a hidden effect is the only thing in the frames besides the scene (the
+    realistic world's sensor noise and JPEG mask some effects: see test_gap_realistic.py)."""
     from weather_gym.datasets import render_dataset
 
     out = gap_root / "clean"
     render_dataset(out, tracks=["small_track"], frames=CLEAN_FRAMES, seed=11, randomize=True,
-                   frames_per_episode=10, camera=GAP_CAMERA, progress=False)
+                   frames_per_episode=10, camera=GAP_CAMERA, progress=False, scene="plain")
     return out
 
 
@@ -47,6 +49,17 @@ def make_measured(clean_dir, gap_root):
         return made[tag]
 
     return _make
+
+
+@pytest.fixture(scope="session")
+def realistic_clean_dir(gap_root):
+    """40 clean frames of the default (realistic) world and camera model, random looks and cameras."""
+    from weather_gym.datasets import render_dataset
+
+    out = gap_root / "realistic_clean"
+    render_dataset(out, tracks=["small_track"], frames=CLEAN_FRAMES, seed=13, randomize=True,
+                   frames_per_episode=10, camera=GAP_CAMERA, progress=False)
+    return out
 
 
 @pytest.fixture
@@ -96,7 +109,7 @@ def shifted(gap_root):
     w, h = GAP_CAMERA.width, GAP_CAMERA.height
     cam = CameraConfig(width=w, height=h, hfov_deg=70.0, pitch_deg=7.0, mount_height=0.8)
     render_dataset(root / "raw", tracks=["small_track"], frames=2 * SHIFTED_FRAMES, seed=21, randomize=True,
-                   frames_per_episode=6, camera=cam, progress=False)
+                   frames_per_episode=6, camera=cam, progress=False, scene="plain")
     ds = load_coco(root / "raw")
     data = json.loads((root / "raw" / ANNOTATIONS).read_text())
     over = make("exposure", k=0.45, direction="over", contrast=0.4)

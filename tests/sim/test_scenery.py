@@ -85,11 +85,13 @@ def test_randomize_ranges_from_toml(tmp_path):
 
 @pytest.fixture(scope="module")
 def realistic_env():
+    from weather_gym.camera_model import CameraModel
     from weather_gym.envs import ConeTrackEnv, EnvConfig
     from weather_gym.sim.config import SimConfig
 
+    # the world alone: the camera model (lens distortion, noise, JPEG) is tested in tests/test_camera_model.py
     env = ConeTrackEnv(EnvConfig(track="small_track", camera=SMALL_CAMERA.scaled(192, 108),
-                                 sim=SimConfig(scene="realistic")))
+                                 sim=SimConfig(scene="realistic"), camera_model=CameraModel.ideal()))
     yield env
     env.close()
 

@@ -25,13 +25,24 @@ PITCH = math.radians(CAM.pitch_deg)
 @pytest.mark.slow
 @pytest.mark.parametrize("track", ["small_track", "hairpin"])
 def test_geometric_ground_truth_agrees_with_the_rendered_one_on_a_lap(track):
-    s = compare_ground_truth(track, CAM, steps=450, every=3)
+    s = compare_ground_truth(track, CAM, steps=450, every=3, scene="plain")
     iou, err = np.array(s["iou"]), np.abs(np.array(s["pixel_err"]))
     assert s["rendered"] > 1000
     assert s["both"] / s["rendered"] >= 0.99 and s["both"] / s["geometric"] >= 0.995  # recall, precision
     assert s["big_missed"] <= 0.005 * s["big"]  # cones of 20+ visible pixels
     assert np.median(iou) >= 0.99 and np.percentile(iou, 10) >= 0.85
     assert np.median(err) <= 0.03 and np.percentile(err, 90) <= 0.2
+
+
+@pytest.mark.slow
+def test_in_the_realistic_world_geometry_still_finds_every_rendered_cone():
+    # clutter, distractors and the ego car hide cones that geometry counts (a documented limit of
+    # World.ground_truth): precision drops there, but no cone that is rendered is missing
+    s = compare_ground_truth("small_track", CAM, steps=450, every=3, scene="realistic")
+    iou = np.array(s["iou"])
+    assert s["rendered"] > 1000
+    assert s["both"] / s["rendered"] >= 0.99 and s["big_missed"] <= 0.005 * s["big"]
+    assert np.median(iou) >= 0.95
 
 
 def _one(xy, classes=None, **kw):

@@ -2,7 +2,8 @@
 
 Agreement: the ground-truth driver drives ``--steps`` steps of each track; every ``--every``-th
 frame the cones that geometry says are visible (``World.ground_truth``, nothing rendered) are
-compared with the rendered frame's segmentation (``info["gt"]``): recall and precision of the
+compared with the rendered frame's segmentation (``info["gt"]``), in the plain and the realistic
+world (whose clutter and ego car hide cones that geometry does not know of): recall and precision of the
 visible set (by cone id), IoU of the visible boxes, relative error of the visible pixel count
 (cones of 20+ rendered pixels).
 
@@ -31,6 +32,7 @@ from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.camera import CameraConfig
 from weather_gym.errors import InputError
 from weather_gym.pipeline import make_env
+from weather_gym.sim.config import SCENES, SimConfig
 from weather_gym.sim.world import World
 from weather_gym.tracks import load_track
 
@@ -58,15 +60,17 @@ def _iou(a, b) -> float:
     return w * h / union if union > 0 else 0.0
 
 
-def compare_ground_truth(track_name: str, camera: CameraConfig, steps: int = 900, every: int = 3) -> dict[str, Any]:
-    """Geometric against rendered ground truth on ``steps`` steps of a ground-truth lap (see the module doc).
+def compare_ground_truth(track_name: str, camera: CameraConfig, steps: int = 900, every: int = 3,
+                         scene: str = "realistic") -> dict[str, Any]:
+    """Geometric against rendered ground truth on ``steps`` steps of a ground-truth lap (see the module doc)
+    in the world ``scene`` (the realistic world's clutter hides cones that geometry still counts).
 
     Returns the counts (``rendered``, ``geometric``, ``both``, ``big``, ``big_missed``) and the
     per-cone lists ``iou`` and ``pixel_err`` (geometric / rendered - 1).
     """
 
     track = load_track(track_name)
-    world = World(track, camera=camera)
+    world = World(track, camera=camera, sim=SimConfig(scene=scene))
     try:
         world.reset(tuple(track.start_pose))
         agent = AGENTS.get("gt_pure_pursuit")(track, camera)
@@ -145,11 +149,12 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--{name} must be >= 1, got {getattr(args, name)}")
     camera = CameraConfig(width=w, height=h)
     tracks = [t for t in args.tracks.split(",") if t.strip()]
-    rows = [agreement_row(t, compare_ground_truth(t, camera, args.steps, args.every)) for t in tracks]
+    rows = [[scene, *agreement_row(t, compare_ground_truth(t, camera, args.steps, args.every, scene))]
+            for t in tracks for scene in SCENES]
     print(f"Machine: {machine_line()}; load average {os.getloadavg()[0]:.1f}")
     print(f"Ground truth from geometry vs rendered, camera {w}x{h}, {args.steps} steps of a ground-truth lap, "
           f"every {args.every}th frame:")
-    print(markdown_table(["track", "cones visible (rendered)", "recall", "precision",
+    print(markdown_table(["world", "track", "cones visible (rendered)", "recall", "precision",
                           f"missed of {BIG_PX}+ px", "box IoU median / 10th pct.",
                           "pixel count error median / 90th pct."], rows))
     if not args.skip_speed:

@@ -18,6 +18,7 @@ from pathlib import Path
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.gap.workflow import GapConfig, run_gap
+from weather_gym.sim.config import SCENES
 
 
 def register(sub) -> None:
@@ -41,6 +42,8 @@ def register(sub) -> None:
     p.add_argument("--track", action="append", default=None,
                    help="track(s) to render in unpaired mode when the records name none (repeatable)")
     p.add_argument("--sim-frames", type=int, default=None, help="frames to render in unpaired mode (default: as measured)")
+    p.add_argument("--scene", choices=SCENES, default=None,
+                   help="simulator world of unpaired / did renders (default: the records' world, else realistic)")
     p.add_argument("--held-out", type=float, default=0.5, help="fraction of frames held out (default %(default)s)")
     p.add_argument("--fit-frames", type=int, default=32,
                    help="fitting frames used by the parameter search (default %(default)s)")
@@ -73,7 +76,7 @@ def _run(args) -> int:
     if args.candidates:
         cands = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
     config = GapConfig(seed=args.seed, mode=args.mode, tracks=tuple(args.track) if args.track else None,
-                       sim_frames=args.sim_frames, held_out=args.held_out, fit_frames=args.fit_frames,
+                       sim_frames=args.sim_frames, scene=args.scene, held_out=args.held_out, fit_frames=args.fit_frames,
                        max_steps=args.max_steps, candidates=cands, alpha=args.alpha, detector=detector,
                        compare_width=args.compare_width, prune=not args.no_prune, progress=not args.quiet)
     report = run_gap(args.measured, args.model, args.out, config, reference=args.reference, cache_dir=args.cache,

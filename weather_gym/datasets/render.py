@@ -262,6 +262,8 @@ class ViewRenderer:
         options = {"look": record["look"], "start_pose": record["pose"], "start_speed": float(record.get("speed", 0.0))}
         # records before the "camera_model" key were rendered without one (the ideal camera)
         options["camera_model"] = record.get("camera_model", CameraModel.ideal())
+        # the sensor noise of the recorded frame: ``step`` frames after the episode's seeded reset
+        options["camera_frame"] = int(record.get("step", 0))
         obs, info = env.reset(seed=int(record.get("seed", 0)), options=options)
         return {"image": obs["image"], "depth": obs["depth"], "gt": info["gt"]}
 

@@ -46,7 +46,7 @@ from weather_gym.tracks import load_track
 STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
 """Names of ``obs["state"]``: wheel-speed odometry (m/s), gyro yaw rate (rad/s), odometry pose."""
 
-RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction", "camera_model")
+RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction", "camera_model", "camera_frame")
 
 END_REASONS: tuple[str, ...] = ("laps", "off_track", "time_limit")
 """Why an episode ends: ``laps`` (the requested laps driven, or an open event's finish line
@@ -63,7 +63,9 @@ class ConeTrackEnv(gym.Env):
 
     ``reset(options=...)`` accepts: ``look`` (a ``Look``, its dict, or ``"random"``),
     ``start_pose`` (x, y, yaw), ``start_s`` (arc length along the centerline to start at),
-    ``start_speed`` (m/s) and ``friction`` (tyre-road mu for this episode, e.g. 0.6 for wet).
+    ``start_speed`` (m/s), ``friction`` (tyre-road mu for this episode, e.g. 0.6 for wet),
+    ``camera_model`` (this episode's ``CameraModel`` or its dict) and ``camera_frame`` (start the camera's
+    noise stream at this frame of the episode: re-renders a recorded frame with its own sensor noise).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 30}
@@ -155,7 +157,13 @@ class ConeTrackEnv(gym.Env):
             model = CameraModel.from_dict(model)
         except TypeError as exc:
             raise InputError(f"reset option camera_model: {exc}") from None
+        camera_frame = options.get("camera_frame", 0)
+        if isinstance(camera_frame, bool) or not isinstance(camera_frame, (int, np.integer)) or camera_frame < 0:
+            raise InputError(f"reset option camera_frame must be an integer >= 0 (frames since the episode's "
+                             f"seeded reset), got {camera_frame!r}")
         self._set_pipeline(model, rng)
+        if self._pipeline is not None:
+            self._pipeline.skip(self._pipeline_rng, int(camera_frame))
         world = self.world
         world.set_look(look)
         world.reset(pose, speed=speed)

@@ -6,7 +6,8 @@ the default look and the default camera at the image size are used, and a note s
 is re-rendered with :meth:`~weather_gym.datasets.CocoDataset.render_view`.
 
 **Unpaired mode** (no poses, e.g. a real dataset of the same track) renders as many frames of the
-same track(s) with the ground-truth driver (:func:`~weather_gym.datasets.render_dataset`); the
+same track(s) with the ground-truth driver (:func:`~weather_gym.datasets.render_dataset`), in the world
+the records name (``scene``; the default, realistic world for a real recording); the
 comparison then works on distributions over the two sets.
 
 The clean renders are written once into ``cache_dir`` as a COCO folder (an interrupted render
@@ -43,7 +44,7 @@ __all__ = ["FrameSet", "GapData", "MIN_FRAMES", "COMPARE_WIDTH", "MODES", "load_
            "split_indices", "frame_state", "same_views", "is_real"]
 
 _PAIRED_KEYS = ("track", "pose")
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2  # 2: views carry scene, camera model and step
 
 
 MIN_FRAMES = 8
@@ -313,7 +314,10 @@ def _camera_of(ds: Any) -> Any:
 
 
 def _view_record(rec: dict, camera: Any, notes: set[str]) -> dict:
-    view = {k: rec[k] for k in ("track", "pose", "speed", "yaw_rate", "seed", "look", "camera") if k in rec}
+    # everything render_view needs to reproduce the frame: the world ("scene"), its camera model and the
+    # frame's place in its episode ("step": its sensor noise)
+    view = {k: rec[k] for k in ("track", "pose", "speed", "yaw_rate", "seed", "look", "camera", "scene",
+                                "camera_model", "step") if k in rec}
     if view.get("look") is None:
         view["look"] = DEFAULT_LOOK.to_dict()
         notes.add("some records have no 'look': the default look was rendered for them")
@@ -360,13 +364,21 @@ def _render_paired(ds: Any, cache_dir: Path, progress: bool, notes: set[str]) ->
     return out
 
 
+def _scene_of(ds: Any) -> str:
+    """The world the records say they were rendered in, when they all agree; otherwise (a real recording)
+    the default world."""
+    scenes = {rec.get("scene") for rec in ds.images}
+    return str(scenes.pop()) if len(scenes) == 1 and None not in scenes else "realistic"
+
+
 def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
-                     progress: bool) -> Path:
-    key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict()})
+                     progress: bool, scene: str = "realistic") -> Path:
+    key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict(),
+                "scene": scene})
     out = cache_dir / f"unpaired-{key}"
     if not (out / ANNOTATIONS).is_file():
         render_dataset(out, tracks=tracks, frames=frames, seed=seed, camera=camera, progress=progress,
-                       resume=(out / JOURNAL).exists())
+                       resume=(out / JOURNAL).exists(), scene=scene)
     return out
 
 
@@ -411,8 +423,8 @@ def _tracks_of(ds: Any, tracks: list[str] | None) -> list[str]:
 
 def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike, mode: str = "auto",
              reference: str | os.PathLike | Any | None = None, tracks: list[str] | None = None,
-             sim_frames: int | None = None, held_out: float = 0.5, seed: int = 0, progress: bool = False,
-             compare_width: int | None = COMPARE_WIDTH) -> GapData:
+             sim_frames: int | None = None, scene: str | None = None, held_out: float = 0.5, seed: int = 0,
+             progress: bool = False, compare_width: int | None = COMPARE_WIDTH) -> GapData:
     """Load the measured frames and the frames the model is applied to (step 1 of the workflow).
 
     Args:
@@ -423,6 +435,7 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         reference: measured clear frames of the same camera (same-camera and did modes).
         tracks: tracks to render in unpaired and did modes (default: the records' ``track`` values).
         sim_frames: frames to render in unpaired / did mode (default: as many as measured / reference).
+        scene: the world of unpaired / did renders (default: the records' ``scene``, else ``"realistic"``).
         held_out: fraction of frames held out for the final comparison.
         compare_width: frames wider than this are scaled down once on loading (None: never).
     """
@@ -479,7 +492,7 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         tr = _tracks_of(ref_ds if any(r.get("track") for r in ref_ds.images) else ds, tracks)
         camera = _camera_of(ref_ds).scaled(*measured_frames.size)
         n_sim = int(sim_frames or len(ref_ds))
-        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress)
+        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ref_ds))
         sim_ds = load_coco(sim_root)
         sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
         sim_fit, sim_held = split_indices(len(sim_ds), held_out=held_out, seed=seed + 1)
@@ -495,7 +508,7 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         tr = _tracks_of(ds, tracks)
         camera = _camera_of(ds).scaled(*measured_frames.size)
         n_sim = int(sim_frames or len(ds))
-        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress)
+        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ds))
         sim_ds = load_coco(sim_root)
         sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
         sim_fit, sim_held = split_indices(len(sim_ds), held_out=held_out, seed=seed + 1)

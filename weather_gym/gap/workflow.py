@@ -73,6 +73,7 @@ from weather_gym.gap.signals import SIGNAL_NAMES, signal_table, signal_weights
 from weather_gym.gap.simulate import COMPARE_WIDTH, MIN_FRAMES, MODES, GapData, simulate
 from weather_gym.perception.detectors import load_detector
 from weather_gym.perception.labels import SmallRule
+from weather_gym.sim.config import SCENES
 from weather_gym.weather import EFFECTS, KnobEffect
 
 __all__ = ["GapConfig", "Comparison", "GapSession", "run_gap", "REPORT_VERSION"]
@@ -96,6 +97,8 @@ class GapConfig:
             clear reference; see :func:`~weather_gym.gap.simulate.simulate`).
         tracks: tracks to render in unpaired and did modes (default: the records' tracks).
         sim_frames: frames to render in unpaired / did mode (default: as many as measured).
+        scene: the simulator world of unpaired / did renders (``"realistic"`` or ``"plain"``; default: the
+            one the records name, else the default realistic world).
         compare_width: frames wider than this are scaled down once on loading.
         held_out: fraction of the frames held out for the reported gaps.
         fit_frames: at most this many fitting frames are used by the parameter search.
@@ -116,6 +119,7 @@ class GapConfig:
     mode: str = "auto"
     tracks: tuple[str, ...] | None = None
     sim_frames: int | None = None
+    scene: str | None = None
     held_out: float = 0.5
     fit_frames: int = 32
     max_steps: int = 4
@@ -135,6 +139,8 @@ class GapConfig:
             raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
         if self.mode not in MODES:
             raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.scene is not None and self.scene not in SCENES:
+            raise InputError(f"scene must be one of {SCENES} (or None: from the records), got {self.scene!r}")
         if self.sim_frames is not None and self.sim_frames < MIN_FRAMES:
             raise InputError(f"sim_frames must be >= {MIN_FRAMES}, got {self.sim_frames}")
         if self.compare_width is not None and self.compare_width < 64:
@@ -721,7 +727,7 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
     t0 = time.perf_counter()
     data = simulate(measured, cache_dir=cache, mode=config.mode, reference=reference,
                     tracks=list(config.tracks) if config.tracks else None, sim_frames=config.sim_frames,
-                    held_out=config.held_out, seed=config.seed, progress=config.progress,
+                    scene=config.scene, held_out=config.held_out, seed=config.seed, progress=config.progress,
                     compare_width=config.compare_width)
     t_sim = time.perf_counter() - t0
     session = GapSession(data, effects, config)

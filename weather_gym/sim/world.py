@@ -148,6 +148,7 @@ class World:
             self._build()
             self.camera = CameraSensor(self.camera_config, self._client, renderer_flag(self.renderer_name), self.sim.shadows)
             self._look: Look | None = None
+            self._warmed_up = False  # the first frame of a renderer's life differs (see render())
             self.set_look(look if look is not None else (REALISTIC_LOOK if self.realistic else DEFAULT_LOOK))
         except BaseException:
             self.close()
@@ -455,6 +456,14 @@ class World:
             raise RuntimeError("this world renders no camera frames (renderer 'none'); "
                                "use ground_truth() for the visible cones")
         self._activate()
+        if not self._warmed_up:
+            # The renderer's very first frame can differ from every later one of the same scene
+            # (far textured quads: seen with the realistic world's asphalt patches), so frame 0 of
+            # the first episode would not match frame 0 of the next one with the same seed. One
+            # throw-away frame makes every frame a function of the scene alone.
+            self._warmed_up = True
+            self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
+                               segmentation=True)
         frame = self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
                                    segmentation=segmentation, hide=self._ego_mask())
         overlay = self._ego()
