@@ -138,3 +138,20 @@ def test_shipped_model_covers_every_calibrated_preset():
             p = m.point(f"{cond}@{s}")
             assert 0.0 <= p.rho < 1.0
     assert m.camera_size == (672, 376)
+
+
+@pytest.mark.parametrize("empty", ["a", "b"])
+def test_between_two_points_one_without_false_positives_draws_the_others(empty):
+    # a weather between two fitted severities, one of which logged no false positive (it crashed before)
+    from dataclasses import replace
+
+    from weather_gym.surrogate.model import _mix
+    from weather_gym.surrogate.sample import FrameSampler
+
+    model = load_model(SHIPPED_MODEL)
+    a, b = model.point("clear"), model.point("clear")
+    none = np.zeros((0, a.fp_rows.shape[1]))
+    a, b = (replace(a, fp_rows=none), b) if empty == "a" else (a, replace(b, fp_rows=none))
+    mixed = _mix(a, b, 0.5)
+    rows = FrameSampler(mixed)._fp_rows(np.random.default_rng(0), 500)
+    assert rows.shape == (500, a.fp_rows.shape[1]) and len(mixed.fp_rows) > 0

@@ -42,6 +42,11 @@ class EgoOverlay:
     mask: np.ndarray
     top: np.ndarray
 
+    @functools.cached_property
+    def top_min(self) -> int:
+        """The overlay's highest row (H when it is empty)."""
+        return int(self.top.min()) if self.top.size else int(self.mask.shape[0])
+
 
 @functools.lru_cache(maxsize=32)
 def ego_overlay(variant: int, width: int, height: int) -> EgoOverlay:
@@ -140,10 +145,16 @@ def clip_ground_truth(gt: ConeArrays, overlay: EgoOverlay) -> ConeArrays:
     The visible pixel count shrinks in proportion to the box height kept."""
     if gt.count == 0:
         return gt
-    boxes = np.asarray(gt["boxes"], np.float32).copy()
+    given = np.asarray(gt["boxes"], np.float32)
+    # a box whose bottom is above the overlay's highest row is never cut (the limit below is >= that row)
+    reach = np.flatnonzero(given[:, 3] > overlay.top_min)
+    if reach.size == 0:
+        return gt
+    boxes = given.copy()
     keep = np.ones(len(boxes), bool)
     W = overlay.top.shape[0]
-    for i, (x0, y0, x1, y1) in enumerate(boxes):
+    for i in reach.tolist():
+        x0, y0, x1, y1 = boxes[i]
         c0, c1 = int(max(0, np.floor(x0))), int(min(W, np.ceil(x1)))
         if c1 <= c0:
             continue

@@ -162,5 +162,8 @@ class FrameSampler:
         na, w = int(split), float(p.stats["fp_weight_b"])
         nb = len(rows) - na
         from_b = rng.random(m) < w
-        idx = np.where(from_b, na + rng.integers(0, max(nb, 1), m), rng.integers(0, max(na, 1), m))
-        return rows[idx]
+        in_b = na + rng.integers(0, max(nb, 1), m)
+        in_a = rng.integers(0, max(na, 1), m)
+        if nb == 0 or na == 0:  # one of the two fitted points logged no false positive: the other's rows
+            from_b[:] = nb > 0
+        return rows[np.where(from_b, in_b, in_a)]
