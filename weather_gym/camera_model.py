@@ -3,9 +3,9 @@ distortion and slight defocus, vignetting, exposure with highlight clipping, whi
 curve, sensor noise, and chroma subsampling / JPEG compression.
 
 ``CameraModel`` holds the parameters (frozen; the scenario TOML's ``[camera_model]`` table). Its
-defaults are the default camera of every env (``CameraModel() == CameraModel.realistic()``): a table or
-dict changes only the fields it names. ``enabled=False`` (``CameraModel.ideal()``, the study's "ideal"
-camera) leaves frames untouched.
+defaults are a realistic camera (``CameraModel() == CameraModel.realistic()``): a table or dict changes
+only the fields it names. ``enabled=False`` (``CameraModel.ideal()``, the study's "ideal" camera, the
+envs' default) leaves frames untouched.
 :class:`CameraPipeline` applies it to one camera size: per-channel look-up tables, a precomputed
 remap and vignetting gain, and a noise bank drawn from the episode's RNG, so a frame costs a few
 milliseconds at 672x376 and the same seed gives the same bytes. Lens distortion moves pixels, so
@@ -53,7 +53,7 @@ _BOUNDS: dict[str, tuple[float, float]] = {
 
 @dataclass(frozen=True)
 class CameraModel:
-    """Parameters of the finishing stage; the defaults are the default camera (``realistic()``).
+    """Parameters of the finishing stage; the defaults are a realistic camera (``realistic()``).
 
     Attributes:
         enabled: False = the ideal camera (frames pass unchanged; every other field is ignored).
@@ -103,7 +103,7 @@ class CameraModel:
 
     @classmethod
     def realistic(cls) -> CameraModel:
-        """The default camera (``CameraModel()``): a plausible machine-vision camera, a little
+        """``CameraModel()``: a plausible machine-vision camera, a little
         over-exposed (bright skies clip), mild barrel distortion and vignetting, slight softness,
         visible noise, 4:2:0 colour and JPEG at 90."""
         return cls(enabled=True, exposure_ev=0.6, white_balance=(1.0, 1.0, 1.04), contrast=1.15, vignetting=0.25,

@@ -53,12 +53,12 @@ def make_measured(clean_dir, gap_root):
 
 @pytest.fixture(scope="session")
 def realistic_clean_dir(gap_root):
-    """40 clean frames of the default (realistic) world and camera model, random looks and cameras."""
+    """40 clean frames of the realistic world and camera model, random looks and cameras."""
     from weather_gym.datasets import render_dataset
 
     out = gap_root / "realistic_clean"
     render_dataset(out, tracks=["small_track"], frames=CLEAN_FRAMES, seed=13, randomize=True,
-                   frames_per_episode=10, camera=GAP_CAMERA, progress=False)
+                   frames_per_episode=10, camera=GAP_CAMERA, progress=False, scene="realistic")
     return out
 
 

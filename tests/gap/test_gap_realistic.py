@@ -1,4 +1,4 @@
-"""The gap workflow on frames of the default world: the realistic scene through the default camera model.
+"""The gap workflow on frames of the realistic world through its camera model.
 
 Paired views re-render with their world, camera model and sensor noise (``render_view``), so clean data
 shows no gap; a hidden study effect (lens droplets, dimming light) is named. Effects that act on the

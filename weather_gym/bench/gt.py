@@ -61,7 +61,7 @@ def _iou(a, b) -> float:
 
 
 def compare_ground_truth(track_name: str, camera: CameraConfig, steps: int = 900, every: int = 3,
-                         scene: str = "realistic") -> dict[str, Any]:
+                         scene: str = "plain") -> dict[str, Any]:
     """Geometric against rendered ground truth on ``steps`` steps of a ground-truth lap (see the module doc)
     in the world ``scene`` (the realistic world's clutter hides cones that geometry still counts).
 

@@ -45,12 +45,12 @@ def register(sub) -> None:
     r.add_argument("--out", type=Path, required=True, help="output folder (never overwritten without --overwrite)")
     r.add_argument("--seed", type=int, default=0, help="master seed (default %(default)s): same seed, same bytes")
     r.add_argument("--randomize", action="store_true",
-                   help="domain randomisation per episode (realistic world; --scene plain: the plain world's): light, "
+                   help="domain randomisation per episode (realistic world unless --scene plain: then the plain world's): light, "
                         "ground/sky/clutter textures and colours, distractors, ego car, camera pose/FOV, camera "
                         "model (exposure, white balance, distortion, noise, JPEG); see docs/world.md")
-    r.add_argument("--scene", choices=("auto", "plain", "realistic"), default="realistic",
-                   help="world to render: realistic (default: with the realistic camera model) or plain (camera "
-                        "model off unless --randomize); auto = realistic (kept for older scripts)")
+    r.add_argument("--scene", choices=("auto", "plain", "realistic"), default="auto",
+                   help="world to render: plain (the default world, ideal camera) or realistic (with the "
+                        "realistic camera model); auto (default) = realistic with --randomize, else plain")
     r.add_argument("--randomize-ranges", type=Path, default=None, metavar="FILE.toml",
                    help="TOML file of randomisation ranges (key = [low, high]; keys as in RandomizeRanges)")
     r.add_argument("--randomize-set", action="append", default=[], metavar="KEY=LOW,HIGH",
@@ -129,7 +129,7 @@ def _render(args) -> int:
     ranges = ranges.override(sets)
     if (args.randomize_ranges or sets) and not args.randomize:
         raise InputError("--randomize-ranges / --randomize-set need --randomize")
-    scene = "realistic" if args.scene == "auto" else args.scene
+    scene = ("realistic" if args.randomize else "plain") if args.scene == "auto" else args.scene
     window = None
     if args.start_window is not None:
         parts = args.start_window.split(",")

@@ -43,7 +43,7 @@ def register(sub) -> None:
                    help="track(s) to render in unpaired mode when the records name none (repeatable)")
     p.add_argument("--sim-frames", type=int, default=None, help="frames to render in unpaired mode (default: as measured)")
     p.add_argument("--scene", choices=SCENES, default=None,
-                   help="simulator world of unpaired / did renders (default: the records' world, else realistic)")
+                   help="simulator world of unpaired / did renders (default: the records' world, else the default world)")
     p.add_argument("--held-out", type=float, default=0.5, help="fraction of frames held out (default %(default)s)")
     p.add_argument("--fit-frames", type=int, default=32,
                    help="fitting frames used by the parameter search (default %(default)s)")

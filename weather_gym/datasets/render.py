@@ -55,7 +55,7 @@ def episode_plan(tracks: Sequence[str], frames: int, frames_per_episode: int) ->
     return plan
 
 
-def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "realistic"):
+def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "plain"):
     return make_env(track=track, camera=camera, laps=0, terminate_off_track=True, max_episode_steps=max_steps,
                     episode_statistics=False, sim=SimConfig(scene=scene))
 
@@ -103,7 +103,7 @@ def render_dataset(
     progress: bool = True,
     overwrite: bool = False,
     resume: bool = False,
-    scene: str = "realistic",
+    scene: str = "plain",
     ranges=None,
     start_window: tuple[float, float] | None = None,
 ) -> Path:
@@ -117,7 +117,7 @@ def render_dataset(
             field of view from ``ranges`` (``weather_gym.sim.randomize.sample_realistic``); otherwise
             every frame uses the default look (realistic scene: ``REALISTIC_LOOK`` and ``CameraModel.realistic()``;
             plain scene: ``DEFAULT_LOOK`` and the camera model off, as the plain world always had).
-        scene: ``"realistic"`` (the default world) or ``"plain"`` (``SimConfig.scene``).
+        scene: ``"plain"`` (the default world) or ``"realistic"`` (``SimConfig.scene``).
         ranges: ``RandomizeRanges`` of the realistic randomisation (None: the defaults).
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
         frames_per_episode: frames saved per episode before a new start point / look is drawn.

@@ -194,7 +194,7 @@ class ConeTrackEnv(gym.Env):
     def _set_pipeline(self, model: CameraModel, rng: np.random.Generator) -> None:
         """This episode's camera pipeline; its noise comes from a generator seeded from the episode's
         RNG. The seed is drawn with the camera model on or off, so the study's ideal camera
-        (``enabled=False``) and the default one see the same episode (odometry noise, random looks)."""
+        (``enabled=False``, the default) and a camera model see the same episode (odometry noise, random looks)."""
         noise_seed = int(rng.integers(0, 2**63 - 1))
         if not model.enabled or not self.config.camera_images:  # render-free: no frame to finish
             self._pipeline = self._pipeline_rng = None

@@ -7,7 +7,7 @@ is re-rendered with :meth:`~weather_gym.datasets.CocoDataset.render_view`.
 
 **Unpaired mode** (no poses, e.g. a real dataset of the same track) renders as many frames of the
 same track(s) with the ground-truth driver (:func:`~weather_gym.datasets.render_dataset`), in the world
-the records name (``scene``; the default, realistic world for a real recording); the
+the records name (``scene``; the default world for a real recording, ``--scene`` to choose); the
 comparison then works on distributions over the two sets.
 
 The clean renders are written once into ``cache_dir`` as a COCO folder (an interrupted render
@@ -38,6 +38,7 @@ from weather_gym.camera import CameraConfig
 from weather_gym.datasets.coco import ANNOTATIONS, JOURNAL, CocoWriter, load_coco
 from weather_gym.datasets.render import ViewRenderer, render_dataset
 from weather_gym.errors import InputError
+from weather_gym.sim.config import SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK
 
 __all__ = ["FrameSet", "GapData", "MIN_FRAMES", "COMPARE_WIDTH", "MODES", "load_frames", "paired_check", "simulate",
@@ -368,11 +369,11 @@ def _scene_of(ds: Any) -> str:
     """The world the records say they were rendered in, when they all agree; otherwise (a real recording)
     the default world."""
     scenes = {rec.get("scene") for rec in ds.images}
-    return str(scenes.pop()) if len(scenes) == 1 and None not in scenes else "realistic"
+    return str(scenes.pop()) if len(scenes) == 1 and None not in scenes else SimConfig().scene
 
 
 def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
-                     progress: bool, scene: str = "realistic") -> Path:
+                     progress: bool, scene: str = "plain") -> Path:
     key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict(),
                 "scene": scene})
     out = cache_dir / f"unpaired-{key}"
@@ -435,7 +436,7 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         reference: measured clear frames of the same camera (same-camera and did modes).
         tracks: tracks to render in unpaired and did modes (default: the records' ``track`` values).
         sim_frames: frames to render in unpaired / did mode (default: as many as measured / reference).
-        scene: the world of unpaired / did renders (default: the records' ``scene``, else ``"realistic"``).
+        scene: the world of unpaired / did renders (default: the records' ``scene``, else the default world).
         held_out: fraction of frames held out for the final comparison.
         compare_width: frames wider than this are scaled down once on loading (None: never).
     """

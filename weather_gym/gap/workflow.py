@@ -97,8 +97,8 @@ class GapConfig:
             clear reference; see :func:`~weather_gym.gap.simulate.simulate`).
         tracks: tracks to render in unpaired and did modes (default: the records' tracks).
         sim_frames: frames to render in unpaired / did mode (default: as many as measured).
-        scene: the simulator world of unpaired / did renders (``"realistic"`` or ``"plain"``; default: the
-            one the records name, else the default realistic world).
+        scene: the simulator world of unpaired / did renders (``"plain"`` or ``"realistic"``; default: the
+            one the records name, else the default world).
         compare_width: frames wider than this are scaled down once on loading.
         held_out: fraction of the frames held out for the reported gaps.
         fit_frames: at most this many fitting frames are used by the parameter search.
