@@ -300,3 +300,18 @@ def test_track_pickles_for_worker_processes():
     u = pickle.loads(pickle.dumps(t))
     assert u.centerline.tobytes() == t.centerline.tobytes() and u.finish_s == t.finish_s
     assert u.project(18.5, 0.0, s_hint=50.0).s == pytest.approx(t.project(18.5, 0.0, s_hint=50.0).s)
+
+
+@pytest.mark.parametrize("name", ["peanut", "skidpad", "acceleration"])
+def test_one_point_projection_gives_the_floats_of_the_array_path(name):
+    # project(x, y) on plain floats takes a faster path (every env step); it must not change a result
+    t = load_track(name)
+    rng = np.random.default_rng(5)
+    s = rng.uniform(-5.0, t.length + 5.0, 60)
+    x, y, _ = t.point_at(np.clip(s, 0.0, t.length))
+    x, y = x + rng.normal(0, 1.5, 60), y + rng.normal(0, 1.5, 60)
+    for k in range(60):
+        for hint in (None, float(s[k])):
+            one = t.project(float(x[k]), float(y[k]), s_hint=hint)
+            arr = t.project(np.array([x[k]]), np.array([y[k]]), s_hint=hint)
+            assert (one.s, one.lateral, one.heading, one.index) == (arr.s[0], arr.lateral[0], arr.heading[0], arr.index[0])

@@ -199,10 +199,9 @@ class Track:
         a, d, seg_len, len2, s_a, _ = self._segs
         if isinstance(x, float | int) and isinstance(y, float | int):  # one point (every env step)
             return self._project_one(float(x), float(y), s_hint, window)
-        else:
-            px, py = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-            scalar = px.ndim == 0
-            pts = np.column_stack([px.ravel(), py.ravel()])
+        px, py = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        scalar = px.ndim == 0
+        pts = np.column_stack([px.ravel(), py.ravel()])
         cand = np.arange(len(a))
         if s_hint is not None:
             ds = s_a - float(s_hint)
@@ -235,7 +234,6 @@ class Track:
         heading = self._heading_at(idx, tk)
         if scalar:
             return Projection(float(s[0]), float(lateral[0]), float(heading[0]), int(idx[0]))
-        assert px is not None
         shape = px.shape
         return Projection(s.reshape(shape), lateral.reshape(shape), heading.reshape(shape), idx.reshape(shape))
 
@@ -246,8 +244,9 @@ class Track:
                 np.ascontiguousarray(d[:, 1]), seg_len / 2.0)
 
     def _project_one(self, x: float, y: float, s_hint: float | None, window: float) -> Projection:
-        """:meth:`project` of one point: the same arithmetic on 1-D arrays and floats, fewer array calls."""
-        _, d, seg_len, len2, s_a, _ = self._segs
+        """:meth:`project` of one point: the same arithmetic on 1-D arrays and floats, fewer array calls
+        (tests/test_tracks.py checks that both paths give the same floats)."""
+        _, _, seg_len, len2, s_a, _ = self._segs
         ax, ay, dx, dy, half = self._seg_columns
         if s_hint is None:
             cand = None

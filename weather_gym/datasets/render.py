@@ -60,6 +60,12 @@ def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "pl
                     episode_statistics=False, sim=SimConfig(scene=scene))
 
 
+def _start_end(track) -> float:
+    """The arc length up to which start points are drawn: the whole loop, or on an open track up to
+    25 m before the finish (room to drive and save frames)."""
+    return float(track.length) if track.closed else max(float(track.finish_s) - 25.0, 1.0)
+
+
 def check_start_window(track, window: tuple[float, float] | None) -> None:
     """Refuse a start window that is empty or, on an open track, leaves the drivable arc length."""
     if window is None:
@@ -68,7 +74,7 @@ def check_start_window(track, window: tuple[float, float] | None) -> None:
     if not (math.isfinite(low) and math.isfinite(high)) or low >= high:
         raise InputError(f"start window must be two finite metres LOW < HIGH around the start line, got {window}")
     if not track.closed:
-        end = max(float(track.finish_s) - 25.0, 1.0)
+        end = _start_end(track)
         a, b = float(track.start_line_s) + low, float(track.start_line_s) + high
         if a < 0.0 or b > end:
             raise InputError(f"start window {low:g},{high:g} m around the start line of open track {track.name!r} "
@@ -78,8 +84,7 @@ def check_start_window(track, window: tuple[float, float] | None) -> None:
 def _start_pose(track, rng: np.random.Generator, lateral_max: float,
                 window: tuple[float, float] | None = None) -> tuple[float, float, float]:
     if window is None:
-        end = float(track.length) if track.closed else max(float(track.finish_s) - 25.0, 1.0)
-        s = float(rng.uniform(0.0, end))
+        s = float(rng.uniform(0.0, _start_end(track)))
     else:  # metres of arc length relative to the start line (negative: before it)
         s = float(track.start_line_s) + float(rng.uniform(float(window[0]), float(window[1])))
     x, y, h = track.point_at(s)

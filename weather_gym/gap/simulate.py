@@ -373,7 +373,7 @@ def _scene_of(ds: Any) -> str:
 
 
 def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
-                     progress: bool, scene: str = "plain") -> Path:
+                     progress: bool, scene: str) -> Path:
     key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict(),
                 "scene": scene})
     out = cache_dir / f"unpaired-{key}"
