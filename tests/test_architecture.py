@@ -61,9 +61,11 @@ HEAVY: dict[str, set[str]] = {
     "onnx": {"perception_tools"},
     "ray": {"evaluation", "cli"},
     "stable_baselines3": {"agents"},
+    "numba": {"sim"},
 }
 """Heavy package -> the layers that may import it. ``bench`` compares against a torch baseline;
-``agents`` holds the SB3 feature extractor (a torch module)."""
+``agents`` holds the SB3 feature extractor (a torch module); ``numba`` compiles the geometric ground
+truth (``sim.visibility``) and stays out of the other layers (a compile costs seconds on a cold cache)."""
 
 NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather"}}
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
+import numba
 import numpy as np
 
 from weather_gym.camera import CameraConfig
@@ -42,34 +43,10 @@ from weather_gym.sim.meshes import cone_dimensions
 __all__ = ["visible_cones", "empty_ground_truth"]
 
 _DIMS = [cone_dimensions(CONE_HEIGHT_M[c], CONE_BASE_M[c]) for c in CONE_CLASSES]
-_HEIGHT = np.array([d["height"] for d in _DIMS])
-_PLATE_HALF = np.array([d["plate_half"] for d in _DIMS])
-_PLATE_H = np.array([d["plate_h"] for d in _DIMS])
-_R0 = np.array([d["r0"] for d in _DIMS])
-_R1 = np.array([d["r1"] for d in _DIMS])
-_CORNERS = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
-_RADIUS = _PLATE_HALF * math.sqrt(2.0)  # the plate's half-diagonal: a cone fits in this circle
-_FACE_SIGN = np.array([[1.0], [-1.0]])
-_LEFT_RIGHT = (np.array([12, 13]), np.array([13, 12]))
-_BOX_SIGN = np.array([-1.0, 1.0, -1.0, 1.0])
-_XYXY = np.array([0, 2, 1, 3])
-_TWO = np.arange(2)[None, :, None]
-_min, _max = np.minimum.reduce, np.maximum.reduce  # ufunc reductions: no Python wrapper per call
-
-
-def _template() -> np.ndarray:
-    """Key points per class (4, 14, 3) about the mesh origin; the top disc's (8-11) and the frustum
-    bottom's (12-13) horizontal offsets depend on the view and are filled in per call."""
-    t = np.zeros((len(CONE_CLASSES), 14, 3))
-    t[:, 0:4, :2] = _CORNERS[None] * _PLATE_HALF[:, None, None]
-    t[:, 4:8, :2] = t[:, 0:4, :2]
-    t[:, 4:8, 2] = _PLATE_H[:, None]
-    t[:, 8:12, 2] = _HEIGHT[:, None]
-    t[:, 12:14, 2] = _PLATE_H[:, None]
-    return t
-
-
-_TEMPLATE = _template()
+# per class: height, plate half-width, plate height, frustum radius at the plate, at the top
+_SHAPE = np.array([[d["height"], d["plate_half"], d["plate_h"], d["r0"], d["r1"]] for d in _DIMS])
+_UPRIGHT_COS = math.cos(math.radians(3.0))  # a knocked cone tilted less than this still stands (slid)
+_NO_TILT = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3)))
 
 
 def empty_ground_truth() -> ConeArrays:
@@ -77,15 +54,6 @@ def empty_ground_truth() -> ConeArrays:
     return ConeArrays(boxes=np.zeros((0, 4), np.float32), classes=np.zeros((0,), np.int64),
                       cone_ids=np.zeros((0,), np.int64), ranges=np.zeros((0,), np.float32),
                       bearings=np.zeros((0,), np.float32), pixels=np.zeros((0,), np.int64))
-
-
-def _camera_axes(heading: float, pitch: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Forward, right and up unit vectors of a camera with ``heading`` (yaw) and downward ``pitch``."""
-    ch, sh, cp, sp = math.cos(heading), math.sin(heading), math.cos(pitch), math.sin(pitch)
-    fwd = np.array([ch * cp, sh * cp, -sp])
-    right = np.array([sh, -ch, 0.0])
-    up = np.array([ch * sp, sh * sp, cp])
-    return fwd, right, up
 
 
 def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_xy: np.ndarray,
@@ -100,172 +68,231 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
     Returns the same ``ConeArrays`` fields as the rendered ground truth, sorted by cone id.
     """
     cam = camera
-    eye = np.asarray(eye, dtype=np.float64).reshape(3)
-    xy = np.asarray(cone_xy, dtype=np.float64).reshape(-1, 2)
-    cls = np.asarray(classes, dtype=np.int64).reshape(-1)
+    ex, ey, ez = (float(t) for t in eye)
+    xy = np.ascontiguousarray(cone_xy, dtype=np.float64).reshape(-1, 2)
+    cls = np.ascontiguousarray(classes, dtype=np.int64).reshape(-1)
+    if tilted:
+        keys = sorted(tilted)
+        tilt = (np.array(keys, np.int64),
+                np.array([np.asarray(tilted[i][0], np.float64).reshape(3) for i in keys]),
+                np.array([np.asarray(tilted[i][1], np.float64).reshape(3, 3) for i in keys]))
+    else:
+        tilt = _NO_TILT
+    ids, boxes, ranges, bearings, pixels = _visible(
+        ex, ey, ez, float(heading), float(pitch), float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy),
+        float(cam.near), float(cam.far), int(cam.width), int(cam.height), xy, cls, *tilt, _SHAPE)
+    if ids.size == 0:
+        return empty_ground_truth()
+    return ConeArrays.trusted({"boxes": boxes, "classes": cls[ids], "cone_ids": ids, "ranges": ranges,
+                               "bearings": bearings, "pixels": pixels})
+
+
+@numba.njit(cache=True, nogil=True)
+def _visible(ex, ey, ez, heading, pitch, fx, fy, cx, cy, near, far, width, height, xy, cls,
+             tilt_idx, tilt_org, tilt_rot, shape):  # pragma: no cover (compiled; tested through visible_cones)
+    """The kernel of :func:`visible_cones`: (ids, boxes, ranges, bearings, pixels) of the visible cones."""
+    n = xy.shape[0]
     ch, sh, cp, sp = math.cos(heading), math.sin(heading), math.cos(pitch), math.sin(pitch)
-    # the rows of (right, up, fwd) as columns (see _camera_axes), built from floats in one call
-    axes = np.array([[sh, ch * sp, ch * cp], [-ch, sh * sp, sh * cp], [0.0, cp, -sp]])
-    fwd, right = axes[:, 2], axes[:, 0]
-    fx, fy, cx, cy, near, far = cam.fx, cam.fy, cam.cx, cam.cy, cam.near, cam.far
-    width, height = int(cam.width), int(cam.height)
+    # camera axes: right, up, forward (world frame)
+    rx, ry, rz = sh, -ch, 0.0
+    ux, uy, uz = ch * sp, sh * sp, cp
+    fwx, fwy, fwz = ch * cp, sh * cp, -sp
+    fh = max(math.hypot(fwx, fwy), 1e-9)
+    hx, hy = fwx / fh, fwy / fh
+    tpos = np.full(n, -1, np.int64)
+    for t in range(tilt_idx.shape[0]):
+        tpos[tilt_idx[t]] = t
 
     # cull: in front, before the far plane, inside the field of view (of its base or its top,
     # whichever is deeper along the pitched optical axis)
-    d = xy - eye[:2]
-    z_flat = d @ fwd[:2]
-    z_deep = z_flat + np.maximum(-eye[2] * fwd[2], (_HEIGHT[cls] - eye[2]) * fwd[2])
-    radius = _RADIUS[cls]
-    keep = (z_deep + radius > near) & (z_flat - radius < far) & (
-        np.abs(d @ right[:2]) - radius < (z_deep + radius) * (0.5 * width / fx))
-    if tilted:
-        keep[list(tilted)] = True  # knocked cones may have slid or rolled anywhere: always projected
-    idx = np.flatnonzero(keep)
-    if idx.size == 0:
-        return empty_ground_truth()
-    c = cls[idx]
-    k = idx.size
+    half_fov = 0.5 * width / fx
+    kept = np.empty(n, np.int64)
+    k = 0
+    for i in range(n):
+        c = cls[i]
+        dx, dy = xy[i, 0] - ex, xy[i, 1] - ey
+        z_flat = dx * fwx + dy * fwy
+        z_deep = z_flat + max(-ez * fwz, (shape[c, 0] - ez) * fwz)
+        radius = shape[c, 1] * math.sqrt(2.0)  # the plate's half-diagonal: a cone fits in this circle
+        if tpos[i] >= 0 or (z_deep + radius > near and z_flat - radius < far
+                            and abs(dx * rx + dy * ry) - radius < (z_deep + radius) * half_fov):
+            kept[k] = i
+            k += 1
 
-    # key points (K, 14, 3) relative to the mesh origin: 4 bottom and 4 top corners of the plate, the
-    # top disc's extremes (left, right, near, far: it is tiny), the frustum bottom's extremes seen from
-    # the eye (perpendicular to the line of sight, where a circle's silhouette is widest)
-    fwd_h = fwd[:2] / max(math.hypot(fwd[0], fwd[1]), 1e-9)
-    template = _TEMPLATE.copy()
-    rx, ry, hx, hy = float(right[0]), float(right[1]), float(fwd_h[0]), float(fwd_h[1])
-    template[:, 8:12, :2] = np.array([[rx, ry], [-rx, -ry], [-hx, -hy], [hx, hy]])[None] * _R1[:, None, None]
-    pts = template[c]
-    los = d[idx]
-    perp = np.empty((k, 2))
-    np.negative(los[:, 1], out=perp[:, 0])
-    perp[:, 1] = los[:, 0]
-    perp *= (_R0[c] / np.maximum(np.hypot(los[:, 0], los[:, 1]), 1e-9))[:, None]
-    pts[:, 12, :2] = perp
-    np.negative(perp, out=pts[:, 13, :2])
-    origin = np.zeros((k, 3))
-    origin[:, :2] = los
-    origin[:, 2] = -eye[2]
-    upright = np.ones(k, dtype=bool)
-    if tilted:
-        pos = {int(i): j for j, i in enumerate(idx)}
-        for i, (org, rot) in tilted.items():
-            j = pos[int(i)]
-            rot = np.asarray(rot, dtype=np.float64).reshape(3, 3)
-            origin[j] = np.asarray(org, dtype=np.float64).reshape(3) - eye
-            pts[j] = pts[j] @ rot.T
-            upright[j] = rot[2, 2] > math.cos(math.radians(3.0))  # standing (slid, not tipped)
-    pts += origin[:, None, :]
-    cam_xyz = pts @ axes
-    zc = cam_xyz[..., 2]
-    z_min = _min(zc, axis=1)
-    in_front = (z_min > near) & (z_min < far)  # every key point beyond the near plane, one before the far
-    zc = np.maximum(zc, near)
-    u = cx + fx * cam_xyz[..., 0] / zc
-    v = cy - fy * cam_xyz[..., 1] / zc
+    # per kept cone: 14 key points projected (4 bottom and 4 top corners of the plate, the top disc's
+    # extremes: left, right, near, far, and the frustum bottom's extremes seen from the eye,
+    # perpendicular to the line of sight, where a circle's silhouette is widest), then the
+    # silhouette's parameters (pixels): box, flat top, frustum sides, plate outlines
+    pu = np.empty(14)
+    pv = np.empty(14)
+    p = np.empty((14, 3))
+    uq = np.empty((2, 4))
+    vq = np.empty((2, 4))
+    j_lo = np.zeros(k, np.int64)
+    n_cols = np.zeros(k, np.int64)
+    bottom_low = np.empty(k)
+    # per cone: v1, upright, tl, tr, ub_l, ub_r, side_l, side_r, then per plate face (bottom, top):
+    # outline u1, u2, v1, v2, s01, s12, s23
+    par = np.empty((k, 22))
+    corners = ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))
+    for j in range(k):
+        i = kept[j]
+        c = cls[i]
+        hgt, ph, plh, r0, r1 = shape[c, 0], shape[c, 1], shape[c, 2], shape[c, 3], shape[c, 4]
+        lx, ly = xy[i, 0] - ex, xy[i, 1] - ey
+        for q in range(4):
+            p[q, 0] = corners[q][0] * ph
+            p[q, 1] = corners[q][1] * ph
+            p[q, 2] = 0.0
+            p[q + 4, 0] = p[q, 0]
+            p[q + 4, 1] = p[q, 1]
+            p[q + 4, 2] = plh
+        disc = ((rx, ry), (-rx, -ry), (-hx, -hy), (hx, hy))
+        for q in range(4):
+            p[8 + q, 0] = disc[q][0] * r1
+            p[8 + q, 1] = disc[q][1] * r1
+            p[8 + q, 2] = hgt
+        s = r0 / max(math.hypot(lx, ly), 1e-9)
+        p[12, 0], p[12, 1], p[12, 2] = -ly * s, lx * s, plh
+        p[13, 0], p[13, 1], p[13, 2] = ly * s, -lx * s, plh
+        t = tpos[i]
+        upright = True
+        if t >= 0:  # knocked: rotated about its mesh origin, wherever it slid or rolled
+            ox, oy, oz = tilt_org[t, 0] - ex, tilt_org[t, 1] - ey, tilt_org[t, 2] - ez
+            rot = tilt_rot[t]
+            for q in range(14):
+                a, b, z = p[q, 0], p[q, 1], p[q, 2]
+                p[q, 0] = a * rot[0, 0] + b * rot[0, 1] + z * rot[0, 2]
+                p[q, 1] = a * rot[1, 0] + b * rot[1, 1] + z * rot[1, 2]
+                p[q, 2] = a * rot[2, 0] + b * rot[2, 1] + z * rot[2, 2]
+            upright = rot[2, 2] > _UPRIGHT_COS
+        else:
+            ox, oy, oz = lx, ly, -ez
+        z_min = np.inf
+        for q in range(14):
+            a, b, z = p[q, 0] + ox, p[q, 1] + oy, p[q, 2] + oz
+            xc = a * rx + b * ry + z * rz
+            yc = a * ux + b * uy + z * uz
+            zc = a * fwx + b * fwy + z * fwz
+            z_min = min(z_min, zc)
+            zc = max(zc, near)
+            pu[q] = cx + fx * xc / zc
+            pv[q] = cy - fy * yc / zc
+        in_front = near < z_min < far  # every key point beyond the near plane, one before the far
+        u1, u2, v1 = pu[0], pu[0], pv[0]
+        for q in range(1, 12):
+            u1, u2, v1 = min(u1, pu[q]), max(u2, pu[q]), min(v1, pv[q])
+        bl, br = (12, 13) if pu[12] <= pu[13] else (13, 12)  # the frustum bottom's left, right extreme
+        ubl, ubr, vbl, vbr = pu[bl], pu[br], pv[bl], pv[br]
+        tl, tr = min(pu[8], pu[9]), max(pu[8], pu[9])
+        side_l = (vbl - v1) / abs(tl - ubl) if tl - ubl > 0 else 0.0
+        side_r = (vbr - v1) / abs(tr - ubr) if tl - ubl > 0 and ubr > tr else 0.0
+        # plate outlines: the lower chain of the bottom face and the upper chain of the top face (its
+        # v negated, so both are "the largest v"), through the face's corners sorted by u: corners
+        # off the chain are lifted onto the chord between the outer two (the face is convex)
+        for f in range(2):
+            sign = 1.0 if f == 0 else -1.0
+            for q in range(4):  # insertion sort by u (stable)
+                a, b = pu[4 * f + q], pv[4 * f + q] * sign
+                r = q
+                while r > 0 and uq[f, r - 1] > a:
+                    uq[f, r], vq[f, r] = uq[f, r - 1], vq[f, r - 1]
+                    r -= 1
+                uq[f, r], vq[f, r] = a, b
+            chord = (vq[f, 3] - vq[f, 0]) / (uq[f, 3] - uq[f, 0]) if uq[f, 3] != uq[f, 0] else 0.0
+            if not math.isfinite(chord):
+                chord = 0.0
+            for q in (1, 2):
+                vq[f, q] = max(vq[f, q], vq[f, 0] + chord * (uq[f, q] - uq[f, 0]))
+            o = 8 + 7 * f
+            par[j, o], par[j, o + 1], par[j, o + 2], par[j, o + 3] = uq[f, 1], uq[f, 2], vq[f, 1], vq[f, 2]
+            for q in range(3):
+                du = uq[f, q + 1] - uq[f, q]
+                sl = (vq[f, q + 1] - vq[f, q]) / du if du != 0.0 else 0.0
+                par[j, o + 4 + q] = sl if math.isfinite(sl) else 0.0
+        par[j, 0], par[j, 1], par[j, 2], par[j, 3] = v1, 1.0 if upright else 0.0, tl, tr
+        par[j, 4], par[j, 5], par[j, 6], par[j, 7] = ubl, ubr, side_l, side_r
+        bottom_low[j] = max(max(vq[0, 0], vq[0, 1]), max(vq[0, 2], vq[0, 3]))
+        # pixel columns whose centre lies inside [u1, u2], clipped to the image
+        if in_front and v1 < height and bottom_low[j] > 0:
+            lo = max(np.ceil(u1 - 0.5), 0.0)
+            hi = min(np.floor(u2 - 0.5), width - 1.0)
+            if hi >= lo:
+                j_lo[j] = int(lo)
+                n_cols[j] = int(hi) - int(lo) + 1
 
-    # silhouette parameters per cone (pixels): its box; the flat top; the frustum's sides from the
-    # top disc to the plate; the plate's upper outline (top face) and lower outline (bottom face),
-    # each: leftmost corner -> highest / lowest corner -> rightmost corner
-    u1, u2 = _min(u[:, :12], axis=1), _max(u[:, :12], axis=1)
-    v1 = _min(v[:, :12], axis=1)
-    rows = np.arange(k)[:, None]
-    base = np.where(u[:, 12:13] <= u[:, 13:14], *_LEFT_RIGHT)  # (K, 2): left, right extreme
-    ub, vb = u[rows, base], v[rows, base]
-    # every per-cone parameter of the column stage in one (K, 11, 2) array, gathered per column in
-    # one indexing: (v1, upright), (tl, tr), ub, side, then the plate outlines' u1, u2, v1, v2, s01,
-    # s12, s23 (each: bottom face, top face)
-    par = np.empty((k, 11, 2))
-    t_lr = par[:, 1]
-    tl, tr = np.minimum(u[:, 8], u[:, 9], out=t_lr[:, 0]), np.maximum(u[:, 8], u[:, 9], out=t_lr[:, 1])
-    # plate outlines: the lower chain of the bottom face and the upper chain of the top face (its v
-    # negated, so both are "the largest v"), through the face's corners sorted by u: corners off
-    # the chain are lifted onto the chord between the outer two (the face is convex)
-    uq = u[:, :8].reshape(k, 2, 4)  # [bottom face, top face]
-    vq = v[:, :8].reshape(k, 2, 4) * _FACE_SIGN
-    by_u = np.argsort(uq, axis=2)
-    sel = (rows[:, :, None], _TWO, by_u)  # = take_along_axis(., by_u, axis=2)
-    uq, vq = uq[sel], vq[sel]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        chord = (vq[..., 3:] - vq[..., :1]) / (uq[..., 3:] - uq[..., :1])
-        chord = np.where(np.isfinite(chord), chord, 0.0)
-        vq[..., 1:3] = np.maximum(vq[..., 1:3], vq[..., :1] + chord * (uq[..., 1:3] - uq[..., :1]))
-        slope = (vq[..., 1:] - vq[..., :-1]) / (uq[..., 1:] - uq[..., :-1])  # (K, 2, 3)
-        slope = np.where(np.isfinite(slope), slope, 0.0)
-        side = np.where(tl[:, None] - ub[:, :1] > 0, (vb - v1[:, None]) / np.abs(t_lr - ub), 0.0)
-    side[:, 1] = np.where(ub[:, 1] > tr, side[:, 1], 0.0)
+    # nearest first (lowest point of the plate); in each column a cone shows only above the tops
+    # of the nearer cones there (the "skyline")
+    order = np.argsort(-bottom_low, kind="mergesort")
+    sky = np.full(width, np.inf)
+    lo_col = np.full(k, width, np.int64)
+    hi_col = np.full(k, -1, np.int64)
+    lo_row = np.full(k, np.inf)
+    hi_row = np.full(k, -np.inf)
+    pixels = np.zeros(k, np.int64)
+    for j in order:
+        if n_cols[j] == 0:
+            continue
+        vt, up, ptl, ptr, pbl, pbr, psl, psr = (par[j, 0], par[j, 1], par[j, 2], par[j, 3], par[j, 4],
+                                                par[j, 5], par[j, 6], par[j, 7])
+        for col in range(j_lo[j], j_lo[j] + n_cols[j]):
+            uc = col + 0.5
+            if uc < pbl or uc > pbr:
+                frustum_top = np.inf
+            elif uc < ptl:
+                frustum_top = vt + psl * (ptl - uc)
+            elif uc > ptr:
+                frustum_top = vt + psr * (uc - ptr)
+            else:
+                frustum_top = vt
+            chain0, chain1 = 0.0, 0.0
+            for f in range(2):
+                o = 8 + 7 * f
+                o_u1, o_u2, o_v1, o_v2 = par[j, o], par[j, o + 1], par[j, o + 2], par[j, o + 3]
+                if uc < o_u1:
+                    ch_ = o_v1 + par[j, o + 4] * (uc - o_u1)
+                elif uc < o_u2:
+                    ch_ = o_v1 + par[j, o + 5] * (uc - o_u1)
+                else:
+                    ch_ = o_v2 + par[j, o + 6] * (uc - o_u2)
+                if f == 0:
+                    chain0 = ch_
+                else:
+                    chain1 = ch_
+            bottom = chain0
+            top = min(frustum_top, -chain1) if up > 0 else vt
+            above = sky[col]
+            sky[col] = min(above, top)
+            row_a = np.ceil(max(top, 0.0) - 0.5)
+            row_b = np.ceil(min(min(bottom, above), float(height)) - 0.5)
+            if row_b > row_a:
+                pixels[j] += int(row_b - row_a)
+                lo_col[j] = min(lo_col[j], col)
+                hi_col[j] = max(hi_col[j], col + 1)
+                lo_row[j] = min(lo_row[j], row_a)
+                hi_row[j] = max(hi_row[j], row_b)
 
-    # pixel columns whose centre lies inside [u1, u2], clipped to the image; cones ordered nearest
-    # first (lowest point of the plate), so that within a column the pairs run from near to far
-    bottom_low = _max(vq[:, 0], axis=1)
-    j_lo = np.maximum(np.ceil(u1 - 0.5), 0).astype(np.int64)
-    n_cols = np.minimum(np.floor(u2 - 0.5), width - 1).astype(np.int64) - j_lo + 1
-    n_cols = np.where(in_front & (v1 < height) & (bottom_low > 0), np.maximum(n_cols, 0), 0)
-    near_first = np.argsort(-bottom_low, kind="stable")
-    near_first = near_first[n_cols[near_first] > 0]
-    if near_first.size == 0:
-        return empty_ground_truth()
-    widths = n_cols[near_first]
-    m = int(np.add.reduce(widths))
-    starts = np.cumsum(widths) - widths
-    slot = np.repeat(np.arange(near_first.size), widths)
-    cone = near_first[slot]
-    col = j_lo[cone] + (np.arange(m) - starts[slot])
-    par[:, 0, 0] = v1
-    par[:, 0, 1] = upright
-    par[:, 2] = ub
-    par[:, 3] = side
-    par[:, 4:6] = uq[..., 1:3].transpose(0, 2, 1)  # each plate face's outline: u1, u2, v1, v2, s01, s12, s23
-    par[:, 6:8] = vq[..., 1:3].transpose(0, 2, 1)
-    par[:, 8:11] = slope.transpose(0, 2, 1)
-    q = par[cone]  # (M, 11, 2)
-    vt, up_, ptl, ptr, pbl, pbr, psl, psr = q[:, 0, 0], q[:, 0, 1], *q[:, 1:4].reshape(m, 6).T
-    uc = col + 0.5
-
-    # the silhouette in each column: top = min(frustum, plate top face), bottom = plate bottom face
-    frustum_top = np.where(uc < ptl, vt + psl * (ptl - uc), np.where(uc > ptr, vt + psr * (uc - ptr), vt))
-    frustum_top[(uc < pbl) | (uc > pbr)] = np.inf
-    uc2 = uc[:, None]
-    o_u1, o_u2, o_v1, o_v2, o_s01, o_s12, o_s23 = q[:, 4:].transpose(1, 0, 2)  # each (M, 2)
-    du1 = uc2 - o_u1
-    chain = np.where(uc2 < o_u1, o_v1 + o_s01 * du1, np.where(uc2 < o_u2, o_v1 + o_s12 * du1, o_v2 + o_s23 * (uc2 - o_u2)))
-    bottom = chain[:, 0]
-    top = np.where(up_ > 0, np.minimum(frustum_top, -chain[:, 1]), vt)
-
-    # occlusion: going near to far in each column, a cone shows only above the nearer cones' tops
-    order = np.argsort(col, kind="stable")
-    col_s = col[order]
-    new_col = np.empty(m, dtype=bool)
-    new_col[0] = True
-    np.not_equal(col_s[1:], col_s[:-1], out=new_col[1:])
-    shift = np.cumsum(new_col) * (4.0 * (height + 1) + 4.0 * _max(np.abs(top)))
-    running = np.minimum.accumulate(top[order] - shift) + shift
-    sky = np.empty(m)
-    sky[order[1:]] = np.where(new_col[1:], np.inf, running[:-1])
-    sky[order[0]] = np.inf
-
-    row_a = np.ceil(np.maximum(top, 0.0) - 0.5)
-    row_b = np.ceil(np.minimum(np.minimum(bottom, sky), float(height)) - 0.5)
-    count = np.maximum(row_b - row_a, 0.0)
-    seen = count > 0
-    never = -float(width + height + 10)
-    extents = np.empty((m, 5))
-    np.negative(col, out=extents[:, 0], casting="unsafe")
-    np.add(col, 1, out=extents[:, 1], casting="unsafe")
-    np.negative(row_a, out=extents[:, 2])
-    extents[:, 3] = row_b
-    np.copyto(extents[:, :4], never, where=~seen[:, None])
-    extents[:, 4] = count
-    ext = np.maximum.reduceat(extents, starts, axis=0)
-    pixels = np.add.reduceat(count, starts)
-    vis = pixels > 0
-    if not np.logical_or.reduce(vis):
-        return empty_ground_truth()
-    ids = idx[near_first[vis]]
-    by_id = np.argsort(ids)
-    ids = ids[by_id]
-    ext = ext[vis][by_id]
-    boxes = (ext[:, :4] * _BOX_SIGN + 0.0).astype(np.float32)[:, _XYXY]  # (+0: no -0.0)
-    dxy = d[ids]
-    bearings = (np.arctan2(dxy[:, 1], dxy[:, 0]) - heading + np.pi) % (2 * np.pi) - np.pi
-    return ConeArrays.trusted({"boxes": boxes, "classes": cls[ids], "cone_ids": ids,
-                               "ranges": np.hypot(dxy[:, 0], dxy[:, 1]).astype(np.float32),
-                               "bearings": bearings.astype(np.float32), "pixels": pixels[vis][by_id].astype(np.int64)})
+    m = 0
+    for j in range(k):
+        if pixels[j] > 0:
+            m += 1
+    ids = np.empty(m, np.int64)
+    boxes = np.empty((m, 4), np.float32)
+    ranges = np.empty(m, np.float32)
+    bearings = np.empty(m, np.float32)
+    pix = np.empty(m, np.int64)
+    o = 0
+    for j in range(k):  # kept is in cone-id order
+        if pixels[j] == 0:
+            continue
+        i = kept[j]
+        dx, dy = xy[i, 0] - ex, xy[i, 1] - ey
+        ids[o] = i
+        boxes[o, 0], boxes[o, 1] = lo_col[j], lo_row[j] + 0.0  # (+0: no -0.0)
+        boxes[o, 2], boxes[o, 3] = hi_col[j], hi_row[j]
+        ranges[o] = math.hypot(dx, dy)
+        b = np.fmod(math.atan2(dy, dx) - heading + math.pi, 2.0 * math.pi)  # numpy's % on floats
+        bearings[o] = (b + 2.0 * math.pi if b < 0.0 else b) - math.pi
+        pix[o] = pixels[j]
+        o += 1
+    return ids, boxes, ranges, bearings, pix
