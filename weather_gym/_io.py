@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import json
 import os
 import stat
@@ -366,3 +367,12 @@ def save_figure(fig: Any, path: str | os.PathLike, *, overwrite: bool = False, c
         if close:
             plt.close(fig)
     return p
+
+
+def file_id(path: str | os.PathLike) -> str:
+    """First 12 hex digits of the SHA-256 of a file (identifies a model or a dataset's annotations)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()[:12]

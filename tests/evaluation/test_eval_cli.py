@@ -53,3 +53,9 @@ def test_tiny_evaluation_end_to_end_and_resume(tmp_path, capsys):
     before = (out / "results.csv").read_bytes()
     assert main(args) == 0  # resumed: nothing left to run, the file is unchanged
     assert (out / "results.csv").read_bytes() == before
+    # the same grid in another world: a new stack, so both cells run again (not resumed from the
+    # plain world's rows, which stay in the file)
+    assert main(args + ["--env-kwargs", '{"sim": {"scene": "realistic"}}']) == 0
+    assert "2 ok, 0 failed" in capsys.readouterr().out
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert len(rows) == 4 and len({r["stack"] for r in rows}) == 2

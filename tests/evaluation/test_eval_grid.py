@@ -47,6 +47,29 @@ def test_other_presets_file_changes_the_cells(tmp_path):
     assert json.loads(b.weather) == [{**shipped, "k": 0.5}] and a.weather != b.weather
 
 
+def test_stack_names_the_world_and_the_model_files(tmp_path):
+    """A changed scenario default, detector or surrogate file gives other cells, so a resumed
+    results file runs them again instead of mixing in rows of the old stack."""
+    from weather_gym.perception.detector import DEFAULT_MODEL
+    from weather_gym.surrogate.model import SHIPPED_MODEL
+
+    base = {"effects": ("droplets",), "severities": (0,), "seeds": (0,)}
+    plain = make_cells(EvalConfig(**base))[0]
+    assert plain == make_cells(EvalConfig(**base))[0] and len(plain.stack) == 12
+    realistic = make_cells(EvalConfig(**base, env_kwargs={"sim": {"scene": "realistic"}}))[0]
+    assert realistic.stack != plain.stack
+    other = tmp_path / "other.onnx"
+    other.write_bytes(DEFAULT_MODEL.read_bytes() + b"\0")
+    assert make_cells(EvalConfig(**base, perception_kwargs={"detector": str(other)}))[0].stack != plain.stack
+    sur = make_cells(EvalConfig(**base, perception="surrogate"))[0]
+    refit = tmp_path / "refit.npz"
+    refit.write_bytes(SHIPPED_MODEL.read_bytes())
+    assert make_cells(EvalConfig(**base, perception="surrogate", perception_kwargs={"model": str(refit)}))[0].stack \
+        == sur.stack  # the same file's bytes, wherever it lies
+    assert make_cells(EvalConfig(**{**base, "agents": ("gt_pure_pursuit", "ppo_cones")}))[0].stack \
+        != make_cells(EvalConfig(**{**base, "agents": ("ppo_cones",)}))[0].stack  # the policy file counts
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [

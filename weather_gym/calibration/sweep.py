@@ -27,7 +27,6 @@ Example:
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -38,7 +37,7 @@ from dataclasses import replace as _replace
 from pathlib import Path
 from typing import Any
 
-from weather_gym._io import atomic_write_json, derived_outputs_replaceable
+from weather_gym._io import atomic_write_json, derived_outputs_replaceable, file_id
 from weather_gym.calibration import curve as _curve  # cyclic pair: attributes used at call time
 from weather_gym.calibration.report import plot_curves
 from weather_gym.datasets.coco import ANNOTATIONS, load_coco
@@ -204,15 +203,6 @@ def parse_seeds(n: int | None = None, seed_list: str | None = None) -> tuple[int
     if n is None or n < 1:
         raise InputError(f"--seeds must be >= 1, got {n}")
     return tuple(range(int(n)))
-
-
-def file_id(path: str | os.PathLike) -> str:
-    """First 12 hex digits of the SHA-256 of a file (identifies a model or a dataset's annotations)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()[:12]
 
 
 # -------------------------------------------------------------------------------------------- cells

@@ -2,7 +2,8 @@
 
 ``EvalConfig`` describes the grid (agents x effects x severities x seeds x tracks), ``make_cells``
 expands it into ``EvalCell`` s (every field that changes the result is in the cell, so a results file
-never mixes configurations silently), ``run_cell`` drives one episode and returns its metrics, and
+never mixes configurations silently; what the fields do not name, the model files and the resolved
+scenario, is fingerprinted in ``stack``: see :func:`stack_id`), ``run_cell`` drives one episode and returns its metrics, and
 ``evaluate`` runs the grid on :func:`weather_gym.evaluation.runner.run_cells` (parallel, resumable).
 
 Severity -> weather goes through :func:`weather_gym.weather.presets.preset_spec` (the shipped
@@ -25,6 +26,7 @@ Example:
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import numbers
@@ -38,16 +40,18 @@ import gymnasium as gym
 import numpy as np
 from scipy.spatial import cKDTree
 
-from weather_gym._io import derived_outputs_replaceable
+from weather_gym._io import derived_outputs_replaceable, file_id
 from weather_gym.agents import AGENTS, make_agent, run_episode
 from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.errors import InputError
 from weather_gym.evaluation.metrics import MAP_MATCH_RADIUS_M, METRICS
 from weather_gym.evaluation.report import report_paths, write_report
 from weather_gym.evaluation.runner import check_results_path, run_cells
+from weather_gym.paths import PPO_CONES_MODEL
 from weather_gym.perception import evaluate as score
+from weather_gym.perception.detectors import detector_id
 from weather_gym.pipeline import PERCEPTION_MODES, make_env
-from weather_gym.surrogate.model import load_model
+from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 from weather_gym.tracks import load_track
 from weather_gym.weather.presets import canonical_condition, preset_spec
 
@@ -64,6 +68,7 @@ __all__ = [
     "make_cells",
     "map_precision_recall",
     "run_cell",
+    "stack_id",
 ]
 
 DEFAULT_ENV_ID = "WeatherGym/ConeTrack-v0"
@@ -97,6 +102,7 @@ class EvalCell:
     agent_kwargs: str = "{}"
     env_kwargs: str = "{}"
     perception_kwargs: str = "{}"
+    stack: str = ""  # stack_id(): the resolved scenario and the model files the cell runs with
 
 
 CELL_KEY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(EvalCell))
@@ -168,6 +174,31 @@ def _jsonable(what: str, value: Mapping[str, Any]) -> str:
         raise InputError(f"{what} must be JSON-serialisable (numbers, strings, lists, dicts): {exc}") from None
 
 
+def stack_id(config: EvalConfig, agent: str) -> str:
+    """12 hex digits of what ``agent``'s cells of ``config`` depend on beyond their other key fields:
+    the scenario as resolved (its TOML with the code's defaults and ``env_kwargs``: world, camera
+    model, car...), the detector's model file and options (perception ``detector``), the surrogate's
+    model file (``surrogate``) and the agent's policy file (``ppo_cones``, ``sb3``'s ``path``).
+
+    So a results file resumed after the detector, a default or a scenario changed runs its cells
+    again instead of mixing old rows in. Changes of the code itself are not seen: after one, use a
+    new output folder (or delete ``results.csv``).
+    """
+
+    parts: dict[str, str] = {}
+    scenario = (gym.registry[config.env_id].kwargs or {}).get("scenario")
+    parts["env"] = repr(build_config(load_scenario(scenario), dict(config.env_kwargs))) if scenario else config.env_id
+    kw = dict(config.perception_kwargs)
+    if config.perception == "detector":
+        parts["detector"] = detector_id(kw.get("detector"))
+    elif config.perception == "surrogate":
+        parts["surrogate"] = file_id(kw.get("model") or SHIPPED_MODEL)
+    policy = dict(config.agent_kwargs).get("path") if agent == "sb3" else PPO_CONES_MODEL if agent == "ppo_cones" else None
+    if isinstance(policy, (str, Path)) and Path(policy).is_file():
+        parts["policy"] = file_id(policy)
+    return hashlib.sha256(_json(parts).encode()).hexdigest()[:12]
+
+
 def validate_config(config: EvalConfig) -> None:
     """Check every name and number of ``config`` (``ValueError`` naming the bad value and the valid ones)."""
     make_cells(config)
@@ -232,10 +263,12 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         if wet:
             raise InputError(f"perception gt_cones renders no camera frame, so weather cannot act on it; "
                              f"{', '.join(wet)} would be clear weather: evaluate gt_cones at severity 0 only")
+    stacks = {a: stack_id(config, a) for a in agents}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
                  perception=config.perception, laps=laps, max_steps=max_steps, weather=weather[e, s],
-                 agent_kwargs=agent_kwargs, env_kwargs=env_kwargs, perception_kwargs=perception_kwargs)
+                 agent_kwargs=agent_kwargs, env_kwargs=env_kwargs, perception_kwargs=perception_kwargs,
+                 stack=stacks[a])
         for a in agents for t in tracks for e in effects for s in severities for seed in seeds
     ]
     return cells
