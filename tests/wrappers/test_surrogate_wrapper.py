@@ -124,3 +124,25 @@ def test_weather_randomizer_drives_the_surrogate(no_render):
         assert names == {"droplets", "dim"}
     finally:
         env.close()
+
+
+@pytest.mark.parametrize(("weather", "still"), [("low_light@1", True), (None, True), ("droplets@2", False)])
+def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, still):
+    """The detector is a function of the image: a car that stands in clear or dim weather gets the
+    same cones every frame (so a car that stopped seeing stays stopped); per-frame droplets change
+    the image, and the cones, every frame."""
+    env = make_env(perception="surrogate", weather=weather, max_episode_steps=40)
+    try:
+        env.reset(seed=3)
+        for _ in range(15):  # drive off, so the cones' states are mid-episode ones
+            env.step(np.array([0.0, 0.6], np.float32))
+        lists = []
+        for _ in range(40 - 16):
+            obs, _, term, trunc, info = env.step(np.array([0.0, -1.0], np.float32))  # brake: it stands
+            if info["speed"] == 0.0:
+                lists.append(obs["cones"].tobytes() + obs["mask"].tobytes())
+            assert not term and not trunc
+        assert len(lists) >= 5
+        assert (len(set(lists)) == 1) == still
+    finally:
+        env.close()

@@ -68,6 +68,15 @@ class FrameSampler:
         self._last_step[:] = -10
         self._last_det[:] = False
 
+    def hold(self, gt: Any, step: int) -> None:
+        """The frame of ``step`` repeats the previous one (the caller reports the previous detections):
+        its cones keep their state, as seen on this frame too."""
+        n = int(len(gt["classes"])) if gt is not None and "classes" in gt else 0
+        if n:
+            ids = np.asarray(gt["cone_ids"], np.int64).reshape(n)
+            self._grow(int(ids.max()))
+            self._last_step[ids] = step
+
     def _grow(self, max_id: int) -> None:
         if max_id >= len(self._last_step):
             n = max(2 * len(self._last_step), max_id + 1)

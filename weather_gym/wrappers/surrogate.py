@@ -8,6 +8,14 @@ giving the same observation as ``DetectorWrapper`` (``Dict(cones, mask, state)``
 ``info`` keys: ``info["detections"]`` (a ``ConeArrays`` of boxes, scores, classes, ranges,
 bearings) and, when a weather is given, ``info["weather"]``.
 
+**A still camera sees a still frame.** The detector is a deterministic function of the image: while
+the car stands (same pose, same visible cones) under a weather whose frames do not change by
+themselves (clear, dim; not the per-frame droplets or sensor noise), the real pipeline reports the
+same cones on every frame, so a car that stopped because it saw nothing stays stopped. The
+surrogate does the same: such a frame repeats the previous frame's detections (no new draw).
+Whether a weather's frames change by themselves is probed once per weather: the effect applied
+to one test image for a second of frames (:func:`frames_change_by_themselves`).
+
 The weather changes like the ``WeatherWrapper``'s: ``reset(options={"weather": spec})``,
 ``set_weather(spec)`` (through other wrappers: ``env.get_wrapper_attr("set_weather")(...)``; vector
 envs: ``envs.call("set_weather", ...)``) or assigning ``weather``. A weather the model does not
@@ -44,7 +52,29 @@ from weather_gym.surrogate.model import SurrogateModel, load_model
 from weather_gym.surrogate.sample import FrameSampler
 from weather_gym.weather import current_spec, parse_weather
 
-__all__ = ["SurrogatePerceptionWrapper"]
+__all__ = ["SurrogatePerceptionWrapper", "frames_change_by_themselves"]
+
+_PROBE = np.random.default_rng(0).integers(0, 256, (48, 80, 3), dtype=np.uint8)
+"""A fixed test image (a private generator with a constant seed: no global RNG)."""
+
+
+def frames_change_by_themselves(effect: Any) -> bool:
+    """Whether ``effect`` (a parsed weather) gives different frames from one unchanged image: it
+    draws per frame (droplets), or evolves (persistent droplets grow): one second of frames (30) is
+    probed, on a copy (``effect`` is untouched).
+
+    Example:
+        >>> from weather_gym.weather import parse_weather
+        >>> frames_change_by_themselves(parse_weather("dim@2")), frames_change_by_themselves(parse_weather("droplets@2"))
+        (False, True)
+    """
+
+    if effect is None:
+        return False
+    probe = copy.deepcopy(effect)
+    probe.reset(0)
+    first = probe(_PROBE)
+    return any(not np.array_equal(first, probe(_PROBE)) for _ in range(29))
 
 
 class SurrogatePerceptionWrapper(gym.Wrapper):
@@ -87,6 +117,10 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         self._effect = parse_weather(weather)
         self._spec = current_spec(self._effect)
         self._sampler = FrameSampler(model.point(self._spec), self.camera)
+        cm = getattr(getattr(env.unwrapped, "config", None), "camera_model", None)
+        self._sensor_noise = bool(cm is not None and cm.enabled and (cm.read_noise > 0 or cm.shot_noise > 0))
+        self._changing = self._sensor_noise or frames_change_by_themselves(self._effect)
+        self._view: tuple[bytes, bytes] | None = None
         self._rng: np.random.Generator | None = None
         self._step = 0
         self._latency = 0.0
@@ -107,6 +141,8 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         effect = copy.deepcopy(parse_weather(spec))
         tables = current_spec(effect)
         self._sampler.set_point(self.model.point(tables))  # an unmodelled weather fails here
+        self._changing = self._sensor_noise or frames_change_by_themselves(effect)
+        self._view = None
         self._effect = effect
         self._spec = tables
         self._report_weather = True
@@ -122,7 +158,19 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         t0 = time.perf_counter()
         if "gt" not in info:
             raise InputError('SurrogatePerceptionWrapper needs info["gt"] (the visible cones) from the env')
-        det = self._sampler(info["gt"], self._rng, self._step)
+        gt = info["gt"]
+        view = None
+        if not self._changing:
+            pose = info.get("pose")
+            boxes, ids = gt.get("boxes") if gt is not None else None, gt.get("cone_ids") if gt is not None else None
+            if pose is not None and boxes is not None and ids is not None:
+                view = (np.asarray(pose, np.float64).tobytes(), np.asarray(boxes).tobytes() + np.asarray(ids).tobytes())
+        if view is not None and view == self._view and self._last is not None:
+            det = self._last  # a still frame: the same detections (see the module doc)
+            self._sampler.hold(gt, self._step)
+        else:
+            det = self._sampler(gt, self._rng, self._step)
+        self._view = view
         cones, mask = pack_cones(classes=det["classes"], ranges=det["ranges"], bearings=det["bearings"],
                                  scores=det["scores"], boxes=det["boxes"], camera=self.camera,
                                  max_cones=self.max_cones)
@@ -146,6 +194,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
             self._rng = self.env.unwrapped.np_random.spawn(1)[0]
         self._sampler.reset()
         self._step = 0
+        self._view = None
         return self._convert(obs, info)
 
     def step(self, action):
