@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -144,5 +146,21 @@ def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, still)
             assert not term and not trunc
         assert len(lists) >= 5
         assert (len(set(lists)) == 1) == still
+        held = copy.deepcopy(info["detections"])  # a held frame's detections copy and pickle as any
+        assert np.array_equal(held["boxes"], info["detections"]["boxes"])
+    finally:
+        env.close()
+
+
+def test_a_car_standing_for_a_long_time_keeps_plain_detections():
+    """Regression: each held frame wrapped the last detections once more, and after ~1,000 frames of
+    standing, copying the info (as vector envs and SB3 do) hit the recursion limit."""
+    env = make_env(perception="surrogate", weather="low_light@1", max_episode_steps=1300)
+    try:
+        env.reset(seed=3)
+        for _ in range(1200):
+            _, _, term, trunc, info = env.step(np.array([0.0, -1.0], np.float32))
+        assert not term and not trunc and info["speed"] == 0.0
+        copy.deepcopy(info)
     finally:
         env.close()

@@ -166,15 +166,14 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
             if pose is not None and boxes is not None and ids is not None:
                 view = (np.asarray(pose, np.float64).tobytes(), np.asarray(boxes).tobytes() + np.asarray(ids).tobytes())
         if view is not None and view == self._view and self._last is not None:
-            det = self._last  # a still frame: the same detections (see the module doc)
-            self._sampler.hold(gt, self._step)
+            self._sampler.hold(gt, self._step)  # a still frame: the same detections (see the module doc)
         else:
-            det = self._sampler(gt, self._rng, self._step)
+            self._last = ConeArrays.trusted(self._sampler(gt, self._rng, self._step))
         self._view = view
+        det = self._last
         cones, mask = pack_cones(classes=det["classes"], ranges=det["ranges"], bearings=det["bearings"],
                                  scores=det["scores"], boxes=det["boxes"], camera=self.camera,
                                  max_cones=self.max_cones)
-        self._last = ConeArrays.trusted(det)
         self._step += 1
         out_info = dict(info)
         if self._report_weather:
