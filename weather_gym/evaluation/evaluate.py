@@ -42,6 +42,7 @@ from scipy.spatial import cKDTree
 
 from weather_gym._io import derived_outputs_replaceable, file_id
 from weather_gym.agents import AGENTS, make_agent, run_episode
+from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.errors import InputError
 from weather_gym.evaluation.metrics import MAP_MATCH_RADIUS_M, METRICS
@@ -174,7 +175,18 @@ def _jsonable(what: str, value: Mapping[str, Any]) -> str:
         raise InputError(f"{what} must be JSON-serialisable (numbers, strings, lists, dicts): {exc}") from None
 
 
-def stack_id(config: EvalConfig, agent: str) -> str:
+def _resolved_env(config: EvalConfig) -> EnvConfig | None:
+    """The scenario of ``config.env_id`` with ``env_kwargs`` applied (None for an id without one)."""
+    scenario = (gym.registry[config.env_id].kwargs or {}).get("scenario")
+    if scenario is None:
+        return None
+    try:
+        return build_config(load_scenario(scenario), dict(config.env_kwargs))
+    except InputError as exc:
+        raise type(exc)(f"env_kwargs: {exc}") from None
+
+
+def stack_id(config: EvalConfig, agent: str, *, env_config: EnvConfig | None = None) -> str:
     """12 hex digits of what ``agent``'s cells of ``config`` depend on beyond their other key fields:
     the scenario as resolved (its TOML with the code's defaults and ``env_kwargs``: world, camera
     model, car...), the detector's model file and options (perception ``detector``), the surrogate's
@@ -182,12 +194,13 @@ def stack_id(config: EvalConfig, agent: str) -> str:
 
     So a results file resumed after the detector, a default or a scenario changed runs its cells
     again instead of mixing old rows in. Changes of the code itself are not seen: after one, use a
-    new output folder (or delete ``results.csv``).
+    new output folder (or delete ``results.csv``). ``env_config``: the resolved scenario, when the
+    caller has it already.
     """
 
     parts: dict[str, str] = {}
-    scenario = (gym.registry[config.env_id].kwargs or {}).get("scenario")
-    parts["env"] = repr(build_config(load_scenario(scenario), dict(config.env_kwargs))) if scenario else config.env_id
+    resolved = env_config if env_config is not None else _resolved_env(config)
+    parts["env"] = repr(resolved) if resolved is not None else config.env_id
     kw = dict(config.perception_kwargs)
     if config.perception == "detector":
         parts["detector"] = detector_id(kw.get("detector"))
@@ -244,12 +257,7 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     clash = sorted(set(config.env_kwargs) & {"perception", "perception_kwargs"})
     if clash:
         raise InputError(f"env_kwargs may not set {', '.join(clash)}: use EvalConfig.perception / perception_kwargs")
-    scenario = (gym.registry[config.env_id].kwargs or {}).get("scenario")
-    if scenario is not None:  # camera sizes and other overrides are checked now, not in every cell
-        try:
-            build_config(load_scenario(scenario), dict(config.env_kwargs))
-        except InputError as exc:
-            raise type(exc)(f"env_kwargs: {exc}") from None
+    env_config = _resolved_env(config)  # camera sizes and other overrides are checked now, not in every cell
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
     if config.perception == "surrogate":  # a weather the surrogate has no model of fails now, not in every cell
         model = load_model(dict(config.perception_kwargs).get("model"))
@@ -263,7 +271,7 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         if wet:
             raise InputError(f"perception gt_cones renders no camera frame, so weather cannot act on it; "
                              f"{', '.join(wet)} would be clear weather: evaluate gt_cones at severity 0 only")
-    stacks = {a: stack_id(config, a) for a in agents}
+    stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
                  perception=config.perception, laps=laps, max_steps=max_steps, weather=weather[e, s],

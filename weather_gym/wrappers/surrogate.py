@@ -69,8 +69,6 @@ def frames_change_by_themselves(effect: Any) -> bool:
         (False, True)
     """
 
-    if effect is None:
-        return False
     probe = copy.deepcopy(effect)
     probe.reset(0)
     first = probe(_PROBE)
@@ -159,12 +157,10 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         if "gt" not in info:
             raise InputError('SurrogatePerceptionWrapper needs info["gt"] (the visible cones) from the env')
         gt = info["gt"]
-        view = None
-        if not self._changing:
-            pose = info.get("pose")
-            boxes, ids = gt.get("boxes") if gt is not None else None, gt.get("cone_ids") if gt is not None else None
-            if pose is not None and boxes is not None and ids is not None:
-                view = (np.asarray(pose, np.float64).tobytes(), np.asarray(boxes).tobytes() + np.asarray(ids).tobytes())
+        view = None  # what a still frame repeats: the car's pose and the visible cones' boxes
+        if not self._changing and gt is not None and "pose" in info:
+            view = (np.asarray(info["pose"], np.float64).tobytes(),
+                    np.asarray(gt["boxes"]).tobytes() + np.asarray(gt["cone_ids"]).tobytes())
         if view is not None and view == self._view and self._last is not None:
             self._sampler.hold(gt, self._step)  # a still frame: the same detections (see the module doc)
         else:
