@@ -128,14 +128,22 @@ def test_weather_randomizer_drives_the_surrogate(no_render):
         env.close()
 
 
-@pytest.mark.parametrize(("weather", "still"), [("low_light@1", True), (None, True), ("droplets@2", False)])
-def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, still):
+NOISY_CAMERA = {"enabled": True, "read_noise": 2.0}
+
+
+@pytest.mark.parametrize(("weather", "camera", "still"), [
+    ("low_light@1", None, True), (None, None, True), ("droplets@2", None, False),
+    (None, NOISY_CAMERA, False),  # sensor noise changes every frame (a camera model given per episode)
+    (None, {"enabled": False}, True),
+])
+def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, camera, still):
     """The detector is a function of the image: a car that stands in clear or dim weather gets the
-    same cones every frame (so a car that stopped seeing stays stopped); per-frame droplets change
-    the image, and the cones, every frame."""
-    env = make_env(perception="surrogate", weather=weather, max_episode_steps=40)
+    same cones every frame (so a car that stopped seeing stays stopped); per-frame droplets and a
+    camera's sensor noise change the image, and the cones, every frame."""
+    env_kwargs = {"camera_model": NOISY_CAMERA} if camera == {"enabled": False} else {}
+    env = make_env(perception="surrogate", weather=weather, max_episode_steps=40, **env_kwargs)
     try:
-        env.reset(seed=3)
+        env.reset(seed=3, options=None if camera is None else {"camera_model": camera})
         for _ in range(15):  # drive off, so the cones' states are mid-episode ones
             env.step(np.array([0.0, 0.6], np.float32))
         lists = []

@@ -58,6 +58,13 @@ _PROBE = np.random.default_rng(0).integers(0, 256, (48, 80, 3), dtype=np.uint8)
 """A fixed test image (a private generator with a constant seed: no global RNG)."""
 
 
+def _sensor_noise(env: gym.Env) -> bool:
+    """Whether the env's camera (this episode's camera model) adds sensor noise to every frame."""
+    u = env.unwrapped
+    cm = getattr(u, "camera_model", None) or getattr(getattr(u, "config", None), "camera_model", None)
+    return bool(cm is not None and cm.enabled and (cm.read_noise > 0 or cm.shot_noise > 0))
+
+
 def frames_change_by_themselves(effect: Any) -> bool:
     """Whether ``effect`` (a parsed weather) gives different frames from one unchanged image: it
     draws per frame (droplets), or evolves (persistent droplets grow): one second of frames (30) is
@@ -115,8 +122,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         self._effect = parse_weather(weather)
         self._spec = current_spec(self._effect)
         self._sampler = FrameSampler(model.point(self._spec), self.camera)
-        cm = getattr(getattr(env.unwrapped, "config", None), "camera_model", None)
-        self._sensor_noise = bool(cm is not None and cm.enabled and (cm.read_noise > 0 or cm.shot_noise > 0))
+        self._sensor_noise = _sensor_noise(env)
         self._changing = self._sensor_noise or frames_change_by_themselves(self._effect)
         self._view: tuple[bytes, bytes] | None = None
         self._rng: np.random.Generator | None = None
@@ -185,6 +191,10 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         if "weather" in options:
             self.set_weather(options.pop("weather"))
         obs, info = self.env.reset(seed=seed, options=options or None)
+        noise = _sensor_noise(self.env)  # a camera_model reset option can switch it for this episode
+        if noise != self._sensor_noise:
+            self._sensor_noise = noise
+            self._changing = noise or frames_change_by_themselves(self._effect)
         if seed is not None or self._rng is None:
             self._rng = self.env.unwrapped.np_random.spawn(1)[0]
         self._sampler.reset()
