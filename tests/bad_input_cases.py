@@ -461,6 +461,8 @@ CASES: list[Case] = [
     # ---- Python entry points
     Case("py-gym-make-huge-camera", "width", call=lambda w: _make_env(camera={"width": 100000, "height": 100000})),
     Case("py-gym-make-collinear-track", "collinear.csv", call=lambda w: _make_env(track=str(w["collinear.csv"]))),
+    Case("py-gym-make-cast-shadows-not-a-bool", "cast_shadows",
+         call=lambda w: _make_env(sim={"scene": "realistic", "cast_shadows": "yes"})),
     Case("py-reset-options-not-a-dict", "options", call=lambda w: _reset_with("x")),
     Case("py-reset-start-pose-not-numbers", "start_pose", call=lambda w: _reset_with({"start_pose": ["a", 1, 2]})),
     Case("py-step-after-close", "closed", call=_step_after_close),

@@ -7,6 +7,7 @@ Example:
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from dataclasses import replace
 
@@ -32,7 +33,8 @@ def register(targets) -> None:
     p.add_argument("--repeats", type=int, default=40, help="timed calls per measurement (median is reported)")
     p.add_argument("--worlds", action="store_true",
                    help="only the world comparison: plain (baseline) vs realistic scene with EGL at 672x376, "
-                        "with and without the segmentation pass, and the camera model's cost")
+                        "with and without the segmentation pass, the cast shadows' cost (off; a low sun), "
+                        "and the camera model's cost")
     p.set_defaults(func=run)
 
 
@@ -80,19 +82,25 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _worlds(args: argparse.Namespace, track) -> int:
-    """Plain vs realistic world (EGL, 672x376): camera frame with / without segmentation, and the
-    camera model's finishing stage; the plain world is the baseline of the same run."""
+    """Plain vs realistic world (EGL, 672x376): camera frame with / without segmentation, the cast
+    shadows' cost, and the camera model's finishing stage; the plain world is the baseline of the same run."""
 
 
     cam = CameraConfig()
-    looks = {"plain": DEFAULT_LOOK, "realistic": replace(DEFAULT_LOOK, ego_seed=3, clutter_seed=5),
-             "realistic, no ego car": replace(DEFAULT_LOOK, clutter_seed=5)}
+    real = replace(DEFAULT_LOOK, ego_seed=3, clutter_seed=5)
+    low, az = math.radians(15.0), math.radians(200.0)
+    low_sun = (math.cos(low) * math.cos(az), math.cos(low) * math.sin(az), math.sin(low))
+    worlds = {"plain": ("plain", DEFAULT_LOOK, True), "realistic": ("realistic", real, True),
+              "realistic, no ego car": ("realistic", replace(DEFAULT_LOOK, clutter_seed=5), True),
+              "realistic, no cast shadows": ("realistic", real, False),
+              "realistic, sun at 15 deg (long shadows)": ("realistic", replace(real, light_direction=low_sun), True),
+              "realistic, sun at 15 deg, no cast shadows": ("realistic", replace(real, light_direction=low_sun), False)}
     rows = []
     renderer = None
-    for name, look in looks.items():
-        scene = "plain" if name == "plain" else "realistic"
-        world = World(track, sim=SimConfig(renderer="egl" if renderer is None else renderer, scene=scene), camera=cam,
-                      look=look)
+    rgb = None
+    for name, (scene, look, cast) in worlds.items():
+        world = World(track, sim=SimConfig(renderer="egl" if renderer is None else renderer, scene=scene,
+                                           cast_shadows=cast), camera=cam, look=look)
         renderer = world.renderer_name
         try:
             x, y, h = track.point_at(10.0)
@@ -100,10 +108,12 @@ def _worlds(args: argparse.Namespace, track) -> int:
             seg = median_ms(world.render, repeats=args.repeats)
             noseg = median_ms(lambda w=world: w.render(segmentation=False), repeats=args.repeats)
             geo = median_ms(lambda w=world: (w.render(segmentation=False), w.ground_truth()), repeats=args.repeats)
-            rgb = world.render(segmentation=False).rgb
+            if name == "realistic, no ego car":  # the camera model's input
+                rgb = world.render(segmentation=False).rgb
         finally:
             world.close()
         rows.append([name, seg, noseg, geo])
+    assert rgb is not None
     rng = np.random.default_rng(0)
     cm = []
     for label, model in (("camera model: realistic preset (JPEG 90)", CameraModel.realistic()),

@@ -23,7 +23,7 @@ RENDERERS = ("auto", "egl", "tiny", "none")
 SCENES = ("plain", "realistic")
 """``SimConfig.scene``: the plain world (the default: flat textured ground, clouds, plain-striped cones;
 the world the calibration, the presets, the agents and the surrogate are made in) or the realistic one
-(FS cone stripes, contact shadows, asphalt with patches and painted lines, run-off, track-side clutter
+(FS cone stripes, contact and cast shadows, asphalt with patches and painted lines, run-off, track-side clutter
 and distractors, a skyline, the ego car's nose in view: ``weather_gym.sim.scenery``,
 ``weather_gym.sim.ego``; ``WeatherGym/ConeTrackRealistic-v0``). The realistic world is not the default
 because its clutter gives the shipped detector false positives that the mapping agent cannot yet
@@ -53,6 +53,8 @@ class SimConfig:
         cone_mass: kg per small cone (big cones weigh 1.5x).
         shadows: cast shadows (PyBullet's shadow map; see ``weather-gym bench sim`` for the cost).
         scene: ``"plain"`` (default) or ``"realistic"`` (see ``SCENES``).
+        cast_shadows: the realistic scene's cones cast shadows away from the sun, drawn into each
+            frame after rendering (:mod:`weather_gym.sim.cast_shadows`); the plain scene has none.
     """
 
     physics_hz: float = 240.0
@@ -63,6 +65,7 @@ class SimConfig:
     shadows: bool = False
     gravity: float = 9.81
     scene: str = "plain"
+    cast_shadows: bool = True
 
     def __post_init__(self) -> None:
         _check_finite_positive(self, ("physics_hz", "control_hz", "cone_mass", "gravity"))
@@ -70,6 +73,8 @@ class SimConfig:
             raise InputError(f"SimConfig.scene must be one of {SCENES}, got {self.scene!r}")
         if not isinstance(self.shadows, bool):
             raise InputError(f"SimConfig.shadows must be true or false, got {self.shadows!r}")
+        if not isinstance(self.cast_shadows, bool):
+            raise InputError(f"SimConfig.cast_shadows must be true or false, got {self.cast_shadows!r}")
         if self.renderer not in RENDERERS:
             raise InputError(f"SimConfig.renderer must be one of {RENDERERS}, got {self.renderer!r}")
         ratio = self.physics_hz / self.control_hz

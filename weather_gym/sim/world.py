@@ -34,11 +34,12 @@ from weather_gym.sim import renderer as _renderer
 from weather_gym.sim import scenery
 from weather_gym.sim.camera import CameraFrame, CameraSensor
 from weather_gym.sim.car import Car
+from weather_gym.sim.cast_shadows import ShadowCaster, shadow_strength
 from weather_gym.sim.config import CarConfig, SimConfig
 from weather_gym.sim.ego import EGO_DEPTH_M, clip_ground_truth, composite, ego_overlay
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
-from weather_gym.sim.meshes import box_obj, cone_obj, quad_obj
+from weather_gym.sim.meshes import box_obj, cone_dimensions, cone_obj, quad_obj
 from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
 from weather_gym.sim.scenery_textures import (
     add_skyline,
@@ -251,6 +252,11 @@ class World:
                 self._shadow_bodies.append(p.createMultiBody(0, -1, shadow_shapes[cls], [float(x), float(y), 0.0],
                                                              physicsClientId=c))
         self._shadow_offset = np.zeros(2)
+        # cast shadows: drawn into each frame after rendering (see render() and sim.cast_shadows)
+        self._caster = ShadowCaster(self.camera_config) if self.realistic and self.sim.cast_shadows else None
+        self._cone_plate = np.array([cone_dimensions(CONE_HEIGHT_M[n], CONE_BASE_M[n])["plate_half"]
+                                     for n in CONE_CLASSES])[self.cone_classes]
+        self._cone_height = np.array([CONE_HEIGHT_M[n] for n in CONE_CLASSES])[self.cone_classes]
         self._cone_lut = np.full(1, -1, dtype=np.int32)
         self._grow_lut()
         self._cone_xy = xy.copy()
@@ -466,12 +472,31 @@ class World:
                                segmentation=True)
         frame = self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
                                    segmentation=segmentation, hide=self._ego_mask())
+        if self._caster is not None and frame.rgb is not None and frame.depth is not None:
+            self._cast_shadows(frame)
         overlay = self._ego()
         if overlay is not None and frame.rgb is not None:
             composite(frame.rgb, overlay)
             if frame.depth is not None:
                 frame.depth[overlay.mask] = np.float32(EGO_DEPTH_M)
         return frame
+
+    def _cast_shadows(self, frame: CameraFrame) -> None:
+        """Darken the ground in the standing cones' shadows (before the ego car's overlay covers it).
+        A cone tilted more than 10 degrees (knocked over) casts none."""
+        look = self.look
+        xy = self._cone_xy
+        standing = np.ones(len(xy), dtype=bool)
+        if self._cone_tilt:
+            xy = xy.copy()
+            for i, (origin, rot) in self._cone_tilt.items():
+                standing[i] = rot[2, 2] >= math.cos(math.radians(10.0))
+                xy[i] = origin[:2]  # the base's centre, not the centre of mass
+        eye, heading, pitch = self.camera.mount_pose(self.car.pose)
+        assert self._caster is not None
+        self._caster.apply(frame.rgb, frame.depth, eye, heading, pitch, xy[standing],
+                           self._cone_plate[standing], self._cone_height[standing], self._light["lightDirection"],
+                           shadow_strength(look.ambient, look.diffuse))
 
     def _ego(self):
         """The ego car's overlay for the current look and camera (None: none in view)."""
