@@ -15,7 +15,7 @@ from weather_gym.perception import ConeDetector, score_dataset
 pytestmark = pytest.mark.slow
 
 # measured with v3 in the default (plain) world: 0.935 (v2 0.932, the first model 0.921); the same frames
-# of the realistic world score 0.900 (docs/model_card.md)
+# of the realistic world score 0.900 (before cast shadows; docs/model_card.md)
 MAP50_FLOOR = 0.88
 HELD_OUT = dict(tracks=["peanut"], frames=40, seed=2024, randomize=False, frames_per_episode=10, progress=False)
 
