@@ -122,8 +122,8 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         self._effect = parse_weather(weather)
         self._spec = current_spec(self._effect)
         self._sampler = FrameSampler(model.point(self._spec), self.camera)
-        self._sensor_noise = _sensor_noise(env)
-        self._changing = self._sensor_noise or frames_change_by_themselves(self._effect)
+        self._sensor_noise = _sensor_noise(env)  # set again at each reset (a camera_model reset option)
+        self._weather_changes = frames_change_by_themselves(self._effect)  # probed once per weather
         self._view: tuple[bytes, bytes] | None = None
         self._rng: np.random.Generator | None = None
         self._step = 0
@@ -145,7 +145,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         effect = copy.deepcopy(parse_weather(spec))
         tables = current_spec(effect)
         self._sampler.set_point(self.model.point(tables))  # an unmodelled weather fails here
-        self._changing = self._sensor_noise or frames_change_by_themselves(effect)
+        self._weather_changes = frames_change_by_themselves(effect)
         self._view = None
         self._effect = effect
         self._spec = tables
@@ -164,7 +164,8 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
             raise InputError('SurrogatePerceptionWrapper needs info["gt"] (the visible cones) from the env')
         gt = info["gt"]
         view = None  # what a still frame repeats: the car's pose and the visible cones' boxes
-        if not self._changing and gt is not None and "pose" in info:
+        changing = self._sensor_noise or self._weather_changes  # frames differ even when nothing moves
+        if not changing and gt is not None and "pose" in info:
             view = (np.asarray(info["pose"], np.float64).tobytes(),
                     np.asarray(gt["boxes"]).tobytes() + np.asarray(gt["cone_ids"]).tobytes())
         if view is not None and view == self._view and self._last is not None:
@@ -191,10 +192,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
         if "weather" in options:
             self.set_weather(options.pop("weather"))
         obs, info = self.env.reset(seed=seed, options=options or None)
-        noise = _sensor_noise(self.env)  # a camera_model reset option can switch it for this episode
-        if noise != self._sensor_noise:
-            self._sensor_noise = noise
-            self._changing = noise or frames_change_by_themselves(self._effect)
+        self._sensor_noise = _sensor_noise(self.env)  # a camera_model reset option can switch it for this episode
         if seed is not None or self._rng is None:
             self._rng = self.env.unwrapped.np_random.spawn(1)[0]
         self._sampler.reset()
