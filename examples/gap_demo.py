@@ -36,14 +36,16 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from weather_gym._io import atomic_write
+    from weather_gym.camera_model import CameraModel
     from weather_gym.datasets import render_dataset
     from weather_gym.gap import degrade_dataset
 
     clean, measured, model = args.out / "clean", args.out / "measured", args.out / "model.toml"
     t0 = time.perf_counter()
     if not (clean / "annotations.json").exists():
+        # the study's ideal camera: the hidden weather is then the only thing in the frames besides the scene
         render_dataset(clean, tracks=["small_track"], frames=args.frames, seed=args.seed, randomize=True,
-                       frames_per_episode=10, resume=True)
+                       frames_per_episode=10, resume=True, camera_model=CameraModel.ideal())
     t1 = time.perf_counter()
     if not (measured / "annotations.json").exists():
         degrade_dataset(clean, measured, HIDDEN, seed=args.measured_seed, progress=True)

@@ -155,6 +155,20 @@ def _linear_to_srgb(v: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055)
 
 
+def _edge_points() -> np.ndarray:
+    """(4, 64): xyxy boxes times it give 8 points along each of the 4 edges (32 x, then 32 y)."""
+    t = np.linspace(0, 1, 8)
+    m = np.zeros((4, 64))
+    m[0, 0:16], m[2, 0:16] = np.tile(1 - t, 2), np.tile(t, 2)  # top and bottom edges: x along the box
+    m[1, 32:40], m[3, 40:48] = 1.0, 1.0  # their y: y0, then y1
+    m[0, 16:24], m[2, 24:32] = 1.0, 1.0  # left and right edges: x0, then x1
+    m[1, 48:64], m[3, 48:64] = np.tile(1 - t, 2), np.tile(t, 2)  # their y along the box
+    return m
+
+
+_EDGE_POINTS = _edge_points()
+
+
 class CameraPipeline:
     """A :class:`CameraModel` prepared for one image size (``width`` x ``height``; ``fx`` for the
     distortion's normalisation, default the 90-degree camera's ``width / 2``)."""
@@ -191,6 +205,7 @@ class CameraPipeline:
         if m.distorts:
             K = np.array([[self.fx, 0, self.cx], [0, self.fx, self.cy], [0, 0, 1]], np.float64)
             dist = np.array([m.k1, m.k2, 0, 0], np.float64)
+            self._K, self._dist = K, dist
             # zoom in just enough that every output pixel has a rendered source pixel (barrel
             # distortion would otherwise pull in content from outside the rendered frame)
             border = np.concatenate([np.stack([np.linspace(0, self.width, 17), np.full(17, e)], 1)
@@ -301,20 +316,31 @@ class CameraPipeline:
         f = (1 + self.model.k1 * r2 + self.model.k2 * r2 * r2) * self.zoom
         return np.stack([x * f * self.fx + self.cx, y * f * self.fx + self.cy], 1)
 
+    def undistort_points(self, uv: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`distort_points`: where pixel coordinates (n, 2) of the distorted image
+        were in the undistorted (pinhole) image - what a calibrated perception stack computes before it
+        turns a pixel into a bearing."""
+        uv = np.asarray(uv, np.float64).reshape(-1, 2)
+        if not self.model.distorts or len(uv) == 0:
+            return uv
+        return self._source(uv, self._K, self._dist, self.zoom)
+
     def distort_boxes(self, boxes: np.ndarray) -> np.ndarray:
         """Boxes (n, 4) xyxy in pixel edges after the distortion: the bounds of 8 points per edge
         (radial distortion bends straight edges; the extremes lie on the edges), clipped to the image."""
         boxes = np.asarray(boxes, np.float32)
         if not self.model.distorts or len(boxes) == 0:
             return boxes
-        t = np.linspace(0, 1, 8)
-        out = np.empty_like(boxes)
-        for i, (x0, y0, x1, y1) in enumerate(boxes.astype(np.float64)):
-            xs, ys = x0 + (x1 - x0) * t, y0 + (y1 - y0) * t
-            pts = np.concatenate([np.stack([xs, np.full(8, y0)], 1), np.stack([xs, np.full(8, y1)], 1),
-                                  np.stack([np.full(8, x0), ys], 1), np.stack([np.full(8, x1), ys], 1)])
-            d = self.distort_points(pts)
-            out[i] = (d[:, 0].min(), d[:, 1].min(), d[:, 0].max(), d[:, 1].max())
+        # 8 points along each edge, as one matrix product: (n, 4) xyxy @ (4, 64) -> 32 x and 32 y
+        pts = boxes.astype(np.float64) @ _EDGE_POINTS
+        x = (pts[:, :32] - self.cx) / self.fx
+        y = (pts[:, 32:] - self.cy) / self.fx
+        r2 = x * x + y * y
+        f = (1 + self.model.k1 * r2 + self.model.k2 * r2 * r2) * (self.zoom * self.fx)
+        x *= f
+        y *= f
+        out = np.stack([x.min(1) + self.cx, y.min(1) + self.cy, x.max(1) + self.cx, y.max(1) + self.cy],
+                       1).astype(np.float32)
         out[:, 0::2] = np.clip(out[:, 0::2], 0, self.width)
         out[:, 1::2] = np.clip(out[:, 1::2], 0, self.height)
         return out

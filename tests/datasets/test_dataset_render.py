@@ -107,3 +107,28 @@ def test_start_window_renders_the_approach_to_the_start_line(tmp_path):
     assert ds.data["info"]["start_window"] == [-20.0, -5.0]
     big = [a for a in ds.data["annotations"] if a["category_id"] == 4 and not a["iscrowd"]]
     assert len({a["image_id"] for a in big}) == 6  # the start line's big orange cones are in every frame
+
+
+def test_frames_go_through_the_default_camera_model_unless_told_otherwise(tmp_path):
+    """Rendered sets go through the env's default camera model; ``--camera-model ideal`` renders the
+    frames exactly as rendered (the study's ideal camera), and a TOML file of fields changes one stage."""
+    from weather_gym.camera_model import CameraModel
+    from weather_gym.cli import main
+
+    kw = dict(tracks=["oval"], frames=2, seed=5, frames_per_episode=2, progress=False)
+    render_dataset(tmp_path / "default", **kw)
+    render_dataset(tmp_path / "ideal", camera_model=CameraModel.ideal(), **kw)
+    (tmp_path / "cam.toml").write_text("jpeg_quality = 0\nread_noise = 0.0\n")
+    assert main(["dataset", "render", "--track", "oval", "--frames", "2", "--seed", "5", "--frames-per-episode",
+                 "2", "--camera-model", str(tmp_path / "cam.toml"), "--quiet", "--out", str(tmp_path / "toml")]) == 0
+    default, ideal, toml = (load_coco(tmp_path / n) for n in ("default", "ideal", "toml"))
+    model = {n: CameraModel.from_dict(d.record(0)["camera_model"]) for n, d in
+             (("default", default), ("ideal", ideal), ("toml", toml))}
+    assert model == {"default": CameraModel.realistic(), "ideal": CameraModel.ideal(),
+                     "toml": CameraModel.realistic().with_(jpeg_quality=0, read_noise=0.0)}
+    assert default.record(0)["pose"] == ideal.record(0)["pose"]  # the same views, other frames
+    assert not np.array_equal(default.image(0), ideal.image(0))
+    assert not np.array_equal(default.image(0), toml.image(0))
+    view = ideal.render_view(0)  # the ideal camera's record re-renders byte for byte
+    ideal.close()
+    assert np.array_equal(view["image"], ideal.image(0))

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from gap_cases import CLEAN_FRAMES, GAP_CAMERA, MEASURED_SEED, SHIFTED_FRAMES
 
+from weather_gym.camera_model import CameraModel
+
 
 @pytest.fixture(scope="session")
 def gap_root(tmp_path_factory):
@@ -24,7 +26,8 @@ def clean_dir(gap_root):
 
     out = gap_root / "clean"
     render_dataset(out, tracks=["small_track"], frames=CLEAN_FRAMES, seed=11, randomize=True,
-                   frames_per_episode=10, camera=GAP_CAMERA, progress=False, scene="plain")
+                   frames_per_episode=10, camera=GAP_CAMERA, progress=False, scene="plain",
+                   camera_model=CameraModel.ideal())
     return out
 
 
@@ -92,8 +95,8 @@ def _ego_overlay(w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.fixture(scope="session")
 def shifted(gap_root):
-    """Two clear sets ("clear_a", "clear_b", other frames) of a real-looking domain made from the simulator:
-    random looks, another camera (70 deg, lower, pitched down), over-exposed with a contrastier tone curve,
+    """Two clear sets ("clear_a", "clear_b", other frames) of a real-looking domain made from the simulator
+    (the plain world, ideal camera): random looks, another camera (70 deg, lower, pitched down), over-exposed with a contrastier tone curve,
     the car's own bodywork in the lower part of every frame (its ignore mask stored), no poses, looks or
     camera records (a recording of unknown intrinsics)."""
     import cv2
@@ -109,7 +112,7 @@ def shifted(gap_root):
     w, h = GAP_CAMERA.width, GAP_CAMERA.height
     cam = CameraConfig(width=w, height=h, hfov_deg=70.0, pitch_deg=7.0, mount_height=0.8)
     render_dataset(root / "raw", tracks=["small_track"], frames=2 * SHIFTED_FRAMES, seed=21, randomize=True,
-                   frames_per_episode=6, camera=cam, progress=False, scene="plain")
+                   frames_per_episode=6, camera=cam, progress=False, scene="plain", camera_model=CameraModel.ideal())
     ds = load_coco(root / "raw")
     data = json.loads((root / "raw" / ANNOTATIONS).read_text())
     over = make("exposure", k=0.45, direction="over", contrast=0.4)

@@ -11,12 +11,15 @@ from __future__ import annotations
 import pytest
 from gap_cases import FAST, MEASURED_SEED
 
+from weather_gym.camera_model import CameraModel
 from weather_gym.gap.workflow import GapConfig, run_gap
 
 pytestmark = pytest.mark.slow
 
-# the "real-looking" domain is made from the plain world, so the simulator renders that world
-DID = dict(mode="did", tracks=("small_track",), perception=False, scene="plain", **FAST)
+# the "real-looking" domain is made from the plain world and the ideal camera (its records are stripped),
+# so the simulator renders that world through that camera
+DID = dict(mode="did", tracks=("small_track",), perception=False, scene="plain", camera_model=CameraModel.ideal(),
+           **FAST)
 
 
 def test_c_domain_only_names_nothing_and_lists_the_domain(shifted, gap_cache, tmp_path):
@@ -31,7 +34,8 @@ def test_c_domain_only_names_nothing_and_lists_the_domain(shifted, gap_cache, tm
 
 def test_c_without_a_reference_the_domain_is_confounded(shifted, gap_cache, tmp_path):
     report = run_gap(shifted["clear_b"], None, tmp_path / "conf",
-                     GapConfig(tracks=("small_track",), perception=False, scene="plain", **FAST), cache_dir=gap_cache, plots=False)
+                     GapConfig(tracks=("small_track",), perception=False, scene="plain",
+                               camera_model=CameraModel.ideal(), **FAST), cache_dir=gap_cache, plots=False)
     assert report["confounded"] and report["missing_effects"] == [] and not report["steps"]
     assert report["verdict"].startswith("confounded")
     assert "exposure" in [d["name"] for d in report["domain"]["differences"]]

@@ -90,3 +90,25 @@ def test_bad_classes_and_depth_shape_raise():
         detections_to_cones(_det([[0, 0, 10, 10]], [7]), cam)
     with pytest.raises(ValueError, match="depth"):
         detections_to_cones(_det([[0, 0, 10, 10]], [0]), cam, np.zeros((3, 3, 3)))
+
+
+def test_a_calibrated_stack_undoes_the_lens_before_bearing_and_range():
+    """Through a distorting camera model a box lands elsewhere and bigger (barrel distortion, zoom);
+    with the lens's inverse (``CameraPipeline.undistort_points``) the bearing and the box-height range
+    are those of the pinhole box again, without it they are off."""
+    from weather_gym.camera_model import CameraModel, CameraPipeline
+
+    cam = CameraConfig()
+    pipe = CameraPipeline(CameraModel.realistic(), cam.width, cam.height, fx=cam.fx, cx=cam.cx, cy=cam.cy)
+    dist = 6.0
+    h = cam.fy * 0.325 / dist
+    pinhole = np.array([[560.0, 200.0, 572.0, 200.0 + h]])  # a cone far right, where the lens bends most
+    seen = pipe.distort_boxes(pinhole).astype(np.float64)
+    truth = detections_to_cones(_det(pinhole, [0]), cam)
+    fixed = detections_to_cones(_det(seen, [0]), cam, undistort=pipe.undistort_points)
+    raw = detections_to_cones(_det(seen, [0]), cam)
+    assert fixed["bearings"][0] == pytest.approx(truth["bearings"][0], abs=2e-3)
+    assert fixed["ranges"][0] == pytest.approx(truth["ranges"][0], rel=0.02)
+    assert abs(raw["bearings"][0] - truth["bearings"][0]) > 0.02
+    assert abs(raw["ranges"][0] - truth["ranges"][0]) > 0.2  # 4 % off at 6.8 m
+    np.testing.assert_array_equal(fixed["boxes"], seen)  # the boxes stay those of the image

@@ -129,21 +129,23 @@ def test_weather_randomizer_drives_the_surrogate(no_render):
 
 
 NOISY_CAMERA = {"enabled": True, "read_noise": 2.0}
+IDEAL_CAMERA = {"enabled": False}
 
 
-@pytest.mark.parametrize(("weather", "camera", "still"), [
-    ("low_light@1", None, True), (None, None, True), ("droplets@2", None, False),
-    (None, NOISY_CAMERA, False),  # sensor noise changes every frame (a camera model given per episode)
-    (None, {"enabled": False}, True),
+@pytest.mark.parametrize(("weather", "camera", "option", "still"), [
+    ("low_light@1", IDEAL_CAMERA, None, True), (None, IDEAL_CAMERA, None, True),
+    ("droplets@2", IDEAL_CAMERA, None, False), ("droplets@2", None, None, False),
+    (None, None, None, True), ("low_light@2", None, None, True),  # the default camera's noise: still held
+    (None, IDEAL_CAMERA, NOISY_CAMERA, True),  # a noisy camera model given per episode
 ])
-def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, camera, still):
+def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, camera, option, still):
     """The detector is a function of the image: a car that stands in clear or dim weather gets the
-    same cones every frame (so a car that stopped seeing stays stopped); per-frame droplets and a
-    camera's sensor noise change the image, and the cones, every frame."""
-    env_kwargs = {"camera_model": NOISY_CAMERA} if camera == {"enabled": False} else {}
+    same cones every frame (so a car that stopped seeing stays stopped); per-frame droplets change the
+    image, and the cones, every frame. A camera's sensor noise jitters pixels, not which cones are found."""
+    env_kwargs = {} if camera is None else {"camera_model": camera}
     env = make_env(perception="surrogate", weather=weather, max_episode_steps=40, **env_kwargs)
     try:
-        env.reset(seed=3, options=None if camera is None else {"camera_model": camera})
+        env.reset(seed=3, options=None if option is None else {"camera_model": option})
         for _ in range(15):  # drive off, so the cones' states are mid-episode ones
             env.step(np.array([0.0, 0.6], np.float32))
         lists = []
@@ -163,7 +165,7 @@ def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, camera
 def test_a_car_standing_for_a_long_time_keeps_plain_detections():
     """Regression: each held frame wrapped the last detections once more, and after ~1,000 frames of
     standing, copying the info (as vector envs and SB3 do) hit the recursion limit."""
-    env = make_env(perception="surrogate", weather="low_light@1", max_episode_steps=1300)
+    env = make_env(perception="surrogate", weather="low_light@1", max_episode_steps=1300, camera_model=IDEAL_CAMERA)
     try:
         env.reset(seed=3)
         for _ in range(1200):

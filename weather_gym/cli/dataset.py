@@ -19,6 +19,7 @@ import numpy as np
 
 from weather_gym._io import check_output, write_image
 from weather_gym.camera import CameraConfig
+from weather_gym.cli._camera_model_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cone_spec import CONE_CLASSES
@@ -49,8 +50,12 @@ def register(sub) -> None:
                         "ground/sky/clutter textures and colours, distractors, ego car, camera pose/FOV, camera "
                         "model (exposure, white balance, distortion, noise, JPEG); see docs/world.md")
     r.add_argument("--scene", choices=("auto", "plain", "realistic"), default="auto",
-                   help="world to render: plain (the default world, ideal camera) or realistic (with the "
-                        "realistic camera model); auto (default) = realistic with --randomize, else plain")
+                   help="world to render: plain (the default world) or realistic (FS-striped cones, clutter, "
+                        "ego car); auto (default) = realistic with --randomize, else plain")
+    add_camera_model_arg(r, "realistic, the env's default camera",
+                         "the camera's finishing stage: realistic, ideal (off: the study's ideal camera, as plain-world "
+                         "datasets had before the camera model became the default) or a TOML file of CameraModel "
+                         "fields; a randomised realistic render draws its own per episode")
     r.add_argument("--randomize-ranges", type=Path, default=None, metavar="FILE.toml",
                    help="TOML file of randomisation ranges (key = [low, high]; keys as in RandomizeRanges)")
     r.add_argument("--randomize-set", action="append", default=[], metavar="KEY=LOW,HIGH",
@@ -130,6 +135,10 @@ def _render(args) -> int:
     if (args.randomize_ranges or sets) and not args.randomize:
         raise InputError("--randomize-ranges / --randomize-set need --randomize")
     scene = ("realistic" if args.randomize else "plain") if args.scene == "auto" else args.scene
+    model = camera_model_arg(args.camera_model) if args.camera_model else None  # None: the env's default
+    if scene == "realistic" and args.randomize and args.camera_model is not None:
+        raise InputError("--camera-model: a randomised realistic render draws its camera model per episode "
+                         "(ranges: --randomize-set); leave --camera-model out")
     window = None
     if args.start_window is not None:
         parts = args.start_window.split(",")
@@ -142,7 +151,7 @@ def _render(args) -> int:
     path = render_dataset(args.out, tracks=args.track, frames=args.frames, seed=args.seed, randomize=args.randomize,
                           camera=cam, every=args.every, frames_per_episode=args.frames_per_episode,
                           progress=not args.quiet, overwrite=args.overwrite, resume=args.resume, scene=scene,
-                          ranges=ranges, start_window=window)
+                          ranges=ranges, start_window=window, camera_model=model)
     print(f"wrote {path}")
     return 0
 

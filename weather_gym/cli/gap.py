@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from weather_gym.cli._camera_model_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.gap.workflow import GapConfig, run_gap
@@ -44,6 +45,8 @@ def register(sub) -> None:
     p.add_argument("--sim-frames", type=int, default=None, help="frames to render in unpaired mode (default: as measured)")
     p.add_argument("--scene", choices=SCENES, default=None,
                    help="simulator world of unpaired / did renders (default: the records' world, else the default world)")
+    add_camera_model_arg(p, "the records' camera model when they all agree, else realistic",
+                         "camera model of unpaired / did renders: realistic, ideal or a TOML file of CameraModel fields")
     p.add_argument("--held-out", type=float, default=0.5, help="fraction of frames held out (default %(default)s)")
     p.add_argument("--fit-frames", type=int, default=32,
                    help="fitting frames used by the parameter search (default %(default)s)")
@@ -76,7 +79,8 @@ def _run(args) -> int:
     if args.candidates:
         cands = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
     config = GapConfig(seed=args.seed, mode=args.mode, tracks=tuple(args.track) if args.track else None,
-                       sim_frames=args.sim_frames, scene=args.scene, held_out=args.held_out, fit_frames=args.fit_frames,
+                       sim_frames=args.sim_frames, scene=args.scene,
+                       camera_model=camera_model_arg(args.camera_model) if args.camera_model else None, held_out=args.held_out, fit_frames=args.fit_frames,
                        max_steps=args.max_steps, candidates=cands, alpha=args.alpha, detector=detector,
                        compare_width=args.compare_width, prune=not args.no_prune, progress=not args.quiet)
     report = run_gap(args.measured, args.model, args.out, config, reference=args.reference, cache_dir=args.cache,

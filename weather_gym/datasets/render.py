@@ -27,6 +27,7 @@ from weather_gym.agents import AGENTS
 from weather_gym.camera import CameraConfig
 from weather_gym.camera_model import CameraModel
 from weather_gym.datasets import coco as _coco  # cyclic pair: attributes used at call time
+from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError
 from weather_gym.pipeline import make_env
 from weather_gym.sim.config import SCENES, SimConfig
@@ -111,6 +112,7 @@ def render_dataset(
     scene: str = "plain",
     ranges=None,
     start_window: tuple[float, float] | None = None,
+    camera_model: CameraModel | None = None,
 ) -> Path:
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
@@ -120,9 +122,11 @@ def render_dataset(
         randomize: draw a random appearance per episode: in the plain scene a random ``Look``
             (``weather_gym.sim.look.sample_look``), in the realistic one a ``Look``, a camera model and a
             field of view from ``ranges`` (``weather_gym.sim.randomize.sample_realistic``); otherwise
-            every frame uses the default look (realistic scene: ``REALISTIC_LOOK`` and ``CameraModel.realistic()``;
-            plain scene: ``DEFAULT_LOOK`` and the camera model off, as the plain world always had).
+            every frame uses the scene's default look (``REALISTIC_LOOK`` or ``DEFAULT_LOOK``).
         scene: ``"plain"`` (the default world) or ``"realistic"`` (``SimConfig.scene``).
+        camera_model: the camera's finishing stage for every frame (None: the env's default,
+            ``CameraModel.realistic()``; ``CameraModel.ideal()``: the study's ideal camera, as the plain world
+            had before the camera model became the default); a randomised realistic render draws its own.
         ranges: ``RandomizeRanges`` of the realistic randomisation (None: the defaults).
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
         frames_per_episode: frames saved per episode before a new start point / look is drawn.
@@ -140,6 +144,10 @@ def render_dataset(
     ranges = ranges or RandomizeRanges()
     if every < 1:
         raise InputError(f"every must be >= 1, got {every}")
+    if camera_model is None:
+        camera_model = EnvConfig().camera_model  # the env's default finishing stage
+    if not isinstance(camera_model, CameraModel):
+        raise InputError(f"camera_model must be a CameraModel, got {type(camera_model).__name__}")
     camera = camera or CameraConfig()
     plan = episode_plan(list(tracks), int(frames), int(frames_per_episode))
     # every episode's seed comes from the master seed, so resuming replays exactly the same episodes
@@ -162,12 +170,12 @@ def render_dataset(
                 written += n_frames
                 continue
             rng = np.random.default_rng(ep_seed)
-            ep_camera, model = camera, CameraModel.ideal()
+            ep_camera, model = camera, camera_model
             if realistic and randomize:
                 draw = sample_realistic(rng, ranges)
                 look, model, ep_camera = draw.look, draw.camera_model, draw.camera(camera)
             elif realistic:
-                look, model = REALISTIC_LOOK, CameraModel.realistic()
+                look = REALISTIC_LOOK
             else:
                 look = sample_look(rng) if randomize else DEFAULT_LOOK
             if env_track != (track_spec, ep_camera):

@@ -120,6 +120,12 @@ class ConeTrackEnv(gym.Env):
         return self._camera_model
 
     @property
+    def camera_pipeline(self) -> CameraPipeline | None:
+        """This episode's prepared camera model (None for the ideal camera): its ``undistort_points`` is
+        the lens calibration a perception stack uses to turn pixels into bearings."""
+        return self._pipeline
+
+    @property
     def renderer(self) -> str:
         """The renderer in use: "egl", "tiny" or "none" (``camera_images=False``)."""
         return self.world.renderer_name
@@ -201,9 +207,10 @@ class ConeTrackEnv(gym.Env):
     def _set_pipeline(self, model: CameraModel, rng: np.random.Generator) -> None:
         """This episode's camera pipeline; its noise comes from a generator seeded from the episode's
         RNG. The seed is drawn with the camera model on or off, so the study's ideal camera
-        (``enabled=False``, the default) and a camera model see the same episode (odometry noise, random looks)."""
+        (``enabled=False``) and a camera model see the same episode (odometry noise, random looks).
+        Render-free, a distorting lens still moves the ground-truth boxes (no frame to finish)."""
         noise_seed = int(rng.integers(0, 2**63 - 1))
-        if not model.enabled or not self.config.camera_images:  # render-free: no frame to finish
+        if not model.enabled or not (self.config.camera_images or model.distorts):
             self._pipeline = self._pipeline_rng = None
             return
         pipe = self._pipelines.get(model)
@@ -214,7 +221,8 @@ class ConeTrackEnv(gym.Env):
             pipe = self._pipelines[model] = CameraPipeline(model, cam.width, cam.height, fx=cam.fx, cx=cam.cx, cy=cam.cy)
         self._pipeline = pipe
         self._pipeline_rng = np.random.default_rng(noise_seed)
-        pipe.reseed(self._pipeline_rng)
+        if self.config.camera_images:  # render-free, the lens only moves boxes: no noise to draw
+            pipe.reseed(self._pipeline_rng)
 
     def _sample_look(self, rng: np.random.Generator) -> Look:
         """A random look: the plain world's ``sample_look``, or in the realistic scene the look of
@@ -327,13 +335,15 @@ class ConeTrackEnv(gym.Env):
         if cfg.ground_truth == "geometry":
             self._gt = world.ground_truth()
         pipe = self._pipeline
-        if pipe is not None and cfg.camera_images:
+        if pipe is None:
+            return
+        if cfg.camera_images:
             assert self._pipeline_rng is not None and self._image is not None
             self._image = pipe.apply(self._image, self._pipeline_rng)
             if pipe.model.distorts:  # the lens moves pixels: depth and boxes follow
                 self._depth = pipe.remap_nearest(self._depth, float(cfg.camera.far))
-                if self._gt is not None and self._gt.count:
-                    self._gt = ConeArrays({**self._gt, "boxes": pipe.distort_boxes(self._gt["boxes"])})
+        if pipe.model.distorts and self._gt is not None and self._gt.count:
+            self._gt = ConeArrays({**self._gt, "boxes": pipe.distort_boxes(self._gt["boxes"])})
 
     def _observation(self, meas: tuple[float, float]) -> dict[str, np.ndarray]:
         state = np.array([meas[0], meas[1], *self._odom], dtype=np.float32)

@@ -66,9 +66,10 @@ class EnvConfig:
             ``WeatherWrapper`` it is the weathered frame the agent sees, so Gymnasium's and our
             ``RecordVideo`` record the weather).
         camera_model: the camera's image pipeline applied to every frame before anything else sees it
-            (``weather_gym.camera_model``; off by default, ``CameraModel.ideal()`` = the study's ideal
-            camera; ``CameraModel()`` = a realistic camera, as ``WeatherGym/ConeTrackRealistic-v0``
-            uses). Weather wrappers act on the finished frame.
+            (``weather_gym.camera_model``; by default ``CameraModel.realistic()``: exposure, tone curve,
+            white balance, vignetting, distortion, defocus, sensor noise, 4:2:0 and JPEG, as a real camera
+            delivers frames; ``CameraModel.ideal()`` switches it off = the study's ideal camera, as
+            ``WeatherGym/ConeTrackPlain-v0`` does). Weather wrappers act on the finished frame.
 
     The episode's time limit is not here: Gymnasium's ``TimeLimit`` owns truncation
     (``gym.make(id, max_episode_steps=...)``; each scenario registers its default).
@@ -88,7 +89,7 @@ class EnvConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     reward: RewardConfig = field(default_factory=RewardConfig)
-    camera_model: CameraModel = field(default_factory=CameraModel.ideal)
+    camera_model: CameraModel = field(default_factory=CameraModel.realistic)
 
     def __post_init__(self) -> None:
         if not isinstance(self.track, str) or not self.track:

@@ -11,8 +11,8 @@ A scenario file::
     [camera]      # CameraConfig fields
     [odometry]    # OdometryConfig fields
     [reward]      # RewardConfig fields
-    [camera_model]  # CameraModel fields (weather_gym.camera_model): a table switches a realistic camera on,
-                    # its keys change single fields (enabled = false: off); no table: the ideal camera
+    [camera_model]  # CameraModel fields (weather_gym.camera_model); no table: the default realistic camera;
+                    # keys change single fields of it; enabled = false: the study's ideal camera (off)
     [weather]     # optional: spec = "droplets@2" (any weather spec), or condition/severity
     [perception]  # optional: mode = "detector" (see weather_gym.pipeline.PERCEPTION_MODES),
                   # detector = "model.onnx", and the perception wrapper's keyword arguments
@@ -181,9 +181,6 @@ def build_config(scenario: Scenario, overrides: dict[str, Any] | None = None) ->
         if key in overrides:
             kwargs[key] = overrides[key]
     for name, cls in SECTIONS.items():
-        if name == "camera_model" and not scenario.sections.get(name) and overrides.get(name) is None:
-            kwargs[name] = CameraModel.ideal()  # no [camera_model] table: the ideal camera (EnvConfig's default)
-            continue
         kwargs[name] = _merge_section(cls, scenario.sections.get(name, {}), overrides.get(name), name)
     return EnvConfig(**kwargs)
 

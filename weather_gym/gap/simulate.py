@@ -35,8 +35,10 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym.camera import CameraConfig
+from weather_gym.camera_model import CameraModel
 from weather_gym.datasets.coco import ANNOTATIONS, JOURNAL, CocoWriter, load_coco
 from weather_gym.datasets.render import ViewRenderer, render_dataset
+from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError
 from weather_gym.sim.config import SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK
@@ -372,14 +374,23 @@ def _scene_of(ds: Any) -> str:
     return str(scenes.pop()) if len(scenes) == 1 and None not in scenes else SimConfig().scene
 
 
+def _camera_model_of(ds: Any) -> CameraModel:
+    """The camera model the records name, when they all agree; otherwise (a real recording, or records
+    rendered before they carried one) the env's default camera model."""
+    models = {json.dumps(rec.get("camera_model"), sort_keys=True) for rec in ds.images}
+    if len(models) == 1 and isinstance(ds.images[0].get("camera_model"), dict):
+        return CameraModel.from_dict(ds.images[0]["camera_model"])
+    return EnvConfig().camera_model
+
+
 def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
-                     progress: bool, scene: str) -> Path:
+                     progress: bool, scene: str, camera_model: CameraModel) -> Path:
     key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict(),
-                "scene": scene})
+                "scene": scene, "camera_model": camera_model.to_dict()})
     out = cache_dir / f"unpaired-{key}"
     if not (out / ANNOTATIONS).is_file():
         render_dataset(out, tracks=tracks, frames=frames, seed=seed, camera=camera, progress=progress,
-                       resume=(out / JOURNAL).exists(), scene=scene)
+                       resume=(out / JOURNAL).exists(), scene=scene, camera_model=camera_model)
     return out
 
 
@@ -425,7 +436,8 @@ def _tracks_of(ds: Any, tracks: list[str] | None) -> list[str]:
 def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike, mode: str = "auto",
              reference: str | os.PathLike | Any | None = None, tracks: list[str] | None = None,
              sim_frames: int | None = None, scene: str | None = None, held_out: float = 0.5, seed: int = 0,
-             progress: bool = False, compare_width: int | None = COMPARE_WIDTH) -> GapData:
+             progress: bool = False, compare_width: int | None = COMPARE_WIDTH,
+             camera_model: CameraModel | None = None) -> GapData:
     """Load the measured frames and the frames the model is applied to (step 1 of the workflow).
 
     Args:
@@ -437,6 +449,8 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         tracks: tracks to render in unpaired and did modes (default: the records' ``track`` values).
         sim_frames: frames to render in unpaired / did mode (default: as many as measured / reference).
         scene: the world of unpaired / did renders (default: the records' ``scene``, else the default world).
+        camera_model: the camera model of unpaired / did renders (default: the records' ``camera_model``
+            when they all agree, else the env's default, ``CameraModel.realistic()``).
         held_out: fraction of frames held out for the final comparison.
         compare_width: frames wider than this are scaled down once on loading (None: never).
     """
@@ -493,7 +507,8 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         tr = _tracks_of(ref_ds if any(r.get("track") for r in ref_ds.images) else ds, tracks)
         camera = _camera_of(ref_ds).scaled(*measured_frames.size)
         n_sim = int(sim_frames or len(ref_ds))
-        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ref_ds))
+        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ref_ds),
+                                    camera_model or _camera_model_of(ref_ds))
         sim_ds = load_coco(sim_root)
         sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
         sim_fit, sim_held = split_indices(len(sim_ds), held_out=held_out, seed=seed + 1)
@@ -509,7 +524,8 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         tr = _tracks_of(ds, tracks)
         camera = _camera_of(ds).scaled(*measured_frames.size)
         n_sim = int(sim_frames or len(ds))
-        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ds))
+        sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ds),
+                                    camera_model or _camera_model_of(ds))
         sim_ds = load_coco(sim_root)
         sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
         sim_fit, sim_held = split_indices(len(sim_ds), held_out=held_out, seed=seed + 1)

@@ -41,6 +41,7 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym._io import atomic_write_json, check_output
+from weather_gym.camera_model import CameraModel
 from weather_gym.errors import InputError
 from weather_gym.gap.compare import (
     ALPHA,
@@ -99,6 +100,8 @@ class GapConfig:
         sim_frames: frames to render in unpaired / did mode (default: as many as measured).
         scene: the simulator world of unpaired / did renders (``"plain"`` or ``"realistic"``; default: the
             one the records name, else the default world).
+        camera_model: the camera model of unpaired / did renders (a ``CameraModel``; default: the one the
+            records name when they all agree, else the env's default ``CameraModel.realistic()``).
         compare_width: frames wider than this are scaled down once on loading.
         held_out: fraction of the frames held out for the reported gaps.
         fit_frames: at most this many fitting frames are used by the parameter search.
@@ -120,6 +123,7 @@ class GapConfig:
     tracks: tuple[str, ...] | None = None
     sim_frames: int | None = None
     scene: str | None = None
+    camera_model: CameraModel | None = None
     held_out: float = 0.5
     fit_frames: int = 32
     max_steps: int = 4
@@ -141,6 +145,9 @@ class GapConfig:
             raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
         if self.scene is not None and self.scene not in SCENES:
             raise InputError(f"scene must be one of {SCENES} (or None: from the records), got {self.scene!r}")
+        if self.camera_model is not None and not isinstance(self.camera_model, CameraModel):
+            raise InputError(f"camera_model must be a CameraModel (or None: from the records), "
+                             f"got {type(self.camera_model).__name__}")
         if self.sim_frames is not None and self.sim_frames < MIN_FRAMES:
             raise InputError(f"sim_frames must be >= {MIN_FRAMES}, got {self.sim_frames}")
         if self.compare_width is not None and self.compare_width < 64:
@@ -728,7 +735,7 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
     data = simulate(measured, cache_dir=cache, mode=config.mode, reference=reference,
                     tracks=list(config.tracks) if config.tracks else None, sim_frames=config.sim_frames,
                     scene=config.scene, held_out=config.held_out, seed=config.seed, progress=config.progress,
-                    compare_width=config.compare_width)
+                    compare_width=config.compare_width, camera_model=config.camera_model)
     t_sim = time.perf_counter() - t0
     session = GapSession(data, effects, config)
     report = session.run()

@@ -18,7 +18,10 @@ Range, two ways (``ranges_source`` tells which one each cone used):
   shorter) - documented, not hidden.
 
 Bearing: ``atan2(cx - u, fx)`` at the box's horizontal centre (positive left), as in the env's
-ground truth.
+ground truth. A camera with lens distortion (``weather_gym.camera_model``) is used as a calibrated
+stack would: ``undistort`` maps the box's image points back to the pinhole image first (the box
+centre for the bearing and the depth's direction, its top and bottom centre for the box height);
+the depth is still read inside the box as the frame shows it.
 
 Example:
     >>> import numpy as np
@@ -34,6 +37,7 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -49,15 +53,28 @@ _HEIGHTS = np.array([CONE_HEIGHT_M[c] for c in CONE_CLASSES])
 _MEAN_RADIUS = np.array([CONE_BASE_M[c] / 4.0 for c in CONE_CLASSES])  # radius at mid-height
 
 
-def range_from_box_height(boxes: np.ndarray, classes: np.ndarray, camera: CameraConfig) -> np.ndarray:
+Undistort = Callable[[np.ndarray], np.ndarray]
+"""Maps (n, 2) pixel coordinates of the camera's (distorted) image to the pinhole image."""
+
+
+def _pinhole(points: np.ndarray, undistort: Undistort | None) -> np.ndarray:
+    return points if undistort is None or not len(points) else np.asarray(undistort(points), np.float64)
+
+
+def range_from_box_height(boxes: np.ndarray, classes: np.ndarray, camera: CameraConfig,
+                          undistort: Undistort | None = None) -> np.ndarray:
     """Horizontal range (m) from the box height and the class's known cone height."""
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    z = camera.range_from_height(b[:, 3] - b[:, 1], _HEIGHTS[np.asarray(classes, dtype=np.int64)])
-    bearing = camera.bearing((b[:, 0] + b[:, 2]) / 2) if len(b) else np.zeros(0)
+    uc = (b[:, 0] + b[:, 2]) / 2
+    top = _pinhole(np.stack([uc, b[:, 1]], 1), undistort)
+    bottom = _pinhole(np.stack([uc, b[:, 3]], 1), undistort)
+    z = camera.range_from_height(bottom[:, 1] - top[:, 1], _HEIGHTS[np.asarray(classes, dtype=np.int64)])
+    bearing = camera.bearing((top[:, 0] + bottom[:, 0]) / 2) if len(b) else np.zeros(0)
     return np.asarray(z, dtype=np.float64) / np.cos(bearing)
 
 
-def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, camera: CameraConfig) -> np.ndarray:
+def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, camera: CameraConfig,
+                     undistort: Undistort | None = None) -> np.ndarray:
     """Horizontal range (m) from the median depth inside each box.
 
     ``camera.far`` where every finite depth in the box is at the far plane (nothing closer there);
@@ -69,6 +86,7 @@ def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, 
     out = np.full(len(b), np.nan)
     pitch = math.radians(camera.pitch_deg)
     sx, sy = w / camera.width, h / camera.height  # depth maps at another resolution than the camera
+    centres = _pinhole(np.stack([(b[:, 0] + b[:, 2]) / 2, (b[:, 1] + b[:, 3]) / 2], 1), undistort)
     for k, (x1, y1, x2, y2) in enumerate(b):
         bw, bh = x2 - x1, y2 - y1
         u0, u1 = int(math.floor((x1 + 0.25 * bw) * sx)), int(math.ceil((x2 - 0.25 * bw) * sx))
@@ -84,8 +102,7 @@ def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, 
                 out[k] = camera.far
             continue
         z = float(np.median(valid))
-        u = (x1 + x2) / 2
-        v = (y1 + y2) / 2
+        u, v = centres[k]
         xc = (u - camera.cx) / camera.fx * z  # right
         yc = (v - camera.cy) / camera.fy * z  # down
         forward = z * math.cos(pitch) - yc * math.sin(pitch)
@@ -93,12 +110,14 @@ def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, 
     return out
 
 
-def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray | None = None,
+                        undistort: Undistort | None = None) -> dict[str, np.ndarray]:
     """Cones from detections: ``classes``, ``scores``, ``boxes`` (xyxy px), ``bearings`` (rad),
     ``ranges`` (m) and ``ranges_source`` ("depth", "far" or "height" per cone; see the module doc).
 
     ``detections`` is a ``Detections`` or a dict with ``boxes``, ``scores``, ``classes``; ``depth``
-    an optional (H, W) metric z-depth map of the same frame.
+    an optional (H, W) metric z-depth map of the same frame; ``undistort`` the lens's inverse
+    (``CameraPipeline.undistort_points``) when the frame comes through a distorting camera model.
     """
     d = detections.to_dict() if hasattr(detections, "to_dict") and not isinstance(detections, dict) else detections
     boxes = np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4)
@@ -107,19 +126,20 @@ def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray
     scores = np.asarray(d["scores"], dtype=np.float64).reshape(n)
     if n and (classes.min() < 0 or classes.max() >= len(CONE_CLASSES)):
         raise InputError(f"detection classes must be in 0..{len(CONE_CLASSES) - 1}, got {np.unique(classes).tolist()}")
-    bearings = np.asarray(camera.bearing((boxes[:, 0] + boxes[:, 2]) / 2), dtype=np.float64).reshape(n) if n else np.zeros(0)
+    centres = _pinhole(np.stack([(boxes[:, 0] + boxes[:, 2]) / 2, (boxes[:, 1] + boxes[:, 3]) / 2], 1), undistort)
+    bearings = np.asarray(camera.bearing(centres[:, 0]), dtype=np.float64).reshape(n) if n else np.zeros(0)
     ranges = np.full(n, np.nan)
     source = np.full(n, "height", dtype=object)
     if depth is not None and n:
         depth = np.asarray(depth)
         if depth.ndim != 2:
             raise InputError(f"depth must be an (H, W) array of metres, got shape {depth.shape}")
-        ranges = range_from_depth(boxes, classes, depth, camera)
+        ranges = range_from_depth(boxes, classes, depth, camera, undistort)
         source[np.isfinite(ranges)] = "depth"
         source[ranges == camera.far] = "far"
     missing = ~np.isfinite(ranges)
     if missing.any():
-        ranges[missing] = range_from_box_height(boxes[missing], classes[missing], camera)
+        ranges[missing] = range_from_box_height(boxes[missing], classes[missing], camera, undistort)
     return {
         "classes": classes,
         "scores": scores,

@@ -144,7 +144,7 @@ class DetectorWrapper(gym.ObservationWrapper):
         det = self.detector(np.asarray(image))
         self._last_latency = 1000.0 * (time.perf_counter() - t0)
         depth = observation[self.depth_key] if self.depth_key is not None else None
-        cones = detections_to_cones(det, self.camera, depth)
+        cones = detections_to_cones(det, self.camera, depth, self._undistort())
         packed, mask = cones_to_observation(cones, self.camera, self.max_cones)
         self._last_detections = ConeArrays({**det.to_dict(), "ranges": cones["ranges"].astype(np.float32),
                                             "bearings": cones["bearings"].astype(np.float32)})
@@ -153,6 +153,12 @@ class DetectorWrapper(gym.ObservationWrapper):
             if k not in out:
                 out[k] = observation[k] if self._is_dict else image
         return out
+
+    def _undistort(self):
+        """The lens's inverse when the env's camera model distorts (a calibrated camera: bearings and
+        ranges are computed in the pinhole image), else None."""
+        pipe = getattr(getattr(self.env, "unwrapped", None), "camera_pipeline", None)
+        return pipe.undistort_points if pipe is not None and pipe.model.distorts else None
 
     def _add_info(self, info: dict) -> dict:
         info = dict(info)
