@@ -310,11 +310,15 @@ class CameraPipeline:
         uv = np.asarray(uv, np.float64)
         if not self.model.distorts:
             return uv
-        x = (uv[:, 0] - self.cx) / self.fx
-        y = (uv[:, 1] - self.cy) / self.fx
+        return np.stack(self._distort_xy(uv[:, 0], uv[:, 1]), 1)
+
+    def _distort_xy(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The lens on pixel coordinates given as two arrays of any (equal) shape."""
+        x = (u - self.cx) / self.fx
+        y = (v - self.cy) / self.fx
         r2 = x * x + y * y
         f = (1 + self.model.k1 * r2 + self.model.k2 * r2 * r2) * self.zoom
-        return np.stack([x * f * self.fx + self.cx, y * f * self.fx + self.cy], 1)
+        return x * f * self.fx + self.cx, y * f * self.fx + self.cy
 
     def undistort_points(self, uv: np.ndarray) -> np.ndarray:
         """The inverse of :meth:`distort_points`: where pixel coordinates (n, 2) of the distorted image
@@ -333,14 +337,8 @@ class CameraPipeline:
             return boxes
         # 8 points along each edge, as one matrix product: (n, 4) xyxy @ (4, 64) -> 32 x and 32 y
         pts = boxes.astype(np.float64) @ _EDGE_POINTS
-        x = (pts[:, :32] - self.cx) / self.fx
-        y = (pts[:, 32:] - self.cy) / self.fx
-        r2 = x * x + y * y
-        f = (1 + self.model.k1 * r2 + self.model.k2 * r2 * r2) * (self.zoom * self.fx)
-        x *= f
-        y *= f
-        out = np.stack([x.min(1) + self.cx, y.min(1) + self.cy, x.max(1) + self.cx, y.max(1) + self.cy],
-                       1).astype(np.float32)
+        x, y = self._distort_xy(pts[:, :32], pts[:, 32:])
+        out = np.stack([x.min(1), y.min(1), x.max(1), y.max(1)], 1).astype(np.float32)
         out[:, 0::2] = np.clip(out[:, 0::2], 0, self.width)
         out[:, 1::2] = np.clip(out[:, 1::2], 0, self.height)
         return out

@@ -102,7 +102,6 @@ class ConeTrackEnv(gym.Env):
         self._gt: ConeArrays | None = None
         self._episode_started = False
         self._pipelines: dict[CameraModel, CameraPipeline] = {}
-        self._camera_model = config.camera_model
         self._pipeline: CameraPipeline | None = None
         self._pipeline_rng: np.random.Generator | None = None
 
@@ -113,11 +112,6 @@ class ConeTrackEnv(gym.Env):
         if self._world is None:
             self._world = World(self.track, sim=self._sim, car=self.config.car, camera=self.config.camera)
         return self._world
-
-    @property
-    def camera_model(self) -> CameraModel:
-        """This episode's camera model: the config's, or the ``camera_model`` reset option's."""
-        return self._camera_model
 
     @property
     def camera_pipeline(self) -> CameraPipeline | None:
@@ -174,7 +168,6 @@ class ConeTrackEnv(gym.Env):
             raise InputError(f"reset option camera_frame must be an integer >= 0 (frames since the episode's "
                              f"seeded reset), got {camera_frame!r}")
         self._set_pipeline(model, rng)
-        self._camera_model = model
         if self._pipeline is not None:
             self._pipeline.skip(self._pipeline_rng, int(camera_frame))
         world = self.world
