@@ -30,6 +30,47 @@ def test_targets_peak_at_the_box_centre_and_ignore_tiny_cones():
     assert ign[3, 25] == 1.0 and ign[15, 12] == 0.0
 
 
+def test_a_stride_2_grid_gives_a_start_line_pair_two_separate_peaks():
+    # a start-line pair: the rear cone's visible slice is centred 5 input px right of the front cone
+    boxes = np.array([[38, 40, 52, 60], [47, 40, 53, 59.]])
+    classes, ignore = np.array([3, 3]), np.array([False, False])
+
+    def cells_apart(stride):
+        ind = build_targets(boxes, classes, ignore, (256, 160), stride)[2]
+        (y0, x0), (y1, x1) = (divmod(int(i), 256 // stride) for i in ind[:2])
+        return max(abs(x1 - x0), abs(y1 - y0))
+
+    assert cells_apart(4) == 1  # neighbouring cells: CenterNet's 3x3 peak filter can keep only one of them
+    assert cells_apart(2) >= 2  # the 3x3 peak filter keeps both
+    heat, _, ind, size, _, mask = build_targets(boxes, classes, ignore, (256, 160), 2)
+    assert heat.shape == (4, 80, 128) and mask.sum() == 2 and ind[0] != ind[1]
+    np.testing.assert_allclose(size[1], np.log([6 / 2, 19 / 2]), rtol=1e-6)
+    with pytest.raises(InputError, match="stride"):
+        TrainConfig(stride=8)
+
+
+def test_a_stride_2_net_starts_from_a_stride_4_model_and_exports_its_stride(tmp_path):
+    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.train import export_onnx, load_onnx_weights
+
+    torch.manual_seed(4)
+    coarse = export_onnx(ConeNet().eval(), tmp_path / "s4.onnx", (128, 64))
+    net = load_onnx_weights(ConeNet(stride=2), coarse).eval()
+    x = torch.rand(1, 3, 64, 128) * 255
+    with torch.no_grad():  # the finer level starts as the identity: the same sizes, on a finer grid
+        fine = ConeNetExport(net)(x)[0, 4:6].numpy()
+        ref = ConeNetExport(load_onnx_weights(ConeNet(), coarse).eval())(x)[0, 4:6].numpy()
+    assert fine.shape == (2, 32, 64)
+    np.testing.assert_allclose(np.median(fine, axis=(1, 2)), np.median(ref, axis=(1, 2)), rtol=0.3)
+    path = export_onnx(net, tmp_path / "s2.onnx", (128, 64))
+    assert json.loads(path.with_suffix(".json").read_text())["stride"] == 2
+    det = ConeDetector(path)
+    assert det.stride == 2 and det.raw([np.zeros((64, 128, 3), np.uint8)])[0].shape[-2:] == (32, 64)
+    back = load_onnx_weights(ConeNet(stride=2), path).eval()
+    with torch.no_grad():
+        np.testing.assert_allclose(ConeNetExport(back)(x).numpy(), ConeNetExport(net)(x).numpy(), atol=1e-4)
+
+
 def test_augment_moves_boxes_with_the_image():
     img = np.zeros((376, 672, 3), np.uint8)
     img[100:140, 50:80] = 255

@@ -1,6 +1,6 @@
 """ConeNet: a small CenterNet-style cone detector in PyTorch (training only; the runtime uses ONNX).
 
-The network sees a letterboxed RGB image (default 512x288) and predicts, on a grid of stride 4:
+The network sees a letterboxed RGB image (default 512x288) and predicts, on a grid of stride 4 (or 2):
 
 * ``heat``  - one sigmoid heatmap per cone class; a cone is a local peak at its box centre,
 * ``size``  - ``log(w / 4)``, ``log(h / 4)`` of the box (scale-free regression),
@@ -8,7 +8,10 @@ The network sees a letterboxed RGB image (default 512x288) and predicts, on a gr
 
 Backbone: a plain stride-2 3x3 conv at each scale (16-24-48-96-128 channels) followed by residual
 depthwise-separable blocks; a top-down feature pyramid brings the stride 8/16/32 features back to
-stride 4, where a depthwise-separable head predicts the 8 output channels. The exported ONNX graph
+stride 4, where a depthwise-separable head predicts the 8 output channels. With ``stride=2`` the pyramid
+goes one level further, to the stem's stride-2 features: two cones whose centres are 4-8 input pixels
+apart (the rear cone of a start-line pair) then fall in separate, non-neighbouring cells, so the peak
+filter keeps both. The exported ONNX graph
 also applies the sigmoid and a 3x3 max-pool peak filter (CenterNet's "NMS"), so the runtime only
 thresholds peaks.
 
@@ -19,6 +22,8 @@ Example:
     >>> out = net(torch.zeros(1, 3, 288, 512))
     >>> tuple(out.shape)  # (batch, 4 classes + 2 size + 2 offset, H/4, W/4)
     (1, 8, 72, 128)
+    >>> tuple(ConeNet(stride=2).eval()(torch.zeros(1, 3, 288, 512)).shape)
+    (1, 8, 144, 256)
 """
 
 from __future__ import annotations
@@ -27,8 +32,11 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from weather_gym.errors import InputError
+
 NUM_CLASSES = 4
-STRIDE = 4
+STRIDE = 4  # the default output stride
+STRIDES = (2, 4)
 OUT_CHANNELS = NUM_CLASSES + 4
 HEAT_PRIOR = 0.01  # initial heatmap probability (focal-loss bias init, as in CenterNet/RetinaNet)
 
@@ -60,7 +68,8 @@ def dw_sep(cin: int, cout: int) -> nn.Sequential:
 
 
 class ConeNet(nn.Module):
-    """CenterNet-lite for cones. ``widths`` are the channels at strides 2, 4, 8, 16, 32."""
+    """CenterNet-lite for cones. ``widths`` are the channels at strides 2, 4, 8, 16, 32; ``stride`` is
+    the output grid's (4, or 2 for a finer grid that separates neighbouring cones)."""
 
     def __init__(
         self,
@@ -68,9 +77,13 @@ class ConeNet(nn.Module):
         widths: tuple[int, int, int, int, int] = (16, 24, 48, 96, 128),
         blocks: tuple[int, int, int, int] = (1, 2, 2, 1),
         neck: int = 32,
+        stride: int = STRIDE,
     ) -> None:
         super().__init__()
+        if stride not in STRIDES:
+            raise InputError(f"ConeNet stride must be one of {STRIDES}, got {stride}")
         self.num_classes = num_classes
+        self.stride = stride
         w = widths
         self.stem = conv_bn(3, w[0], 3, 2)
         stages = []
@@ -79,6 +92,10 @@ class ConeNet(nn.Module):
         self.stages = nn.ModuleList(stages)
         self.lateral = nn.ModuleList([conv_bn(c, neck, 1) for c in w[1:]])
         self.smooth = nn.ModuleList([dw_sep(neck, neck) for _ in range(3)])
+        if stride == 2:  # one more pyramid level, from the stem; it starts as the identity (see below)
+            self.lateral_fine = conv_bn(w[0], neck, 1)
+            self.smooth_fine = dw_sep(neck, neck)
+            nn.init.zeros_(self.smooth_fine[1][1].weight)  # zero-init residual: starts as the stride-4 features
         self.head = dw_sep(neck, neck)
         self.out = nn.Conv2d(neck, num_classes + 4, 1)
         nn.init.constant_(self.out.bias[:num_classes], float(torch.log(torch.tensor(HEAT_PRIOR / (1 - HEAT_PRIOR)))))
@@ -86,9 +103,9 @@ class ConeNet(nn.Module):
         nn.init.normal_(self.out.weight, std=0.01)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Raw outputs ``(B, C+4, H/4, W/4)``: heat logits, log size, offset (pre-sigmoid)."""
+        """Raw outputs ``(B, C+4, H/s, W/s)``: heat logits, log size, offset (pre-sigmoid)."""
         feats = []
-        x = self.stem(x)
+        x = stem = self.stem(x)
         for stage in self.stages:
             x = stage(x)
             feats.append(x)
@@ -97,13 +114,16 @@ class ConeNet(nn.Module):
             lat = self.lateral[i](feats[i])
             y = F.interpolate(y, size=lat.shape[-2:], mode="nearest") + lat
             y = self.smooth[i](y)
+        if self.stride == 2:
+            y = F.interpolate(y, size=stem.shape[-2:], mode="nearest")
+            y = y + self.smooth_fine(y + self.lateral_fine(stem))
         return self.out(self.head(y))
 
 
 class ConeNetExport(nn.Module):
     """The graph that is exported to ONNX: input uint8-range float ``(B,3,H,W)`` RGB in 0..255.
 
-    Output ``(B, C+4, H/4, W/4)``: peak-filtered class probabilities (0 where not a 3x3 local
+    Output ``(B, C+4, H/s, W/s)`` for the net's stride ``s``: peak-filtered class probabilities (0 where not a 3x3 local
     maximum), box width/height in input pixels, centre offset in cells (0..1).
     """
 
@@ -117,6 +137,6 @@ class ConeNetExport(nn.Module):
         c = self.num_classes
         heat = torch.sigmoid(raw[:, :c])
         peaks = heat * (F.max_pool2d(heat, 3, 1, 1) == heat).to(heat.dtype)
-        size = torch.exp(raw[:, c : c + 2].clamp(max=6.0)) * STRIDE
+        size = torch.exp(raw[:, c : c + 2].clamp(max=6.0)) * self.net.stride
         offset = torch.sigmoid(raw[:, c + 2 :])
         return torch.cat([peaks, size, offset], dim=1)

@@ -39,7 +39,7 @@ from weather_gym.datasets.coco import load_coco
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception.augment import camera_look, paste_distractors
 from weather_gym.perception.detector import Detections
-from weather_gym.perception.model import NUM_CLASSES, STRIDE, ConeNet, ConeNetExport
+from weather_gym.perception.model import NUM_CLASSES, STRIDE, STRIDES, ConeNet, ConeNetExport
 from weather_gym.perception.preprocess import PAD_VALUE, decode, letterbox, letterbox_params
 from weather_gym.perception.scoring import evaluate
 
@@ -78,6 +78,7 @@ class TrainConfig:
     mix: tuple[float, ...] | None = None  # share of each --data folder in every epoch (None: all frames once)
     epoch_frames: int | None = None  # frames per epoch with ``mix`` (default: as many as without it)
     init: str | None = None  # start from this ConeNet ONNX model (its batch norms stay frozen)
+    stride: int = STRIDE  # output grid: 4, or 2 to separate cones whose centres are a few pixels apart
 
     @classmethod
     def recipe(cls, name: str, **overrides) -> TrainConfig:
@@ -105,6 +106,8 @@ class TrainConfig:
                 raise InputError(f"crop_size must be multiples of 32 within input_size {self.input_size}, got {self.crop_size}")
         if self.epochs < 1 or self.batch_size < 1:
             raise InputError("epochs and batch_size must be >= 1")
+        if self.stride not in STRIDES:
+            raise InputError(f"stride must be one of {STRIDES}, got {self.stride}")
 
 
 RECIPES: dict[str, dict[str, Any]] = {
@@ -189,11 +192,12 @@ def _gaussian(heat: np.ndarray, cx: int, cy: int, sx: float, sy: float) -> None:
     np.maximum(heat[y0:y1, x0:x1], g, out=heat[y0:y1, x0:x1])
 
 
-def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, input_size: tuple[int, int]):
-    """CenterNet targets at stride 4: heat (C, h, w), ignore map (h, w), and per-object
+def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, input_size: tuple[int, int],
+                  stride: int = STRIDE):
+    """CenterNet targets at ``stride``: heat (C, h, w), ignore map (h, w), and per-object
     index / log-size / offset / mask arrays of length ``MAX_OBJECTS``."""
     W, H = input_size
-    ow, oh = W // STRIDE, H // STRIDE
+    ow, oh = W // stride, H // stride
     heat = np.zeros((NUM_CLASSES, oh, ow), np.float32)
     ign = np.zeros((oh, ow), np.float32)
     ind = np.zeros(MAX_OBJECTS, np.int64)
@@ -206,20 +210,20 @@ def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, in
         if bw <= 0 or bh <= 0:
             continue
         if ig:
-            x0, y0 = int(b[0] // STRIDE), int(b[1] // STRIDE)
-            x1, y1 = int(math.ceil(b[2] / STRIDE)), int(math.ceil(b[3] / STRIDE))
+            x0, y0 = int(b[0] // stride), int(b[1] // stride)
+            x1, y1 = int(math.ceil(b[2] / stride)), int(math.ceil(b[3] / stride))
             ign[max(0, y0 - 1) : min(oh, y1 + 1), max(0, x0 - 1) : min(ow, x1 + 1)] = 1.0
             continue
         if k >= MAX_OBJECTS:
             continue
-        cx, cy = (b[0] + b[2]) / 2 / STRIDE, (b[1] + b[3]) / 2 / STRIDE
+        cx, cy = (b[0] + b[2]) / 2 / stride, (b[1] + b[3]) / 2 / stride
         ix, iy = min(int(cx), ow - 1), min(int(cy), oh - 1)
-        sx = max(0.6, 0.15 * bw / STRIDE)
-        sy = max(0.6, 0.15 * bh / STRIDE)
+        sx = max(0.6, 0.15 * bw / stride)
+        sy = max(0.6, 0.15 * bh / stride)
         _gaussian(heat[int(c)], ix, iy, sx, sy)
         heat[int(c), iy, ix] = 1.0
         ind[k] = iy * ow + ix
-        size[k] = (math.log(max(bw, 1.0) / STRIDE), math.log(max(bh, 1.0) / STRIDE))
+        size[k] = (math.log(max(bw, 1.0) / stride), math.log(max(bh, 1.0) / stride))
         off[k] = (cx - ix, cy - iy)
         mask[k] = 1.0
         k += 1
@@ -302,7 +306,7 @@ class _Frames(torch.utils.data.Dataset):
         ignore = (gt["iscrowd"] > 0) | (visible < 0.5)
         if "ignore" in gt:
             ignore = ignore | gt["ignore"] | gt["any_class"]
-        targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]))
+        targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]), self.cfg.stride)
         if mask is not None:  # the ignore mask (e.g. the ego vehicle): no negative loss under it
             h, w = targets[1].shape
             cover = cv2.resize(mask.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
@@ -367,12 +371,12 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
         onnx.checker.check_model(str(tmp))
     sidecar = {
         "format": "weather-gym cone detector v1",
-        "architecture": "ConeNet (CenterNet-style, stride 4)",
+        "architecture": f"ConeNet (CenterNet-style, stride {net.stride})",
         "input_size": [w, h],
         "input": "images: float32 (batch, 3, H, W) RGB 0..255, letterboxed (pad 114, centred)",
-        "output": "output: (batch, C+4, H/4, W/4) = peak-filtered class scores, box w/h (input px), centre offset",
+        "output": f"output: (batch, C+4, H/{net.stride}, W/{net.stride}) = peak-filtered class scores, box w/h (input px), centre offset",
         "classes": list(CONE_CLASSES),
-        "stride": STRIDE,
+        "stride": net.stride,
         "params": int(sum(p.numel() for p in net.parameters())),
         "flops": count_flops(net, input_size),
         **(meta or {}),
@@ -388,7 +392,9 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     The export folds each batch norm into its convolution, so the convolutions get the folded weights
     and each batch norm becomes the identity with the folded bias (mean 0, variance 1 - eps, scale 1);
     train such a net with its batch norms in eval mode (``train_detector`` does with ``init``).
-    Convolutions are matched in execution order and checked by shape.
+    Convolutions are matched in execution order and checked by shape. A stride-2 ``net`` can start
+    from a stride-4 model: the shared layers get its weights, the finer pyramid level starts as the
+    identity (``ConeNet``) and the size outputs are rescaled to the finer grid.
     """
     import onnx
     from onnx import numpy_helper
@@ -410,6 +416,18 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
         net.eval()(torch.zeros(1, 3, h, w))
     for hk in hooks:
         hk.remove()
+    if len(order) != len(onnx_convs) and net.stride == 2:
+        coarse = load_onnx_weights(ConeNet(net.num_classes, stride=4), path)
+        missing, unexpected = net.load_state_dict(coarse.state_dict(), strict=False)
+        if unexpected or any(not k.startswith(("lateral_fine.", "smooth_fine.")) for k in missing):
+            raise FileFormatError(f"{path}: not a ConeNet export that a stride-2 ConeNet can start from")
+        for m in net.modules():  # the fresh level's batch norms: identity, as the loaded ones
+            if isinstance(m, torch.nn.BatchNorm2d) and m in _fine_modules(net):
+                m.running_mean.zero_()
+                m.running_var.fill_(1.0 - m.eps)
+        with torch.no_grad():  # log(w / 4) -> log(w / 2)
+            net.out.bias[net.num_classes : net.num_classes + 2] += math.log(2.0)
+        return net
     if len(order) != len(onnx_convs):
         raise FileFormatError(f"{path}: {len(onnx_convs)} convolutions, but ConeNet has {len(order)}: not a ConeNet export")
     bn_after = {}
@@ -437,6 +455,10 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     return net
 
 
+def _fine_modules(net: ConeNet) -> set[torch.nn.Module]:
+    return {m for name in ("lateral_fine", "smooth_fine") if hasattr(net, name) for m in getattr(net, name).modules()}
+
+
 def _freeze_bn(net: ConeNet) -> None:
     for m in net.modules():
         if isinstance(m, torch.nn.BatchNorm2d):
@@ -457,7 +479,7 @@ def _eval_map(net: ConeNet, val, cfg: TrainConfig, max_images: int = 200) -> flo
             boxed = [letterbox(im, cfg.input_size) for im in ims]
             x = torch.from_numpy(np.stack([b[0].transpose(2, 0, 1) for b in boxed])).float()
             out = model(x).numpy()
-            for (boxes, scores, classes), (_, lb) in zip(decode(out, NUM_CLASSES, STRIDE, 0.05), boxed, strict=True):
+            for (boxes, scores, classes), (_, lb) in zip(decode(out, NUM_CLASSES, net.stride, 0.05), boxed, strict=True):
                 dets.append(Detections(lb.to_original(boxes).astype(np.float32), scores, classes))
             gts += [val.gt(i) for i in idx]
     return evaluate(gts, dets).map50
@@ -494,7 +516,7 @@ def train_detector(
     frames = _Frames(train_sets, cfg, train=True)
     if len(frames) == 0:
         raise InputError(f"the training data {', '.join(map(str, data))} has no images")
-    net = ConeNet()
+    net = ConeNet(stride=cfg.stride)
     if cfg.init is not None:
         load_onnx_weights(net, cfg.init)
     net = net.to(memory_format=torch.channels_last)  # much faster convolutions on CPU
