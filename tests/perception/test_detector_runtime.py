@@ -104,3 +104,31 @@ def test_bad_arguments_raise():
         ConeDetector(threads=0)
     with pytest.raises(ValueError, match="score_threshold"):
         ConeDetector(score_threshold=1.5)
+
+
+def test_a_detector_object_passes_through_gym_make_and_pickle(detector, rng):
+    """gym.make deep-copies its keyword arguments and a vector env pickles them: the detector is copied
+    as its constructor arguments (its own onnxruntime session), and detects the same."""
+    import copy
+    import pickle
+
+    import gymnasium as gym
+
+    from weather_gym import make_env
+
+    frame = synth_frame(rng)[0]
+    strict = ConeDetector(threads=1, score_threshold=0.2, max_detections=5)
+    for twin in (copy.deepcopy(strict), pickle.loads(pickle.dumps(strict))):
+        assert twin.session is not strict.session
+        assert (twin.score_threshold, twin.max_detections, twin.path) == (0.2, 5, strict.path)
+        a, b = strict(frame), twin(frame)
+        np.testing.assert_array_equal(a.boxes, b.boxes)
+        np.testing.assert_array_equal(a.scores, b.scores)
+    env = make_env(track="small_track", perception="detector", detector=detector, max_episode_steps=3)
+    try:
+        assert env.spec is not None and isinstance(env.unwrapped, gym.Env)
+        env.reset(seed=0)
+        _, _, _, _, info = env.step(env.action_space.sample())
+        assert "detections" in info
+    finally:
+        env.close()

@@ -207,3 +207,14 @@ def test_every_command_takes_the_detector_options(tmp_path, capsys):
                                         "detector_resize": "stretch", "score_threshold": 0.4}
     assert main(["detector", "eval", str(tmp_path / "ds"), "--detector", "yolov8:missing.onnx"]) == 2
     assert "detector model missing.onnx not found" in capsys.readouterr().err
+
+
+def test_a_yolo_detector_copies_as_its_arguments(tmp_path):
+    import copy
+    import pickle
+
+    path = make_onnx(tmp_path / "m.onnx", {"output0": raw_v8()}, input_shape=(1, 3, 64, 64))
+    det = YoloDetector(path, classes="0=blue,1=yellow,2=orange", resize="stretch", score_threshold=0.4)
+    for twin in (copy.deepcopy(det), pickle.loads(pickle.dumps(det))):
+        assert twin.session is not det.session and (twin.resize, twin.score_threshold) == ("stretch", 0.4)
+        np.testing.assert_array_equal(twin(FRAME).boxes, det(FRAME).boxes)

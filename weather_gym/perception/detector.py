@@ -77,6 +77,12 @@ def load_model_metadata(model_path: str | os.PathLike) -> dict[str, Any]:
     return meta
 
 
+def rebuild_detector(cls: type, kwargs: dict[str, Any]) -> Any:
+    """``cls(**kwargs)``: how an ONNX detector is unpickled and deep-copied (``gym.make`` deep-copies its
+    keyword arguments; a vector env pickles them): from its constructor arguments, with its own session."""
+    return cls(**kwargs)
+
+
 class ConeDetector:
     """Run the cone detector on RGB uint8 frames.
 
@@ -157,6 +163,12 @@ class ConeDetector:
         self.nms_iou = nms_iou
         self.threads = threads
         self.name = f"conenet:{path.name}"
+        self._init_kwargs = {"model": str(path), "score_threshold": score_threshold, "threads": threads,
+                             "max_detections": max_detections, "nms_iou": nms_iou}
+
+    def __reduce__(self) -> tuple:
+        """Copied and pickled as its constructor arguments (an onnxruntime session cannot be pickled)."""
+        return rebuild_detector, (type(self), self._init_kwargs)
 
     def __repr__(self) -> str:
         return (f"ConeDetector({str(self.path)!r}, input={self.input_size[0]}x{self.input_size[1]}, "

@@ -43,7 +43,7 @@ import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.perception.detector import Detections, check_frame
+from weather_gym.perception.detector import Detections, check_frame, rebuild_detector
 from weather_gym.perception.detector_base import DetectorBase
 from weather_gym.perception.labels import DEFAULT_CLASSES, IGNORE, parse_class_map
 from weather_gym.perception.preprocess import letterbox
@@ -142,6 +142,9 @@ class YoloDetector(DetectorBase):
                              f"model): {exc}") from None
         self.path, self.resize, self.threads = path, resize, int(threads)
         self.name = f"yolo:{path.name}"
+        self._init_kwargs = {"model": str(path), "layout": layout, "classes": classes, "resize": resize,
+                             "input_size": input_size, "score_threshold": score_threshold, "nms_iou": nms_iou,
+                             "max_detections": max_detections, "threads": threads}
         self.nms_iou, self.max_detections = float(nms_iou), int(max_detections)
         self.score_threshold = 0.25 if score_threshold is None else float(score_threshold)
         if not 0.0 <= self.score_threshold <= 1.0:
@@ -303,6 +306,10 @@ class YoloDetector(DetectorBase):
         scores = np.asarray(scores, np.float64).reshape(-1)
         keep = scores >= thr
         return boxes[keep], scores[keep], np.asarray(cls).reshape(-1)[keep].astype(np.int64)
+
+    def __reduce__(self) -> tuple:
+        """Copied and pickled as its constructor arguments (an onnxruntime session cannot be pickled)."""
+        return rebuild_detector, (type(self), self._init_kwargs)
 
     def detect_batch(self, images: Sequence[np.ndarray] | np.ndarray,
                      score_threshold: float | None = None) -> list[Detections]:
