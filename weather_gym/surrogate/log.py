@@ -47,7 +47,7 @@ from weather_gym.cone_spec import CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 
 __all__ = ["LOG_SCHEMA", "SurrogateLog", "match_detections", "visibility", "save_log", "load_log",
-           "concat_logs", "CONE_COLUMNS", "FP_COLUMNS", "FRAME_COLUMNS"]
+           "concat_logs", "loose_matches", "part_matches", "CONE_COLUMNS", "FP_COLUMNS", "FRAME_COLUMNS"]
 
 LOG_SCHEMA = 1
 IOU_MATCH = 0.5
@@ -326,4 +326,41 @@ def loose_matches(log: SurrogateLog, iou: float = LOOSE_IOU) -> np.ndarray:
         to = match_detections(c["box"][rows], f["box"][fi], f["score"][fi], iou=iou)
         hit = to >= 0
         out[fi[hit]] = rows[to[hit]]
+    return out
+
+
+def part_matches(log: SurrogateLog, loose: np.ndarray | None = None) -> np.ndarray:
+    """For each false positive the ``cones`` row it is a *part detection* of (-1: none).
+
+    A false positive that is not a loose detection (``loose``, from :func:`loose_matches`) and whose box
+    centre lies inside a cone's box is that cone's: a box on a near cone's stripe, on one cone of an
+    overlapping pair, on part of a far one. Of several such cones, the one whose box centre is nearest
+    (in units of its box height).
+    """
+    c, f = log.cones, log.fps
+    out = np.full(len(f["frame"]), -1, np.int64)
+    todo = np.ones(len(out), bool) if loose is None else np.asarray(loose) < 0
+    if not todo.any():
+        return out
+    ckey = c["episode"].astype(np.int64) * 10_000_000 + c["frame"]
+    fkey = f["episode"].astype(np.int64) * 10_000_000 + f["frame"]
+    corder = np.argsort(ckey, kind="stable")
+    cks = ckey[corder]
+    for key in np.unique(fkey[todo]):
+        fi = np.flatnonzero((fkey == key) & todo)
+        lo, hi = np.searchsorted(cks, key), np.searchsorted(cks, key, side="right")
+        rows = corder[lo:hi]
+        if not len(rows):
+            continue
+        b = np.asarray(c["box"][rows], np.float64)
+        fb = np.asarray(f["box"][fi], np.float64)
+        cx, cy = (fb[:, 0] + fb[:, 2]) / 2, (fb[:, 1] + fb[:, 3]) / 2
+        inside = ((cx[:, None] >= b[None, :, 0]) & (cx[:, None] <= b[None, :, 2])
+                  & (cy[:, None] >= b[None, :, 1]) & (cy[:, None] <= b[None, :, 3]))
+        h = np.maximum(b[:, 3] - b[:, 1], 1.0)
+        dist = np.hypot(cx[:, None] - (b[None, :, 0] + b[None, :, 2]) / 2, cy[:, None] - (b[None, :, 1] + b[None, :, 3]) / 2)
+        dist = np.where(inside, dist / h[None, :], np.inf)
+        best = np.argmin(dist, axis=1)
+        ok = np.isfinite(dist[np.arange(len(fi)), best])
+        out[fi[ok]] = rows[best[ok]]
     return out

@@ -17,11 +17,19 @@ extrapolated (an :class:`~weather_gym.errors.InputError`). Each point holds:
   cone keeps its marginal p; ``rho`` by maximum likelihood on consecutive frames of the same cone
   (the empirical P(miss | miss) and P(miss | detected) are kept for the report);
 * **class confusion** ``confusion[range bin, true, reported]`` (rows sum to 1; a little smoothing to
-  the diagonal), and ``confusion_loose`` of the loose detections;
+  the diagonal) of cones standing clear of others, ``confusion_crowded`` of crowded ones (crowding
+  above :data:`CROWDED`: a cone partly behind or beside another is reported in the wrong class an
+  order of magnitude more often), and ``confusion_loose`` of the loose detections;
 * **range and bearing errors** (reported - true) as 41 quantiles per range bin
   (:data:`ERR_RANGE_EDGES`); **score** quantiles of true detections;
-* **false positives**: count per frame, negative binomial by moments (Poisson when not
-  over-dispersed), and up to :data:`MAX_FP_ROWS` logged false positives (range, bearing, class,
+* **part detections**: a false positive whose box centre lies inside a cone's box but overlaps it by
+  less than the loose IoU (a box on a near cone's stripe, on one cone of a pair, or on part of a far
+  one) belongs to that cone, detected or not: its probability per cone (``coef_part``, the same
+  basis), and up to :data:`MAX_FP_ROWS` logged ones (box relative to the cone's box, in units of its
+  height; class, score, range and bearing error) resampled as they are. They scale with the cones in
+  view, so a track with fewer or farther cones gets fewer, as the detector does;
+* **false positives** away from every cone: count per frame, negative binomial by moments (Poisson
+  when not over-dispersed), and up to :data:`MAX_FP_ROWS` logged ones (range, bearing, class,
   score, box) resampled as they are: where they appear and what they look like.
 
 Example:
@@ -55,7 +63,7 @@ from weather_gym._io import atomic_file, check_output
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.surrogate.conditions import condition_of, effect_params
-from weather_gym.surrogate.log import loose_matches, read_npz
+from weather_gym.surrogate.log import loose_matches, part_matches, read_npz
 
 __all__ = ["MODEL_SCHEMA", "SHIPPED_MODEL", "SurrogateModel", "Point", "design", "fit_logistic", "fit_point",
            "fit", "save_model", "load_model", "ERR_RANGE_EDGES", "QUANTILES"]
@@ -76,6 +84,7 @@ MAX_FP_ROWS = 400
 MIN_BIN_ROWS = 20
 L2 = 1.0
 CONFUSION_PRIOR = 1.0
+CROWDED = 0.05  # crowding above which a cone's class confusion is the crowded one
 
 
 def _hat(x: np.ndarray, knots: np.ndarray) -> np.ndarray:
@@ -245,28 +254,42 @@ class Point:
     det_box_d: np.ndarray  # (M, 4): reported box - true box, in units of the true box height
     loose_box_d: np.ndarray
     confusion_loose: np.ndarray
+    confusion_crowded: np.ndarray | None = None  # None: as ``confusion`` (a model fitted without it)
+    coef_part: np.ndarray | None = None  # None: no part detections (a model fitted without them)
+    part_rows: np.ndarray | None = None  # (M, 8): box - cone box (4, in cone box heights), cls, score, range/bearing err
     stats: dict[str, float] = field(default_factory=dict)
 
     ARRAYS = ("coef", "confusion", "range_err_q", "bearing_err_q", "score_q", "fp_rows", "coef_loose",
               "loose_range_err_q", "loose_bearing_err_q", "loose_score_q", "det_box_d", "loose_box_d",
-              "confusion_loose")
+              "confusion_loose", "confusion_crowded", "coef_part", "part_rows")
+    OPTIONAL = ("confusion_crowded", "coef_part", "part_rows")  # absent from models fitted before them
+
+    def __post_init__(self) -> None:
+        if self.confusion_crowded is None:
+            self.confusion_crowded = self.confusion
+        if self.coef_part is None or self.part_rows is None or not len(self.part_rows):
+            self.coef_part = np.r_[-20.0, np.zeros(N_COEF - 1)]
+            self.part_rows = np.zeros((0, 8))
 
     def detection_probability(self, ranges, bearings, box_h, vis, classes, crowd=None, *,
                               loose: bool = False) -> np.ndarray:
-        """Marginal P(detected) of each cone (``loose``: P(loosely detected | not detected)); the same
+        """Marginal P(detected) of each cone (``loose``: P(loosely detected | not detected); part
+        detections: :meth:`probability_of` with ``kind="part"``); the same
         as ``sigmoid(design(...) @ coef)``, summed term by term: a hat basis times its coefficients
         is the piecewise-linear interpolation of them."""
-        return self.probability_of(self.features(ranges, bearings, box_h, vis, crowd), classes, loose=loose)
+        return self.probability_of(self.features(ranges, bearings, box_h, vis, crowd), classes,
+                                   kind="loose" if loose else "detected")
 
     @staticmethod
     def features(ranges, bearings, box_h, vis, crowd=None) -> tuple:
         """The per-cone inputs of :meth:`probability_of` (computed once for both models)."""
         return ranges, np.abs(bearings), np.log(np.maximum(box_h, 1e-3)), vis, crowd
 
-    def probability_of(self, features: tuple, classes, *, loose: bool = False) -> np.ndarray:
-        """:meth:`detection_probability` from :meth:`features`."""
-        w = self.coef_loose if loose else self.coef
-        name = "_terms_loose" if loose else "_terms"
+    def probability_of(self, features: tuple, classes, *, kind: str = "detected") -> np.ndarray:
+        """P(detected) (``kind`` "detected"), P(loose | not detected) ("loose") or P(a part detection)
+        ("part") of each cone, from :meth:`features`."""
+        w = {"detected": self.coef, "loose": self.coef_loose, "part": self.coef_part}[kind]
+        name = f"_terms_{kind}"
         terms = self.__dict__.get(name)
         if terms is None:
             i = 1
@@ -294,18 +317,23 @@ def _box_deltas(reported: np.ndarray, true: np.ndarray, rng: np.random.Generator
 
 
 def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: dict[str, np.ndarray],
-              rng: np.random.Generator | None = None, loose: np.ndarray | None = None) -> Point:
+              rng: np.random.Generator | None = None, loose: np.ndarray | None = None,
+              part: np.ndarray | None = None) -> Point:
     """Fit one point from the rows of one condition and k.
 
     ``loose``: for each false positive the ``cones`` row it loosely matches, -1 for none
-    (:func:`weather_gym.surrogate.log.loose_matches`; None: no loose detections).
+    (:func:`weather_gym.surrogate.log.loose_matches`; None: no loose detections). ``part``: for each
+    false positive the ``cones`` row it is a part detection of, -1 for none
+    (:func:`weather_gym.surrogate.log.part_matches`; None: none).
     """
     rng = rng or np.random.default_rng(0)
     if not len(cones["frame"]):
         raise InputError("surrogate fit: a condition has no logged cones")
     loose = np.full(len(fps["frame"]), -1, np.int64) if loose is None else np.asarray(loose, np.int64)
-    X = design(cones["range"], cones["bearing"], cones["box_h"], cones["visibility"], cones["cls"],
-               crowding_column(cones))
+    part = np.full(len(fps["frame"]), -1, np.int64) if part is None else np.asarray(part, np.int64)
+    part = np.where(loose >= 0, -1, part)
+    crowd = crowding_column(cones)
+    X = design(cones["range"], cones["bearing"], cones["box_h"], cones["visibility"], cones["cls"], crowd)
     y = cones["detected"].astype(bool)
     coef = fit_logistic(X, y)
     p = _sigmoid(X @ coef)
@@ -318,10 +346,25 @@ def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: 
     coef_loose = fit_logistic(X[~y], y_loose[~y]) if (~y).any() else np.full(N_COEF, 0.0)
     if not y_loose.any():
         coef_loose = np.r_[-20.0, np.zeros(N_COEF - 1)]
-    conf = _confusion(cones["range"][y], cones["cls"][y], cones["det_cls"][y])
+    clear_of = y & (crowd <= CROWDED)
+    crowded = y & (crowd > CROWDED)
+    conf = _confusion(cones["range"][clear_of], cones["cls"][clear_of], cones["det_cls"][clear_of])
+    conf_crowded = _confusion(cones["range"][crowded], cones["cls"][crowded], cones["det_cls"][crowded])
     conf_loose = _confusion(cones["range"][lrow], cones["cls"][lrow], fps["cls"][is_loose])
     rr = cones["range"][y]
-    free = ~is_loose
+    is_part = part >= 0
+    y_part = np.zeros(len(y), bool)
+    y_part[part[is_part]] = True
+    coef_part = fit_logistic(X, y_part) if y_part.any() else None
+    prow = part[is_part]
+    pbox = cones["box"][prow].astype(np.float64)
+    part_rows = np.column_stack([(fps["box"][is_part] - pbox) / np.maximum(pbox[:, 3:4] - pbox[:, 1:2], 1.0),
+                                 fps["cls"][is_part], fps["score"][is_part], fps["range"][is_part] - cones["range"][prow],
+                                 fps["bearing"][is_part] - cones["bearing"][prow]]).astype(np.float64)
+    part_rows = part_rows[np.all(np.isfinite(part_rows), axis=1)]
+    if len(part_rows) > MAX_FP_ROWS:
+        part_rows = part_rows[np.sort(rng.choice(len(part_rows), MAX_FP_ROWS, replace=False))]
+    free = ~is_loose & ~is_part
     rows = np.column_stack([fps["range"], fps["bearing"], fps["cls"], fps["score"], fps["box"]]).astype(np.float64)
     rows = rows[free]
     rows = rows[np.all(np.isfinite(rows), axis=1)]
@@ -339,7 +382,7 @@ def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: 
         "frames": float(len(frames["frame"])), "cones": float(len(y)), "recall": float(y.mean()),
         "p_miss_after_miss": float(np.mean(~y[cur][miss_prev])) if miss_prev.any() else math.nan,
         "p_miss_after_detected": float(np.mean(~y[cur][~miss_prev])) if (~miss_prev).any() else math.nan,
-        "false_positives": float(n_fp.sum()), "loose": float(is_loose.sum()),
+        "false_positives": float(n_fp.sum()), "loose": float(is_loose.sum()), "part": float(is_part.sum()),
     }
     lr = cones["range"][lrow]
     return Point(coef=coef, rho=rho, confusion=conf,
@@ -355,7 +398,8 @@ def fit_point(cones: dict[str, np.ndarray], fps: dict[str, np.ndarray], frames: 
                  else np.full(len(QUANTILES), 0.5),
                  det_box_d=np.zeros((1, 4)),  # the log keeps no matched box: reported = true box (IoU 1)
                  loose_box_d=_box_deltas(fps["box"][is_loose], cones["box"][lrow].astype(np.float64), rng),
-                 confusion_loose=conf_loose, stats=stats)
+                 confusion_loose=conf_loose, confusion_crowded=conf_crowded, coef_part=coef_part,
+                 part_rows=part_rows, stats=stats)
 
 
 def _mix(a: Point, b: Point, w: float) -> Point:
@@ -370,6 +414,7 @@ def _mix(a: Point, b: Point, w: float) -> Point:
 
     conf = lerp(a.confusion, b.confusion)
     conf_loose = lerp(a.confusion_loose, b.confusion_loose)
+    conf_crowded = lerp(a.confusion_crowded, b.confusion_crowded)
     near = b if w >= 0.5 else a  # box deltas: resampled from the nearer point
     out = Point(coef=lerp(a.coef, b.coef), rho=float(lerp(a.rho, b.rho)), confusion=conf / conf.sum(-1, keepdims=True),
                 range_err_q=lerp(a.range_err_q, b.range_err_q), bearing_err_q=lerp(a.bearing_err_q, b.bearing_err_q),
@@ -379,7 +424,10 @@ def _mix(a: Point, b: Point, w: float) -> Point:
                 loose_range_err_q=lerp(a.loose_range_err_q, b.loose_range_err_q),
                 loose_bearing_err_q=lerp(a.loose_bearing_err_q, b.loose_bearing_err_q),
                 loose_score_q=lerp(a.loose_score_q, b.loose_score_q), det_box_d=near.det_box_d,
-                loose_box_d=near.loose_box_d, confusion_loose=conf_loose / conf_loose.sum(-1, keepdims=True))
+                loose_box_d=near.loose_box_d, confusion_loose=conf_loose / conf_loose.sum(-1, keepdims=True),
+                confusion_crowded=conf_crowded / conf_crowded.sum(-1, keepdims=True),
+                coef_part=lerp(a.coef_part, b.coef_part), part_rows=near.part_rows if len(near.part_rows) else
+                (b if near is a else a).part_rows)
     out.stats = {"fp_weight_b": w, "fp_rows_a": float(len(a.fp_rows))}
     return out
 
@@ -432,15 +480,18 @@ class SurrogateModel:
         return _mix(pts[i], pts[i + 1], (k - ks[i]) / (ks[i + 1] - ks[i]))
 
     def summary(self) -> str:
-        """One line per fitted point: recall, P(miss | miss), P(miss | detected), rho, false positives per frame."""
-        lines = ["condition    k       frames  cones   recall  P(miss|miss) P(miss|det) rho    FP/frame loose/frame"]
+        """One line per fitted point: recall, P(miss | miss), P(miss | detected), rho, false positives per frame
+        away from every cone, loose and part detections per frame."""
+        lines = ["condition    k       frames  cones   recall  P(miss|miss) P(miss|det) rho    FP/frame loose/frame "
+                 "part/frame"]
         rows = [("clear", 0.0, self.clear)] + [(c, k, p) for c, pts in self.points.items() for k, p in pts]
         for cond, k, p in rows:
             s = p.stats
             lines.append(f"{cond:<12} {k:<7.3f} {s.get('frames', 0):>6.0f} {s.get('cones', 0):>7.0f} "
                          f"{s.get('recall', math.nan):>6.3f}  {s.get('p_miss_after_miss', math.nan):>11.3f} "
                          f"{s.get('p_miss_after_detected', math.nan):>11.3f} {p.rho:.3f}  {p.fp_mean:>8.2f} "
-                         f"{s.get('loose', math.nan) / max(s.get('frames', 1.0), 1.0):>11.2f}")
+                         f"{s.get('loose', math.nan) / max(s.get('frames', 1.0), 1.0):>11.2f} "
+                         f"{s.get('part', math.nan) / max(s.get('frames', 1.0), 1.0):>10.2f}")
         return "\n".join(lines)
 
 
@@ -462,8 +513,9 @@ def fit(log: Any, sources: Sequence[str] = ()) -> SurrogateModel:
     rng = np.random.default_rng(0)
     fitted: dict[tuple[str, float], Point] = {}
     for key, eps in sorted(groups.items()):
-        part = log.select(eps)
-        fitted[key] = fit_point(part.cones, part.fps, part.frames, rng, loose=loose_matches(part))
+        sub = log.select(eps)
+        lm = loose_matches(sub)
+        fitted[key] = fit_point(sub.cones, sub.fps, sub.frames, rng, loose=lm, part=part_matches(sub, lm))
     points: dict[str, list[tuple[float, Point]]] = {}
     for (cond, k), p in sorted(fitted.items()):
         if cond != "clear":
@@ -505,16 +557,19 @@ def save_model(model: SurrogateModel, path: str | os.PathLike, *, overwrite: boo
 _QSHAPE = (len(ERR_RANGE_EDGES) - 1, len(QUANTILES))
 _CSHAPE = (len(ERR_RANGE_EDGES) - 1, N_CLASSES, N_CLASSES)
 _SHAPES = {"coef": (N_COEF,), "coef_loose": (N_COEF,), "confusion": _CSHAPE, "confusion_loose": _CSHAPE,
+           "confusion_crowded": _CSHAPE, "coef_part": (N_COEF,),
            "range_err_q": _QSHAPE, "bearing_err_q": _QSHAPE, "loose_range_err_q": _QSHAPE,
            "loose_bearing_err_q": _QSHAPE, "score_q": (len(QUANTILES),), "loose_score_q": (len(QUANTILES),),
            "scalars": (3,)}
-_ROWS = {"fp_rows": 8, "det_box_d": 4, "loose_box_d": 4}
+_ROWS = {"fp_rows": 8, "det_box_d": 4, "loose_box_d": 4, "part_rows": 8}
 
 
 def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any) -> Point:
     arrays = {}
     for name in (*Point.ARRAYS, "scalars"):
         key = f"{prefix}/{name}"
+        if key not in data and name in Point.OPTIONAL:
+            continue
         if key not in data:
             raise FileFormatError(f"{where}: missing array {key!r}")
         a = np.asarray(data[key], np.float64)
@@ -529,7 +584,9 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
         if not np.all(np.isfinite(a)):
             raise FileFormatError(f"{where}: array {key!r} has non-finite values")
         arrays[name] = a
-    for name in ("confusion", "confusion_loose"):
+    for name in ("confusion", "confusion_loose", "confusion_crowded"):
+        if name not in arrays:
+            continue
         conf = arrays[name]
         if np.any(conf < 0) or not np.allclose(conf.sum(axis=-1), 1.0, atol=1e-6):
             raise FileFormatError(f"{where}: {prefix}/{name} must have non-negative rows summing to 1")
@@ -543,12 +600,15 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
     rows = arrays["fp_rows"]
     if len(rows) and (rows[:, 2].min() < 0 or rows[:, 2].max() >= N_CLASSES):
         raise FileFormatError(f"{where}: {prefix}/fp_rows has classes outside 0..{N_CLASSES - 1}")
+    prows = arrays.get("part_rows")
+    if prows is not None and len(prows) and (prows[:, 4].min() < 0 or prows[:, 4].max() >= N_CLASSES):
+        raise FileFormatError(f"{where}: {prefix}/part_rows has classes outside 0..{N_CLASSES - 1}")
     if fp_mean > 0 and not len(rows):
         raise FileFormatError(f"{where}: {prefix} has false positives per frame {fp_mean} but no false-positive rows")
     for name in ("det_box_d", "loose_box_d"):
         if not len(arrays[name]):
             raise FileFormatError(f"{where}: {prefix}/{name} has no rows")
-    named = {n: arrays[n] for n in Point.ARRAYS}
+    named = {n: arrays.get(n) for n in Point.ARRAYS}
     return Point(**named, rho=float(rho), fp_mean=float(fp_mean), fp_var=float(fp_var),
                  stats=dict(stats) if isinstance(stats, dict) else {})
 

@@ -3,9 +3,11 @@
 :class:`FrameSampler` turns a frame's ground truth (the visible cones of ``info["gt"]``: boxes,
 classes, cone ids, ranges, bearings) into what the detector would have reported: each cone is
 detected with its model probability, modulated by the per-cone Markov chain (its state on the
-previous frame, when it was visible then), reported in a class drawn from the confusion row, at the
-true range and bearing plus errors drawn from that range bin's quantiles, with a score drawn from
-the score quantiles; then a negative-binomial number of false positives drawn from the logged ones.
+previous frame, when it was visible then), reported in a class drawn from the confusion row (the
+crowded one for a cone whose box overlaps another's), at the true range and bearing plus errors
+drawn from that range bin's quantiles, with a score drawn from the score quantiles; each cone may
+also carry a part detection (a logged one, placed relative to its box); then a negative-binomial
+number of false positives away from the cones, drawn from the logged ones.
 Everything is vectorised over the cones of the frame; the random numbers come from the caller's
 generator only.
 
@@ -29,7 +31,7 @@ import numpy as np
 
 from weather_gym.camera import CameraConfig
 from weather_gym.surrogate.log import _HEIGHTS
-from weather_gym.surrogate.model import ERR_RANGE_EDGES, QUANTILES, Point, crowding
+from weather_gym.surrogate.model import CROWDED, ERR_RANGE_EDGES, QUANTILES, Point, crowding
 
 __all__ = ["FrameSampler"]
 
@@ -103,19 +105,22 @@ class FrameSampler:
             before = self._last_det[ids]
             rho = p.rho
             q = np.where(seen_before, np.where(before, prob + rho * (1.0 - prob), prob * (1.0 - rho)), prob)
-            u = rng.random((7, n))
+            u = rng.random((9, n))
             det = u[0] < q
             self._last_step[ids] = step
             self._last_det[ids] = det
             # a cone not detected may still be reported "loosely": a box a little off (a scoring miss
             # plus a false positive), near the cone's true place
-            loose = ~det & (u[5] < p.probability_of(feats, cls, loose=True))
+            loose = ~det & (u[5] < p.probability_of(feats, cls, kind="loose"))
             rep_any = np.flatnonzero(det | loose)  # indices: cheaper than a boolean mask, used many times
             c = cls[rep_any]
             r_true = rng_[rep_any]
             b = np.minimum(np.searchsorted(ERR_RANGE_EDGES, r_true, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
             lz = loose[rep_any]
-            cum = np.cumsum(np.where(lz[:, None], p.confusion_loose[b, c], p.confusion[b, c]), axis=1)
+            conf = p.confusion[b, c]
+            if crowd is not None:
+                conf = np.where(crowd[rep_any, None] > CROWDED, p.confusion_crowded[b, c], conf)
+            cum = np.cumsum(np.where(lz[:, None], p.confusion_loose[b, c], conf), axis=1)
             rep = np.minimum(np.add.reduce(u[1, rep_any][:, None] > cum, axis=1), cum.shape[1] - 1)
             # range error, bearing error and score: one inverse-CDF draw over the three stacked
             # (each row from the loose or the matched quantiles)
@@ -134,6 +139,15 @@ class FrameSampler:
                 li = rep_any[lz_i]
                 d = p.loose_box_d[(u[6, li] * len(p.loose_box_d)).astype(np.int64)]
                 out_boxes[lz_i] = out_boxes[lz_i] + d * box_h[li][:, None]
+            if len(p.part_rows):  # part detections: a box on a stripe or part of the cone, detected or not
+                pi = np.flatnonzero(u[7] < p.probability_of(feats, cls, kind="part"))
+                if pi.size:
+                    pr = p.part_rows[(u[8, pi] * len(p.part_rows)).astype(np.int64)]
+                    rep = np.concatenate([rep, pr[:, 4].astype(np.int64)])
+                    ranges = np.concatenate([ranges, rng_[pi] + pr[:, 6]])
+                    bearings = np.concatenate([bearings, brg[pi] + pr[:, 7]])
+                    scores = np.concatenate([scores, pr[:, 5]])
+                    out_boxes = np.vstack([out_boxes, boxes[pi] + pr[:, :4] * box_h[pi][:, None]])
         else:
             rep = np.zeros(0, np.int64)
             ranges = bearings = scores = np.zeros(0)
