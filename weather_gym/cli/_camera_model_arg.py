@@ -23,8 +23,11 @@ def add_camera_model_arg(parser, default_text: str, help_text: str) -> None:
                         help=f"{help_text} (default: {default_text})")
 
 
-def camera_model_arg(value: str) -> CameraModel:
-    """``--camera-model``: ``realistic``, ``ideal`` or a TOML file of ``CameraModel`` fields (top-level keys)."""
+def camera_model_arg(value: str | None) -> CameraModel | None:
+    """``--camera-model``: ``realistic``, ``ideal`` or a TOML file of ``CameraModel`` fields (top-level keys);
+    None (not given): None, the command's own default."""
+    if value is None:
+        return None
     if value == "realistic":
         return CameraModel.realistic()
     if value == "ideal":

@@ -135,7 +135,7 @@ def _render(args) -> int:
     if (args.randomize_ranges or sets) and not args.randomize:
         raise InputError("--randomize-ranges / --randomize-set need --randomize")
     scene = ("realistic" if args.randomize else "plain") if args.scene == "auto" else args.scene
-    model = camera_model_arg(args.camera_model) if args.camera_model else None  # None: the env's default
+    model = camera_model_arg(args.camera_model)  # None: the env's default
     if scene == "realistic" and args.randomize and args.camera_model is not None:
         raise InputError("--camera-model: a randomised realistic render draws its camera model per episode "
                          "(ranges: --randomize-set); leave --camera-model out")

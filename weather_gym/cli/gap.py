@@ -79,8 +79,8 @@ def _run(args) -> int:
     if args.candidates:
         cands = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
     config = GapConfig(seed=args.seed, mode=args.mode, tracks=tuple(args.track) if args.track else None,
-                       sim_frames=args.sim_frames, scene=args.scene,
-                       camera_model=camera_model_arg(args.camera_model) if args.camera_model else None, held_out=args.held_out, fit_frames=args.fit_frames,
+                       sim_frames=args.sim_frames, scene=args.scene, camera_model=camera_model_arg(args.camera_model),
+                       held_out=args.held_out, fit_frames=args.fit_frames,
                        max_steps=args.max_steps, candidates=cands, alpha=args.alpha, detector=detector,
                        compare_width=args.compare_width, prune=not args.no_prune, progress=not args.quiet)
     report = run_gap(args.measured, args.model, args.out, config, reference=args.reference, cache_dir=args.cache,

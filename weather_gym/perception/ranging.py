@@ -61,6 +61,11 @@ def _pinhole(points: np.ndarray, undistort: Undistort | None) -> np.ndarray:
     return points if undistort is None or not len(points) else np.asarray(undistort(points), np.float64)
 
 
+def _centres(boxes: np.ndarray, undistort: Undistort | None) -> np.ndarray:
+    """(n, 2) box centres in the pinhole image."""
+    return _pinhole(np.stack([(boxes[:, 0] + boxes[:, 2]) / 2, (boxes[:, 1] + boxes[:, 3]) / 2], 1), undistort)
+
+
 def range_from_box_height(boxes: np.ndarray, classes: np.ndarray, camera: CameraConfig,
                           undistort: Undistort | None = None) -> np.ndarray:
     """Horizontal range (m) from the box height and the class's known cone height."""
@@ -81,12 +86,17 @@ def range_from_depth(boxes: np.ndarray, classes: np.ndarray, depth: np.ndarray, 
     NaN where the box has no usable depth at all (non-finite or nearer than ``camera.near``).
     """
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    return _depth_ranges(b, classes, depth, camera, _centres(b, undistort))
+
+
+def _depth_ranges(b: np.ndarray, classes: np.ndarray, depth: np.ndarray, camera: CameraConfig,
+                  centres: np.ndarray) -> np.ndarray:
+    """:func:`range_from_depth` of (n, 4) float boxes whose pinhole centres are already known."""
     classes = np.asarray(classes, dtype=np.int64).reshape(-1)
     h, w = depth.shape
     out = np.full(len(b), np.nan)
     pitch = math.radians(camera.pitch_deg)
     sx, sy = w / camera.width, h / camera.height  # depth maps at another resolution than the camera
-    centres = _pinhole(np.stack([(b[:, 0] + b[:, 2]) / 2, (b[:, 1] + b[:, 3]) / 2], 1), undistort)
     for k, (x1, y1, x2, y2) in enumerate(b):
         bw, bh = x2 - x1, y2 - y1
         u0, u1 = int(math.floor((x1 + 0.25 * bw) * sx)), int(math.ceil((x2 - 0.25 * bw) * sx))
@@ -126,7 +136,7 @@ def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray
     scores = np.asarray(d["scores"], dtype=np.float64).reshape(n)
     if n and (classes.min() < 0 or classes.max() >= len(CONE_CLASSES)):
         raise InputError(f"detection classes must be in 0..{len(CONE_CLASSES) - 1}, got {np.unique(classes).tolist()}")
-    centres = _pinhole(np.stack([(boxes[:, 0] + boxes[:, 2]) / 2, (boxes[:, 1] + boxes[:, 3]) / 2], 1), undistort)
+    centres = _centres(boxes, undistort)  # one lens inverse for the bearings and the depth's direction
     bearings = np.asarray(camera.bearing(centres[:, 0]), dtype=np.float64).reshape(n) if n else np.zeros(0)
     ranges = np.full(n, np.nan)
     source = np.full(n, "height", dtype=object)
@@ -134,7 +144,7 @@ def detections_to_cones(detections: Any, camera: CameraConfig, depth: np.ndarray
         depth = np.asarray(depth)
         if depth.ndim != 2:
             raise InputError(f"depth must be an (H, W) array of metres, got shape {depth.shape}")
-        ranges = range_from_depth(boxes, classes, depth, camera, undistort)
+        ranges = _depth_ranges(boxes, classes, depth, camera, centres)
         source[np.isfinite(ranges)] = "depth"
         source[ranges == camera.far] = "far"
     missing = ~np.isfinite(ranges)

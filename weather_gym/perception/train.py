@@ -421,8 +421,8 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
         missing, unexpected = net.load_state_dict(coarse.state_dict(), strict=False)
         if unexpected or any(not k.startswith(("lateral_fine.", "smooth_fine.")) for k in missing):
             raise FileFormatError(f"{path}: not a ConeNet export that a stride-2 ConeNet can start from")
-        for m in net.modules():  # the fresh level's batch norms: identity, as the loaded ones
-            if isinstance(m, torch.nn.BatchNorm2d) and m in _fine_modules(net):
+        for m in [*net.lateral_fine.modules(), *net.smooth_fine.modules()]:  # the fresh level's batch norms:
+            if isinstance(m, torch.nn.BatchNorm2d):  # identity, as the loaded ones
                 m.running_mean.zero_()
                 m.running_var.fill_(1.0 - m.eps)
         with torch.no_grad():  # log(w / 4) -> log(w / 2)
@@ -453,10 +453,6 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
             elif conv.bias is not None and bias is not None:
                 conv.bias.copy_(torch.from_numpy(bias.copy()))
     return net
-
-
-def _fine_modules(net: ConeNet) -> set[torch.nn.Module]:
-    return {m for name in ("lateral_fine", "smooth_fine") if hasattr(net, name) for m in getattr(net, name).modules()}
 
 
 def _freeze_bn(net: ConeNet) -> None:

@@ -300,6 +300,21 @@ LOOSE_IOU = 0.1
 """A false positive overlapping a missed cone by at least this IoU is that cone's *loose* detection."""
 
 
+def _frames_of(log: SurrogateLog, which: np.ndarray):
+    """For each frame with a false positive among ``which`` (a mask over ``log.fps``): the indices of
+    those false positives and the ``cones`` rows of the same frame."""
+    c, f = log.cones, log.fps
+    if not which.any():
+        return
+    ckey = c["episode"].astype(np.int64) * 10_000_000 + c["frame"]
+    fkey = f["episode"].astype(np.int64) * 10_000_000 + f["frame"]
+    corder = np.argsort(ckey, kind="stable")
+    cks = ckey[corder]
+    for key in np.unique(fkey[which]):
+        lo, hi = np.searchsorted(cks, key), np.searchsorted(cks, key, side="right")
+        yield np.flatnonzero((fkey == key) & which), corder[lo:hi]
+
+
 def loose_matches(log: SurrogateLog, iou: float = LOOSE_IOU) -> np.ndarray:
     """For each false positive the ``cones`` row of the missed cone it loosely matches (-1: none).
 
@@ -310,16 +325,7 @@ def loose_matches(log: SurrogateLog, iou: float = LOOSE_IOU) -> np.ndarray:
     """
     c, f = log.cones, log.fps
     out = np.full(len(f["frame"]), -1, np.int64)
-    if not len(out):
-        return out
-    ckey = c["episode"].astype(np.int64) * 10_000_000 + c["frame"]
-    fkey = f["episode"].astype(np.int64) * 10_000_000 + f["frame"]
-    corder = np.argsort(ckey, kind="stable")
-    cks = ckey[corder]
-    for key in np.unique(fkey):
-        fi = np.flatnonzero(fkey == key)
-        lo, hi = np.searchsorted(cks, key), np.searchsorted(cks, key, side="right")
-        rows = corder[lo:hi]
+    for fi, rows in _frames_of(log, np.ones(len(out), bool)):
         rows = rows[~c["detected"][rows]]
         if not len(rows):
             continue
@@ -340,16 +346,7 @@ def part_matches(log: SurrogateLog, loose: np.ndarray | None = None) -> np.ndarr
     c, f = log.cones, log.fps
     out = np.full(len(f["frame"]), -1, np.int64)
     todo = np.ones(len(out), bool) if loose is None else np.asarray(loose) < 0
-    if not todo.any():
-        return out
-    ckey = c["episode"].astype(np.int64) * 10_000_000 + c["frame"]
-    fkey = f["episode"].astype(np.int64) * 10_000_000 + f["frame"]
-    corder = np.argsort(ckey, kind="stable")
-    cks = ckey[corder]
-    for key in np.unique(fkey[todo]):
-        fi = np.flatnonzero((fkey == key) & todo)
-        lo, hi = np.searchsorted(cks, key), np.searchsorted(cks, key, side="right")
-        rows = corder[lo:hi]
+    for fi, rows in _frames_of(log, todo):
         if not len(rows):
             continue
         b = np.asarray(c["box"][rows], np.float64)

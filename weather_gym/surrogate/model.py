@@ -415,7 +415,7 @@ def _mix(a: Point, b: Point, w: float) -> Point:
     conf = lerp(a.confusion, b.confusion)
     conf_loose = lerp(a.confusion_loose, b.confusion_loose)
     conf_crowded = lerp(a.confusion_crowded, b.confusion_crowded)
-    near = b if w >= 0.5 else a  # box deltas: resampled from the nearer point
+    near, far = (b, a) if w >= 0.5 else (a, b)  # box deltas and part rows: from the nearer point
     out = Point(coef=lerp(a.coef, b.coef), rho=float(lerp(a.rho, b.rho)), confusion=conf / conf.sum(-1, keepdims=True),
                 range_err_q=lerp(a.range_err_q, b.range_err_q), bearing_err_q=lerp(a.bearing_err_q, b.bearing_err_q),
                 score_q=lerp(a.score_q, b.score_q), fp_mean=float(lerp(a.fp_mean, b.fp_mean)),
@@ -426,8 +426,8 @@ def _mix(a: Point, b: Point, w: float) -> Point:
                 loose_score_q=lerp(a.loose_score_q, b.loose_score_q), det_box_d=near.det_box_d,
                 loose_box_d=near.loose_box_d, confusion_loose=conf_loose / conf_loose.sum(-1, keepdims=True),
                 confusion_crowded=conf_crowded / conf_crowded.sum(-1, keepdims=True),
-                coef_part=lerp(a.coef_part, b.coef_part), part_rows=near.part_rows if len(near.part_rows) else
-                (b if near is a else a).part_rows)
+                coef_part=lerp(a.coef_part, b.coef_part),
+                part_rows=near.part_rows if len(near.part_rows) else far.part_rows)
     out.stats = {"fp_weight_b": w, "fp_rows_a": float(len(a.fp_rows))}
     return out
 
