@@ -10,8 +10,9 @@ Backbone: a plain stride-2 3x3 conv at each scale (16-24-48-96-128 channels) fol
 depthwise-separable blocks; a top-down feature pyramid brings the stride 8/16/32 features back to
 stride 4, where a depthwise-separable head predicts the 8 output channels. With ``stride=2`` the pyramid
 goes one level further, to the stem's stride-2 features: two cones whose centres are 4-8 input pixels
-apart (the rear cone of a start-line pair) then fall in separate, non-neighbouring cells, so the peak
-filter keeps both. The exported ONNX graph
+apart (the rear cone of a start-line pair) then fall in separate cells, so the peak filter can keep
+both where the net puts a peak on each (the shipped model often does not: docs/model_card.md,
+"After v4"). The exported ONNX graph
 also applies the sigmoid and a 3x3 max-pool peak filter (CenterNet's "NMS"), so the runtime only
 thresholds peaks.
 
