@@ -71,6 +71,55 @@ def test_a_stride_2_net_starts_from_a_stride_4_model_and_exports_its_stride(tmp_
         np.testing.assert_allclose(ConeNetExport(back)(x).numpy(), ConeNetExport(net)(x).numpy(), atol=1e-4)
 
 
+def test_hidden_cone_targets_give_the_rear_cone_of_a_pair_its_own_heatmap_peak():
+    from weather_gym.perception.labels import hidden_mask
+
+    # the front cone of a start pair, the rear cone's slice beside it, and a cone on its own
+    boxes = np.array([[38, 40, 52, 60], [52, 38, 56, 57], [120, 40, 134, 60.]])
+    classes, ignore = np.array([3, 3, 0]), np.array([False, False, False])
+    hidden = hidden_mask(boxes, np.array([4.0, 4.4, 4.0]))
+    assert hidden.tolist() == [False, True, False]
+    assert hidden_mask(boxes).tolist() == [False, True, False]  # no ranges: the lower box bottom is nearer
+    assert hidden_mask(boxes, np.array([4.4, 4.0, 4.0])).tolist() == [True, False, False]
+    heat, _, ind, _, _, mask = build_targets(boxes, classes, ignore, (256, 160), 2, hidden)
+    assert heat.shape == (8, 80, 128) and mask.sum() == 3
+    peaks = {ch: set(np.flatnonzero(heat[ch] == 1.0)) for ch in range(8)}
+    assert peaks[3] == {int(ind[0]), int(ind[1])} and peaks[7] == {int(ind[1])} and peaks[4] == set()
+    assert build_targets(boxes, classes, ignore, (256, 160), 2)[0].shape == (4, 80, 128)
+    with pytest.raises(InputError, match="ranges"):
+        hidden_mask(boxes, np.array([1.0]))
+
+
+def test_a_hidden_cone_net_starts_from_a_plain_model_and_exports_the_plain_output(tmp_path):
+    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.train import detection_loss, export_onnx, load_onnx_weights
+
+    torch.manual_seed(5)
+    plain = export_onnx(ConeNet(stride=2).eval(), tmp_path / "plain.onnx", (128, 64))
+    net = load_onnx_weights(ConeNet(stride=2, hidden=True), plain).eval()
+    ref = load_onnx_weights(ConeNet(stride=2), plain).eval()
+    x = torch.rand(1, 3, 64, 128) * 255
+    with torch.no_grad():
+        out, base = ConeNetExport(net)(x), ConeNetExport(ref)(x)
+    assert out.shape == base.shape == (1, 8, 32, 64)  # the runtime sees the same C+4 channels
+    np.testing.assert_allclose(out[:, 4:].numpy(), base[:, 4:].numpy(), rtol=1e-5)  # shared size and offset
+    assert (out[:, :4] >= base[:, :4] - 1e-6).all()  # merged peaks: the larger score per class and cell
+    path = export_onnx(net, tmp_path / "hidden.onnx", (128, 64))
+    assert "hidden-cone" in json.loads(path.with_suffix(".json").read_text())["architecture"]
+    assert ConeDetector(path).raw([np.zeros((64, 128, 3), np.uint8)])[0].shape == (1, 8, 32, 64)
+    back = load_onnx_weights(ConeNet(stride=2, hidden=True), path).eval()
+    with torch.no_grad():
+        np.testing.assert_allclose(ConeNetExport(back)(x).numpy(), out.numpy(), atol=1e-5)
+    # the hidden heatmaps are trained: a loss term of their own, and an error when their targets are missing
+    boxes, classes = np.array([[38, 20, 52, 40], [52, 18, 56, 37.]]), np.array([3, 3])
+    t = build_targets(boxes, classes, np.zeros(2, bool), (128, 64), 2, np.array([False, True]))
+    batch = [torch.from_numpy(v)[None] for v in t]
+    _, parts = detection_loss(net.train()(x / 255), *batch)
+    assert parts["hidden"] > 0
+    with pytest.raises(InputError, match="hidden-cone net needs 8 heat targets"):
+        detection_loss(net(x / 255), batch[0][:, :4], *batch[1:])
+
+
 def test_augment_moves_boxes_with_the_image():
     img = np.zeros((376, 672, 3), np.uint8)
     img[100:140, 50:80] = 255
@@ -205,12 +254,13 @@ def test_cli_trains_on_a_rendered_and_an_imported_set_mixed(tmp_path, capsys):
     out = tmp_path / "m.onnx"
     assert main(["detector", "train", "--data", str(a), "--data", str(b), "--mix", "0.5,0.5", "--epoch-frames", "4",
                  "--epochs", "1", "--batch-size", "2", "--input-size", "256", "160", "--crop-size", "128", "96",
-                 "--recipe", "real",
+                 "--recipe", "real", "--stride", "2", "--hidden-heads",
                  "--out", str(out)]) == 0
     meta = json.loads(out.with_suffix(".json").read_text())
     cfg = meta["training"]["config"]
     assert cfg["mix"] == [0.5, 0.5] and cfg["distractors"] > 0 and meta["training"]["steps"] == 2
     assert meta["training"]["frames_per_data"] == [3, 2]
+    assert cfg["hidden"] and cfg["stride"] == 2 and "hidden-cone" in meta["architecture"]
 
 
 def test_a_shipped_onnx_model_loads_back_into_torch(tmp_path):

@@ -62,6 +62,10 @@ def register(sub) -> None:
     t.add_argument("--stride", type=int, default=4, choices=(2, 4),
                    help="output grid stride: 4, or 2 to separate cones whose centres are a few pixels apart, such "
                         "as start-line pairs (a stride-2 net can start from a stride-4 --init; default %(default)s)")
+    t.add_argument("--hidden-heads", action="store_true",
+                   help="add hidden-cone heatmaps, trained on cones whose box touches a nearer cone's (the rear "
+                        "cone of a pair): a peak of their own for cones seen behind another (can start from an "
+                        "--init without them)")
     t.add_argument("--warmup", type=int, default=200, help="warm-up steps of the learning rate (default %(default)s)")
     t.add_argument("--val", type=Path, default=None, help="validation COCO folder (mAP@0.5 logged every 5 epochs)")
     t.add_argument("--epochs", type=int, default=30)
@@ -157,7 +161,7 @@ def _train(args) -> int:
                              batch_size=args.batch_size, lr=args.lr, seed=args.seed, threads=args.threads,
                              max_steps=args.max_steps, mix=mix, epoch_frames=args.epoch_frames,
                              warmup_iters=args.warmup, crop_size=tuple(args.crop_size),
-                             init=None if args.init is None else str(args.init), stride=args.stride, **extra)
+                             init=None if args.init is None else str(args.init), stride=args.stride, hidden=args.hidden_heads, **extra)
     result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
                             overwrite=args.overwrite)
     print(f"wrote {result['model']} ({result['steps']} steps, {result['train_time_s']:.0f} s)")

@@ -133,6 +133,34 @@ def tiny_mask(boxes_xyxy: np.ndarray, min_height: float = MIN_BOX_HEIGHT_PX) -> 
     return (b[:, 3] - b[:, 1]) < float(min_height)
 
 
+HIDDEN_GROW: float = 0.05
+"""A cone is *hidden* when its box touches a nearer cone's box grown by this share of that box's width."""
+
+
+def hidden_mask(boxes_xyxy: np.ndarray, ranges: np.ndarray | None = None, grow: float = HIDDEN_GROW) -> np.ndarray:
+    """True for each box (K, 4 xyxy) that touches the box of a nearer cone, widened by ``grow`` of its
+    width: the rear cone of a pair, a cone seen behind another. Nearer = smaller ``ranges`` where both
+    are finite, else the lower box bottom (on a flat track, the nearer cone stands lower in the image).
+
+    Example:
+        >>> import numpy as np
+        >>> boxes = np.array([[10, 10, 20, 30], [19, 5, 24, 25], [40, 10, 50, 30.]])
+        >>> hidden_mask(boxes, np.array([5.0, 6.0, 5.0])).tolist()
+        [False, True, False]
+    """
+    b = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4)
+    r = np.full(len(b), np.nan) if ranges is None else np.asarray(ranges, dtype=np.float64).reshape(-1)
+    if len(r) != len(b):
+        raise InputError(f"hidden_mask: {len(b)} boxes but {len(r)} ranges")
+    g = grow * (b[:, 2] - b[:, 0])
+    touch = ((b[None, :, 0] < b[:, None, 2] + g[:, None]) & (b[None, :, 2] > b[:, None, 0] - g[:, None])
+             & (b[None, :, 1] < b[:, None, 3]) & (b[None, :, 3] > b[:, None, 1]))  # [i, j]: j touches grown i
+    both = np.isfinite(r)[:, None] & np.isfinite(r)[None, :]
+    nearer = np.where(both, r[:, None] < r[None, :], b[:, None, 3] > b[None, :, 3])  # [i, j]: i nearer than j
+    np.fill_diagonal(touch, False)
+    return (touch & nearer).any(axis=0)
+
+
 def xyxy_to_xywh(boxes: np.ndarray) -> np.ndarray:
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     return np.c_[b[:, :2], b[:, 2:] - b[:, :2]]

@@ -16,6 +16,13 @@ both where the net puts a peak on each (the shipped model often does not: docs/m
 also applies the sigmoid and a 3x3 max-pool peak filter (CenterNet's "NMS"), so the runtime only
 thresholds peaks.
 
+With ``hidden=True`` a second set of class heatmaps (its own depthwise-separable head) is trained only
+on *hidden* cones: cones whose visible box touches the box of a nearer cone (the rear cone of a pair,
+a cone behind another in a hairpin). Their peaks do not compete with the front cone's peak in the main
+heatmap, so the rear cone gets its own peak; the size and offset outputs are shared. The export
+peak-filters both sets and keeps, per class and cell, the larger score, so the ONNX output keeps the
+same ``C+4`` channels and the runtime is unchanged (a duplicate of a front cone is removed by the box NMS).
+
 Example:
     >>> import torch
     >>> from weather_gym.perception.model import ConeNet
@@ -25,6 +32,8 @@ Example:
     (1, 8, 72, 128)
     >>> tuple(ConeNet(stride=2).eval()(torch.zeros(1, 3, 288, 512)).shape)
     (1, 8, 144, 256)
+    >>> tuple(ConeNet(stride=2, hidden=True).eval()(torch.zeros(1, 3, 288, 512)).shape)  # + 4 hidden-cone heatmaps
+    (1, 12, 144, 256)
 """
 
 from __future__ import annotations
@@ -70,7 +79,8 @@ def dw_sep(cin: int, cout: int) -> nn.Sequential:
 
 class ConeNet(nn.Module):
     """CenterNet-lite for cones. ``widths`` are the channels at strides 2, 4, 8, 16, 32; ``stride`` is
-    the output grid's (4, or 2 for a finer grid that separates neighbouring cones)."""
+    the output grid's (4, or 2 for a finer grid that separates neighbouring cones); ``hidden`` adds the
+    hidden-cone heatmaps (raw output ``C+4+C`` channels: heat, size, offset, hidden heat)."""
 
     def __init__(
         self,
@@ -79,12 +89,14 @@ class ConeNet(nn.Module):
         blocks: tuple[int, int, int, int] = (1, 2, 2, 1),
         neck: int = 32,
         stride: int = STRIDE,
+        hidden: bool = False,
     ) -> None:
         super().__init__()
         if stride not in STRIDES:
             raise InputError(f"ConeNet stride must be one of {STRIDES}, got {stride}")
         self.num_classes = num_classes
         self.stride = stride
+        self.hidden = bool(hidden)
         w = widths
         self.stem = conv_bn(3, w[0], 3, 2)
         stages = []
@@ -102,9 +114,15 @@ class ConeNet(nn.Module):
         nn.init.constant_(self.out.bias[:num_classes], float(torch.log(torch.tensor(HEAT_PRIOR / (1 - HEAT_PRIOR)))))
         nn.init.zeros_(self.out.bias[num_classes:])
         nn.init.normal_(self.out.weight, std=0.01)
+        if self.hidden:
+            self.head_hidden = dw_sep(neck, neck)
+            self.out_hidden = nn.Conv2d(neck, num_classes, 1)
+            nn.init.constant_(self.out_hidden.bias, float(self.out.bias[0].detach()))
+            nn.init.normal_(self.out_hidden.weight, std=0.01)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Raw outputs ``(B, C+4, H/s, W/s)``: heat logits, log size, offset (pre-sigmoid)."""
+        """Raw outputs ``(B, C+4, H/s, W/s)``: heat logits, log size, offset (pre-sigmoid); with ``hidden``,
+        then ``C`` hidden-cone heat logits."""
         feats = []
         x = stem = self.stem(x)
         for stage in self.stages:
@@ -118,14 +136,23 @@ class ConeNet(nn.Module):
         if self.stride == 2:
             y = F.interpolate(y, size=stem.shape[-2:], mode="nearest")
             y = y + self.smooth_fine(y + self.lateral_fine(stem))
-        return self.out(self.head(y))
+        out = self.out(self.head(y))
+        if self.hidden:
+            out = torch.cat([out, self.out_hidden(self.head_hidden(y))], dim=1)
+        return out
+
+
+def _peaks(heat: torch.Tensor) -> torch.Tensor:
+    """``heat`` where it is a 3x3 local maximum, else 0 (CenterNet's peak filter)."""
+    return heat * (F.max_pool2d(heat, 3, 1, 1) == heat).to(heat.dtype)
 
 
 class ConeNetExport(nn.Module):
     """The graph that is exported to ONNX: input uint8-range float ``(B,3,H,W)`` RGB in 0..255.
 
     Output ``(B, C+4, H/s, W/s)`` for the net's stride ``s``: peak-filtered class probabilities (0 where not a 3x3 local
-    maximum), box width/height in input pixels, centre offset in cells (0..1).
+    maximum), box width/height in input pixels, centre offset in cells (0..1). A ``hidden`` net's two sets
+    of heatmaps are peak-filtered each on its own and merged by the larger score per class and cell.
     """
 
     def __init__(self, net: ConeNet) -> None:
@@ -137,7 +164,9 @@ class ConeNetExport(nn.Module):
         raw = self.net(x * (1.0 / 255.0))
         c = self.num_classes
         heat = torch.sigmoid(raw[:, :c])
-        peaks = heat * (F.max_pool2d(heat, 3, 1, 1) == heat).to(heat.dtype)
+        peaks = _peaks(heat)
+        if self.net.hidden:
+            peaks = torch.maximum(peaks, _peaks(torch.sigmoid(raw[:, c + 4 :])))
         size = torch.exp(raw[:, c : c + 2].clamp(max=6.0)) * self.net.stride
-        offset = torch.sigmoid(raw[:, c + 2 :])
+        offset = torch.sigmoid(raw[:, c + 2 : c + 4])
         return torch.cat([peaks, size, offset], dim=1)

@@ -39,6 +39,7 @@ from weather_gym.datasets.coco import load_coco
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception.augment import camera_look, paste_distractors
 from weather_gym.perception.detector import Detections
+from weather_gym.perception.labels import hidden_mask
 from weather_gym.perception.model import NUM_CLASSES, STRIDE, STRIDES, ConeNet, ConeNetExport
 from weather_gym.perception.preprocess import PAD_VALUE, decode, letterbox, letterbox_params
 from weather_gym.perception.scoring import evaluate
@@ -79,6 +80,7 @@ class TrainConfig:
     epoch_frames: int | None = None  # frames per epoch with ``mix`` (default: as many as without it)
     init: str | None = None  # start from this ConeNet ONNX model (its batch norms stay frozen)
     stride: int = STRIDE  # output grid: 4, or 2 to separate cones whose centres are a few pixels apart
+    hidden: bool = False  # add hidden-cone heatmaps (ConeNet(hidden=True)): a peak for a cone behind another
 
     @classmethod
     def recipe(cls, name: str, **overrides) -> TrainConfig:
@@ -193,19 +195,22 @@ def _gaussian(heat: np.ndarray, cx: int, cy: int, sx: float, sy: float) -> None:
 
 
 def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, input_size: tuple[int, int],
-                  stride: int = STRIDE):
+                  stride: int = STRIDE, hidden: np.ndarray | None = None):
     """CenterNet targets at ``stride``: heat (C, h, w), ignore map (h, w), and per-object
-    index / log-size / offset / mask arrays of length ``MAX_OBJECTS``."""
+    index / log-size / offset / mask arrays of length ``MAX_OBJECTS``. With ``hidden`` (bool per box,
+    ``labels.hidden_mask``) heat has ``2C`` channels: the last ``C`` hold the hidden cones only (they
+    stay in the first ``C`` too)."""
     W, H = input_size
     ow, oh = W // stride, H // stride
-    heat = np.zeros((NUM_CLASSES, oh, ow), np.float32)
+    heat = np.zeros((NUM_CLASSES * (1 if hidden is None else 2), oh, ow), np.float32)
     ign = np.zeros((oh, ow), np.float32)
     ind = np.zeros(MAX_OBJECTS, np.int64)
     size = np.zeros((MAX_OBJECTS, 2), np.float32)
     off = np.zeros((MAX_OBJECTS, 2), np.float32)
     mask = np.zeros(MAX_OBJECTS, np.float32)
     k = 0
-    for b, c, ig in zip(boxes, classes, ignore, strict=True):
+    hid = np.zeros(len(boxes), bool) if hidden is None else np.asarray(hidden, bool)
+    for b, c, ig, hd in zip(boxes, classes, ignore, hid, strict=True):
         bw, bh = b[2] - b[0], b[3] - b[1]
         if bw <= 0 or bh <= 0:
             continue
@@ -220,8 +225,9 @@ def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, in
         ix, iy = min(int(cx), ow - 1), min(int(cy), oh - 1)
         sx = max(0.6, 0.15 * bw / stride)
         sy = max(0.6, 0.15 * bh / stride)
-        _gaussian(heat[int(c)], ix, iy, sx, sy)
-        heat[int(c), iy, ix] = 1.0
+        for ch in (int(c), int(c) + NUM_CLASSES) if hd else (int(c),):
+            _gaussian(heat[ch], ix, iy, sx, sy)
+            heat[ch, iy, ix] = 1.0
         ind[k] = iy * ow + ix
         size[k] = (math.log(max(bw, 1.0) / stride), math.log(max(bh, 1.0) / stride))
         off[k] = (cx - ix, cy - iy)
@@ -306,7 +312,8 @@ class _Frames(torch.utils.data.Dataset):
         ignore = (gt["iscrowd"] > 0) | (visible < 0.5)
         if "ignore" in gt:
             ignore = ignore | gt["ignore"] | gt["any_class"]
-        targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]), self.cfg.stride)
+        hidden = hidden_mask(boxes, gt.get("ranges")) if self.cfg.hidden else None
+        targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]), self.cfg.stride, hidden)
         if mask is not None:  # the ignore mask (e.g. the ego vehicle): no negative loss under it
             h, w = targets[1].shape
             cover = cv2.resize(mask.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
@@ -318,23 +325,35 @@ class _Frames(torch.utils.data.Dataset):
 # ----------------------------------------------------------------------------------- loss
 def detection_loss(raw: torch.Tensor, heat, ign, ind, size, off, mask) -> tuple[torch.Tensor, dict[str, float]]:
     """Penalty-reduced focal loss on the heatmaps (ignored cells carry no negative loss) + L1 on
-    log-size and offset at object centres."""
+    log-size and offset at object centres. A hidden-cone net (raw ``2C+4`` channels, heat ``2C``) gets
+    the same focal loss on its hidden-cone heatmaps, reported as ``hidden``."""
     c = NUM_CLASSES
-    pred = torch.sigmoid(raw[:, :c]).clamp(1e-4, 1 - 1e-4)
-    pos = heat.eq(1.0).float()
-    neg_w = torch.pow(1 - heat, 4) * (1 - ign[:, None]) * (1 - pos)
-    pos_loss = (torch.log(pred) * torch.pow(1 - pred, 2) * pos).sum()
-    neg_loss = (torch.log(1 - pred) * torch.pow(pred, 2) * neg_w).sum()
     n = mask.sum().clamp(min=1.0)
-    focal = -(pos_loss + neg_loss) / n
+
+    def focal_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        pred = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
+        pos = target.eq(1.0).float()
+        neg_w = torch.pow(1 - target, 4) * (1 - ign[:, None]) * (1 - pos)
+        pos_loss = (torch.log(pred) * torch.pow(1 - pred, 2) * pos).sum()
+        neg_loss = (torch.log(1 - pred) * torch.pow(pred, 2) * neg_w).sum()
+        return -(pos_loss + neg_loss) / n
+
+    focal = focal_loss(raw[:, :c], heat[:, :c])
+    extra: dict[str, float] = {}
+    if raw.shape[1] == 2 * c + 4:
+        if heat.shape[1] != 2 * c:
+            raise InputError(f"a hidden-cone net needs {2 * c} heat targets, got {heat.shape[1]}")
+        hidden = focal_loss(raw[:, c + 4 :], heat[:, c:])
+        focal = focal + hidden
+        extra["hidden"] = hidden.item()
     b, _, h, w = raw.shape
-    flat = raw[:, c:].reshape(b, 4, h * w)
+    flat = raw[:, c : c + 4].reshape(b, 4, h * w)
     g = torch.gather(flat, 2, ind[:, None, :].expand(b, 4, ind.shape[1]))  # (B, 4, M)
     m = mask[:, None, :]
     size_l = (torch.abs(g[:, :2] - size.transpose(1, 2)) * m).sum() / n
     off_l = (torch.abs(torch.sigmoid(g[:, 2:]) - off.transpose(1, 2)) * m).sum() / n
     total = focal + size_l + off_l
-    return total, {"focal": focal.item(), "size": size_l.item(), "offset": off_l.item()}
+    return total, {"focal": focal.item(), "size": size_l.item(), "offset": off_l.item(), **extra}
 
 
 # ----------------------------------------------------------------------------------- export
@@ -371,7 +390,7 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
         onnx.checker.check_model(str(tmp))
     sidecar = {
         "format": "weather-gym cone detector v1",
-        "architecture": f"ConeNet (CenterNet-style, stride {net.stride})",
+        "architecture": f"ConeNet (CenterNet-style, stride {net.stride}{', hidden-cone heads' if net.hidden else ''})",
         "input_size": [w, h],
         "input": "images: float32 (batch, 3, H, W) RGB 0..255, letterboxed (pad 114, centred)",
         "output": f"output: (batch, C+4, H/{net.stride}, W/{net.stride}) = peak-filtered class scores, box w/h (input px), centre offset",
@@ -394,7 +413,9 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     train such a net with its batch norms in eval mode (``train_detector`` does with ``init``).
     Convolutions are matched in execution order and checked by shape. A stride-2 ``net`` can start
     from a stride-4 model: the shared layers get its weights, the finer pyramid level starts as the
-    identity (``ConeNet``) and the size outputs are rescaled to the finer grid.
+    identity (``ConeNet``) and the size outputs are rescaled to the finer grid. A hidden-cone ``net``
+    can start from a model without that head: its head starts as a copy of the main head, its
+    heatmaps from the prior.
     """
     import onnx
     from onnx import numpy_helper
@@ -407,6 +428,9 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     except Exception as exc:  # noqa: BLE001 - onnx raises several types for a bad file
         raise FileFormatError(f"{path} is not an ONNX model ({type(exc).__name__})") from None
     inits = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
+    for node in model.graph.node:  # the exporter shares equal weights through Identity nodes
+        if node.op_type == "Identity" and node.input[0] in inits:
+            inits[node.output[0]] = inits[node.input[0]]
     onnx_convs = [n for n in model.graph.node if n.op_type == "Conv"]
     order: list[torch.nn.Conv2d] = []
     hooks = [m.register_forward_hook(lambda mod, *_: order.append(mod)) for m in net.modules()
@@ -416,6 +440,13 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
         net.eval()(torch.zeros(1, 3, h, w))
     for hk in hooks:
         hk.remove()
+    if net.hidden and len(order) == len(onnx_convs) + 3:  # no hidden-cone head (2 convs + output) in the file
+        plain = load_onnx_weights(ConeNet(net.num_classes, stride=net.stride), path)
+        missing, unexpected = net.load_state_dict(plain.state_dict(), strict=False)
+        if unexpected or any(not k.startswith(("head_hidden.", "out_hidden.")) for k in missing):
+            raise FileFormatError(f"{path}: not a ConeNet export that a hidden-cone ConeNet can start from")
+        net.head_hidden.load_state_dict(plain.head.state_dict())
+        return net
     if len(order) != len(onnx_convs) and net.stride == 2:
         coarse = load_onnx_weights(ConeNet(net.num_classes, stride=4), path)
         missing, unexpected = net.load_state_dict(coarse.state_dict(), strict=False)
@@ -512,7 +543,7 @@ def train_detector(
     frames = _Frames(train_sets, cfg, train=True)
     if len(frames) == 0:
         raise InputError(f"the training data {', '.join(map(str, data))} has no images")
-    net = ConeNet(stride=cfg.stride)
+    net = ConeNet(stride=cfg.stride, hidden=cfg.hidden)
     if cfg.init is not None:
         load_onnx_weights(net, cfg.init)
     net = net.to(memory_format=torch.channels_last)  # much faster convolutions on CPU
