@@ -219,3 +219,19 @@ def test_weather_never_touches_the_simulator():
     for module, imports in IMPORTS.items():
         if layer_of(module) == "weather":
             assert not [t for t, _, _ in imports if t.split(".")[0] == "pybullet" or layer_of(t) in ("sim", "envs")]
+
+
+def test_training_a_detector_does_not_need_the_simulator():
+    """Reading COCO sets and training run where PyBullet is not installed (a GPU box, say)."""
+    import subprocess
+    import sys
+
+    probe = ("import sys\n"
+             "class NoSim:\n"
+             "    def find_spec(self, name, path=None, target=None):\n"
+             "        if name.split('.')[0] in ('pybullet', 'pybullet_data'):\n"
+             "            raise ImportError(name)\n"
+             "sys.meta_path.insert(0, NoSim())\n"
+             "import weather_gym.perception.train, weather_gym.datasets.coco\n")
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]

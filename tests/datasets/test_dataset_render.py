@@ -132,3 +132,28 @@ def test_frames_go_through_the_default_camera_model_unless_told_otherwise(tmp_pa
     view = ideal.render_view(0)  # the ideal camera's record re-renders byte for byte
     ideal.close()
     assert np.array_equal(view["image"], ideal.image(0))
+
+
+def test_jpeg_quality_stores_the_same_frames_as_jpeg_with_the_same_labels(rendered, tmp_path):
+    import cv2
+
+    root = tmp_path / "jpg"
+    render_dataset(root, jpeg_quality=90, **KW)
+    png, jpg = load_coco(rendered), load_coco(root)
+    assert [r["file_name"] for r in jpg.images] == [f"images/{i:06d}.jpg" for i in range(4)]
+    assert jpg.data["annotations"] == png.data["annotations"]
+    for i in range(len(png)):
+        # the JPEG of the very frame the PNG holds (lossless), at quality 90: same bytes
+        ok, buf = cv2.imencode(".jpg", cv2.imread(str(png.image_path(i))), [cv2.IMWRITE_JPEG_QUALITY, 90])
+        assert ok and jpg.image_path(i).read_bytes() == buf.tobytes()
+        assert np.abs(jpg.image(i).astype(int) - png.image(i).astype(int)).mean() < 3.0
+        np.testing.assert_array_equal(jpg.depth(i), png.depth(i))
+
+
+@pytest.mark.parametrize("quality", [0, 101, 90.5])
+def test_a_bad_jpeg_quality_is_refused_before_anything_is_written(tmp_path, quality):
+    from weather_gym.errors import InputError
+
+    with pytest.raises(InputError, match="jpeg_quality"):
+        render_dataset(tmp_path / "bad", jpeg_quality=quality, **KW)
+    assert not (tmp_path / "bad" / "annotations.json").exists()

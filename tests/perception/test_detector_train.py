@@ -157,6 +157,34 @@ def test_a_few_training_steps_export_an_onnx_model_that_runs(tmp_path):
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5)
 
 
+def test_sample_workers_train_the_same_model_as_the_training_process(tmp_path):
+    data = write_synth_dataset(tmp_path / "synth", 6, seed=3)
+    outs = []
+    for workers in (0, 2):
+        out = tmp_path / f"w{workers}.onnx"
+        train_detector([data], out, TrainConfig(max_steps=3, workers=workers, **SMALL), progress=False,
+                       log=lambda *_: None)
+        outs.append(ConeDetector(out))
+    x = np.random.default_rng(1).random((1, 3, 160, 256), dtype=np.float32) * 255
+    a, b = (d.session.run(None, {"images": x})[0] for d in outs)
+    np.testing.assert_array_equal(a, b)
+    assert "2 sample workers" in json.loads((tmp_path / "w2.json").read_text())["training"]["hardware"]
+
+
+@pytest.mark.parametrize("device", ["gpu", "cuda:x", "tpu:0"])
+def test_a_bad_training_device_is_a_clear_error(device):
+    with pytest.raises(InputError, match="device must be"):
+        TrainConfig(device=device)
+
+
+def test_cuda_without_a_gpu_is_a_clear_error(tmp_path):
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA GPU")
+    data = write_synth_dataset(tmp_path / "synth", 2, seed=3)
+    with pytest.raises(InputError, match="no CUDA GPU"):
+        train_detector([data], tmp_path / "m.onnx", TrainConfig(max_steps=1, device="cuda", **SMALL), progress=False)
+
+
 @pytest.mark.slow
 def test_interrupted_training_resumes_from_its_checkpoint(tmp_path):
     data = write_synth_dataset(tmp_path / "synth", 4, seed=2)

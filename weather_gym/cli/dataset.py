@@ -68,6 +68,9 @@ def register(sub) -> None:
                         "it), e.g. -35,-3 for frames approaching the start line; default: anywhere on the track")
     r.add_argument("--width", type=int, default=None, help="camera width in pixels (default 672)")
     r.add_argument("--height", type=int, default=None, help="camera height in pixels (default 376)")
+    r.add_argument("--jpeg-quality", type=int, default=None, metavar="Q",
+                   help="store the frames as JPEG of quality Q (1-100) instead of PNG: 4-7x smaller, e.g. to move "
+                        "a training set to a GPU machine (default: PNG, lossless)")
     r.add_argument("--resume", action="store_true", help="continue an interrupted render in --out")
     r.add_argument("--overwrite", action="store_true", help="replace an existing dataset in --out")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -151,7 +154,7 @@ def _render(args) -> int:
     path = render_dataset(args.out, tracks=args.track, frames=args.frames, seed=args.seed, randomize=args.randomize,
                           camera=cam, every=args.every, frames_per_episode=args.frames_per_episode,
                           progress=not args.quiet, overwrite=args.overwrite, resume=args.resume, scene=scene,
-                          ranges=ranges, start_window=window, camera_model=model)
+                          ranges=ranges, start_window=window, camera_model=model, jpeg_quality=args.jpeg_quality)
     print(f"wrote {path}")
     return 0
 

@@ -73,6 +73,11 @@ def register(sub) -> None:
     t.add_argument("--lr", type=float, default=3e-3)
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--threads", type=int, default=1, help="torch CPU threads (default %(default)s; 2 only on an idle machine)")
+    t.add_argument("--device", default="cpu",
+                   help="torch device of the net: cpu, cuda or cuda:N (default %(default)s); the samples are made on the CPU")
+    t.add_argument("--workers", type=int, default=0,
+                   help="processes that make the training samples (default %(default)s: in the training process); "
+                        "the samples do not depend on it")
     t.add_argument("--input-size", type=int, nargs=2, default=(512, 288), metavar=("W", "H"))
     t.add_argument("--crop-size", type=int, nargs=2, default=(320, 192), metavar=("W", "H"),
                    help="train on random crops of this size of the input (multiples of 32; default %(default)s)")
@@ -161,7 +166,8 @@ def _train(args) -> int:
                              batch_size=args.batch_size, lr=args.lr, seed=args.seed, threads=args.threads,
                              max_steps=args.max_steps, mix=mix, epoch_frames=args.epoch_frames,
                              warmup_iters=args.warmup, crop_size=tuple(args.crop_size),
-                             init=None if args.init is None else str(args.init), stride=args.stride, hidden=args.hidden_heads, **extra)
+                             init=None if args.init is None else str(args.init), stride=args.stride, hidden=args.hidden_heads,
+                             device=args.device, workers=args.workers, **extra)
     result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
                             overwrite=args.overwrite)
     print(f"wrote {result['model']} ({result['steps']} steps, {result['train_time_s']:.0f} s)")

@@ -47,7 +47,6 @@ from weather_gym._io import atomic_write_json, open_append, resolve_inside, writ
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets import masks as _masks  # cyclic pair: attributes used at call time
-from weather_gym.datasets import render as _render  # cyclic pair: attributes used at call time
 from weather_gym.errors import (
     FileFormatError,
     InputError,
@@ -245,8 +244,10 @@ class CocoDataset:
         (track, camera) until ``close()``.
         """
 
-        if self._renderer is None:
-            self._renderer = _render.ViewRenderer()
+        if self._renderer is None:  # the simulator is imported only where a view is re-rendered
+            from weather_gym.datasets.render import ViewRenderer
+
+            self._renderer = ViewRenderer()
         if isinstance(i, dict):
             rec = i
         else:
@@ -358,8 +359,8 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
 class CocoWriter:
     """Write frames into a COCO folder; resumable (a journal of finished frames is kept until ``close``).
 
-    ``add(image, record, gt, depth=None)`` writes ``images/NNNNNN.png`` (and ``depth/NNNNNN.png``)
-    and returns the image id. ``gt`` holds arrays ``boxes`` (xyxy), ``classes`` and optionally
+    ``add(image, record, gt, depth=None)`` writes ``images/NNNNNN.png`` (``.jpg`` with ``jpeg_quality``:
+    4-7x smaller, lossy) and ``depth/NNNNNN.png``, and returns the image id. ``gt`` holds arrays ``boxes`` (xyxy), ``classes`` and optionally
     ``ranges``, ``bearings``, ``cone_ids``, ``pixels``. ``close()`` writes ``annotations.json``
     atomically and removes the journal. An existing ``annotations.json`` is never overwritten unless
     ``overwrite=True``; with ``resume=True`` the journal of an interrupted run is read back and
@@ -367,9 +368,13 @@ class CocoWriter:
     """
 
     def __init__(self, root: str | os.PathLike, *, overwrite: bool = False, resume: bool = False,
-                 min_box_height: float = MIN_BOX_HEIGHT_PX, info: dict | None = None) -> None:
+                 min_box_height: float = MIN_BOX_HEIGHT_PX, info: dict | None = None,
+                 jpeg_quality: int | None = None) -> None:
         self.root = Path(root)
         self.min_box_height = float(min_box_height)
+        if jpeg_quality is not None and not (isinstance(jpeg_quality, int) and 1 <= jpeg_quality <= 100):
+            raise InputError(f"jpeg_quality must be an integer in 1..100 (None: PNG), got {jpeg_quality!r}")
+        self.jpeg_quality = jpeg_quality
         if self.root.exists() and not self.root.is_dir():
             raise OutputPathError(f"dataset folder {self.root} exists and is not a folder")
         ann = self.root / ANNOTATIONS
@@ -414,9 +419,12 @@ class CocoWriter:
             raise InputError(f"image must be uint8 (H, W, 3) RGB, got {image.dtype} {image.shape}")
         idx = len(self.images)
         name = f"{idx:06d}.png"
+        image_name = name if self.jpeg_quality is None else f"{idx:06d}.jpg"
+        params = () if self.jpeg_quality is None else (cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality)
         # the dataset's own frames: a resumed or --overwrite render replaces them (the folder-level check is above)
-        write_image(self.root / "images" / name, image, overwrite=True)
-        rec = {"id": idx, "file_name": f"images/{name}", "width": int(image.shape[1]), "height": int(image.shape[0])}
+        write_image(self.root / "images" / image_name, image, overwrite=True, params=params)
+        rec = {"id": idx, "file_name": f"images/{image_name}", "width": int(image.shape[1]),
+               "height": int(image.shape[0])}
         if depth is not None:
             write_depth_png(self.root / "depth" / name, depth, overwrite=True)
             rec["depth_file"] = f"depth/{name}"

@@ -113,6 +113,7 @@ def render_dataset(
     ranges=None,
     start_window: tuple[float, float] | None = None,
     camera_model: CameraModel | None = None,
+    jpeg_quality: int | None = None,
 ) -> Path:
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
@@ -130,6 +131,8 @@ def render_dataset(
         ranges: ``RandomizeRanges`` of the realistic randomisation (None: the defaults).
         every: save one frame every ``every`` env steps (30 Hz control: every=3 -> 10 frames/s).
         frames_per_episode: frames saved per episode before a new start point / look is drawn.
+        jpeg_quality: store the frames as JPEG of this quality (1-100) instead of PNG (None): smaller
+            training sets to move to a GPU machine; the labels and depth maps are the same.
         start_window: ``(low, high)`` metres of arc length around the start line (negative: before it) to
             draw start points from instead of the whole track, e.g. ``(-35, -3)`` for frames approaching
             the start line and its big orange cones (None: uniform over the track).
@@ -152,7 +155,7 @@ def render_dataset(
     plan = episode_plan(list(tracks), int(frames), int(frames_per_episode))
     # every episode's seed comes from the master seed, so resuming replays exactly the same episodes
     episode_seeds = np.random.SeedSequence(seed).generate_state(len(plan), dtype=np.uint32).tolist()
-    writer = _coco.CocoWriter(out, overwrite=overwrite, resume=resume, info={
+    writer = _coco.CocoWriter(out, overwrite=overwrite, resume=resume, jpeg_quality=jpeg_quality, info={
         "tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
         "every": int(every), "frames_per_episode": int(frames_per_episode), "scene": scene,
         **({"randomize_ranges": ranges.to_dict()} if randomize and realistic else {}),

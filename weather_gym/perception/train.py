@@ -81,6 +81,8 @@ class TrainConfig:
     init: str | None = None  # start from this ConeNet ONNX model (its batch norms stay frozen)
     stride: int = STRIDE  # output grid: 4, or 2 to separate cones whose centres are a few pixels apart
     hidden: bool = False  # add hidden-cone heatmaps (ConeNet(hidden=True)): a peak for a cone behind another
+    device: str = "cpu"  # torch device of the net: "cpu", "cuda" or "cuda:N" (the samples are made on the CPU)
+    workers: int = 0  # processes that make the training samples (0: in the training process)
 
     @classmethod
     def recipe(cls, name: str, **overrides) -> TrainConfig:
@@ -110,6 +112,11 @@ class TrainConfig:
             raise InputError("epochs and batch_size must be >= 1")
         if self.stride not in STRIDES:
             raise InputError(f"stride must be one of {STRIDES}, got {self.stride}")
+        if self.workers < 0:
+            raise InputError(f"workers must be >= 0, got {self.workers}")
+        if not (self.device == "cpu" or self.device == "cuda" or
+                (self.device.startswith("cuda:") and self.device[5:].isdigit())):
+            raise InputError(f"device must be 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
 
 
 RECIPES: dict[str, dict[str, Any]] = {
@@ -486,6 +493,34 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     return net
 
 
+def _stack(batch: list[tuple[torch.Tensor, ...]]) -> tuple[torch.Tensor, ...]:
+    """One training batch: the samples' tensors stacked field by field."""
+    return tuple(torch.stack(t) for t in zip(*batch, strict=True))
+
+
+def _one_thread(_worker: int) -> None:
+    """A sample worker's OpenCV runs on one thread (the workers are the parallelism)."""
+    cv2.setNumThreads(1)
+
+
+def _device(name: str) -> torch.device:
+    """``TrainConfig.device`` as a torch device; a clear error where CUDA is asked for and absent."""
+    device = torch.device(name)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise InputError(f"device {name!r}: this torch ({torch.__version__}) sees no CUDA GPU; use --device cpu")
+    if device.type == "cuda" and device.index is not None and device.index >= torch.cuda.device_count():
+        raise InputError(f"device {name!r}: only {torch.cuda.device_count()} CUDA GPU(s) are visible")
+    return device
+
+
+def _hardware(cfg: TrainConfig, device: torch.device) -> str:
+    """Where the net was trained, for the sidecar."""
+    cpu = f"{platform.processor() or platform.machine()}, {cfg.threads} torch threads, {cfg.workers} sample workers"
+    if device.type == "cuda":
+        return f"{torch.cuda.get_device_name(device)} (CUDA); {cpu}"
+    return f"{cpu}, CPU"
+
+
 def _freeze_bn(net: ConeNet) -> None:
     for m in net.modules():
         if isinstance(m, torch.nn.BatchNorm2d):
@@ -505,7 +540,7 @@ def _eval_map(net: ConeNet, val, cfg: TrainConfig, max_images: int = 200) -> flo
             ims = [val.image(i) for i in idx]
             boxed = [letterbox(im, cfg.input_size) for im in ims]
             x = torch.from_numpy(np.stack([b[0].transpose(2, 0, 1) for b in boxed])).float()
-            out = model(x).numpy()
+            out = model(x.to(next(net.parameters()).device)).cpu().numpy()
             for (boxes, scores, classes), (_, lb) in zip(decode(out, NUM_CLASSES, net.stride, 0.05), boxed, strict=True):
                 dets.append(Detections(lb.to_original(boxes).astype(np.float32), scores, classes))
             gts += [val.gt(i) for i in idx]
@@ -546,7 +581,8 @@ def train_detector(
     net = ConeNet(stride=cfg.stride, hidden=cfg.hidden)
     if cfg.init is not None:
         load_onnx_weights(net, cfg.init)
-    net = net.to(memory_format=torch.channels_last)  # much faster convolutions on CPU
+    device = _device(cfg.device)
+    net = net.to(device, memory_format=torch.channels_last)  # much faster convolutions on CPU
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     steps_per_epoch = math.ceil(frames.epoch_size() / cfg.batch_size)
     total_steps = steps_per_epoch * cfg.epochs if cfg.max_steps is None else min(cfg.max_steps, steps_per_epoch * cfg.epochs)
@@ -582,11 +618,14 @@ def train_detector(
             _freeze_bn(net)
         sums: dict[str, float] = {}
         nb = 0
-        bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress,
+        batches = [order[s : s + cfg.batch_size].tolist() for s in range(0, len(order), cfg.batch_size)]
+        loader = torch.utils.data.DataLoader(frames, batch_sampler=batches, num_workers=cfg.workers,
+                                             collate_fn=_stack, worker_init_fn=_one_thread,
+                                             pin_memory=device.type == "cuda")
+        bar = tqdm(loader, total=len(batches), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress,
                    leave=False)
-        for start in bar:
-            batch = [frames[int(i)] for i in order[start : start + cfg.batch_size]]
-            x, heat, ign, ind, size, off, mask = (torch.stack(t) for t in zip(*batch, strict=True))
+        for batch in bar:
+            x, heat, ign, ind, size, off, mask = (t.to(device, non_blocking=True) for t in batch)
             x = x.contiguous(memory_format=torch.channels_last)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step)
@@ -624,11 +663,11 @@ def train_detector(
             "config": asdict(cfg),
             "steps": step,
             "train_time_s": round(train_time, 1),
-            "hardware": f"{platform.processor() or platform.machine()}, {cfg.threads} torch threads, CPU",
+            "hardware": _hardware(cfg, device),
             "torch": torch.__version__,
             "history": history,
         },
     }
-    export_onnx(net.to(memory_format=torch.contiguous_format), out, cfg.input_size, meta, overwrite=overwrite)
+    export_onnx(net.to("cpu", memory_format=torch.contiguous_format), out, cfg.input_size, meta, overwrite=overwrite)
     ckpt.unlink(missing_ok=True)
     return {"model": str(out), "steps": step, "train_time_s": train_time, "history": history}
