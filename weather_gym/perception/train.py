@@ -300,15 +300,17 @@ class _Frames(torch.utils.data.Dataset):
     def __len__(self) -> int:
         return len(self.items)
 
-    def __getitem__(self, idx: int):
+    def __getitem__(self, key: int | tuple[int, int]):
+        """Sample ``key``: a frame index (augmented for ``self.epoch``) or an ``(epoch, index)`` pair."""
+        epoch, idx = key if isinstance(key, tuple) else (self.epoch, key)
         ds, i = self.items[idx]
         image = self._cache.get(idx)
         if image is None:
             image = ds.image(i)
-            if self.cfg.cache_images:
+            if self.cfg.cache_images and torch.utils.data.get_worker_info() is None:  # workers decode each time
                 self._cache[idx] = image
         gt = ds.gt(i)
-        rng = np.random.default_rng([self.cfg.seed, self.epoch, idx]) if self.train else None
+        rng = np.random.default_rng([self.cfg.seed, epoch, idx]) if self.train else None
         mask = gt.get("ignore_mask")
         if mask is None:
             img, boxes, visible = augment(image, gt["boxes"], self.cfg, rng)
@@ -498,6 +500,19 @@ def _stack(batch: list[tuple[torch.Tensor, ...]]) -> tuple[torch.Tensor, ...]:
     return tuple(torch.stack(t) for t in zip(*batch, strict=True))
 
 
+class _EpochBatches:
+    """The batch sampler of a training run: the current epoch's batches of ``(epoch, frame)`` keys."""
+
+    def __init__(self) -> None:
+        self.batches: list[list[tuple[int, int]]] = []
+
+    def __iter__(self):
+        return iter(self.batches)
+
+    def __len__(self) -> int:
+        return len(self.batches)
+
+
 def _one_thread(_worker: int) -> None:
     """A sample worker's OpenCV runs on one thread (the workers are the parallelism)."""
     cv2.setNumThreads(1)
@@ -562,7 +577,9 @@ def train_detector(
 
     A checkpoint ``<out>.ckpt`` is written after every epoch; when it exists (and ``resume``),
     training continues from it. It is removed once the ONNX file is written. An existing ``out``
-    (or its sidecar) is refused before training unless ``overwrite``.
+    (or its sidecar) is refused before training unless ``overwrite``. With ``cfg.workers`` the sample
+    workers are spawned processes (a fork of a process with threads can deadlock), so a script that
+    calls this needs the usual ``if __name__ == "__main__":`` guard.
     """
 
 
@@ -608,6 +625,13 @@ def train_detector(
         start_epoch, step, history, elapsed = state["epoch"], state["step"], state["history"], state["elapsed"]
         log(f"resuming from {ckpt} at epoch {start_epoch}")
     t_start = time.perf_counter() - elapsed
+    batches = _EpochBatches()
+    # sample workers are spawned, not forked (a fork of a process with threads can deadlock), and live for
+    # the whole run; each batch names its epoch, so a worker makes any epoch's samples
+    loader = torch.utils.data.DataLoader(frames, batch_sampler=batches, num_workers=cfg.workers, collate_fn=_stack,
+                                         worker_init_fn=_one_thread, pin_memory=device.type == "cuda",
+                                         multiprocessing_context="spawn" if cfg.workers else None,
+                                         persistent_workers=cfg.workers > 0)
     for epoch in range(start_epoch, cfg.epochs):
         if step >= total_steps:
             break
@@ -618,10 +642,8 @@ def train_detector(
             _freeze_bn(net)
         sums: dict[str, float] = {}
         nb = 0
-        batches = [order[s : s + cfg.batch_size].tolist() for s in range(0, len(order), cfg.batch_size)]
-        loader = torch.utils.data.DataLoader(frames, batch_sampler=batches, num_workers=cfg.workers,
-                                             collate_fn=_stack, worker_init_fn=_one_thread,
-                                             pin_memory=device.type == "cuda")
+        batches.batches = [[(epoch, int(i)) for i in order[s : s + cfg.batch_size]]
+                           for s in range(0, len(order), cfg.batch_size)]
         bar = tqdm(loader, total=len(batches), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress,
                    leave=False)
         for batch in bar:
