@@ -116,8 +116,10 @@ def test_sweep_then_calibrate_on_a_rendered_set(capsys, tmp_path, calib_set_8):
     assert rc == 0, err
     data = load_presets(presets)
     assert data["calibrated"] is True
-    d3 = data["presets"]["droplets"][3]
-    assert 0 < d3["effects"][0]["k"] < 1 and d3["reachable"] is True
+    # low light S2 (relative 0.344) lies between dim k = 0.5 (no loss yet) and k = 1 (black) for any detector
+    # that sees cones; droplets S3 did for v1-v4, but v5 keeps more than 0.921 at k = 1 on these 8 frames
+    s2 = data["presets"]["low_light"][2]
+    assert 0.5 < s2["effects"][0]["k"] < 1 and s2["reachable"] is True
     assert "re-measured" in (tmp_path / "presets_report" / "calibration_report.md").read_text()
     assert (tmp_path / "presets_report" / "remeasured.csv").exists()
 
