@@ -89,12 +89,13 @@ def test_presets_remeasure_to_their_target(calib_set_40, path):
     assert clean > 0.4
     conditions = ("droplets", "low_light") if path == DEFAULT_PRESETS else ("low_light",)
     report = []
+
+    def relative(effects):
+        return float(np.mean([score_dataset(ds, det, effects, seed=s).map50 for s in SEEDS])) / clean
+
     for cond in conditions:
         for sev in (1, 2, 3, 4):
             e = preset_entry(cond, sev, path)
-            def relative(effects):
-                return float(np.mean([score_dataset(ds, det, effects, seed=s).map50 for s in SEEDS])) / clean
-
             rel = relative(e["effects"])
             report.append((cond, sev, e["effects"][0]["k"], e["measured_relative"], rel))
             if e["reachable"] and abs(rel - e["measured_relative"]) > TOLERANCE:  # a steep stretch of the curve

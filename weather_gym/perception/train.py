@@ -257,7 +257,6 @@ class _Frames(torch.utils.data.Dataset):
                     raise InputError(f"data folder {k + 1} ({d.root}) has no images but a mix share of {w}")
         self.cfg = cfg
         self.train = train
-        self.epoch = 0
         self._cache: dict[int, np.ndarray] = {}
         self.repeat = np.ones(len(self.items))
         if train and cfg.repeat_threshold:
@@ -301,8 +300,8 @@ class _Frames(torch.utils.data.Dataset):
         return len(self.items)
 
     def __getitem__(self, key: int | tuple[int, int]):
-        """Sample ``key``: a frame index (augmented for ``self.epoch``) or an ``(epoch, index)`` pair."""
-        epoch, idx = key if isinstance(key, tuple) else (self.epoch, key)
+        """Sample ``key``: an ``(epoch, index)`` pair, or a frame index (epoch 0's augmentation)."""
+        epoch, idx = key if isinstance(key, tuple) else (0, key)
         ds, i = self.items[idx]
         image = self._cache.get(idx)
         if image is None:
@@ -635,7 +634,6 @@ def train_detector(
     for epoch in range(start_epoch, cfg.epochs):
         if step >= total_steps:
             break
-        frames.epoch = epoch
         order = frames.epoch_order(epoch)
         net.train()
         if cfg.init is not None:
