@@ -120,6 +120,71 @@ def test_a_hidden_cone_net_starts_from_a_plain_model_and_exports_the_plain_outpu
         detection_loss(net(x / 255), batch[0][:, :4], *batch[1:])
 
 
+def test_hidden_cone_box_targets_point_at_the_rear_cone_from_every_cell_around_it():
+    from weather_gym.perception.labels import hidden_mask
+    from weather_gym.perception.train import HIDDEN_BOX_RADIUS
+
+    boxes = np.array([[38, 40, 52, 60], [52, 38, 56, 57], [120, 40, 134, 60.]])
+    classes, ignore = np.array([3, 3, 0]), np.array([False, False, False])
+    hidden = hidden_mask(boxes)
+    heat, _, ind, size, _, mask, hreg, hmask = build_targets(boxes, classes, ignore, (256, 160), 2, hidden, True)
+    assert heat.shape == (8, 80, 128) and hreg.shape == (4, 80, 128) and hmask.shape == (80, 128)
+    side = 2 * HIDDEN_BOX_RADIUS + 1
+    assert hmask.sum() == side * side  # the rear cone's window only: no box targets for the others
+    ys, xs = np.nonzero(hmask)
+    cy, cx = divmod(int(ind[1]), 128)
+    assert abs(xs - cx).max() == HIDDEN_BOX_RADIUS and abs(ys - cy).max() == HIDDEN_BOX_RADIUS
+    # from every cell, cell + offset is the rear cone's centre, and the size is its size
+    np.testing.assert_allclose(xs + hreg[2, ys, xs], (52 + 56) / 2 / 2)
+    np.testing.assert_allclose(ys + hreg[3, ys, xs], (38 + 57) / 2 / 2)
+    np.testing.assert_allclose(hreg[:2, ys, xs].T, np.broadcast_to(size[1], (len(xs), 2)))
+    assert len(build_targets(boxes, classes, ignore, (256, 160), 2, hidden)) == 6
+    with pytest.raises(InputError, match="hidden mask"):
+        build_targets(boxes, classes, ignore, (256, 160), 2, None, True)
+    with pytest.raises(InputError, match="hidden_boxes needs hidden"):
+        TrainConfig(hidden_boxes=True)
+
+
+def test_a_net_with_hidden_cone_boxes_reports_them_where_a_hidden_peak_wins(tmp_path):
+    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.train import detection_loss, export_onnx, load_onnx_weights
+
+    torch.manual_seed(6)
+    heads = export_onnx(ConeNet(stride=2, hidden=True).eval(), tmp_path / "heads.onnx", (128, 64))
+    net = load_onnx_weights(ConeNet(stride=2, hidden=True, hidden_boxes=True), heads).eval()
+    ref = load_onnx_weights(ConeNet(stride=2, hidden=True), heads).eval()
+    x = torch.rand(1, 3, 64, 128) * 255
+    with torch.no_grad():  # the heatmaps start as the file's
+        np.testing.assert_allclose(ConeNetExport(net)(x)[:, :4].numpy(), ConeNetExport(ref)(x)[:, :4].numpy(), atol=1e-6)
+        # constant outputs: every hidden cell a peak of 0.99 against main peaks of 0.01, so each cell reports
+        # the hidden box (3 x stride wide, offset 1.5 cells), and the main box where the main peak wins
+        for conv in (net.out, net.out_hidden):
+            conv.weight.zero_()
+        net.out.bias[:4] = -4.6
+        net.out.bias[4:] = 0.0
+        net.out_hidden.bias[:] = torch.tensor([4.6] * 4 + [np.log(3.0), 0.0, 1.5, -0.5])
+        out = ConeNetExport(net)(x)
+        np.testing.assert_allclose(out[0, 4, 5, 5].item(), 6.0, rtol=1e-5)  # exp(log 3) x stride 2
+        np.testing.assert_allclose(out[0, 6:, 5, 5].numpy(), [1.5, -0.5], rtol=1e-5)
+        net.out_hidden.bias[:4] = -8.0
+        out = ConeNetExport(net)(x)
+        np.testing.assert_allclose(out[0, 4:, 5, 5].numpy(), [2.0, 2.0, 0.5, 0.5], rtol=1e-5)
+    path = export_onnx(net, tmp_path / "boxes.onnx", (128, 64))
+    assert "hidden-cone heads and boxes" in json.loads(path.with_suffix(".json").read_text())["architecture"]
+    assert ConeDetector(path).raw([np.zeros((64, 128, 3), np.uint8)])[0].shape == (1, 8, 32, 64)
+    back = load_onnx_weights(ConeNet(stride=2, hidden=True, hidden_boxes=True), path).eval()
+    with torch.no_grad():
+        np.testing.assert_allclose(ConeNetExport(back)(x).numpy(), ConeNetExport(net)(x).numpy(), atol=1e-5)
+    # the box outputs are trained: a loss term of their own, and an error when their targets are missing
+    boxes, classes = np.array([[38, 20, 52, 40], [52, 18, 56, 37.]]), np.array([3, 3])
+    t = build_targets(boxes, classes, np.zeros(2, bool), (128, 64), 2, np.array([False, True]), True)
+    batch = [torch.from_numpy(v)[None] for v in t]
+    _, parts = detection_loss(net.train()(x / 255), *batch)
+    assert parts["hidden_box"] > 0 and parts["hidden"] > 0
+    with pytest.raises(InputError, match="hidden-cone boxes needs their targets"):
+        detection_loss(net(x / 255), *batch[:6])
+
+
 def test_augment_moves_boxes_with_the_image():
     img = np.zeros((376, 672, 3), np.uint8)
     img[100:140, 50:80] = 255

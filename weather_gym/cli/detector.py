@@ -66,6 +66,9 @@ def register(sub) -> None:
                    help="add hidden-cone heatmaps, trained on cones whose box touches a nearer cone's (the rear "
                         "cone of a pair): a peak of their own for cones seen behind another (can start from an "
                         "--init without them)")
+    t.add_argument("--hidden-boxes", action="store_true",
+                   help="with --hidden-heads: the hidden-cone head also regresses the hidden cones' boxes, from every "
+                        "cell near their centre (can start from an --init with hidden heads but without boxes)")
     t.add_argument("--warmup", type=int, default=200, help="warm-up steps of the learning rate (default %(default)s)")
     t.add_argument("--val", type=Path, default=None, help="validation COCO folder (mAP@0.5 logged every 5 epochs)")
     t.add_argument("--epochs", type=int, default=30)
@@ -167,6 +170,7 @@ def _train(args) -> int:
                              max_steps=args.max_steps, mix=mix, epoch_frames=args.epoch_frames,
                              warmup_iters=args.warmup, crop_size=tuple(args.crop_size),
                              init=None if args.init is None else str(args.init), stride=args.stride, hidden=args.hidden_heads,
+                             hidden_boxes=args.hidden_boxes,
                              device=args.device, workers=args.workers, **extra)
     result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
                             overwrite=args.overwrite)

@@ -22,6 +22,10 @@ a cone behind another in a hairpin). Their peaks do not compete with the front c
 heatmap, so the rear cone gets its own peak; the size and offset outputs are shared. The export
 peak-filters both sets and keeps, per class and cell, the larger score, so the ONNX output keeps the
 same ``C+4`` channels and the runtime is unchanged (a duplicate of a front cone is removed by the box NMS).
+With ``hidden_boxes=True`` the hidden-cone head also predicts the hidden cones' boxes, trained at every
+cell near their centre, not only at it: the rear cone's centre is one to three cells from the front
+cone's, and a hidden peak that lands beside it (or on the front cone) still points at the rear cone's
+box. Where a cell's hidden peak beats its main peak, the export reports the hidden box there.
 
 Example:
     >>> import torch
@@ -34,6 +38,8 @@ Example:
     (1, 8, 144, 256)
     >>> tuple(ConeNet(stride=2, hidden=True).eval()(torch.zeros(1, 3, 288, 512)).shape)  # + 4 hidden-cone heatmaps
     (1, 12, 144, 256)
+    >>> tuple(ConeNet(stride=2, hidden=True, hidden_boxes=True).eval()(torch.zeros(1, 3, 288, 512)).shape)
+    (1, 16, 144, 256)
 """
 
 from __future__ import annotations
@@ -90,13 +96,17 @@ class ConeNet(nn.Module):
         neck: int = 32,
         stride: int = STRIDE,
         hidden: bool = False,
+        hidden_boxes: bool = False,
     ) -> None:
         super().__init__()
         if stride not in STRIDES:
             raise InputError(f"ConeNet stride must be one of {STRIDES}, got {stride}")
         self.num_classes = num_classes
         self.stride = stride
+        if hidden_boxes and not hidden:
+            raise InputError("hidden_boxes needs hidden=True (they are the hidden-cone head's boxes)")
         self.hidden = bool(hidden)
+        self.hidden_boxes = bool(hidden_boxes)
         w = widths
         self.stem = conv_bn(3, w[0], 3, 2)
         stages = []
@@ -116,13 +126,17 @@ class ConeNet(nn.Module):
         nn.init.normal_(self.out.weight, std=0.01)
         if self.hidden:
             self.head_hidden = dw_sep(neck, neck)
-            self.out_hidden = nn.Conv2d(neck, num_classes, 1)
-            nn.init.constant_(self.out_hidden.bias, float(self.out.bias[0].detach()))
+            self.out_hidden = nn.Conv2d(neck, num_classes + (4 if self.hidden_boxes else 0), 1)
+            nn.init.constant_(self.out_hidden.bias[:num_classes], float(self.out.bias[0].detach()))
             nn.init.normal_(self.out_hidden.weight, std=0.01)
+            if self.hidden_boxes:  # log size 0 (as the main head starts), offset in the middle of the cell
+                nn.init.zeros_(self.out_hidden.bias[num_classes:])
+                nn.init.constant_(self.out_hidden.bias[num_classes + 2 :], 0.5)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Raw outputs ``(B, C+4, H/s, W/s)``: heat logits, log size, offset (pre-sigmoid); with ``hidden``,
-        then ``C`` hidden-cone heat logits."""
+        then ``C`` hidden-cone heat logits; with ``hidden_boxes``, then the hidden cones' log size and their
+        centre's offset from the cell in cells (linear: it may point a few cells away)."""
         feats = []
         x = stem = self.stem(x)
         for stage in self.stages:
@@ -165,8 +179,13 @@ class ConeNetExport(nn.Module):
         c = self.num_classes
         heat = torch.sigmoid(raw[:, :c])
         peaks = _peaks(heat)
-        if self.net.hidden:
-            peaks = torch.maximum(peaks, _peaks(torch.sigmoid(raw[:, c + 4 :])))
         size = torch.exp(raw[:, c : c + 2].clamp(max=6.0)) * self.net.stride
         offset = torch.sigmoid(raw[:, c + 2 : c + 4])
+        if self.net.hidden:
+            hidden = _peaks(torch.sigmoid(raw[:, c + 4 : 2 * c + 4]))
+            if self.net.hidden_boxes:  # a cell whose hidden-cone peak wins reports the hidden cone's box
+                wins = hidden.amax(dim=1, keepdim=True) > peaks.amax(dim=1, keepdim=True)
+                size = torch.where(wins, torch.exp(raw[:, 2 * c + 4 : 2 * c + 6].clamp(max=6.0)) * self.net.stride, size)
+                offset = torch.where(wins, raw[:, 2 * c + 6 : 2 * c + 8], offset)
+            peaks = torch.maximum(peaks, hidden)
         return torch.cat([peaks, size, offset], dim=1)

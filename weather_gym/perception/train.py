@@ -81,6 +81,7 @@ class TrainConfig:
     init: str | None = None  # start from this ConeNet ONNX model (its batch norms stay frozen)
     stride: int = STRIDE  # output grid: 4, or 2 to separate cones whose centres are a few pixels apart
     hidden: bool = False  # add hidden-cone heatmaps (ConeNet(hidden=True)): a peak for a cone behind another
+    hidden_boxes: bool = False  # the hidden-cone head regresses the hidden cones' boxes too (needs hidden)
     device: str = "cpu"  # torch device of the net: "cpu", "cuda" or "cuda:N" (the samples are made on the CPU)
     workers: int = 0  # processes that make the training samples (0: in the training process)
 
@@ -114,6 +115,8 @@ class TrainConfig:
             raise InputError(f"stride must be one of {STRIDES}, got {self.stride}")
         if self.workers < 0:
             raise InputError(f"workers must be >= 0, got {self.workers}")
+        if self.hidden_boxes and not self.hidden:
+            raise InputError("hidden_boxes needs hidden (the boxes are the hidden-cone head's; --hidden-heads)")
         if not (self.device == "cpu" or self.device == "cuda" or
                 (self.device.startswith("cuda:") and self.device[5:].isdigit())):
             raise InputError(f"device must be 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
@@ -201,12 +204,18 @@ def _gaussian(heat: np.ndarray, cx: int, cy: int, sx: float, sy: float) -> None:
     np.maximum(heat[y0:y1, x0:x1], g, out=heat[y0:y1, x0:x1])
 
 
+HIDDEN_BOX_RADIUS = 2
+"""A hidden cone's box is regressed from every cell at most this many cells from its centre's cell."""
+
+
 def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, input_size: tuple[int, int],
-                  stride: int = STRIDE, hidden: np.ndarray | None = None):
+                  stride: int = STRIDE, hidden: np.ndarray | None = None, hidden_boxes: bool = False):
     """CenterNet targets at ``stride``: heat (C, h, w), ignore map (h, w), and per-object
     index / log-size / offset / mask arrays of length ``MAX_OBJECTS``. With ``hidden`` (bool per box,
     ``labels.hidden_mask``) heat has ``2C`` channels: the last ``C`` hold the hidden cones only (they
-    stay in the first ``C`` too)."""
+    stay in the first ``C`` too). With ``hidden_boxes`` two dense maps follow: the hidden cones' box
+    targets (4, h, w: log size, and their centre's offset from the cell in cells) in the cells within
+    ``HIDDEN_BOX_RADIUS`` of their centre (the nearest centre where two overlap), and its mask (h, w)."""
     W, H = input_size
     ow, oh = W // stride, H // stride
     heat = np.zeros((NUM_CLASSES * (1 if hidden is None else 2), oh, ow), np.float32)
@@ -217,6 +226,11 @@ def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, in
     mask = np.zeros(MAX_OBJECTS, np.float32)
     k = 0
     hid = np.zeros(len(boxes), bool) if hidden is None else np.asarray(hidden, bool)
+    if hidden_boxes and hidden is None:
+        raise InputError("hidden-cone box targets need the hidden mask (labels.hidden_mask)")
+    hreg = np.zeros((4, oh, ow), np.float32) if hidden_boxes else None
+    hmask = np.zeros((oh, ow), np.float32) if hidden_boxes else None
+    hdist = np.full((oh, ow), np.inf) if hidden_boxes else None
     for b, c, ig, hd in zip(boxes, classes, ignore, hid, strict=True):
         bw, bh = b[2] - b[0], b[3] - b[1]
         if bw <= 0 or bh <= 0:
@@ -240,6 +254,18 @@ def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, in
         off[k] = (cx - ix, cy - iy)
         mask[k] = 1.0
         k += 1
+        if hd and hreg is not None:
+            r = HIDDEN_BOX_RADIUS
+            x0, x1, y0, y1 = max(0, ix - r), min(ow, ix + r + 1), max(0, iy - r), min(oh, iy + r + 1)
+            gx, gy = np.meshgrid(np.arange(x0, x1), np.arange(y0, y1))
+            d = (gx + 0.5 - cx) ** 2 + (gy + 0.5 - cy) ** 2
+            near = d < hdist[y0:y1, x0:x1]
+            hdist[y0:y1, x0:x1][near] = d[near]
+            for ch, v in enumerate((size[k - 1, 0], size[k - 1, 1], cx - gx, cy - gy)):
+                hreg[ch, y0:y1, x0:x1][near] = np.broadcast_to(v, d.shape)[near]
+            hmask[y0:y1, x0:x1][near] = 1.0
+    if hreg is not None:
+        return heat, ign, ind, size, off, mask, hreg, hmask
     return heat, ign, ind, size, off, mask
 
 
@@ -321,7 +347,8 @@ class _Frames(torch.utils.data.Dataset):
         if "ignore" in gt:
             ignore = ignore | gt["ignore"] | gt["any_class"]
         hidden = hidden_mask(boxes, gt.get("ranges")) if self.cfg.hidden else None
-        targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]), self.cfg.stride, hidden)
+        targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]), self.cfg.stride, hidden,
+                                self.cfg.hidden_boxes)
         if mask is not None:  # the ignore mask (e.g. the ego vehicle): no negative loss under it
             h, w = targets[1].shape
             cover = cv2.resize(mask.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
@@ -331,10 +358,13 @@ class _Frames(torch.utils.data.Dataset):
 
 
 # ----------------------------------------------------------------------------------- loss
-def detection_loss(raw: torch.Tensor, heat, ign, ind, size, off, mask) -> tuple[torch.Tensor, dict[str, float]]:
+def detection_loss(raw: torch.Tensor, heat, ign, ind, size, off, mask, hreg=None, hmask=None
+                   ) -> tuple[torch.Tensor, dict[str, float]]:
     """Penalty-reduced focal loss on the heatmaps (ignored cells carry no negative loss) + L1 on
     log-size and offset at object centres. A hidden-cone net (raw ``2C+4`` channels, heat ``2C``) gets
-    the same focal loss on its hidden-cone heatmaps, reported as ``hidden``."""
+    the same focal loss on its hidden-cone heatmaps, reported as ``hidden``; one with hidden-cone boxes
+    (raw ``2C+8``) an L1 on their log size and offset in the cells of ``hmask`` (``hreg`` the targets of
+    ``build_targets(..., hidden_boxes=True)``), averaged over those cells, reported as ``hidden_box``."""
     c = NUM_CLASSES
     n = mask.sum().clamp(min=1.0)
 
@@ -348,23 +378,35 @@ def detection_loss(raw: torch.Tensor, heat, ign, ind, size, off, mask) -> tuple[
 
     focal = focal_loss(raw[:, :c], heat[:, :c])
     extra: dict[str, float] = {}
-    if raw.shape[1] == 2 * c + 4:
+    if raw.shape[1] in (2 * c + 4, 2 * c + 8):
         if heat.shape[1] != 2 * c:
             raise InputError(f"a hidden-cone net needs {2 * c} heat targets, got {heat.shape[1]}")
-        hidden = focal_loss(raw[:, c + 4 :], heat[:, c:])
+        hidden = focal_loss(raw[:, c + 4 : 2 * c + 4], heat[:, c:])
         focal = focal + hidden
         extra["hidden"] = hidden.item()
+    if raw.shape[1] == 2 * c + 8:
+        if hreg is None or hmask is None:
+            raise InputError("a net with hidden-cone boxes needs their targets (build_targets(..., hidden_boxes=True))")
+        hm = hmask[:, None]
+        hidden_box = (torch.abs(raw[:, 2 * c + 4 :] - hreg) * hm).sum() / hmask.sum().clamp(min=1.0)
+        extra["hidden_box"] = hidden_box.item()
+    else:
+        hidden_box = 0.0
     b, _, h, w = raw.shape
     flat = raw[:, c : c + 4].reshape(b, 4, h * w)
     g = torch.gather(flat, 2, ind[:, None, :].expand(b, 4, ind.shape[1]))  # (B, 4, M)
     m = mask[:, None, :]
     size_l = (torch.abs(g[:, :2] - size.transpose(1, 2)) * m).sum() / n
     off_l = (torch.abs(torch.sigmoid(g[:, 2:]) - off.transpose(1, 2)) * m).sum() / n
-    total = focal + size_l + off_l
+    total = focal + size_l + off_l + hidden_box
     return total, {"focal": focal.item(), "size": size_l.item(), "offset": off_l.item(), **extra}
 
 
 # ----------------------------------------------------------------------------------- export
+def _hidden_text(net: ConeNet) -> str:
+    return ", hidden-cone heads and boxes" if net.hidden_boxes else ", hidden-cone heads" if net.hidden else ""
+
+
 def count_flops(net: ConeNet, input_size: tuple[int, int]) -> int:
     """FLOPs (2 x multiply-adds) of one forward pass at ``input_size``, counted by torch."""
     from torch.utils.flop_counter import FlopCounterMode
@@ -398,7 +440,7 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
         onnx.checker.check_model(str(tmp))
     sidecar = {
         "format": "weather-gym cone detector v1",
-        "architecture": f"ConeNet (CenterNet-style, stride {net.stride}{', hidden-cone heads' if net.hidden else ''})",
+        "architecture": f"ConeNet (CenterNet-style, stride {net.stride}{_hidden_text(net)})",
         "input_size": [w, h],
         "input": "images: float32 (batch, 3, H, W) RGB 0..255, letterboxed (pad 114, centred)",
         "output": f"output: (batch, C+4, H/{net.stride}, W/{net.stride}) = peak-filtered class scores, box w/h (input px), centre offset",
@@ -423,7 +465,8 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     from a stride-4 model: the shared layers get its weights, the finer pyramid level starts as the
     identity (``ConeNet``) and the size outputs are rescaled to the finer grid. A hidden-cone ``net``
     can start from a model without that head: its head starts as a copy of the main head, its
-    heatmaps from the prior.
+    heatmaps from the prior; a net with hidden-cone boxes can start from one with the hidden-cone
+    heatmaps alone (the box outputs start from their prior).
     """
     import onnx
     from onnx import numpy_helper
@@ -454,6 +497,18 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
         if unexpected or any(not k.startswith(("head_hidden.", "out_hidden.")) for k in missing):
             raise FileFormatError(f"{path}: not a ConeNet export that a hidden-cone ConeNet can start from")
         net.head_hidden.load_state_dict(plain.head.state_dict())
+        return net
+    last = inits.get(onnx_convs[-1].input[1]) if onnx_convs else None
+    if (net.hidden_boxes and len(order) == len(onnx_convs) and last is not None
+            and last.shape[0] == net.num_classes):  # hidden-cone heatmaps in the file, but not their boxes
+        heads = load_onnx_weights(ConeNet(net.num_classes, stride=net.stride, hidden=True), path)
+        state = {k: v for k, v in heads.state_dict().items() if not k.startswith("out_hidden.")}
+        missing, unexpected = net.load_state_dict(state, strict=False)
+        if unexpected or any(not k.startswith("out_hidden.") for k in missing):
+            raise FileFormatError(f"{path}: not a ConeNet export that a ConeNet with hidden-cone boxes can start from")
+        with torch.no_grad():  # the heatmaps as they were; the boxes start from the prior (size 1 cell, mid-cell)
+            net.out_hidden.weight[: net.num_classes] = heads.out_hidden.weight
+            net.out_hidden.bias[: net.num_classes] = heads.out_hidden.bias
         return net
     if len(order) != len(onnx_convs) and net.stride == 2:
         coarse = load_onnx_weights(ConeNet(net.num_classes, stride=4), path)
@@ -594,7 +649,7 @@ def train_detector(
     frames = _Frames(train_sets, cfg, train=True)
     if len(frames) == 0:
         raise InputError(f"the training data {', '.join(map(str, data))} has no images")
-    net = ConeNet(stride=cfg.stride, hidden=cfg.hidden)
+    net = ConeNet(stride=cfg.stride, hidden=cfg.hidden, hidden_boxes=cfg.hidden_boxes)
     if cfg.init is not None:
         load_onnx_weights(net, cfg.init)
     device = _device(cfg.device)
@@ -645,11 +700,11 @@ def train_detector(
         bar = tqdm(loader, total=len(batches), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not progress,
                    leave=False)
         for batch in bar:
-            x, heat, ign, ind, size, off, mask = (t.to(device, non_blocking=True) for t in batch)
+            x, *targets = (t.to(device, non_blocking=True) for t in batch)
             x = x.contiguous(memory_format=torch.channels_last)
             for g in opt.param_groups:
                 g["lr"] = lr_at(step)
-            loss, parts = detection_loss(net(x), heat, ign, ind, size, off, mask)
+            loss, parts = detection_loss(net(x), *targets)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(net.parameters(), 10.0)
