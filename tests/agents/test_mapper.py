@@ -87,6 +87,22 @@ def test_single_false_detection_never_becomes_a_cone():
     assert len(mapper) == 2  # the phantom was in view, missed 3 times and dropped
 
 
+def test_detections_beyond_max_range_map_nothing_until_the_car_is_near():
+    # far boxes are a few pixels tall and their ranges come out long: a cone seen at 24 m (reported
+    # 2 m too far, as the realistic world's were) must not be mapped there; seen from 15 m it is
+    mapper = ConeMapper()
+    assert mapper.config.max_range == 20.0
+    for _ in range(6):
+        mapper.update(np.array([[26.6, 0.0]]), np.array([0]), np.ones(1), pose=(0.0, 0.0, 0.0))
+    assert len(mapper) == 0
+    for _ in range(6):
+        mapper.update(np.array([[15.6, 0.0]]), np.array([0]), np.ones(1), pose=(9.0, 0.0, 0.0))
+    m = mapper.map(confirmed_only=True)
+    assert m.xy.round(1).tolist() == [[24.6, 0.0]]
+    with pytest.raises(ValueError, match="max_range"):
+        MapperConfig(max_range=0.0)
+
+
 def test_colour_is_decided_by_vote():
     mapper = ConeMapper()
     for k in range(10):  # 3 of 10 frames call the blue cone yellow

@@ -56,7 +56,11 @@ class MapperConfig:
         max_misses: a tentative cone not detected this many times while in view is dropped.
         ghost_ratio: a confirmed cone is dropped when misses > ghost_ratio * hits + 10.
         min_score: detections below this confidence are ignored.
-        max_range: detections farther than this (m from the camera) are ignored.
+        max_range: detections farther than this (m from the camera) are ignored. 20 m: beyond it a
+            cone is a few pixels tall and its range is unreliable (the depth inside a box that small is
+            partly the ground beside the cone, so ranges come out long); in the realistic world half of
+            the shipped detector's boxes at 20-30 m were more than 1 m off and left ghost cones
+            1-2.5 m behind the real ones (docs/world.md).
         view_range: a mapped cone counts as "in view" (so a non-detection is a miss) closer than this.
         hfov_deg, mount_x: camera field of view and forward offset, for the in-view test.
         spawn_dist, spawn_chi2: an unassociated detection closer than ``spawn_dist`` (m) to a mapped
@@ -80,7 +84,7 @@ class MapperConfig:
     max_misses: int = 4
     ghost_ratio: float = 3.0
     min_score: float = 0.0
-    max_range: float = 30.0
+    max_range: float = 20.0
     view_range: float = 12.0
     hfov_deg: float = 90.0
     mount_x: float = 0.6
