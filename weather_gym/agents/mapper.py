@@ -57,10 +57,9 @@ class MapperConfig:
         ghost_ratio: a confirmed cone is dropped when misses > ghost_ratio * hits + 10.
         min_score: detections below this confidence are ignored.
         max_range: detections farther than this (m from the camera) are ignored. 20 m: beyond it a
-            cone is a few pixels tall and its range is unreliable (the depth inside a box that small is
-            partly the ground beside the cone, so ranges come out long); in the realistic world half of
-            the shipped detector's boxes at 20-30 m were more than 1 m off and left ghost cones
-            1-2.5 m behind the real ones (docs/world.md).
+            cone is a few pixels tall and its range is unreliable; in the realistic world 75 % of the
+            shipped detector's cones at 20-30 m were more than 1 m off (a median 2.3 m too long) and
+            left ghost cones 1-2.5 m from the real ones (docs/world.md).
         view_range: a mapped cone counts as "in view" (so a non-detection is a miss) closer than this.
         hfov_deg, mount_x: camera field of view and forward offset, for the in-view test.
         spawn_dist, spawn_chi2: an unassociated detection closer than ``spawn_dist`` (m) to a mapped

@@ -24,8 +24,10 @@ peak-filters both sets and keeps, per class and cell, the larger score, so the O
 same ``C+4`` channels and the runtime is unchanged (a duplicate of a front cone is removed by the box NMS).
 With ``hidden_boxes=True`` the hidden-cone head also predicts the hidden cones' boxes, trained at every
 cell near their centre, not only at it: the rear cone's centre is one to three cells from the front
-cone's, and a hidden peak that lands beside it (or on the front cone) still points at the rear cone's
-box. Where a cell's hidden peak beats its main peak, the export reports the hidden box there.
+cone's, and a hidden peak that lands beside it (or on the front cone) is trained to point at the rear
+cone's box. Where a cell's hidden peak beats its main peak, the export reports the hidden box there
+(measured from v5: training with these boxes finds more rear cones, reporting them changes nothing;
+docs/model_card.md, "After v5").
 
 Example:
     >>> import torch
@@ -179,13 +181,16 @@ class ConeNetExport(nn.Module):
         c = self.num_classes
         heat = torch.sigmoid(raw[:, :c])
         peaks = _peaks(heat)
-        size = torch.exp(raw[:, c : c + 2].clamp(max=6.0)) * self.net.stride
+        def box_size(log_size: torch.Tensor) -> torch.Tensor:  # input pixels
+            return torch.exp(log_size.clamp(max=6.0)) * self.net.stride
+
+        size = box_size(raw[:, c : c + 2])
         offset = torch.sigmoid(raw[:, c + 2 : c + 4])
         if self.net.hidden:
             hidden = _peaks(torch.sigmoid(raw[:, c + 4 : 2 * c + 4]))
             if self.net.hidden_boxes:  # a cell whose hidden-cone peak wins reports the hidden cone's box
                 wins = hidden.amax(dim=1, keepdim=True) > peaks.amax(dim=1, keepdim=True)
-                size = torch.where(wins, torch.exp(raw[:, 2 * c + 4 : 2 * c + 6].clamp(max=6.0)) * self.net.stride, size)
+                size = torch.where(wins, box_size(raw[:, 2 * c + 4 : 2 * c + 6]), size)
                 offset = torch.where(wins, raw[:, 2 * c + 6 : 2 * c + 8], offset)
             peaks = torch.maximum(peaks, hidden)
         return torch.cat([peaks, size, offset], dim=1)
