@@ -492,6 +492,11 @@ CASES: list[Case] = [
         "weather_gym.envs.scenario", fromlist=["load_scenario"]).load_scenario(w["scen_sev9.toml"])),
     Case("py-scenario-track-outside", "track", call=lambda w: __import__(
         "weather_gym.envs.scenario", fromlist=["load_scenario"]).load_scenario(w["scen_track_out.toml"])),
+    Case("py-depth-quantile-above-1", "depth_quantile", call=lambda w: __import__(
+        "weather_gym.perception.ranging", fromlist=["detections_to_cones"]).detections_to_cones(
+            {"boxes": np.zeros((1, 4)), "scores": np.ones(1), "classes": np.zeros(1, int)},
+            __import__("weather_gym.camera", fromlist=["CameraConfig"]).CameraConfig(),
+            np.ones((376, 672), np.float32), depth_quantile=1.5)),
     Case("py-detector-corrupt-model", "corrupt.onnx", call=lambda w: __import__(
         "weather_gym.perception", fromlist=["ConeDetector"]).ConeDetector(w["corrupt.onnx"])),
     Case("py-render-dataset-zero-frames", "frames", out="o_render", call=lambda w: __import__(

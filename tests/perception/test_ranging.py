@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from weather_gym.camera import CameraConfig
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD, unpack_cones
-from weather_gym.perception.ranging import cones_to_observation, detections_to_cones
+from weather_gym.perception.ranging import cones_to_observation, detections_to_cones, range_from_depth
 
 
 def _det(boxes, classes, scores=None):
@@ -43,6 +44,32 @@ def test_range_from_depth_uses_the_median_inside_the_box():
     c = detections_to_cones(_det([[320, 170, 352, 210]], [1]), cam, depth)
     assert c["ranges_source"].tolist() == ["depth"]
     assert c["ranges"][0] == pytest.approx(6.0 + 0.228 / 4, abs=0.02)
+
+
+def test_a_low_depth_quantile_ranges_a_far_cone_whose_small_box_is_a_pixel_off():
+    # a cone 22 m ahead is 4x6 px; the detector's box sits 2 px to its right, so half of the box's
+    # central part is the ground 40 m behind it: the median ranges it 9 m long, the 0.25 quantile
+    # finds the cone (the nearest surface there)
+    cam = CameraConfig(pitch_deg=0.0)
+    depth = np.full((cam.height, cam.width), 40.0, np.float32)
+    depth[185:191, 330:334] = 22.0
+    box = [[332, 185, 336, 191]]
+    median = detections_to_cones(_det(box, [1]), cam, depth)["ranges"][0]
+    low = detections_to_cones(_det(box, [1]), cam, depth, depth_quantile=0.25)["ranges"][0]
+    assert median > 28.0
+    assert low == pytest.approx(22.0 + 0.228 / 4, abs=0.1)
+    assert range_from_depth(np.array(box, float), np.array([1]), depth, cam, quantile=0.25)[0] == pytest.approx(low)
+    # on a box that covers its cone the two agree
+    full = [[330, 185, 334, 191]]
+    assert detections_to_cones(_det(full, [1]), cam, depth, depth_quantile=0.25)["ranges"][0] == pytest.approx(
+        detections_to_cones(_det(full, [1]), cam, depth)["ranges"][0])
+
+
+@pytest.mark.parametrize("q", [0, 0.0, -0.25, 1.5, float("nan"), True, "0.25", None])
+def test_a_depth_quantile_outside_0_1_is_refused_by_name(q):
+    cam = CameraConfig()
+    with pytest.raises(InputError, match="depth_quantile"):
+        detections_to_cones(_det([[330, 180, 342, 200]], [1]), cam, np.full((cam.height, cam.width), 9.0), depth_quantile=q)
 
 
 def test_depth_without_valid_pixels_falls_back_to_height():

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from weather_gym.camera import CameraConfig
+from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD, unpack_cones
 from weather_gym.perception.detector import Detections
 from weather_gym.wrappers import DetectorWrapper
@@ -70,6 +71,24 @@ def test_without_depth_range_comes_from_box_height():
     assert obs["cones"][0, FIELD["range"]] == pytest.approx(cam.fy * 0.325 / 20, rel=1e-3)
     env2 = DetectorWrapper(CameraEnv(), FakeDetector(), max_cones=4, use_depth=False)
     assert env2.reset(seed=0)[0]["cones"][0, FIELD["range"]] == pytest.approx(obs["cones"][0, FIELD["range"]])
+
+
+class HalfBackgroundEnv(CameraEnv):
+    """The fake cone's box: its left half at 9 m, its right half the ground 40 m behind."""
+
+    def _obs(self):
+        o = super()._obs()
+        o["depth"][:, 336:] = 40.0
+        return o
+
+
+def test_depth_quantile_reaches_the_cone_list_and_a_bad_one_is_refused():
+    med = DetectorWrapper(HalfBackgroundEnv(), FakeDetector(), max_cones=4).reset(seed=0)[0]
+    low = DetectorWrapper(HalfBackgroundEnv(), FakeDetector(), max_cones=4, depth_quantile=0.25).reset(seed=0)[0]
+    assert med["cones"][0, FIELD["range"]] > 20.0
+    assert low["cones"][0, FIELD["range"]] == pytest.approx(9.0 + 0.057, abs=0.05)
+    with pytest.raises(InputError, match="depth_quantile"):
+        DetectorWrapper(CameraEnv(), FakeDetector(), depth_quantile=2.0)
 
 
 def test_frame_without_cones_gives_an_empty_valid_list_with_the_real_detector():

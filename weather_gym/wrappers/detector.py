@@ -44,7 +44,12 @@ from weather_gym.cone_arrays import ConeArrays
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
 from weather_gym.perception.detectors import DetectorSpec, as_detector, load_detector
-from weather_gym.perception.ranging import cones_to_observation, detections_to_cones
+from weather_gym.perception.ranging import (
+    DEPTH_QUANTILE,
+    check_depth_quantile,
+    cones_to_observation,
+    detections_to_cones,
+)
 
 __all__ = ["DetectorWrapper"]
 
@@ -62,6 +67,8 @@ class DetectorWrapper(gym.ObservationWrapper):
         camera: the camera model for bearing/range (default: the env's ``config.camera``, else the
             default camera scaled to the image size).
         use_depth: take range from the ``depth_key`` observation when present.
+        depth_quantile: the quantile of the depths inside a box that gives its range (0.5, the median;
+            0.25 ranges far cones in small boxes far better: docs/perception.md, "Range").
         keep_image: keep the image in the observation (for viewing; most policies do not need it).
         score_threshold, threads, detector_classes, detector_resize, detector_input: passed to a
             detector the wrapper creates from a spec (``detector_classes``: a YOLO class map, e.g.
@@ -79,6 +86,7 @@ class DetectorWrapper(gym.ObservationWrapper):
         image_key: str = "image",
         depth_key: str = "depth",
         use_depth: bool = True,
+        depth_quantile: float = DEPTH_QUANTILE,
         keep_image: bool = False,
         score_threshold: float | None = None,
         threads: int = 1,
@@ -89,6 +97,7 @@ class DetectorWrapper(gym.ObservationWrapper):
     ) -> None:
         super().__init__(env)
         self.latency_in_info = bool(latency_in_info)
+        self.depth_quantile = check_depth_quantile(depth_quantile)
 
         if not isinstance(max_cones, int) or max_cones < 1:
             raise InputError(f"DetectorWrapper: max_cones must be a positive integer, got {max_cones!r}")
@@ -144,7 +153,7 @@ class DetectorWrapper(gym.ObservationWrapper):
         det = self.detector(np.asarray(image))
         self._last_latency = 1000.0 * (time.perf_counter() - t0)
         depth = observation[self.depth_key] if self.depth_key is not None else None
-        cones = detections_to_cones(det, self.camera, depth, self._undistort())
+        cones = detections_to_cones(det, self.camera, depth, self._undistort(), self.depth_quantile)
         packed, mask = cones_to_observation(cones, self.camera, self.max_cones)
         self._last_detections = ConeArrays({**det.to_dict(), "ranges": cones["ranges"].astype(np.float32),
                                             "bearings": cones["bearings"].astype(np.float32)})

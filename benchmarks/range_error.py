@@ -1,0 +1,76 @@
+"""Range error of the cone list's depth ranging, by true range, for several depth quantiles.
+
+Every detection of the shipped (or given) detector that matches a labelled cone (IoU >= 0.5, same
+class, score >= 0.3) is ranged from the set's depth map as ``DetectorWrapper`` ranges it, once per
+quantile, and compared with the label's range. Rear cones (box touching a nearer cone's) are
+reported apart: a low quantile can pick up the front cone's depth.
+
+    python benchmarks/range_error.py DATASET [--model M.onnx] [--quantiles 0.5,0.25,0.1]
+
+DATASET is a rendered set with depth maps (``weather-gym dataset render ...``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from weather_gym.camera import CameraConfig
+from weather_gym.camera_model import CameraModel, CameraPipeline
+from weather_gym.datasets.coco import load_coco
+from weather_gym.perception import ConeDetector
+from weather_gym.perception.labels import hidden_mask
+from weather_gym.perception.ranging import range_from_depth
+
+BANDS = ((0, 10), (10, 15), (15, 20), (20, 30))
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    lo = np.maximum(a[:, None, :2], b[None, :, :2])
+    hi = np.minimum(a[:, None, 2:], b[None, :, 2:])
+    inter = np.prod(np.clip(hi - lo, 0, None), axis=2)
+    area = lambda z: (z[:, 2] - z[:, 0]) * (z[:, 3] - z[:, 1])  # noqa: E731
+    return inter / (area(a)[:, None] + area(b)[None] - inter)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("dataset")
+    ap.add_argument("--model", default=None)
+    ap.add_argument("--quantiles", default="0.5,0.25,0.1")
+    args = ap.parse_args()
+    qs = [float(q) for q in args.quantiles.split(",")]
+    ds, det = load_coco(args.dataset), ConeDetector(args.model)
+    rows = []  # true range, rear, error per quantile
+    for i in range(len(ds)):
+        rec, gt, depth = ds.record(i), ds.gt(i), ds.depth(i)
+        if depth is None:
+            raise SystemExit(f"{args.dataset}: frame {i} has no depth map; render the set with depth")
+        cam = CameraConfig(**rec["camera"])
+        lens = CameraPipeline(CameraModel.from_dict(rec.get("camera_model", {"enabled": False})), cam.width,
+                              cam.height, fx=cam.fx).undistort_points
+        gb, gc, gr = (np.asarray(gt[k], float) for k in ("boxes", "classes", "ranges"))
+        d = det.detect(ds.image(i))
+        db, dc, sc = np.asarray(d.boxes, float).reshape(-1, 4), np.asarray(d.classes), np.asarray(d.scores)
+        if not len(gb) or not len(db):
+            continue
+        rear, m = hidden_mask(gb.reshape(-1, 4), gr), _iou(db, gb.reshape(-1, 4))
+        for k in np.flatnonzero(sc >= 0.3):
+            j = int(np.argmax(m[k]))
+            if m[k, j] >= 0.5 and dc[k] == gc[j]:
+                errs = [range_from_depth(db[k:k + 1], dc[k:k + 1], depth, cam, lens, q)[0] - gr[j] for q in qs]
+                rows.append([gr[j], rear[j], *errs])
+    a = np.array(rows, float)
+    print(f"{args.dataset}: {len(a)} matched detections; share more than 1 m off (median error, m)")
+    print("cones | true range | n | " + " | ".join(f"q {q:g}" for q in qs))
+    for sel, name in ((a[:, 1] == 0, "standing clear"), (a[:, 1] == 1, "rear (box touches a nearer cone)")):
+        for lo, hi in BANDS:
+            s = a[sel & (a[:, 0] >= lo) & (a[:, 0] < hi)]
+            if len(s):
+                cells = [f"{np.mean(np.abs(s[:, 2 + c]) > 1):.2f} ({np.median(s[:, 2 + c]):+.2f})" for c in range(len(qs))]
+                print(f"{name} | {lo}-{hi} m | {len(s)} | " + " | ".join(cells))
+
+
+if __name__ == "__main__":
+    main()
