@@ -34,11 +34,28 @@ def test_agent_args_are_parsed():
     (["--video", "out.avi"], "expected a file ending in .mp4"),
     (["--agent-arg", "oops"], "KEY=VALUE"),
     (["--detector", "missing.onnx"], "missing.onnx not found"),
+    (["--agent", "mapper_pure_pursuit", "--depth-quantile", "0"], "depth_quantile must be a number in (0, 1]"),
+    (["--depth-quantile", "0.25", "--perception", "oracle"], "it needs --perception detector"),
 ])
 def test_bad_options_are_user_errors(args, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["lap", *args]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_depth_quantile_reaches_the_detector_wrapper(monkeypatch):
+    import weather_gym.cli.lap as lap
+
+    seen = {}
+
+    def fake_make_env(*args, **kwargs):
+        seen.update(kwargs)
+        raise KeyboardInterrupt  # stop before anything is rendered
+
+    monkeypatch.setattr(lap, "make_env", fake_make_env)
+    with pytest.raises(KeyboardInterrupt):
+        lap.run_laps(agent="mapper_pure_pursuit", env_id="WeatherGym/ConeTrackSmall-v0", depth_quantile=0.25)
+    assert seen["perception"] == "detector" and seen["perception_kwargs"] == {"depth_quantile": 0.25}
 
 
 def test_existing_outputs_are_never_overwritten(tmp_path, capsys):

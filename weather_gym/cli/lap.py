@@ -28,6 +28,7 @@ from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
 from weather_gym.errors import InputError
 from weather_gym.perception import evaluate as score
+from weather_gym.perception.ranging import check_depth_quantile
 from weather_gym.pipeline import PERCEPTION_MODES, check_perception, make_env
 from weather_gym.tracks import load_track
 from weather_gym.viz.overlay import TopDownView, compose_frame, cone_list_boxes, draw_boxes
@@ -83,6 +84,9 @@ def register(sub) -> None:
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
     p.add_argument("--perception", choices=PERCEPTION_CHOICES, default="auto", help="what the agent sees (see below)")
     add_detector_args(p, what="for --perception detector")
+    p.add_argument("--depth-quantile", type=float, default=None, metavar="Q",
+                   help="quantile of the depths inside a detection's box that gives its range (perception "
+                        "detector; default the median, 0.5; 0.25 ranges far cones better: docs/perception.md)")
     p.add_argument("--laps", type=int, default=1, help="laps to drive (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default %(default)s)")
     p.add_argument("--max-steps", type=int,
@@ -134,7 +138,7 @@ def _run(args) -> int:
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
-        overwrite=args.overwrite, progress=True,
+        overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile,
     )
     print(format_result(result))
     return 0 if result["completed"] else 1
@@ -152,7 +156,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
              agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = "auto",
              detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
-             overwrite: bool = False, progress: bool = False) -> dict[str, Any]:
+             overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
@@ -174,9 +178,14 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         env_kwargs["track"] = track
     if weather is not None:
         parse_weather(weather)  # a bad spec fails here, with the parser's message
-    perception_kwargs = {"keep_image": True} if recording and mode != "camera" else None
+    perception_kwargs = {"keep_image": True} if recording and mode != "camera" else {}
+    if depth_quantile is not None:
+        if mode != "detector":
+            raise InputError(f"--depth-quantile ranges the detector's boxes, and perception is {mode!r}; "
+                             "it needs --perception detector")
+        perception_kwargs["depth_quantile"] = check_depth_quantile(depth_quantile)
     env = make_env(env_id, perception=mode, weather=weather, detector=detector if mode == "detector" else None,
-                   perception_kwargs=perception_kwargs, max_episode_steps=max_steps, **env_kwargs)
+                   perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, **env_kwargs)
     recorder = None
     try:
         base = env.unwrapped
