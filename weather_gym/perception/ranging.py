@@ -8,10 +8,10 @@ Range, two ways (``ranges_source`` tells which one each cone used):
   (undoing the camera's pitch), then horizontal distance, plus the cone's mean radius (the
   surface seen is in front of the cone's axis). The median is robust to a few background pixels
   and to droplets over part of the cone. ``depth_quantile`` takes a lower quantile instead: for far
-  cones (5-8 px boxes, placed a pixel or two off) the central part is mostly background and the
+  cones (5-8 px boxes, placed a pixel or two off) the central part is partly background and the
   median ranges them metres too long, while the cone is still the nearest surface there (0.25 took
-  the share of matched 15-20 m detections more than 1 m off from 0.33 to 0.00 on rendered frames;
-  docs/perception.md, "Range").
+  the share of matched cones standing clear at 15-20 m more than 1 m off from 0.33 to 0.00 on rendered frames;
+  docs/perception.md, "Far cones and the depth quantile").
 * **far**: the depth map says there is nothing inside the box closer than the camera's far plane
   (every pixel of its central part is at ``camera.far``, e.g. a detection in the sky): the range is
   ``camera.far``. A box height would put such a false detection a few metres in front of the car;

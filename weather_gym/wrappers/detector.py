@@ -68,7 +68,8 @@ class DetectorWrapper(gym.ObservationWrapper):
             default camera scaled to the image size).
         use_depth: take range from the ``depth_key`` observation when present.
         depth_quantile: the quantile of the depths inside a box that gives its range (0.5, the median;
-            0.25 ranges far cones in small boxes far better: docs/perception.md, "Range").
+            0.25 ranges far cones in small boxes far better: docs/perception.md, "Far cones and the depth
+            quantile").
         keep_image: keep the image in the observation (for viewing; most policies do not need it).
         score_threshold, threads, detector_classes, detector_resize, detector_input: passed to a
             detector the wrapper creates from a spec (``detector_classes``: a YOLO class map, e.g.
