@@ -1,7 +1,7 @@
 """Range error of the cone list's depth ranging, by true range, for several depth quantiles.
 
-Every detection of the shipped (or given) detector that matches a labelled cone (IoU >= 0.5, same
-class, score >= 0.3) is ranged from the set's depth map as ``DetectorWrapper`` ranges it, once per
+Every detection of the shipped (or given) detector (score >= 0.3) that matches a labelled cone of its
+class (COCO's greedy one-to-one matching at IoU >= 0.5, ``weather_gym.surrogate.log.match_detections``) is ranged from the set's depth map as ``DetectorWrapper`` ranges it, once per
 quantile, and compared with the label's range. Rear cones (box touching a nearer cone's) are
 reported apart: a low quantile can pick up the front cone's depth.
 
@@ -22,16 +22,9 @@ from weather_gym.datasets.coco import load_coco
 from weather_gym.perception import ConeDetector
 from weather_gym.perception.labels import hidden_mask
 from weather_gym.perception.ranging import range_from_depth
+from weather_gym.surrogate.log import match_detections
 
 BANDS = ((0, 10), (10, 15), (15, 20), (20, 30))
-
-
-def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    lo = np.maximum(a[:, None, :2], b[None, :, :2])
-    hi = np.minimum(a[:, None, 2:], b[None, :, 2:])
-    inter = np.prod(np.clip(hi - lo, 0, None), axis=2)
-    area = lambda z: (z[:, 2] - z[:, 0]) * (z[:, 3] - z[:, 1])  # noqa: E731
-    return inter / (area(a)[:, None] + area(b)[None] - inter)
 
 
 def main() -> None:
@@ -53,12 +46,13 @@ def main() -> None:
         gb, gc, gr = (np.asarray(gt[k], float) for k in ("boxes", "classes", "ranges"))
         d = det.detect(ds.image(i))
         db, dc, sc = np.asarray(d.boxes, float).reshape(-1, 4), np.asarray(d.classes), np.asarray(d.scores)
+        keep = sc >= 0.3
+        db, dc = db[keep], dc[keep]
         if not len(gb) or not len(db):
             continue
-        rear, m = hidden_mask(gb.reshape(-1, 4), gr), _iou(db, gb.reshape(-1, 4))
-        for k in np.flatnonzero(sc >= 0.3):
-            j = int(np.argmax(m[k]))
-            if m[k, j] >= 0.5 and dc[k] == gc[j]:
+        rear, match = hidden_mask(gb.reshape(-1, 4), gr), match_detections(gb, db, sc[keep])
+        for k, j in enumerate(match):
+            if j >= 0 and dc[k] == gc[j]:
                 errs = [range_from_depth(db[k:k + 1], dc[k:k + 1], depth, cam, lens, q)[0] - gr[j] for q in qs]
                 rows.append([gr[j], rear[j], *errs])
     a = np.array(rows, float)
