@@ -185,6 +185,68 @@ def test_a_net_with_hidden_cone_boxes_reports_them_where_a_hidden_peak_wins(tmp_
         detection_loss(net(x / 255), *batch[:6])
 
 
+def test_a_deeper_net_starts_as_the_model_it_grows_from_and_its_new_blocks_train(tmp_path):
+    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.train import detection_loss, export_onnx, load_onnx_weights
+
+    torch.manual_seed(7)
+    small = ConeNet(stride=2, hidden=True).eval()
+    path = export_onnx(small, tmp_path / "small.onnx", (128, 64))
+    assert json.loads(path.with_suffix(".json").read_text())["layout"]["blocks"] == [1, 2, 2, 1]
+    deep = load_onnx_weights(ConeNet(stride=2, hidden=True, blocks=(2, 3, 2, 2), stem_blocks=1), path)
+    x = torch.rand(1, 3, 64, 128) * 255
+    with torch.no_grad():  # the added blocks start as the identity: the same outputs as the file's model
+        np.testing.assert_allclose(ConeNetExport(deep.eval())(x).numpy(), ConeNetExport(small)(x).numpy(), atol=1e-5)
+    boxes, classes = np.array([[38, 20, 52, 40], [52, 18, 56, 37.]]), np.array([3, 3])
+    t = build_targets(boxes, classes, np.zeros(2, bool), (128, 64), 2, np.array([False, True]))
+    loss, _ = detection_loss(deep.train()(x / 255), *[torch.from_numpy(v)[None] for v in t])
+    loss.backward()
+    assert deep.stem_refine[0].pw[1].weight.grad.abs().sum() > 0  # an added block's scale gets a gradient
+    assert deep.stages[0][2].pw[1].weight.grad.abs().sum() > 0
+    # the deeper model's own file loads back with its layout, and exports what it computes
+    grown = export_onnx(deep.eval(), tmp_path / "deep.onnx", (128, 64))
+    layout = json.loads(grown.with_suffix(".json").read_text())["layout"]
+    assert layout == {"widths": [16, 24, 48, 96, 128], "blocks": [2, 3, 2, 2], "neck": 32, "stem_blocks": 1}
+    back = load_onnx_weights(ConeNet(stride=2, hidden=True, blocks=(2, 3, 2, 2), stem_blocks=1), grown).eval()
+    with torch.no_grad():
+        np.testing.assert_allclose(ConeNetExport(back)(x).numpy(), ConeNetExport(deep)(x).numpy(), atol=1e-5)
+
+
+@pytest.mark.parametrize("layout, message", [
+    (dict(blocks=(1, 1, 2, 1)), "cannot start a net"),  # fewer blocks than the file
+    (dict(widths=(16, 32, 48, 96, 128)), "cannot start a net"),  # other widths
+    (dict(neck=24), "cannot start a net"),
+])
+def test_a_net_that_is_not_a_deeper_copy_of_the_start_model_is_a_clear_error(tmp_path, layout, message):
+    from weather_gym.perception.model import ConeNet
+    from weather_gym.perception.train import export_onnx, load_onnx_weights
+
+    path = export_onnx(ConeNet(stride=2).eval(), tmp_path / "m.onnx", (128, 64))
+    with pytest.raises(FileFormatError, match=message):
+        load_onnx_weights(ConeNet(stride=2, **layout), path)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(blocks=(1, 2, 2)), "blocks must be 4 whole numbers"),
+    (dict(blocks=(1, 2, -1, 1)), "blocks must be 4 whole numbers"),
+    (dict(stem_blocks=-1), "stem_blocks must be a whole number"),
+])
+def test_a_bad_net_layout_is_a_clear_error(kwargs, message):
+    with pytest.raises(InputError, match=message):
+        TrainConfig(**kwargs)
+
+
+def test_a_broken_layout_in_a_start_models_sidecar_is_a_clear_error(tmp_path):
+    from weather_gym.perception.model import ConeNet
+    from weather_gym.perception.train import export_onnx, load_onnx_weights
+
+    path = export_onnx(ConeNet(stride=2).eval(), tmp_path / "m.onnx", (128, 64))
+    meta = json.loads(path.with_suffix(".json").read_text())
+    path.with_suffix(".json").write_text(json.dumps({**meta, "layout": {"blocks": [1, 2, 2, 1]}}))
+    with pytest.raises(FileFormatError, match=r"m\.json: 'layout' must have the keys"):
+        load_onnx_weights(ConeNet(stride=2), path)
+
+
 def test_augment_moves_boxes_with_the_image():
     img = np.zeros((376, 672, 3), np.uint8)
     img[100:140, 50:80] = 255
@@ -347,13 +409,17 @@ def test_cli_trains_on_a_rendered_and_an_imported_set_mixed(tmp_path, capsys):
     out = tmp_path / "m.onnx"
     assert main(["detector", "train", "--data", str(a), "--data", str(b), "--mix", "0.5,0.5", "--epoch-frames", "4",
                  "--epochs", "1", "--batch-size", "2", "--input-size", "256", "160", "--crop-size", "128", "96",
-                 "--recipe", "real", "--stride", "2", "--hidden-heads",
+                 "--recipe", "real", "--stride", "2", "--hidden-heads", "--blocks", "1,2,3,1", "--stem-blocks", "1",
                  "--out", str(out)]) == 0
     meta = json.loads(out.with_suffix(".json").read_text())
     cfg = meta["training"]["config"]
     assert cfg["mix"] == [0.5, 0.5] and cfg["distractors"] > 0 and meta["training"]["steps"] == 2
     assert meta["training"]["frames_per_data"] == [3, 2]
     assert cfg["hidden"] and cfg["stride"] == 2 and "hidden-cone" in meta["architecture"]
+    assert meta["layout"]["blocks"] == [1, 2, 3, 1] and meta["layout"]["stem_blocks"] == 1
+    capsys.readouterr()
+    assert main(["detector", "train", "--data", str(a), "--blocks", "1,2,x,1", "--out", str(tmp_path / "n.onnx")]) == 2
+    assert "--blocks must be 4 comma-separated whole numbers" in capsys.readouterr().err
 
 
 def test_a_shipped_onnx_model_loads_back_into_torch(tmp_path):

@@ -69,6 +69,11 @@ def register(sub) -> None:
     t.add_argument("--hidden-boxes", action="store_true",
                    help="with --hidden-heads: the hidden-cone head also regresses the hidden cones' boxes, from every "
                         "cell near their centre (can start from an --init with hidden heads but without boxes)")
+    t.add_argument("--blocks", default=None, metavar="B,B,B,B",
+                   help="residual blocks at strides 4, 8, 16, 32 (default 1,2,2,1); with --init, a deeper net starts "
+                        "as the --init model, each added block as the identity")
+    t.add_argument("--stem-blocks", type=int, default=0, metavar="N",
+                   help="residual blocks at stride 2, after the stem (default %(default)s)")
     t.add_argument("--warmup", type=int, default=200, help="warm-up steps of the learning rate (default %(default)s)")
     t.add_argument("--val", type=Path, default=None, help="validation COCO folder (mAP@0.5 logged every 5 epochs)")
     t.add_argument("--epochs", type=int, default=30)
@@ -170,12 +175,23 @@ def _train(args) -> int:
                              max_steps=args.max_steps, mix=mix, epoch_frames=args.epoch_frames,
                              warmup_iters=args.warmup, crop_size=tuple(args.crop_size),
                              init=None if args.init is None else str(args.init), stride=args.stride, hidden=args.hidden_heads,
-                             hidden_boxes=args.hidden_boxes,
+                             hidden_boxes=args.hidden_boxes, stem_blocks=args.stem_blocks,
+                             **({} if args.blocks is None else {"blocks": _parse_blocks(args.blocks)}),
                              device=args.device, workers=args.workers, **extra)
     result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
                             overwrite=args.overwrite)
     print(f"wrote {result['model']} ({result['steps']} steps, {result['train_time_s']:.0f} s)")
     return 0
+
+
+def _parse_blocks(spec: str) -> tuple[int, int, int, int]:
+    try:
+        blocks = tuple(int(v) for v in spec.split(","))
+    except ValueError:
+        raise InputError(f"--blocks must be 4 comma-separated whole numbers (strides 4, 8, 16, 32), got {spec!r}") from None
+    if len(blocks) != 4 or min(blocks) < 0:
+        raise InputError(f"--blocks must be 4 whole numbers >= 0 (strides 4, 8, 16, 32), got {spec!r}")
+    return blocks  # type: ignore[return-value]
 
 
 def _parse_mix(spec: str | None, n: int) -> tuple[float, ...] | None:

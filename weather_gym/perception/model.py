@@ -7,7 +7,8 @@ The network sees a letterboxed RGB image (default 512x288) and predicts, on a gr
 * ``offset`` - the sub-cell position of the centre (0..1 in each axis).
 
 Backbone: a plain stride-2 3x3 conv at each scale (16-24-48-96-128 channels) followed by residual
-depthwise-separable blocks; a top-down feature pyramid brings the stride 8/16/32 features back to
+depthwise-separable blocks (``blocks``: 1, 2, 2, 1 at strides 4-32; ``stem_blocks`` more at stride 2;
+a deeper net can start from a shallower model's file, ``train.load_onnx_weights``); a top-down feature pyramid brings the stride 8/16/32 features back to
 stride 4, where a depthwise-separable head predicts the 8 output channels. With ``stride=2`` the pyramid
 goes one level further, to the stem's stride-2 features: two cones whose centres are 4-8 input pixels
 apart (the rear cone of a start-line pair) then fall in separate cells, so the peak filter can keep
@@ -46,6 +47,8 @@ Example:
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 from torch import nn
 from torch.nn import functional as F
@@ -56,6 +59,9 @@ NUM_CLASSES = 4
 STRIDE = 4  # the default output stride
 STRIDES = (2, 4)
 OUT_CHANNELS = NUM_CLASSES + 4
+DEFAULT_WIDTHS = (16, 24, 48, 96, 128)  # channels at strides 2, 4, 8, 16, 32
+DEFAULT_BLOCKS = (1, 2, 2, 1)  # residual blocks at strides 4, 8, 16, 32
+DEFAULT_NECK = 32
 HEAT_PRIOR = 0.01  # initial heatmap probability (focal-loss bias init, as in CenterNet/RetinaNet)
 
 
@@ -93,12 +99,13 @@ class ConeNet(nn.Module):
     def __init__(
         self,
         num_classes: int = NUM_CLASSES,
-        widths: tuple[int, int, int, int, int] = (16, 24, 48, 96, 128),
-        blocks: tuple[int, int, int, int] = (1, 2, 2, 1),
-        neck: int = 32,
+        widths: tuple[int, int, int, int, int] = DEFAULT_WIDTHS,
+        blocks: tuple[int, int, int, int] = DEFAULT_BLOCKS,
+        neck: int = DEFAULT_NECK,
         stride: int = STRIDE,
         hidden: bool = False,
         hidden_boxes: bool = False,
+        stem_blocks: int = 0,
     ) -> None:
         super().__init__()
         if stride not in STRIDES:
@@ -110,7 +117,14 @@ class ConeNet(nn.Module):
         self.hidden = bool(hidden)
         self.hidden_boxes = bool(hidden_boxes)
         w = widths
+        if len(widths) != 5 or len(blocks) != 4 or min(blocks) < 0 or stem_blocks < 0 or neck < 1:
+            raise InputError(f"ConeNet needs 5 widths, 4 block counts >= 0, stem_blocks >= 0 and neck >= 1; got "
+                             f"widths={widths}, blocks={blocks}, stem_blocks={stem_blocks}, neck={neck}")
+        self.widths, self.blocks = tuple(int(c) for c in widths), tuple(int(b) for b in blocks)
+        self.neck, self.stem_blocks = int(neck), int(stem_blocks)
         self.stem = conv_bn(3, w[0], 3, 2)
+        if stem_blocks:  # residual blocks at stride 2: the finest pyramid level sees more than one 3x3 conv
+            self.stem_refine = nn.Sequential(*[DWBlock(w[0]) for _ in range(stem_blocks)])
         stages = []
         for i in range(4):
             stages.append(nn.Sequential(conv_bn(w[i], w[i + 1], 3, 2), *[DWBlock(w[i + 1]) for _ in range(blocks[i])]))
@@ -140,7 +154,7 @@ class ConeNet(nn.Module):
         then ``C`` hidden-cone heat logits; with ``hidden_boxes``, then the hidden cones' log size and their
         centre's offset from the cell in cells (linear: it may point a few cells away)."""
         feats = []
-        x = stem = self.stem(x)
+        x = stem = self.stem_refine(self.stem(x)) if self.stem_blocks else self.stem(x)
         for stage in self.stages:
             x = stage(x)
             feats.append(x)
@@ -156,6 +170,12 @@ class ConeNet(nn.Module):
         if self.hidden:
             out = torch.cat([out, self.out_hidden(self.head_hidden(y))], dim=1)
         return out
+
+    @property
+    def arch(self) -> dict[str, Any]:
+        """The constructor's size arguments (``ConeNet(**net.arch, stride=..., ...)`` rebuilds the layout)."""
+        return {"widths": list(self.widths), "blocks": list(self.blocks), "neck": self.neck,
+                "stem_blocks": self.stem_blocks}
 
 
 def _peaks(heat: torch.Tensor) -> torch.Tensor:

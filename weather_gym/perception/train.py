@@ -40,7 +40,15 @@ from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception.augment import camera_look, paste_distractors
 from weather_gym.perception.detector import Detections
 from weather_gym.perception.labels import hidden_mask
-from weather_gym.perception.model import NUM_CLASSES, STRIDE, STRIDES, ConeNet, ConeNetExport
+from weather_gym.perception.model import (
+    DEFAULT_BLOCKS,
+    NUM_CLASSES,
+    STRIDE,
+    STRIDES,
+    ConeNet,
+    ConeNetExport,
+    DWBlock,
+)
 from weather_gym.perception.preprocess import PAD_VALUE, decode, letterbox, letterbox_params
 from weather_gym.perception.scoring import evaluate
 
@@ -82,6 +90,8 @@ class TrainConfig:
     stride: int = STRIDE  # output grid: 4, or 2 to separate cones whose centres are a few pixels apart
     hidden: bool = False  # add hidden-cone heatmaps (ConeNet(hidden=True)): a peak for a cone behind another
     hidden_boxes: bool = False  # the hidden-cone head regresses the hidden cones' boxes too (needs hidden)
+    blocks: tuple[int, int, int, int] = DEFAULT_BLOCKS  # residual blocks at strides 4, 8, 16, 32 (ConeNet)
+    stem_blocks: int = 0  # residual blocks at stride 2, after the stem (ConeNet)
     device: str = "cpu"  # torch device of the net: "cpu", "cuda" or "cuda:N" (the samples are made on the CPU)
     workers: int = 0  # processes that make the training samples (0: in the training process)
 
@@ -117,6 +127,10 @@ class TrainConfig:
             raise InputError(f"workers must be >= 0, got {self.workers}")
         if self.hidden_boxes and not self.hidden:
             raise InputError("hidden_boxes needs hidden (the boxes are the hidden-cone head's; --hidden-heads)")
+        if len(self.blocks) != 4 or any(int(b) != b or b < 0 for b in self.blocks):
+            raise InputError(f"blocks must be 4 whole numbers >= 0 (strides 4, 8, 16, 32), got {self.blocks}")
+        if int(self.stem_blocks) != self.stem_blocks or self.stem_blocks < 0:
+            raise InputError(f"stem_blocks must be a whole number >= 0, got {self.stem_blocks}")
         if not (self.device == "cpu" or self.device == "cuda" or
                 (self.device.startswith("cuda:") and self.device[5:].isdigit())):
             raise InputError(f"device must be 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
@@ -446,6 +460,7 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
         "output": f"output: (batch, C+4, H/{net.stride}, W/{net.stride}) = peak-filtered class scores, box w/h (input px), centre offset",
         "classes": list(CONE_CLASSES),
         "stride": net.stride,
+        "layout": net.arch,
         "params": int(sum(p.numel() for p in net.parameters())),
         "flops": count_flops(net, input_size),
         **(meta or {}),
@@ -466,7 +481,9 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     identity (``ConeNet``) and the size outputs are rescaled to the finer grid. A hidden-cone ``net``
     can start from a model without that head: its head starts as a copy of the main head, its
     heatmaps from the prior; a net with hidden-cone boxes can start from one with the hidden-cone
-    heatmaps alone (the box outputs start from their prior).
+    heatmaps alone (the box outputs start from their prior). A net with more residual blocks (``blocks``,
+    ``stem_blocks``; the file's layout is its sidecar's ``layout``) starts as the file's model, each added
+    block as the identity.
     """
     import onnx
     from onnx import numpy_helper
@@ -478,6 +495,9 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
         model = onnx.load(str(path))
     except Exception as exc:  # noqa: BLE001 - onnx raises several types for a bad file
         raise FileFormatError(f"{path} is not an ONNX model ({type(exc).__name__})") from None
+    layout = _file_layout(path)
+    if layout != net.arch:
+        return _grow(net, layout, path)
     inits = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
     for node in model.graph.node:  # the exporter shares equal weights through Identity nodes
         if node.op_type == "Identity" and node.input[0] in inits:
@@ -546,6 +566,49 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
                 bn.bias.copy_(torch.from_numpy(bias.copy()) if bias is not None else torch.zeros_like(bn.bias))
             elif conv.bias is not None and bias is not None:
                 conv.bias.copy_(torch.from_numpy(bias.copy()))
+    return net
+
+
+def _file_layout(path: Path) -> dict[str, Any]:
+    """The ConeNet layout of a model file, from its sidecar's ``layout`` (files without one: the default)."""
+    default = ConeNet(stride=STRIDE).arch
+    sidecar = path.with_suffix(".json")
+    if not sidecar.is_file():
+        return default
+    try:
+        meta = json.loads(sidecar.read_text())
+    except (OSError, ValueError) as exc:
+        raise FileFormatError(f"model sidecar {sidecar} cannot be read ({type(exc).__name__})") from None
+    layout = meta.get("layout", default) if isinstance(meta, dict) else None
+    if not isinstance(layout, dict) or set(layout) != set(default):
+        raise FileFormatError(f"model sidecar {sidecar}: 'layout' must have the keys {sorted(default)}, got {layout!r}")
+    return layout
+
+
+def _grow(net: ConeNet, layout: dict[str, Any], path: Path) -> ConeNet:
+    """Load a model file with fewer residual blocks into ``net`` (deeper, else the same): the shared layers
+    get its weights, each added block starts as the identity (its last batch norm's scale and shift at 0), so
+    ``net`` starts as the file's model and fine-tuning gives the new blocks their part."""
+    same = layout["widths"] == list(net.widths) and layout["neck"] == net.neck
+    deeper = all(a >= b for a, b in zip(net.blocks, layout["blocks"], strict=True)) and \
+        net.stem_blocks >= layout["stem_blocks"]
+    if not (same and deeper):
+        raise FileFormatError(f"{path}: its ConeNet layout {layout} cannot start a net with {net.arch} (only added "
+                              "residual blocks, same widths and neck)")
+    base = ConeNet(net.num_classes, widths=tuple(layout["widths"]), blocks=tuple(layout["blocks"]),
+                   neck=layout["neck"], stem_blocks=layout["stem_blocks"], stride=net.stride, hidden=net.hidden,
+                   hidden_boxes=net.hidden_boxes)
+    load_onnx_weights(base, path)
+    missing, unexpected = net.load_state_dict(base.state_dict(), strict=False)
+    added = {f"stages.{i}.{j}" for i, (a, b) in enumerate(zip(net.blocks, layout["blocks"], strict=True))
+             for j in range(b + 1, a + 1)} | {f"stem_refine.{j}" for j in range(layout["stem_blocks"], net.stem_blocks)}
+    if unexpected or any(".".join(k.split(".")[:2 if k.startswith("stem") else 3]) not in added for k in missing):
+        raise FileFormatError(f"{path}: not a ConeNet export that a net with {net.arch} can start from")
+    with torch.no_grad():
+        for name, mod in net.named_modules():
+            if name in added and isinstance(mod, DWBlock):
+                mod.pw[1].weight.zero_()
+                mod.pw[1].bias.zero_()
     return net
 
 
@@ -649,7 +712,8 @@ def train_detector(
     frames = _Frames(train_sets, cfg, train=True)
     if len(frames) == 0:
         raise InputError(f"the training data {', '.join(map(str, data))} has no images")
-    net = ConeNet(stride=cfg.stride, hidden=cfg.hidden, hidden_boxes=cfg.hidden_boxes)
+    net = ConeNet(stride=cfg.stride, hidden=cfg.hidden, hidden_boxes=cfg.hidden_boxes, blocks=cfg.blocks,
+                  stem_blocks=cfg.stem_blocks)
     if cfg.init is not None:
         load_onnx_weights(net, cfg.init)
     device = _device(cfg.device)
