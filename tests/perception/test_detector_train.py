@@ -27,7 +27,10 @@ def test_targets_peak_at_the_box_centre_and_ignore_tiny_cones():
     assert (cx, cy) == (12, 15) and heat[1, cy, cx] == 1.0 and heat[0].max() == 0.0
     np.testing.assert_allclose(size[0], np.log([20 / 4, 40 / 4]), rtol=1e-6)
     np.testing.assert_allclose(off[0], [0.5, 0.0])
-    assert ign[3, 25] == 1.0 and ign[15, 12] == 0.0
+    assert ign.shape == (4, 40, 64) and (ign[:, 3, 25] == 1.0).all() and (ign[:, 15, 12] == 0.0).all()
+    # own_class: the tiny blue cone is ignored in the blue heatmap only, a negative for the other classes
+    ign = build_targets(boxes, np.array([1, 0]), np.array([False, True]), (256, 160), own_class=np.array([False, True]))[1]
+    assert ign[0, 3, 25] == 1.0 and (ign[1:, 3, 25] == 0.0).all()
 
 
 def test_a_stride_2_grid_gives_a_start_line_pair_two_separate_peaks():
@@ -247,6 +250,36 @@ def test_a_broken_layout_in_a_start_models_sidecar_is_a_clear_error(tmp_path):
         load_onnx_weights(ConeNet(stride=2), path)
 
 
+class _OneFrame:
+    """A one-frame data set: a 20 px yellow cone and a 4 px blue one, too small to be scored (iscrowd)."""
+
+    root = "one-frame"
+
+    def __len__(self):
+        return 1
+
+    def image(self, i):
+        return np.full((288, 512, 3), 100, np.uint8)
+
+    def gt(self, i):
+        return {"boxes": np.array([[100, 150, 114, 170], [300, 140, 303, 144.]]), "classes": np.array([1, 0]),
+                "iscrowd": np.array([0, 1]), "ranges": np.array([10.0, 40.0])}
+
+
+@pytest.mark.parametrize("tiny_negatives", [False, True])
+def test_tiny_negatives_make_a_tiny_cone_a_negative_for_the_other_classes_only(tiny_negatives):
+    from weather_gym.perception.train import _Frames
+
+    cfg = TrainConfig(crop_size=None, stride=2, hidden=True, tiny_negatives=tiny_negatives)
+    _, heat, ign, *_ = _Frames([_OneFrame()], cfg, train=False)[0]
+    cell = (71, 150)  # the tiny blue cone's centre on the stride-2 grid
+    assert ign.shape == (4, 144, 256) and heat[:, cell[0], cell[1]].max() == 0  # never a positive
+    if tiny_negatives:  # ignored in blue only (main and hidden heatmaps share the map); a negative for the rest
+        assert ign[0, cell[0], cell[1]] == 1 and (ign[1:, cell[0], cell[1]] == 0).all()
+    else:
+        assert (ign[:, cell[0], cell[1]] == 1).all()
+
+
 def test_augment_moves_boxes_with_the_image():
     img = np.zeros((376, 672, 3), np.uint8)
     img[100:140, 50:80] = 255
@@ -396,8 +429,8 @@ def test_an_imported_set_trains_with_its_ignore_mask_and_regions_as_no_loss(tmp_
     x, heat, ign, *_ = frames[0]
     assert tuple(x.shape) == (3, 288, 512)
     # 320x240 letterboxed into 512x288: scale 1.2, 64 px bars left and right; the mask is the bottom 20 %
-    assert ign[-3:, 20:100].min() == 1.0 and ign[: int(72 * 0.7), 20:100].sum() == 0
-    assert ign[:, :10].max() == 0.0  # the letterbox bars are plain negatives
+    assert ign[:, -3:, 20:100].min() == 1.0 and ign[:, : int(72 * 0.7), 20:100].sum() == 0  # every class
+    assert ign[:, :, :10].max() == 0.0  # the letterbox bars are plain negatives
 
 
 @pytest.mark.slow

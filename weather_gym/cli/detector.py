@@ -74,6 +74,9 @@ def register(sub) -> None:
                         "as the --init model, each added block as the identity")
     t.add_argument("--stem-blocks", type=int, default=0, metavar="N",
                    help="residual blocks at stride 2, after the stem (default %(default)s)")
+    t.add_argument("--tiny-negatives", action="store_true",
+                   help="a cone too small to be scored is ignored in its own class only and is a negative for "
+                        "the others (default: ignored in every class, so any class may fire on it)")
     t.add_argument("--warmup", type=int, default=200, help="warm-up steps of the learning rate (default %(default)s)")
     t.add_argument("--val", type=Path, default=None, help="validation COCO folder (mAP@0.5 logged every 5 epochs)")
     t.add_argument("--epochs", type=int, default=30)
@@ -176,6 +179,7 @@ def _train(args) -> int:
                              warmup_iters=args.warmup, crop_size=tuple(args.crop_size),
                              init=None if args.init is None else str(args.init), stride=args.stride, hidden=args.hidden_heads,
                              hidden_boxes=args.hidden_boxes, stem_blocks=args.stem_blocks,
+                             tiny_negatives=args.tiny_negatives,
                              **({} if args.blocks is None else {"blocks": _parse_blocks(args.blocks)}),
                              device=args.device, workers=args.workers, **extra)
     result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,

@@ -92,6 +92,7 @@ class TrainConfig:
     hidden_boxes: bool = False  # the hidden-cone head regresses the hidden cones' boxes too (needs hidden)
     blocks: tuple[int, int, int, int] = DEFAULT_BLOCKS  # residual blocks at strides 4, 8, 16, 32 (ConeNet)
     stem_blocks: int = 0  # residual blocks at stride 2, after the stem (ConeNet)
+    tiny_negatives: bool = False  # a tiny (unscored) cone is ignored in its own class only, a negative for the others
     device: str = "cpu"  # torch device of the net: "cpu", "cuda" or "cuda:N" (the samples are made on the CPU)
     workers: int = 0  # processes that make the training samples (0: in the training process)
 
@@ -223,17 +224,23 @@ HIDDEN_BOX_RADIUS = 2
 
 
 def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, input_size: tuple[int, int],
-                  stride: int = STRIDE, hidden: np.ndarray | None = None, hidden_boxes: bool = False):
-    """CenterNet targets at ``stride``: heat (C, h, w), ignore map (h, w), and per-object
+                  stride: int = STRIDE, hidden: np.ndarray | None = None, hidden_boxes: bool = False, *,
+                  own_class: np.ndarray | None = None):
+    """CenterNet targets at ``stride``: heat (C, h, w), ignore map (C, h, w: 1 where a class's heatmap
+    carries no negative loss), and per-object
     index / log-size / offset / mask arrays of length ``MAX_OBJECTS``. With ``hidden`` (bool per box,
     ``labels.hidden_mask``) heat has ``2C`` channels: the last ``C`` hold the hidden cones only (they
     stay in the first ``C`` too). With ``hidden_boxes`` two dense maps follow: the hidden cones' box
     targets (4, h, w: log size, and their centre's offset from the cell in cells) in the cells within
-    ``HIDDEN_BOX_RADIUS`` of their centre (the nearest centre where two overlap), and its mask (h, w)."""
+    ``HIDDEN_BOX_RADIUS`` of their centre (the nearest centre where two overlap), and its mask (h, w).
+    An ignored box (``ignore``) is ignored in every class's heatmap, or, where ``own_class`` (bool per box)
+    is set, in its own class's only: the other classes learn that it is not one of theirs (a tiny far
+    yellow cone is not a big orange one)."""
     W, H = input_size
     ow, oh = W // stride, H // stride
     heat = np.zeros((NUM_CLASSES * (1 if hidden is None else 2), oh, ow), np.float32)
-    ign = np.zeros((oh, ow), np.float32)
+    ign = np.zeros((NUM_CLASSES, oh, ow), np.float32)
+    own = np.zeros(len(boxes), bool) if own_class is None else np.asarray(own_class, bool)
     ind = np.zeros(MAX_OBJECTS, np.int64)
     size = np.zeros((MAX_OBJECTS, 2), np.float32)
     off = np.zeros((MAX_OBJECTS, 2), np.float32)
@@ -245,14 +252,14 @@ def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, in
     hreg = np.zeros((4, oh, ow), np.float32) if hidden_boxes else None
     hmask = np.zeros((oh, ow), np.float32) if hidden_boxes else None
     hdist = np.full((oh, ow), np.inf) if hidden_boxes else None
-    for b, c, ig, hd in zip(boxes, classes, ignore, hid, strict=True):
+    for b, c, ig, hd, oc in zip(boxes, classes, ignore, hid, own, strict=True):
         bw, bh = b[2] - b[0], b[3] - b[1]
         if bw <= 0 or bh <= 0:
             continue
         if ig:
             x0, y0 = int(b[0] // stride), int(b[1] // stride)
             x1, y1 = int(math.ceil(b[2] / stride)), int(math.ceil(b[3] / stride))
-            ign[max(0, y0 - 1) : min(oh, y1 + 1), max(0, x0 - 1) : min(ow, x1 + 1)] = 1.0
+            ign[int(c) if oc else slice(None), max(0, y0 - 1) : min(oh, y1 + 1), max(0, x0 - 1) : min(ow, x1 + 1)] = 1.0
             continue
         if k >= MAX_OBJECTS:
             continue
@@ -358,15 +365,19 @@ class _Frames(torch.utils.data.Dataset):
         # crowd (tiny) cones, ignore regions of imported sets and cones mostly pushed out of the frame
         # are ignored, not negatives
         ignore = (gt["iscrowd"] > 0) | (visible < 0.5)
+        every_class = visible < 0.5
         if "ignore" in gt:
             ignore = ignore | gt["ignore"] | gt["any_class"]
+            every_class = every_class | gt["ignore"] | gt["any_class"]
+        # with tiny_negatives a tiny cone is ignored in its own class only (a negative for the others)
+        own_class = ignore & ~every_class if self.cfg.tiny_negatives else None
         hidden = hidden_mask(boxes, gt.get("ranges")) if self.cfg.hidden else None
         targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]), self.cfg.stride, hidden,
-                                self.cfg.hidden_boxes)
+                                self.cfg.hidden_boxes, own_class=own_class)
         if mask is not None:  # the ignore mask (e.g. the ego vehicle): no negative loss under it
-            h, w = targets[1].shape
+            h, w = targets[1].shape[-2:]
             cover = cv2.resize(mask.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
-            np.maximum(targets[1], (cover > 0.5).astype(np.float32), out=targets[1])
+            np.maximum(targets[1], (cover > 0.5).astype(np.float32)[None], out=targets[1])
         x = torch.from_numpy(np.ascontiguousarray(img.transpose(2, 0, 1))).float() / 255.0
         return (x, *[torch.from_numpy(t) for t in targets])
 
@@ -385,7 +396,7 @@ def detection_loss(raw: torch.Tensor, heat, ign, ind, size, off, mask, hreg=None
     def focal_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         pred = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
         pos = target.eq(1.0).float()
-        neg_w = torch.pow(1 - target, 4) * (1 - ign[:, None]) * (1 - pos)
+        neg_w = torch.pow(1 - target, 4) * (1 - (ign[:, None] if ign.dim() == 3 else ign)) * (1 - pos)
         pos_loss = (torch.log(pred) * torch.pow(1 - pred, 2) * pos).sum()
         neg_loss = (torch.log(1 - pred) * torch.pow(pred, 2) * neg_w).sum()
         return -(pos_loss + neg_loss) / n
