@@ -174,8 +174,14 @@ class ConeNet(nn.Module):
     @property
     def arch(self) -> dict[str, Any]:
         """The constructor's size arguments (``ConeNet(**net.arch, stride=..., ...)`` rebuilds the layout)."""
-        return {"widths": list(self.widths), "blocks": list(self.blocks), "neck": self.neck,
-                "stem_blocks": self.stem_blocks}
+        return layout(self.widths, self.blocks, self.neck, self.stem_blocks)
+
+
+def layout(widths: tuple[int, ...] = DEFAULT_WIDTHS, blocks: tuple[int, ...] = DEFAULT_BLOCKS,
+           neck: int = DEFAULT_NECK, stem_blocks: int = 0) -> dict[str, Any]:
+    """A ConeNet's size arguments as the sidecar's ``layout`` records them (the defaults: the shipped net's)."""
+    return {"widths": [int(c) for c in widths], "blocks": [int(b) for b in blocks], "neck": int(neck),
+            "stem_blocks": int(stem_blocks)}
 
 
 def _peaks(heat: torch.Tensor) -> torch.Tensor:

@@ -38,7 +38,7 @@ from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception.augment import camera_look, paste_distractors
-from weather_gym.perception.detector import Detections
+from weather_gym.perception.detector import Detections, load_model_metadata
 from weather_gym.perception.labels import hidden_mask
 from weather_gym.perception.model import (
     DEFAULT_BLOCKS,
@@ -48,6 +48,7 @@ from weather_gym.perception.model import (
     ConeNet,
     ConeNetExport,
     DWBlock,
+    layout,
 )
 from weather_gym.perception.preprocess import PAD_VALUE, decode, letterbox, letterbox_params
 from weather_gym.perception.scoring import evaluate
@@ -364,13 +365,13 @@ class _Frames(torch.utils.data.Dataset):
             img, boxes, visible, mask = augment(image, gt["boxes"], self.cfg, rng, mask=mask)
         # crowd (tiny) cones, ignore regions of imported sets and cones mostly pushed out of the frame
         # are ignored, not negatives
-        ignore = (gt["iscrowd"] > 0) | (visible < 0.5)
         every_class = visible < 0.5
         if "ignore" in gt:
-            ignore = ignore | gt["ignore"] | gt["any_class"]
             every_class = every_class | gt["ignore"] | gt["any_class"]
+        tiny = (gt["iscrowd"] > 0) & ~every_class
+        ignore = tiny | every_class
         # with tiny_negatives a tiny cone is ignored in its own class only (a negative for the others)
-        own_class = ignore & ~every_class if self.cfg.tiny_negatives else None
+        own_class = tiny if self.cfg.tiny_negatives else None
         hidden = hidden_mask(boxes, gt.get("ranges")) if self.cfg.hidden else None
         targets = build_targets(boxes, gt["classes"], ignore, (img.shape[1], img.shape[0]), self.cfg.stride, hidden,
                                 self.cfg.hidden_boxes, own_class=own_class)
@@ -502,13 +503,13 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"start model {path} does not exist")
+    file_layout = _file_layout(path)
+    if file_layout != net.arch:  # a deeper net: load the file into its own layout, then grow (one read)
+        return _grow(net, file_layout, path)
     try:
         model = onnx.load(str(path))
     except Exception as exc:  # noqa: BLE001 - onnx raises several types for a bad file
         raise FileFormatError(f"{path} is not an ONNX model ({type(exc).__name__})") from None
-    layout = _file_layout(path)
-    if layout != net.arch:
-        return _grow(net, layout, path)
     inits = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
     for node in model.graph.node:  # the exporter shares equal weights through Identity nodes
         if node.op_type == "Identity" and node.input[0] in inits:
@@ -582,38 +583,32 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:
 
 def _file_layout(path: Path) -> dict[str, Any]:
     """The ConeNet layout of a model file, from its sidecar's ``layout`` (files without one: the default)."""
-    default = ConeNet(stride=STRIDE).arch
-    sidecar = path.with_suffix(".json")
-    if not sidecar.is_file():
-        return default
-    try:
-        meta = json.loads(sidecar.read_text())
-    except (OSError, ValueError) as exc:
-        raise FileFormatError(f"model sidecar {sidecar} cannot be read ({type(exc).__name__})") from None
-    layout = meta.get("layout", default) if isinstance(meta, dict) else None
-    if not isinstance(layout, dict) or set(layout) != set(default):
-        raise FileFormatError(f"model sidecar {sidecar}: 'layout' must have the keys {sorted(default)}, got {layout!r}")
-    return layout
+    default = layout()
+    found = load_model_metadata(path).get("layout", default)
+    if not isinstance(found, dict) or set(found) != set(default):
+        raise FileFormatError(f"model sidecar {path.with_suffix('.json')}: 'layout' must have the keys "
+                              f"{sorted(default)}, got {found!r}")
+    return found
 
 
-def _grow(net: ConeNet, layout: dict[str, Any], path: Path) -> ConeNet:
+def _grow(net: ConeNet, file_layout: dict[str, Any], path: Path) -> ConeNet:
     """Load a model file with fewer residual blocks into ``net`` (deeper, else the same): the shared layers
     get its weights, each added block starts as the identity (its last batch norm's scale and shift at 0), so
     ``net`` starts as the file's model and fine-tuning gives the new blocks their part."""
-    same = layout["widths"] == list(net.widths) and layout["neck"] == net.neck
-    deeper = all(a >= b for a, b in zip(net.blocks, layout["blocks"], strict=True)) and \
-        net.stem_blocks >= layout["stem_blocks"]
+    same = file_layout["widths"] == list(net.widths) and file_layout["neck"] == net.neck
+    deeper = all(a >= b for a, b in zip(net.blocks, file_layout["blocks"], strict=True)) and \
+        net.stem_blocks >= file_layout["stem_blocks"]
     if not (same and deeper):
-        raise FileFormatError(f"{path}: its ConeNet layout {layout} cannot start a net with {net.arch} (only added "
+        raise FileFormatError(f"{path}: its ConeNet layout {file_layout} cannot start a net with {net.arch} (only added "
                               "residual blocks, same widths and neck)")
-    base = ConeNet(net.num_classes, widths=tuple(layout["widths"]), blocks=tuple(layout["blocks"]),
-                   neck=layout["neck"], stem_blocks=layout["stem_blocks"], stride=net.stride, hidden=net.hidden,
+    base = ConeNet(net.num_classes, widths=tuple(file_layout["widths"]), blocks=tuple(file_layout["blocks"]),
+                   neck=file_layout["neck"], stem_blocks=file_layout["stem_blocks"], stride=net.stride, hidden=net.hidden,
                    hidden_boxes=net.hidden_boxes)
     load_onnx_weights(base, path)
     missing, unexpected = net.load_state_dict(base.state_dict(), strict=False)
-    added = {f"stages.{i}.{j}" for i, (a, b) in enumerate(zip(net.blocks, layout["blocks"], strict=True))
-             for j in range(b + 1, a + 1)} | {f"stem_refine.{j}" for j in range(layout["stem_blocks"], net.stem_blocks)}
-    if unexpected or any(".".join(k.split(".")[:2 if k.startswith("stem") else 3]) not in added for k in missing):
+    added = {f"stages.{i}.{j}" for i, (a, b) in enumerate(zip(net.blocks, file_layout["blocks"], strict=True))
+             for j in range(b + 1, a + 1)} | {f"stem_refine.{j}" for j in range(file_layout["stem_blocks"], net.stem_blocks)}
+    if unexpected or any(not k.startswith(tuple(f"{a}." for a in added)) for k in missing):
         raise FileFormatError(f"{path}: not a ConeNet export that a net with {net.arch} can start from")
     with torch.no_grad():
         for name, mod in net.named_modules():
