@@ -233,3 +233,14 @@ def test_crowded_cones_get_their_own_class_confusion():
     point.coef_part = np.r_[-20.0, np.zeros(len(p.coef) - 1)]
     det = FrameSampler(point)(gt, np.random.default_rng(0), step=0)
     assert sorted(det["classes"].tolist()) == [1, 2, 2]
+
+
+def test_a_parameter_added_after_the_fit_counts_at_its_default():
+    m = load_model()
+    old = {k: v for k, v in m.effects["droplets"].items() if k not in ("mode", "drop_count")}
+    m = dataclasses.replace(m, effects={**m.effects, "droplets": old})  # fitted before they existed
+    assert m.point("droplets:0.5:mode=study").rho == m.point("droplets:0.5").rho
+    with pytest.raises(InputError, match="mode='study', given 'refractive'"):
+        m.point("droplets:0.5:mode=refractive")
+    with pytest.raises(InputError, match="fog_coef=0.4, given 0.3"):
+        m.point("droplets:0.5:fog_coef=0.3")

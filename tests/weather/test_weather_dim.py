@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
+from weather_gym.errors import InputError
 from weather_gym.weather import make
-from weather_gym.weather.dim import auto_exposure
+from weather_gym.weather.dim import add_chroma_blotches, auto_exposure, black_level_lut
 from weather_gym.weather.reference import study_dim
 
 ALL_VALUES = np.arange(256, dtype=np.uint8).reshape(8, 32, 1).repeat(3, axis=2)
@@ -66,3 +68,80 @@ def test_physical_k_is_in_stops():
     e = make("dim", k=0.5, mode="physical", stops=10)
     t, g, r = e.exposure()
     assert t / e.exposure_s * g * r == pytest.approx(2 ** 5)  # 5 stops of light made up for
+
+
+# -- night mode ----------------------------------------------------------------------------------
+STILL = {"speed": 0.0, "yaw_rate": 0.0}
+
+
+def _hf_energy(a):
+    return float(np.abs(cv2.Laplacian(cv2.cvtColor(a, cv2.COLOR_RGB2GRAY), cv2.CV_32F)).mean())
+
+
+def test_night_noise_grows_with_k_and_brightness_falls_at_high_k(scene):
+    img, depth = scene
+    noise, means = [], []
+    for k in (0.3, 0.45, 0.6, 0.75, 0.9, 1.0):
+        e = make("dim", k=k, mode="night", denoise_px=0.0, chroma_noise=0.0, black_level=0.0)
+        outs = [e(img, depth=depth, state=STILL, rng=np.random.default_rng(s)) for s in (0, 1)]
+        noise.append(float(np.abs(outs[0].astype(int) - outs[1]).mean()))  # two draws: noise only
+        means.append(float(make("dim", k=k, mode="night")(img, depth=depth, state=STILL,
+                                                          rng=np.random.default_rng(0)).mean()))
+    assert noise[0] < noise[1] < noise[2], noise  # more gain, more noise
+    assert means[2] > means[3] > means[4] > means[5], means  # out of exposure and gain: ever darker
+    assert means[-1] < 0.25 * img.mean()
+
+
+def test_night_denoiser_smear_removes_high_frequencies(scene):
+    img, depth = scene
+    args = dict(k=0.7, mode="night", chroma_noise=0.0, black_level=0.0)
+    raw = make("dim", denoise_px=0.0, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
+    denoised = make("dim", denoise_px=1.0, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
+    assert _hf_energy(denoised) < 0.5 * _hf_energy(raw)
+    sigma, chroma, black = make("dim", **args, denoise_px=1.0).isp()
+    assert sigma > 0.5 and chroma == 0.0 and black == 0.0
+
+
+def test_night_isp_strength_follows_the_gain():
+    assert make("dim", k=0.1, mode="night").isp() == (0.0, 0.0, 0.0)  # the exposure time suffices
+    isps = [make("dim", k=k, mode="night").isp() for k in (0.3, 0.4, 0.5)]
+    for a, b in zip(isps, isps[1:], strict=False):
+        assert all(y > x for x, y in zip(a, b, strict=True)), isps
+    e = make("dim", k=0.7, mode="night")
+    assert e.exposure()[1] == e.max_gain and e.isp() == make("dim", k=1.0, mode="night").isp()
+
+
+def test_night_colour_noise_is_colour_only():
+    img = np.full((64, 96, 3), 100, np.uint8)
+    add_chroma_blotches(img, 6.0, 8.0, np.random.default_rng(0))
+    d = img.astype(float) - 100
+    assert 3.0 < d.std() < 9.0
+    assert np.abs(d.sum(axis=2)).mean() < 1.5  # the three offsets cancel: luma kept
+
+
+def test_black_level_lut_crushes_shadows():
+    np.testing.assert_array_equal(black_level_lut(0.0), np.arange(256))
+    lut = black_level_lut(0.01)
+    assert lut[25] == 0 and lut[255] == 255 and np.all(np.diff(lut.astype(int)) >= 0)
+
+
+def test_night_parameters_leave_the_other_modes_alone(scene):
+    img, depth = scene
+    night_params = dict(denoise_px=3.0, chroma_noise=40.0, chroma_cell_px=2.0, black_level=0.1)
+    for mode in ("faithful", "physical"):
+        a = make("dim", k=0.8, mode=mode)(img, depth=depth, state=STILL, rng=np.random.default_rng(3))
+        b = make("dim", k=0.8, mode=mode, **night_params)(img, depth=depth, state=STILL,
+                                                          rng=np.random.default_rng(3))
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize(("param", "value", "range_"), [
+    ("denoise_px", 3.5, "[0.0, 3.0]"), ("chroma_noise", -1.0, "[0.0, 40.0]"),
+    ("black_level", 0.2, "[0.0, 0.1]"), ("chroma_cell_px", 1.0, "[2.0, 64.0]"),
+])
+def test_night_parameters_are_range_checked(param, value, range_):
+    with pytest.raises(InputError) as err:
+        make("dim", k=0.5, mode="night", **{param: value})
+    assert param in str(err.value) and str(value) in str(err.value) and range_ in str(err.value)
+    with pytest.raises(InputError, match="mode='dusk' must be one of faithful, physical, night"):
+        make("dim", k=0.5, mode="dusk")

@@ -7,7 +7,10 @@ from weather_gym.weather import EFFECTS, make
 #: Registry names plus the variants with a different code path.
 VARIANTS = [(name, {}) for name in EFFECTS.names()] + [
     ("droplets", {"persistent": True}),
+    ("droplets", {"mode": "refractive"}),
+    ("droplets", {"mode": "refractive", "persistent": True}),
     ("dim", {"mode": "physical"}),
+    ("dim", {"mode": "night"}),
     ("exposure", {"direction": "over", "gamma_error": 0.3, "flare": 0.1, "contrast": 0.5}),
     ("exposure", {"contrast": -0.6}),
     ("motion_blur", {"kind": "linear", "angle_deg": 30.0}),

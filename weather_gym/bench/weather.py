@@ -4,7 +4,8 @@ Times, on one core (``cv2.setNumThreads(1)`` for the run only), at 608x352 (the 
 input), 672x376 (its camera) and 1280x720:
 
 * every registered effect (droplets at the study's k = 0.55, dim at 0.78, the others at 0.5) and
-  the persistent-droplet and physical-dim variants, one frame per call, through the public call;
+  the persistent-droplet, refractive-droplet (also at k = 1, its heaviest), physical-dim
+  and night-dim variants, one frame per call, through the public call;
 * at 672x376, ``--batch`` different frames as a loop of single calls that keeps its outputs (as a
   caller that needs every frame does) and as one batched call, per frame;
 * in the same run the study's recipe (:mod:`weather_gym.weather.reference`: the Albumentations-era
@@ -83,8 +84,13 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
         cases.append((f"{name} (k={k})", make(name, k=k)))
         if name == "droplets":
             cases.append((f"droplets persistent (k={k})", make(name, k=k, persistent=True)))
+            for rk in (k, 1.0):
+                cases.append((f"droplets refractive (k={rk})", make(name, k=rk, mode="refractive")))
+            cases.append((f"droplets refractive persistent (k={k})",
+                          make(name, k=k, mode="refractive", persistent=True)))
         if name == "dim":
             cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
+            cases.append((f"dim night (k={k})", make(name, k=k, mode="night")))
     return cases
 
 

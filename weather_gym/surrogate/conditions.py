@@ -20,9 +20,9 @@ from __future__ import annotations
 from typing import Any
 
 from weather_gym.errors import InputError
-from weather_gym.weather import current_spec, parse_weather
+from weather_gym.weather import EFFECTS, current_spec, parse_weather
 
-__all__ = ["EFFECT_CONDITION", "condition_of", "effect_params"]
+__all__ = ["EFFECT_CONDITION", "condition_defaults", "condition_of", "effect_params"]
 
 EFFECT_CONDITION = {"droplets": "droplets", "dim": "low_light"}
 """Weather effect name -> surrogate condition."""
@@ -55,3 +55,15 @@ def effect_params(weather: Any) -> dict[str, Any]:
     if not tables:
         return {}
     return {key: value for key, value in tables[0].items() if key not in ("k", "name")}
+
+
+def condition_defaults(condition: str) -> dict[str, Any]:
+    """Default parameters (other than ``k``) of the effect behind a condition (``{}`` if none).
+
+    A model fitted before an effect gained a parameter was fitted with that parameter's default
+    (a new parameter's default keeps the effect as it was).
+    """
+    names = [name for name, cond in EFFECT_CONDITION.items() if cond == condition]
+    if not names:
+        return {}
+    return {key: value for key, value in EFFECTS.get(names[0])().params().items() if key != "k"}

@@ -62,7 +62,7 @@ from scipy.optimize import minimize, minimize_scalar
 from weather_gym._io import atomic_file, check_output
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.surrogate.conditions import condition_of, effect_params
+from weather_gym.surrogate.conditions import condition_defaults, condition_of, effect_params
 from weather_gym.surrogate.log import loose_matches, part_matches, read_npz
 
 __all__ = ["MODEL_SCHEMA", "SHIPPED_MODEL", "SurrogateModel", "Point", "design", "fit_logistic", "fit_point",
@@ -465,10 +465,12 @@ class SurrogateModel:
             raise InputError(f"the surrogate model has no condition {cond!r}; it has {', '.join(self.conditions())}")
         fitted = self.effects.get(cond, {})
         given = effect_params(weather)
-        differ = sorted(key for key in set(fitted) | set(given) if fitted.get(key) != given.get(key))
+        dflt = condition_defaults(cond)  # a parameter the effect gained after the fit: its default
+        differ = sorted(key for key in set(fitted) | set(given)
+                        if fitted.get(key, dflt.get(key)) != given.get(key, dflt.get(key)))
         if differ:
             raise InputError(f"the surrogate model's {cond} was fitted with other effect parameters "
-                             f"({', '.join(f'{d}={fitted.get(d)!r}, given {given.get(d)!r}' for d in differ)}); "
+                             f"({', '.join(f'{d}={fitted.get(d, dflt.get(d))!r}, given {given.get(d)!r}' for d in differ)}); "
                              f"refit it for this weather (docs/surrogate.md)")
         ks = [0.0] + [kk for kk, _ in self.points[cond]]
         pts = [self.clear] + [p for _, p in self.points[cond]]

@@ -1,4 +1,4 @@
-"""Fading light: the study's brightness reduction, and a physical low-light camera model.
+"""Fading light: the study's brightness reduction, a physical low-light camera, and a night camera.
 
 **Faithful mode** (``mode="faithful"``, default): exactly the study's ``PIL.ImageEnhance.Brightness``
 with factor ``1 - k``: every 8-bit value ``I`` becomes ``trunc(float32(1 - k) * I)``, byte for byte
@@ -17,6 +17,22 @@ left out (its discussion names blur and the camera raising its ISO gain):
 * fewer photons times more gain means more noise: Poisson shot noise and Gaussian read noise
   (``full_well_e``, ``read_noise_e``), on top of the noise the clean frame already had.
 
+**Night mode** (``mode="night"``): the physical camera (same exposure, gain, motion blur and
+sensor noise, same parameters) followed by what its ISP does at high gain, so that the damage keeps
+growing over the whole range of k, from a light dusk to night:
+
+* a denoiser that smears fine detail (small, far cones first): a spatial smoothing of sigma
+  ``denoise_px * sqrt((gain - 1) / 15)`` px, growing like the noise it must hide;
+* the colour noise the denoiser leaves: low-frequency zero-luma RGB blotches on a grid of
+  ``chroma_cell_px`` cells, sigma ``chroma_noise * log2(gain) / 4`` code values on an 18 % grey,
+  following the sensor noise of each cell's level elsewhere (stronger in shadows, weaker in highlights);
+* crushed shadows: the black level set above the sensor's, ``black_level * log2(gain) / 4`` of
+  full scale in linear light, taken as black;
+* and, once the gain is at ``max_gain``, the remaining darkening of the physical mode.
+
+The ISP is tuned per gain (ISO), as real ones are: its three stages stop growing once the gain is
+at ``max_gain``. The night parameters are ignored by the other two modes.
+
 Example:
     >>> import numpy as np
     >>> from weather_gym.weather import make
@@ -26,10 +42,14 @@ Example:
     >>> out = make("dim", k=0.5, mode="physical")(img, rng=np.random.default_rng(0))
     >>> 150 < float(out.mean()) < 250              # auto-exposure brings the level back
     True
+    >>> night = make("dim", k=1.0, mode="night")(img, rng=np.random.default_rng(0))
+    >>> float(night.mean()) < 40                    # out of exposure and gain: dark
+    True
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import ClassVar
@@ -40,16 +60,18 @@ import numpy as np
 from weather_gym.weather._common import (
     add_sensor_noise,
     flat,
+    gauss_lut,
     into,
     linear_of_code,
     readonly,
+    smooth,
     srgb_encode,
     srgb_slope,
 )
 from weather_gym.weather.geometry import EgoMotion
 from weather_gym.weather.registry import register_effect
 
-__all__ = ["Dim", "auto_exposure", "brightness_lut"]
+__all__ = ["Dim", "add_chroma_blotches", "chroma_grid", "auto_exposure", "black_level_lut", "brightness_lut"]
 
 
 @lru_cache(maxsize=256)
@@ -85,6 +107,49 @@ def auto_exposure(light: float, exposure_s: float, max_exposure_s: float,
     return t, gain, residual
 
 
+@lru_cache(maxsize=256)
+def black_level_lut(black: float) -> np.ndarray:
+    """Code value -> code value with the linear level ``black`` taken as black (crushed shadows).
+
+    ``x -> (x - black) / (1 - black)`` in linear light, clipped at 0: what an ISP's black-level
+    subtraction does when it sets black above the sensor's (to hide the noise floor at high gain).
+    """
+    x = linear_of_code()
+    y = np.maximum(x - black, 0.0) / (1.0 - black)
+    return readonly(np.clip(np.rint(255.0 * srgb_encode(y)), 0, 255).astype(np.uint8))
+
+
+def chroma_grid(shape: tuple[int, ...], cell_px: float) -> tuple[int, int]:
+    """``(rows, cols)`` of the grid of ``cell_px`` cells the colour noise is drawn on."""
+    return max(int(math.ceil(shape[0] / cell_px)), 1), max(int(math.ceil(shape[1] / cell_px)), 1)
+
+
+def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, rng: np.random.Generator,
+                        weight: np.ndarray | None = None) -> None:
+    """Add low-frequency colour noise in place: zero-luma RGB offsets of std ``sigma`` (code values)
+    drawn on a grid of ``cell_px`` cells and enlarged smoothly (what a denoiser leaves of colour noise).
+
+    ``weight``: optional float32 ``(rows, cols)`` factor per cell (:func:`chroma_grid`).
+    """
+    h, w = img.shape[:2]
+    gh, gw = chroma_grid(img.shape, cell_px)
+    n = gh * gw * 3  # standard normals as random bytes through 256 equiprobable quantiles
+    z = gauss_lut()[rng.bit_generator.random_raw(-(-n // 8)).view(np.uint8)[:n]].reshape(gh, gw, 3)
+    z -= z.mean(axis=2, keepdims=True)  # colour only: the three offsets sum to zero
+    z *= np.float32(sigma * math.sqrt(1.5))
+    if weight is not None:
+        z *= weight[:, :, None]
+    grid = np.clip(np.rint(z + 128.0), 0, 255).astype(np.uint8)
+    big = cv2.resize(grid, (w, h), interpolation=cv2.INTER_LINEAR)
+    f, b = flat(img), flat(big)
+    into(cv2.add(f, cv2.subtract(b, 128), dst=f), f)  # saturating uint8 passes: + the positive part,
+    into(cv2.subtract(f, cv2.subtract(128, b), dst=f), f)  # - the negative part
+
+
+#: Code value at which ``chroma_noise`` is the colour noise's sigma (18 % grey).
+_CHROMA_REF_CODE = 118
+
+
 @lru_cache(maxsize=64)
 def _physical_luts(residual: float, gain: float, full_well_e: float,
                    read_noise_e: float) -> tuple[np.ndarray, np.ndarray]:
@@ -112,15 +177,23 @@ class Dim(EgoMotion):
     max_gain: float = 16.0
     full_well_e: float = 6000.0
     read_noise_e: float = 3.0
+    denoise_px: float = 2.0
+    chroma_noise: float = 16.0
+    chroma_cell_px: float = 8.0
+    black_level: float = 0.004
 
-    CHOICES: ClassVar = {"mode": ("faithful", "physical")}
+    CHOICES: ClassVar = {"mode": ("faithful", "physical", "night")}
     PARAM_BOUNDS: ClassVar = {
         "stops": (2.0, 20.0),
         "max_exposure_s": (0.001, 0.1),
         "max_gain": (1.0, 256.0),
         "read_noise_e": (0.0, 50.0),
+        "denoise_px": (0.0, 3.0),
+        "chroma_noise": (0.0, 40.0),
+        "black_level": (0.0, 0.1),
     }
-    PARAM_LIMITS: ClassVar = {**EgoMotion.PARAM_LIMITS, "exposure_s": (1e-5, 0.1), "full_well_e": (100.0, 1e6)}
+    PARAM_LIMITS: ClassVar = {**EgoMotion.PARAM_LIMITS, "exposure_s": (1e-5, 0.1), "full_well_e": (100.0, 1e6),
+                              "chroma_cell_px": (2.0, 64.0)}
 
     # -- faithful ------------------------------------------------------------------------------
     def _faithful(self, img: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -139,17 +212,52 @@ class Dim(EgoMotion):
         return auto_exposure(2.0 ** (-self.k * self.stops), self.exposure_s, self.max_exposure_s,
                              self.max_gain)
 
-    def _physical(self, img, depth, state, rng, out) -> None:
+    def _physical(self, img, depth, state, rng, out) -> np.ndarray:
         t, gain, residual = self.exposure()
         smeared = self.smear(img, depth, state, t - self.exposure_s)  # img itself when there is no blur
         mean, sigma = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)
         add_sensor_noise(smeared, mean, sigma, rng, out)
+        return smeared
+
+    # -- night ---------------------------------------------------------------------------------
+    def isp(self) -> tuple[float, float, float]:
+        """``(denoiser sigma px, chroma blotch sigma in code values, black level)`` at this k (night).
+
+        A camera's ISP is tuned per sensor gain (ISO), so all three follow the gain the
+        auto-exposure uses: the denoiser's blur grows like the noise it must hide,
+        ``sqrt((gain - 1) / 15)``; the colour noise and the black level grow with the stops of gain,
+        ``log2(gain) / 4``. The parameters are their values at gain 16. Once the gain is at its
+        maximum they stay, and only the darkening goes on.
+        """
+        _, gain, _ = self.exposure()
+        gain = 1.0 if gain < 1.0 + 1e-6 else gain  # rounding of the auto-exposure's arithmetic
+        stops = math.log2(gain) / 4.0
+        return (self.denoise_px * math.sqrt((gain - 1.0) / 15.0), self.chroma_noise * stops,
+                min(self.black_level * stops, 0.5))
+
+    def _night(self, img, depth, state, rng, out) -> None:
+        smeared = self._physical(img, depth, state, rng, out)
+        sigma, chroma, black = self.isp()
+        if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
+            into(smooth(out.copy(), sigma, out, exact=True), out)
+        if chroma > 0:  # colour noise follows the sensor noise of each cell's level
+            _, gain, residual = self.exposure()
+            noise = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)[1]
+            gh, gw = chroma_grid(img.shape, self.chroma_cell_px)
+            level = cv2.cvtColor(cv2.resize(smeared, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
+            weight = np.minimum(noise[level] / max(float(noise[_CHROMA_REF_CODE]), 1e-6), 4.0)
+            add_chroma_blotches(out, chroma, self.chroma_cell_px, rng, weight)
+        if black > 0:
+            f = flat(out)
+            into(cv2.LUT(f, black_level_lut(black), dst=f), f)
 
     def _apply_into(self, img, depth, state, rng, out):
         if self.mode == "faithful":
             self._faithful(img, out)
-        else:
+        elif self.mode == "physical":
             self._physical(img, depth, state, rng, out)
+        else:
+            self._night(img, depth, state, rng, out)
 
     def _run_batch(self, imgs, depth, states, rng):
         if self.mode == "faithful":

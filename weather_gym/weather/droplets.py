@@ -21,6 +21,14 @@ grown past ``run_radius`` times the study's radius run down the lens (``run_spee
 second) and off it. :meth:`Droplets.wipe` clears the lens. The defaults keep the count roughly
 around the study's.
 
+**Refractive mode** (``mode="refractive"``, spec ``droplets:0.7:mode=refractive``): each drop is a
+refracting spherical cap that shows an inverted, blurred image of the scene around it, with a dark
+rim and a highlight (:mod:`weather_gym.weather.lens_drops`). ``k`` is then how wet the lens is:
+of ``drop_count`` drops (radii around ``drop_radius`` image heights, contact angles around
+``contact_deg``) those whose own draw is below ``k`` are shown, their radii scaled by
+``(1 + k) / 2``. Persistence, merging, running and :meth:`Droplets.wipe` work as above. The study
+mode ignores the refractive parameters, the refractive mode ignores ``fog_coef``.
+
 Example:
     >>> import numpy as np
     >>> from weather_gym.weather import make
@@ -30,6 +38,9 @@ Example:
     ((376, 672, 3), 56)
     >>> rain = make("droplets", k=0.55, persistent=True)
     >>> rain.reset(3); a = rain(img); b = rain(img); rain.wipe()
+    >>> lens = make("droplets", k=0.7, mode="refractive")
+    >>> bool((lens(img, rng=np.random.default_rng(0)) != img).any())
+    True
 """
 
 from __future__ import annotations
@@ -43,6 +54,7 @@ import cv2
 import numpy as np
 
 from weather_gym.weather.base import KnobEffect
+from weather_gym.weather.lens_drops import drop_layout, render_lens_drops
 from weather_gym.weather.reference import STUDY_FOG_COEF, fog_layout
 from weather_gym.weather.registry import register_effect
 
@@ -105,6 +117,17 @@ class _Drops:
     y: np.ndarray
     r: np.ndarray
     frames: int = 0
+    theta: np.ndarray | None = None  # refractive mode: contact angles (deg)
+    u: np.ndarray | None = None  # refractive mode: visibility draws (shown when u < k)
+
+    def extras(self) -> list[str]:
+        """Names of the per-drop arrays besides ``x, y, r`` (the refractive mode's)."""
+        return [] if self.theta is None else ["theta", "u"]
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep the drops selected by ``keep`` (a boolean mask or index array)."""
+        for name in ("x", "y", "r", *self.extras()):
+            setattr(self, name, getattr(self, name)[keep])
 
 
 @register_effect
@@ -123,6 +146,16 @@ class Droplets(KnobEffect):
     run_radius: float = 1.6
     run_speed: float = 0.5
     merge_frac: float = 0.35
+    mode: str = "study"
+    drop_count: int = 100
+    drop_radius: float = 0.055
+    contact_deg: float = 60.0
+    hfov_deg: float = 90.0
+    look_up: float = 0.3
+    defocus: float = 0.006
+    blur: float = 0.02
+    rim: float = 0.6
+    highlight: float = 0.5
 
     PARAM_BOUNDS: ClassVar = {"fog_coef": (0.05, 1.0)}
     PARAM_LIMITS: ClassVar = {
@@ -132,7 +165,17 @@ class Droplets(KnobEffect):
         "run_radius": (1.0, 10.0),
         "run_speed": (0.0, 100.0),
         "merge_frac": (0.0, 1.0),
+        "drop_count": (1, 400),
+        "drop_radius": (0.005, 0.25),
+        "contact_deg": (20.0, 90.0),
+        "hfov_deg": (20.0, 170.0),
+        "look_up": (0.0, 1.0),
+        "defocus": (0.0, 0.05),
+        "blur": (0.0, 0.1),
+        "rim": (0.0, 1.0),
+        "highlight": (0.0, 1.0),
     }
+    CHOICES: ClassVar = {"mode": ("study", "refractive")}
 
     # -- persistent state -------------------------------------------------------------------
     def _reset_state(self) -> None:
@@ -145,7 +188,7 @@ class Droplets(KnobEffect):
         """Wipe the lens: every droplet of the persistent mode is gone (new ones land later)."""
         d = self._drops
         if d is not None:
-            d.x, d.y, d.r = (np.empty(0) for _ in range(3))
+            d.take(np.zeros(len(d.r), bool))
 
     @property
     def drops(self) -> np.ndarray:
@@ -159,11 +202,16 @@ class Droplets(KnobEffect):
         _, radius, centres = fog_layout(h, w, self.fog_coef, rng)
         return np.asarray(centres, dtype=np.float64).reshape(-1, 2), radius
 
+    def _lens_layout(self, h: int, w: int, rng: np.random.Generator, n: int) -> tuple[np.ndarray, ...]:
+        return drop_layout(h, w, rng, n, self.drop_radius, self.contact_deg)
+
     def _advance(self, shape: tuple[int, ...], rng: np.random.Generator) -> _Drops:
         """Initialise (first frame, new size) or move the persistent droplets on by one frame."""
+        if self.mode == "refractive":
+            return self._advance_lens(shape, rng)
         h, w = shape[:2]
         d = self._drops
-        if d is None or d.shape != (h, w):
+        if d is None or d.shape != (h, w) or d.theta is not None:
             c, radius = self._layout(h, w, rng)
             d = _Drops((h, w), float(radius), len(c), c[:, 0].copy(), c[:, 1].copy(),
                        np.full(len(c), float(radius)))
@@ -191,6 +239,34 @@ class Droplets(KnobEffect):
             d.x, d.y, d.r = d.x[keep], d.y[keep], d.r[keep]
         return d
 
+    def _advance_lens(self, shape: tuple[int, ...], rng: np.random.Generator) -> _Drops:
+        """:meth:`_advance` of the refractive mode: the drops of full severity, shown when ``u < k``."""
+        h, w = shape[:2]
+        d = self._drops
+        if d is None or d.shape != (h, w) or d.theta is None:
+            x, y, r, th, u = self._lens_layout(h, w, rng, self.drop_count)
+            # a drop runs once it is run_radius times the largest radius of the distribution
+            d = _Drops((h, w), self.drop_radius * h * 1.25, self.drop_count, x, y, r, theta=th, u=u)
+            object.__setattr__(self, "_drops", d)
+            return d
+        dt = 1.0 / self.fps
+        d.frames += 1
+        d.r = d.r * (1.0 + self.growth_per_s * dt)
+        n_new = int(rng.poisson(self.spawn_per_s * d.base_count * dt))
+        if n_new:
+            x, y, r, th, u = self._lens_layout(h, w, rng, n_new)
+            r = r * rng.uniform(0.4, 0.8, size=n_new)
+            for name, new in zip(("x", "y", "r", "theta", "u"), (x, y, r, th, u), strict=True):
+                setattr(d, name, np.concatenate([getattr(d, name), new]))
+        running = d.r > self.run_radius * d.base_radius
+        d.y = d.y + running * (self.run_speed * h * dt)
+        d.take(d.y - d.r <= h)
+        self._merge(d)
+        cap = 4 * d.base_count + 16
+        if len(d.r) > cap:  # never reached with sensible parameters; bounds the cost
+            d.take(np.argsort(d.r)[-cap:])
+        return d
+
     def _merge(self, d: _Drops) -> None:
         if self.merge_frac <= 0:
             return
@@ -208,8 +284,9 @@ class Droplets(KnobEffect):
             d.x[i] = (a_i * d.x[i] + a_j * d.x[j]) / (a_i + a_j)
             d.y[i] = (a_i * d.y[i] + a_j * d.y[j]) / (a_i + a_j)
             d.r[i] = math.sqrt(a_i + a_j)
-            keep = np.arange(n) != j
-            d.x, d.y, d.r = d.x[keep], d.y[keep], d.r[keep]
+            if d.theta is not None:  # the merged drop is shown when either was
+                d.u[i] = min(d.u[i], d.u[j])
+            d.take(np.arange(n) != j)
 
     # -- rendering ---------------------------------------------------------------------------
     def _idle(self, shape, rng):
@@ -217,6 +294,9 @@ class Droplets(KnobEffect):
             self._advance(shape, rng)
 
     def _apply_into(self, img, depth, state, rng, out):
+        if self.mode == "refractive":
+            self._apply_lens(img, rng, out)
+            return
         alpha = self.k * self.fog_coef
         if self.persistent:
             d = self._advance(img.shape, rng)
@@ -226,3 +306,15 @@ class Droplets(KnobEffect):
             _, radius, centres = fog_layout(img.shape[0], img.shape[1], self.fog_coef, rng)
             radii = [radius] * len(centres)
         render_discs(img, centres, radii, alpha, out)
+
+    def _apply_lens(self, img: np.ndarray, rng: np.random.Generator, out: np.ndarray) -> None:
+        """Refractive mode: drops with ``u < k`` shown, radii scaled by ``(1 + k) / 2``."""
+        if self.persistent:
+            d = self._advance(img.shape, rng)
+            x, y, r, th, u = d.x, d.y, d.r, d.theta, d.u
+        else:
+            x, y, r, th, u = self._lens_layout(img.shape[0], img.shape[1], rng, self.drop_count)
+        show = u < self.k
+        render_lens_drops(img, x[show], y[show], r[show] * (0.5 + 0.5 * self.k), th[show], out,
+                          hfov_deg=self.hfov_deg, look_up=self.look_up, defocus=self.defocus,
+                          blur=self.blur, rim=self.rim, highlight=self.highlight)
