@@ -52,6 +52,8 @@ _LAZY = {
     "write_model": "weather_gym.gap.model",
     "apply_chain": "weather_gym.gap.model",
     "degrade_dataset": "weather_gym.gap.synthetic",
+    "MEASURED": "weather_gym.gap.measured",
+    "make_measured": "weather_gym.gap.measured",
 }
 
 __all__ = sorted(_LAZY)

@@ -44,7 +44,7 @@ from weather_gym.gap.signals import SignalMask, frame_signals, signal_mask
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
 __all__ = ["K_GRID", "PENALTY", "SCALE_PARAMS", "Candidate", "FitResult", "Evaluator", "candidates", "screen", "fit",
-           "refit", "refit_joint", "fit_summary", "bounds_hit", "scale_params"]
+           "refit", "refit_joint", "fit_summary", "bounds_hit", "bound_ends", "scale_params", "NATURAL_ENDS"]
 
 K_GRID: tuple[float, ...] = (0.08, 0.2, 0.4, 0.7, 1.0)
 PENALTY = 0.05
@@ -69,19 +69,44 @@ def scale_params(name: str) -> tuple[str, ...]:
     return (v,) if isinstance(v, str) else tuple(v)
 
 
-def bounds_hit(effect: KnobEffect, extras: Sequence[str] = ()) -> list[str]:
-    """Where a fitted effect ends on the edge of its range: ``k`` at 1 without its scale parameter
-    extending the range, or a fitted parameter (``extras``) at a bound. A fit on a bound means the
-    effect cannot reproduce the difference inside its range: usually it is not this effect."""
-    out = []
+#: Parameter ends where a component of the effect is absent (no read noise, no flare, no veil): a fit
+#: resting there is a valid fit of the rest of the effect, not a range that clips it.
+NATURAL_ENDS: dict[str, dict[str, str]] = {
+    "noise": {"read_noise_e": "lo"},
+    "dim": {"read_noise_e": "lo", "denoise_px": "lo", "chroma_noise": "lo"},
+    "exposure": {"flare": "lo"},
+    "glare": {"veil": "lo", "bloom": "lo"},
+    "rain": {"haze": "lo"},
+}
+
+
+def bound_ends(effect: KnobEffect, extras: Sequence[str] = ()) -> list[dict[str, Any]]:
+    """Every parameter of a fitted effect that ends on the edge of its range: ``k`` at 1 (without its
+    scale parameter extending the range) or a fitted parameter (``extras``) at a bound, each with
+    ``natural`` True when that end means the component is absent (:data:`NATURAL_ENDS`)."""
+    out: list[dict[str, Any]] = []
+    if getattr(effect, "MEASURED", False):  # a measured curve has no range to clip it (k = 1: as measured)
+        return out
     if effect.k >= 0.995 and not any(p in extras for p in scale_params(effect.name)):
-        out.append("k = 1 (the top of its range)")
+        out.append({"param": "k", "value": float(effect.k), "lo": 0.0, "hi": 1.0, "end": "hi", "natural": False,
+                    "text": "k = 1 (the top of its range)"})
+    natural = NATURAL_ENDS.get(effect.name, {})
     for p in extras:
         lo, hi = type(effect).bounds_of(p)
-        u = _to_unit(float(getattr(effect, p)), lo, hi)
+        v = float(getattr(effect, p))
+        u = _to_unit(v, lo, hi)
         if u <= 0.005 or u >= 0.995:
-            out.append(f"{p} = {getattr(effect, p):.4g} (bound of {lo:g}..{hi:g})")
+            end = "lo" if u <= 0.005 else "hi"
+            out.append({"param": p, "value": v, "lo": lo, "hi": hi, "end": end, "natural": natural.get(p) == end,
+                        "text": f"{p} = {v:.4g} (bound of {lo:g}..{hi:g})"})
     return out
+
+
+def bounds_hit(effect: KnobEffect, extras: Sequence[str] = ()) -> list[str]:
+    """Where a fitted effect's range clips the fit: ``k`` at 1 without its scale parameter extending
+    the range, or a fitted parameter (``extras``) at a bound that is not a natural end (a read noise
+    or a flare at zero is the component being absent: a valid fit). See :func:`bound_ends`."""
+    return [b["text"] for b in bound_ends(effect, extras) if not b["natural"]]
 
 
 @dataclass(frozen=True)

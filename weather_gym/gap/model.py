@@ -12,7 +12,9 @@ A model file lists the ordered weather effects and their parameters::
     read_noise_e = 4.0
 
 An empty file (or ``effects = []``) is the clean simulator. Names are the weather registry's
-(``weather_gym.weather.EFFECTS``); parameters are those of :func:`weather_gym.weather.make`.
+(``weather_gym.weather.EFFECTS``); parameters are those of :func:`weather_gym.weather.make`; or a
+measured member of a family (``tone_curve``, ``noise_level``, ``radial_gain``, ``blur_kernel``:
+:mod:`weather_gym.gap.measured`), whose curves are arrays of numbers.
 The workflow writes the same format back (parameters that differ from the effect's defaults, plus
 ``k``), so ``parse_weather(tomllib.load(f)["effects"])`` rebuilds the model exactly.
 
@@ -44,6 +46,7 @@ import numpy as np
 from weather_gym._io import atomic_write
 from weather_gym._toml import toml_value
 from weather_gym.errors import FileFormatError, MissingInputError
+from weather_gym.gap.measured import MEASURED, PARTNERS, make_measured
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
 __all__ = ["CHAIN_ORDER", "read_model", "write_model", "model_tables", "insert_position", "apply_chain",
@@ -63,7 +66,7 @@ def read_model(path: str | os.PathLike) -> list[KnobEffect]:
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:  # a TOML file is UTF-8 text
         raise FileFormatError(f"model file {path} is not valid TOML: {exc}") from None
     unknown = sorted(set(data) - {"effects"})
     if unknown:
@@ -75,16 +78,17 @@ def read_model(path: str | os.PathLike) -> list[KnobEffect]:
     seen: set[str] = set()
     for i, t in enumerate(tables):
         name = t.get("name")
-        if not isinstance(name, str) or name not in EFFECTS:
+        if not isinstance(name, str) or (name not in EFFECTS and name not in MEASURED):
             raise FileFormatError(f"model file {path}: effects[{i}] has name {name!r}; expected one of "
-                             f"{', '.join(EFFECTS.names())}")
+                             f"{', '.join(EFFECTS.names() + MEASURED.names())}")
         if "k" not in t:
             raise FileFormatError(f"model file {path}: effects[{i}] ({name}) needs 'k' (severity in [0, 1])")
         if name in seen:
             raise FileFormatError(f"model file {path}: effect {name!r} appears twice; list each effect once")
         seen.add(name)
         try:
-            effects.append(make(name, **{k: v for k, v in t.items() if k != "name"}))
+            params = {k: v for k, v in t.items() if k != "name"}
+            effects.append(make_measured(name, **params) if name in MEASURED else make(name, **params))
         except (ValueError, TypeError) as exc:
             raise FileFormatError(f"model file {path}: effects[{i}]: {exc}") from None
     return effects
@@ -124,13 +128,19 @@ def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
 def insert_position(effects: Sequence[KnobEffect], name: str) -> int:
     """Index at which effect ``name`` joins the chain (after every effect that comes before it in
     :data:`CHAIN_ORDER`)."""
-    rank = CHAIN_ORDER.index(name) if name in CHAIN_ORDER else len(CHAIN_ORDER)
+    rank = _rank(name)
     pos = 0
     for i, e in enumerate(effects):
-        r = CHAIN_ORDER.index(e.name) if e.name in CHAIN_ORDER else len(CHAIN_ORDER)
-        if r <= rank:
+        if _rank(e.name) <= rank:
             pos = i + 1
     return pos
+
+
+def _rank(name: str) -> float:
+    """Place of an effect in :data:`CHAIN_ORDER`; a measured member goes right after its kind's effects."""
+    if name in PARTNERS:
+        return max(_rank(p) for p in PARTNERS[name]) + 0.5
+    return float(CHAIN_ORDER.index(name)) if name in CHAIN_ORDER else float(len(CHAIN_ORDER))
 
 
 def _effect_seed(seed: int, frame_id: int, name: str) -> np.random.SeedSequence:
@@ -149,7 +159,10 @@ def apply_chain(effects: Sequence[KnobEffect], image: np.ndarray, *, depth: np.n
 
 
 def describe(effect: KnobEffect) -> str:
-    """``name(k=..., param=...)`` with the parameters that differ from the defaults."""
+    """``name(k=..., param=...)`` with the parameters that differ from the defaults (a measured member:
+    the shape it measured)."""
+    if hasattr(effect, "summary"):
+        return effect.summary()
     t = model_tables([effect])[0]
     args = ", ".join(f"{k}={_fmt(v)}" for k, v in t.items() if k != "name")
     return f"{effect.name}({args})"

@@ -243,6 +243,30 @@ def markdown(report: dict[str, Any]) -> str:
             lines.append(f"- step {f['step']}: `{f['describe']}` ends on {', '.join(f['bounds'])}; held-out gap "
                          f"{_f(f['gap_before'])} -> {_f(f['gap_after'])}. {f['why']}")
         lines.append("")
+    if r.get("beyond_range"):
+        lines += ["## Beyond the family's range (added, flagged)", ""]
+        for b in r["beyond_range"]:
+            lines.append(f"- `{b['name']}`: {b['flag']}; clipped: {', '.join(b['clipped'])}")
+        lines.append("")
+    measured = [s_ for s_ in r.get("steps", []) if s_.get("measured")]
+    if measured:
+        lines += ["## Measured members (the parametric effects fell short)", ""]
+        for s_ in measured:
+            m = s_["measured"]
+            close = m.get("closest_parametric")
+            lines.append(f"- `{s_['added']['name']}` ({m['kind']}): {m['shape']}; closest parametric effect: "
+                         + (f"`{close['describe']}` (held-out gap {_f(close['held_gap'])})" if close and
+                            close.get("held_gap") is not None else f"`{close['describe']}` (fitting-frame gap "
+                            f"{_f(close.get('fit_gap'))})" if close else "none")
+                         + f"; {m['why']}")
+        lines.append("")
+    u = r.get("unexplained")
+    if u:
+        lines += ["## Unexplained", "", f"Held-out gap {_f(u['gap'])} with the final model; disagreeing: "
+                  + ", ".join(f"{x['signal']} ({x['family']})" for x in u["signals"][:8]), ""]
+        for a in u.get("closest", []):
+            lines.append(f"- closest: `{a['describe']}`: {_f(a['gap_before'])} -> {_f(a['gap_after'])}, stopped: {a['why']}")
+        lines.append("")
     if r.get("pruned"):
         lines += ["## Dropped by the parsimony check", ""]
         for p_ in r["pruned"]:

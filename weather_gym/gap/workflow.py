@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym._io import atomic_write_json, check_output
+from weather_gym._io import atomic_write_json, check_output, exclusive
 from weather_gym.camera_model import CameraModel
 from weather_gym.errors import InputError
 from weather_gym.gap.compare import (
@@ -57,8 +57,10 @@ from weather_gym.gap.diagnose import evidence, significant_signals
 from weather_gym.gap.domain import clutter, compare_clutter, ego_vehicle, name_differences
 from weather_gym.gap.fit import (
     PENALTY,
+    Candidate,
     Evaluator,
     FitResult,
+    _brent,
     bounds_hit,
     candidates,
     fit,
@@ -67,10 +69,11 @@ from weather_gym.gap.fit import (
     refit_joint,
     screen,
 )
-from weather_gym.gap.model import describe, model_tables, read_model, write_model
+from weather_gym.gap.measured import KIND, MEASURED, MEASURED_PARAMS, PARTNERS, estimate, shape_text
+from weather_gym.gap.model import describe, insert_position, model_tables, read_model, write_model
 from weather_gym.gap.perception import detect_frames, match_frames, perception_stats
 from weather_gym.gap.report import PLOT_NAMES, write_markdown, write_plots
-from weather_gym.gap.signals import SIGNAL_NAMES, signal_table, signal_weights
+from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS, signal_table, signal_weights
 from weather_gym.gap.simulate import COMPARE_WIDTH, MIN_FRAMES, MODES, GapData, simulate
 from weather_gym.perception.detectors import load_detector
 from weather_gym.perception.labels import SmallRule
@@ -83,6 +86,37 @@ REPORT_VERSION = 2
 
 MIN_GAP_CUT = 0.1
 """Smallest held-out gap cut (in scene-to-scene spreads) for which an effect is added or kept."""
+
+CLIP_EXPLAINS = 0.5
+"""A fit clipped by its family's range is still added (flagged :data:`BEYOND_RANGE`) when it takes the
+held-out gap to at most this fraction of what it was: the family is right, the model needs more of it."""
+
+BEYOND_RANGE = "the measured effect goes beyond this family's range"
+
+#: the evidence an effect cannot be named without (its fingerprint): at least one of these signals or
+#: signal families must disagree. ``dim`` darkens the frame, so noise alone (or noise that only moves
+#: the extreme percentiles) is not dim; each kind's effects need their kind's signals; ``glare`` (a
+#: veil and bloom) is never a fix for the noise signals alone
+REQUIRES: dict[str, tuple[str, ...]] = {"dim": ("brightness", "tone_p50"), "exposure": ("tone",), "tone_curve": ("tone",),
+                                        "noise": ("noise",), "noise_level": ("noise",), "vignette": ("vignette",),
+                                        "radial_gain": ("vignette",), "glare": ("blobs", "tone", "haze"),
+                                        "blur_kernel": ("sharpness", "motion", "cones")}
+#: the parametric and measured effects of each kind
+KIND_EFFECTS: dict[str, tuple[str, ...]] = {"tone": ("exposure", "tone_curve"), "noise": ("noise", "noise_level"),
+                                            "sharpness": ("blur", "blur_kernel"), "motion": ("motion_blur",),
+                                            "vignette": ("vignette", "radial_gain")}
+#: the signal family that is each effect's main fingerprint (for the verdict's advice)
+EFFECT_FAMILY: dict[str, str] = {"blur": "sharpness", "motion_blur": "motion", "noise": "noise", "noise_level": "noise",
+                                 "exposure": "tone", "dim": "tone", "tone_curve": "tone", "fog": "haze",
+                                 "vignette": "vignette", "radial_gain": "vignette", "jpeg": "block",
+                                 "droplets": "blobs", "glare": "blobs", "rain": "blobs", "blur_kernel": "sharpness"}
+#: signal families whose disagreement lets a measured member be measured (default: its kind)
+MEASURED_KINDS: dict[str, tuple[str, ...]] = {"blur_kernel": ("sharpness", "motion")}
+#: effects that change every pixel alike (no dependence on the distance from the centre)
+GLOBAL_TONE = ("exposure", "dim", "tone_curve")
+EVIDENCE_MARGIN = 2.0
+"""A radial candidate within this factor of a global tone change's penalised gap is named before it
+when the fall-off to the corners disagrees."""
 
 PERCEPTION_MIN_MAP = 0.3
 """Below this mAP@0.5 on the measured clear frames the perception gap means nothing (the report says so)."""
@@ -106,7 +140,8 @@ class GapConfig:
         held_out: fraction of the frames held out for the reported gaps.
         fit_frames: at most this many fitting frames are used by the parameter search.
         max_steps: at most this many effects are added.
-        candidates: effect names that may be added (default: every registered effect).
+        candidates: effect names that may be added (default: every registered effect and every measured
+            member, :mod:`~weather_gym.gap.measured`).
         top: candidates fully fitted per step (the best of the k-grid screening).
         alpha: family-wise significance level (Holm) of disagreements and of a step.
         min_effect: smallest standardised bias reported as a disagreement.
@@ -163,7 +198,8 @@ class GapConfig:
         if self.bootstrap < 100:
             raise InputError(f"bootstrap must be >= 100 resamples, got {self.bootstrap}")
         for name in self.candidates or ():
-            EFFECTS.get(name)  # unknown names: ValueError listing the valid ones
+            if name not in MEASURED:
+                EFFECTS.get(name)  # unknown names: ValueError listing the valid ones
 
 
 @dataclass
@@ -213,6 +249,7 @@ class GapSession:
         self.log: list[str] = []
         self.pruned: list[dict[str, Any]] = []
         self.flagged: list[dict[str, Any]] = []
+        self.attempts: list[dict[str, Any]] = []
         cfg = self.config
         t0 = time.perf_counter()
         m = data.measured
@@ -230,6 +267,7 @@ class GapSession:
         if len(fit_sim) > cfg.fit_frames:
             fit_sim = np.sort(rng.choice(fit_sim, cfg.fit_frames, replace=False))
         fit_meas = fit_sim if data.paired else data.fit
+        self._fit_idx = (np.asarray(fit_sim), np.asarray(fit_meas))
         fit_ref = (fit_meas if data.ref_paired else data.ref_fit) if data.did else None
         self.fit_ev = self._evaluator(fit_sim, fit_meas, fit_ref)
         self.held_ev = self._evaluator(data.sim_held, data.held, data.ref_held if data.did else None)
@@ -370,14 +408,20 @@ class GapSession:
 
         t0 = time.perf_counter()
         names = names if names is not None else self.config.candidates
-        cands = candidates(self.model, names)
+        cands = candidates(self.model, None if names is None else [n for n in names if n not in MEASURED])
         screened: list[FitResult] = []
         for c in tqdm(cands, desc="screen", unit="effect", disable=not self.config.progress, leave=False):
             screened.append(screen(self.fit_ev, self.model, c))
         g_now = self.fit_ev.gap(self.model)
         useful = sorted((r for r in screened if r.fit_gap < g_now), key=lambda r: (r.fit_gap, r.candidate.describe()))
+        chosen = list(useful[:self.config.top])
+        kinds = self._disagreeing_kinds()
+        if kinds:  # the parametric effect of the strongest disagreeing kind is always fully fitted
+            extra = next((r for r in useful if r.candidate.name in KIND_EFFECTS.get(kinds[0], ())), None)
+            if extra is not None and extra not in chosen:
+                chosen.append(extra)
         out = []
-        for r in useful[:self.config.top]:
+        for r in chosen:
             f = fit(self.fit_ev, self.model, r)
             model = self.model[:f.position] + [f.effect] + self.model[f.position:]
             g_held = self.held_ev.gap(model)
@@ -416,19 +460,31 @@ class GapSession:
             ok, why = False, "fixes no significant disagreement"
         what = describe(f.effect)
         hit = bounds_hit(f.effect, f.extras)
+        beyond = None
         if ok and hit and not force:
-            self._say(f"best candidate {what}: held-out gap {test['gap_before']:.3f} -> {test['gap_after']:.3f}, but "
-                      f"the fit ends on a bound ({'; '.join(hit)}): not added (flagged)")
-            self.flagged.append({"candidate": f.candidate.describe(), "describe": what, "bounds": hit,
-                                 "gap_before": test["gap_before"], "gap_after": test["gap_after"],
-                                 "p_value": test["p_value"], "step": len(self.steps) + 1,
-                                 "why": "a fit on the edge of the effect's range: the effect cannot reproduce the "
-                                        "difference inside its range, so the difference is probably something else "
-                                        "(another effect, or the camera and scene rather than weather)"})
-            return None
+            if test["gap_after"] <= CLIP_EXPLAINS * test["gap_before"] and not self.data.confounded:
+                # the family is right but needs more range than it has: name it, say where it clipped
+                beyond = {"flag": BEYOND_RANGE, "clipped": hit}
+                why = f"added; {BEYOND_RANGE} ({'; '.join(hit)})"
+            else:
+                self._say(f"best candidate {what}: held-out gap {test['gap_before']:.3f} -> {test['gap_after']:.3f}, "
+                          f"but the fit ends on a bound ({'; '.join(hit)}): not added (flagged)")
+                self.flagged.append({"candidate": f.candidate.describe(), "describe": what, "bounds": hit,
+                                     "gap_before": test["gap_before"], "gap_after": test["gap_after"],
+                                     "p_value": test["p_value"], "step": len(self.steps) + 1,
+                                     "why": "a fit on the edge of the effect's range that explains less than half of "
+                                            "the gap: the effect cannot reproduce the difference inside its range, so "
+                                            "the difference is probably something else (another effect, or the camera "
+                                            "and scene rather than weather)"})
+                self._attempt(f, test, f"fit on a bound ({'; '.join(hit)})")
+                return None
         self._say(f"best candidate {what}: held-out gap {test['gap_before']:.3f} -> {test['gap_after']:.3f} "
                   f"(p = {test['p_value']:.4f}, {why})")
         if not ok and not force:
+            if why == "not significant":
+                why = (f"not significant (p = {test['p_value']:.2g})" if test["p_value"] >= cfg.alpha / n_tested
+                       else f"cut too small ({test['gap_before'] - test['gap_after']:.2g} spreads)")
+            self._attempt(f, test, why)
             return None
         step = {
             "added": {"name": f.effect.name, "params": f.effect.params(), "describe": what},
@@ -446,11 +502,114 @@ class GapSession:
                               "n_params": a["fit"].n_params} for a in alternatives],
             "screening": found.get("screened", []),
             "fit": fit_summary(f),
+            "beyond_range": beyond,
+            "measured": found.get("measured"),
         }
         self.model = found["model"]
         self.steps.append(step)
         self.history.append((f"+ {f.effect.name}", list(self.model)))
         return step
+
+    def _disagreeing_kinds(self) -> list[str]:
+        """Signal families that disagree significantly now, strongest first."""
+        fam = {n: s.family for n, s in zip(SIGNAL_NAMES, SIGNALS)}
+        return list(dict.fromkeys(fam[n] for n in self.compare(perception=False).significant))
+
+    def rank(self, found: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+        """Candidates best first, by the evidence each family leaves, then by penalised held-out gap: an
+        effect whose fingerprint (:data:`REQUIRES`: ``dim`` changes the brightness) does not disagree
+        goes behind those whose does (noise without a brightness change is ``noise``, not
+        ``dim``); a global tone change goes behind a radial one when the fall-off to the corners
+        disagrees and a radial candidate comes within :data:`EVIDENCE_MARGIN` of it."""
+        kinds = set(self._disagreeing_kinds())
+        seen = kinds | set(self.compare(perception=False).significant)
+
+        def evidenced(e: dict[str, Any]) -> bool:
+            need = REQUIRES.get(e["fit"].effect.name, ())
+            return not need or any(x in seen for x in need)
+
+        best_radial = min((e["penalized"] for e in found if e["fit"].effect.name in KIND_EFFECTS["vignette"]
+                           and evidenced(e)), default=math.inf)
+
+        def demoted(e: dict[str, Any]) -> bool:
+            return (e["fit"].effect.name in GLOBAL_TONE and "vignette" in kinds
+                    and best_radial <= EVIDENCE_MARGIN * e["penalized"])
+
+        return sorted(found, key=lambda e: (not evidenced(e), demoted(e), e["penalized"], e["fit"].candidate.describe()))
+
+    def measure(self, found: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+        """Measured members (:mod:`~weather_gym.gap.measured`) of the kinds whose signals disagree and
+        whose parametric effects fall short: none of them among the fully fitted candidates, or its fit
+        clipped by its range, or it leaves more than half of the gap. Each is measured on the fitting
+        frames (the model's output before its place in the chain against the measured frames), its k
+        refined, and returned in :meth:`diagnose`'s format with ``measured``: its kind, the closest
+        parametric effect and the residual shape."""
+        t0 = time.perf_counter()
+        sig = self.compare(perception=False).significant
+        fam = {n: s.family for n, s in zip(SIGNAL_NAMES, SIGNALS)}
+        kinds = {fam[n] for n in sig}
+        present = {e.name for e in self.model}
+        g_fit = self.fit_ev.gap(self.model)
+        g_held = self.held_ev.gap(self.model)
+        sim_idx, meas_idx = self._fit_idx
+        d = self.data
+        out = []
+        for name, kind in KIND.items():
+            if name in present or not set(MEASURED_KINDS.get(name, (kind,))) & kinds or (self.config.candidates is not None
+                                                        and name not in self.config.candidates):
+                continue
+            partners = [f for f in found if f["fit"].effect.name in PARTNERS[name]]
+            best = min(partners, key=lambda f: f["held_gap"]) if partners else None
+            if best is not None and not bounds_hit(best["fit"].effect, best["fit"].extras) \
+                    and best["held_gap"] <= 0.5 * g_held:
+                continue  # the parametric effect does the job
+            pos = insert_position(self.model, name)
+            prefix = self.fit_ev.prefix(self.model[:pos])
+            sim_masks = d.signal_masks("sim")
+            member = estimate(name, prefix, [d.measured.images[i] for i in meas_idx],
+                              sim_masks=[sim_masks[i] for i in sim_idx],
+                              meas_masks=[d.measured.masks[i] for i in meas_idx], paired=d.paired)
+            if member.is_identity():
+                continue
+            n0 = self.fit_ev.n_evals
+
+            def obj(k: float, member=member, pos=pos) -> float:
+                return self.fit_ev.gap(self.model[:pos] + [member.with_params(k=round(k, 3))] + self.model[pos:],
+                                       split=pos)
+
+            k, g = _brent(obj, 0.2, 1.0, maxiter=8)
+            if obj(1.0) <= g:
+                k, g = 1.0, obj(1.0)
+            member = member.with_params(k=round(k, 3))
+            model = self.model[:pos] + [member] + self.model[pos:]
+            held = self.held_ev.gap(model)
+            closest = None if best is None else {"describe": describe(best["fit"].effect), "held_gap": best["held_gap"],
+                                                 "clipped": bounds_hit(best["fit"].effect, best["fit"].extras)}
+            screened = [c for c in (found[0]["screened"] if found else [])
+                        if c["candidate"].split("(")[0] in PARTNERS[name]]
+            if closest is None and screened:  # only screened on the k grid: its best point there
+                c = min(screened, key=lambda c: c["fit_gap"])
+                closest = {"describe": f"{c['candidate']} at k = {c['k']:.2f} (k grid)", "held_gap": None,
+                           "fit_gap": c["fit_gap"], "clipped": []}
+            info = {"kind": kind, "closest_parametric": closest, "shape": shape_text(member),
+                    "why": ("no parametric effect of this kind was among the best fits" if best is None else
+                            f"{closest['describe']} " + (f"is clipped by its range ({'; '.join(closest['clipped'])})"
+                                                         if closest["clipped"] else
+                                                         f"leaves {best['held_gap']:.2f} of {g_held:.2f}"))}
+            self._say(f"measured {kind} member {describe(member)}: held-out gap {g_held:.3f} -> {held:.3f} "
+                      f"({info['why']})")
+            f = FitResult(Candidate(name), member, pos, g, MEASURED_PARAMS, [], self.fit_ev.n_evals - n0, [])
+            out.append({"fit": f, "model": model, "held_gap": held, "fit_gap_before": g_fit,
+                        "penalized": held * (1.0 + PENALTY * MEASURED_PARAMS), "measured": info,
+                        "screened": found[0]["screened"] if found else []})
+        self.timings["measure_s"] = self.timings.get("measure_s", 0.0) + time.perf_counter() - t0
+        return out
+
+    def _attempt(self, f: FitResult, test: dict[str, Any], why: str) -> None:
+        """Record a candidate that was fitted but not added, and what stopped it (for the verdict)."""
+        self.attempts.append({"step": len(self.steps) + 1, "candidate": f.candidate.describe(),
+                              "name": f.effect.name, "describe": describe(f.effect), "gap_before": test["gap_before"],
+                              "gap_after": test["gap_after"], "p_value": test["p_value"], "why": why})
 
     def step(self) -> dict[str, Any] | None:
         """One iteration: stop if nothing disagrees; else re-fit, diagnose and try to add the best."""
@@ -468,6 +627,7 @@ class GapSession:
         if not found:
             self._say("no candidate lowers the gap on the fitting frames")
             return None
+        found = self.rank(found + self.measure(found))
         for cand in found:  # best first; a candidate flagged for a fit on a bound gives way to the next
             n_flagged = len(self.flagged)
             step = self.add(cand, found)
@@ -599,6 +759,62 @@ class GapSession:
                 "show what weather does to them); judge the run by the image signals, or use a detector that works "
                 "on this camera (--detector yolov8:PATH)")
 
+    def unexplained(self, last: Comparison) -> dict[str, Any] | None:
+        """What the final model leaves unexplained on the held-out frames: None when no image signal
+        disagrees significantly, else the gap, the signals that carry it (strongest first, with their
+        families) and the closest candidates with what stopped each."""
+        sig = last.significant
+        if not sig:
+            return None
+        fam = {n: s.family for n, s in zip(SIGNAL_NAMES, SIGNALS)}
+        rows = {r["signal"]: r for r in last.rows}
+        in_model = {e.name for e in self.model}
+        tried = [a for a in self.attempts if a["name"] not in in_model]
+        last_step = max((a["step"] for a in tried), default=0)  # the last round: gaps against the final model
+        close = sorted((a for a in tried if a["step"] == last_step), key=lambda a: a["gap_after"])
+        seen, closest = set(), []
+        for a in close:
+            if a["name"] not in seen:
+                seen.add(a["name"])
+                closest.append(a)
+        return {"gap": last.gap, "signals": [{"signal": n, "family": fam.get(n), "standardized": rows[n].get("standardized")}
+                                            for n in sig],
+                "families": list(dict.fromkeys(fam.get(n) for n in sig)), "closest": closest[:3]}
+
+    def verdict(self, missing: Sequence[str], last: Comparison) -> str:
+        """One sentence that follows the numbers: what was added (and where a family ran out of range),
+        and, while the held-out gap is significantly above zero, how much is unexplained, which signals
+        carry it and the closest candidates with what stopped each."""
+        parts = []
+        if missing:
+            beyond = {st["added"]["name"]: st["beyond_range"] for st in self.steps if st.get("beyond_range")}
+            parts.append("missing weather: " + ", ".join(
+                f"{n} ({BEYOND_RANGE}: {'; '.join(beyond[n]['clipped'])})" if n in beyond else n for n in missing))
+        u = self.unexplained(last)
+        if u is None:
+            if not missing:
+                return "no missing weather: the model explains the measured frames"
+            return parts[0]
+        sigs = ", ".join(s["signal"] for s in u["signals"][:4])
+        text = (f"{'still ' if missing else ''}unexplained: held-out gap {u['gap']:.2f} spreads, significantly above "
+                f"zero ({len(u['signals'])} signals disagree, strongest {sigs}: {', '.join(u['families'][:3])})")
+        if u["closest"]:
+            text += "; closest candidates: " + ", ".join(
+                f"{a['describe']} ({a['gap_before']:.2f} -> {a['gap_after']:.2f}, stopped: {a['why']})"
+                for a in u["closest"])
+            same = [a for a in u["closest"] if EFFECT_FAMILY.get(a["name"]) in u["families"][:2]]
+            if same:
+                text += (f"; the model lacks more of the kind these signals measure ({u['families'][0]}): widen or "
+                         f"reshape {same[0]['name']}, or look for a cause outside the weather model")
+            else:
+                text += (f"; no candidate of the kind these signals measure ({u['families'][0]}) lowered it: the "
+                         "model lacks such an effect, or the cause is outside the weather model (scene, camera)")
+        else:
+            text += (f"; no candidate effect lowers it: the model lacks an effect of the kind these signals measure "
+                     f"({u['families'][0]}), or the cause is outside the weather model")
+        parts.append(text)
+        return "; ".join(parts)
+
     def report(self, first: Comparison | None = None, last: Comparison | None = None) -> dict[str, Any]:
         """The report dict (``report.json``'s content, without file paths)."""
         first = first or self.compare(self.input_model)
@@ -609,10 +825,8 @@ class GapSession:
             verdict = ("confounded: the measured frames differ from the clean simulator, but without a clear "
                        "reference of the same camera the difference cannot be told apart from the camera and scene; "
                        "nothing was fitted as weather")
-        elif missing:
-            verdict = f"missing weather: {', '.join(missing)}"
         else:
-            verdict = "no missing weather: the model explains the measured frames"
+            verdict = self.verdict(missing, last)
         if self.flagged:
             verdict += f"; flagged (fit on a bound, not added): {', '.join(f['candidate'] for f in self.flagged)}"
         return {
@@ -625,6 +839,10 @@ class GapSession:
             "perception_warning": self.perception_warning(first),
             "domain": self.domain(),
             "flagged": self.flagged,
+            "beyond_range": [{"name": st["added"]["name"], **st["beyond_range"]} for st in self.steps
+                             if st.get("beyond_range") and st["added"]["name"] in missing],
+            "unexplained": self.unexplained(last),
+            "attempts": self.attempts,
             "pruned": self.pruned,
             "notes": list(d.notes),
             "frames": {"measured": len(d.measured), "simulated": len(d.sim),
@@ -730,6 +948,14 @@ def run_gap(measured: str | os.PathLike, model: str | os.PathLike | None, out: s
         check_output(out / name, overwrite=overwrite)
     effects = read_model(model) if model is not None else []
     out.mkdir(parents=True, exist_ok=True)
+    with exclusive(out, message=f"another gap run is writing {out}; wait for it to finish or choose another --out"):
+        return _run_gap_locked(measured, model, out, config, effects, reference=reference, cache_dir=cache_dir,
+                               overwrite=overwrite, plots=plots, t_start=t_start)
+
+
+def _run_gap_locked(measured, model, out: Path, config: GapConfig, effects: list, *, reference, cache_dir,
+                    overwrite: bool, plots: bool, t_start: float) -> dict[str, Any]:
+    """:func:`run_gap` once its outputs are checked and ``out`` is locked for this run."""
     cache = Path(cache_dir) if cache_dir is not None else out / "cache"
     t0 = time.perf_counter()
     data = simulate(measured, cache_dir=cache, mode=config.mode, reference=reference,
