@@ -138,6 +138,7 @@ def build_world(root: Path) -> World:
     w["gap_out"].mkdir()
     w["gap_out/report.json"].write_text("{}\n")
     _import_sources(w)
+    _input_output_sources(w)
     return w
 
 
@@ -340,6 +341,10 @@ CASES: list[Case] = [
     _cli("dataset-info-symlink-out", "file_name", "dataset", "info", "{w}/ds_link"),
     _cli("dataset-info-no-annotations", "annotations.json", "dataset", "info", "{w}/no_annotations"),
     # ---- tracks
+    _cli("train-unknown-hyperparams-section", "Nope", "train", "--out", "{w}/o/run", "--hyperparams-key", "Nope",
+         out="o"),
+    _cli("train-eval-track-is-a-training-track", "hairpin", "train", "--out", "{w}/o/run", "--tracks", "hairpin",
+         "--eval-track", "hairpin", out="o"),
     _cli("tracks-show-collinear-cones", "collinear.csv", "tracks", "show", "{w}/collinear.csv", "--out",
          "{w}/o/t.png", out="o"),
     _cli("tracks-show-huge-coordinates", "huge.csv", "tracks", "show", "{w}/huge.csv", "--out", "{w}/o/t.png",
@@ -432,8 +437,8 @@ CASES: list[Case] = [
          "{w}/o_import", out="o_import"),
     _cli("import-class-map-leaves-a-class-out", "weird_cone", "dataset", "import", "kitti", "{w}/kitti_unmapped",
          "--out", "{w}/o_import", out="o_import"),
-    _cli("import-mismatched-image-sizes", "000002.png", "dataset", "import", "kitti", "{w}/kitti_sizes", "--out",
-         "{w}/o_import", out="o_import"),
+    _cli("import-mixed-sizes-with-intrinsics", "--intrinsics", "dataset", "import", "kitti", "{w}/kitti_sizes",
+         "--intrinsics", "90,90,48,27", "--out", "{w}/o_import", out="o_import"),
     _cli("import-bad-class-target", "purple", "dataset", "import", "kitti", "{w}/kitti_ok", "--classes",
          "blue_cone=purple", "--out", "{w}/o_import", out="o_import"),
     _cli("import-bad-intrinsics", "intrinsics", "dataset", "import", "kitti", "{w}/kitti_ok", "--intrinsics",
@@ -507,4 +512,121 @@ CASES: list[Case] = [
         "weather_gym.calibration.measured", fromlist=["load_measured"]).load_measured([str(w["measured_bad.csv"])])),
     Case("py-read-model-unknown-effect", "model_bad.toml", call=lambda w: __import__(
         "weather_gym.gap.model", fromlist=["read_model"]).read_model(w["model_bad.toml"])),
+]
+
+
+# ------------------------------------------- an input is never an output; resume identity; user input
+def _input_output_sources(w: World) -> None:
+    """Files of the cases below: logs, a model inside an output folder, non-UTF-8 files, journals."""
+    from weather_gym.surrogate.log import _TABLES, SurrogateLog, _stack, save_log
+
+    tables = [_stack({}, cols) for cols in _TABLES.values()]
+    save_log(SurrogateLog(*tables, [{"condition": "droplets", "k": 0.5, "track": "oval"}], {}), w["log_noweather.npz"])
+    import io
+    import zipfile
+
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (10**12,)})
+    with zipfile.ZipFile(w["log_huge.npz"], "w") as z:
+        z.writestr("cones/range.npy", header.getvalue() + bytes(64))
+    w["gapm"].mkdir()
+    w["gapm/model.toml"].write_text("# the clean simulator\n")
+    _edit(w["ds"], w["ds_wide"], lambda d: d["images"][1].update(width=20000, height=100))  # past the frame bound
+    latin1 = "# caf\xe9 r\xe9glage\n".encode("latin-1")
+    w["latin1.toml"].write_bytes(latin1 + b'[[effects]]\nname = "dim"\nk = 0.3\n')
+    w["latin1.csv"].write_bytes(latin1 + b"condition,severity,map\nideal,0,0.8\n")
+    w["o_resume"].mkdir()  # an interrupted render of seed 5 (its journal's settings line)
+    w["o_resume/annotations.partial.jsonl"].write_text(json.dumps({"settings": {"seed": 5}}) + "\n")
+    w["o_train"].mkdir()  # a training checkpoint of seed 5 on ds
+    from dataclasses import asdict
+
+    import torch
+
+    from weather_gym.perception.train import TrainConfig
+
+    torch.save({"config": asdict(TrainConfig(seed=5)), "data": [str(w["ds"])]}, w["o_train/m.onnx.ckpt"])
+
+
+def _reset_env(**options):
+    return lambda w: _reset_with(options)
+
+
+def _vec_env_million(_w):
+    from weather_gym.pipeline import make_vec_env
+
+    make_vec_env(num_envs=10**6, vectorization_mode="sync")
+
+
+TR = ("detector", "train", "--data", "{w}/ds")
+
+CASES += [
+    # ---- an input is never an output (--overwrite or not)
+    _cli("detector-eval-json-onto-the-labels-overwrite", "is never an output", "detector", "eval", "{w}/ds",
+         "--limit", "1", "--json", "{w}/ds/annotations.json", "--overwrite"),
+    _cli("mask-out-onto-a-frame", "000000.png", "dataset", "mask", "{w}/ds", "--out", "{w}/ds/images/000000.png",
+         "--overwrite"),
+    _cli("mask-preview-onto-a-frame", "--preview", "dataset", "mask", "{w}/ds", "--out", "{w}/o/m.png", "--preview",
+         "{w}/ds/images/000000.png", "--overwrite", out="o"),
+    _cli("surrogate-fit-out-onto-the-log", "is never an output", "surrogate", "fit", "{w}/log_noweather.npz",
+         "--out", "{w}/log_noweather.npz", "--overwrite"),
+    _cli("gap-out-is-the-reference", "is never an output", "gap", "{w}/ds", "--reference", "{w}/ds_empty", "--out",
+         "{w}/ds_empty", "--overwrite"),
+    _cli("gap-out-is-the-measured-set", "is never an output", "gap", "{w}/ds", "--out", "{w}/ds"),
+    _cli("gap-out-inside-the-measured-set", "is never an output", "gap", "{w}/ds", "--out", "{w}/ds/gap"),
+    _cli("gap-model-inside-out", "model.toml", "gap", "{w}/ds", "--model", "{w}/gapm/model.toml", "--out",
+         "{w}/gapm", "--overwrite"),
+    _cli("degrade-folder-into-itself", "inside it", "degrade", "{w}/imgs", "{w}/imgs/out", *DEG),
+    # ---- resume identity
+    _cli("dataset-render-resume-other-seed", "seed", "dataset", "render", "--track", "oval", "--frames", "2",
+         "--seed", "6", "--resume", "--out", "{w}/o_resume", out="o_resume"),
+    _cli("detector-train-resume-other-seed", "seed", *TR, "--seed", "6", "--out", "{w}/o_train/m.onnx",
+         out="o_train"),
+    # ---- seeds
+    _cli("degrade-negative-seed", "--seed", "degrade", "{w}/img.png", "{w}/o/x.png", *DEG, "--seed", "-1", out="o"),
+    _cli("dataset-render-negative-seed", "--seed", "dataset", "render", "--track", "oval", "--frames", "2",
+         "--seed", "-3", "--out", "{w}/o_ds", out="o_ds"),
+    _cli("detector-eval-negative-seed", "--seed", "detector", "eval", "{w}/ds", "--seed", "-1"),
+    _cli("lap-negative-seed", "--seed", "lap", "--seed", "-1"),
+    _cli("surrogate-log-negative-seed", "--seeds", "surrogate", "log", "--seeds", "0,-1", "--out", "{w}/o/l.npz",
+         out="o"),
+    _cli("surrogate-validate-negative-seed", "--surrogate-seeds", "surrogate", "validate", "--surrogate-seeds", "-2",
+         "--out", "{w}/o/val", out="o"),
+    _cli("detector-train-negative-seed", "--seed", *TR, "--seed", "-1", "--out", "{w}/o/m.onnx", out="o"),
+    # ---- detector training options
+    _cli("detector-train-lr-negative", "--lr", *TR, "--lr", "-1", "--out", "{w}/o/m.onnx", out="o"),
+    _cli("detector-train-lr-nan", "--lr", *TR, "--lr", "nan", "--out", "{w}/o/m.onnx", out="o"),
+    _cli("detector-train-threads-zero", "--threads", *TR, "--threads", "0", "--out", "{w}/o/m.onnx", out="o"),
+    _cli("detector-train-max-steps-zero", "--max-steps", *TR, "--max-steps", "0", "--out", "{w}/o/m.onnx", out="o"),
+    _cli("detector-train-warmup-negative", "--warmup", *TR, "--warmup", "-5", "--out", "{w}/o/m.onnx", out="o"),
+    _cli("detector-train-input-size-huge", "--input-size", *TR, "--input-size", "100000", "100000", "--out",
+         "{w}/o/m.onnx", out="o"),
+    # ---- files that are not UTF-8, or not what they claim
+    _cli("gap-model-not-utf8", "latin1.toml", "gap", "{w}/ds", "--model", "{w}/latin1.toml", "--out", "{w}/o_gap",
+         out="o_gap"),
+    _cli("evaluate-presets-not-utf8", "latin1.toml", *EV, "--presets", "{w}/latin1.toml", "--out", "{w}/o_ev",
+         out="o_ev"),
+    _cli("calibrate-curve-not-utf8", "latin1.csv", "calibrate", "--curve", "{w}/latin1.csv", "--measured",
+         "{w}/measured_bad.csv", "--out", "{w}/o/p.toml", out="o"),
+    Case("py-measured-table-not-utf8", "latin1.csv", call=lambda w: __import__(
+        "weather_gym.calibration.measured", fromlist=["load_measured"]).load_measured([str(w["latin1.csv"])])),
+    Case("py-presets-base-not-utf8", "latin1.toml", call=lambda w: __import__(
+        "weather_gym.weather.presets", fromlist=["load_presets"]).load_presets(w["latin1.toml"])),
+    _cli("surrogate-fit-episode-without-weather", "weather", "surrogate", "fit", "{w}/log_noweather.npz", "--out",
+         "{w}/o/m.npz", out="o"),
+    _cli("surrogate-fit-header-claims-1e12-elements", "log_huge.npz", "surrogate", "fit", "{w}/log_huge.npz",
+         "--out", "{w}/o/m.npz", out="o"),
+    # ---- sizes and ranges: one frame bound, physical reset options
+    _cli("import-intrinsics-1e300", "--intrinsics", "dataset", "import", "kitti", "{w}/kitti_ok", "--intrinsics",
+         "1e300,900,48,27", "--out", "{w}/o_import", out="o_import"),
+    _cli("detector-eval-20000x100-frame", "20000x100", "detector", "eval", "{w}/ds_wide"),
+    _cli("detector-eval-detector-input-huge", "--detector-input", "detector", "eval", "{w}/ds", "--detector",
+         "yolov8:{w}/odd.onnx", "--detector-input", "100000x100000"),
+    Case("py-reset-start-speed-1e6", "start_speed", call=_reset_env(start_speed=1e6)),
+    Case("py-reset-friction-1e9", "friction", call=_reset_env(friction=1e9)),
+    Case("py-make-vec-env-a-million", "num_envs", call=_vec_env_million),
+    # ---- arguments of agents and perception, checked before any cell runs
+    _cli("evaluate-agent-kwargs-unknown-key", "--agent-kwargs", *EV, "--agent-kwargs", '{"vmax": 3}', "--out",
+         "{w}/o_ev", out="o_ev"),
+    _cli("evaluate-perception-kwargs-unknown-key", "--perception-kwargs", *EV, "--perception-kwargs",
+         '{"noise_level": 3}', "--out", "{w}/o_ev", out="o_ev"),
 ]

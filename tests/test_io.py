@@ -157,3 +157,89 @@ def test_derived_outputs_of_a_resumable_run(tmp_path):
     assert derived_outputs_replaceable(owner, [report], overwrite=True) is True
     owner.write_text("x,status,error,elapsed_s\n")
     assert derived_outputs_replaceable(owner, [report]) is True  # a resumed run rewrites its own report
+
+
+# ------------------------------------------------------------- an input is never an output; one writer
+def test_a_declared_input_is_never_an_output_overwrite_or_not(tmp_path):
+    import contextvars
+
+    from weather_gym._io import check_not_input, declare_inputs
+
+    ds = tmp_path / "ds"
+    (ds / "images").mkdir(parents=True)
+    (ds / "annotations.json").write_text("{}")
+    log = tmp_path / "log.npz"
+    log.write_bytes(b"x")
+
+    def command():
+        declare_inputs(ds, log, None)
+        for out in (ds / "annotations.json", ds / "images" / "0.png", ds, log, tmp_path / "x" / ".." / "log.npz"):
+            with pytest.raises(OutputPathError, match="never an output"):
+                check_output(out, overwrite=True)
+        with pytest.raises(OutputPathError, match="never an output"):
+            atomic_write(ds / "annotations.json", "scores", overwrite=True)
+        with pytest.raises(OutputPathError, match="never an output"):
+            check_not_input(ds / "sub", what="--out")
+        check_output(tmp_path / "report.json")  # beside the inputs is fine
+
+    contextvars.copy_context().run(command)
+    assert (ds / "annotations.json").read_text() == "{}" and log.read_bytes() == b"x"
+    check_output(log, overwrite=True)  # the declaration ended with its context (one command)
+
+
+def test_a_link_to_an_input_is_the_input(tmp_path):
+    import contextvars
+
+    from weather_gym._io import declare_inputs
+
+    (tmp_path / "model.toml").write_text("")
+    (tmp_path / "alias.toml").symlink_to(tmp_path / "model.toml")
+
+    def command():
+        declare_inputs(tmp_path / "alias.toml")
+        with pytest.raises(OutputPathError):
+            check_output(tmp_path / "model.toml", overwrite=True)
+
+    contextvars.copy_context().run(command)
+
+
+def test_exclusive_refuses_a_second_writer_and_leaves_no_lock_file(tmp_path):
+    from weather_gym._io import exclusive
+
+    out = tmp_path / "log.npz"
+    with exclusive(out):
+        with pytest.raises(OutputExistsError, match="another weather-gym run is writing"):
+            with exclusive(out):
+                pass
+        with exclusive(tmp_path / "other.npz"):  # another output in the same folder is another writer's
+            pass
+    assert _names(tmp_path) == []
+    with exclusive(tmp_path):
+        with pytest.raises(OutputExistsError, match="busy"), exclusive(tmp_path, message="busy"):
+            pass
+    with exclusive(out):  # released: the next run gets it
+        pass
+
+
+def test_exclusive_holds_across_processes(tmp_path):
+    import subprocess
+    import sys
+
+    from weather_gym._io import exclusive
+
+    code = ("import sys; from weather_gym._io import exclusive\n"
+            "try:\n    exclusive(sys.argv[1]).__enter__()\nexcept FileExistsError as e:\n    print(e); sys.exit(3)\n")
+    with exclusive(tmp_path / "m.onnx"):
+        r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "m.onnx")], capture_output=True, text=True)
+    assert r.returncode == 3 and "is writing" in r.stdout
+
+
+def test_write_failure_types_the_machines_state_and_keeps_bugs():
+    import errno
+
+    from weather_gym._io import write_failure
+
+    assert isinstance(write_failure("a.mp4", OSError(errno.ENOSPC, "No space left on device")), OutputPathError)
+    assert isinstance(write_failure("a.mp4", OSError(errno.EFBIG, "File too large")), OutputPathError)
+    bug = OSError(errno.EBADF, "Bad file descriptor")
+    assert write_failure("a.mp4", bug) is bug

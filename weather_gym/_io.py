@@ -12,6 +12,13 @@ write leaves no temporary file behind.
 :func:`check_output` applies the same checks before any work starts, so a long command fails
 in its first second, not after an hour.
 
+**An input is never an output.** A command declares the files and folders it reads
+(:func:`declare_inputs`); every check and every write here then refuses an output that is, or lies
+inside, one of them (:class:`OutputPathError`), ``--overwrite`` or not.
+
+**One writer at a time.** :func:`exclusive` holds an advisory lock on an output folder or file while
+a long run writes it; a second run is refused up front (:class:`OutputExistsError`).
+
 **Confinement.** :func:`resolve_inside` resolves a path read from a dataset, model file or
 scenario against its root folder and refuses absolute paths, ``..`` and symlinks that lead out of
 it (:class:`OutsideRootError`).
@@ -34,6 +41,7 @@ Example:
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import errno
 import hashlib
 import json
@@ -48,6 +56,12 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 
+try:
+    import fcntl
+except ModuleNotFoundError:  # pragma: no cover - Windows: no advisory locks
+    fcntl = None
+
+from weather_gym._lock import exclusive_folder
 from weather_gym.errors import InputError, OutputExistsError, OutputPathError, OutsideRootError
 
 __all__ = [
@@ -55,12 +69,16 @@ __all__ = [
     "atomic_path",
     "atomic_write",
     "atomic_write_json",
+    "check_not_input",
     "check_output",
+    "declare_inputs",
     "derived_outputs_replaceable",
+    "exclusive",
     "exists_message",
     "open_append",
     "resolve_inside",
     "save_figure",
+    "write_failure",
     "write_image",
 ]
 
@@ -89,6 +107,106 @@ def resolve_inside(root: str | os.PathLike, relative: str | os.PathLike, *, what
     return target
 
 
+# ------------------------------------------------------------------------- an input is never an output
+_INPUTS: contextvars.ContextVar[tuple[tuple[Path, Path, str], ...]] = contextvars.ContextVar(
+    "weather_gym_inputs", default=())
+
+
+def declare_inputs(*paths: str | os.PathLike | None) -> None:
+    """Declare what the running command reads (files or folders; ``None`` is skipped).
+
+    From then on (in this context: the CLI runs each command in a fresh one) :func:`check_output`,
+    :func:`check_not_input` and every writer here refuse an output that is, or lies inside, one of
+    them, ``overwrite`` or not.
+
+    Example:
+        >>> import contextvars, tempfile, pathlib
+        >>> d = pathlib.Path(tempfile.mkdtemp())
+        >>> def cmd():
+        ...     declare_inputs(d / "log.npz")
+        ...     check_output(d / "log.npz", overwrite=True)
+        >>> contextvars.copy_context().run(cmd)
+        Traceback (most recent call last):
+        ...
+        weather_gym.errors.OutputPathError: output ... is an input of this command (...); ...
+    """
+    entries = list(_INPUTS.get())
+    for p in paths:
+        if p is not None:
+            entries.append((Path(os.path.abspath(p)), Path(p).resolve(), str(p)))
+    _INPUTS.set(tuple(entries))
+
+
+def check_not_input(path: str | os.PathLike, *, what: str = "output") -> None:
+    """Refuse (:class:`OutputPathError`) an output ``path`` that is, or lies inside, a declared input."""
+    a, r = Path(os.path.abspath(path)), Path(path).resolve()
+    for ia, ir, name in _INPUTS.get():
+        same = a == ia or r == ir
+        if same or a.is_relative_to(ia) or r.is_relative_to(ir):
+            where = "is an input" if same else "lies inside an input"
+            raise OutputPathError(f"{what} {path} {where} of this command ({name}); an input is never an "
+                                  "output, --overwrite or not: choose another path")
+
+
+# ------------------------------------------------------------------------------------ one writer
+def _lock_fd(fd: int) -> bool:
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def exclusive(path: str | os.PathLike, *, message: str | None = None) -> Iterator[None]:
+    """Hold an exclusive advisory lock on the output ``path`` while a long run writes it.
+
+    A folder that exists is locked itself (``weather_gym._lock.exclusive_folder``); a file
+    output is locked through ``.NAME.lock`` beside it, removed again on release. A second run asking
+    for the same lock meanwhile gets :class:`OutputExistsError` (``message``, or a default naming
+    ``path``) at once. No lock on systems without ``fcntl``.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> d = pathlib.Path(tempfile.mkdtemp())
+        >>> with exclusive(d):
+        ...     with exclusive(d / "model.onnx"):
+        ...         pass
+    """
+    if fcntl is None:  # pragma: no cover - Windows: no lock
+        yield
+        return
+    p = Path(path)
+    text = message or (f"another weather-gym run is writing {p}; wait for it to finish or choose another output")
+    if p.is_dir():
+        with exclusive_folder(p, busy=text):
+            yield
+        return
+    _make_parent(p)
+    lock = p.parent / f".{p.name}.lock"
+    flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    while True:
+        try:
+            fd = os.open(lock, flags, 0o644)
+        except OSError as exc:
+            raise OutputPathError(f"cannot lock {p} ({lock}): {exc.strerror or exc}") from None
+        if not _lock_fd(fd):
+            os.close(fd)
+            raise OutputExistsError(text)
+        try:  # the holder before us may have removed the file after we opened it: lock the current one
+            if os.path.samestat(os.fstat(fd), os.stat(lock, follow_symlinks=False)):
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+        os.close(fd)
+
+
 # ------------------------------------------------------------------------------ overwrite policy
 def exists_message(path: str | os.PathLike, what: str = "output") -> str:
     """The one message for an output that exists (used by every command and API)."""
@@ -100,12 +218,13 @@ def check_output(path: str | os.PathLike, *, overwrite: bool = False, suffixes: 
     """Check an output path before any work: the suffix, nothing in the way, no overwrite unless asked.
 
     Raises :class:`OutputExistsError` for an existing file without ``overwrite``, and
-    :class:`OutputPathError` for a folder where the file should go, a file where a folder should
-    be, or a folder that cannot be written. Creates nothing.
+    :class:`OutputPathError` for a declared input (:func:`declare_inputs`), a folder where the file
+    should go, a file where a folder should be, or a folder that cannot be written. Creates nothing.
     """
     p = Path(path)
     if suffixes and p.suffix.lower() not in tuple(s.lower() for s in suffixes):
         raise OutputPathError(f"{what} {p}: expected a file ending in {' or '.join(suffixes)}")
+    check_not_input(p, what=what)
     if p.is_dir():
         raise OutputPathError(f"{what} {p} is a folder; give a file path")
     if p.exists() or p.is_symlink():
@@ -128,6 +247,7 @@ def derived_outputs_replaceable(owner: str | os.PathLike, outputs: Sequence[str 
     """
     if overwrite or Path(owner).is_file():
         for p in outputs:
+            check_not_input(p)
             if Path(p).is_dir():
                 raise OutputPathError(f"output {p} is a folder; move it away (it would be replaced by a file)")
         return True
@@ -227,6 +347,7 @@ def atomic_path(path: str | os.PathLike, *, overwrite: bool = False) -> Iterator
         'hello'
     """
     path = Path(path)
+    check_not_input(path)
     if path.is_dir():
         raise OutputPathError(f"cannot write {path}: it is a folder")
     if not overwrite and (path.exists() or path.is_symlink()):
@@ -255,6 +376,23 @@ def atomic_path(path: str | os.PathLike, *, overwrite: bool = False) -> Iterator
 
 _ENVIRONMENT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG})
 """Write failures that are the machine's state, not a bug: reported as ``OutputPathError``."""
+
+
+def write_failure(path: str | os.PathLike, exc: BaseException) -> BaseException:
+    """The error to raise for ``exc``, a failed write to ``path``: an :class:`OutputPathError` naming
+    ``path`` when it is the machine's state (disk full, quota, read-only, no permission, file too
+    large), else ``exc`` itself (a bug keeps its traceback). For writers that cannot go through
+    :func:`atomic_path` alone (a journal's rows, a video encoder).
+
+    Example:
+        >>> import errno
+        >>> write_failure("out.mp4", OSError(errno.ENOSPC, "No space left on device"))
+        OutputPathError('cannot write out.mp4: No space left on device')
+    """
+    if isinstance(exc, OSError) and not isinstance(exc, OutputPathError | OutputExistsError) \
+            and exc.errno in _ENVIRONMENT_ERRNOS:
+        return OutputPathError(f"cannot write {path}: {exc.strerror or exc}")
+    return exc
 
 
 @contextlib.contextmanager
@@ -289,6 +427,7 @@ def open_append(path: str | os.PathLike) -> IO[str]:
     are flushed one by one; everything else is written whole with :func:`atomic_write`.
     """
     path = Path(path)
+    check_not_input(path)
     _make_parent(path)
     flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
     try:

@@ -19,7 +19,8 @@ from collections.abc import Sequence
 
 from weather_gym.errors import LimitError
 
-__all__ = ["MIN_IMAGE_SIDE", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_CAMERA_SIDE", "check_image_size"]
+__all__ = ["MIN_IMAGE_SIDE", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_CAMERA_SIDE", "MAX_SEED", "check_image_size",
+           "check_seed"]
 
 MIN_IMAGE_SIDE = 8
 """Smallest image side (pixels) an effect or the detector accepts."""
@@ -29,6 +30,24 @@ MAX_IMAGE_PIXELS = 40_000_000
 """Largest image area: 40 MP (8K UHD is 33 MP); a float32 working copy is then 480 MB."""
 MAX_CAMERA_SIDE = 4096
 """Largest simulated camera side (pixels): rendering cost grows with the area."""
+MAX_SEED = 2**63 - 1
+"""Largest seed: NumPy's ``SeedSequence`` and Gymnasium take whole numbers 0..2**63-1 here."""
+
+
+def check_seed(seed: object, *, what: str = "seed") -> int:
+    """``seed`` as an int if it is a whole number in 0..:data:`MAX_SEED`, else :class:`LimitError` naming ``what``.
+
+    Example:
+        >>> check_seed(3)
+        3
+        >>> check_seed(-1, what="--seed")
+        Traceback (most recent call last):
+        ...
+        weather_gym.errors.LimitError: --seed must be a whole number in 0..9223372036854775807, got -1
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise LimitError(f"{what} must be a whole number in 0..{MAX_SEED}, got {seed!r}")
+    return seed
 
 
 def check_image_size(shape: Sequence[int], *, what: str = "image", min_side: int = MIN_IMAGE_SIDE) -> None:

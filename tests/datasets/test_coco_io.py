@@ -126,3 +126,31 @@ def test_invalid_json_is_named(tmp_path):
     (root / "annotations.json").write_text("{not json")
     with pytest.raises(ValueError, match=r"annotations\.json is not valid JSON"):
         load_coco(root)
+
+
+def test_one_writer_per_dataset_folder(tmp_path):
+    from weather_gym.errors import OutputExistsError
+
+    first = CocoWriter(tmp_path / "d")
+    try:
+        with pytest.raises(OutputExistsError, match="another run is writing the dataset"):
+            CocoWriter(tmp_path / "d", resume=True)
+    finally:
+        first.abort()
+    _write(tmp_path / "d", resume=True)  # released: a resumed run gets the folder
+
+
+def test_a_resume_with_other_settings_is_refused_naming_them(tmp_path):
+    from weather_gym.errors import InputError
+
+    img = np.zeros((50, 80, 3), np.uint8)
+    w = CocoWriter(tmp_path / "d", identity={"seed": 5, "frames": 4})
+    w.add(img, {"track": "t"}, GT)
+    w.abort()  # interrupted after one frame
+    with pytest.raises(InputError, match=r"--resume: .*\(seed\): seed: 5 there, 6 now"):
+        CocoWriter(tmp_path / "d", resume=True, identity={"seed": 6, "frames": 4})
+    w = CocoWriter(tmp_path / "d", resume=True, identity={"seed": 5, "frames": 4})
+    assert w.done == 1
+    w.add(img, {"track": "t"}, GT)
+    w.close()
+    assert len(load_coco(tmp_path / "d")) == 2

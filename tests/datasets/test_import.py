@@ -129,7 +129,7 @@ def test_coco_import_maps_category_names_and_keeps_crowds_as_ignore_regions(tmp_
     ("class_left_out", r"labels/000001.txt:4: class 'unknown_cone' is not in the class map"),
     ("missing_label", r"its KITTI label file .*000002.txt is missing"),
     ("bad_row", r"labels/000002.txt:1: a KITTI row has 15 values"),
-    ("size", r"000002.png is 80x60 but .*000001.png is 160x120"),
+    ("size", r"--intrinsics are of one camera at one size, but the frames have 2 sizes \(80x60 \(1\), 160x120 \(1\)\)"),
     ("outside", r"lies outside the 160x120 image"),
     ("intrinsics", r"cx must lie in \[0, 160\]"),
     ("format", r"unknown dataset format 'voc'"),
@@ -146,6 +146,7 @@ def test_bad_input_is_a_clear_error_and_writes_nothing(case, match, kitti_src, t
         (kitti_src / "labels" / "000002.txt").write_text("blue_cone 1 2 3\n")
     elif case == "size":
         _image(kitti_src / "images" / "000002.png", w=80, h=60)
+        kw["intrinsics"] = "150,149,70.5,62"
     elif case == "outside":
         (kitti_src / "labels" / "000002.txt").write_text(_kitti_row("blue_cone", (150, 10, 190, 50)) + "\n")
     elif case == "intrinsics":

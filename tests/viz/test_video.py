@@ -96,3 +96,51 @@ def test_record_video_needs_frames():
 
     with pytest.raises(ValueError, match="render_mode='rgb_array'"):
         RecordVideo(gym.make("CartPole-v1"), "unused")
+
+
+_FULL_DISK = """
+import resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG, as on a full disk
+resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
+from weather_gym.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".avi"])
+def test_a_full_disk_is_a_typed_error_and_leaves_no_file(tmp_path, suffix):
+    """The disk fills while a video is written (a file size limit in a child process stands in for a full
+    disk: the same failed write, EFBIG instead of ENOSPC): exit status 2, an ``error:`` line, no
+    temporary file and no half video."""
+    import subprocess
+    import sys
+
+    import cv2
+
+    rng = np.random.default_rng(0)
+    src = tmp_path / "in" / "clip.mp4"
+    src.parent.mkdir()
+    vw = cv2.VideoWriter(str(src), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (160, 120))
+    for _ in range(30):
+        vw.write(rng.integers(0, 256, (120, 160, 3), dtype=np.uint8))
+    vw.release()
+    out = tmp_path / "out"
+    out.mkdir()
+    r = subprocess.run([sys.executable, "-c", _FULL_DISK, "degrade", str(src), str(out / f"d{suffix}"), "--effect",
+                        "noise", "--k", "0.5", "--quiet"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert "error: cannot write" in r.stderr and "Traceback" not in r.stderr
+    assert list(out.iterdir()) == []
+
+
+def test_a_video_is_not_started_on_a_full_disk(tmp_path, monkeypatch):
+    from weather_gym.errors import OutputPathError
+
+    class Full:
+        f_bavail, f_frsize = 10, 4096
+
+    monkeypatch.setattr(video_mod.os, "statvfs", lambda _p: Full)
+    with pytest.raises(OutputPathError, match="no space left"):
+        with VideoWriter(tmp_path / "v.mp4") as v:
+            v.write(_frames(1)[0])
+    assert list(tmp_path.iterdir()) == []

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym.calibration import sweep as _sweep  # cyclic pair: attributes used at call time
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.weather import EFFECTS
 
 __all__ = ["Curve", "Inversion", "REQUIRED_COLUMNS", "effect_name", "invert", "load_curves", "monotone_decreasing"]
@@ -210,7 +210,10 @@ def effect_name(label: str) -> str:
 def _read_rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
     if not path.is_file():
         raise MissingInputError(f"curve file {path} not found (write one with `weather-gym sweep`)")
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"curve file {path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputError(f"curve file {path} is empty")

@@ -34,7 +34,7 @@ from typing import Any
 from tqdm import tqdm
 
 from weather_gym.datasets import load_coco
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception import evaluate
 from weather_gym.perception.detectors import load_detector
 from weather_gym.perception.scoring import small_rule
@@ -123,8 +123,11 @@ def read_measured_table(path: str | os.PathLike) -> list[MeasuredLevel]:
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"measured table {path} not found")
-    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines()
-             if ln.strip() and not ln.lstrip().startswith("#")]
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"measured table {path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputError(f"measured table {path} is empty")
     reader = csv.DictReader(io.StringIO("\n".join(lines)))

@@ -31,7 +31,7 @@ import numpy as np
 
 from weather_gym._io import atomic_write, save_figure
 from weather_gym.calibration.shapes import STUDY_SHAPE, ShapeFit, fit_shapes
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 
 if TYPE_CHECKING:  # pragma: no cover - annotations only (curve imports sweep, which imports this module)
     from weather_gym.calibration.curve import Curve
@@ -169,7 +169,11 @@ def study_points(path: str | os.PathLike) -> dict[str, tuple[float, float]]:
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"study points file {path} not found")
-    lines = [ln for ln in path.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"study points file {path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     reader = csv.DictReader(io.StringIO("\n".join(lines)))
     missing = [c for c in ("effect", "k", "map") if c not in (reader.fieldnames or [])]
     if missing:

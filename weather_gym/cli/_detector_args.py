@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from weather_gym._io import declare_inputs
 from weather_gym.errors import InputError
 from weather_gym.perception.detectors import parse_detector_spec
 
@@ -44,10 +45,12 @@ def detector_spec_from_args(args) -> Any:
         if spec is not None:
             raise InputError("give either --detector or --model, not both")
         spec = f"conenet:{model}"
-    return parse_detector_spec(spec, classes=getattr(args, "detector_classes", None),
-                               resize=getattr(args, "detector_resize", None),
-                               input_size=getattr(args, "detector_input", None),
-                               score_threshold=getattr(args, "detector_threshold", None))
+    parsed = parse_detector_spec(spec, classes=getattr(args, "detector_classes", None),
+                                 resize=getattr(args, "detector_resize", None),
+                                 input_size=getattr(args, "detector_input", None),
+                                 score_threshold=getattr(args, "detector_threshold", None))
+    declare_inputs(parsed.path)  # the model is an input of the command: never one of its outputs
+    return parsed
 
 
 def detector_from_args(args, *, required: bool = True, threads: int = 1) -> Any:

@@ -21,7 +21,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from weather_gym._io import check_output, derived_outputs_replaceable
+from weather_gym._io import check_output, declare_inputs, derived_outputs_replaceable
 from weather_gym.calibration.calibrate import calibrate, fill_from_curves, parse_use, remeasure, write_presets
 from weather_gym.calibration.curve import load_curves
 from weather_gym.calibration.measured import load_measured
@@ -83,6 +83,8 @@ def _merge_curves(paths, metric, dataset_id, model_id):
 
 
 def _run(args) -> int:
+    declare_inputs(args.base, args.dataset, args.study_points, *args.curve,
+                   *(Path(m.rpartition("=")[2]) for m in args.measured))
     check_output(args.out, overwrite=args.overwrite, suffixes=(".toml",), what="--out")
     report_dir = args.report or args.out.with_name(args.out.stem + "_report")
     replace_report = derived_outputs_replaceable(report_dir / "remeasured.csv",

@@ -12,16 +12,18 @@ Examples:
 
 from __future__ import annotations
 
+import sys
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
-from weather_gym._io import check_output, write_image
+from weather_gym._io import check_output, declare_inputs, write_image
 from weather_gym.camera import CameraConfig
 from weather_gym.cli._camera_model_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
 from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS, import_dataset
@@ -44,7 +46,7 @@ def register(sub) -> None:
                    help="track name or 'random:SEED'; repeat for several tracks (frames are split evenly)")
     r.add_argument("--frames", type=int, required=True, help="number of frames to write")
     r.add_argument("--out", type=Path, required=True, help="output folder (never overwritten without --overwrite)")
-    r.add_argument("--seed", type=int, default=0, help="master seed (default %(default)s): same seed, same bytes")
+    r.add_argument("--seed", type=seed_arg, default=0, help="master seed (default %(default)s): same seed, same bytes")
     r.add_argument("--randomize", action="store_true",
                    help="domain randomisation per episode (realistic world unless --scene plain: then the plain world's): light, "
                         "ground/sky/clutter textures and colours, distractors, ego car, camera pose/FOV, camera "
@@ -81,12 +83,14 @@ def register(sub) -> None:
     i.set_defaults(func=_info)
 
 
-    im = cmds.add_parser("import", help="import labelled frames (KITTI, YOLO txt, COCO) into a COCO folder",
+    im = cmds.add_parser("import", help="import labelled frames (KITTI, YOLO txt, COCO, Supervisely/FSOCO) into a "
+                                        "COCO folder",
                          description="Read a folder of frames and labels, validate it, copy the frames into "
-                                     "OUT/images/ and write OUT/annotations.json (nothing outside --out is written). "
-                                     "See docs/real_data.md.")
+                                     "OUT/images/ and write OUT/annotations.json (nothing outside --out is written; "
+                                     "nothing is read through a link that leads out of SRC). See docs/real_data.md.")
     im.add_argument("format", choices=FORMATS, help="label format of SRC")
-    im.add_argument("src", type=Path, help="source folder (images/ + labels/, or a COCO JSON beside the images)")
+    im.add_argument("src", type=Path, help="source folder (images/ + labels/; YOLO also images with their .txt beside "
+                                           "them; a COCO JSON beside the images; a Supervisely project with meta.json)")
     im.add_argument("--out", type=Path, required=True, help="new dataset folder (never overwritten without --overwrite)")
     im.add_argument("--classes", default=None, metavar="SRC=TARGET,...",
                     help="class map, TARGET in blue, yellow, orange, big_orange, ignore (ignore regions); '*=ignore' "
@@ -102,7 +106,9 @@ def register(sub) -> None:
                     help="KITTI: leave 3D-only cones out entirely instead of projecting them into ignore regions")
     im.add_argument("--location-frame", default="auto", choices=("auto", "camera", "vehicle", "none"),
                     help="KITTI: frame of the 3D locations used for cone range (default: recognised from the boxes)")
-    add_overwrite_arg(im, help="replace an existing dataset in --out")
+    add_overwrite_arg(im, help="replace an existing dataset, or an interrupted import, in --out")
+    im.add_argument("--resume", action="store_true",
+                    help="continue an interrupted import in --out (same SRC and settings, else refused)")
     im.add_argument("--quiet", action="store_true", help="no progress bar")
     add_detector_args(im, what="the too-small rule is stated at this detector's input scale")
     im.set_defaults(func=_import)
@@ -124,6 +130,7 @@ def register(sub) -> None:
 
 
 def _render(args) -> int:
+    declare_inputs(args.randomize_ranges)
     cam = CameraConfig()
     if args.width or args.height:
         cam = cam.scaled(args.width or cam.width, args.height or cam.height)
@@ -221,10 +228,13 @@ def _import(args) -> int:
     r = import_dataset(args.format, args.src, args.out, classes=args.classes, condition=args.condition,
                        severity=args.severity, intrinsics=args.intrinsics, detector=det, mask=args.mask,
                        annotations=args.annotations, location_frame=args.location_frame, overwrite=args.overwrite,
-                       project_3d=not args.no_project_3d,
+                       resume=args.resume, project_3d=not args.no_project_3d,
                        progress=not args.quiet)
     cones = ", ".join(f"{c} {n}" for c, n in sorted(r["cones"].items())) or "none"
-    print(f"imported {r['frames']} frames ({r['size'][0]}x{r['size'][1]}) into {r['out']}")
+    size = "x".join(map(str, r["size"])) if r["size"] else "sizes " + ", ".join(f"{s} ({n})" for s, n in r["sizes"].items())
+    print(f"imported {r['frames']} frames ({size}) into {r['out']}; layout: {r['layout']}")
+    if r["resumed"] is not None:
+        print(f"resumed: {r['resumed']} frames were already copied")
     print(f"cones: {cones}; too small: {r['too_small']} ({r['rule']})")
     if r["ignore_regions"]:
         print("ignore regions: " + ", ".join(f"{c} {n}" for c, n in sorted(r["ignore_regions"].items())))
@@ -235,11 +245,17 @@ def _import(args) -> int:
     print(f"intrinsics: {r['intrinsics']}" + (f"; 3D locations: {r['location_frame']}" if args.format == "kitti" else ""))
     if r["condition"] is not None:
         print(f"condition: {r['condition']} (severity {r['severity']})")
+    orphans = r["labels_without_image"]
+    if orphans:
+        more = f" and {len(orphans) - 5} more" if len(orphans) > 5 else ""
+        print(f"warning: {len(orphans)} label file(s) without an image were left out (listed in annotations.json "
+              f"info.labels_without_image): {', '.join(orphans[:5])}{more}", file=sys.stderr)
     return 0
 
 
 def _mask(args) -> int:
     if args.set is not None:
+        declare_inputs(args.set)
         if args.preview is not None:
             raise InputError("--preview goes with --out (a proposal), not with --set")
         dest = set_dataset_mask(args.dir, args.set, frame=args.frame, overwrite=args.overwrite)
@@ -247,6 +263,7 @@ def _mask(args) -> int:
         return 0
     if args.frame is not None:
         raise InputError("--frame goes with --set")
+    declare_inputs(args.dir)  # a proposal reads the dataset: the mask and preview go elsewhere
     for p, what in ((args.out, "--out"), (args.preview, "--preview")):
         if p is not None:
             check_output(p, overwrite=args.overwrite, suffixes=(".png",), what=what)

@@ -31,12 +31,13 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym._io import atomic_path, check_output, write_image
+from weather_gym._io import atomic_path, check_output, declare_inputs, write_image
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.datasets.coco import read_image
 from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
 from weather_gym.limits import check_image_size
-from weather_gym.viz.video import VideoWriter
+from weather_gym.viz.video import VideoWriter, check_free_space
 from weather_gym.weather import make, parse_weather
 
 IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
@@ -56,7 +57,7 @@ def register(sub) -> None:
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="extra effect parameter, repeatable (e.g. --param persistent=true)")
     p.add_argument("--weather", help="a weather spec instead of --effect/--k")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default %(default)s)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="random seed (default %(default)s)")
     p.add_argument("--depth", type=Path, help="depth PNG (uint16 mm) or folder of them mirroring INPUT")
     add_overwrite_arg(p)
     p.add_argument("--skip-unreadable", action="store_true",
@@ -173,9 +174,12 @@ class _Cv2Video:
     """Non-MP4 outputs (.avi, .mkv, ...) through OpenCV, to a temporary file moved into place on close."""
 
     def __init__(self, dst: Path, fps: float, size: tuple[int, int], overwrite: bool) -> None:
+        check_free_space(dst.parent if dst.parent.exists() else Path("."), str(dst))  # OpenCV fails silently
         self._cv2 = cv2
+        self._dst = dst
+        self._frames = 0
         self._output = atomic_path(dst, overwrite=overwrite)
-        tmp = self._output.__enter__()
+        tmp = self._tmp = self._output.__enter__()
         fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
         self.writer = cv2.VideoWriter(str(tmp), fourcc, fps, size)
         if not self.writer.isOpened():
@@ -184,9 +188,19 @@ class _Cv2Video:
 
     def write(self, rgb) -> None:
         self.writer.write(self._cv2.cvtColor(rgb, self._cv2.COLOR_RGB2BGR))
+        self._frames += 1
 
     def close(self) -> None:
         self.writer.release()
+        cap = self._cv2.VideoCapture(str(self._tmp))  # OpenCV's writer drops failed writes without a word
+        try:
+            n = int(cap.get(self._cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
+        finally:
+            cap.release()
+        if n != self._frames:
+            self._output.__exit__(InputError, InputError("incomplete"), None)
+            raise OutputPathError(f"cannot write {self._dst}: the video holds {n} of {self._frames} frames "
+                                  "(disk full or a file size limit?)")
         self._output.__exit__(None, None, None)
 
     def abort(self) -> None:
@@ -235,6 +249,7 @@ def _video(weather, src: Path, dst: Path, args) -> int:
 def _run(args) -> int:
     weather = build_weather(args.effect, args.k, args.param, args.weather)
     src = args.input
+    declare_inputs(src, args.depth)
     if not src.exists():
         raise MissingInputError(f"{src}: no such file or folder")
     if src.is_dir():

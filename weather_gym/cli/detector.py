@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym._io import atomic_write_json, check_output, write_image
+from weather_gym._io import atomic_write_json, check_output, declare_inputs, write_image
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.datasets.coco import load_coco, read_image
 from weather_gym.errors import InputError, LimitError, MissingDependencyError, MissingInputError
 from weather_gym.limits import check_image_size
@@ -82,7 +83,7 @@ def register(sub) -> None:
     t.add_argument("--epochs", type=int, default=30)
     t.add_argument("--batch-size", type=int, default=16)
     t.add_argument("--lr", type=float, default=3e-3)
-    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--seed", type=seed_arg, default=0)
     t.add_argument("--threads", type=int, default=1, help="torch CPU threads (default %(default)s; 2 only on an idle machine)")
     t.add_argument("--device", default="cpu",
                    help="torch device of the net: cpu, cuda or cuda:N (default %(default)s); the samples are made on the CPU")
@@ -104,7 +105,7 @@ def register(sub) -> None:
     e.add_argument("--effect", default=None, help="weather effect name (e.g. droplets, dim)")
     e.add_argument("--k", type=float, default=None, help="severity of --effect in [0, 1]")
     e.add_argument("--weather", default=None, help="any weather spec instead of --effect/--k, e.g. 'droplets:0.55,dim:0.3'")
-    e.add_argument("--seed", type=int, default=0, help="seed of the weather (default %(default)s)")
+    e.add_argument("--seed", type=seed_arg, default=0, help="seed of the weather (default %(default)s)")
     e.add_argument("--limit", type=int, default=None, help="score only the first N images")
     e.add_argument("--threads", type=int, default=2)
     e.add_argument("--json", type=Path, default=None, help="also write the result as JSON here")
@@ -117,7 +118,7 @@ def register(sub) -> None:
     add_detector_args(pr, legacy_model=True)
     pr.add_argument("--effect", default=None)
     pr.add_argument("--k", type=float, default=None)
-    pr.add_argument("--seed", type=int, default=0)
+    pr.add_argument("--seed", type=seed_arg, default=0)
     pr.add_argument("--threshold", type=float, default=None, help="score threshold (default: the model's)")
     add_overwrite_arg(pr, help="replace an existing --out")
     pr.set_defaults(func=_predict)
@@ -127,7 +128,7 @@ def register(sub) -> None:
     add_detector_args(sw, legacy_model=True)
     sw.add_argument("--ks", default="0,0.2,0.4,0.55,0.7,0.78,0.9", help="comma-separated k values")
     sw.add_argument("--effects", default="droplets,dim")
-    sw.add_argument("--seed", type=int, default=0)
+    sw.add_argument("--seed", type=seed_arg, default=0)
     sw.add_argument("--limit", type=int, default=None)
     sw.add_argument("--threads", type=int, default=2)
     sw.add_argument("--plot", type=Path, default=None, help="PNG plot to write")
@@ -139,7 +140,7 @@ def register(sub) -> None:
     fg.add_argument("dataset", type=Path)
     fg.add_argument("--index", type=int, default=0, help="image index in the dataset")
     add_detector_args(fg, legacy_model=True)
-    fg.add_argument("--seed", type=int, default=0)
+    fg.add_argument("--seed", type=seed_arg, default=0)
     fg.add_argument("--out", type=Path, required=True, help="PNG to write")
     add_overwrite_arg(fg, help="replace an existing --out")
     fg.set_defaults(func=_figure)
@@ -165,6 +166,7 @@ def _train(args) -> int:
         from weather_gym.perception.train import TrainConfig, train_detector
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise MissingDependencyError(f"training needs the 'train' extra (torch, onnx): {exc}") from None
+    declare_inputs(*args.data, args.val, args.init)
     check_output(args.out, overwrite=args.overwrite, suffixes=(".onnx",), what="--out")
     check_output(args.out.with_suffix(".json"), overwrite=args.overwrite, what="model sidecar")
     mix = _parse_mix(args.mix, len(args.data))
@@ -210,6 +212,7 @@ def _parse_mix(spec: str | None, n: int) -> tuple[float, ...] | None:
 
 
 def _eval(args) -> int:
+    declare_inputs(args.dataset)
     _check_limit(args.limit)
     _check_threads(args.threads)
     weather = _weather(args)
@@ -247,6 +250,7 @@ def _check_not_empty(ds) -> None:
 
 
 def _predict(args) -> int:
+    declare_inputs(args.image)
     check_output(args.out, overwrite=args.overwrite, suffixes=(".png", ".jpg", ".jpeg"), what="--out")
     if args.threshold is not None and not 0 <= args.threshold <= 1:
         raise InputError(f"--threshold must be a score in [0, 1], got {args.threshold}")
@@ -267,6 +271,7 @@ def _predict(args) -> int:
 
 
 def _sweep(args) -> int:
+    declare_inputs(args.dataset)
     try:
         ks = sorted({float(v) for v in args.ks.split(",")})
     except ValueError:
@@ -304,6 +309,7 @@ def _sweep(args) -> int:
 
 
 def _figure(args) -> int:
+    declare_inputs(args.dataset)
     check_output(args.out, overwrite=args.overwrite, suffixes=(".png",), what="--out")
     ds = load_coco(args.dataset)
     _check_not_empty(ds)

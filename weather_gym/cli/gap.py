@@ -15,8 +15,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from weather_gym._io import declare_inputs
 from weather_gym.cli._camera_model_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.gap.workflow import GapConfig, run_gap
 from weather_gym.sim.config import SCENES
@@ -31,7 +33,7 @@ def register(sub) -> None:
     p.add_argument("--model", type=Path, default=None,
                    help="weather model TOML ([[effects]] name, k, ...); default: the clean simulator")
     p.add_argument("--out", type=Path, required=True, help="output folder (an existing report is never overwritten)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the split, bootstrap and effects (default %(default)s)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="seed of the split, bootstrap and effects (default %(default)s)")
     p.add_argument("--reference", type=Path, default=None, metavar="CLEAR_DIR",
                    help="measured clear frames of the same camera (a COCO folder): the model is applied to them "
                         "and compared with MEASURED (same-camera mode), or used for difference-in-differences")
@@ -52,7 +54,8 @@ def register(sub) -> None:
                    help="fitting frames used by the parameter search (default %(default)s)")
     p.add_argument("--max-steps", type=int, default=4, help="at most this many effects are added (default %(default)s)")
     p.add_argument("--candidates", default=None,
-                   help="comma-separated effect names that may be added (default: every weather effect)")
+                   help="comma-separated effect names that may be added (default: every weather effect and "
+                        "every measured member: tone_curve, noise_level, radial_gain, blur_kernel)")
     p.add_argument("--alpha", type=float, default=0.01, help="family-wise significance level (default %(default)s)")
     p.add_argument("--compare-width", type=int, default=672,
                    help="frames wider than this are scaled down once on loading (default %(default)s)")
@@ -66,6 +69,7 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
+    declare_inputs(args.measured, args.reference, args.model)  # the report never lands in (or on) an input
     if not args.measured.is_dir():
         raise MissingInputError(f"measured data folder {args.measured} not found")
     if args.reference is not None and not args.reference.is_dir():

@@ -12,9 +12,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from weather_gym._io import check_output
+from weather_gym._io import check_output, declare_inputs, exclusive
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym.cli._seed_arg import seed_list
 from weather_gym.errors import InputError
 from weather_gym.surrogate.log import concat_logs, load_log, save_log
 from weather_gym.surrogate.model import fit, save_model
@@ -92,17 +93,20 @@ def _log(args) -> int:
 
     for t in tracks:
         load_track(t)
-    log = record(tracks=tracks, weathers=args.weather or ["clear"], seeds=_ints(args.seeds, "--seeds"),
-                 steps=args.steps, detector=detector_spec_from_args(args) if args.perception == "detector" else None,
-                 agent=args.agent, perception=args.perception,
-                 progress=lambda line: print(line, file=sys.stderr, flush=True))
-    save_log(log, args.out, overwrite=args.overwrite)
+    seeds = seed_list(args.seeds, "--seeds")
+    detector = detector_spec_from_args(args) if args.perception == "detector" else None
+    with exclusive(args.out, message=f"another run is writing {args.out}; wait for it or choose another --out"):
+        log = record(tracks=tracks, weathers=args.weather or ["clear"], seeds=seeds, steps=args.steps,
+                     detector=detector, agent=args.agent, perception=args.perception,
+                     progress=lambda line: print(line, file=sys.stderr, flush=True))
+        save_log(log, args.out, overwrite=args.overwrite)
     print(f"wrote {args.out}: {len(log.episodes)} episodes, {len(log)} frames, {len(log.cones['frame'])} cone rows, "
           f"{len(log.fps['frame'])} false positives")
     return 0
 
 
 def _fit(args) -> int:
+    declare_inputs(*args.logs)
     check_output(args.out, overwrite=args.overwrite, suffixes=(".npz",), what="surrogate model")
     model = fit(concat_logs([load_log(p) for p in args.logs]), sources=[str(p) for p in args.logs])
     save_model(model, args.out, overwrite=args.overwrite)
@@ -112,12 +116,13 @@ def _fit(args) -> int:
 
 
 def _validate(args) -> int:
+    declare_inputs(args.model)
     if args.steps < 1:
         raise InputError(f"--steps must be >= 1, got {args.steps}")
 
     validate(model=args.model, track=args.track, conditions=_names(args.conditions),
-             severities=_ints(args.severities, "--severities"), seeds=_ints(args.seeds, "--seeds"),
-             surrogate_seeds=_ints(args.surrogate_seeds, "--surrogate-seeds"), steps=args.steps,
+             severities=_ints(args.severities, "--severities"), seeds=seed_list(args.seeds, "--seeds"),
+             surrogate_seeds=seed_list(args.surrogate_seeds, "--surrogate-seeds"), steps=args.steps,
              full_logs=args.full_logs,
              out=args.out, overwrite=args.overwrite,
              progress=lambda line: print(line, file=sys.stderr, flush=True))

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from weather_gym._io import declare_inputs
 from weather_gym.calibration.curve import load_curves
 from weather_gym.calibration.sweep import (
     CURVE_FILE,
@@ -67,6 +68,7 @@ def _run(args) -> int:
     ks = parse_k_range(args.k)
     seeds = parse_seeds(args.seeds, args.seed_list)
     check_runner_args(args)
+    declare_inputs(args.dataset)
     if not args.dataset.exists():
         raise MissingInputError(f"--dataset {args.dataset} not found (render one with `weather-gym dataset render`)")
     detector = detector_spec_from_args(args)

@@ -1,4 +1,4 @@
-"""COCO datasets of cone frames: ``load_coco`` (validated), ``CocoWriter``, ``render_dataset``, ``import_dataset`` (KITTI, YOLO, COCO recordings) and ignore masks.
+"""COCO datasets of cone frames: ``load_coco`` (validated), ``CocoWriter``, ``render_dataset``, ``import_dataset`` (KITTI, YOLO, COCO, Supervisely recordings) and ignore masks.
 
 Example:
     >>> from weather_gym.datasets import load_coco

@@ -33,6 +33,7 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -43,7 +44,16 @@ from typing import Any
 import cv2
 import numpy as np
 
-from weather_gym._io import atomic_write_json, open_append, resolve_inside, write_image
+from weather_gym._confine import confined
+from weather_gym._io import (
+    atomic_write_json,
+    check_not_input,
+    exclusive,
+    open_append,
+    resolve_inside,
+    write_failure,
+    write_image,
+)
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets import masks as _masks  # cyclic pair: attributes used at call time
@@ -54,6 +64,7 @@ from weather_gym.errors import (
     OutputExistsError,
     OutputPathError,
 )
+from weather_gym.limits import check_image_size
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xywh_to_xyxy
 from weather_gym.tracks import is_track_file
 
@@ -296,6 +307,7 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
         extra = " (an interrupted render left annotations.partial.jsonl: rerun it with --resume)" if (
             root / JOURNAL).exists() else ""
         raise MissingInputError(f"{path} not found: a COCO dataset folder needs annotations.json{extra}")
+    confined(path, root)  # every file a dataset names is confined (record_path); its annotations.json too
     try:
         with open(path, encoding="utf-8") as f:
             data = json.load(f)
@@ -322,6 +334,7 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
         for key in ("width", "height"):
             if not isinstance(im[key], int) or isinstance(im[key], bool) or im[key] < 1:
                 _fail(path, f"image {im['id']}: {key!r} must be a positive integer, got {im[key]!r}")
+        check_image_size((im["height"], im["width"]), what=f"{path}: image {im['id']}")  # the one frame bound
         if im["id"] in ids:
             _fail(path, f"duplicate image id {im['id']}")
         ids.add(im["id"])
@@ -356,6 +369,18 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
     return CocoDataset(root, data, cache_images=cache_images)
 
 
+def _same_settings(journal: Path, before: Any, now: dict | None) -> None:
+    """Refuse to resume ``journal`` with other settings than the interrupted run's (InputError naming them)."""
+    if now is None or before == now:
+        return
+    if not isinstance(before, dict):
+        raise FileFormatError(f"{journal}: its settings line is not a table; pass --overwrite to start again")
+    diff = [k for k in sorted(set(before) | set(now)) if before.get(k) != now.get(k)]
+    shown = "; ".join(f"{k}: {before.get(k)!r} there, {now.get(k)!r} now" for k in diff[:4])
+    raise InputError(f"--resume: {journal} was written with other settings ({', '.join(diff)}): {shown}. "
+                     "Resume with the same settings, or pass --overwrite to start again")
+
+
 class CocoWriter:
     """Write frames into a COCO folder; resumable (a journal of finished frames is kept until ``close``).
 
@@ -369,7 +394,7 @@ class CocoWriter:
 
     def __init__(self, root: str | os.PathLike, *, overwrite: bool = False, resume: bool = False,
                  min_box_height: float = MIN_BOX_HEIGHT_PX, info: dict | None = None,
-                 jpeg_quality: int | None = None) -> None:
+                 jpeg_quality: int | None = None, identity: dict | None = None) -> None:
         self.root = Path(root)
         self.min_box_height = float(min_box_height)
         if jpeg_quality is not None and not (isinstance(jpeg_quality, int) and 1 <= jpeg_quality <= 100):
@@ -377,6 +402,18 @@ class CocoWriter:
         self.jpeg_quality = jpeg_quality
         if self.root.exists() and not self.root.is_dir():
             raise OutputPathError(f"dataset folder {self.root} exists and is not a folder")
+        check_not_input(self.root, what="dataset folder")
+        self.root.mkdir(parents=True, exist_ok=True)
+        self._lock = contextlib.ExitStack()  # one writer per folder, held until close() / abort()
+        self._lock.enter_context(exclusive(self.root, message=(
+            f"another run is writing the dataset {self.root}; wait for it to finish or choose another --out")))
+        try:
+            self._open(overwrite, resume, info, identity)
+        except BaseException:
+            self._lock.close()
+            raise
+
+    def _open(self, overwrite: bool, resume: bool, info: dict | None, identity: dict | None) -> None:
         ann = self.root / ANNOTATIONS
         if ann.exists() and not overwrite:
             raise OutputExistsError(f"{ann} already exists; choose another --out folder or pass --overwrite")
@@ -389,8 +426,10 @@ class CocoWriter:
         self.images: list[dict] = []
         self.annotations: list[dict] = []
         self.info = dict(info or {})
+        settings = None if identity is None else json.loads(json.dumps(identity, default=str))
+        fresh = True
         if resume and journal.exists():
-            with open(journal) as f:
+            with open(journal, encoding="utf-8", errors="replace") as f:
                 for line in f:
                     line = line.strip()
                     if not line:
@@ -399,13 +438,21 @@ class CocoWriter:
                         entry = json.loads(line)
                     except json.JSONDecodeError:
                         break  # a line cut short by the interruption: that frame is redone
+                    if "settings" in entry:  # the first line: what the interrupted run was asked for
+                        _same_settings(journal, entry["settings"], settings)
+                        fresh = False
+                        continue
                     self.images.append(entry["image"])
                     self.annotations.extend(entry["annotations"])
+            fresh = fresh and not self.images
         elif journal.exists():
             journal.unlink()
         if ann.exists() and overwrite:
             ann.unlink()
         self._journal = open_append(journal)
+        if settings is not None and fresh:
+            self._journal.write(json.dumps({"settings": settings}) + "\n")
+            self._journal.flush()
         self._closed = False
 
     @property
@@ -450,8 +497,11 @@ class CocoWriter:
             anns.append(a)
         self.images.append(rec)
         self.annotations.extend(anns)
-        self._journal.write(json.dumps({"image": rec, "annotations": anns}) + "\n")
-        self._journal.flush()
+        try:
+            self._journal.write(json.dumps({"image": rec, "annotations": anns}) + "\n")
+            self._journal.flush()
+        except OSError as exc:  # a full disk is the machine's state, not a bug
+            raise write_failure(self.root / JOURNAL, exc) from None
         return idx
 
     def close(self) -> Path:
@@ -466,9 +516,12 @@ class CocoWriter:
             "annotations": self.annotations,
             "categories": CATEGORIES,
         }
-        atomic_write_json(self.root / ANNOTATIONS, data)
-        (self.root / JOURNAL).unlink(missing_ok=True)
-        self._closed = True
+        try:
+            atomic_write_json(self.root / ANNOTATIONS, data)
+            (self.root / JOURNAL).unlink(missing_ok=True)
+        finally:
+            self._closed = True
+            self._lock.close()
         return self.root / ANNOTATIONS
 
     def abort(self) -> None:
@@ -476,6 +529,7 @@ class CocoWriter:
         if not self._closed:
             self._journal.close()
             self._closed = True
+        self._lock.close()
 
     def __enter__(self) -> CocoWriter:
         return self

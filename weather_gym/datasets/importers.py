@@ -1,9 +1,21 @@
-"""Import labelled camera recordings (KITTI, YOLO txt, COCO) into the project's COCO layout.
+"""Import labelled camera recordings (KITTI, YOLO txt, COCO, Supervisely/FSOCO) into the project's COCO layout.
 
-``weather-gym dataset import {kitti,yolo,coco} SRC --out DIR`` (:func:`import_dataset`) reads a folder
-of frames and labels, validates all of it first, then copies the frames (byte for byte) into
+``weather-gym dataset import {kitti,yolo,coco,supervisely} SRC --out DIR`` (:func:`import_dataset`) reads
+a folder of frames and labels, validates all of it first, then copies the frames (byte for byte) into
 ``DIR/images/`` and writes ``DIR/annotations.json``; nothing outside ``DIR`` is written.
 
+* **Confinement**: every file read from SRC (frames, label and calibration files, ``classes.txt``,
+  ``data.yaml``, JSON files, linked sub-folders) must resolve inside SRC (:mod:`weather_gym._confine`);
+  a link that leads out is an error naming the link, and nothing is read through it. Text files must
+  be UTF-8. Frames must lie within :func:`~weather_gym.limits.check_image_size` (checked from the
+  header, before decoding).
+* **Frames of several sizes** are kept, each record with its own ``width`` / ``height`` and the
+  too-small rule at its size (``info.too_small.per_size``); ``--intrinsics`` and ``--mask`` need one size.
+* **Label files without an image** are left out and listed (``info.labels_without_image``; the CLI
+  warns); an image without its label file is an error.
+* **Interrupted imports**: ``DIR/import.partial.json`` marks one (with the source, settings and
+  source files it was made of); ``resume=True`` continues it (other settings are refused),
+  ``overwrite=True`` starts again. A second import into ``DIR`` while one runs is refused (a lock).
 * **Class map** (``--classes``): ``SOURCE=TARGET`` pairs, TARGET one of ``blue``, ``yellow``,
   ``orange``, ``big_orange`` or ``ignore``. Boxes of an ``ignore`` class become *ignore regions*:
   detections of any class on them are neither hits nor false positives, and the cone is not a
@@ -20,7 +32,12 @@ of frames and labels, validates all of it first, then copies the frames (byte fo
   where the 2D boxes are: KITTI's camera frame, x right / z forward, or a vehicle frame,
   x forward / y left; ``location_frame`` forces one). Intrinsics from ``calib/*.txt`` (``P2``).
 * **YOLO**: rows ``class cx cy w h`` normalised to the image; an empty label file is a frame
-  without cones, a missing one an error.
+  without cones, a missing one an error. Layouts: ``images/`` + ``labels/`` (mirrored), or darknet's
+  ``img.jpg`` + ``img.txt`` side by side anywhere under SRC (``classes.txt`` / ``obj.names`` at SRC).
+* **Supervisely** (FSOCO): ``SRC/meta.json`` (classes) and per dataset ``DATASET/img/NAME`` with
+  ``DATASET/ann/NAME.json`` (``size``, ``objects``); ``rectangle`` objects (``points.exterior``
+  ``[[x1, y1], [x2, y2]]``, ``classTitle``) become boxes, other geometries are counted and left out.
+  Frames are stored as ``images/DATASET/NAME``.
 * **COCO**: one JSON file (``--annotations`` or the only ``*.json`` in SRC) with any category
   names; ``iscrowd`` boxes become ignore regions of their class.
 
@@ -39,9 +56,13 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import math
 import os
+import shutil
+import warnings
 from collections import Counter
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -50,11 +71,14 @@ from typing import Any
 
 import cv2
 import numpy as np
+from PIL import Image
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from weather_gym._io import atomic_write, atomic_write_json, resolve_inside
+from weather_gym._confine import confined_file, read_bytes, read_text, walk_files
+from weather_gym._io import atomic_write, atomic_write_json, file_id, resolve_inside
+from weather_gym._lock import exclusive_folder
 from weather_gym.camera import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import ANNOTATIONS
@@ -62,16 +86,19 @@ from weather_gym.datasets.masks import MASK_FILE, read_mask, write_mask
 from weather_gym.errors import (
     FileFormatError,
     InputError,
+    LimitError,
     MissingInputError,
     OutputExistsError,
     OutputPathError,
+    OutsideRootError,
 )
+from weather_gym.limits import MAX_IMAGE_PIXELS, check_image_size
 from weather_gym.perception.labels import CATEGORIES, DEFAULT_CLASSES, IGNORE, SmallRule, parse_class_map
 from weather_gym.weather.presets import CONDITIONS, canonical_condition
 
 __all__ = ["FORMATS", "DEFAULT_CLASSES", "IGNORE", "parse_class_map", "parse_intrinsics", "import_dataset"]
 
-FORMATS = ("kitti", "yolo", "coco")
+FORMATS = ("kitti", "yolo", "coco", "supervisely")
 IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp")
 _KITTI_DIRS = {"images": ("images", "image_2", "image"), "labels": ("labels", "label_2", "label"), "calib": ("calib",)}
 
@@ -91,9 +118,10 @@ def parse_intrinsics(spec: str | Sequence[float] | Mapping[str, float] | None) -
         nums = [float(v) for v in vals]
     except (TypeError, ValueError):
         nums = []
-    if len(nums) != 4 or not all(math.isfinite(v) for v in nums) or nums[0] <= 0 or nums[1] <= 0:
-        raise InputError(f"intrinsics {spec!r}: expected fx,fy,cx,cy in pixels at the image size (fx, fy > 0), "
-                         "e.g. 900.9,900.1,506.4,358.0")
+    if len(nums) != 4 or not all(math.isfinite(v) for v in nums) or not (0 < nums[0] <= 1e7 and 0 < nums[1] <= 1e7) \
+            or not all(abs(v) <= 1e6 for v in nums[2:]):  # fx, fy within STATE_BOUNDS; cx, cy near the frame
+        raise InputError(f"intrinsics {spec!r} (--intrinsics): expected fx,fy,cx,cy in pixels at the image size "
+                         "(0 < fx, fy <= 1e7; |cx|, |cy| <= 1e6), e.g. 900.9,900.1,506.4,358.0")
     return dict(zip(("fx", "fy", "cx", "cy"), nums))
 
 
@@ -132,12 +160,29 @@ class _Box:
 
 @dataclass
 class _Frame:
-    image: Path
-    rel: str
+    image: Path  # the resolved file (confined to the source folder)
+    rel: str  # where it goes under OUT/images/
+    source_file: str = ""  # the path under the source folder, as found there
     boxes: list[_Box] = field(default_factory=list)
     only3d: list[tuple[str, tuple[float, float, float], tuple[float, float, float], str]] = field(default_factory=list)
     intrinsics: dict[str, float] | None = None
     size: tuple[int, int] = (0, 0)
+    stated_size: tuple[int, int] | None = None  # (w, h) the labels state (COCO, Supervisely)
+    label: Path | None = None  # the label file, for the resume identity
+
+
+@dataclass
+class _Read:
+    """What a reader found: frames, counts of rows left out, label files without an image, the layout."""
+
+    frames: list[_Frame]
+    stats: Counter = field(default_factory=Counter)
+    unmatched: list[str] = field(default_factory=list)
+    layout: str = ""
+
+
+_NOT_LABELS = frozenset({"classes.txt", "train.txt", "val.txt", "valid.txt", "test.txt", "readme.txt", "license.txt"})
+"""``.txt`` files of a darknet folder that are not label files."""
 
 
 def _find_dir(src: Path, names: Sequence[str], what: str, required: bool = True) -> Path | None:
@@ -149,15 +194,19 @@ def _find_dir(src: Path, names: Sequence[str], what: str, required: bool = True)
     return None
 
 
-def _images_under(folder: Path) -> list[Path]:
-    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in IMAGE_EXTS)
+def _is_image(p: Path) -> bool:
+    return p.suffix.lower() in IMAGE_EXTS
+
+
+def _images_under(folder: Path, root: Path) -> list[Path]:
+    files = [p for p in walk_files(folder, root) if _is_image(p)]
     if not files:
         raise MissingInputError(f"{folder}: no images ({', '.join(IMAGE_EXTS)})")
     return files
 
 
-def _label_for(image: Path, images: Path, labels: Path) -> Path:
-    return (labels / image.relative_to(images)).with_suffix(".txt")
+def _rel(path: Path, base: Path) -> str:
+    return path.relative_to(base).as_posix()
 
 
 def _check_box(x1: float, y1: float, x2: float, y2: float, where: str) -> tuple[float, float, float, float]:
@@ -175,24 +224,35 @@ def _floats(parts: Sequence[str], where: str, what: str) -> list[float]:
         raise FileFormatError(f"{where}: expected numbers for {what}, got {' '.join(parts)!r}") from None
 
 
-def _labelled(images: Path, labels: Path, fmt: str) -> Iterator[tuple[Path, Path, _Frame]]:
-    """Each image under ``images`` with its label file (mirrored under ``labels``, ``.txt``) and a new frame."""
-    for img in _images_under(images):
-        lab = _label_for(img, images, labels)
+def _frame(img: Path, rel: str, src: Path) -> _Frame:
+    """A frame for the image ``img`` found under ``src``: resolved inside it (a link out is refused)."""
+    return _Frame(confined_file(img, src), rel, _rel(img, src))
+
+
+def _labelled(images: Path, labels: Path, src: Path, fmt: str, *, unmatched: list[str]) -> Iterator[tuple[Path, _Frame]]:
+    """Each image under ``images`` with its label file (mirrored under ``labels``, ``.txt``) and a new frame;
+    label files without an image are added to ``unmatched``."""
+    imgs = _images_under(images, src)
+    stems = {p.relative_to(images).with_suffix("") for p in imgs}
+    unmatched += [_rel(p, src) for p in walk_files(labels, src)
+                  if p.suffix == ".txt" and p.relative_to(labels).with_suffix("") not in stems]
+    for img in imgs:
+        lab = (labels / img.relative_to(images)).with_suffix(".txt")
         if not lab.is_file():
             raise MissingInputError(f"{img}: its {fmt} label file {lab} is missing (every image needs one; an "
                                     "empty file means no cones)")
-        yield img, lab, _Frame(img, str(img.relative_to(images)))
+        fr = _frame(img, _rel(img, images), src)
+        fr.label = lab
+        yield lab, fr
 
 
-def _read_kitti(src: Path) -> tuple[list[_Frame], Counter]:
+def _read_kitti(src: Path) -> _Read:
     images = _find_dir(src, _KITTI_DIRS["images"], "images")
     labels = _find_dir(src, _KITTI_DIRS["labels"], "labels")
     calib = _find_dir(src, _KITTI_DIRS["calib"], "calib", required=False)
-    stats: Counter = Counter()
-    frames = []
-    for img, lab, fr in _labelled(images, labels, "KITTI"):
-        for n, line in enumerate(lab.read_text().splitlines(), 1):
+    res = _Read([], layout=f"{images.name}/ + {labels.name}/")
+    for lab, fr in _labelled(images, labels, src, "KITTI", unmatched=res.unmatched):
+        for n, line in enumerate(read_text(lab, root=src).splitlines(), 1):
             parts = line.split()
             if not parts:
                 continue
@@ -203,7 +263,7 @@ def _read_kitti(src: Path) -> tuple[list[_Frame], Counter]:
             v = _floats(parts[1:15], where, "the KITTI columns")
             x1, y1, x2, y2 = v[3:7]
             if x1 == y1 == x2 == y2 == 0.0:
-                stats["rows without a 2D box (3D only): left out"] += 1
+                res.stats["rows without a 2D box (3D only): left out"] += 1
                 if any(v[10:13]) and all(d > 0 for d in v[7:9]):  # (h, w, l), location: projected later
                     fr.only3d.append((parts[0], tuple(v[7:10]), tuple(v[10:13]), where))
                 continue
@@ -211,15 +271,15 @@ def _read_kitti(src: Path) -> tuple[list[_Frame], Counter]:
             size3d = (v[7], v[8]) if v[7] > 0 and v[8] > 0 else None
             fr.boxes.append(_Box(parts[0], _check_box(x1, y1, x2, y2, where), where, location=loc, size3d=size3d))
         if calib is not None:
-            fr.intrinsics = _kitti_calib((calib / img.relative_to(images)).with_suffix(".txt"))
-        frames.append(fr)
-    return frames, stats
+            fr.intrinsics = _kitti_calib((calib / fr.rel).with_suffix(".txt"), src)
+        res.frames.append(fr)
+    return res
 
 
-def _kitti_calib(path: Path) -> dict[str, float] | None:
+def _kitti_calib(path: Path, src: Path) -> dict[str, float] | None:
     if not path.is_file():
         return None
-    for n, line in enumerate(path.read_text().splitlines(), 1):
+    for n, line in enumerate(read_text(path, root=src).splitlines(), 1):
         key, _, rest = line.partition(":")
         if key.strip() in ("P2", "P_rect_02", "K"):
             v = _floats(rest.split(), f"{path}:{n}", key.strip())
@@ -233,141 +293,309 @@ def _kitti_calib(path: Path) -> dict[str, float] | None:
 
 def _yolo_names(src: Path) -> list[str] | None:
     for name in ("classes.txt", "obj.names"):
-        if (src / name).is_file():
-            return [ln.strip() for ln in (src / name).read_text().splitlines() if ln.strip()]
+        if (src / name).is_file() or (src / name).is_symlink():
+            return [ln.strip() for ln in read_text(src / name, root=src).splitlines() if ln.strip()]
     for name in ("data.yaml", "dataset.yaml"):
-        if (src / name).is_file():
-            return _yaml_names(src / name)
+        if (src / name).is_file() or (src / name).is_symlink():
+            return _yaml_names(src / name, src)
     return None
 
 
-def _yaml_names(path: Path) -> list[str]:
+def _yaml_names(path: Path, src: Path) -> list[str]:
     """``names`` of a YOLO data.yaml: a list (inline or block) or an index -> name mapping."""
+    text = read_text(path, root=src)
     try:
         import yaml
-
-        data = yaml.safe_load(path.read_text())
-        names = data.get("names") if isinstance(data, dict) else None
     except ImportError:  # a minimal reader of the two usual forms
-        names, block = None, None
-        for line in path.read_text().splitlines():
-            s = line.split("#", 1)[0].rstrip()
-            if s.startswith("names:"):
-                rest = s[6:].strip()
-                if rest.startswith("["):
-                    names = [t.strip().strip("'\"") for t in rest.strip("[]").split(",") if t.strip()]
-                    break
-                block = []
-                continue
-            if block is not None:
-                if not s.startswith((" ", "\t", "-")):
-                    break
-                t = s.strip()
-                if t.startswith("-"):
-                    block.append(t[1:].strip().strip("'\""))
-                elif ":" in t:
-                    block.append(t.split(":", 1)[1].strip().strip("'\""))
-        if names is None:
-            names = block
-    except Exception as exc:
-        raise FileFormatError(f"{path} is not valid YAML: {exc}") from None
+        names = _yaml_names_plain(text)
+    else:
+        try:
+            data = yaml.safe_load(text)
+        except (yaml.YAMLError, RecursionError) as exc:
+            raise FileFormatError(f"{path} is not valid YAML: {exc}") from None
+        names = data.get("names") if isinstance(data, dict) else None
     if isinstance(names, dict):
-        names = [str(names[k]) for k in sorted(names, key=int)]
+        try:
+            names = [str(names[k]) for k in sorted(names, key=int)]
+        except (TypeError, ValueError):
+            raise FileFormatError(f"{path}: 'names' keys must be class indices 0, 1, ...") from None
     if not isinstance(names, list) or not names:
         raise FileFormatError(f"{path}: expected a 'names' list (or index: name mapping) of the classes")
     return [str(n) for n in names]
 
 
-def _read_yolo(src: Path) -> tuple[list[_Frame], Counter]:
-    images = _find_dir(src, ("images",), "images")
-    labels = _find_dir(src, ("labels",), "labels")
+def _yaml_names_plain(text: str) -> list[str] | None:
+    names, block = None, None
+    for line in text.splitlines():
+        s = line.split("#", 1)[0].rstrip()
+        if s.startswith("names:"):
+            rest = s[6:].strip()
+            if rest.startswith("["):
+                return [t.strip().strip("'\"") for t in rest.strip("[]").split(",") if t.strip()]
+            block = []
+            continue
+        if block is not None:
+            if not s.startswith((" ", "\t", "-")):
+                break
+            t = s.strip()
+            if t.startswith("-"):
+                block.append(t[1:].strip().strip("'\""))
+            elif ":" in t:
+                block.append(t.split(":", 1)[1].strip().strip("'\""))
+    return names if names is not None else block
+
+
+def _yolo_rows(lab: Path, src: Path, fr: _Frame, names: list[str] | None) -> None:
+    w, h = fr.size
+    for n, line in enumerate(read_text(lab, root=src).splitlines(), 1):
+        parts = line.split()
+        if not parts:
+            continue
+        where = f"{lab}:{n}"
+        if len(parts) != 5:
+            raise FileFormatError(f"{where}: a YOLO row has 5 values (class cx cy w h, normalised to the image), "
+                             f"got {len(parts)}")
+        try:
+            idx = int(parts[0])
+        except ValueError:
+            raise FileFormatError(f"{where}: class must be an integer index, got {parts[0]!r}") from None
+        cx, cy, bw, bh = _floats(parts[1:], where, "cx cy w h")
+        if not all(-0.01 <= v <= 1.01 for v in (cx, cy, bw, bh)):
+            raise FileFormatError(f"{where}: cx cy w h must be normalised to [0, 1], got {' '.join(parts[1:])}")
+        if names is not None and not 0 <= idx < len(names):
+            raise FileFormatError(f"{where}: class index {idx} is outside the {len(names)} class names of {src}")
+        cls = names[idx] if names is not None else str(idx)
+        box = ((cx - bw / 2) * w, (cy - bh / 2) * h, (cx + bw / 2) * w, (cy + bh / 2) * h)
+        fr.boxes.append(_Box(cls, _check_box(*box, where), where))
+
+
+def _read_yolo(src: Path) -> _Read:
+    """``images/`` + ``labels/`` (mirrored), or the darknet layout: ``img.jpg`` and ``img.txt`` side by side."""
     names = _yolo_names(src)
-    stats: Counter = Counter()
-    frames = []
-    for img, lab, fr in _labelled(images, labels, "YOLO"):
-        fr.size = _image_size(img)
-        w, h = fr.size
-        for n, line in enumerate(lab.read_text().splitlines(), 1):
-            parts = line.split()
-            if not parts:
-                continue
-            where = f"{lab}:{n}"
-            if len(parts) != 5:
-                raise FileFormatError(f"{where}: a YOLO row has 5 values (class cx cy w h, normalised to the image), "
-                                 f"got {len(parts)}")
-            try:
-                idx = int(parts[0])
-            except ValueError:
-                raise FileFormatError(f"{where}: class must be an integer index, got {parts[0]!r}") from None
-            cx, cy, bw, bh = _floats(parts[1:], where, "cx cy w h")
-            if not all(-0.01 <= v <= 1.01 for v in (cx, cy, bw, bh)):
-                raise FileFormatError(f"{where}: cx cy w h must be normalised to [0, 1], got {' '.join(parts[1:])}")
-            if names is not None and not 0 <= idx < len(names):
-                raise FileFormatError(f"{where}: class index {idx} is outside the {len(names)} class names of {src}")
-            cls = names[idx] if names is not None else str(idx)
-            box = ((cx - bw / 2) * w, (cy - bh / 2) * h, (cx + bw / 2) * w, (cy + bh / 2) * h)
-            fr.boxes.append(_Box(cls, _check_box(*box, where), where))
-        frames.append(fr)
-    return frames, stats
+    if (src / "images").is_dir() and (src / "labels").is_dir():
+        res = _Read([], layout="images/ + labels/")
+        pairs = list(_labelled(src / "images", src / "labels", src, "YOLO", unmatched=res.unmatched))
+    else:
+        res = _Read([], layout="labels beside the images (darknet)")
+        files = walk_files(src, src)
+        imgs = [p for p in files if _is_image(p)]
+        if not imgs:
+            raise MissingInputError(f"{src}: no images ({', '.join(IMAGE_EXTS)}): expected images/ + labels/, or "
+                                    "images with their .txt label files beside them (darknet)")
+        stems = {p.with_suffix("") for p in imgs}
+        res.unmatched += [_rel(p, src) for p in files if p.suffix == ".txt" and p.with_suffix("") not in stems
+                          and p.name.lower() not in _NOT_LABELS]
+        pairs = []
+        for img in imgs:
+            lab = img.with_suffix(".txt")
+            if not lab.is_file() and not lab.is_symlink():
+                raise MissingInputError(f"{img}: its YOLO label file {lab} is missing (in the darknet layout every "
+                                        "image needs a .txt beside it; an empty file means no cones)")
+            fr = _frame(img, _rel(img, src), src)
+            fr.label = lab
+            pairs.append((lab, fr))
+    for lab, fr in pairs:
+        fr.size = _image_size(fr, src)
+        _yolo_rows(lab, src, fr, names)
+        res.frames.append(fr)
+    return res
 
 
-def _read_coco(src: Path, annotations: Path | None) -> tuple[list[_Frame], Counter]:
+def _json(path: Path, src: Path | None, what: str) -> Any:
+    text = read_text(path, root=src)
+    try:
+        return json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise FileFormatError(f"{path} is not a valid {what} JSON file: {exc}") from None
+
+
+def _read_coco(src: Path, annotations: Path | None) -> _Read:
     if annotations is None:
-        cands = sorted(src.glob("*.json"))
+        cands = sorted(p for p in src.iterdir() if p.suffix == ".json" and (p.is_file() or p.is_symlink()))
         if len(cands) != 1:
             raise MissingInputError(f"{src}: expected exactly one COCO *.json file, found "
                                     f"{len(cands)} ({', '.join(p.name for p in cands) or 'none'}); pass --annotations")
         annotations = cands[0]
-    try:
-        data = json.loads(Path(annotations).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise FileFormatError(f"{annotations} is not a readable COCO JSON file: {exc}") from None
+        data = _json(annotations, src, "COCO")
+    else:  # named on the command line: the user's choice, read where it is
+        if not annotations.is_file():
+            raise MissingInputError(f"--annotations {annotations} not found")
+        data = _json(annotations, None, "COCO")
     for key in ("images", "annotations", "categories"):
         if not isinstance(data, dict) or not isinstance(data.get(key), list):
             raise FileFormatError(f"{annotations}: missing or invalid key {key!r} (expected a list)")
     cats = {}
     for c in data["categories"]:
-        if not isinstance(c, dict) or "id" not in c or "name" not in c:
-            raise FileFormatError(f"{annotations}: category {c!r} needs an id and a name")
+        if not isinstance(c, dict) or not _is_id(c.get("id")) or "name" not in c:
+            raise FileFormatError(f"{annotations}: category {c!r} needs an id (an integer or a string) and a name")
         cats[c["id"]] = str(c["name"])
-    base = Path(annotations).parent
-    frames, by_id = [], {}
+    # the frames are looked for beside the JSON (when it lies in SRC), in SRC and in SRC/images, never outside SRC
+    near = Path(os.path.realpath(annotations.parent))
+    bases = list(dict.fromkeys(([near] if near.is_relative_to(src) else []) + [src, src / "images"]))
+    frames, by_id, seen = [], {}, set()
     for im in data["images"]:
-        if not isinstance(im, dict) or "id" not in im or "file_name" not in im:
-            raise FileFormatError(f"{annotations}: image record {im!r} needs an id and a file_name")
-        rel = Path(str(im["file_name"]))
+        if not isinstance(im, dict) or not _is_id(im.get("id")) or not isinstance(im.get("file_name"), str):
+            raise FileFormatError(f"{annotations}: image record {im!r} needs an id (an integer or a string) and a "
+                                  "file_name")
+        rel = im["file_name"]
         what = f"{annotations}: image {im['id']} 'file_name'"
-        cands = (resolve_inside(base, rel, what=what), resolve_inside(base / "images", rel, what=what))
-        path = next((p for p in cands if p.is_file()), None)
+        if not rel or "\x00" in rel or Path(rel).is_absolute():
+            raise OutsideRootError(f"{what}: {rel!r} must be a path relative to the images' folder inside {src}")
+        cands = [Path(os.path.normpath(b / rel)) for b in bases]
+        cands = [c for c in cands if _lexically_inside(c, src)]
+        if not cands:
+            raise OutsideRootError(f"{what}: {rel!r} leads outside {src}; the frames must lie inside the source folder")
+        path = next((c for c in cands if c.is_file() or c.is_symlink()), None)
         if path is None:
-            raise MissingInputError(f"{annotations}: image {im['id']} file {im['file_name']} not found under {base} "
-                                    f"or {base / 'images'}")
-        fr = _Frame(path, str(rel))
+            raise MissingInputError(f"{annotations}: image {im['id']} file {rel} not found under "
+                                    f"{' or '.join(str(b) for b in bases)}")
+        if ".." in Path(rel).parts:
+            rel = _rel(path, Path(os.path.normpath(src)))
+        if im["id"] in by_id:
+            raise FileFormatError(f"{annotations}: duplicate image id {im['id']!r}")
+        if rel in seen:
+            raise FileFormatError(f"{annotations}: image {im['id']}: file {rel} is listed twice")
+        seen.add(rel)
+        fr = _frame(path, Path(rel).as_posix(), src)
+        fr.stated_size = _stated_size(im.get("width"), im.get("height"), f"{annotations}: image {im['id']}")
         frames.append(fr)
         by_id[im["id"]] = fr
     for a in data["annotations"]:
         where = f"{annotations}: annotation {a.get('id') if isinstance(a, dict) else a!r}"
-        if not isinstance(a, dict) or a.get("image_id") not in by_id:
+        if not isinstance(a, dict) or not _is_id(a.get("image_id")) or a["image_id"] not in by_id:
             raise FileFormatError(f"{where} refers to an unknown image_id")
-        if a.get("category_id") not in cats:
+        if not _is_id(a.get("category_id")) or a["category_id"] not in cats:
             raise FileFormatError(f"{where} has an unknown category_id {a.get('category_id')!r}")
         b = a.get("bbox")
         if not isinstance(b, list) or len(b) != 4:
             raise FileFormatError(f"{where}: bbox {b!r} is not [x, y, w, h]")
         x, y, w, h = _floats([str(v) for v in b], where, "bbox")
         box = _Box(cats[a["category_id"]], _check_box(x, y, x + w, y + h, where), where, crowd=bool(a.get("iscrowd")))
-        box.range = float(a["range"]) if isinstance(a.get("range"), int | float) else math.nan
+        rng = a.get("range")
+        box.range = float(rng) if isinstance(rng, int | float) and not isinstance(rng, bool) else math.nan
         by_id[a["image_id"]].boxes.append(box)
-    return frames, Counter()
+    return _Read(frames, layout=f"COCO {annotations.name}")
 
 
-def _image_size(path: Path) -> tuple[int, int]:
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+def _is_id(v: Any) -> bool:
+    return isinstance(v, int | str) and not isinstance(v, bool)
+
+
+def _lexically_inside(path: Path, src: Path) -> bool:
+    base = Path(os.path.normpath(os.path.abspath(src)))
+    p = Path(os.path.normpath(os.path.abspath(path)))
+    return p == base or p.is_relative_to(base)
+
+
+def _stated_size(w: Any, h: Any, where: str) -> tuple[int, int] | None:
+    """The ``width``/``height`` a label file states (None when it states none)."""
+    if w is None and h is None:
+        return None
+    if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (w, h)):
+        raise FileFormatError(f"{where}: width and height must be positive integers, got {w!r} x {h!r}")
+    return int(w), int(h)
+
+
+def _read_supervisely(src: Path) -> _Read:
+    """A Supervisely project (FSOCO): ``meta.json`` (classes) and per dataset ``img/`` + ``ann/<image>.json``;
+    rectangles become boxes, other geometries are counted and left out."""
+    meta_file = src / "meta.json"
+    if not meta_file.is_file() and not meta_file.is_symlink():
+        raise MissingInputError(f"{src}: no meta.json (a Supervisely project holds meta.json and dataset folders "
+                                "with img/ and ann/)")
+    meta = _json(meta_file, src, "Supervisely meta")
+    classes = meta.get("classes") if isinstance(meta, dict) else None
+    if not isinstance(classes, list) or not all(isinstance(c, dict) and isinstance(c.get("title"), str)
+                                                for c in classes):
+        raise FileFormatError(f"{meta_file}: expected 'classes': a list of objects with a 'title'")
+    titles = {c["title"] for c in classes}
+    datasets = [src] if (src / "img").is_dir() else []
+    datasets += [d for d in sorted(src.iterdir()) if d.is_dir() and (d / "img").is_dir()]
+    if not datasets:
+        raise MissingInputError(f"{src}: no dataset folders with img/ and ann/ (Supervisely layout: "
+                                "PROJECT/meta.json, PROJECT/DATASET/img/NAME, PROJECT/DATASET/ann/NAME.json)")
+    res = _Read([], layout="Supervisely project (meta.json, DATASET/img/ + DATASET/ann/)")
+    for ds in datasets:
+        img_dir, ann_dir = ds / "img", ds / "ann"
+        if not ann_dir.is_dir():
+            raise MissingInputError(f"{ds}: img/ without ann/ (every image needs ann/NAME.json)")
+        imgs = _images_under(img_dir, src)
+        names = {_rel(p, img_dir) for p in imgs}
+        res.unmatched += [_rel(p, src) for p in walk_files(ann_dir, src)
+                          if p.suffix == ".json" and _rel(p, ann_dir)[:-5] not in names]
+        prefix = "" if ds == src else f"{ds.name}/"
+        for img in imgs:
+            ann = ann_dir / f"{_rel(img, img_dir)}.json"
+            if not ann.is_file() and not ann.is_symlink():
+                raise MissingInputError(f"{img}: its Supervisely annotation {ann} is missing (every image needs one)")
+            fr = _frame(img, prefix + _rel(img, img_dir), src)
+            fr.label = ann
+            _supervisely_objects(ann, src, fr, titles, res.stats)
+            res.frames.append(fr)
+    return res
+
+
+def _supervisely_objects(ann: Path, src: Path, fr: _Frame, titles: set[str], stats: Counter) -> None:
+    data = _json(ann, src, "Supervisely annotation")
+    if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
+        raise FileFormatError(f"{ann}: expected an object with 'size' and an 'objects' list")
+    size = data.get("size")
+    if not isinstance(size, dict):
+        raise FileFormatError(f"{ann}: 'size' must be {{\"height\": H, \"width\": W}}, got {size!r}")
+    fr.stated_size = _stated_size(size.get("width"), size.get("height"), f"{ann}: size")
+    for k, obj in enumerate(data["objects"]):
+        where = f"{ann}: object {k}"
+        if not isinstance(obj, dict) or not isinstance(obj.get("classTitle"), str):
+            raise FileFormatError(f"{where}: expected an object with a 'classTitle' and a 'geometryType'")
+        if obj["classTitle"] not in titles:
+            raise FileFormatError(f"{where}: class {obj['classTitle']!r} is not among the classes of "
+                                  f"{src / 'meta.json'}")
+        geom = obj.get("geometryType")
+        if geom != "rectangle":
+            stats[f"objects of geometry {geom} (not a box): left out"] += 1
+            continue
+        pts = (obj.get("points") or {}).get("exterior") if isinstance(obj.get("points"), dict) else None
+        if not (isinstance(pts, list) and len(pts) == 2 and all(isinstance(p, list) and len(p) == 2 for p in pts)):
+            raise FileFormatError(f"{where}: a rectangle needs points.exterior [[x1, y1], [x2, y2]], got {pts!r}")
+        (xa, ya), (xb, yb) = (_floats([str(v) for v in p], where, "points.exterior") for p in pts)
+        box = _check_box(min(xa, xb), min(ya, yb), max(xa, xb), max(ya, yb), where)
+        fr.boxes.append(_Box(obj["classTitle"], box, where))
+
+
+_GREY_MODES = frozenset({"1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "F"})
+"""Pillow modes of single-channel frames (refused: the detector and the effects take colour frames)."""
+
+
+def _image_size(fr: _Frame, src: Path) -> tuple[int, int]:
+    """(width, height) of a frame as every reader decodes it (an EXIF rotation applied, as labelling tools
+    show it): the header is read first and the size bound checked (:func:`~weather_gym.limits.check_image_size`)
+    before the frame is decoded."""
+    where = fr.image if not fr.source_file else src / fr.source_file
+    mode = None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(fr.image) as im:
+                (w, h), mode = im.size, im.mode
+                if im.getexif().get(0x0112) in (5, 6, 7, 8):  # EXIF orientation: turned by 90 degrees
+                    w, h = h, w
+    except Image.DecompressionBombError:
+        raise LimitError(f"{where}: image is larger than {MAX_IMAGE_PIXELS / 1e6:.0f} MP (the most supported)") from None
+    except (OSError, SyntaxError, ValueError):
+        w = h = None  # not a format Pillow reads: OpenCV decides below
+    if w is not None:
+        check_image_size((h, w), what=str(where))
+    if mode is None:  # Pillow could not tell the channels: OpenCV's undecorated decode does
+        raw = cv2.imread(str(fr.image), cv2.IMREAD_UNCHANGED)
+        channels = None if raw is None or raw.size == 0 else (1 if raw.ndim == 2 else raw.shape[2])
+    else:
+        channels = 1 if mode in _GREY_MODES else 3
+    if channels is not None and channels not in (3, 4):
+        raise FileFormatError(f"image file {where} has {channels} channel(s); expected colour (RGB) frames")
+    img = cv2.imread(str(fr.image), cv2.IMREAD_COLOR)  # as weather_gym.datasets.coco.read_image decodes it
     if img is None or img.size == 0:
-        raise FileFormatError(f"image file {path} could not be decoded as an image")
-    if img.ndim == 2 or img.shape[2] not in (3, 4):
-        raise FileFormatError(f"image file {path} has {1 if img.ndim == 2 else img.shape[2]} channel(s); expected colour "
-                         "(RGB) frames")
+        raise FileFormatError(f"image file {where} could not be decoded as an image")
+    check_image_size(img.shape, what=str(where))
     return int(img.shape[1]), int(img.shape[0])
 
 
@@ -475,16 +703,84 @@ def _range_bearing(loc: tuple[float, float, float], frame: str) -> tuple[float, 
 
 
 # ------------------------------------------------------------------------------------ import
-def _prepare_out(out: Path, src: Path, overwrite: bool) -> None:
-    o, s = out.resolve(), src.resolve()
-    if o == s or s in o.parents or o in s.parents:
+PARTIAL = "import.partial.json"
+"""Written into ``--out`` before the first frame is copied and removed after ``annotations.json``: marks an
+interrupted import (``--resume`` continues it, ``--overwrite`` starts again) and holds what it was made of."""
+
+_DATASET_ENTRIES = ("images", "depth", "masks", MASK_FILE, ANNOTATIONS, PARTIAL)
+"""What a dataset folder holds: removed from ``--out`` when an import replaces it (nothing else is touched)."""
+
+
+def _out_state(out: Path, src: Path, overwrite: bool, resume: bool) -> str:
+    """What ``--out`` holds and what to do: ``new``, ``resume``, ``replace`` (an interrupted import or a
+    dataset, with ``--overwrite``); anything else is refused before any work."""
+    o = Path(os.path.realpath(out))
+    if o == src or src in o.parents or o in src.parents:
         raise InputError(f"--out {out} and the source {src} must not contain each other")
-    if (out / ANNOTATIONS).exists() and not overwrite:
-        raise OutputExistsError(f"{out / ANNOTATIONS} already exists; choose another --out folder or pass --overwrite")
     if out.exists() and not out.is_dir():
         raise OutputPathError(f"--out {out} exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()) and not (out / ANNOTATIONS).exists():
+    entries = {p.name for p in out.iterdir()} if out.is_dir() else set()
+    if PARTIAL in entries:
+        if resume:
+            return "resume"
+        if overwrite:
+            return "replace"
+        raise OutputExistsError(f"--out {out} holds an interrupted import ({PARTIAL}): pass --resume to continue it "
+                                "(same source and settings) or --overwrite to start again")
+    if ANNOTATIONS in entries:
+        if resume:
+            raise OutputExistsError(f"{out / ANNOTATIONS} already exists: the import in {out} is complete (--resume "
+                                    "continues an interrupted one); pass --overwrite to replace it")
+        if not overwrite:
+            raise OutputExistsError(f"{out / ANNOTATIONS} already exists; choose another --out folder or pass "
+                                    "--overwrite")
+        return "replace"
+    if entries:
+        if overwrite and entries <= {"images", MASK_FILE}:  # what an import writes before annotations.json
+            return "replace"
         raise OutputExistsError(f"--out {out} is not empty (and holds no dataset); choose an empty or new folder")
+    return "new"
+
+
+def _clear(out: Path) -> None:
+    """Remove what a dataset folder holds (:data:`_DATASET_ENTRIES`) from ``out``; never follows a link."""
+    for name in _DATASET_ENTRIES:
+        p = out / name
+        try:
+            if p.is_symlink() or p.is_file():
+                p.unlink()
+            elif p.is_dir():
+                shutil.rmtree(p)
+        except OSError as exc:
+            raise OutputPathError(f"cannot replace {p}: {exc.strerror or exc}") from None
+
+
+def _identity(fmt: str, src: Path, frames: list[_Frame], settings: dict[str, Any]) -> dict[str, Any]:
+    """What an import is made of: the format, the source, the settings and every source file's size and time
+    (a resumed import must continue the same one)."""
+    h = hashlib.sha256()
+    for fr in frames:
+        for p in (fr.image, fr.label):
+            if p is not None:
+                st = os.stat(p)
+                h.update(f"{os.fspath(p)}\0{st.st_size}\0{st.st_mtime_ns}\n".encode("utf-8", "surrogateescape"))
+    return {"format": fmt, "source": str(src), **settings, "source_files": h.hexdigest()[:16]}
+
+
+def _check_resume(out: Path, ident: dict[str, Any]) -> None:
+    try:
+        old = json.loads(read_text(out / PARTIAL, root=out)).get("identity")
+    except (json.JSONDecodeError, AttributeError, FileFormatError):
+        old = None
+    if not isinstance(old, dict):
+        raise OutputExistsError(f"{out / PARTIAL} cannot be read: the interrupted import cannot be checked; "
+                                "pass --overwrite to start again")
+    diff = [k for k in sorted(set(old) | set(ident)) if old.get(k) != ident.get(k)]
+    if diff:
+        what = ", ".join(f"{k} {old.get(k)!r} -> {ident.get(k)!r}" if k != "source_files"
+                         else "the source files changed since" for k in diff)
+        raise InputError(f"--resume: the interrupted import in {out} was made with other settings ({what}); "
+                         "rerun it with the same ones, or pass --overwrite to start again")
 
 
 def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
@@ -492,43 +788,82 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
                    severity: int | None = None, intrinsics: Any = None, detector: Any = None,
                    mask: str | os.PathLike | None = None, annotations: str | os.PathLike | None = None,
                    location_frame: str = "auto", project_3d: bool = True, overwrite: bool = False,
-                   progress: bool = False) -> dict[str, Any]:
+                   resume: bool = False, progress: bool = False) -> dict[str, Any]:
     """Import ``src`` (format ``fmt``) into the COCO folder ``out``; returns a summary dict (see module doc).
 
     ``detector``: whose input scale the too-small rule is stated at (an object with ``input_size`` and
     ``resize``, e.g. a loaded detector; default: the shipped detector's 512x288 letterbox).
     ``mask``: an ignore-mask PNG stored with the dataset. ``project_3d``: KITTI rows with only a 3D box
     become ignore regions where the fitted camera sees them (False: they are only left out).
+    ``resume``: continue an interrupted import into ``out`` (same source and settings, else an error);
+    ``overwrite``: replace a dataset or an interrupted import in ``out``. Another import writing into
+    ``out`` at the same time is refused (:class:`OutputExistsError`).
     """
-
-
     if fmt not in FORMATS:
         raise InputError(f"unknown dataset format {fmt!r}; expected one of {', '.join(FORMATS)}")
-    src, out = Path(src), Path(out)
-    if not src.is_dir():
-        raise MissingInputError(f"source folder {src} not found")
+    if resume and overwrite:
+        raise InputError("--resume continues an interrupted import, --overwrite starts again: pass one of them")
+    given_src, out = Path(src), Path(out)
+    if not given_src.is_dir():
+        raise MissingInputError(f"source folder {given_src} " + ("is not a folder" if given_src.exists() else "not found"))
+    src = Path(os.path.realpath(given_src))
     cmap = parse_class_map(classes)
     cond, sev = _condition(condition, severity)
     given_k = parse_intrinsics(intrinsics)
-    _prepare_out(out, src, overwrite)
+    if location_frame not in ("auto", "camera", "vehicle", "none"):
+        raise InputError(f"location frame must be auto, camera, vehicle or none, got {location_frame!r}")
+    if mask is not None and not Path(mask).is_file():
+        raise MissingInputError(f"--mask {mask} not found")
+    _out_state(out, src, overwrite, resume)  # refuse early, before anything is made
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputPathError(f"cannot make --out {out}: {exc.strerror or exc}") from None
+    try:
+        with exclusive_folder(out, busy=f"another import is writing into {out}; wait for it to finish or choose "
+                                        "another --out folder"):
+            state = _out_state(out, src, overwrite, resume)  # again, now that no other writer can change it
+            return _import(fmt, src, out, state, cmap=cmap, cond=cond, sev=sev, given_k=given_k, detector=detector,
+                           mask=mask, annotations=annotations, location_frame=location_frame,
+                           project_3d=project_3d, progress=progress)
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only when nothing was written
+        raise
 
+
+def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str], cond: str | None,
+            sev: int | None, given_k: dict[str, float] | None, detector: Any, mask: Any, annotations: Any,
+            location_frame: str, project_3d: bool, progress: bool) -> dict[str, Any]:
     # 1. read and validate everything before writing anything
     if fmt == "kitti":
-        frames, stats = _read_kitti(src)
+        read = _read_kitti(src)
     elif fmt == "yolo":
-        frames, stats = _read_yolo(src)
+        read = _read_yolo(src)
+    elif fmt == "supervisely":
+        read = _read_supervisely(src)
     else:
-        frames, stats = _read_coco(src, Path(annotations) if annotations is not None else None)
+        read = _read_coco(src, Path(annotations) if annotations is not None else None)
+    frames, stats = read.frames, read.stats
     if not frames:
         raise FileFormatError(f"{src}: no frames to import")
     for fr in tqdm(frames, desc="check", unit="frame", disable=not progress):
         if fr.size == (0, 0):
-            fr.size = _image_size(fr.image)
-    size = frames[0].size
-    for fr in frames:
-        if fr.size != size:
-            raise FileFormatError(f"{fr.image} is {fr.size[0]}x{fr.size[1]} but {frames[0].image} is {size[0]}x{size[1]}: "
-                             "one dataset holds frames of one camera and size (import each size into its own folder)")
+            fr.size = _image_size(fr, src)
+        if fr.stated_size is not None and fr.stated_size != fr.size:
+            raise FileFormatError(f"{src / fr.source_file} is {fr.size[0]}x{fr.size[1]} but its labels state "
+                                  f"{fr.stated_size[0]}x{fr.stated_size[1]}")
+    sizes = Counter(fr.size for fr in frames)
+    size = frames[0].size if len(sizes) == 1 else None
+    if given_k is not None and size is None:
+        raise InputError(f"--intrinsics are of one camera at one size, but the frames have {len(sizes)} sizes "
+                         f"({_sizes_text(sizes)}); import each camera into its own folder to give its intrinsics")
+    if mask is not None and size is None:
+        raise InputError(f"--mask: a dataset-wide ignore mask needs frames of one size, but they have "
+                         f"{len(sizes)} ({_sizes_text(sizes)}); set per-frame masks later with "
+                         "weather-gym dataset mask DIR --set MASK --frame FILE")
     unmapped = sorted({b.cls for fr in frames for b in fr.boxes if b.cls not in cmap})
     if unmapped and "*" not in cmap:
         where = next(b.where for fr in frames for b in fr.boxes if b.cls == unmapped[0])
@@ -536,41 +871,59 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
                          f"({', '.join(f'{k}={v}' for k, v in cmap.items())}); classes found but not mapped: "
                          f"{', '.join(unmapped)}. Map each to a cone class, or to 'ignore' to make its boxes ignore "
                          f"regions (e.g. {unmapped[0]}=ignore, or *=ignore for every unmapped class)")
+    rels = Counter(fr.rel for fr in frames)
+    if max(rels.values()) > 1:
+        dup = next(r for r, n in rels.items() if n > 1)
+        raise FileFormatError(f"{src}: two frames would both be stored as images/{dup}")
     for fr in frames:
         for b in fr.boxes:
             x1, y1, x2, y2 = b.box
             if x1 < -1 or y1 < -1 or x2 > fr.size[0] + 1 or y2 > fr.size[1] + 1:
                 raise FileFormatError(f"{b.where}: box ({x1:g}, {y1:g}, {x2:g}, {y2:g}) lies outside the "
-                                 f"{fr.size[0]}x{fr.size[1]} image {fr.image}")
+                                 f"{fr.size[0]}x{fr.size[1]} image {src / fr.source_file}")
             b.box = (max(x1, 0.0), max(y1, 0.0), min(x2, float(fr.size[0])), min(y2, float(fr.size[1])))
         k = given_k or fr.intrinsics
         if k is not None:
             try:
                 CameraConfig.from_intrinsics(fr.size[0], fr.size[1], **k)
             except ValueError as exc:
-                raise FileFormatError(f"{fr.image}: {exc}") from None
+                raise FileFormatError(f"{src / fr.source_file}: {exc}") from None
             fr.intrinsics = k
     loc_frame, loc_why = _location_frame(frames, location_frame) if fmt == "kitti" else ("none", "none")
     projected = _project_only3d(frames, loc_frame) if fmt == "kitti" and project_3d else None
-    rule = SmallRule.for_image(size, detector)
+    rules = {s: SmallRule.for_image(s, detector) for s in sizes}
     mask_arr = read_mask(mask, size) if mask is not None else None
+    settings = {"annotations": None if annotations is None else os.path.realpath(annotations), "classes": cmap,
+                "condition": cond, "severity": sev, "intrinsics": given_k, "location_frame": location_frame,
+                "project_3d": project_3d, "too_small": {f"{w}x{h}": r.min_height_px for (w, h), r in rules.items()},
+                "mask": None if mask is None else file_id(mask)}
+    ident = _identity(fmt, src, frames, settings)
+    if state == "resume":
+        _check_resume(out, ident)
 
-    # 2. write: frames copied byte for byte, then annotations.json last
+    # 2. write: the marker, the frames byte for byte, annotations.json, then the marker goes
+    atomic_write_json(out / PARTIAL, {"identity": ident}, overwrite=state != "new")
+    if state == "replace":
+        _clear_but_marker(out)
     images, anns = [], []
     per_class: Counter = Counter()
     ignored: Counter = Counter()
-    n_small = 0
+    n_small = n_kept = 0
     for i, fr in enumerate(tqdm(frames, desc="import", unit="frame", disable=not progress)):
-        dest = resolve_inside(out / "images", fr.rel, what=f"{fr.image}")
-        atomic_write(dest, fr.image.read_bytes(), overwrite=overwrite)  # byte for byte
-        rec: dict[str, Any] = {"id": i, "file_name": f"images/{Path(fr.rel).as_posix()}", "width": fr.size[0],
-                               "height": fr.size[1], "source_file": str(fr.image.relative_to(src).as_posix())}
+        dest = resolve_inside(out / "images", fr.rel, what=f"{src / fr.source_file}")
+        if not (state == "resume" and dest.is_file() and dest.stat().st_size == fr.image.stat().st_size):
+            atomic_write(dest, read_bytes(fr.image, root=src), overwrite=state == "resume")  # byte for byte
+        else:
+            n_kept += 1
+        rec: dict[str, Any] = {"id": i, "file_name": f"images/{fr.rel}", "width": fr.size[0],
+                               "height": fr.size[1], "source_file": fr.source_file}
         if fr.intrinsics is not None:
             rec["intrinsics"] = {k: float(v) for k, v in fr.intrinsics.items()}
             rec["camera"] = CameraConfig.from_intrinsics(fr.size[0], fr.size[1], **fr.intrinsics).to_dict()
         if cond is not None:
             rec["condition"], rec["severity"] = cond, sev
         images.append(rec)
+        rule = rules[fr.size]
         for b in fr.boxes:
             target = cmap.get(b.cls, cmap.get("*"))
             x1, y1, x2, y2 = b.box
@@ -596,27 +949,52 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
             anns.append({"id": len(anns) + 1, "image_id": i, "category_id": 1, "bbox": [x1, y1, x2 - x1, y2 - y1],
                          "area": (x2 - x1) * (y2 - y1), "iscrowd": 1, "source_class": f"{cls} (3D only, projected)",
                          "ignore": f"3D only {cls} (projected)", "any_class": True})
+    if size is not None:
+        too_small = rules[size].to_dict()
+    else:
+        one = next(iter(rules.values()))
+        iw, ih = one.input_size
+        too_small = {"min_input_px": one.min_input_px, "input_size": list(one.input_size), "resize": one.resize,
+                     "per_size": {f"{w}x{h}": r.min_height_px for (w, h), r in sorted(rules.items())},
+                     "rule": (f"box height < {one.min_input_px:.2g} px at the detector's {iw}x{ih} input ({one.resize}): "
+                              + ", ".join(f"{r.min_height_px:.3g} px in {w}x{h}" for (w, h), r in sorted(rules.items())))}
     info: dict[str, Any] = {
         "description": f"imported from {fmt} by weather-gym dataset import", "origin": "import", "format": fmt,
-        "source": str(src.resolve()), "class_map": cmap, "too_small": rule.to_dict(),
-        "min_box_height_px": rule.min_height_px, "size": list(size),
-        "rows_left_out": dict(stats), "ignore_regions": dict(ignored),
+        "layout": read.layout, "source": str(src), "class_map": cmap, "too_small": too_small,
+        "size": None if size is None else list(size), "sizes": {f"{w}x{h}": n for (w, h), n in sorted(sizes.items())},
+        "rows_left_out": dict(stats), "ignore_regions": dict(ignored), "labels_without_image": read.unmatched,
         "projected_3d": None if projected is None else projected["summary"],
         "location_frame": loc_why if fmt == "kitti" else None,
         "intrinsics": "given" if given_k else ("calibration files" if any(f.intrinsics for f in frames) else "unknown"),
     }
+    if size is not None:
+        info["min_box_height_px"] = rules[size].min_height_px
     if cond is not None:
         info["condition"], info["severity"] = cond, sev
     if mask_arr is not None:
-        write_mask(out / MASK_FILE, mask_arr, overwrite=overwrite)
+        write_mask(out / MASK_FILE, mask_arr, overwrite=state != "new")
         info["ignore_mask"] = MASK_FILE
     atomic_write_json(out / ANNOTATIONS, {"info": info, "images": images, "annotations": anns,
-                                          "categories": CATEGORIES}, overwrite=overwrite)
-    return {"out": str(out), "frames": len(images), "size": list(size), "cones": dict(per_class),
-            "too_small": n_small, "ignore_regions": dict(ignored), "rows_left_out": dict(stats),
-            "rule": rule.describe(), "location_frame": loc_why, "intrinsics": info["intrinsics"],
+                                          "categories": CATEGORIES}, overwrite=state != "new")
+    (out / PARTIAL).unlink()
+    rule_text = rules[size].describe() if size is not None else too_small["rule"]
+    return {"out": str(out), "frames": len(images), "size": None if size is None else list(size),
+            "sizes": info["sizes"], "cones": dict(per_class), "too_small": n_small, "ignore_regions": dict(ignored),
+            "rows_left_out": dict(stats), "rule": rule_text, "location_frame": loc_why, "intrinsics": info["intrinsics"],
             "condition": cond, "severity": sev, "ignore_mask": info.get("ignore_mask"),
-            "projected_3d": info["projected_3d"]}
+            "projected_3d": info["projected_3d"], "labels_without_image": read.unmatched, "layout": read.layout,
+            "resumed": n_kept if state == "resume" else None}
+
+
+def _clear_but_marker(out: Path) -> None:
+    """Remove the dataset ``out`` held (its frames, masks, annotations), keeping the new import's marker."""
+    marker = (out / PARTIAL).read_bytes()
+    _clear(out)
+    atomic_write(out / PARTIAL, marker)
+
+
+def _sizes_text(sizes: Mapping[tuple[int, int], int]) -> str:
+    return ", ".join(f"{w}x{h} ({n})" for (w, h), n in sorted(sizes.items()))
 
 
 def _project_only3d(frames: list[_Frame], loc_frame: str) -> dict | None:

@@ -29,6 +29,7 @@ from weather_gym.camera_model import CameraModel
 from weather_gym.datasets import coco as _coco  # cyclic pair: attributes used at call time
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError
+from weather_gym.limits import check_seed
 from weather_gym.pipeline import make_env
 from weather_gym.sim.config import SCENES, SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, sample_look
@@ -139,6 +140,7 @@ def render_dataset(
     """
 
 
+    check_seed(seed)
     if scene not in SCENES:
         raise InputError(f"scene must be one of {SCENES}, got {scene!r}")
     if ranges is not None and not isinstance(ranges, RandomizeRanges):
@@ -155,12 +157,20 @@ def render_dataset(
     plan = episode_plan(list(tracks), int(frames), int(frames_per_episode))
     # every episode's seed comes from the master seed, so resuming replays exactly the same episodes
     episode_seeds = np.random.SeedSequence(seed).generate_state(len(plan), dtype=np.uint32).tolist()
-    writer = _coco.CocoWriter(out, overwrite=overwrite, resume=resume, jpeg_quality=jpeg_quality, info={
-        "tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
-        "every": int(every), "frames_per_episode": int(frames_per_episode), "scene": scene,
-        **({"randomize_ranges": ranges.to_dict()} if randomize and realistic else {}),
-        **({"start_window": [float(v) for v in start_window]} if start_window is not None else {})})
-    recorded = _record_tracks(Path(out), list(tracks))
+    info = {"tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
+            "every": int(every), "frames_per_episode": int(frames_per_episode), "scene": scene,
+            **({"randomize_ranges": ranges.to_dict()} if randomize and realistic else {}),
+            **({"start_window": [float(v) for v in start_window]} if start_window is not None else {})}
+    # a resumed render must be asked for exactly what the interrupted one was (seed included)
+    identity = {**info, "camera": camera.to_dict(), "camera_model": camera_model.to_dict(),
+                "jpeg_quality": jpeg_quality, "lateral_max": float(lateral_max)}
+    writer = _coco.CocoWriter(out, overwrite=overwrite, resume=resume, jpeg_quality=jpeg_quality, info=info,
+                              identity=identity)
+    try:
+        recorded = _record_tracks(Path(out), list(tracks))
+    except BaseException:
+        writer.abort()  # releases the folder's lock
+        raise
     done_before = writer.done
     bar = tqdm(total=int(frames), initial=done_before, desc=f"render {Path(out).name}", unit="frame",
                disable=not progress)

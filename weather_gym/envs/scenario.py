@@ -4,8 +4,9 @@ A scenario file::
 
     id = "WeatherGym/ConeTrack-v0"
     description = "..."
-    [env]         # EnvConfig fields (track, laps, camera_images, ground_truth, ...) and
-                  # max_episode_steps (the TimeLimit the id is registered with)
+    [env]         # EnvConfig fields (track, laps, camera_images, ground_truth, ...) and the time limit:
+                  # max_episode_s (simulated seconds; the TimeLimit is max_episode_s * control_hz steps)
+                  # or max_episode_steps (steps at the scenario's control_hz), not both
     [sim]         # SimConfig fields
     [car]         # CarConfig fields
     [camera]      # CameraConfig fields
@@ -27,6 +28,7 @@ Example:
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any
@@ -52,7 +54,8 @@ SECTIONS: dict[str, type] = {
 }
 ENV_KEYS = tuple(f.name for f in fields(EnvConfig) if f.name not in SECTIONS)
 TOP_KEYS = ("id", "description", "env", "weather", "perception", *SECTIONS)
-DEFAULT_MAX_EPISODE_STEPS = 3000
+DEFAULT_MAX_EPISODE_S = 100.0
+"""The time limit of a scenario that gives none: 100 s of simulated time (3000 steps at 30 Hz)."""
 
 
 @dataclass(frozen=True)
@@ -66,7 +69,27 @@ class Scenario:
     sections: dict[str, dict[str, Any]] = field(default_factory=dict)
     weather: dict[str, Any] | None = None
     perception: dict[str, Any] | None = None
-    max_episode_steps: int = DEFAULT_MAX_EPISODE_STEPS
+    max_episode_s: float = DEFAULT_MAX_EPISODE_S
+
+    @property
+    def control_hz(self) -> float:
+        """The scenario's control rate (its ``[sim] control_hz``, else ``SimConfig``'s default)."""
+        return float(self.sections.get("sim", {}).get("control_hz", SimConfig().control_hz))
+
+    @property
+    def max_episode_steps(self) -> int:
+        """The ``TimeLimit`` the id is registered with: ``max_episode_s`` at the scenario's control rate."""
+        return episode_steps(self.max_episode_s, self.control_hz)
+
+
+def episode_steps(max_episode_s: float, control_hz: float) -> int:
+    """Steps of a ``max_episode_s`` time limit at ``control_hz`` (at least 1).
+
+    Example:
+        >>> episode_steps(100.0, 30.0), episode_steps(100.0, 60.0)
+        (3000, 6000)
+    """
+    return max(1, int(round(float(max_episode_s) * float(control_hz))))
 
 
 def scenario_files() -> list[Path]:
@@ -95,10 +118,16 @@ def load_scenario(path: str | Path) -> Scenario:
     if not isinstance(env, dict):
         raise FileFormatError(f"{path}: [env] must be a table of EnvConfig fields, got {env!r}")
     env = dict(env)
-    _check_keys(f"{path} [env]", env, (*ENV_KEYS, "max_episode_steps"))
-    max_steps = env.pop("max_episode_steps", DEFAULT_MAX_EPISODE_STEPS)
-    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+    _check_keys(f"{path} [env]", env, (*ENV_KEYS, "max_episode_steps", "max_episode_s"))
+    max_steps = env.pop("max_episode_steps", None)
+    max_s = env.pop("max_episode_s", None)
+    if max_steps is not None and max_s is not None:
+        raise FileFormatError(f"{path} [env]: give max_episode_s or max_episode_steps, not both")
+    if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1):
         raise FileFormatError(f"{path} [env]: max_episode_steps must be an integer >= 1, got {max_steps!r}")
+    if max_s is not None and (isinstance(max_s, bool) or not isinstance(max_s, int | float)
+                              or not math.isfinite(max_s) or max_s <= 0):
+        raise FileFormatError(f"{path} [env]: max_episode_s must be a number of seconds > 0, got {max_s!r}")
     env = _confine_paths(path, env, "env", "track")
     sections = {}
     for name, cls in SECTIONS.items():
@@ -118,13 +147,17 @@ def load_scenario(path: str | Path) -> Scenario:
         if not isinstance(perception, dict) or not isinstance(perception.get("mode", "camera"), str):
             raise FileFormatError(f"{path}: [perception] must be a table with mode = \"camera\" | \"detector\" | "
                                   "\"oracle\" | \"gt_cones\" and the perception wrapper's arguments")
-        perception = _confine_paths(path, perception, "perception", "detector")
+        perception = _confine_detector(path, perception)
     sc = Scenario(env_id=env_id, path=str(path), description=str(data.get("description", "")), env=env,
-                  sections=sections, weather=weather, perception=perception, max_episode_steps=max_steps)
-    try:  # build once so that bad values fail at load time, naming the file
+                  sections=sections, weather=weather, perception=perception)
+    try:  # build once so that bad values fail at load time, naming the file (any other error is a bug)
         build_config(sc)
-    except (TypeError, ValueError) as exc:
+    except InputError as exc:
         raise FileFormatError(f"{path}: {exc}") from None
+    if max_steps is not None:  # steps at the scenario's own control rate: the same seconds at any other
+        sc = dataclasses.replace(sc, max_episode_s=max_steps / sc.control_hz)
+    elif max_s is not None:
+        sc = dataclasses.replace(sc, max_episode_s=float(max_s))
     return sc
 
 
@@ -137,6 +170,24 @@ def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) ->
         return table
     where = f"{path} [{section}] {key}"
     return {**table, key: str(resolve_inside(path.parent, value, what=where))}
+
+
+def _confine_detector(path: Path, table: dict[str, Any]) -> dict[str, Any]:
+    """``detector = "yolov8:model.onnx"`` (a detector spec, ``weather_gym.perception.detectors``): the
+    model file after the kind is confined to the scenario's folder; a bare path is confined whole and
+    a kind without a file (``"conenet"``, the shipped model) is kept."""
+    value = table.get("detector")
+    if not isinstance(value, str):
+        return table
+    head, sep, tail = value.partition(":")
+    if sep and len(head) > 1 and head.replace("_", "").isalnum():  # KIND:FILE (the kind is checked when it is built)
+        if not tail:
+            return table
+        where = f"{path} [perception] detector"
+        return {**table, "detector": f"{head}:{resolve_inside(path.parent, tail, what=where)}"}
+    if not sep and not value.lower().endswith(".onnx") and value.replace("_", "").isalnum():
+        return table  # a kind without a file: the shipped model ("conenet")
+    return _confine_paths(path, table, "perception", "detector")
 
 
 def _check_weather(path: Path, weather: dict[str, Any]) -> None:

@@ -63,13 +63,13 @@ import cv2
 import numpy as np
 from tqdm.auto import tqdm
 
-from weather_gym._io import atomic_file, open_append
+from weather_gym._io import atomic_file, check_not_input, open_append, write_failure
+from weather_gym._lock import exclusive_folder
 from weather_gym.errors import (
     FileFormatError,
     InputError,
     MissingDependencyError,
     MissingInputError,
-    OutputExistsError,
     OutputPathError,
 )
 
@@ -254,10 +254,13 @@ class ResultsFile:
             self.columns.extend(new_cols)
             self.rewrite(self.rows)
             return
-        with open_append(self.path) as f:
-            f.write(self._line(row))
-            f.flush()
-            os.fsync(f.fileno())
+        try:
+            with open_append(self.path) as f:
+                f.write(self._line(row))
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as exc:  # a full disk is the machine's state, not a bug
+            raise write_failure(self.path, exc) from None
 
     def rewrite(self, rows: list[dict[str, str]], columns: list[str] | None = None) -> None:
         """Replace the file's content with ``rows`` atomically (temp file + rename + fsync)."""
@@ -587,30 +590,12 @@ _BACKEND_FNS = {"serial": _run_serial, "process": _run_process, "ray": _run_ray}
 
 
 # ------------------------------------------------------------------------------------------ run_cells
-@contextlib.contextmanager
-def _exclusive(path: Path) -> Iterator[None]:
+def _exclusive(path: Path):
     """Hold an exclusive ``flock`` on the results file's folder while a run writes there, so two runs
     never append to one results file (no lock file is left behind)."""
-    try:
-        import fcntl
-    except ModuleNotFoundError:  # pragma: no cover - Windows: no lock
-        yield
-        return
-    fd = os.open(path.parent, os.O_RDONLY)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise OutputExistsError(
-                f"another run is writing results in {path.parent} (for {path.name} or a sibling); "
-                "wait for it to finish or use another output folder"
-            ) from None
-        try:
-            yield
-        finally:
-            fcntl.flock(fd, fcntl.LOCK_UN)
-    finally:
-        os.close(fd)
+    return exclusive_folder(path.parent, busy=(
+        f"another run is writing results in {path.parent} (for {path.name} or a sibling); "
+        "wait for it to finish or use another output folder"))
 
 
 def _default_key_fields(cells: list[Cell]) -> tuple[str, ...]:
@@ -620,6 +605,7 @@ def _default_key_fields(cells: list[Cell]) -> tuple[str, ...]:
 def check_results_path(results_path: str | os.PathLike) -> Path:
     """Create the results file's folder and check it is writable (:class:`OutputPathError` if not)."""
     path = Path(results_path)
+    check_not_input(path, what="results path")
     if path.is_dir():
         raise OutputPathError(f"results path {path} is a folder; give a file path such as {path / 'results.csv'} "
                               "(or move the folder away)")

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym.errors import InputError, MissingInputError
+from weather_gym.limits import check_image_size
 from weather_gym.perception.detector import DEFAULT_MODEL, ConeDetector, Detections, check_frame
 from weather_gym.perception.detector_base import Detector, DetectorBase
 from weather_gym.perception.yolo import YoloDetector
@@ -166,6 +167,8 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
                              "or a path to a ConeNet .onnx file")
     if path is not None and not Path(path).is_file():
         raise MissingInputError(f"detector model {path} not found")
+    if input_size:
+        _check_input_size(tuple(int(v) for v in input_size))
     return DetectorSpec(kind, path, classes, resize, tuple(input_size) if input_size else None,
                         None if score_threshold is None else float(score_threshold))
 
@@ -177,8 +180,14 @@ def _parse_size(text: str) -> tuple[int, int]:
     except ValueError:
         size = (0, 0)
     if not sep or min(size) < 1:
-        raise InputError(f"detector input size {text!r}: expected WxH in pixels, e.g. 640x640")
+        raise InputError(f"detector input size {text!r} (--detector-input): expected WxH in pixels, e.g. 640x640")
+    _check_input_size(size)
     return size
+
+
+def _check_input_size(size: tuple[int, int]) -> None:
+    """The one frame-size bound (``weather_gym.limits``) for a YOLO export's input (W, H)."""
+    check_image_size((size[1], size[0]), what=f"detector input size {size[0]}x{size[1]} (--detector-input)")
 
 
 def load_detector(spec: Any = None, *, classes: str | Mapping | None = None, resize: str | None = None,

@@ -18,12 +18,15 @@ Example:
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
+import pickle
 import platform
 import time
 import warnings
+import zipfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -33,10 +36,11 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from weather_gym._io import atomic_path, atomic_write_json, check_output
+from weather_gym._io import atomic_write, atomic_write_json, check_output, exclusive
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.errors import FileFormatError, InputError, LimitError, MissingInputError
+from weather_gym.limits import check_image_size, check_seed
 from weather_gym.perception.augment import camera_look, paste_distractors
 from weather_gym.perception.detector import Detections, load_model_metadata
 from weather_gym.perception.labels import hidden_mask
@@ -117,6 +121,18 @@ class TrainConfig:
         w, h = self.input_size
         if w % 32 or h % 32:
             raise InputError(f"input_size must be multiples of 32, got {self.input_size}")
+        check_image_size((h, w), what=f"input_size {w}x{h} (--input-size)")
+        if isinstance(self.lr, bool) or not isinstance(self.lr, int | float) or not (0 < self.lr <= 1):
+            raise LimitError(f"lr (--lr) must be a learning rate in (0, 1], got {self.lr!r}")
+        most = 4 * (os.cpu_count() or 1)
+        if isinstance(self.threads, bool) or not isinstance(self.threads, int) or not 1 <= self.threads <= most:
+            raise LimitError(f"threads (--threads) must be in 1..{most} (4 per CPU core), got {self.threads!r}")
+        check_seed(self.seed, what="seed (--seed)")
+        if self.max_steps is not None and (isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int)
+                                           or self.max_steps < 1):
+            raise InputError(f"max_steps (--max-steps) must be a whole number >= 1, got {self.max_steps!r}")
+        if isinstance(self.warmup_iters, bool) or not isinstance(self.warmup_iters, int) or self.warmup_iters < 0:
+            raise InputError(f"warmup_iters (--warmup) must be a whole number >= 0, got {self.warmup_iters!r}")
         if self.crop_size is not None:
             cw, ch = self.crop_size
             if cw % 32 or ch % 32 or cw > w or ch > h:
@@ -457,13 +473,14 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
         check_output(p, overwrite=overwrite, what="model file")
     w, h = input_size
     model = ConeNetExport(net.eval()).eval()
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            torch.onnx.export(model, torch.zeros(1, 3, h, w), str(tmp), input_names=["images"],
-                              output_names=["output"], dynamic_axes={"images": {0: "batch"}, "output": {0: "batch"}},
-                              opset_version=17, dynamo=False)
-        onnx.checker.check_model(str(tmp))
+    buf = io.BytesIO()  # made in memory, then written by the safe writer: a full disk is an OutputPathError
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(model, torch.zeros(1, 3, h, w), buf, input_names=["images"],
+                          output_names=["output"], dynamic_axes={"images": {0: "batch"}, "output": {0: "batch"}},
+                          opset_version=17, dynamo=False)
+    onnx.checker.check_model(onnx.load_from_string(buf.getvalue()))
+    atomic_write(path, buf.getvalue(), overwrite=overwrite)
     sidecar = {
         "format": "weather-gym cone detector v1",
         "architecture": f"ConeNet (CenterNet-style, stride {net.stride}{_hidden_text(net)})",
@@ -685,6 +702,20 @@ def _eval_map(net: ConeNet, val, cfg: TrainConfig, max_images: int = 200) -> flo
     return evaluate(gts, dets).map50
 
 
+def _same_run(ckpt: Path, state: dict, cfg: TrainConfig, data: list) -> None:
+    """Refuse to resume ``ckpt`` with other settings or data (InputError naming what differs)."""
+    before = state.get("config") if isinstance(state.get("config"), dict) else {}
+    now = asdict(cfg)
+    diff = [k for k in now if before.get(k) != now[k]] + [k for k in before if k not in now]
+    if state.get("data") != [str(d) for d in data]:
+        diff.append("data")
+    if diff:
+        shown = "; ".join(f"{k}: {before.get(k, state.get(k))!r} there, "
+                          f"{now.get(k, [str(d) for d in data] if k == 'data' else None)!r} now" for k in diff[:4])
+        raise InputError(f"checkpoint {ckpt} was made with other settings ({', '.join(diff)}): {shown}. Resume with "
+                         "the same settings, or pass --no-resume (or delete it) to start again")
+
+
 def train_detector(
     data: list[str | os.PathLike],
     out: str | os.PathLike,
@@ -711,6 +742,13 @@ def train_detector(
     out = Path(out)
     check_output(out, overwrite=overwrite, suffixes=(".onnx",), what="model file")
     check_output(out.with_suffix(".json"), overwrite=overwrite, what="model sidecar")
+    with exclusive(out, message=f"another training run is writing {out}; wait for it or choose another --out"):
+        return _train_locked(data, out, cfg, val=val, resume=resume, overwrite=overwrite, progress=progress, log=log)
+
+
+def _train_locked(data: list, out: Path, cfg: TrainConfig, *, val, resume: bool, overwrite: bool, progress: bool,
+                  log) -> dict[str, Any]:
+    """:func:`train_detector` once its outputs are checked and locked for this run."""
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     train_sets = [load_coco(d) for d in data]
@@ -739,11 +777,12 @@ def train_detector(
     if resume and ckpt.is_file():
         try:  # tensors and plain values only: a checkpoint cannot run code when it is loaded
             state = torch.load(ckpt, map_location="cpu", weights_only=True)
-        except Exception as exc:  # noqa: BLE001 - torch raises several types for a bad file
+        except (pickle.UnpicklingError, RuntimeError, EOFError, OSError, ValueError, zipfile.BadZipFile) as exc:
             raise FileFormatError(f"checkpoint {ckpt} cannot be read ({type(exc).__name__}); delete it to start "
                                   "again") from None
-        if state.get("config") != asdict(cfg) or state.get("data") != [str(d) for d in data]:
-            raise InputError(f"checkpoint {ckpt} was made with other settings or data; delete it to start again")
+        if not isinstance(state, dict):
+            raise FileFormatError(f"checkpoint {ckpt} is not a training checkpoint; delete it to start again")
+        _same_run(ckpt, state, cfg, data)
         net.load_state_dict(state["model"])
         opt.load_state_dict(state["optim"])
         start_epoch, step, history, elapsed = state["epoch"], state["step"], state["history"], state["elapsed"]
@@ -791,10 +830,11 @@ def train_detector(
         if val_set is not None and ((epoch + 1) % 5 == 0 or epoch + 1 == cfg.epochs or step >= total_steps):
             entry["val_map50"] = _eval_map(net, val_set, cfg)
         history.append(entry)
-        with atomic_path(ckpt, overwrite=True) as tmp:  # the run's own checkpoint, replaced every epoch
-            torch.save({"model": net.state_dict(), "optim": opt.state_dict(), "epoch": epoch + 1, "step": step,
-                        "history": history, "elapsed": time.perf_counter() - t_start, "config": asdict(cfg),
-                        "data": [str(d) for d in data]}, tmp)
+        buf = io.BytesIO()  # torch's own file writer reports a full disk as a RuntimeError: write it ourselves
+        torch.save({"model": net.state_dict(), "optim": opt.state_dict(), "epoch": epoch + 1, "step": step,
+                    "history": history, "elapsed": time.perf_counter() - t_start, "config": asdict(cfg),
+                    "data": [str(d) for d in data]}, buf)
+        atomic_write(ckpt, buf.getvalue(), overwrite=True)  # the run's own checkpoint, replaced every epoch
         log(json.dumps(entry))
     train_time = time.perf_counter() - t_start
     meta = {

@@ -103,6 +103,15 @@ def _metadata(session: Any) -> dict[str, Any]:
     return out
 
 
+def _ort_errors() -> tuple[type[Exception], ...]:
+    """The exception types onnxruntime raises for a model it cannot load or run (a bad file, not a bug)."""
+    from onnxruntime.capi import onnxruntime_pybind11_state as state
+
+    names = ("Fail", "InvalidArgument", "InvalidGraph", "InvalidProtobuf", "NoSuchFile", "NoModel", "NotImplemented",
+             "RuntimeException", "EPFail", "EngineError", "NotFound")
+    return tuple(t for t in (getattr(state, n, None) for n in names) if isinstance(t, type))
+
+
 class YoloDetector(DetectorBase):
     """A YOLO-family ONNX export (see module doc).
 
@@ -137,7 +146,7 @@ class YoloDetector(DetectorBase):
         opts.log_severity_level = 3
         try:
             self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
-        except Exception as exc:
+        except (*_ort_errors(), OSError) as exc:
             raise FileFormatError(f"detector model {path} could not be loaded by onnxruntime (corrupt or not an ONNX "
                              f"model): {exc}") from None
         self.path, self.resize, self.threads = path, resize, int(threads)
@@ -206,7 +215,7 @@ class YoloDetector(DetectorBase):
         w, h = self.input_size
         try:
             outs = self._run(np.zeros((1, 3, h, w), self.input_dtype))
-        except Exception as exc:
+        except _ort_errors() as exc:  # onnxruntime's own errors: the model; anything else is a bug
             raise FileFormatError(f"detector model {self.path} failed on a {w}x{h} input: {exc}") from None
         shapes = [tuple(o.shape) for o in outs]
         nc_hint = len(self.names) if self.names else _map_size(classes)

@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -248,12 +249,50 @@ def save_log(log: SurrogateLog, path: str | os.PathLike, *, overwrite: bool = Fa
     return str(path)
 
 
+MAX_NPZ_BYTES = 8 << 30
+"""Largest total array size (bytes, uncompressed) a surrogate ``.npz`` may declare: logs of a few
+hundred laps take a few hundred MB."""
+
+
+def _check_npz_headers(path: str, where: str) -> None:
+    """Read every array's ``.npy`` header (not its data) and refuse shapes the file cannot hold or
+    that exceed :data:`MAX_NPZ_BYTES`, before NumPy allocates them (:class:`FileFormatError`)."""
+    total = 0
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                if not info.filename.endswith(".npy"):
+                    continue
+                with zf.open(info) as f:
+                    version = np.lib.format.read_magic(f)
+                    read = {(1, 0): np.lib.format.read_array_header_1_0,
+                            (2, 0): np.lib.format.read_array_header_2_0}.get(version)
+                    if read is None:
+                        raise FileFormatError(f"{where}: array {info.filename[:-4]!r} has .npy format {version}")
+                    shape, _, dtype = read(f, max_header_size=10000)
+                    header = f.tell() if f.seekable() else None
+                if dtype.hasobject:
+                    raise FileFormatError(f"{where}: array {info.filename[:-4]!r} holds Python objects")
+                n = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                if header is not None and n != info.file_size - header:
+                    raise FileFormatError(f"{where}: array {info.filename[:-4]!r} declares shape {shape} "
+                                          f"({n} bytes) but holds {info.file_size - header} bytes")
+                total += n
+                if total > MAX_NPZ_BYTES:
+                    raise FileFormatError(f"{where}: its arrays declare more than {MAX_NPZ_BYTES >> 30} GiB")
+    except FileFormatError:
+        raise
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise FileFormatError(f"{where}: not a readable .npz file ({exc})") from None
+
+
 def read_npz(path: str, where: str, kind: str, schema: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """The arrays and the JSON ``meta`` of a surrogate ``.npz`` file (a log or a model) whose
     ``meta.schema`` is ``schema``; :class:`FileFormatError` (or :class:`MissingInputError`) naming
     ``where`` and what is wrong."""
     if not os.path.isfile(path):
         raise MissingInputError(f"{where} does not exist")
+    _check_npz_headers(path, where)
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
@@ -290,6 +329,14 @@ def load_log(path: str | os.PathLike) -> SurrogateLog:
     episodes = meta.pop("episodes", [])
     if not isinstance(episodes, list) or not all(isinstance(e, dict) and {"condition", "k"} <= set(e) for e in episodes):
         raise FileFormatError(f"surrogate log {p}: 'episodes' must be a list of tables with condition and k")
+    for i, e in enumerate(episodes):
+        if not isinstance(e["condition"], str) or isinstance(e["k"], bool) or not isinstance(e["k"], int | float) \
+                or not np.isfinite(e["k"]):
+            raise FileFormatError(f"surrogate log {p}: episode {i}: 'condition' must be a name and 'k' a finite "
+                                  f"number, got {e['condition']!r} and {e['k']!r}")
+        if e["condition"] != "clear" and not isinstance(e.get("weather"), str | dict | list):
+            raise FileFormatError(f"surrogate log {p}: episode {i} ({e['condition']}) has no 'weather' spec "
+                                  "(the effect and its parameters the episode was driven in)")
     for name, t in tables.items():
         if len(t["episode"]) and (t["episode"].min() < 0 or t["episode"].max() >= len(episodes)):
             raise FileFormatError(f"surrogate log {p}: table {name!r} names an episode outside 0..{len(episodes) - 1}")

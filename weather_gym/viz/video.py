@@ -34,7 +34,7 @@ import av
 import cv2
 import numpy as np
 
-from weather_gym._io import atomic_path, check_output, write_image
+from weather_gym._io import atomic_path, check_output, write_failure, write_image
 from weather_gym.errors import InputError, MissingDependencyError, OutputPathError
 
 __all__ = ["check_output_path", "h264_available", "VideoWriter", "FrameSampler", "save_strip"]
@@ -84,8 +84,19 @@ class _AvStream:
         try:
             for packet in self._stream.encode():  # flush the encoder
                 self._container.mux(packet)
-        finally:
-            self._container.close()
+        except BaseException:
+            self.abandon()
+            raise
+        container, self._container = self._container, None
+        container.close()
+
+    def abandon(self) -> None:
+        """Give the file up after a failed write: no encoder flush and no second try at the trailer
+        (FFmpeg's close after a write error on a full disk is where it crashed); errors are ignored."""
+        container, self._container = self._container, None
+        if container is not None:
+            with contextlib.suppress(Exception):
+                container.close()
 
 
 class _Mp4vStream:
@@ -103,6 +114,27 @@ class _Mp4vStream:
 
     def close(self) -> None:
         self._writer.release()
+
+    def abandon(self) -> None:
+        with contextlib.suppress(Exception):
+            self._writer.release()
+
+
+MIN_FREE_BYTES = 4 << 20
+"""A video is not started on a file system with less free space than this (a clear error, not a
+failure in the encoder)."""
+
+
+def check_free_space(folder: str | os.PathLike, what: str, need: int = MIN_FREE_BYTES) -> None:
+    """Refuse (:class:`OutputPathError`) to start writing ``what`` into ``folder`` with under ``need`` bytes free."""
+    try:
+        st = os.statvfs(folder)
+    except (OSError, AttributeError):  # no statvfs (Windows) or the folder is not there yet: the write will tell
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < need:
+        raise OutputPathError(f"cannot write {what}: no space left on the device of {folder} "
+                              f"({free / 1e6:.1f} MB free, a video needs at least {need / 1e6:.0f} MB)")
 
 
 class VideoWriter:
@@ -142,6 +174,7 @@ class VideoWriter:
         size = (f.shape[1], f.shape[0])
         if self._stream is None:
             cls = _AvStream if self.codec == "h264" else _Mp4vStream
+            check_free_space(self.path.parent if self.path.parent.exists() else Path("."), str(self.path))
             self._output = atomic_path(self.path, overwrite=self.overwrite)
             tmp = self._output.__enter__()
             try:
@@ -149,12 +182,25 @@ class VideoWriter:
             except BaseException as exc:
                 output, self._output = self._output, None
                 output.__exit__(type(exc), exc, exc.__traceback__)
-                raise
+                raise write_failure(self.path, exc) from None
             self._size = size
         elif size != self._size:
             raise InputError(f"video frame size changed from {self._size} to {size}")
-        self._stream.write(f)
+        try:
+            self._stream.write(f)
+        except BaseException as exc:  # a full disk: give the file up now, with a typed error
+            self._drop()
+            raise write_failure(self.path, exc) from None
         self.frames += 1
+
+    def _drop(self) -> None:
+        """Abandon the stream and remove its temporary file (``path`` is left as it was)."""
+        stream, self._stream = self._stream, None
+        output, self._output = self._output, None
+        if stream is not None:
+            stream.abandon()
+        if output is not None:
+            output.__exit__(_Discarded, _Discarded(), None)
 
     def close(self) -> None:
         """Finish the file and move it to ``path`` (nothing is written when no frame was)."""
@@ -164,19 +210,13 @@ class VideoWriter:
             try:
                 stream.close()
             except BaseException as exc:
-                output.__exit__(type(exc), exc, exc.__traceback__)
-                raise
+                output.__exit__(_Discarded, _Discarded(), None)  # the temporary file is removed
+                raise write_failure(self.path, exc) from None
             output.__exit__(None, None, None)
 
     def abort(self) -> None:
         """Drop the partial file; ``path`` is left as it was."""
-        if self._stream is not None:
-            stream, self._stream = self._stream, None
-            output, self._output = self._output, None
-            try:
-                stream.close()
-            finally:
-                output.__exit__(_Discarded, _Discarded(), None)
+        self._drop()
 
     def __enter__(self) -> VideoWriter:
         return self

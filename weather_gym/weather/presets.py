@@ -129,7 +129,7 @@ def load_presets(path: str | Path | None = None) -> dict[str, Any]:
         try:
             with p.open("rb") as f:
                 data = tomllib.load(f)
-        except tomllib.TOMLDecodeError as exc:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:  # a TOML file is UTF-8 text
             raise FileFormatError(f"{p}: not valid TOML: {exc}") from None
         _CACHE[key] = _validate(data, p)
     return copy.deepcopy(_CACHE[key])
