@@ -1,7 +1,9 @@
 """Put a saved stable-baselines3 policy through the robustness evaluation, per weather severity.
 
-Reads the model's JSON sidecar (``model.json`` beside ``model.zip``, written by
-``examples/train_ppo.py``) for the env id and camera it was trained with, then runs the same harness
+Reads the model's JSON sidecar (``model.json`` beside ``model.zip``, ``ppo_<N>_steps.json`` beside a
+checkpoint, ``best_model.json`` beside ``best/best_model.zip``: ``weather-gym train`` writes one beside
+every model it saves; for a model without one, the run folder's ``model.json`` one or two folders up)
+for the env id and camera it was trained with, then runs the same harness
 as ``weather-gym evaluate`` with the ``sb3`` agent: ``OUT/results.csv`` (resumable),
 ``OUT/report.md``, ``OUT/plots/``. The perception defaults to ``detector``: a policy trained on
 ground-truth cone lists (``gt_cones``) drives on the detector's cone list of the weathered frame,
@@ -25,16 +27,23 @@ from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.evaluation.evaluate import EvalConfig, evaluate
 
 
+def find_sidecar(model: Path) -> Path:
+    """The JSON that records the env ``model`` was trained on: beside it, else the run folder's ``model.json``
+    (``best/`` and ``checkpoints/`` sit one folder below the run)."""
+    for candidate in (model.with_suffix(".json"), model.parent / "model.json", model.parent.parent / "model.json"):
+        if candidate.is_file():
+            return candidate
+    raise MissingInputError(f"{model.with_suffix('.json')} not found (nor a model.json in its run folder): it "
+                            "records the env the model was trained on (weather-gym train writes it)")
+
+
 def config_for_model(model: Path, *, effects, severities, seeds, tracks=None, max_steps: int = 3000,
                      laps: int = 1, perception: str = "detector") -> EvalConfig:
     """The ``EvalConfig`` evaluating ``model`` on the observation it was trained on (from its sidecar)."""
     model = model if model.suffix == ".zip" else model.with_suffix(".zip")
     if not model.is_file():
         raise MissingInputError(f"model {model} not found")
-    sidecar = model.with_suffix(".json")
-    if not sidecar.is_file():
-        raise MissingInputError(f"{sidecar} not found: it records the env the model was trained on "
-                                "(written by examples/train_ppo.py)")
+    sidecar = find_sidecar(model)
     try:
         meta = json.loads(sidecar.read_text())
         meta["track"], meta["env_id"]  # noqa: B018 - the keys the config needs
@@ -51,7 +60,8 @@ def config_for_model(model: Path, *, effects, severities, seeds, tracks=None, ma
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--model", type=Path, required=True, help="model zip from train_ppo.py")
+    p.add_argument("--model", type=Path, required=True,
+                   help="model zip from weather-gym train: model.zip, best/best_model.zip or any checkpoint")
     p.add_argument("--effects", default="droplets,dim")
     p.add_argument("--severities", default="0,1,2,3,4")
     p.add_argument("--seeds", type=int, default=3, help="seeds 0..N-1")

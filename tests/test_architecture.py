@@ -21,7 +21,8 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "weather_gym"
 
-PLUMBING = {"registry", "_io", "errors", "limits", "paths", "cone_spec", "cone_arrays", "_lazy", "_toml"}
+PLUMBING = {"registry", "_io", "errors", "limits", "paths", "cone_spec", "cone_arrays", "_lazy", "_toml",
+            "_lock", "_confine"}
 """Shared plumbing with no layer of its own: importable from anywhere, imports no layer."""
 
 SUBLAYERS = {"perception.train": "perception_tools", "perception.model": "perception_tools",
@@ -51,16 +52,16 @@ ALLOWED: dict[str, set[str]] = {
 (evaluation, calibration, gap, bench, cli, the package root) sit on top and may import any layer below
 them, but not the CLI (only ``cli`` itself does)."""
 
-TOP = {"evaluation", "calibration", "gap", "bench", "cli", "root", "surrogate_tools"}
+TOP = {"evaluation", "calibration", "gap", "bench", "cli", "root", "surrogate_tools", "rl"}
 
 HEAVY: dict[str, set[str]] = {
     "pybullet": {"sim"},
     "pybullet_data": {"sim"},
     "onnxruntime": {"perception", "bench"},
-    "torch": {"perception_tools", "agents", "bench"},
+    "torch": {"perception_tools", "agents", "bench", "rl"},
     "onnx": {"perception_tools"},
     "ray": {"evaluation", "cli"},
-    "stable_baselines3": {"agents"},
+    "stable_baselines3": {"agents", "rl"},
     "numba": {"sim"},
 }
 """Heavy package -> the layers that may import it. ``bench`` compares against a torch baseline;

@@ -36,15 +36,23 @@ Example:
 
 from __future__ import annotations
 
+import ast
+import math
+import multiprocessing
+import os
+import sys
+import warnings
 from collections.abc import Mapping
 from functools import partial
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 
 from weather_gym.envs.cone_track import ConeTrackEnv
-from weather_gym.envs.scenario import Scenario, build_config, load_scenario
-from weather_gym.errors import InputError
+from weather_gym.envs.registration import scenario_of
+from weather_gym.envs.scenario import Scenario, build_config, episode_steps, load_scenario
+from weather_gym.errors import InputError, LimitError, StateError
 from weather_gym.weather import parse_weather, to_spec
 from weather_gym.wrappers import (
     DetectorWrapper,
@@ -79,7 +87,8 @@ def check_perception(perception: str) -> str:
 
 def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camera", detector: Any = None,
                   perception_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
-    """``env`` -> ``WeatherWrapper(weather)`` (when there is weather) -> the ``perception`` wrapper.
+    """``env`` -> ``WeatherWrapper(weather)`` (when there is weather; always under a detector, clear
+    by default, so the weather can change per episode) -> the ``perception`` wrapper.
 
     ``detector`` is passed to ``DetectorWrapper`` as its ``detector`` argument (anything it accepts:
     a model path, a detector object, None for the shipped model); ``perception_kwargs`` are the
@@ -100,6 +109,8 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camer
                              "ground_truth='geometry' (make_env does)")
 
         return SurrogatePerceptionWrapper(env, weather=weather, **kwargs)
+    if weather is None and perception == "detector" and images:
+        weather = "clear"  # a WeatherWrapper under the detector, so reset(options={"weather": ...}) and set_weather work
     if weather is not None:
         effect = parse_weather(weather)  # a bad spec fails here, with the parser's message
         if images:
@@ -182,8 +193,8 @@ def _weather_spec(sc: Scenario, weather: Any, severity: int | None) -> Any:
 
 def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, weather: Any = None,
              severity: int | None = None, detector: Any = None, perception_kwargs: Mapping[str, Any] | None = None,
-             max_episode_steps: int | None = None, episode_statistics: bool = True,
-             render_mode: str | None = None, **env_kwargs: Any) -> gym.Env:
+             max_episode_steps: int | None = None, max_episode_s: float | None = None,
+             episode_statistics: bool = True, render_mode: str | None = None, **env_kwargs: Any) -> gym.Env:
     """One env: ``gym.make(env_id, ...)`` (env -> weather -> perception, ``TimeLimit``) ->
     ``EpisodeStatistics`` (``info["episode"]`` at the end of each episode).
 
@@ -196,7 +207,10 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
             detector object, or None for the shipped model.
         perception_kwargs: the perception wrapper's other keywords (``max_cones``, ``score_threshold``,
             ``keep_image``, ``OracleNoise`` fields...).
-        max_episode_steps: the ``TimeLimit`` (default: the scenario's).
+        max_episode_steps: the ``TimeLimit`` in steps (default: ``max_episode_s`` at the env's control rate).
+        max_episode_s: the time limit in simulated seconds (default: the scenario's, 100 s): the
+            ``TimeLimit`` is ``max_episode_s * control_hz`` steps, so ``sim={"control_hz": 60}`` gets
+            twice the steps of 30 Hz. Give this or ``max_episode_steps``, not both.
         episode_statistics: add :class:`~weather_gym.wrappers.EpisodeStatistics`.
         env_kwargs: ``EnvConfig`` overrides (``track``, ``laps``, ``camera``, ``sim``, ...).
     """
@@ -214,10 +228,96 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
         if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, int) or max_episode_steps < 1:
             raise InputError(f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}")
         kwargs["max_episode_steps"] = max_episode_steps
+        if max_episode_s is not None:
+            raise InputError("give max_episode_steps or max_episode_s, not both")
+    else:
+        steps = _time_limit_steps(env_id, env_kwargs.get("sim"), max_episode_s)
+        if steps is not None:
+            kwargs["max_episode_steps"] = steps
     env = gym.make(env_id, **kwargs)
     if episode_statistics:
         env = EpisodeStatistics(env)
     return env
+
+
+def _time_limit_steps(env_id: str, sim: Any, max_episode_s: float | None) -> int | None:
+    """The ``TimeLimit`` of ``env_id`` in steps when it differs from the registered one: ``max_episode_s``
+    (default: the scenario's) at the control rate of ``sim`` (a ``SimConfig`` or a dict of its fields)."""
+
+    if max_episode_s is not None and (isinstance(max_episode_s, bool) or not isinstance(max_episode_s, int | float)
+                                      or not math.isfinite(max_episode_s) or max_episode_s <= 0):
+        raise InputError(f"max_episode_s must be a number of seconds > 0, got {max_episode_s!r}")
+    if not env_id.startswith("WeatherGym/"):
+        return None
+    sc = scenario_of(env_id)
+    hz = sim.get("control_hz") if isinstance(sim, Mapping) else getattr(sim, "control_hz", None)
+    if isinstance(hz, bool) or not isinstance(hz, int | float) or not math.isfinite(hz) or hz <= 0:
+        hz = sc.control_hz  # none given (a bad one fails in the env's config, with its message)
+    if max_episode_s is None and float(hz) == sc.control_hz:
+        return None  # the registered limit
+    return episode_steps(sc.max_episode_s if max_episode_s is None else max_episode_s, hz)
+
+
+MAX_SYNC_ENVS = 64
+"""Most envs :func:`make_vec_env` builds in one process (``"sync"``); ``"async"`` allows 4 per CPU core."""
+
+
+def _start_method(context: str | None) -> str | None:
+    """``context``, or ``"fork"`` where a ``spawn``/``forkserver`` worker would re-run unguarded script code."""
+
+    method = context if context is not None else multiprocessing.get_start_method()
+    if method not in ("spawn", "forkserver"):
+        return context
+    where = unguarded_main_call()
+    if where is None:
+        return context
+    if "fork" not in multiprocessing.get_all_start_methods():
+        raise StateError(f"make_vec_env is called at {where}, outside `if __name__ == \"__main__\":`; "
+                         f"{method} workers import that script and would run it again: put the call "
+                         "under the guard")
+    warnings.warn(f"make_vec_env is called at {where}, outside `if __name__ == \"__main__\":`, where "
+                  f"{method} workers would run the script again: starting them with fork instead (put "
+                  "the call under the guard to keep forkserver)", RuntimeWarning, stacklevel=3)
+    return "fork"
+
+
+def unguarded_main_call() -> str | None:
+    """``"FILE:LINE"`` of the top-level statement of the ``__main__`` script that is running now, when
+    it is not under ``if __name__ == "__main__":`` (code a ``spawn``/``forkserver`` worker re-runs);
+    None when guarded, not called from a script's top level, or the source cannot be read.
+
+    Example:
+        >>> unguarded_main_call() is None  # doctest's own __main__ guards its code
+        True
+    """
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or not path:
+        return None  # interactive / python -c: workers do not import a script
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back
+    if frame is None:
+        return None
+    line = frame.f_lineno
+    try:
+        tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, ValueError):
+        return None
+    for node in tree.body:
+        if node.lineno <= line <= (node.end_lineno or node.lineno):
+            return None if _is_main_guard(node) else f"{path}:{line}"
+    return None
+
+
+def _is_main_guard(node: ast.stmt) -> bool:
+    if not (isinstance(node, ast.If) and isinstance(node.test, ast.Compare) and len(node.test.ops) == 1
+            and isinstance(node.test.ops[0], ast.Eq)):
+        return False
+    sides = [node.test.left, *node.test.comparators]
+    return (any(isinstance(x, ast.Name) and x.id == "__name__" for x in sides)
+            and any(isinstance(x, ast.Constant) and x.value == "__main__" for x in sides))
 
 
 def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorization_mode: str = "async",
@@ -228,10 +328,22 @@ def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorizati
     ``vectorization_mode`` ``"async"`` (one process per env) or ``"sync"``. Async workers start with
     ``context`` (``forkserver`` by default: a fresh process that keeps the EGL renderer; see
     :mod:`weather_gym.sim.renderer`). Seed with ``reset(seed=s)``: env i gets ``s + i``.
+
+    A ``forkserver`` or ``spawn`` worker imports the script that started it, so in a script the call
+    belongs under ``if __name__ == "__main__":``. Called from a script's top level outside that guard
+    (where each worker would run the script again, and the workers die), the workers start with
+    ``fork`` instead, with a ``RuntimeWarning`` naming the line; where there is no ``fork``, a
+    ``StateError`` says to add the guard.
     """
 
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise InputError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    if vectorization_mode not in ("sync", "async"):
+        raise InputError(f"vectorization_mode must be 'sync' or 'async', got {vectorization_mode!r}")
+    most = 4 * (os.cpu_count() or 1) if vectorization_mode == "async" else MAX_SYNC_ENVS
+    if num_envs > most:
+        raise LimitError(f"num_envs must be at most {most} ({'4 worker processes per CPU core' if vectorization_mode == 'async' else 'envs in one process'} "
+                         f"with vectorization_mode={vectorization_mode!r}), got {num_envs}")
     make_env(env_id, **make_kwargs).close()  # a bad setting fails here, in this process, with its message
     fns = [partial(make_env, env_id, **make_kwargs) for _ in range(num_envs)]
     vk = dict(vector_kwargs or {})
@@ -240,5 +352,6 @@ def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorizati
     if vectorization_mode == "async":
         if context is not None:
             vk.setdefault("context", context)
+        vk["context"] = _start_method(vk.get("context"))
         return gym.vector.AsyncVectorEnv(fns, **vk)
     raise InputError(f"vectorization_mode must be 'sync' or 'async', got {vectorization_mode!r}")

@@ -52,7 +52,7 @@ def test_time_limit_and_off_track_end_reasons():
         assert r.end_reason == "off_track" and r.off_track_events == 1 and not r.completed
     finally:
         env.close()
-    assert {"laps", "off_track", "time_limit"} == set(END_REASONS)
+    assert {"laps", "off_track", "stalled", "time_limit"} == set(END_REASONS)
 
 
 def test_the_time_limit_belongs_to_gymnasium_and_can_be_longer_than_the_scenario():

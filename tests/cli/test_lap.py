@@ -165,3 +165,12 @@ def test_gt_cones_laps_render_nothing_and_refuse_a_video(tmp_path, capsys):
     assert "perception gt_cones" in out and "laps completed: 1/1 (laps)" in out and "renderer none" in out
     assert main(["lap", "--perception", "gt_cones", "--video", str(tmp_path / "v.mp4")]) == 2
     assert "renders none" in capsys.readouterr().err
+
+
+def test_help_lists_every_registered_agent(capsys):
+    from weather_gym.agents import AGENTS
+
+    with pytest.raises(SystemExit):
+        main(["lap", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "ppo_cones" in text and all(name in text for name in AGENTS)

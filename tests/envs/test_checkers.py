@@ -7,11 +7,14 @@ wall-clock latencies are therefore not in ``info`` (``wrapper.latency_ms`` has t
 
 from __future__ import annotations
 
+import warnings
+
 import gymnasium as gym
+import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import weather_gym  # noqa: F401 - registers the ids
+import weather_gym
 from weather_gym.envs.registration import register_envs
 
 CAMERA = {"width": 160, "height": 90}
@@ -33,6 +36,9 @@ def test_check_env_passes_on_every_registered_id(env_id):
     try:
         with pytest.warns(RuntimeWarning, match="needs a display"):  # the "human" mode, checked headless
             check_env(env.unwrapped)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check_env(env)  # as gym.make returns it: the spec rebuilds the stack
     finally:
         env.close()
 
@@ -61,3 +67,105 @@ def test_stable_baselines3_check_env_passes(kwargs):
         sb3_check_env(env, warn=False)
     finally:
         env.close()
+
+
+# -- Gymnasium conventions: every stack records its wrappers, so check_env and gym.make(env.spec) work --
+
+STACKS = {
+    "gt_cones": {"perception": "gt_cones"},
+    "surrogate": {"perception": "surrogate", "weather": "droplets@1"},
+    "camera": {"camera": CAMERA},
+    "camera+weather": {"camera": CAMERA, "weather": "rain@2"},
+    "oracle+noise": {"camera": CAMERA, "perception": "oracle", "perception_kwargs": {"miss_prob": 0.2}},
+    "detector": {"camera": CAMERA, "perception": "detector"},
+}
+
+
+def _same_observations(env_a, env_b, steps: int = 3) -> bool:
+    from gymnasium.utils.env_checker import data_equivalence
+
+    action = np.full(env_a.action_space.shape, 0.3, np.float32)
+    obs_a, _ = env_a.reset(seed=5)
+    obs_b, _ = env_b.reset(seed=5)
+    same = data_equivalence(obs_a, obs_b, exact=True)
+    for _ in range(steps):
+        same = same and data_equivalence(env_a.step(action)[0], env_b.step(action)[0], exact=True)
+    return same
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kwargs", list(STACKS.values()), ids=list(STACKS))
+def test_check_env_and_spec_rebuild_on_every_make_env_stack(kwargs):
+    env = weather_gym.make_env(**kwargs)
+    rebuilt = None
+    try:
+        assert all(w.kwargs is not None for w in env.spec.additional_wrappers)  # every wrapper recorded
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "not the unwrapped env", "needs a display" (human mode, headless)
+            check_env(env)
+        rebuilt = gym.make(env.spec)
+        assert rebuilt.spec.additional_wrappers == env.spec.additional_wrappers
+        assert _same_observations(env, rebuilt)
+    finally:
+        env.close()
+        if rebuilt is not None:
+            rebuilt.close()
+
+
+def test_hand_applied_wrappers_rebuild_from_the_spec(tmp_path):
+    from weather_gym.wrappers import EpisodeStatistics, RecordVideo, WeatherRandomizer
+
+    env = WeatherRandomizer(weather_gym.make_env(camera=CAMERA, perception="detector", render_mode="rgb_array"),
+                            presets=("rain", "fog"), severities=(1, 2))
+    env = RecordVideo(EpisodeStatistics(env, info_key="ep"), tmp_path, episode_trigger=lambda e: False)
+    env2 = gym.make("WeatherGym/ConeTrackCones-v0", render_mode="rgb_array")
+    env2 = RecordVideo(env2, tmp_path, episode_trigger=lambda e: False)
+    names = [w.name for w in env.spec.additional_wrappers]
+    assert names == ["WeatherWrapper", "DetectorWrapper", "EpisodeStatistics", "WeatherRandomizer",
+                     "EpisodeStatistics", "RecordVideo"]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for e in (env, env2):  # RecordVideo takes rgb_array only: no render-mode round
+                check_env(e, skip_render_check=True)
+        for e in (env, env2):
+            rebuilt = gym.make(e.spec)
+            try:
+                assert _same_observations(e, rebuilt)
+            finally:
+                rebuilt.close()
+    finally:
+        env.close()
+        env2.close()
+
+
+def test_weather_wrapper_on_gymnasium_car_racing():
+    pytest.importorskip("Box2D", reason="CarRacing needs box2d (the dev extra)")
+    pytest.importorskip("pygame", reason="CarRacing needs pygame (the dev extra)")
+    from weather_gym.wrappers import WeatherWrapper
+
+    env = WeatherWrapper(gym.make("CarRacing-v3"), "droplets:0.5")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check_env(env, skip_render_check=True)
+        rebuilt = gym.make(env.spec)
+        assert _same_observations(env, rebuilt, steps=2)
+        rebuilt.close()
+    finally:
+        env.close()
+
+
+def test_a_detector_or_surrogate_model_object_rebuilds_from_the_spec():
+    from weather_gym.perception import load_detector
+    from weather_gym.surrogate.model import load_model
+
+    for kwargs in ({"camera": CAMERA, "perception": "detector", "detector": load_detector(None)},
+                   {"perception": "surrogate", "weather": "low_light@1", "perception_kwargs": {"model": load_model(None)}}):
+        env = weather_gym.make_env(**kwargs)
+        rebuilt = gym.make(env.spec)  # the recorded object equals its copy (weather_gym.wrappers._recorded)
+        try:
+            assert _same_observations(env, rebuilt, steps=1)
+        finally:
+            env.close()
+            rebuilt.close()

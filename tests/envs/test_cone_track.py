@@ -231,3 +231,14 @@ def test_gym_make_max_episode_steps_is_the_step_limit(make_env):
     env.reset(seed=0)
     flags = [env.step(np.zeros(2, np.float32))[3] for _ in range(4)]
     assert flags == [False, False, False, True]
+
+
+def test_a_typo_d_reset_option_lists_the_valid_ones_weather_included():
+    import weather_gym
+
+    env = weather_gym.make_env(perception="gt_cones", max_episode_steps=5)
+    try:
+        with pytest.raises(ValueError, match=r"unknown reset option\(s\) \['weathr'\]; valid options: .*'look'.*'weather'"):
+            env.reset(seed=0, options={"weathr": "rain@2"})
+    finally:
+        env.close()

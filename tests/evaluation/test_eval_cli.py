@@ -59,3 +59,16 @@ def test_tiny_evaluation_end_to_end_and_resume(tmp_path, capsys):
     assert "2 ok, 0 failed" in capsys.readouterr().out
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert len(rows) == 4 and len({r["stack"] for r in rows}) == 2
+
+
+def test_evaluate_takes_every_perception_mode_gt_cones_included(tmp_path, capsys):
+    from weather_gym.pipeline import PERCEPTION_MODES
+
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    assert "{" + ",".join(PERCEPTION_MODES) + "}" in capsys.readouterr().out
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--agent", "gt_pure_pursuit", "--perception", "gt_cones", "--effects", "dim",
+                 "--severities", "0", "--seeds", "1", "--max-steps", "10", "--backend", "serial",
+                 "--no-progress", "--out", str(out)]) == 0
+    assert "1 ok, 0 failed" in capsys.readouterr().out

@@ -164,3 +164,18 @@ def test_an_explicit_weather_option_wins_and_a_detector_in_between_is_fine():
     assert info["weather_draw"] == "explicit" and info["weather"] == []
     with pytest.raises(ValueError, match="needs a WeatherWrapper below it"):
         WeatherRandomizer(DetectorWrapper(Camera()), presets=("rain",))
+
+
+def test_randomizer_on_a_detector_env_needs_no_weather_given():
+    import weather_gym
+    from weather_gym.wrappers import EpisodeStatistics
+
+    env = WeatherRandomizer(weather_gym.make_env(camera={"width": 160, "height": 90}, perception="detector",
+                                                 max_episode_steps=3), presets=("rain",), severities=(3,))
+    try:
+        assert isinstance(env.env, EpisodeStatistics)  # the make_env stack kept: its WeatherWrapper is below
+        obs, info = env.reset(seed=0)
+        assert info["weather_draw"] == "rain@3" and info["weather"][0]["name"] == "rain"
+        assert sorted(obs) == ["cones", "mask", "state"]
+    finally:
+        env.close()

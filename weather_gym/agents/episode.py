@@ -42,7 +42,7 @@ class EpisodeResult:
     """What one episode gave.
 
     Attributes:
-        end_reason: ``laps`` | ``off_track`` | ``time_limit`` (``weather_gym.envs.END_REASONS``).
+        end_reason: ``laps`` | ``off_track`` | ``stalled`` | ``time_limit`` (``weather_gym.envs.END_REASONS``).
         completed: all requested laps driven (an open event: its finish crossed).
         laps_completed, lap_times_s: laps finished and their times.
         progress: distance along the centre line / (track length x laps requested), clipped to 0..1.

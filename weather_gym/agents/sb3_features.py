@@ -27,12 +27,13 @@ from __future__ import annotations
 
 import torch
 from gymnasium import spaces
+from stable_baselines3.common.policies import MultiInputActorCriticPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD
 
-__all__ = ["ConeListExtractor"]
+__all__ = ["ConeListExtractor", "ConeListPolicy"]
 
 X_SCALE_M = 20.0
 Y_SCALE_M = 10.0
@@ -68,3 +69,13 @@ class ConeListExtractor(BaseFeaturesExtractor):
         state = obs["state"].float()
         car = torch.stack([state[:, 0] / SPEED_SCALE, state[:, 1]], dim=-1)
         return torch.cat([per_cone.flatten(1), car], dim=-1)
+
+
+class ConeListPolicy(MultiInputActorCriticPolicy):
+    """PPO's ``MultiInputPolicy`` reading the cone list through :class:`ConeListExtractor` (its default
+    ``features_extractor_class``): a policy a hyper-parameter file names by import path
+    (``policy: weather_gym.agents.sb3_features.ConeListPolicy``, rl-zoo3's format; ``weather-gym train``)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("features_extractor_class", ConeListExtractor)
+        super().__init__(*args, **kwargs)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import contextvars
 import importlib
 import pkgutil
 import signal
@@ -61,11 +62,12 @@ def run_command(func, *args, **kwargs) -> int:
     A :class:`WeatherGymError` prints ``error: MESSAGE`` and gives 2; Ctrl-C (or SIGTERM) gives 130
     (143) after the ``finally`` blocks ran, so no temporary file is left; any other exception
     prints its traceback and a line asking to report the bug, and gives 70. Scripts in
-    ``examples/`` use it too.
+    ``examples/`` use it too. Each call runs in a fresh ``contextvars`` context, so the inputs a
+    command declares (``weather_gym._io.declare_inputs``) end with it.
     """
     with _terminate_as_exit():
         try:
-            return int(func(*args, **kwargs) or 0)
+            return int(contextvars.copy_context().run(func, *args, **kwargs) or 0)
         except WeatherGymError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2

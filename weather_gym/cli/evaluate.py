@@ -20,11 +20,12 @@ import shlex
 import sys
 from pathlib import Path
 
+from weather_gym._io import declare_inputs
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
-from weather_gym.evaluation.evaluate import EvalConfig, evaluate, make_cells
+from weather_gym.evaluation.evaluate import PERCEPTIONS, EvalConfig, evaluate, make_cells
 from weather_gym.evaluation.runner import check_results_path
 
 
@@ -73,8 +74,9 @@ def register(sub) -> None:
     g.add_argument("--tracks", default="small_track", help="track names / 'random:SEED' / cone CSV paths, comma-separated")
     e = p.add_argument_group("episode")
     e.add_argument("--env-id", default="WeatherGym/ConeTrack-v0", help="Gymnasium id of the scenario")
-    e.add_argument("--perception", default="detector", choices=("detector", "oracle", "camera", "surrogate"),
+    e.add_argument("--perception", default="detector", choices=PERCEPTIONS,
                    help="detector: the ONNX detector; oracle: ground-truth cone list; camera: raw weathered image; "
+                        "gt_cones: ground-truth cones from geometry, nothing rendered (clear weather only); "
                         "surrogate: the detector's statistics in the weather, nothing rendered (docs/surrogate.md)")
     e.add_argument("--laps", type=int, default=1, help="laps per episode")
     e.add_argument("--max-steps", type=int, default=3000, help="step limit per episode (30 steps = 1 s)")
@@ -128,6 +130,7 @@ def _perception_kwargs(args) -> dict:
 
 
 def _run(args) -> int:
+    declare_inputs(args.presets)
     check_runner_args(args)
     if args.presets is not None and not args.presets.is_file():
         raise MissingInputError(f"--presets: {args.presets} not found")

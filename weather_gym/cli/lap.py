@@ -24,6 +24,7 @@ from tqdm import tqdm
 
 from weather_gym.agents import AGENTS, run_episode
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
 from weather_gym.errors import InputError
@@ -78,7 +79,7 @@ def register(sub) -> None:
                                    "see `weather-gym tracks list`")
     p.add_argument("--env", default="WeatherGym/ConeTrack-v0", help="Gymnasium env id (default %(default)s)")
     p.add_argument("--agent", default="gt_pure_pursuit",
-                   help="registered agent: gt_pure_pursuit (default), mapper_pure_pursuit, sb3")
+                   help=f"registered agent: {', '.join(AGENTS)} (default gt_pure_pursuit)")
     p.add_argument("--agent-arg", action="append", default=[], metavar="KEY=VALUE",
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
@@ -88,7 +89,7 @@ def register(sub) -> None:
                    help="quantile of the depths inside a detection's box that gives its range (perception "
                         "detector; default the median, 0.5; 0.25 ranges far cones better: docs/perception.md)")
     p.add_argument("--laps", type=int, default=1, help="laps to drive (default %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="episode seed (default %(default)s)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="episode seed (default %(default)s)")
     p.add_argument("--max-steps", type=int,
                    help="time limit in steps (TimeLimit; default: laps x max(60 s, length / 2 m/s))")
     p.add_argument("--video", type=Path, metavar="PATH.mp4", help="write an MP4 of the run")

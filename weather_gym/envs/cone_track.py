@@ -26,6 +26,7 @@ import math
 import os
 import sys
 import warnings
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
@@ -37,7 +38,7 @@ from gymnasium import spaces
 from weather_gym.camera_model import CameraModel, CameraPipeline
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
-from weather_gym.errors import InputError, StateError
+from weather_gym.errors import InputError, LimitError, StateError
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look, sample_look
 from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
@@ -46,12 +47,18 @@ from weather_gym.tracks import load_track
 STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
 """Names of ``obs["state"]``: wheel-speed odometry (m/s), gyro yaw rate (rad/s), odometry pose."""
 
+MAX_FRICTION = 3.0
+"""Largest tyre-road friction coefficient a reset accepts (racing slicks on dry tarmac reach about 1.7)."""
 RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction", "camera_model", "camera_frame")
+WRAPPER_RESET_OPTIONS = ("weather",)
+"""Reset options the weather wrappers above the env take (and remove) before the env sees the rest."""
 
-END_REASONS: tuple[str, ...] = ("laps", "off_track", "time_limit")
+END_REASONS: tuple[str, ...] = ("laps", "off_track", "stalled", "time_limit")
 """Why an episode ends: ``laps`` (the requested laps driven, or an open event's finish line
-crossed), ``off_track`` (left the track, with ``terminate_off_track``), ``time_limit`` (truncated by
-``TimeLimit``). The env reports the first two as ``info["end_reason"]`` on the terminating step."""
+crossed), ``off_track`` (left the track, with ``terminate_off_track``), ``stalled`` (less than
+``stall_m`` of progress in ``stall_s`` seconds, with ``EnvConfig.stall_s`` > 0), ``time_limit``
+(truncated by ``TimeLimit``). The env reports the first three as ``info["end_reason"]`` on the
+terminating step."""
 
 
 def _wrap_angle(a: float) -> float:
@@ -133,7 +140,9 @@ class ConeTrackEnv(gym.Env):
         options = dict(options or {})
         unknown = set(options) - set(RESET_OPTIONS)
         if unknown:
-            raise InputError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}")
+            raise InputError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}, and "
+                             f"{WRAPPER_RESET_OPTIONS[0]!r} on a stack with weather (a WeatherWrapper or "
+                             "SurrogatePerceptionWrapper: weather given, or perception 'detector' / 'surrogate')")
         self._episode_started = False  # until this reset has succeeded
         rng = self.np_random
         look = self._resolve_look(options.get("look"), rng)
@@ -149,14 +158,20 @@ class ConeTrackEnv(gym.Env):
                 raise InputError(f"reset option start_s must be a finite arc length in metres, got {start_s!r}")
             x, y, h = track.point_at(start_s)
             pose = (float(x), float(y), float(h))
+        elif track.closed and self.config.random_start > 0 and rng.random() < self.config.random_start:
+            x, y, h = track.point_at(rng.uniform(0.0, track.length))
+            pose = (float(x), float(y), float(h))
         else:
             pose = tuple(float(v) for v in track.start_pose)
         speed = _numbers([options.get("start_speed", 0.0)], "start_speed")[0]
-        if not math.isfinite(speed) or speed < 0:
-            raise InputError(f"reset option start_speed must be a finite number >= 0, got {speed!r}")
+        v_max = self.config.car.max_speed  # the car's own top speed: faster starts are not physical
+        if not (math.isfinite(speed) and 0 <= speed <= v_max):
+            raise LimitError(f"reset option start_speed must be 0 to {v_max:g} m/s (the car's max_speed), got {speed!r}")
         friction = options.get("friction", self.config.car.friction)
-        if not (isinstance(friction, (int, float)) and math.isfinite(friction) and friction > 0):
-            raise InputError(f"reset option friction must be a finite number > 0, got {friction!r}")
+        if not (isinstance(friction, (int, float)) and not isinstance(friction, bool) and math.isfinite(friction)
+                and 0 < friction <= MAX_FRICTION):
+            raise LimitError(f"reset option friction must be a tyre-road friction coefficient in (0, {MAX_FRICTION:g}] "
+                             f"(ice 0.1, wet 0.6, dry 1.0, slicks ~1.7), got {friction!r}")
         self._friction = float(friction)
         model = options.get("camera_model", self.config.camera_model)
         try:
@@ -191,6 +206,9 @@ class ConeTrackEnv(gym.Env):
         self._off_track = False
         self._off_track_events = 0
         self._finished = False
+        stall_steps = round(self.config.stall_s * self.config.sim.control_hz)
+        # progress at the last stall_steps + 1 steps (None: no stall rule)
+        self._stall_window = deque([0.0], maxlen=max(stall_steps, 1) + 1) if self.config.stall_s > 0 else None
         self._lateral = float(proj.lateral)
         self._update_frame()
         meas = self._measure(0.0)
@@ -288,6 +306,12 @@ class ConeTrackEnv(gym.Env):
         self._off_track_events += int(became_off)
         self._off_track = off
 
+        stalled = False
+        window = self._stall_window
+        if window is not None:
+            window.append(self._progress)
+            stalled = len(window) == window.maxlen and self._progress - window[0] < self.config.stall_m
+
         r = self.config.reward
         reward = r.progress * ds + r.cone_hit * new_hits + r.off_track * float(became_off) + r.time
 
@@ -297,6 +321,9 @@ class ConeTrackEnv(gym.Env):
             end_reason = "laps"
         elif off and self.config.terminate_off_track:
             end_reason = "off_track"
+        elif stalled:
+            end_reason = "stalled"
+            reward += r.stall
         terminated = end_reason is not None
 
         if self._step % self._frame_every == 0:

@@ -30,15 +30,17 @@ RENDER_VIEWS = ("chase", "camera")
 @dataclass(frozen=True)
 class RewardConfig:
     """Reward = progress * metres gained along the centerline + cone_hit per new cone touched
-    + off_track on leaving the track + time per step."""
+    + off_track on leaving the track + stall on the step an episode ends for stalling
+    (``EnvConfig.stall_s``) + time per step."""
 
     progress: float = 1.0
     cone_hit: float = -2.0
     off_track: float = -10.0
     time: float = 0.0
+    stall: float = -10.0
 
     def __post_init__(self) -> None:
-        for name in ("progress", "cone_hit", "off_track", "time"):
+        for name in ("progress", "cone_hit", "off_track", "time", "stall"):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise InputError(f"RewardConfig.{name} must be a finite number, got {v!r}")
@@ -56,6 +58,15 @@ class EnvConfig:
         terminate_off_track: end the episode when the car leaves the track.
         off_track_margin: metres beyond the cone line the car's reference point may go before it
             counts as off track (0.6 m = all four wheels out for a 1.2 m wide car).
+        stall_s: terminate the episode (``end_reason`` ``"stalled"``, reward ``RewardConfig.stall``)
+            when the car has gained less than ``stall_m`` along the centre line in the last ``stall_s``
+            seconds (from the reset on, so a car that never leaves its start stalls too); 0 = never
+            (the default): a standing car then costs nothing and runs to the time limit.
+        stall_m: metres of progress the car must make in every ``stall_s`` window.
+        random_start: the share of resets (without a ``start_pose`` or ``start_s`` option, on a closed
+            track) that start at a uniformly drawn arc length instead of the start line, drawn from the
+            episode's RNG; 0 = always the start line. For training: 0.75 still starts a quarter of the
+            episodes where an evaluation starts (the start line's big orange cones beside a standing car).
         randomize_look: draw a random appearance from the episode's RNG at every reset.
         camera_images: render the camera (``obs["image"]``, ``obs["depth"]``); False = render nothing
             (the observation is ``state`` only; pair with ``ground_truth="geometry"``).
@@ -80,6 +91,9 @@ class EnvConfig:
     laps: int = 1
     terminate_off_track: bool = True
     off_track_margin: float = 0.6
+    stall_s: float = 0.0
+    stall_m: float = 1.0
+    random_start: float = 0.0
     randomize_look: bool = False
     camera_images: bool = True
     ground_truth: str = "segmentation"
@@ -107,6 +121,13 @@ class EnvConfig:
         if not (isinstance(self.off_track_margin, (int, float)) and math.isfinite(self.off_track_margin)
                 and self.off_track_margin >= 0):
             raise InputError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
+        for name in ("stall_s", "stall_m"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise InputError(f"EnvConfig.{name} must be a finite number >= 0, got {v!r}")
+        rs = self.random_start
+        if isinstance(rs, bool) or not isinstance(rs, (int, float)) or not 0.0 <= rs <= 1.0:
+            raise InputError(f"EnvConfig.random_start must be a share in [0, 1], got {rs!r}")
         if self.render_view not in RENDER_VIEWS:
             raise InputError(f"EnvConfig.render_view must be one of {', '.join(RENDER_VIEWS)}, got {self.render_view!r}")
         for name, cls in (("sim", SimConfig), ("car", CarConfig), ("camera", CameraConfig),

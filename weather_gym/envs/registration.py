@@ -2,8 +2,9 @@
 
 Each id's entry point is :func:`weather_gym.pipeline.make_scenario_env` (env -> weather ->
 perception; see :mod:`weather_gym.pipeline` for its keywords) and its ``max_episode_steps`` the
-scenario's: Gymnasium's ``TimeLimit`` owns truncation, so ``gym.make(id, max_episode_steps=N)``
-runs up to N steps (``-1``: Gymnasium's "no limit"). This module only stores the entry point's
+scenario's time limit at its control rate (``max_episode_s * control_hz``): Gymnasium's ``TimeLimit``
+owns truncation, so ``gym.make(id, max_episode_steps=N)`` runs up to N steps (``-1``: Gymnasium's
+"no limit"); ``weather_gym.make_env`` derives the steps from the env's own control rate. This module only stores the entry point's
 name, so the env layer imports nothing above it.
 
 Example:

@@ -27,6 +27,7 @@ Example:
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import math
 import numbers
@@ -55,6 +56,9 @@ from weather_gym.pipeline import PERCEPTION_MODES, make_env
 from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 from weather_gym.tracks import load_track
 from weather_gym.weather.presets import canonical_condition, preset_spec
+from weather_gym.wrappers.detector import DetectorWrapper
+from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise
+from weather_gym.wrappers.surrogate import SurrogatePerceptionWrapper
 
 __all__ = [
     "CELL_KEY_FIELDS",
@@ -258,6 +262,10 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     if clash:
         raise InputError(f"env_kwargs may not set {', '.join(clash)}: use EvalConfig.perception / perception_kwargs")
     env_config = _resolved_env(config)  # camera sizes and other overrides are checked now, not in every cell
+    _check_perception_kwargs(config.perception, dict(config.perception_kwargs))
+    if config.agent_kwargs:  # a bad agent argument fails now, not in every cell
+        for a in agents:
+            _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
     if config.perception == "surrogate":  # a weather the surrogate has no model of fails now, not in every cell
         model = load_model(dict(config.perception_kwargs).get("model"))
@@ -280,6 +288,44 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         for a in agents for t in tracks for e in effects for s in severities for seed in seeds
     ]
     return cells
+
+
+def _check_perception_kwargs(perception: str, kwargs: dict[str, Any]) -> None:
+    """Refuse keys the perception wrapper does not take, and bad oracle noise values, before any cell runs."""
+    wrapper = {"detector": DetectorWrapper, "oracle": GroundTruthConeWrapper, "gt_cones": GroundTruthConeWrapper,
+               "surrogate": SurrogatePerceptionWrapper}.get(perception)
+    if wrapper is None:
+        if kwargs:
+            raise InputError(f"--perception-kwargs {sorted(kwargs)}: perception {perception!r} takes none")
+        return
+    params = inspect.signature(wrapper.__init__).parameters
+    allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
+    allowed -= {"self", "env", "weather"}
+    noise = {}
+    if wrapper is GroundTruthConeWrapper:
+        noise = {k: v for k, v in kwargs.items() if k in {f.name for f in fields(OracleNoise)}}
+        allowed |= {f.name for f in fields(OracleNoise)}
+    unknown = sorted(set(kwargs) - allowed)
+    if unknown:
+        raise InputError(f"--perception-kwargs: {', '.join(map(repr, unknown))} is not an argument of "
+                         f"{wrapper.__name__} (perception {perception!r}); valid: {', '.join(sorted(allowed))}")
+    if noise:
+        try:
+            OracleNoise(**noise)
+        except InputError as exc:
+            raise InputError(f"--perception-kwargs: {exc}") from None
+
+
+def _check_agent_kwargs(name: str, track: Any, camera: Any, kwargs: dict[str, Any]) -> None:
+    """Build agent ``name`` once with ``kwargs``: an unknown or bad argument fails before any cell runs."""
+    try:
+        make_agent(name, track, camera, **kwargs)
+    except InputError as exc:
+        raise InputError(f"--agent-kwargs for agent {name!r}: {exc}") from None
+    except TypeError as exc:
+        if "keyword argument" not in str(exc):
+            raise  # not the arguments' fault: a bug keeps its traceback
+        raise InputError(f"--agent-kwargs for agent {name!r}: {exc}") from None
 
 
 # ------------------------------------------------------------------------------------------ the cell

@@ -45,7 +45,7 @@ def capped_cubic_video_schedule(episode_id: int) -> bool:
     return episode_id % 1000 == 0
 
 
-class RecordVideo(gym.Wrapper):
+class RecordVideo(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Record ``env.render()`` frames of chosen episodes or step ranges to MP4 files (see the module doc).
 
     Args:
@@ -63,7 +63,10 @@ class RecordVideo(gym.Wrapper):
     def __init__(self, env: gym.Env, video_folder: str | os.PathLike, episode_trigger: Callable[[int], bool] | None = None,
                  step_trigger: Callable[[int], bool] | None = None, video_length: int = 0,
                  name_prefix: str = "rl-video", fps: float | None = None, overwrite: bool = False) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, video_folder=video_folder, episode_trigger=episode_trigger, step_trigger=step_trigger,
+            video_length=video_length, name_prefix=name_prefix, fps=fps, overwrite=overwrite)
+        gym.Wrapper.__init__(self, env)
         if env.render_mode != "rgb_array":
             raise InputError(f"RecordVideo needs render_mode='rgb_array' (frames as arrays), got {env.render_mode!r}")
         if episode_trigger is None and step_trigger is None:

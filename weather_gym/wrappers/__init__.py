@@ -3,6 +3,9 @@
 ground-truth cone lists), ``SurrogatePerceptionWrapper`` (the detector's statistics, nothing rendered), ``EpisodeStatistics`` (a summary of each episode in its last info), and
 ``RecordVideo`` (H.264 videos of ``render()``, defined in ``weather_gym.viz``).
 
+Every wrapper records its constructor arguments (``gymnasium.utils.RecordConstructorArgs``), so
+``env.spec`` lists the stack and ``gymnasium.make(env.spec)`` rebuilds it.
+
 Imports are lazy (``__getattr__``) so ``import weather_gym.wrappers`` stays light; a new wrapper is
 one module plus one line in ``_LAZY``.
 

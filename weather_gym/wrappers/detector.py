@@ -50,11 +50,12 @@ from weather_gym.perception.ranging import (
     cones_to_observation,
     detections_to_cones,
 )
+from weather_gym.wrappers._recorded import recorded, unrecorded
 
 __all__ = ["DetectorWrapper"]
 
 
-class DetectorWrapper(gym.ObservationWrapper):
+class DetectorWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """Replace the image observation by the detector's cone list; see the module doc.
 
     Args:
@@ -96,7 +97,15 @@ class DetectorWrapper(gym.ObservationWrapper):
         detector_input: str | tuple[int, int] | None = None,
         latency_in_info: bool = False,
     ) -> None:
-        super().__init__(env)
+        detector = unrecorded(detector)  # rebuilt from env.spec
+        gym.utils.RecordConstructorArgs.__init__(
+            self, _disable_deepcopy=True, detector=recorded(detector, (str, os.PathLike, DetectorSpec)),
+            max_cones=max_cones, camera=camera,
+            image_key=image_key, depth_key=depth_key, use_depth=use_depth, depth_quantile=depth_quantile,
+            keep_image=keep_image, score_threshold=score_threshold, threads=threads,
+            detector_classes=detector_classes, detector_resize=detector_resize, detector_input=detector_input,
+            latency_in_info=latency_in_info)
+        gym.ObservationWrapper.__init__(self, env)
         self.latency_in_info = bool(latency_in_info)
         self.depth_quantile = check_depth_quantile(depth_quantile)
 

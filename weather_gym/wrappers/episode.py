@@ -41,7 +41,7 @@ from weather_gym.wrappers.weather import WeatherWrapper
 __all__ = ["EpisodeStatistics", "latencies"]
 
 
-class EpisodeStatistics(gym.Wrapper):
+class EpisodeStatistics(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Adds ``info["episode"]`` on the last step of each episode (see the module doc).
 
     Keys: ``r`` (return), ``l`` (steps), ``end_reason`` (``laps``, ``off_track``, ``time_limit``),
@@ -51,7 +51,8 @@ class EpisodeStatistics(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, info_key: str = "episode") -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, info_key=info_key)
+        gym.Wrapper.__init__(self, env)
         self.info_key = info_key
         self.last_episode: dict[str, Any] | None = None
         self._reset_counters()

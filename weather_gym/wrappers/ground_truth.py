@@ -124,7 +124,7 @@ def oracle_cones(gt: dict, camera: CameraConfig, noise: OracleNoise | None = Non
                       boxes=boxes, camera=camera, max_cones=max_cones)
 
 
-class GroundTruthConeWrapper(gym.Wrapper):
+class GroundTruthConeWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Replace the image observation by the oracle cone list (``cones``, ``mask``, ``state``).
 
     Args:
@@ -136,7 +136,9 @@ class GroundTruthConeWrapper(gym.Wrapper):
 
     def __init__(self, env: gym.Env, noise: OracleNoise | None = None, *, max_cones: int = DEFAULT_MAX_CONES,
                  keep_image: bool = False, **noise_fields: Any) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, noise=noise, max_cones=max_cones, keep_image=keep_image,
+                                                 **noise_fields)
+        gym.Wrapper.__init__(self, env)
         if noise is not None and noise_fields:
             raise InputError("GroundTruthConeWrapper: pass either noise=OracleNoise(...) or its fields, not both")
         try:

@@ -54,6 +54,7 @@ from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pac
 from weather_gym.surrogate.model import SurrogateModel, load_model
 from weather_gym.surrogate.sample import FrameSampler
 from weather_gym.weather import current_spec, parse_weather
+from weather_gym.wrappers._recorded import recorded, unrecorded
 
 __all__ = ["SurrogatePerceptionWrapper", "frames_change_by_themselves"]
 
@@ -78,7 +79,7 @@ def frames_change_by_themselves(effect: Any) -> bool:
     return any(not np.array_equal(first, probe(_PROBE)) for _ in range(29))
 
 
-class SurrogatePerceptionWrapper(gym.Wrapper):
+class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Replace the observation by a cone list drawn from the perception surrogate; see the module doc.
 
     Args:
@@ -92,7 +93,11 @@ class SurrogatePerceptionWrapper(gym.Wrapper):
 
     def __init__(self, env: gym.Env, weather: Any = None, *, model: Any = None, max_cones: int = DEFAULT_MAX_CONES,
                  latency_in_info: bool = False) -> None:
-        super().__init__(env)
+        model = unrecorded(model)  # rebuilt from env.spec
+        gym.utils.RecordConstructorArgs.__init__(self, _disable_deepcopy=True, weather=copy.deepcopy(weather),
+                                                 model=recorded(model, (str, os.PathLike)), max_cones=max_cones,
+                                                 latency_in_info=latency_in_info)
+        gym.Wrapper.__init__(self, env)
 
         if not (isinstance(max_cones, int) and not isinstance(max_cones, bool) and max_cones >= 1):
             raise InputError(f"SurrogatePerceptionWrapper: max_cones must be an integer >= 1, got {max_cones!r}")

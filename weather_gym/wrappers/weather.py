@@ -75,14 +75,17 @@ def _check_image_space(space: Any, where: str) -> None:
         raise InputError(f"WeatherWrapper: {where} must be an image Box(0, 255, (H, W, 3), uint8), got {space}")
 
 
-class WeatherWrapper(gym.ObservationWrapper):
+class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """Apply weather to image observations; see the module doc."""
 
     def __init__(self, env: gym.Env, weather: Any = None, *, image_key: str = "image",
                  depth_key: str | None = "depth", state_key: str | None = "state",
                  state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None,
                  render_weather: bool | None = None, latency_in_info: bool = False) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, weather=weather, image_key=image_key, depth_key=depth_key, state_key=state_key,
+            state_fields=state_fields, fx=fx, render_weather=render_weather, latency_in_info=latency_in_info)
+        gym.ObservationWrapper.__init__(self, env)
         self.latency_in_info = bool(latency_in_info)
         space = env.observation_space
         self.image_key = image_key

@@ -142,7 +142,7 @@ class RandomWeather:
         return spec, " + ".join(labels) or "clear"
 
 
-class WeatherRandomizer(gym.Wrapper):
+class WeatherRandomizer(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Draw the weather of each episode (or every few steps) from ``RandomWeather``; see the module doc.
 
     Args:
@@ -151,6 +151,7 @@ class WeatherRandomizer(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, config: RandomWeather | None = None, **fields: Any) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, config=config, **fields)
         if config is not None and fields:
             raise InputError("WeatherRandomizer: pass either config=RandomWeather(...) or its fields, not both")
         try:
@@ -166,7 +167,7 @@ class WeatherRandomizer(gym.Wrapper):
             except ValueError as exc:
                 raise InputError("WeatherRandomizer needs a WeatherWrapper below it (put it under any "
                                  f"DetectorWrapper), and could not add one: {exc}") from None
-        super().__init__(env)
+        gym.Wrapper.__init__(self, env)
         self._rng: np.random.Generator | None = None
         self._steps = 0
         self.draw: str = "clear"

@@ -1,0 +1,58 @@
+"""Docs snippets run as pasted: a ``make_vec_env`` (async, forkserver workers that import the script)
+sits under ``if __name__ == "__main__":`` in every Python block of the README and docs, and a script
+that leaves the guard out still runs (its workers start with fork, with a warning)."""
+
+from __future__ import annotations
+
+import ast
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def _python_blocks(path: Path) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", path.read_text(encoding="utf-8"), flags=re.S)
+
+
+def _unguarded_vec_calls(source: str) -> list[int]:
+    from weather_gym.pipeline import _is_main_guard
+
+    tree = ast.parse(source)
+    out = []
+    for node in tree.body:
+        if _is_main_guard(node):
+            continue
+        out += [n.lineno for n in ast.walk(node) if isinstance(n, ast.Call)
+                and getattr(n.func, "attr", getattr(n.func, "id", None)) == "make_vec_env"]
+    return out
+
+
+def test_every_make_vec_env_snippet_is_under_the_main_guard():
+    found = 0
+    for path in DOCS:
+        for block in _python_blocks(path):
+            if "make_vec_env(" not in block:
+                continue
+            found += 1
+            assert not _unguarded_vec_calls(block), f"{path.name}: make_vec_env outside __main__ guard:\n{block}"
+    assert found >= 2  # the README's and docs/envs.md's quick starts
+
+
+@pytest.mark.slow
+def test_an_unguarded_script_falls_back_to_fork_with_a_warning(tmp_path):
+    script = tmp_path / "unguarded.py"
+    script.write_text("import weather_gym\n"
+                      "venv = weather_gym.make_vec_env(num_envs=2, perception='gt_cones', max_episode_steps=5)\n"
+                      "obs, info = venv.reset(seed=0)\n"
+                      "print('cones', obs['cones'].shape)\n"
+                      "venv.close()\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "cones (2, 64, 14)" in done.stdout
+    assert f"{script}:2, outside `if __name__ == \"__main__\":`" in done.stderr and "with fork instead" in done.stderr

@@ -1,0 +1,29 @@
+"""``weather-gym train``: train a PPO driver on the cone list (:mod:`weather_gym.rl.train`).
+
+Examples:
+    weather-gym train --out runs/ppo                                   # the shipped ppo.yml, 300k steps
+    weather-gym train --out runs/ppo --resume                          # after a stop (Ctrl-C included)
+    weather-gym train --out runs/smoke --timesteps 4096 --n-envs 2     # a smoke run
+    weather-gym train --out runs/sur --perception surrogate --surrogate-weathers clear,droplets@2,low_light@1
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub) -> None:
+    from weather_gym.rl.train import __doc__ as doc
+    from weather_gym.rl.train import build_parser
+
+    p = sub.add_parser("train", help="train a PPO driver on the cone list (logs, checkpoints, held-out eval, resume)",
+                       description=doc.split("Example:")[0].strip(),
+                       formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
+    build_parser(p)
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from weather_gym.rl.train import train
+
+    return train(args)
