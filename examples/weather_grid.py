@@ -4,7 +4,8 @@ Run (writes docs/img/weather_grid.png):
 
     python examples/weather_grid.py --overwrite
 
-Rows are the effects of the registry (plus physical dim and persistent droplets), columns the
+Rows are the effects of the registry (plus dim's physical and night modes, refractive and persistent
+droplets; ``--only droplets,dim`` keeps the rows of those effects), columns the
 clean frame and k = 0.25 / 0.5 / 0.75. The frame comes from ``WeatherGym/ConeTrack-v0`` after a
 few steps of driving (its depth map and state go to the effects); ``--image PATH`` uses an image
 file instead, ``--synthetic`` the synthetic scene of ``weather_gym.weather.sample``.
@@ -23,7 +24,8 @@ from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.weather import EFFECTS, make
 
 KS = (0.25, 0.5, 0.75)
-ROWS = [(name, {}) for name in EFFECTS.names()] + [("dim", {"mode": "physical"}),
+ROWS = [(name, {}) for name in EFFECTS.names()] + [("dim", {"mode": "physical"}), ("dim", {"mode": "night"}),
+                                                   ("droplets", {"mode": "refractive"}),
                                                    ("droplets", {"persistent": True})]
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "docs" / "img" / "weather_grid.png"
 
@@ -49,8 +51,9 @@ def simulator_frame(seed: int = 0, steps: int = 20):
         env.close()
 
 
-def grid(image: np.ndarray, depth: np.ndarray | None, state: dict, tile_w: int = 288, seed: int = 0) -> np.ndarray:
-    """The grid as one uint8 RGB image with row and column labels."""
+def grid(image: np.ndarray, depth: np.ndarray | None, state: dict, tile_w: int = 288, seed: int = 0,
+         only: tuple[str, ...] = ()) -> np.ndarray:
+    """The grid as one uint8 RGB image with row and column labels (``only``: these effects' rows)."""
     h, w = image.shape[:2]
     tile_h = int(round(tile_w * h / w))
     label_w, head_h = 190, 28
@@ -65,6 +68,8 @@ def grid(image: np.ndarray, depth: np.ndarray | None, state: dict, tile_w: int =
         cv2.putText(head, text, (label_w + i * tile_w + 8, 20), font, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
     rows.append(head)
     for name, params in ROWS:
+        if only and name not in only:
+            continue
         label = np.full((tile_h, label_w, 3), 255, np.uint8)
         cv2.putText(label, name, (8, tile_h // 2), font, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
         if params:
@@ -88,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     src.add_argument("--synthetic", action="store_true", help="use the synthetic scene (no simulator)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, help="PNG to write (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--only", default="", metavar="NAME,...",
+                   help="only the rows of these effects, e.g. droplets,dim (every mode of each)")
     add_overwrite_arg(p, help="overwrite --out if it exists")
     return run_command(_run, p.parse_args(argv))
 
@@ -106,7 +113,13 @@ def _run(args) -> int:
         image, depth, state = read_image(args.image), None, {}
     else:
         image, depth, state = simulator_frame(args.seed)
-    out = grid(image, depth, state, seed=args.seed)
+    only = tuple(n for n in args.only.split(",") if n)
+    unknown = [n for n in only if n not in EFFECTS.names()]
+    if unknown:
+        from weather_gym.errors import InputError
+
+        raise InputError(f"--only: unknown effect(s) {', '.join(unknown)}; known: {', '.join(EFFECTS.names())}")
+    out = grid(image, depth, state, seed=args.seed, only=only)
     write_image(args.out, out, overwrite=args.overwrite, params=[cv2.IMWRITE_PNG_COMPRESSION, 9])
     print(f"wrote {args.out} ({out.shape[1]}x{out.shape[0]})")
     return 0

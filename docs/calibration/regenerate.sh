@@ -1,29 +1,59 @@
 #!/usr/bin/env bash
-# Regenerate every calibration artefact: the evaluation set (if missing), the k sweeps, the shipped presets
-# (weather_gym/weather/presets.toml), the physical-dim alternative (weather_gym/calibration/presets_physical.toml)
-# and the reports and plots in docs/calibration/.
+# Regenerate every calibration artefact: the evaluation sets (if missing), the k sweeps, the shipped presets
+# (weather_gym/weather/presets.toml), the physical-dim alternative (weather_gym/calibration/presets_physical.toml),
+# the transfer check on held-out sets and the reports and plots in docs/calibration/.
 #
 #   bash docs/calibration/regenerate.sh            # from the repository root, in the venv
 #
-# Resumable: a finished sweep cell is never run again (delete docs/calibration/curves.csv and sweep.json to start over, e.g.
-# after the detector changes - a new model gets new rows, and the old ones are ignored by model_id).
+# Resumable: a finished sweep or transfer cell is never run again (delete docs/calibration/curves.csv,
+# sweep.json and transfer/cells.csv to start over, e.g. after the detector changes - a new model gets new
+# rows, and the old ones are ignored by model_id).
 set -euo pipefail
-SET=${SET:-scratch/calib/eval_peanut}     # the fixed evaluation set (git-ignored; rendered deterministically)
+SETS=${SETS:-scratch/calib}              # the rendered evaluation sets (git-ignored; rendered deterministically)
 WORKERS=${WORKERS:-2}
 OUT=docs/calibration
+SET=$SETS/mix
+REAL=${REAL:-}                           # optional: an imported real clear set with its ignore mask (docs/real_data.md)
 
-if [ ! -f "$SET/annotations.json" ]; then
-  # peanut is held out from the detector's training; default (bright overcast) look; 16 start points x 10 frames
-  weather-gym dataset render --track peanut --frames 160 --seed 606 --frames-per-episode 10 --out "$SET"
-fi
+render() {  # render OUT ARGS...: a fixed set, once
+  local out=$1; shift
+  [ -f "$out/annotations.json" ] || weather-gym dataset render "$@" --frames-per-episode 10 --out "$out" --quiet
+}
+# calibration set: four tracks (peanut and two generated tracks are held out from the detector's training),
+# default bright-overcast look, 24 start points x 10 frames
+render "$SET" --track peanut --track random:80 --track random:81 --track fsds_training --frames 240 --seed 606
+# held-out sets: tracks the calibration never saw, and the realistic world
+HELD=(jellybean b_shape hairpin random:82 small_track oval random:85 random:86)
+for t in "${HELD[@]}"; do
+  render "$SETS/held_${t//:/}" --track "$t" --frames 80 --seed 707
+done
+render "$SETS/held_realistic" --track peanut --track random:82 --frames 80 --seed 708 --scene realistic
+render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --seed 709 --scene realistic
 
-weather-gym sweep --effect droplets --effect dim --effect dim:mode=physical --k 0:1:0.05 --seeds 5 \
-  --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite
+# the study's faithful effects and the physical dim on a 0.1 grid; the shipped modes finer where they fall
+weather-gym sweep --effect droplets --effect dim --effect dim:mode=physical --k 0:1:0.1 --seeds 3 \
+  --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+weather-gym sweep --effect droplets:mode=refractive --k 0:1:0.1 --seeds 3 \
+  --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+weather-gym sweep --effect dim:mode=night \
+  --k 0,0.2,0.4,0.45,0.5,0.525,0.55,0.575,0.6,0.625,0.65,0.675,0.7,0.725,0.75,0.775,0.8,0.825,0.85,0.875,0.9,0.925,0.95,0.975,1 \
+  --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+
+python docs/calibration/plot_modes.py "$OUT/curves.csv" --out "$OUT/modes.png"
 
 weather-gym calibrate --curve "$OUT/curves.csv" --measured "$OUT/study_table2.csv" \
+  --metric map50_blue_yellow --use droplets=droplets_refractive --use low_light=dim_night \
   --study-points "$OUT/study_figure7.csv" --dataset "$SET" --seeds 5 --workers "$WORKERS" \
-  --out weather_gym/weather/presets.toml --overwrite --report "$OUT"
+  --out weather_gym/weather/presets.toml --overwrite --report "$OUT" --no-progress
 
-weather-gym calibrate --curve "$OUT/curves.csv" --measured "$OUT/study_table2.csv" --use low_light=dim_physical \
+weather-gym calibrate --curve "$OUT/curves.csv" --measured "$OUT/study_table2.csv" \
+  --metric map50_blue_yellow --use droplets=droplets_refractive --use low_light=dim_physical \
   --dataset "$SET" --seeds 5 --workers "$WORKERS" \
-  --out weather_gym/calibration/presets_physical.toml --overwrite --report "$OUT/physical"
+  --out weather_gym/calibration/presets_physical.toml --overwrite --report "$OUT/physical" --no-progress
+
+# do the presets transfer? relative mAP per preset on the held-out sets (and real frames, if given)
+TRANSFER=()
+for t in "${HELD[@]}"; do TRANSFER+=(--set "$t=$SETS/held_${t//:/}"); done
+TRANSFER+=(--set "realistic (peanut, random:82)=$SETS/held_realistic" --set "realistic (hairpin, random:85)=$SETS/held_realistic2")
+[ -n "$REAL" ] && TRANSFER+=(--set real="$REAL")
+python docs/calibration/transfer.py "${TRANSFER[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer"

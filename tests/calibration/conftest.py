@@ -1,9 +1,9 @@
 """Rendered evaluation sets for the calibration tests (rendered once per session, fixed seeds).
 
-``CALIB_SET`` is the recipe of the calibration evaluation set (docs/calibration.md): peanut (held out
-from the detector's training), default bright-overcast look. Rendering is repeatable and a shorter
-render with the same seed is a prefix of a longer one, so the 40 frames here are exactly the first 40
-frames of the set the shipped presets were calibrated on.
+``CALIB_SET`` is the recipe of the calibration evaluation set (docs/calibration.md): four tracks (peanut
+and two generated tracks held out from the detector's training, and fsds_training), default
+bright-overcast look. Rendering is repeatable; the 40 frames here (10 per track) are a smaller render
+of the same recipe as the 240-frame set the shipped presets were calibrated on.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-CALIB_SET = {"tracks": ["peanut"], "seed": 606, "frames_per_episode": 10}
+CALIB_SET = {"tracks": ["peanut", "random:80", "random:81", "fsds_training"], "seed": 606, "frames_per_episode": 10}
 
 
 def subset_coco(src: Path, dst: Path, n: int) -> Path:

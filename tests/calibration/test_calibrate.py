@@ -45,7 +45,7 @@ def test_relative_calibration_of_the_study_table(curves, levels):
     assert s0.effects == [] and s0.k == 0.0
     s4 = out["droplets", 4]  # 0.7 - 0.35 k = 0.74 * 0.7  ->  k = 0.52
     assert s4.reachable and s4.k == pytest.approx(0.52, abs=1e-3)
-    assert s4.effects == [{"name": "droplets", "k": s4.k}]
+    assert s4.effects == [{"name": "droplets", "k": s4.k, "mode": "faithful"}]
     lo, hi = s4.k_interval
     assert lo < s4.k < hi
     assert s4.k_other == pytest.approx(0.323, abs=1e-3)  # absolute 0.587: 0.7 - 0.35 k = 0.587

@@ -91,7 +91,7 @@ def test_parse_effect():
     e = parse_effect("dim:mode=physical")
     assert (e.label, e.name, e.params) == ("dim_physical", "dim", {"mode": "physical"})
     assert parse_effect("dim:mode=faithful") == parse_effect("dim")  # defaults are dropped: one curve
-    assert parse_effect("droplets").table(0.4) == {"name": "droplets", "k": 0.4}
+    assert parse_effect("droplets").table(0.4) == {"name": "droplets", "k": 0.4, "mode": "faithful"}
     with pytest.raises(ValueError, match="valid names: .*droplets"):
         parse_effect("snow")
     with pytest.raises(ValueError, match="give it with --k"):

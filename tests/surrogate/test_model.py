@@ -239,8 +239,8 @@ def test_a_parameter_added_after_the_fit_counts_at_its_default():
     m = load_model()
     old = {k: v for k, v in m.effects["droplets"].items() if k not in ("mode", "drop_count")}
     m = dataclasses.replace(m, effects={**m.effects, "droplets": old})  # fitted before they existed
-    assert m.point("droplets:0.5:mode=study").rho == m.point("droplets:0.5").rho
-    with pytest.raises(InputError, match="mode='study', given 'refractive'"):
+    assert m.point("droplets:0.5:mode=faithful").rho == m.point("droplets:0.5").rho
+    with pytest.raises(InputError, match="mode='faithful', given 'refractive'"):
         m.point("droplets:0.5:mode=refractive")
     with pytest.raises(InputError, match="fog_coef=0.4, given 0.3"):
         m.point("droplets:0.5:fog_coef=0.3")

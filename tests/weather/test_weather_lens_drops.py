@@ -23,7 +23,7 @@ def _refr(k=0.6, **kw):
 def test_spec_string_selects_the_mode():
     e = parse_weather("droplets:0.7:mode=refractive")
     assert e.mode == "refractive" and e.k == 0.7
-    assert make("droplets").mode == "study"
+    assert make("droplets").mode == "faithful"
 
 
 def test_a_drop_shows_the_scene_inverted():
@@ -123,7 +123,7 @@ def test_persistent_drops_survive_a_ramp_and_a_mode_switch(scene):
         ramp(img)
         fixed(img)
     np.testing.assert_allclose(ramp.current.drops, fixed.drops)
-    study = fixed.with_params(mode="study")
+    study = fixed.with_params(mode="faithful")
     study(img)  # the study's layout starts again, and back
     back = study.with_params(mode="refractive")
     assert back(img).shape == img.shape

@@ -171,7 +171,8 @@ def calibrate(curves: Mapping[str, Curve], levels: Sequence[MeasuredLevel], *, m
 def remeasure(calibs: Sequence[PresetCalibration], curves: Mapping[str, Curve], dataset: str | os.PathLike,
               results_path: str | os.PathLike, *, seeds: Sequence[int] = (0, 1, 2, 3, 4),
               model: Any = None, workers: int | None = None, backend: str = "process",
-              ray_address: str | None = None, progress: bool = True) -> list[dict[str, Any]]:
+              ray_address: str | None = None, progress: bool = True,
+              metric: str = "map50") -> list[dict[str, Any]]:
     """Measure each preset's effect at its chosen k (and k = 0) on ``dataset`` over ``seeds``.
 
     Fills ``achieved_map``, ``achieved_relative`` (mean over seeds of mAP at k / mean mAP at k = 0 on the
@@ -195,7 +196,7 @@ def remeasure(calibs: Sequence[PresetCalibration], curves: Mapping[str, Curve], 
                            f"(see {results_path}; run again to retry)")
     by: dict[tuple[str, float], list[float]] = {}
     for r in rows:
-        by.setdefault((r["effect"], float(r["k"])), []).append(float(r["map50"]))
+        by.setdefault((r["effect"], float(r["k"])), []).append(float(r[metric]))
     for c in calibs:
         vals = np.array(by[(c.curve, c.k)])
         clean = float(np.mean(by[(c.curve, 0.0)]))

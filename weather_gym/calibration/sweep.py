@@ -6,7 +6,8 @@ One *cell* is (effect, k, seed): the effect at that k degrades every frame of th
 pycocotools scores it. Cells run on :func:`weather_gym.evaluation.runner.run_cells` (parallel,
 resumable, a progress bar), which writes one tidy row per cell to ``OUT/curves.csv``:
 
-``effect, spec, k, seed, dataset_id, model_id, status, error, elapsed_s, map50, map, ap50_blue, ...,
+``effect, spec, k, seed, dataset_id, model_id, status, error, elapsed_s, map50, map, map50_blue_yellow,
+ap50_blue, ...,
 recall, recall_0_5m, ..., n_images, n_gt, n_detections``
 
 ``effect`` is the curve's label (``dim_physical`` for ``dim`` with ``mode="physical"``), ``spec`` the
@@ -244,7 +245,7 @@ def run_sweep_cell(cell: SweepCell) -> dict[str, Any]:
     ds, det = _dataset_and_detector(cell.dataset, cell.model)
     effect = make(cell.name, k=float(cell.k), **json.loads(cell.spec))
     r = score_dataset(ds, det, effect, seed=int(cell.seed))
-    row: dict[str, Any] = {"map50": r.map50, "map": r.map}
+    row: dict[str, Any] = {"map50": r.map50, "map": r.map, "map50_blue_yellow": r.map50_blue_yellow}
     row.update({f"ap50_{c}": v for c, v in r.ap50_per_class.items()})
     row["recall"] = r.recall
     row.update({_metric_name(b): rec for b, (rec, _) in r.recall_by_range.items()})

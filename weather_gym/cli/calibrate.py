@@ -54,7 +54,8 @@ def register(sub) -> None:
     p.add_argument("--use", action="append", default=None, metavar="CONDITION=CURVE",
                    help="curve label per condition (defaults droplets=droplets, low_light=dim)")
     p.add_argument("--domain", default=None, help="domain of the measured rows to use (default: the only one)")
-    p.add_argument("--metric", default="map50", help="curve column to match (mAP@0.5, as the study)")
+    p.add_argument("--metric", default="map50", help="curve column to match: map50 (mAP@0.5 over the classes present) or map50_blue_yellow "
+                        "(over blue and yellow, the two classes the study scored)")
     p.add_argument("--dataset-id", default=None, help="use only curve rows of this dataset_id")
     p.add_argument("--model-id", default=None, help="use only curve rows of this model_id")
     p.add_argument("--dataset", type=Path, default=None,
@@ -106,7 +107,7 @@ def _run(args) -> int:
     if args.dataset is not None:
         remeasure(calibs, curves, args.dataset, report_dir / "remeasured.csv", seeds=tuple(range(args.seeds)),
                   model=detector, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
-                  progress=not args.no_progress)
+                  progress=not args.no_progress, metric=args.metric)
     else:
         fill_from_curves(calibs, curves)
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "calibrate" in sys.argv[1:2] else None

@@ -224,6 +224,7 @@ def _info(args) -> int:
 
 
 def _import(args) -> int:
+    declare_inputs(args.src, args.mask, args.annotations)  # the source is read: the dataset goes elsewhere
     det = detector_from_args(args, required=False)
     r = import_dataset(args.format, args.src, args.out, classes=args.classes, condition=args.condition,
                        severity=args.severity, intrinsics=args.intrinsics, detector=det, mask=args.mask,

@@ -26,7 +26,7 @@ refracting spherical cap that shows an inverted, blurred image of the scene arou
 rim and a highlight (:mod:`weather_gym.weather.lens_drops`). ``k`` is then how wet the lens is:
 of ``drop_count`` drops (radii around ``drop_radius`` image heights, contact angles around
 ``contact_deg``) those whose own draw is below ``k`` are shown, their radii scaled by
-``(1 + k) / 2``. Persistence, merging, running and :meth:`Droplets.wipe` work as above. The study
+``(1 + k) / 2``. Persistence, merging, running and :meth:`Droplets.wipe` work as above. The faithful
 mode ignores the refractive parameters, the refractive mode ignores ``fog_coef``.
 
 Example:
@@ -146,7 +146,7 @@ class Droplets(KnobEffect):
     run_radius: float = 1.6
     run_speed: float = 0.5
     merge_frac: float = 0.35
-    mode: str = "study"
+    mode: str = "faithful"
     drop_count: int = 100
     drop_radius: float = 0.055
     contact_deg: float = 60.0
@@ -175,7 +175,7 @@ class Droplets(KnobEffect):
         "rim": (0.0, 1.0),
         "highlight": (0.0, 1.0),
     }
-    CHOICES: ClassVar = {"mode": ("study", "refractive")}
+    CHOICES: ClassVar = {"mode": ("faithful", "refractive")}
 
     # -- persistent state -------------------------------------------------------------------
     def _reset_state(self) -> None:
