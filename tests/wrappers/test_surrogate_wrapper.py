@@ -80,7 +80,7 @@ def test_weather_changes_pick_the_condition(no_render):
             wrapper("fog@2")
         # darker: fewer cones reported than in clear weather, on the same frames
         clear, _ = _run(env, seed=1, steps=60, options={"weather": "clear"})
-        dark, _ = _run(env, seed=1, steps=60, options={"weather": "low_light@3"})
+        dark, _ = _run(env, seed=1, steps=60, options={"weather": "low_light@4"})
         count = lambda frames: sum(int(np.frombuffer(x[-64:], np.int8).sum()) for x in frames)  # noqa: E731
         assert count(dark) < 0.5 * count(clear)
     finally:
@@ -89,7 +89,7 @@ def test_weather_changes_pick_the_condition(no_render):
 
 def test_bad_settings_are_typed_errors(tmp_path):
     with pytest.raises(InputError, match="k=0.99 is beyond"):
-        make_env(perception="surrogate", weather={"dim": 0.99})  # the model's low light ends at low_light@4
+        make_env(perception="surrogate", weather={"dim": {"k": 0.99, "mode": "night"}})  # it ends at low_light@4
     with pytest.raises(InputError, match="refit it for this camera"):
         make_env(perception="surrogate", camera={"width": 96, "height": 54})
     with pytest.raises(InputError, match="does not exist"):
@@ -133,15 +133,17 @@ IDEAL_CAMERA = {"enabled": False}
 
 
 @pytest.mark.parametrize(("weather", "camera", "option", "still"), [
-    ("low_light@1", IDEAL_CAMERA, None, True), (None, IDEAL_CAMERA, None, True),
+    (None, IDEAL_CAMERA, None, True),
     ("droplets@2", IDEAL_CAMERA, None, False), ("droplets@2", None, None, False),
-    (None, None, None, True), ("low_light@2", None, None, True),  # the default camera's noise: still held
+    ("low_light@1", IDEAL_CAMERA, None, False), ("low_light@2", None, None, False),  # the night camera's gain noise
+    (None, None, None, True),  # the default camera's noise: still held
     (None, IDEAL_CAMERA, NOISY_CAMERA, True),  # a noisy camera model given per episode
 ])
 def test_a_standing_car_sees_a_still_frame_only_in_still_weather(weather, camera, option, still):
-    """The detector is a function of the image: a car that stands in clear or dim weather gets the
-    same cones every frame (so a car that stopped seeing stays stopped); per-frame droplets change the
-    image, and the cones, every frame. A camera's sensor noise jitters pixels, not which cones are found."""
+    """The detector is a function of the image: a car that stands in clear weather gets the same cones
+    every frame (so a car that stopped seeing stays stopped); per-frame droplets and the night camera's
+    gain noise change the image, and the cones, every frame. A camera's own sensor noise jitters pixels,
+    not which cones are found."""
     env_kwargs = {} if camera is None else {"camera_model": camera}
     env = make_env(perception="surrogate", weather=weather, max_episode_steps=40, **env_kwargs)
     try:

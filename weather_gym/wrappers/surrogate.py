@@ -10,7 +10,8 @@ bearings) and, when a weather is given, ``info["weather"]``.
 
 **A still camera sees a still frame.** The detector is a deterministic function of the image: while
 the car stands (same pose, same visible cones) under a weather whose frames do not change by
-themselves (clear, dim; not the per-frame droplets), the real pipeline reports the same cones on
+themselves (clear, the study's dim; not the per-frame droplets or the night camera's gain noise), the
+real pipeline reports the same cones on
 every frame, so a car that stopped because it saw nothing stays stopped. The surrogate does the
 same: such a frame repeats the previous frame's detections (no new draw). Whether a weather's
 frames change by themselves is probed once per weather: the effect applied to one test image for a
@@ -69,8 +70,10 @@ def frames_change_by_themselves(effect: Any) -> bool:
 
     Example:
         >>> from weather_gym.weather import parse_weather
-        >>> frames_change_by_themselves(parse_weather("dim@2")), frames_change_by_themselves(parse_weather("droplets@2"))
+        >>> frames_change_by_themselves(parse_weather("dim:0.9")), frames_change_by_themselves(parse_weather("droplets@2"))
         (False, True)
+        >>> frames_change_by_themselves(parse_weather("low_light@2"))  # the night camera's gain noise
+        True
     """
 
     probe = copy.deepcopy(effect)
