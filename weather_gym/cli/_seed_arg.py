@@ -25,14 +25,20 @@ def seed_arg(text: str) -> int:
                                          f"expected a whole number >= 0, got {text!r}") from None
 
 
-def seed_list(text: str, what: str) -> list[int]:
-    """Comma-separated seeds of the option ``what`` (InputError naming it)."""
+def int_list(text: str, what: str) -> list[int]:
+    """Comma-separated whole numbers of the option ``what`` (InputError naming it)."""
     try:
         out = [int(x) for x in text.split(",") if x.strip()]
     except ValueError:
         raise InputError(f"{what}: expected comma-separated whole numbers, got {text!r}") from None
     if not out:
         raise InputError(f"{what}: no value given")
+    return out
+
+
+def seed_list(text: str, what: str) -> list[int]:
+    """Comma-separated seeds of the option ``what`` (InputError naming it)."""
+    out = int_list(text, what)
     for s in out:
         check_seed(s, what=what)
     return out

@@ -15,23 +15,13 @@ from pathlib import Path
 from weather_gym._io import check_output, declare_inputs, exclusive
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
-from weather_gym.cli._seed_arg import seed_list
+from weather_gym.cli._seed_arg import int_list, seed_list
 from weather_gym.errors import InputError
 from weather_gym.surrogate.log import concat_logs, load_log, save_log
 from weather_gym.surrogate.model import fit, save_model
 from weather_gym.surrogate.record import record
 from weather_gym.surrogate.validate import validate
 from weather_gym.tracks import load_track
-
-
-def _ints(text: str, what: str) -> list[int]:
-    try:
-        out = [int(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise InputError(f"{what}: expected comma-separated integers, got {text!r}") from None
-    if not out:
-        raise InputError(f"{what}: no value given")
-    return out
 
 
 def _names(text: str) -> list[str]:
@@ -121,7 +111,7 @@ def _validate(args) -> int:
         raise InputError(f"--steps must be >= 1, got {args.steps}")
 
     validate(model=args.model, track=args.track, conditions=_names(args.conditions),
-             severities=_ints(args.severities, "--severities"), seeds=seed_list(args.seeds, "--seeds"),
+             severities=int_list(args.severities, "--severities"), seeds=seed_list(args.seeds, "--seeds"),
              surrogate_seeds=seed_list(args.surrogate_seeds, "--surrogate-seeds"), steps=args.steps,
              full_logs=args.full_logs,
              out=args.out, overwrite=args.overwrite,
