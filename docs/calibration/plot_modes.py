@@ -2,7 +2,11 @@
 
 The default metric is mAP@0.5 over blue and yellow cones, the study's two classes and the presets' metric.
 
-    python docs/calibration/plot_modes.py docs/calibration/curves.csv --out docs/calibration/modes.png
+    python docs/calibration/plot_modes.py docs/calibration/curves.csv --dataset-id POOL_ID --dataset-id MIX_ID \
+        --out docs/calibration/modes.png
+
+A curve file may hold a mode's curve on several sets (rows keyed by ``dataset_id``): ``--dataset-id``
+(repeatable) picks the sets in order of preference, each mode drawn from the first set that has it.
 """
 
 from __future__ import annotations
@@ -32,10 +36,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--table2", type=Path, default=Path("docs/calibration/study_table2.csv"))
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--metric", default="map50_blue_yellow", help="curve column (default: the presets' metric)")
+    ap.add_argument("--dataset-id", action="append", default=None,
+                    help="evaluation set(s) to draw from, in order of preference (default: the file's only set)")
     args = ap.parse_args(argv)
     curves = {}
-    for path in args.curves:
-        curves.update(load_curves(path, metric=args.metric))
+    for ds_id in args.dataset_id or [None]:
+        for path in args.curves:
+            for label, c in load_curves(path, metric=args.metric, dataset_id=ds_id).items():
+                curves.setdefault(label, c)
     rows = [r for r in csv.DictReader(line for line in args.table2.open() if not line.startswith("#"))
             if r["domain"] == "real" and r["condition"] in PANELS]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=110)

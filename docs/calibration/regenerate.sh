@@ -6,13 +6,15 @@
 #   bash docs/calibration/regenerate.sh            # from the repository root, in the venv
 #
 # Resumable: a finished sweep or transfer cell is never run again (delete docs/calibration/curves.csv,
-# sweep.json and transfer/cells.csv to start over, e.g. after the detector changes - a new model gets new
-# rows, and the old ones are ignored by model_id).
+# sweep.json and transfer/cells.csv to start over). Cells are keyed by effect spec, k, seed, evaluation set
+# and detector (a new model gets new rows, the old ones are ignored by model_id), not by the effect's code:
+# after changing what an effect draws, delete its rows from curves.csv, remeasured.csv and transfer/cells.csv.
 set -euo pipefail
 SETS=${SETS:-scratch/calib}              # the rendered evaluation sets (git-ignored; rendered deterministically)
 WORKERS=${WORKERS:-2}
 OUT=docs/calibration
-SET=$SETS/mix
+SET=$SETS/mix                            # the four-track set: the study's modes and the physical dim
+POOL=$SETS/pool                          # the calibration pool of the shipped modes: six tracks, both worlds
 REAL=${REAL:-}                           # optional: an imported real clear set with its ignore mask (docs/real_data.md)
 
 render() {  # render OUT ARGS...: a fixed set, once
@@ -22,6 +24,10 @@ render() {  # render OUT ARGS...: a fixed set, once
 # calibration set: four tracks (peanut and two generated tracks are held out from the detector's training),
 # default bright-overcast look, 24 start points x 10 frames
 render "$SET" --track peanut --track random:80 --track random:81 --track fsds_training --frames 240 --seed 606
+# the pool: the four-track set, two more generated tracks, and the realistic world on two of the tracks
+render "$SETS/pool_plain" --track random:83 --track random:84 --frames 80 --seed 612
+render "$SETS/pool_realistic" --track random:80 --track fsds_training --frames 80 --seed 611 --scene realistic
+[ -f "$POOL/annotations.json" ] || weather-gym dataset merge "$SET" "$SETS/pool_plain" "$SETS/pool_realistic" --out "$POOL"
 # held-out sets: tracks the calibration never saw, and the realistic world
 HELD=(jellybean b_shape hairpin random:82 small_track oval random:85 random:86)
 for t in "${HELD[@]}"; do
@@ -30,23 +36,27 @@ done
 render "$SETS/held_realistic" --track peanut --track random:82 --frames 80 --seed 708 --scene realistic
 render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --seed 709 --scene realistic
 
-# the study's faithful effects and the physical dim on a 0.1 grid; the shipped modes finer where they fall
-weather-gym sweep --effect droplets --effect dim --effect dim:mode=physical --k 0:1:0.1 --seeds 3 \
-  --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
-weather-gym sweep --effect droplets:mode=refractive --k 0:1:0.1 --seeds 3 \
-  --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+# the study's faithful effects and the physical dim on the four-track set, on a 0.1 grid (refractive drops
+# too, for the physical alternative); the shipped modes on the pool, the night camera finer where it falls
+weather-gym sweep --effect droplets --effect dim --effect dim:mode=physical --effect droplets:mode=refractive \
+  --k 0:1:0.1 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+weather-gym sweep --effect droplets:mode=refractive --k 0:1:0.1 --seeds 2 \
+  --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
 weather-gym sweep --effect dim:mode=night \
-  --k 0,0.2,0.4,0.45,0.5,0.525,0.55,0.575,0.6,0.625,0.65,0.675,0.7,0.725,0.75,0.775,0.8,0.825,0.85,0.875,0.9,0.925,0.95,0.975,1 \
-  --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+  --k 0,0.2,0.4,0.5,0.55,0.6,0.625,0.65,0.675,0.7,0.725,0.75,0.775,0.8,0.825,0.85,0.875,0.9,0.925,0.95,0.975,1 \
+  --seeds 3 --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
 
-python docs/calibration/plot_modes.py "$OUT/curves.csv" --out "$OUT/modes.png"
+id_of() { python -c "from weather_gym._io import file_id; print(file_id('$1/annotations.json'))"; }
+POOL_ID=$(id_of "$POOL"); SET_ID=$(id_of "$SET")
+python docs/calibration/plot_modes.py "$OUT/curves.csv" --dataset-id "$POOL_ID" --dataset-id "$SET_ID" \
+  --out "$OUT/modes.png"
 
-weather-gym calibrate --curve "$OUT/curves.csv" --measured "$OUT/study_table2.csv" \
+weather-gym calibrate --curve "$OUT/curves.csv" --dataset-id "$POOL_ID" --measured "$OUT/study_table2.csv" \
   --metric map50_blue_yellow --use droplets=droplets_refractive --use low_light=dim_night \
-  --study-points "$OUT/study_figure7.csv" --dataset "$SET" --seeds 5 --workers "$WORKERS" \
+  --study-points "$OUT/study_figure7.csv" --dataset "$POOL" --seeds 5 --workers "$WORKERS" \
   --out weather_gym/weather/presets.toml --overwrite --report "$OUT" --no-progress
 
-weather-gym calibrate --curve "$OUT/curves.csv" --measured "$OUT/study_table2.csv" \
+weather-gym calibrate --curve "$OUT/curves.csv" --dataset-id "$SET_ID" --measured "$OUT/study_table2.csv" \
   --metric map50_blue_yellow --use droplets=droplets_refractive --use low_light=dim_physical \
   --dataset "$SET" --seeds 5 --workers "$WORKERS" \
   --out weather_gym/calibration/presets_physical.toml --overwrite --report "$OUT/physical" --no-progress
@@ -55,5 +65,5 @@ weather-gym calibrate --curve "$OUT/curves.csv" --measured "$OUT/study_table2.cs
 TRANSFER=()
 for t in "${HELD[@]}"; do TRANSFER+=(--set "$t=$SETS/held_${t//:/}"); done
 TRANSFER+=(--set "realistic (peanut, random:82)=$SETS/held_realistic" --set "realistic (hairpin, random:85)=$SETS/held_realistic2")
-[ -n "$REAL" ] && TRANSFER+=(--set real="$REAL")
+[ -n "$REAL" ] && TRANSFER+=(--set "real (Estoril, masked)=$REAL")
 python docs/calibration/transfer.py "${TRANSFER[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer"

@@ -82,7 +82,7 @@ def test_night_noise_grows_with_k_and_brightness_falls_at_high_k(scene):
     img, depth = scene
     noise, means = [], []
     for k in (0.3, 0.45, 0.6, 0.75, 0.9, 1.0):
-        e = make("dim", k=k, mode="night", denoise_px=0.0, chroma_noise=0.0, black_level=0.0)
+        e = make("dim", k=k, mode="night", denoise_px=0.0, chroma_noise=0.0, black_level=0.0, desaturate=0.0)
         outs = [e(img, depth=depth, state=STILL, rng=np.random.default_rng(s)) for s in (0, 1)]
         noise.append(float(np.abs(outs[0].astype(int) - outs[1]).mean()))  # two draws: noise only
         means.append(float(make("dim", k=k, mode="night")(img, depth=depth, state=STILL,
@@ -94,21 +94,36 @@ def test_night_noise_grows_with_k_and_brightness_falls_at_high_k(scene):
 
 def test_night_denoiser_smear_removes_high_frequencies(scene):
     img, depth = scene
-    args = dict(k=0.7, mode="night", chroma_noise=0.0, black_level=0.0)
+    args = dict(k=0.7, mode="night", chroma_noise=0.0, black_level=0.0, desaturate=0.0)
     raw = make("dim", denoise_px=0.0, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
     denoised = make("dim", denoise_px=1.0, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
     assert _hf_energy(denoised) < 0.5 * _hf_energy(raw)
-    sigma, chroma, black = make("dim", **args, denoise_px=1.0).isp()
-    assert sigma > 0.5 and chroma == 0.0 and black == 0.0
+    sigma, chroma, black, desat = make("dim", **args, denoise_px=1.0).isp()
+    assert sigma > 0.5 and chroma == 0.0 and black == 0.0 and desat == 0.0
 
 
 def test_night_isp_strength_follows_the_gain():
-    assert make("dim", k=0.1, mode="night").isp() == (0.0, 0.0, 0.0)  # the exposure time suffices
+    assert make("dim", k=0.1, mode="night").isp() == (0.0, 0.0, 0.0, 0.0)  # the exposure time suffices
     isps = [make("dim", k=k, mode="night").isp() for k in (0.3, 0.4, 0.5)]
     for a, b in zip(isps, isps[1:], strict=False):
         assert all(y > x for x, y in zip(a, b, strict=True)), isps
     e = make("dim", k=0.7, mode="night")
     assert e.exposure()[1] == e.max_gain and e.isp() == make("dim", k=1.0, mode="night").isp()
+
+
+def test_night_chroma_suppression_pulls_colour_to_grey_and_keeps_luma(scene):
+    img, depth = scene
+    args = dict(k=0.8, mode="night", denoise_px=0.0, chroma_noise=0.0, black_level=0.0)
+    kept = make("dim", desaturate=0.0, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
+    grey = make("dim", desaturate=1.0, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
+    half = make("dim", desaturate=0.5, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
+
+    def sat(x):
+        return float(np.ptp(x.astype(int), axis=2).mean())
+
+    assert sat(grey) <= 1.0 < 0.4 * sat(kept) < sat(half) < 0.8 * sat(kept)  # 1 - 0.5 of the colour left
+    luma = [cv2.cvtColor(x, cv2.COLOR_RGB2GRAY).astype(int) for x in (kept, half)]
+    assert np.abs(luma[0] - luma[1]).max() <= 2  # grey level unchanged: only the colour goes
 
 
 def test_night_colour_noise_is_colour_only():
@@ -127,7 +142,7 @@ def test_black_level_lut_crushes_shadows():
 
 def test_night_parameters_leave_the_other_modes_alone(scene):
     img, depth = scene
-    night_params = dict(denoise_px=3.0, chroma_noise=40.0, chroma_cell_px=2.0, black_level=0.1)
+    night_params = dict(denoise_px=3.0, chroma_noise=40.0, chroma_cell_px=2.0, black_level=0.1, desaturate=1.0)
     for mode in ("faithful", "physical"):
         a = make("dim", k=0.8, mode=mode)(img, depth=depth, state=STILL, rng=np.random.default_rng(3))
         b = make("dim", k=0.8, mode=mode, **night_params)(img, depth=depth, state=STILL,
@@ -137,7 +152,7 @@ def test_night_parameters_leave_the_other_modes_alone(scene):
 
 @pytest.mark.parametrize(("param", "value", "range_"), [
     ("denoise_px", 3.5, "[0.0, 3.0]"), ("chroma_noise", -1.0, "[0.0, 40.0]"),
-    ("black_level", 0.2, "[0.0, 0.1]"), ("chroma_cell_px", 1.0, "[2.0, 64.0]"),
+    ("black_level", 0.2, "[0.0, 0.1]"), ("chroma_cell_px", 1.0, "[2.0, 64.0]"), ("desaturate", 1.5, "[0.0, 1.0]"),
 ])
 def test_night_parameters_are_range_checked(param, value, range_):
     with pytest.raises(InputError) as err:

@@ -118,6 +118,15 @@ def _round_k(k: float) -> float:
     return float(round(k, K_DECIMALS))
 
 
+def _round_interval(lo: float, hi: float) -> tuple[float, float]:
+    """``(lo, hi)`` rounded outward to ``K_DECIMALS``: the stored interval contains the exact one, so an
+    interval narrower than the rounding of k does not read as zero width (a point stays a point)."""
+    if hi <= lo:
+        return _round_k(lo), _round_k(lo)
+    scale = 10 ** K_DECIMALS
+    return (float(math.floor(lo * scale + 1e-9) / scale), float(math.ceil(hi * scale - 1e-9) / scale))
+
+
 def calibrate(curves: Mapping[str, Curve], levels: Sequence[MeasuredLevel], *, match: str = "relative",
               use: Mapping[str, str] | None = None, domain: str | None = None,
               descriptions: Mapping[tuple[str, int], str] | None = None) -> list[PresetCalibration]:
@@ -160,7 +169,7 @@ def calibrate(curves: Mapping[str, Curve], levels: Sequence[MeasuredLevel], *, m
             out.append(PresetCalibration(
                 condition=cond, severity=sev, description=descriptions.get((cond, sev)) or m.description,
                 curve=label, effects=[curve.table(k)], k=k,
-                k_interval=(_round_k(inv.k_interval[0]), _round_k(inv.k_interval[1])), reachable=inv.reachable,
+                k_interval=_round_interval(*inv.k_interval), reachable=inv.reachable,
                 match=match, target=float(target), measured_map=m.map, measured_relative=m.relative,
                 predicted=float(inv.achieved), k_other=_round_k(k_other) if math.isfinite(k_other) else math.nan,
                 note=note, monotonised=inv.monotonised, domain=domain))
@@ -254,7 +263,7 @@ HEADER = """\
 # level is out of the effect's reach with our detector).
 #
 # Each calibrated [[presets]] table: condition, severity, calibrated, description, effects = [{ name = ...,
-# k = ..., <params> }], k_interval = [lo, hi] (k where mean -/+ 1 sd over seeds meets the target),
+# k = ..., <params> }], k_interval = [lo, hi] (k where mean -/+ 1 sd over seeds meets the target, rounded outward),
 # measured_map / measured_relative (the study's measurement), achieved_map / achieved_relative / achieved_sd
 # (our detector re-measured at the chosen k, mean and sd over seeds), predicted (the mean curve at k),
 # reachable = false when the effect cannot reach the target at any k in [0, 1] (then k is the end of the

@@ -1,4 +1,4 @@
-"""``weather-gym dataset render|import|mask|info``: COCO datasets of cone frames, rendered or imported.
+"""``weather-gym dataset render|import|mask|merge|info``: COCO datasets of cone frames, rendered or imported.
 
 Examples:
     weather-gym dataset render --track small_track --track random:3 --frames 500 --out data/train --randomize
@@ -8,6 +8,7 @@ Examples:
     weather-gym dataset mask data/real --out ego_mask.png --preview ego_preview.png   # propose, then edit
     weather-gym dataset mask data/real --set ego_mask.png                             # store with the dataset
     weather-gym dataset info data/real
+    weather-gym dataset merge data/peanut data/hairpin data/realistic --out data/pool   # one set of many tracks
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
 from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS, import_dataset
 from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
+from weather_gym.datasets.merge import merge_coco
 from weather_gym.datasets.render import render_dataset
 from weather_gym.errors import InputError
 from weather_gym.perception.ignore import inside_mask
@@ -128,6 +130,15 @@ def register(sub) -> None:
     add_overwrite_arg(m, help="replace an existing mask file (--out, --preview, or the dataset's mask with --set)")
     m.set_defaults(func=_mask)
 
+    mg = cmds.add_parser("merge", help="pool several COCO folders into one (e.g. a calibration set of many tracks and worlds)",
+                         description="Copy the frames of every SRC into OUT (prefixed s0_, s1_, ...), renumber the ids "
+                                     "and write OUT/annotations.json last; the sources must share the cone classes and "
+                                     "the too-small rule. OUT's info.sources records what it pools.")
+    mg.add_argument("src", type=Path, nargs="+", help="source dataset folders (at least two)")
+    mg.add_argument("--out", type=Path, required=True, help="new dataset folder (never overwritten without --overwrite)")
+    add_overwrite_arg(mg, help="replace an existing dataset in --out")
+    mg.set_defaults(func=_merge)
+
 
 def _render(args) -> int:
     declare_inputs(args.randomize_ranges)
@@ -163,6 +174,15 @@ def _render(args) -> int:
                           progress=not args.quiet, overwrite=args.overwrite, resume=args.resume, scene=scene,
                           ranges=ranges, start_window=window, camera_model=model, jpeg_quality=args.jpeg_quality)
     print(f"wrote {path}")
+    return 0
+
+
+def _merge(args) -> int:
+    declare_inputs(*args.src)
+    out = merge_coco(args.src, args.out, overwrite=args.overwrite)
+    ds = load_coco(out)
+    print(f"wrote {out / 'annotations.json'}: {len(ds)} frames from {len(args.src)} datasets "
+          f"({', '.join(str(s['images']) for s in ds.info['sources'])})")
     return 0
 
 

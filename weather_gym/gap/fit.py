@@ -73,7 +73,7 @@ def scale_params(name: str) -> tuple[str, ...]:
 #: resting there is a valid fit of the rest of the effect, not a range that clips it.
 NATURAL_ENDS: dict[str, dict[str, str]] = {
     "noise": {"read_noise_e": "lo"},
-    "dim": {"read_noise_e": "lo", "denoise_px": "lo", "chroma_noise": "lo"},
+    "dim": {"read_noise_e": "lo", "denoise_px": "lo", "chroma_noise": "lo", "black_level": "lo", "desaturate": "lo"},
     "exposure": {"flare": "lo"},
     "glare": {"veil": "lo", "bloom": "lo"},
     "rain": {"haze": "lo"},

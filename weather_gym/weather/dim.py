@@ -28,9 +28,13 @@ growing over the whole range of k, from a light dusk to night:
   following the sensor noise of each cell's level elsewhere (stronger in shadows, weaker in highlights);
 * crushed shadows: the black level set above the sensor's, ``black_level * log2(gain) / 4`` of
   full scale in linear light, taken as black;
+* chroma suppression: the ISP pulls colour towards grey at high gain to hide the colour noise,
+  ``desaturate * log2(gain) / 4`` of the saturation removed (the blotches with it): colour is what
+  tells a blue cone from a yellow one, and it fades the same way on every track, so the damage
+  depends little on the scene (how many cones, how far);
 * and, once the gain is at ``max_gain``, the remaining darkening of the physical mode.
 
-The ISP is tuned per gain (ISO), as real ones are: its three stages stop growing once the gain is
+The ISP is tuned per gain (ISO), as real ones are: its four stages stop growing once the gain is
 at ``max_gain``. The night parameters are ignored by the other two modes.
 
 Example:
@@ -177,10 +181,11 @@ class Dim(EgoMotion):
     max_gain: float = 16.0
     full_well_e: float = 6000.0
     read_noise_e: float = 3.0
-    denoise_px: float = 2.0
+    denoise_px: float = 0.5
     chroma_noise: float = 16.0
     chroma_cell_px: float = 8.0
     black_level: float = 0.004
+    desaturate: float = 0.8
 
     CHOICES: ClassVar = {"mode": ("faithful", "physical", "night")}
     PARAM_BOUNDS: ClassVar = {
@@ -191,6 +196,7 @@ class Dim(EgoMotion):
         "denoise_px": (0.0, 3.0),
         "chroma_noise": (0.0, 40.0),
         "black_level": (0.0, 0.1),
+        "desaturate": (0.0, 1.0),
     }
     PARAM_LIMITS: ClassVar = {**EgoMotion.PARAM_LIMITS, "exposure_s": (1e-5, 0.1), "full_well_e": (100.0, 1e6),
                               "chroma_cell_px": (2.0, 64.0)}
@@ -220,24 +226,24 @@ class Dim(EgoMotion):
         return smeared
 
     # -- night ---------------------------------------------------------------------------------
-    def isp(self) -> tuple[float, float, float]:
-        """``(denoiser sigma px, chroma blotch sigma in code values, black level)`` at this k (night).
+    def isp(self) -> tuple[float, float, float, float]:
+        """``(denoiser sigma px, chroma blotch sigma in code values, black level, desaturation)`` at this k.
 
-        A camera's ISP is tuned per sensor gain (ISO), so all three follow the gain the
+        A camera's ISP is tuned per sensor gain (ISO), so all four follow the gain the
         auto-exposure uses: the denoiser's blur grows like the noise it must hide,
-        ``sqrt((gain - 1) / 15)``; the colour noise and the black level grow with the stops of gain,
-        ``log2(gain) / 4``. The parameters are their values at gain 16. Once the gain is at its
-        maximum they stay, and only the darkening goes on.
+        ``sqrt((gain - 1) / 15)``; the colour noise, the black level and the chroma suppression grow
+        with the stops of gain, ``log2(gain) / 4``. The parameters are their values at gain 16. Once
+        the gain is at its maximum they stay, and only the darkening goes on (night mode).
         """
         _, gain, _ = self.exposure()
         gain = 1.0 if gain < 1.0 + 1e-6 else gain  # rounding of the auto-exposure's arithmetic
         stops = math.log2(gain) / 4.0
         return (self.denoise_px * math.sqrt((gain - 1.0) / 15.0), self.chroma_noise * stops,
-                min(self.black_level * stops, 0.5))
+                min(self.black_level * stops, 0.5), min(self.desaturate * stops, 1.0))
 
     def _night(self, img, depth, state, rng, out) -> None:
         smeared = self._physical(img, depth, state, rng, out)
-        sigma, chroma, black = self.isp()
+        sigma, chroma, black, desat = self.isp()
         if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
             into(smooth(out.copy(), sigma, out, exact=True), out)
         if chroma > 0:  # colour noise follows the sensor noise of each cell's level
@@ -250,6 +256,9 @@ class Dim(EgoMotion):
         if black > 0:
             f = flat(out)
             into(cv2.LUT(f, black_level_lut(black), dst=f), f)
+        if desat > 0:  # chroma suppression: towards the pixel's grey (Rec. 601 luma)
+            grey = cv2.cvtColor(cv2.cvtColor(out, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
+            into(cv2.addWeighted(out, 1.0 - desat, grey, desat, 0.0), out)
 
     def _apply_into(self, img, depth, state, rng, out):
         if self.mode == "faithful":
