@@ -62,11 +62,12 @@ HEAVY: dict[str, set[str]] = {
     "onnx": {"perception_tools"},
     "ray": {"evaluation", "cli"},
     "stable_baselines3": {"agents", "rl"},
-    "numba": {"sim"},
+    "numba": {"sim", "surrogate"},
 }
 """Heavy package -> the layers that may import it. ``bench`` compares against a torch baseline;
 ``agents`` holds the SB3 feature extractor (a torch module); ``numba`` compiles the geometric ground
-truth (``sim.visibility``) and stays out of the other layers (a compile costs seconds on a cold cache)."""
+truth (``sim.visibility``) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.model``'s
+crowding) and stays out of the other layers (a compile costs seconds on a cold cache)."""
 
 NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather"}}
 

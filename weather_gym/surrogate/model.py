@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
@@ -108,20 +109,32 @@ def crowding(boxes: np.ndarray) -> np.ndarray:
         >>> crowding(np.array([[0, 0, 10, 10.], [5, 0, 15, 10.], [50, 50, 60, 60.]])).round(2).tolist()
         [0.33, 0.33, 0.0]
     """
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    b = np.ascontiguousarray(boxes, np.float64).reshape(-1, 4)
     if len(b) < 2:
         return np.zeros(len(b))
-    # the IoU matrix of log._iou_matrix(b, b) (the same operations), in fewer array calls: this runs
-    # every step of the surrogate env
-    wh = np.minimum(b[:, None, 2:], b[None, :, 2:]) - np.maximum(b[:, None, :2], b[None, :, :2])
-    np.maximum(wh, 0.0, out=wh)
-    inter = wh[..., 0] * wh[..., 1]
-    area = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
-    union = area[:, None] + area[None, :] - inter
-    with np.errstate(divide="ignore", invalid="ignore"):
-        m = np.where(union > 0, inter / union, 0.0)
-    np.fill_diagonal(m, 0.0)
-    return m.max(axis=1)
+    return _crowding(b)
+
+
+@numba.njit(cache=True, nogil=True)
+def _crowding(b):  # pragma: no cover (compiled; tested through crowding)
+    """The kernel of :func:`crowding`: the IoU of log._iou_matrix(b, b), the same operations pair by
+    pair (this runs every step of the surrogate env)."""
+    n = b.shape[0]
+    out = np.zeros(n)
+    for i in range(n):
+        area_i = (b[i, 2] - b[i, 0]) * (b[i, 3] - b[i, 1])
+        best = 0.0
+        for j in range(n):
+            if j == i:
+                continue
+            w = max(min(b[i, 2], b[j, 2]) - max(b[i, 0], b[j, 0]), 0.0)
+            h = max(min(b[i, 3], b[j, 3]) - max(b[i, 1], b[j, 1]), 0.0)
+            inter = w * h
+            union = area_i + (b[j, 2] - b[j, 0]) * (b[j, 3] - b[j, 1]) - inter
+            if union > 0.0 and inter / union > best:
+                best = inter / union
+        out[i] = best
+    return out
 
 
 def crowding_column(cones: dict[str, np.ndarray]) -> np.ndarray:

@@ -8,8 +8,9 @@ crowded one for a cone whose box overlaps another's), at the true range and bear
 drawn from that range bin's quantiles, with a score drawn from the score quantiles; each cone may
 also carry a part detection (a logged one, placed relative to its box); then a negative-binomial
 number of false positives away from the cones, drawn from the logged ones.
-Everything is vectorised over the cones of the frame; the random numbers come from the caller's
-generator only.
+The probabilities are computed with numpy over the cones of the frame, the draws from them in one
+compiled kernel (numba; the same operations, cone by cone); the random numbers come from the
+caller's generator only.
 
 Example:
     >>> import numpy as np
@@ -27,24 +28,32 @@ from __future__ import annotations
 
 from typing import Any
 
+import numba
 import numpy as np
 
 from weather_gym.camera import CameraConfig
 from weather_gym.surrogate.log import _HEIGHTS
-from weather_gym.surrogate.model import CROWDED, ERR_RANGE_EDGES, QUANTILES, Point, crowding
+from weather_gym.surrogate.model import (
+    BEARING_KNOTS,
+    CROWD_KNOTS,
+    CROWDED,
+    ERR_RANGE_EDGES,
+    LOGH_KNOTS,
+    QUANTILES,
+    RANGE_KNOTS,
+    VIS_KNOTS,
+    Point,
+    crowding,
+)
 
 __all__ = ["FrameSampler"]
 
 _NQ = len(QUANTILES) - 1
-
-
-def _draw(q: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Inverse-CDF draws: ``q`` (N, Q) quantile rows, ``u`` (N,) uniforms -> (N,) values."""
-    pos = u * _NQ
-    i = np.minimum(pos.astype(np.int64), _NQ - 1)
-    f = pos - i
-    rows = np.arange(len(u))
-    return q[rows, i] * (1.0 - f) + q[rows, i + 1] * f
+_NB = len(ERR_RANGE_EDGES) - 1
+try:  # np.interp without its Python-level argument checks (the same C function, the same numbers)
+    from numpy._core._multiarray_umath import interp as _interp
+except ImportError:  # pragma: no cover (another numpy layout)
+    _interp = np.interp
 
 
 class FrameSampler:
@@ -57,7 +66,7 @@ class FrameSampler:
 
     def __init__(self, point: Point, camera: Any = None) -> None:
         self.camera = camera if camera is not None else CameraConfig()
-        self.point = point
+        self.set_point(point)
         self._fy_h = self.camera.fy * _HEIGHTS
         self._last_step = np.full(256, -10, np.int64)
         self._last_det = np.zeros(256, bool)
@@ -65,6 +74,7 @@ class FrameSampler:
     def set_point(self, point: Point) -> None:
         """New parameters (new weather) from the next frame; the cones' states are kept."""
         self.point = point
+        self._tab = _Tables(point)
 
     def reset(self) -> None:
         self._last_step[:] = -10
@@ -87,6 +97,7 @@ class FrameSampler:
 
     def __call__(self, gt: Any, rng: np.random.Generator, step: int) -> dict[str, np.ndarray]:
         p = self.point
+        t = self._tab
         n = int(len(gt["classes"])) if gt is not None and "classes" in gt else 0
         if n:
             boxes = np.asarray(gt["boxes"], np.float64).reshape(n, 4)
@@ -98,68 +109,45 @@ class FrameSampler:
             full = self._fy_h[cls] / np.maximum(rng_ * np.cos(brg), 0.1)
             vis = np.minimum(box_h / full, 1.0)  # = log.visibility, inlined (this runs every step)
             crowd = crowding(boxes) if n > 1 else None
-            feats = p.features(rng_, brg, box_h, vis, crowd)
-            prob = p.probability_of(feats, cls)
-            self._grow(int(ids.max()))
-            seen_before = self._last_step[ids] == step - 1
-            before = self._last_det[ids]
-            rho = p.rho
-            q = np.where(seen_before, np.where(before, prob + rho * (1.0 - prob), prob * (1.0 - rho)), prob)
+            # P(detected), P(loose | not detected), P(part) of each cone: Point.probability_of's
+            # operations for the three kinds at once (rows of ``z``)
+            x = (rng_, np.abs(brg), np.log(np.maximum(box_h, 1e-3)), vis, crowd)  # = Point.features
+            if n > t.terms.shape[2]:
+                t.terms = np.zeros((5, 3, 2 * n))
+            terms = t.terms
+            for f, (knots, vals) in enumerate(t.interp):
+                if x[f] is not None:
+                    for kind in range(3):
+                        terms[f, kind, :n] = _interp(x[f], knots, vals[kind])
+            z = t.w0 + terms[0, :, :n]
+            z += terms[1, :, :n]
+            z += terms[2, :, :n]
+            z += terms[3, :, :n]
+            if crowd is None:
+                z += t.crowd0
+            else:
+                z += terms[4, :, :n]
+            z += t.cls[:, cls]
+            z = 0.5 * (1.0 + np.tanh(0.5 * z))  # model._sigmoid: the three probabilities
+            max_id = int(ids.max())
+            if max_id >= len(self._last_step):
+                self._grow(max_id)
             u = rng.random((9, n))
-            det = u[0] < q
-            self._last_step[ids] = step
-            self._last_det[ids] = det
-            # a cone not detected may still be reported "loosely": a box a little off (a scoring miss
-            # plus a false positive), near the cone's true place
-            loose = ~det & (u[5] < p.probability_of(feats, cls, kind="loose"))
-            rep_any = np.flatnonzero(det | loose)  # indices: cheaper than a boolean mask, used many times
-            c = cls[rep_any]
-            r_true = rng_[rep_any]
-            b = np.minimum(np.searchsorted(ERR_RANGE_EDGES, r_true, side="right"), len(ERR_RANGE_EDGES) - 1) - 1
-            lz = loose[rep_any]
-            conf = p.confusion[b, c]
-            if crowd is not None:
-                conf = np.where(crowd[rep_any, None] > CROWDED, p.confusion_crowded[b, c], conf)
-            cum = np.cumsum(np.where(lz[:, None], p.confusion_loose[b, c], conf), axis=1)
-            rep = np.minimum(np.add.reduce(u[1, rep_any][:, None] > cum, axis=1), cum.shape[1] - 1)
-            # range error, bearing error and score: one inverse-CDF draw over the three stacked
-            # (each row from the loose or the matched quantiles)
-            lz2 = lz[:, None]
-            q = np.concatenate([np.where(lz2, p.loose_range_err_q[b], p.range_err_q[b]),
-                                np.where(lz2, p.loose_bearing_err_q[b], p.bearing_err_q[b]),
-                                np.where(lz2, p.loose_score_q[None, :], p.score_q[None, :])])
-            k = len(r_true)
-            drawn = _draw(q, u[2:5, rep_any].reshape(-1))
-            ranges = r_true + drawn[:k]
-            bearings = brg[rep_any] + drawn[k:2 * k]
-            scores = drawn[2 * k:]
-            out_boxes = boxes[rep_any]
-            lz_i = np.flatnonzero(lz)
-            if lz_i.size:
-                li = rep_any[lz_i]
-                d = p.loose_box_d[(u[6, li] * len(p.loose_box_d)).astype(np.int64)]
-                out_boxes[lz_i] = out_boxes[lz_i] + d * box_h[li][:, None]
-            if len(p.part_rows):  # part detections: a box on a stripe or part of the cone, detected or not
-                pi = np.flatnonzero(u[7] < p.probability_of(feats, cls, kind="part"))
-                if pi.size:
-                    pr = p.part_rows[(u[8, pi] * len(p.part_rows)).astype(np.int64)]
-                    rep = np.concatenate([rep, pr[:, 4].astype(np.int64)])
-                    ranges = np.concatenate([ranges, rng_[pi] + pr[:, 6]])
-                    bearings = np.concatenate([bearings, brg[pi] + pr[:, 7]])
-                    scores = np.concatenate([scores, pr[:, 5]])
-                    out_boxes = np.vstack([out_boxes, boxes[pi] + pr[:, :4] * box_h[pi][:, None]])
+            bins = np.minimum(ERR_RANGE_EDGES.searchsorted(rng_, "right"), _NB) - 1
+            bins %= _NB  # (numpy's indexing of a bin -1)
+            parts = [_draw_cones(z, u, cls, ids, rng_, brg, boxes, box_h, t.zeros[:n] if crowd is None else crowd,
+                                 bins, self._last_step, self._last_det, step, float(p.rho), t.cum, t.q,
+                                 t.loose_box_d, t.part_rows)]
         else:
-            rep = np.zeros(0, np.int64)
-            ranges = bearings = scores = np.zeros(0)
-            out_boxes = np.zeros((0, 4))
+            parts = [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 4)))]
         m = self._fp_count(rng)
         if m:
             rows = self._fp_rows(rng, m)
-            rep = np.concatenate([rep, rows[:, 2].astype(np.int64)])
-            ranges = np.concatenate([ranges, rows[:, 0]])
-            bearings = np.concatenate([bearings, rows[:, 1]])
-            scores = np.concatenate([scores, rows[:, 3]])
-            out_boxes = np.vstack([out_boxes, rows[:, 4:8]])
+            parts.append((rows[:, 2].astype(np.int64), rows[:, 0], rows[:, 1], rows[:, 3], rows[:, 4:8]))
+        if len(parts) > 1:
+            rep, ranges, bearings, scores, out_boxes = (np.concatenate(a) for a in zip(*parts, strict=True))
+        else:
+            rep, ranges, bearings, scores, out_boxes = parts[0]
         return {"boxes": out_boxes.astype(np.float32), "scores": scores.astype(np.float32),
                 "classes": rep.astype(np.int64), "ranges": ranges.astype(np.float32),
                 "bearings": bearings.astype(np.float32)}
@@ -190,3 +178,100 @@ class FrameSampler:
         if nb == 0 or na == 0:  # one of the two fitted points logged no false positive: the other's rows
             from_b[:] = nb > 0
         return rows[np.where(from_b, in_b, in_a)]
+
+
+class _Tables:
+    """A point's parameters arranged for :class:`FrameSampler`'s per-step draws (once per point):
+    the three probability models (detected, loose, part) side by side, the confusion rows cumulated,
+    the quantile rows in one flat table."""
+
+    def __init__(self, p: Point) -> None:
+        coefs = (p.coef, p.coef_loose, p.coef_part)
+        self.w0 = np.array([[w[0]] for w in coefs])
+        self.interp = []  # per feature: knots, and the hat coefficients of each kind (Point.probability_of)
+        i = 1
+        for knots in (RANGE_KNOTS, BEARING_KNOTS, LOGH_KNOTS, VIS_KNOTS, CROWD_KNOTS):
+            self.interp.append((knots, [np.r_[0.0, w[i:i + len(knots) - 1]] for w in coefs]))
+            i += len(knots) - 1
+        self.cls = np.array([np.r_[0.0, w[i:]] for w in coefs])
+        self.crowd0 = np.array([[vals[0]] for vals in self.interp[4][1]])  # no other cone: crowding 0
+        self.terms = np.zeros((5, 3, 256))
+        self.cum = np.cumsum(np.stack([p.confusion, p.confusion_crowded, p.confusion_loose]), axis=-1)
+        score_q = np.broadcast_to(p.score_q, p.range_err_q.shape)
+        loose_score_q = np.broadcast_to(p.loose_score_q, p.range_err_q.shape)
+        q = np.stack([np.stack([p.range_err_q, p.loose_range_err_q]), np.stack([p.bearing_err_q, p.loose_bearing_err_q]),
+                      np.stack([score_q, loose_score_q])]).astype(np.float64)  # (3, matched/loose, bin, quantile)
+        self.q = np.ascontiguousarray(q).reshape(-1)
+        self.loose_box_d = np.ascontiguousarray(p.loose_box_d, np.float64)
+        self.part_rows = np.ascontiguousarray(p.part_rows, np.float64)
+        self.zeros = np.zeros(256)
+
+
+@numba.njit(cache=True, nogil=True)
+def _draw_cones(prob, u, cls, ids, ranges, bearings, boxes, box_h, crowd, bins, last_step, last_det, step, rho,
+                cum, q, loose_box_d, part_rows):  # pragma: no cover (compiled; tested through FrameSampler)
+    """The per-cone draws of one frame from the probabilities ``prob`` (3, n: detected, loose, part)
+    and the uniforms ``u`` (9, n): (classes, ranges, bearings, scores, boxes) of the reported cones,
+    then of the part detections; updates the cones' Markov states."""
+    n = cls.shape[0]
+    det = np.empty(n, np.bool_)
+    loose = np.empty(n, np.bool_)
+    k = 0
+    for i in range(n):  # detected (with the cone's state on the previous frame), else loose, or missed
+        p = prob[0, i]
+        if last_step[ids[i]] == step - 1:
+            p = p + rho * (1.0 - p) if last_det[ids[i]] else p * (1.0 - rho)
+        det[i] = u[0, i] < p
+        loose[i] = not det[i] and u[5, i] < prob[1, i]
+        k += det[i] or loose[i]
+    for i in range(n):
+        last_step[ids[i]] = step
+        last_det[ids[i]] = det[i]
+    n_part = 0
+    if part_rows.shape[0]:
+        for i in range(n):
+            n_part += u[7, i] < prob[2, i]
+    m = k + n_part
+    classes = np.empty(m, np.int64)
+    out = np.empty((m, 7))  # range, bearing, score, box
+    n_cls = cum.shape[3]
+    block = 2 * _NB * (_NQ + 1)  # the quantile rows of range error, bearing error, score
+    o = 0
+    for i in range(n):
+        if not (det[i] or loose[i]):
+            continue
+        # the reported class: the confusion row (loose, else crowded, else clear), cumulated
+        which = 2 if loose[i] else (1 if crowd[i] > CROWDED else 0)
+        c = 0
+        for j in range(n_cls):
+            c += u[1, i] > cum[which, bins[i], cls[i], j]
+        classes[o] = min(c, n_cls - 1)
+        # range error, bearing error, score: inverse-CDF draws from the loose or the matched quantiles
+        base = (_NB if loose[i] else 0) + bins[i]
+        for t in range(3):
+            pos = u[2 + t, i] * _NQ
+            j = min(int(pos), _NQ - 1)
+            f = pos - j
+            at = t * block + base * (_NQ + 1) + j
+            out[o, t] = q[at] * (1.0 - f) + q[at + 1] * f
+        out[o, 0] += ranges[i]
+        out[o, 1] += bearings[i]
+        if loose[i]:  # a box a little off
+            d = loose_box_d[int(u[6, i] * loose_box_d.shape[0])]
+            for j in range(4):
+                out[o, 3 + j] = boxes[i, j] + d[j] * box_h[i]
+        else:
+            out[o, 3:] = boxes[i]
+        o += 1
+    if n_part:  # part detections: a box on a stripe or part of the cone, detected or not
+        for i in range(n):
+            if u[7, i] < prob[2, i]:
+                pr = part_rows[int(u[8, i] * part_rows.shape[0])]
+                classes[o] = int(pr[4])
+                out[o, 0] = ranges[i] + pr[6]
+                out[o, 1] = bearings[i] + pr[7]
+                out[o, 2] = pr[5]
+                for j in range(4):
+                    out[o, 3 + j] = boxes[i, j] + pr[j] * box_h[i]
+                o += 1
+    return classes, out[:, 0], out[:, 1], out[:, 2], out[:, 3:]

@@ -1,0 +1,49 @@
+"""The surrogate's per-frame sampler: crowding, and frames of any size (none, one, hundreds of cones)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from weather_gym.surrogate.log import _iou_matrix
+from weather_gym.surrogate.model import SHIPPED_MODEL, crowding, load_model
+from weather_gym.surrogate.sample import FrameSampler
+
+
+def test_crowding_is_each_boxs_largest_iou_with_another():
+    rng = np.random.default_rng(0)
+    for n in (2, 3, 20, 60):
+        xy = rng.uniform(0, 80, (n, 2))
+        boxes = np.hstack([xy, xy + rng.exponential(15, (n, 2))])
+        boxes[0] = boxes[1]  # identical boxes: IoU 1
+        boxes[-1, 2:] = boxes[-1, :2]  # an empty box
+        iou = _iou_matrix(boxes, boxes)
+        np.fill_diagonal(iou, 0.0)
+        np.testing.assert_array_equal(crowding(boxes), iou.max(axis=1))
+    assert crowding(np.zeros((1, 4))).tolist() == [0.0] and crowding(np.zeros((0, 4))).shape == (0,)
+
+
+def _frame(rng: np.random.Generator, n: int, first_id: int = 0) -> dict[str, np.ndarray]:
+    r = rng.uniform(2.0, 40.0, n)
+    h = 336 * 0.325 / r
+    x = rng.uniform(0, 672, n)
+    return {"boxes": np.column_stack([x - 0.35 * h, 200 - h, x + 0.35 * h, np.full(n, 200.0)]).astype(np.float32),
+            "classes": rng.integers(0, 4, n), "cone_ids": first_id + np.arange(n), "ranges": r.astype(np.float32),
+            "bearings": rng.uniform(-0.7, 0.7, n).astype(np.float32)}
+
+
+def test_frames_of_any_size_same_seed_same_bytes():
+    model = load_model(SHIPPED_MODEL)
+    frames = [_frame(np.random.default_rng(i), n, first_id)
+              for i, (n, first_id) in enumerate([(0, 0), (1, 3), (300, 0), (300, 0), (20, 900), (2, 5)])]
+
+    def run() -> list[dict[str, np.ndarray]]:
+        sampler, rng = FrameSampler(model.point("droplets@3")), np.random.default_rng(7)
+        return [sampler(gt, rng, step) for step, gt in enumerate(frames)]
+
+    a, b = run(), run()
+    for da, db in zip(a, b, strict=True):
+        assert sorted(da) == ["bearings", "boxes", "classes", "ranges", "scores"]
+        m = len(da["classes"])
+        assert da["boxes"].shape == (m, 4) and all(da[k].shape == (m,) for k in ("scores", "ranges", "bearings"))
+        assert all(np.array_equal(da[k], db[k]) and da[k].dtype == db[k].dtype for k in da)
+    assert len(a[2]["classes"]) > 50  # hundreds of cones in view, near ones mostly detected
