@@ -1,4 +1,5 @@
-"""The shipped PPO driver loads from the package and acts on a cone list (any source of cones)."""
+"""The shipped learned driver loads from the package, acts on a cone list (any source of cones) and laps a
+track it never saw from the start line."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from weather_gym.paths import PPO_CONES_MODEL
 def test_the_shipped_policy_is_small_and_documented():
     assert PPO_CONES_MODEL.is_file() and PPO_CONES_MODEL.stat().st_size < 5 * 2**20
     meta = json.loads(PPO_CONES_MODEL.with_suffix(".json").read_text())
-    assert meta["perception"] == "gt_cones" and meta["track"] not in meta["train_tracks"]  # held out
+    assert meta["perception"] == "surrogate" and meta["track"] not in meta["train_tracks"]  # held out
+    assert meta["pretrain"]["expert"] == "gt_pure_pursuit" and meta["command"].startswith("weather-gym train")
 
 
 def test_ppo_cones_drives_from_a_cone_list():
@@ -34,3 +36,20 @@ def test_ppo_cones_drives_from_a_cone_list():
     assert action.dtype == np.float32 and action.shape == (2,) and np.all(np.abs(action) <= 1)
     again = agent.act({"cones": cones, "mask": mask, "state": np.zeros(5, np.float32)})
     np.testing.assert_array_equal(action, again)  # deterministic: the same cones, the same action
+
+
+@pytest.mark.slow
+def test_ppo_cones_leaves_the_start_line_and_laps_a_held_out_track():
+    """The failure it replaces: a policy that stood at the start line until the time limit."""
+    pytest.importorskip("stable_baselines3")
+    from weather_gym.agents import AGENTS, run_episode
+    from weather_gym.pipeline import make_env
+
+    env = make_env(perception="surrogate", weather="droplets@2", track="small_track", max_episode_steps=1200)
+    meta = json.loads(PPO_CONES_MODEL.with_suffix(".json").read_text())
+    assert "small_track" not in meta["train_tracks"]
+    agent = AGENTS.get("ppo_cones")(env.unwrapped.track, env.unwrapped.config.camera)
+    result = run_episode(env, agent, seed=0)
+    env.close()
+    assert result.completed, result
+    assert result.cones_hit <= 2 and result.off_track_events == 0, result

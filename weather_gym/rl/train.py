@@ -28,8 +28,11 @@ on) from the start line and logs the mean reward and lap completion (``eval/succ
 evaluates with the same command as the final model), ``logs/<segment>/progress.csv`` and TensorBoard
 event files, ``learning_curve.png``, ``run.json`` (command, settings, segments, wall time).
 ``--resume`` continues from the newest checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
-run in a non-empty folder (never without it). **Ctrl-C** stops the run and still writes ``model.zip``, ``model.json``, the
-learning curve and ``run.json`` (exit status 130); ``--resume`` continues from the newest checkpoint.
+run in a non-empty folder (never without it). ``--pretrain EXPERT`` first clones a registered agent (e.g.
+``gt_pure_pursuit``) with DAgger on the same envs (:mod:`weather_gym.rl.pretrain`; ``--pretrain-steps``,
+``--dagger-rounds``, ``--pretrain-epochs``, ``--pretrain-log-std``), then PPO continues for
+``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C** stops the run and still
+writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (exit status 130); ``--resume`` continues from the newest checkpoint.
 
 Example:
     >>> args = build_parser().parse_args(["--out", "runs/x", "--n-envs", "2"])
@@ -43,6 +46,7 @@ from __future__ import annotations
 import argparse
 import ast
 import csv
+import dataclasses
 import importlib
 import inspect
 import json
@@ -65,10 +69,11 @@ from weather_gym.errors import FileFormatError, InputError, MissingDependencyErr
 from weather_gym.limits import check_seed
 from weather_gym.pipeline import make_env
 from weather_gym.rl import HYPERPARAMS
+from weather_gym.rl.pretrain import PretrainConfig, pretrain
 from weather_gym.wrappers import WeatherRandomizer
 
 __all__ = ["DEFAULT_TRACKS", "LapSuccess", "RandomStart", "build_parser", "latest_checkpoint", "load_hyperparams",
-           "make_training_env", "model_metadata", "plot_learning_curve", "resolve_hyperparams", "train"]
+           "make_training_env", "model_metadata", "plot_learning_curve", "plot_pretrain_curve", "resolve_hyperparams", "train"]
 
 DEFAULT_TRACKS = ("peanut", "fsds_training", "b_shape", "jellybean", "hairpin", "oval", "random:1", "random:2")
 DEFAULT_EVAL_TRACK = "small_track"
@@ -326,10 +331,39 @@ def plot_learning_curve(out: Path) -> Path | None:
     return save_figure(fig, out / "learning_curve.png", overwrite=True, dpi=110)
 
 
+def plot_pretrain_curve(out: Path, record: dict[str, Any] | None) -> Path | None:
+    """``out/pretrain_curve.png`` from a warm start's record (``run.json["pretrain"]``): the behaviour-cloning
+    loss before and after each DAgger round's fit, and per round the share of the steps the expert drove and
+    the share of ended episodes that were laps."""
+    rounds = (record or {}).get("rounds_log") or []
+    if not rounds:
+        return None
+    matplotlib.use("Agg")
+    r = np.array([x["round"] for x in rounds])
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    ax1.semilogy(r, [x["loss_before"] for x in rounds], "o--", label="before the round's fit (new data included)")
+    ax1.semilogy(r, [x["loss"] for x in rounds], "o-", label="after the fit")
+    ax1.set_xlabel("DAgger round")
+    ax1.set_ylabel("BC loss (MSE of the policy mean to the expert's action)")
+    ax1.legend(fontsize=8)
+    ax1.grid(alpha=0.3)
+    ax2.plot(r, [x["expert_share"] for x in rounds], "o-", label="steps driven by the expert")
+    ax2.plot(r, [x["laps"] / max(x["episodes"], 1) for x in rounds], "o-", label="ended episodes that were laps")
+    ax2.set_xlabel("DAgger round")
+    ax2.set_ylim(-0.05, 1.05)
+    ax2.legend(fontsize=8)
+    ax2.grid(alpha=0.3)
+    fig.suptitle(f"warm start: behaviour cloning of {record.get('expert')} with DAgger ({out.name})")
+    fig.tight_layout()
+    return save_figure(fig, out / "pretrain_curve.png", overwrite=True, dpi=110)
+
+
 def model_metadata(settings: dict[str, Any], hp: dict[str, Any], seed: int, eval_track: str,
-                   timesteps: int) -> dict[str, Any]:
-    """The JSON written beside every saved model (final, checkpoint, best): the env it was trained on."""
-    return {"algo": "PPO", "timesteps": int(timesteps), "n_envs": hp["n_envs"], "seed": seed,
+                   timesteps: int, pretrain: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The JSON written beside every saved model (final, checkpoint, best): the env it was trained on
+    (and, after ``--pretrain``, the warm start's record: expert, steps, rounds, BC loss per round)."""
+    extra = {"pretrain": pretrain} if pretrain is not None else {}
+    return {**extra, "algo": "PPO", "timesteps": int(timesteps), "n_envs": hp["n_envs"], "seed": seed,
             "env_id": settings["env_id"], "track": eval_track, "train_tracks": settings["tracks"],
             "perception": settings["perception"], "train_noise": settings["noise"],
             "env_kwargs": settings["env_kwargs"], "train_weather": settings["weather"],
@@ -382,11 +416,26 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     p.add_argument("--init", type=Path, default=None,
                    help="start from this saved PPO model (e.g. weather_gym/agents/models/ppo_cones.zip): fine-tuning")
     p.add_argument("--torch-threads", type=int, default=1, help="torch threads (1: the envs share the cores)")
+    g = p.add_argument_group("warm start (behaviour cloning with DAgger before PPO; weather_gym.rl.pretrain)")
+    g.add_argument("--pretrain", default=None, metavar="EXPERT",
+                   help="a registered agent that labels the training envs' observations, e.g. gt_pure_pursuit "
+                        "(the true pose) or mapper_pure_pursuit; the policy is cloned from it before PPO")
+    g.add_argument("--pretrain-steps", type=int, default=60_000, help="env steps of expert-labelled data, all rounds")
+    g.add_argument("--dagger-rounds", type=int, default=4,
+                   help="round 0 drives with the expert, round r with the student but for a share beta**r")
+    g.add_argument("--dagger-beta", type=float, default=0.5, help="expert-driven share base (see --dagger-rounds)")
+    g.add_argument("--pretrain-epochs", type=int, default=20, help="passes over all the data after each round")
+    g.add_argument("--pretrain-log-std", type=float, default=-1.6,
+                   help="the policy's log std after pretraining, PPO's exploration from there (-1.6: std 0.2)")
     return p
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    for name in ("timesteps", "n_envs", "max_steps", "n_steps", "batch_size", "n_epochs", "eval_freq",
+    if getattr(args, "pretrain", None) is not None and args.timesteps == 0:
+        pass  # pretraining only: the cloned policy is the model
+    elif args.timesteps is not None and args.timesteps < 1:
+        raise InputError(f"--timesteps must be >= 1 (0 only with --pretrain), got {args.timesteps}")
+    for name in ("n_envs", "max_steps", "n_steps", "batch_size", "n_epochs", "eval_freq",
                  "eval_episodes", "checkpoint_freq", "torch_threads"):
         v = getattr(args, name)
         if v is not None and v < 1:
@@ -424,7 +473,14 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
         out["surrogate_weathers"] = sw
     if args.init is not None:
         out["init"] = str(args.init)
+    if getattr(args, "pretrain", None) is not None:
+        out["pretrain"] = dataclasses.asdict(_pretrain_config(args))
     return out
+
+
+def _pretrain_config(args: argparse.Namespace) -> PretrainConfig:
+    return PretrainConfig(expert=args.pretrain, steps=args.pretrain_steps, rounds=args.dagger_rounds,
+                          epochs=args.pretrain_epochs, beta=args.dagger_beta, log_std=args.pretrain_log_std)
 
 
 def _close(env: Any) -> None:
@@ -467,7 +523,7 @@ def train(args: argparse.Namespace) -> int:
         ckpt, run = None, {"settings": s, "segments": []}
 
     def meta(steps: int) -> dict[str, Any]:
-        return model_metadata(s, hp, args.seed, args.eval_track, steps)
+        return model_metadata(s, hp, args.seed, args.eval_track, steps, run.get("pretrain"))
 
     n_envs, total = hp["n_envs"], hp["n_timesteps"]
     tracks = s["tracks"]
@@ -509,6 +565,16 @@ def train(args: argparse.Namespace) -> int:
                 vec = VecNormalize.load(str(stats), vec.venv)
             model = PPO.load(str(ckpt), env=vec, device="cpu")
             vec.seed(args.seed + model.num_timesteps)
+        if ckpt is None and "pretrain" in s:
+            teach = [m() for m in make]  # plain envs of the same settings, stepped in this process
+            try:
+                run["pretrain"] = pretrain(model.policy, teach, _pretrain_config(args), args.seed)
+            except KeyboardInterrupt:
+                interrupted = True
+                print("interrupted while pretraining: saving the policy so far", file=sys.stderr)
+            finally:
+                for env in teach:
+                    env.close()
         model.set_logger(logger)
         eval_env.seed(10_000 + args.seed)
         checkpoint_cb, best_cb = _metadata_callbacks(meta, checkpoints, max(args.checkpoint_freq // n_envs, 1),
@@ -522,7 +588,7 @@ def train(args: argparse.Namespace) -> int:
         ])
         start_steps = model.num_timesteps
         remaining = total - start_steps
-        if remaining > 0:
+        if remaining > 0 and not interrupted:
             try:
                 model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=False)
             except KeyboardInterrupt:
@@ -543,8 +609,9 @@ def train(args: argparse.Namespace) -> int:
         if out.is_dir():
             atomic_write_json(run_file, run, indent=2, overwrite=True)
     curve = plot_learning_curve(out)
+    warm = plot_pretrain_curve(out, run.get("pretrain"))
     print(f"saved {out / 'model.zip'} after {model.num_timesteps} steps; {run['wall_s_total']:.0f} s of training "
-          f"in {len(run['segments'])} segment(s); learning curve: {curve}")
+          f"in {len(run['segments'])} segment(s); learning curve: {curve}" + (f"; warm start: {warm}" if warm else ""))
     if interrupted:
         print(f"stopped early: continue with the same command and --resume (from the newest checkpoint in "
               f"{checkpoints}), or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
@@ -552,7 +619,8 @@ def train(args: argparse.Namespace) -> int:
     return 0
 
 
-RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "checkpoints", "best", "logs")
+RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png", "checkpoints", "best",
+             "logs")
 """What a run writes in its folder (``--overwrite`` removes these, nothing else)."""
 
 
