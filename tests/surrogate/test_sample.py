@@ -47,3 +47,23 @@ def test_frames_of_any_size_same_seed_same_bytes():
         assert da["boxes"].shape == (m, 4) and all(da[k].shape == (m,) for k in ("scores", "ranges", "bearings"))
         assert all(np.array_equal(da[k], db[k]) and da[k].dtype == db[k].dtype for k in da)
     assert len(a[2]["classes"]) > 50  # hundreds of cones in view, near ones mostly detected
+
+
+def test_the_samplers_probabilities_are_the_models():
+    """The sampler computes the three probability models at once for speed; they must stay Point.probability_of."""
+    from weather_gym.surrogate.sample import _Tables
+
+    model = load_model(SHIPPED_MODEL)
+    rng = np.random.default_rng(3)
+    for weather in ("clear", "droplets@3", "low_light@1"):
+        point = model.point(weather)
+        tables = _Tables(point)
+        for n, with_crowd in ((1, False), (40, True), (300, True)):
+            cls = rng.integers(0, 4, n)
+            box_h = rng.uniform(0.5, 80.0, n)
+            crowd = rng.uniform(0.0, 1.0, n) if with_crowd else None
+            feats = point.features(rng.uniform(1.0, 60.0, n), rng.uniform(-0.8, 0.8, n), box_h,
+                                   rng.uniform(0.0, 1.0, n), crowd)
+            got = tables.probabilities(feats, cls)
+            for row, kind in enumerate(("detected", "loose", "part")):
+                np.testing.assert_array_equal(got[row], point.probability_of(feats, cls, kind=kind))

@@ -190,6 +190,18 @@ def fit_logistic(X: np.ndarray, y: np.ndarray, l2: float = L2) -> np.ndarray:
     return res.x
 
 
+def hat_terms(w: np.ndarray) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+    """A probability model's coefficients ``w`` (:data:`N_COEF`) as ``(knots, values)`` per feature
+    (range, |bearing|, log box height, visibility, crowding: values at the knots, 0 at the first) and the
+    class offsets (0 for the first class); ``w[0]`` is the intercept."""
+    i = 1
+    terms = []
+    for knots in (RANGE_KNOTS, BEARING_KNOTS, LOGH_KNOTS, VIS_KNOTS, CROWD_KNOTS):
+        terms.append((knots, np.r_[0.0, w[i:i + len(knots) - 1]]))
+        i += len(knots) - 1
+    return terms, np.r_[0.0, w[i:]]
+
+
 def _sigmoid(z: np.ndarray) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(0.5 * z))
 
@@ -305,14 +317,8 @@ class Point:
         name = f"_terms_{kind}"
         terms = self.__dict__.get(name)
         if terms is None:
-            i = 1
-            terms = []
-            for knots in (RANGE_KNOTS, BEARING_KNOTS, LOGH_KNOTS, VIS_KNOTS, CROWD_KNOTS):
-                terms.append((knots, np.r_[0.0, w[i:i + len(knots) - 1]]))
-                i += len(knots) - 1
-            terms.append(np.r_[0.0, w[i:]])
-            self.__dict__[name] = terms
-        (rk, rv), (bk, bv), (hk, hv), (vk, vv), (ck, cv), cls = terms
+            terms = self.__dict__[name] = hat_terms(w)
+        ((rk, rv), (bk, bv), (hk, hv), (vk, vv), (ck, cv)), cls = terms
         ranges, abs_bearings, log_h, vis, crowd = features
         z = (w[0] + np.interp(ranges, rk, rv) + np.interp(abs_bearings, bk, bv)
              + np.interp(log_h, hk, hv) + np.interp(vis, vk, vv)

@@ -33,18 +33,7 @@ import numpy as np
 
 from weather_gym.camera import CameraConfig
 from weather_gym.surrogate.log import _HEIGHTS
-from weather_gym.surrogate.model import (
-    BEARING_KNOTS,
-    CROWD_KNOTS,
-    CROWDED,
-    ERR_RANGE_EDGES,
-    LOGH_KNOTS,
-    QUANTILES,
-    RANGE_KNOTS,
-    VIS_KNOTS,
-    Point,
-    crowding,
-)
+from weather_gym.surrogate.model import CROWDED, ERR_RANGE_EDGES, QUANTILES, Point, crowding, hat_terms
 
 __all__ = ["FrameSampler"]
 
@@ -109,26 +98,7 @@ class FrameSampler:
             full = self._fy_h[cls] / np.maximum(rng_ * np.cos(brg), 0.1)
             vis = np.minimum(box_h / full, 1.0)  # = log.visibility, inlined (this runs every step)
             crowd = crowding(boxes) if n > 1 else None
-            # P(detected), P(loose | not detected), P(part) of each cone: Point.probability_of's
-            # operations for the three kinds at once (rows of ``z``)
-            x = (rng_, np.abs(brg), np.log(np.maximum(box_h, 1e-3)), vis, crowd)  # = Point.features
-            if n > t.terms.shape[2]:
-                t.terms = np.zeros((5, 3, 2 * n))
-            terms = t.terms
-            for f, (knots, vals) in enumerate(t.interp):
-                if x[f] is not None:
-                    for kind in range(3):
-                        terms[f, kind, :n] = _interp(x[f], knots, vals[kind])
-            z = t.w0 + terms[0, :, :n]
-            z += terms[1, :, :n]
-            z += terms[2, :, :n]
-            z += terms[3, :, :n]
-            if crowd is None:
-                z += t.crowd0
-            else:
-                z += terms[4, :, :n]
-            z += t.cls[:, cls]
-            z = 0.5 * (1.0 + np.tanh(0.5 * z))  # model._sigmoid: the three probabilities
+            z = t.probabilities(Point.features(rng_, brg, box_h, vis, crowd), cls)
             max_id = int(ids.max())
             if max_id >= len(self._last_step):
                 self._grow(max_id)
@@ -186,14 +156,11 @@ class _Tables:
     the quantile rows in one flat table."""
 
     def __init__(self, p: Point) -> None:
-        coefs = (p.coef, p.coef_loose, p.coef_part)
-        self.w0 = np.array([[w[0]] for w in coefs])
-        self.interp = []  # per feature: knots, and the hat coefficients of each kind (Point.probability_of)
-        i = 1
-        for knots in (RANGE_KNOTS, BEARING_KNOTS, LOGH_KNOTS, VIS_KNOTS, CROWD_KNOTS):
-            self.interp.append((knots, [np.r_[0.0, w[i:i + len(knots) - 1]] for w in coefs]))
-            i += len(knots) - 1
-        self.cls = np.array([np.r_[0.0, w[i:]] for w in coefs])
+        hats = [hat_terms(w) for w in (p.coef, p.coef_loose, p.coef_part)]
+        self.w0 = np.array([[w[0]] for w in (p.coef, p.coef_loose, p.coef_part)])
+        # per feature: its knots, and the hat values of each kind (Point.probability_of's terms)
+        self.interp = [(hats[0][0][f][0], [h[0][f][1] for h in hats]) for f in range(5)]
+        self.cls = np.array([h[1] for h in hats])
         self.crowd0 = np.array([[vals[0]] for vals in self.interp[4][1]])  # no other cone: crowding 0
         self.terms = np.zeros((5, 3, 256))
         self.cum = np.cumsum(np.stack([p.confusion, p.confusion_crowded, p.confusion_loose]), axis=-1)
@@ -205,6 +172,26 @@ class _Tables:
         self.loose_box_d = np.ascontiguousarray(p.loose_box_d, np.float64)
         self.part_rows = np.ascontiguousarray(p.part_rows, np.float64)
         self.zeros = np.zeros(256)
+
+    def probabilities(self, x: tuple, cls: np.ndarray) -> np.ndarray:
+        """(3, n): P(detected), P(loose | not detected), P(part) of each cone, from ``x`` =
+        :meth:`Point.features` (crowding None: no other cone): :meth:`Point.probability_of`'s operations,
+        in its order, for the three kinds at once."""
+        n = len(cls)
+        if n > self.terms.shape[2]:
+            self.terms = np.zeros((5, 3, 2 * n))
+        terms = self.terms
+        for f, (knots, vals) in enumerate(self.interp):
+            if x[f] is not None:
+                for kind in range(3):
+                    terms[f, kind, :n] = _interp(x[f], knots, vals[kind])
+        z = self.w0 + terms[0, :, :n]
+        z += terms[1, :, :n]
+        z += terms[2, :, :n]
+        z += terms[3, :, :n]
+        z += self.crowd0 if x[4] is None else terms[4, :, :n]
+        z += self.cls[:, cls]
+        return 0.5 * (1.0 + np.tanh(0.5 * z))  # model._sigmoid
 
 
 @numba.njit(cache=True, nogil=True)
