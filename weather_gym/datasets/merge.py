@@ -36,10 +36,16 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym._io import atomic_write_json, check_not_input, exclusive, file_id, resolve_inside
+from weather_gym._io import (
+    atomic_write_json,
+    check_output,
+    exclusive,
+    file_id,
+    resolve_inside,
+)
 from weather_gym.datasets import masks as _masks
 from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
-from weather_gym.errors import InputError, OutputExistsError, OutputPathError
+from weather_gym.errors import InputError, OutputPathError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
 from weather_gym.tracks import is_track_file
 
@@ -57,12 +63,12 @@ def _copy(src: Path, out: Path, rel: str) -> str:
 
 def _check_agree(sources: Sequence[Path], datasets: list[Any]) -> list[dict]:
     """The first source's categories; InputError when another source defines them or the too-small rule otherwise."""
-    first = sorted((c["name"], c["id"]) for c in datasets[0].data["categories"])
+    first = sorted(c["name"] for c in datasets[0].data["categories"])
     first_h = float(datasets[0].info.get("min_box_height_px", MIN_BOX_HEIGHT_PX))
     for src, ds in zip(sources[1:], datasets[1:], strict=True):
         names = sorted(c["name"] for c in ds.data["categories"])
-        if names != [n for n, _ in first]:
-            raise InputError(f"{src}: categories {names} differ from {sources[0]}'s {[n for n, _ in first]}; "
+        if names != first:
+            raise InputError(f"{src}: categories {names} differ from {sources[0]}'s {first}; "
                              "merge datasets with the same cone classes")
         h = float(ds.info.get("min_box_height_px", MIN_BOX_HEIGHT_PX))
         if h != first_h:
@@ -90,11 +96,7 @@ def merge_coco(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
     datasets = [load_coco(s) for s in srcs]  # validates every source before anything is written
     categories = _check_agree(srcs, datasets)
     by_name = {c["name"]: c["id"] for c in categories}
-    check_not_input(out, what="dataset folder")
-    if out.exists() and not out.is_dir():
-        raise OutputPathError(f"dataset folder {out} exists and is not a folder")
-    if (out / ANNOTATIONS).exists() and not overwrite:
-        raise OutputExistsError(f"{out / ANNOTATIONS} already exists; choose another --out folder or pass --overwrite")
+    check_output(out / ANNOTATIONS, overwrite=overwrite, what="dataset")  # a file in the way, or no --overwrite
     out.mkdir(parents=True, exist_ok=True)
     images: list[dict] = []
     annotations: list[dict] = []
