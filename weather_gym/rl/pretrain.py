@@ -89,16 +89,9 @@ class PretrainConfig:
 
 
 # ------------------------------------------------------------------ policy helpers
-def _obs_tensor(policy: Any, obs: dict[str, np.ndarray]) -> dict[str, Any]:
-    import torch
-
-    return {k: torch.as_tensor(v, device=policy.device) for k, v in obs.items()}
-
-
 def policy_mean(policy: Any, obs: dict[str, np.ndarray]) -> Any:
     """The Gaussian mean of an SB3 actor-critic ``policy`` for a batch of dict observations (a tensor)."""
-    features = policy.extract_features(_obs_tensor(policy, obs), policy.pi_features_extractor)
-    return policy.action_net(policy.mlp_extractor.forward_actor(features))
+    return policy.get_distribution(policy.obs_to_tensor(obs)[0]).distribution.mean
 
 
 def bc_loss(policy: Any, data: dict[str, np.ndarray]) -> float:
@@ -213,7 +206,6 @@ def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int
     and after the fit, the initial loss and the wall time.
     """
     import torch
-
 
     started = time.time()
     ss = np.random.SeedSequence(seed, spawn_key=_SEED_KEY)
