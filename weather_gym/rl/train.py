@@ -431,9 +431,8 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    if getattr(args, "pretrain", None) is not None and args.timesteps == 0:
-        pass  # pretraining only: the cloned policy is the model
-    elif args.timesteps is not None and args.timesteps < 1:
+    least = 0 if getattr(args, "pretrain", None) is not None else 1  # 0: the cloned policy is the model
+    if args.timesteps is not None and args.timesteps < least:
         raise InputError(f"--timesteps must be >= 1 (0 only with --pretrain), got {args.timesteps}")
     for name in ("n_envs", "max_steps", "n_steps", "batch_size", "n_epochs", "eval_freq",
                  "eval_episodes", "checkpoint_freq", "torch_threads"):
