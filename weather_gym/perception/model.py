@@ -28,7 +28,7 @@ cell near their centre, not only at it: the rear cone's centre is one to three c
 cone's, and a hidden peak that lands beside it (or on the front cone) is trained to point at the rear
 cone's box. Where a cell's hidden peak beats its main peak, the export reports the hidden box there
 (measured from v5: training with these boxes finds more rear cones, reporting them changes nothing;
-docs/model_card.md, "After v5").
+CHANGELOG.md, "Detector: after v5").
 
 Example:
     >>> import torch
