@@ -63,7 +63,7 @@ def real_clear(root: Path) -> Path | None:
 def sim_clean(root: Path) -> Path:
     from gap_cases import CLEAN_FRAMES, GAP_CAMERA
 
-    from weather_gym.camera_model import CameraModel
+    from weather_gym.camera_isp import CameraModel
     from weather_gym.datasets import render_dataset
 
     out = root / "sim_clean"
@@ -84,7 +84,7 @@ def run_case(setting: str, case: str, root: Path) -> dict:
                          plots=False, overwrite=True)
     else:
         clean = sim_clean(root)
-        from weather_gym.camera_model import CameraModel
+        from weather_gym.camera_isp import CameraModel
 
         measured = hide(clean, root / "data" / f"{setting}_{case}", case, strip_poses=setting == "unpaired")
         cfg = GapConfig(**FAST) if setting == "paired" else GapConfig(

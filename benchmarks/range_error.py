@@ -16,8 +16,8 @@ import argparse
 
 import numpy as np
 
-from weather_gym.camera import CameraConfig
-from weather_gym.camera_model import CameraModel, CameraPipeline
+from weather_gym.camera_config import CameraConfig
+from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.datasets.coco import load_coco
 from weather_gym.perception import ConeDetector
 from weather_gym.perception.labels import hidden_mask

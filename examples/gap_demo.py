@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from weather_gym._io import atomic_write
-    from weather_gym.camera_model import CameraModel
+    from weather_gym.camera_isp import CameraModel
     from weather_gym.datasets import render_dataset
     from weather_gym.gap import degrade_dataset
 

@@ -50,8 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     from weather_gym._io import check_output, write_image
-    from weather_gym.camera import CameraConfig
-    from weather_gym.camera_model import CameraModel
+    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera_isp import CameraModel
     from weather_gym.envs import ConeTrackEnv, EnvConfig
     from weather_gym.sim.config import SimConfig
     from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK

@@ -57,7 +57,7 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 
 
 def _dataset(root: Path, frames: int) -> None:
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.datasets.coco import CocoWriter
 
     cam = CameraConfig(width=W, height=H)
@@ -500,7 +500,7 @@ CASES: list[Case] = [
     Case("py-depth-quantile-above-1", "depth_quantile", call=lambda w: __import__(
         "weather_gym.perception.ranging", fromlist=["detections_to_cones"]).detections_to_cones(
             {"boxes": np.zeros((1, 4)), "scores": np.ones(1), "classes": np.zeros(1, int)},
-            __import__("weather_gym.camera", fromlist=["CameraConfig"]).CameraConfig(),
+            __import__("weather_gym.camera_config", fromlist=["CameraConfig"]).CameraConfig(),
             np.ones((376, 672), np.float32), depth_quantile=1.5)),
     Case("py-detector-corrupt-model", "corrupt.onnx", call=lambda w: __import__(
         "weather_gym.perception", fromlist=["ConeDetector"]).ConeDetector(w["corrupt.onnx"])),
@@ -511,7 +511,7 @@ CASES: list[Case] = [
     Case("py-measured-table-bad-severity", "measured_bad.csv", call=lambda w: __import__(
         "weather_gym.calibration.measured", fromlist=["load_measured"]).load_measured([str(w["measured_bad.csv"])])),
     Case("py-read-model-unknown-effect", "model_bad.toml", call=lambda w: __import__(
-        "weather_gym.gap.model", fromlist=["read_model"]).read_model(w["model_bad.toml"])),
+        "weather_gym.gap.weather_model", fromlist=["read_model"]).read_model(w["model_bad.toml"])),
 ]
 
 

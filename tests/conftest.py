@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 
 SMALL_CAMERA = CameraConfig(width=96, height=54)
 """A tiny camera that keeps env tests fast (rendering dominates the step time)."""

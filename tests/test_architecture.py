@@ -25,8 +25,8 @@ PLUMBING = {"registry", "_io", "errors", "limits", "paths", "cone_spec", "cone_a
             "_lock", "_confine"}
 """Shared plumbing with no layer of its own: importable from anywhere, imports no layer."""
 
-SUBLAYERS = {"perception.train": "perception_tools", "perception.model": "perception_tools",
-             "perception.report": "perception_tools",
+SUBLAYERS = {"perception.train": "perception_tools", "perception.conenet": "perception_tools",
+             "perception.plots": "perception_tools",
              "surrogate.record": "surrogate_tools", "surrogate.validate": "surrogate_tools"}
 """Modules that sit above their package's layer: training and dataset-level reports need datasets;
 the surrogate's logging and validation drive full-pipeline episodes (a top layer, like evaluation)."""
@@ -99,7 +99,7 @@ def layer_of(module: str) -> str | None:
         return "plumbing"
     if head in ("tracks", "_track_geometry"):
         return "tracks"
-    if head in ("camera", "camera_model"):
+    if head in ("camera_config", "camera_isp"):
         return "camera"
     if head == "__version__":
         return "root"

@@ -25,7 +25,7 @@ def lazy_exports(package: str, names: Mapping[str, str]) -> tuple[Callable[[str]
 
     Usage at the end of a package's ``__init__.py``::
 
-        _LAZY = {"ConeDetector": "weather_gym.perception.detector", ...}
+        _LAZY = {"ConeDetector": "weather_gym.perception.onnx_detector", ...}
         __all__ = sorted(_LAZY)
         __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
     """

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from weather_gym.agents import AGENTS
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 
 CAMERA = CameraConfig(width=336, height=188)
 

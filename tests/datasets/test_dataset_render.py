@@ -79,7 +79,7 @@ def test_episode_plan_splits_frames_evenly():
 def test_a_csv_track_travels_with_the_dataset(tmp_path):
     """A cone CSV given as a track is copied into DIR/tracks/ and the records name the copy, so the
     dataset is self-contained and its track paths stay inside it (see datasets.coco.record_path)."""
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import load_track
 
     csv = tmp_path / "elsewhere" / "my_oval.csv"
@@ -112,7 +112,7 @@ def test_start_window_renders_the_approach_to_the_start_line(tmp_path):
 def test_frames_go_through_the_default_camera_model_unless_told_otherwise(tmp_path):
     """Rendered sets go through the env's default camera model; ``--camera-model ideal`` renders the
     frames exactly as rendered (the study's ideal camera), and a TOML file of fields changes one stage."""
-    from weather_gym.camera_model import CameraModel
+    from weather_gym.camera_isp import CameraModel
     from weather_gym.cli import main
 
     kw = dict(tracks=["oval"], frames=2, seed=5, frames_per_episode=2, progress=False)

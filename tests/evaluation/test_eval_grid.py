@@ -50,7 +50,7 @@ def test_other_presets_file_changes_the_cells(tmp_path):
 def test_stack_names_the_world_and_the_model_files(tmp_path):
     """A changed scenario default, detector or surrogate file gives other cells, so a resumed
     results file runs them again instead of mixing in rows of the old stack."""
-    from weather_gym.perception.detector import DEFAULT_MODEL
+    from weather_gym.perception.onnx_detector import DEFAULT_MODEL
     from weather_gym.surrogate.model import SHIPPED_MODEL
 
     base = {"effects": ("droplets",), "severities": (0,), "seeds": (0,)}

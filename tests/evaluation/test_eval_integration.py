@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from weather_gym.evaluation.evaluate import EvalConfig, evaluate, make_cells, run_cell
-from weather_gym.perception.detector import DEFAULT_MODEL
+from weather_gym.perception.onnx_detector import DEFAULT_MODEL
 
 
 @pytest.mark.slow
@@ -29,7 +29,7 @@ def test_detector_cells_score_the_frames_the_agent_saw(tmp_path):
     """Plumbing with any ONNX model (an untrained one here): frames, mAP, latency reach the row."""
     torch = pytest.importorskip("torch")
     pytest.importorskip("onnx")
-    from weather_gym.perception.model import ConeNet
+    from weather_gym.perception.conenet import ConeNet
     from weather_gym.perception.train import export_onnx
 
     torch.manual_seed(0)

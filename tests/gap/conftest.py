@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from gap_cases import CLEAN_FRAMES, GAP_CAMERA, MEASURED_SEED, SHIFTED_FRAMES
 
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_isp import CameraModel
 
 
 @pytest.fixture(scope="session")
@@ -101,11 +101,11 @@ def shifted(gap_root):
     camera records (a recording of unknown intrinsics)."""
     import cv2
 
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.datasets import load_coco, render_dataset
     from weather_gym.datasets.coco import ANNOTATIONS
     from weather_gym.datasets.masks import MASK_FILE, write_mask
-    from weather_gym.gap.model import apply_chain
+    from weather_gym.gap.weather_model import apply_chain
     from weather_gym.weather import make
 
     root = gap_root / "shifted"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 
 GAP_CAMERA = CameraConfig().scaled(336, 188)
 CLEAN_FRAMES = 40

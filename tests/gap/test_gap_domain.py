@@ -11,7 +11,7 @@ from __future__ import annotations
 import pytest
 from gap_cases import FAST, MEASURED_SEED
 
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_isp import CameraModel
 from weather_gym.gap.workflow import GapConfig, run_gap
 
 pytestmark = pytest.mark.slow

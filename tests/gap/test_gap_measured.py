@@ -9,7 +9,7 @@ import pytest
 from weather_gym.errors import InputError
 from weather_gym.gap.fit import bound_ends, bounds_hit
 from weather_gym.gap.measured import MEASURED, estimate, make_measured
-from weather_gym.gap.model import insert_position, read_model, write_model
+from weather_gym.gap.weather_model import insert_position, read_model, write_model
 from weather_gym.weather import make
 
 

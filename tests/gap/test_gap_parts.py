@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from weather_gym.gap.compare import GapMeter, compare_signals, gap_test, holm, signal_scale
-from weather_gym.gap.model import (
+from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS, frame_signals, signal_weights
+from weather_gym.gap.simulate import split_indices
+from weather_gym.gap.weather_model import (
     CHAIN_ORDER,
     apply_chain,
     insert_position,
@@ -16,8 +18,6 @@ from weather_gym.gap.model import (
     read_model,
     write_model,
 )
-from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS, frame_signals, signal_weights
-from weather_gym.gap.simulate import split_indices
 from weather_gym.weather import EFFECTS, make
 
 

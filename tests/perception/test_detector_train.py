@@ -13,7 +13,7 @@ pytest.importorskip("onnx")
 from cone_synth import write_synth_dataset  # noqa: E402
 
 from weather_gym.errors import FileFormatError, InputError  # noqa: E402
-from weather_gym.perception.detector import ConeDetector  # noqa: E402
+from weather_gym.perception.onnx_detector import ConeDetector  # noqa: E402
 from weather_gym.perception.train import TrainConfig, augment, build_targets, train_detector  # noqa: E402
 
 SMALL = dict(input_size=(256, 160), crop_size=(128, 96), epochs=2, batch_size=2, warmup_iters=1, threads=1)
@@ -53,7 +53,7 @@ def test_a_stride_2_grid_gives_a_start_line_pair_two_separate_peaks():
 
 
 def test_a_stride_2_net_starts_from_a_stride_4_model_and_exports_its_stride(tmp_path):
-    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.conenet import ConeNet, ConeNetExport
     from weather_gym.perception.train import export_onnx, load_onnx_weights
 
     torch.manual_seed(4)
@@ -94,7 +94,7 @@ def test_hidden_cone_targets_give_the_rear_cone_of_a_pair_its_own_heatmap_peak()
 
 
 def test_a_hidden_cone_net_starts_from_a_plain_model_and_exports_the_plain_output(tmp_path):
-    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.conenet import ConeNet, ConeNetExport
     from weather_gym.perception.train import detection_loss, export_onnx, load_onnx_weights
 
     torch.manual_seed(5)
@@ -149,7 +149,7 @@ def test_hidden_cone_box_targets_point_at_the_rear_cone_from_every_cell_around_i
 
 
 def test_a_net_with_hidden_cone_boxes_reports_them_where_a_hidden_peak_wins(tmp_path):
-    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.conenet import ConeNet, ConeNetExport
     from weather_gym.perception.train import detection_loss, export_onnx, load_onnx_weights
 
     torch.manual_seed(6)
@@ -189,7 +189,7 @@ def test_a_net_with_hidden_cone_boxes_reports_them_where_a_hidden_peak_wins(tmp_
 
 
 def test_a_deeper_net_starts_as_the_model_it_grows_from_and_its_new_blocks_train(tmp_path):
-    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.conenet import ConeNet, ConeNetExport
     from weather_gym.perception.train import detection_loss, export_onnx, load_onnx_weights
 
     torch.manual_seed(7)
@@ -221,7 +221,7 @@ def test_a_deeper_net_starts_as_the_model_it_grows_from_and_its_new_blocks_train
     (dict(neck=24), "cannot start a net"),
 ])
 def test_a_net_that_is_not_a_deeper_copy_of_the_start_model_is_a_clear_error(tmp_path, layout, message):
-    from weather_gym.perception.model import ConeNet
+    from weather_gym.perception.conenet import ConeNet
     from weather_gym.perception.train import export_onnx, load_onnx_weights
 
     path = export_onnx(ConeNet(stride=2).eval(), tmp_path / "m.onnx", (128, 64))
@@ -240,7 +240,7 @@ def test_a_bad_net_layout_is_a_clear_error(kwargs, message):
 
 
 def test_a_broken_layout_in_a_start_models_sidecar_is_a_clear_error(tmp_path):
-    from weather_gym.perception.model import ConeNet
+    from weather_gym.perception.conenet import ConeNet
     from weather_gym.perception.train import export_onnx, load_onnx_weights
 
     path = export_onnx(ConeNet(stride=2).eval(), tmp_path / "m.onnx", (128, 64))
@@ -456,7 +456,7 @@ def test_cli_trains_on_a_rendered_and_an_imported_set_mixed(tmp_path, capsys):
 
 
 def test_a_shipped_onnx_model_loads_back_into_torch(tmp_path):
-    from weather_gym.perception.model import ConeNet, ConeNetExport
+    from weather_gym.perception.conenet import ConeNet, ConeNetExport
     from weather_gym.perception.train import export_onnx, load_onnx_weights
 
     torch.manual_seed(3)

@@ -13,7 +13,7 @@ import pytest
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper, numpy_helper  # noqa: E402
 
-from weather_gym.perception.detectors import as_detector, load_detector  # noqa: E402
+from weather_gym.perception.detector_spec import as_detector, load_detector  # noqa: E402
 from weather_gym.perception.yolo import YoloDetector  # noqa: E402
 
 

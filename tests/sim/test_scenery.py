@@ -85,11 +85,11 @@ def test_randomize_ranges_from_toml(tmp_path):
 
 @pytest.fixture(scope="module")
 def realistic_env():
-    from weather_gym.camera_model import CameraModel
+    from weather_gym.camera_isp import CameraModel
     from weather_gym.envs import ConeTrackEnv, EnvConfig
     from weather_gym.sim.config import SimConfig
 
-    # the world alone: the camera model (lens distortion, noise, JPEG) is tested in tests/test_camera_model.py
+    # the world alone: the camera model (lens distortion, noise, JPEG) is tested in tests/test_camera_isp.py
     env = ConeTrackEnv(EnvConfig(track="small_track", camera=SMALL_CAMERA.scaled(192, 108),
                                  sim=SimConfig(scene="realistic"), camera_model=CameraModel.ideal()))
     yield env
@@ -172,7 +172,7 @@ def test_realistic_scene_defaults_to_the_realistic_look(realistic_env):
 def test_knocked_cone_leaves_no_contact_shadow_and_reset_restores_it():
     import pybullet as p
 
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.sim.config import SimConfig
     from weather_gym.sim.world import World
 

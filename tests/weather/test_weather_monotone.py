@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from weather_cases import VARIANT_IDS, VARIANTS, build
 
-from weather_gym.weather.metrics import rms_contrast, ssim
+from weather_gym.weather.image_measures import rms_contrast, ssim
 
 KS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
 STATE = {"speed": 10.0, "yaw_rate": 0.3}

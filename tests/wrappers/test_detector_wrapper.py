@@ -6,10 +6,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD, unpack_cones
-from weather_gym.perception.detector import Detections
+from weather_gym.perception.onnx_detector import Detections
 from weather_gym.wrappers import DetectorWrapper
 
 

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 
 from weather_gym.agents._checks import check_action
-from weather_gym.agents.episode import EpisodeResult, run_episode
+from weather_gym.agents.episode_driver import EpisodeResult, run_episode
 from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
 from weather_gym.agents.sb3 import SB3Agent
 from weather_gym.agents.stack import MapperPurePursuit
@@ -40,7 +40,7 @@ from weather_gym.paths import PPO_CONES_MODEL
 from weather_gym.registry import Registry
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import Track
 
 __all__ = ["Agent", "AGENTS", "EpisodeResult", "check_action", "make_agent", "run_episode"]

@@ -7,7 +7,7 @@ default driver of ``weather-gym lap``, of dataset rendering and of the env tests
 Example:
     >>> import numpy as np
     >>> from types import SimpleNamespace
-    >>> from weather_gym.camera import CameraConfig
+    >>> from weather_gym.camera_config import CameraConfig
     >>> from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
     >>> line = np.c_[np.linspace(0, 50, 101), np.zeros(101)]
     >>> track = SimpleNamespace(centerline=line, closed=False)       # anything with these two
@@ -29,7 +29,7 @@ from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig
 from weather_gym.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import Track
 
 __all__ = ["GroundTruthPurePursuit", "config_with"]

@@ -22,7 +22,7 @@ from weather_gym.agents._checks import check_action
 from weather_gym.errors import InputError, MissingInputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import Track
 
 __all__ = ["SB3Agent", "SB3_ALGOS"]

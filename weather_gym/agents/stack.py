@@ -14,7 +14,7 @@ the rule figure eight fitted to the mapped cones, until the car is in the exit l
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera import CameraConfig
+    >>> from weather_gym.camera_config import CameraConfig
     >>> from weather_gym.agents import AGENTS
     >>> agent = AGENTS.get("mapper_pure_pursuit")(None, CameraConfig())
     >>> agent.reset(seed=0)
@@ -39,7 +39,7 @@ from weather_gym.agents.skidpad import SkidpadConfig, SkidpadPlanner
 from weather_gym.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera import CameraConfig
+    from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import Track
 
 __all__ = ["MapperPurePursuit", "STACK_DEFAULTS"]

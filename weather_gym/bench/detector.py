@@ -30,7 +30,7 @@ from weather_gym._io import atomic_write, check_output
 from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
 from weather_gym.cli._output_args import add_overwrite_arg
-from weather_gym.perception.detector import ConeDetector
+from weather_gym.perception.onnx_detector import ConeDetector
 from weather_gym.perception.ranging import detections_to_cones
 from weather_gym.pipeline import make_env
 from weather_gym.weather import make

@@ -26,7 +26,7 @@ from typing import Any
 
 from weather_gym._io import atomic_write, check_output
 from weather_gym.bench._timing import machine_line, markdown_table
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.datasets import render_dataset
 from weather_gym.datasets.coco import ANNOTATIONS

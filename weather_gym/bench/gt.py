@@ -29,7 +29,7 @@ import numpy as np
 
 from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.errors import InputError
 from weather_gym.pipeline import make_env
 from weather_gym.sim.config import SCENES, SimConfig

@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
-from weather_gym.camera import CameraConfig
-from weather_gym.camera_model import CameraModel, CameraPipeline
+from weather_gym.camera_config import CameraConfig
+from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.errors import InputError
 from weather_gym.pipeline import make_env
 from weather_gym.sim.config import SimConfig

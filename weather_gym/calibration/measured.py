@@ -36,7 +36,7 @@ from tqdm import tqdm
 from weather_gym.datasets import load_coco
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception import evaluate
-from weather_gym.perception.detectors import load_detector
+from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.scoring import small_rule
 from weather_gym.weather.presets import ALIASES, CONDITIONS, SEVERITIES, canonical_condition
 

@@ -45,7 +45,7 @@ from weather_gym.datasets.coco import ANNOTATIONS, load_coco
 from weather_gym.errors import InputError
 from weather_gym.evaluation.runner import check_results_path, run_cells
 from weather_gym.perception import score_dataset
-from weather_gym.perception.detectors import detector_id, load_detector, parse_detector_spec
+from weather_gym.perception.detector_spec import detector_id, load_detector, parse_detector_spec
 from weather_gym.weather import EFFECTS, make
 
 __all__ = [
@@ -210,7 +210,7 @@ def parse_seeds(n: int | None = None, seed_list: str | None = None) -> tuple[int
 @dataclass(frozen=True)
 class SweepCell:
     """One (effect, k, seed) measurement. Key fields: :data:`KEY_FIELDS`; ``dataset`` is a path, ``model``
-    the detector (a :class:`~weather_gym.perception.detectors.DetectorSpec`, or a ConeNet ONNX path)."""
+    the detector (a :class:`~weather_gym.perception.detector_spec.DetectorSpec`, or a ConeNet ONNX path)."""
 
     effect: str
     spec: str

@@ -3,7 +3,7 @@
 ``--detector SPEC`` (``conenet`` = the shipped model, ``conenet:PATH``, ``yolov8:PATH``,
 ``yolov5:PATH``, ``yolo:PATH``, or a bare ConeNet ``PATH.onnx``), ``--detector-classes``,
 ``--detector-resize``, ``--detector-input``, ``--detector-threshold``; see
-``weather_gym.perception.detectors``. Commands that had ``--model PATH`` keep it as another
+``weather_gym.perception.detector_spec``. Commands that had ``--model PATH`` keep it as another
 spelling of ``--detector conenet:PATH``.
 """
 
@@ -13,7 +13,7 @@ from typing import Any
 
 from weather_gym._io import declare_inputs
 from weather_gym.errors import InputError
-from weather_gym.perception.detectors import parse_detector_spec
+from weather_gym.perception.detector_spec import parse_detector_spec
 
 
 def add_detector_args(p, *, what: str | None = None, legacy_model: bool = False) -> None:
@@ -37,7 +37,7 @@ def add_detector_args(p, *, what: str | None = None, legacy_model: bool = False)
 
 
 def detector_spec_from_args(args) -> Any:
-    """The :class:`~weather_gym.perception.detectors.DetectorSpec` the options describe (checked)."""
+    """The :class:`~weather_gym.perception.detector_spec.DetectorSpec` the options describe (checked)."""
 
     spec = getattr(args, "detector", None)
     model = getattr(args, "detector_model", None)

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from weather_gym._io import check_output, declare_inputs, write_image
-from weather_gym.camera import CameraConfig
-from weather_gym.cli._camera_model_arg import add_camera_model_arg, camera_model_arg
+from weather_gym.camera_config import CameraConfig
+from weather_gym.cli._camera_isp_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import seed_arg

@@ -25,7 +25,7 @@ from weather_gym.datasets.coco import load_coco, read_image
 from weather_gym.errors import InputError, LimitError, MissingDependencyError, MissingInputError
 from weather_gym.limits import check_image_size
 from weather_gym.perception.draw import draw_detections
-from weather_gym.perception.report import (
+from weather_gym.perception.plots import (
     STUDY_CLEAN_MAP,
     STUDY_POINTS,
     detections_figure,

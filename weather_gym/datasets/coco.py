@@ -54,7 +54,7 @@ from weather_gym._io import (
     write_failure,
     write_image,
 )
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets import masks as _masks  # cyclic pair: attributes used at call time
 from weather_gym.errors import (

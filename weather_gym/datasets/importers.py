@@ -79,7 +79,7 @@ from tqdm import tqdm
 from weather_gym._confine import confined_file, read_bytes, read_text, walk_files
 from weather_gym._io import atomic_write, atomic_write_json, file_id, resolve_inside
 from weather_gym._lock import exclusive_folder
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import ANNOTATIONS
 from weather_gym.datasets.masks import MASK_FILE, read_mask, write_mask

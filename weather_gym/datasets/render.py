@@ -24,8 +24,8 @@ from tqdm import tqdm
 
 from weather_gym._io import atomic_write
 from weather_gym.agents import AGENTS
-from weather_gym.camera import CameraConfig
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_config import CameraConfig
+from weather_gym.camera_isp import CameraModel
 from weather_gym.datasets import coco as _coco  # cyclic pair: attributes used at call time
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError

@@ -35,7 +35,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.camera_model import CameraModel, CameraPipeline
+from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError, LimitError, StateError

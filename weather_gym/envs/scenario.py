@@ -12,7 +12,7 @@ A scenario file::
     [camera]      # CameraConfig fields
     [odometry]    # OdometryConfig fields
     [reward]      # RewardConfig fields
-    [camera_model]  # CameraModel fields (weather_gym.camera_model); no table: the default realistic camera;
+    [camera_model]  # CameraModel fields (weather_gym.camera_isp); no table: the default realistic camera;
                     # keys change single fields of it; enabled = false: the study's ideal camera (off)
     [weather]     # optional: spec = "droplets@2" (any weather spec), or condition/severity
     [perception]  # optional: mode = "detector" (see weather_gym.pipeline.PERCEPTION_MODES),
@@ -35,8 +35,8 @@ from typing import Any
 
 from weather_gym._io import resolve_inside
 from weather_gym._toml import read_toml
-from weather_gym.camera import CameraConfig
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_config import CameraConfig
+from weather_gym.camera_isp import CameraModel
 from weather_gym.envs.config import EnvConfig, RewardConfig
 from weather_gym.errors import FileFormatError, InputError
 from weather_gym.paths import data_dir
@@ -173,7 +173,7 @@ def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) ->
 
 
 def _confine_detector(path: Path, table: dict[str, Any]) -> dict[str, Any]:
-    """``detector = "yolov8:model.onnx"`` (a detector spec, ``weather_gym.perception.detectors``): the
+    """``detector = "yolov8:model.onnx"`` (a detector spec, ``weather_gym.perception.detector_spec``): the
     model file after the kind is confined to the scenario's folder; a bare path is confined whole and
     a kind without a file (``"conenet"``, the shipped model) is kept."""
     value = table.get("detector")

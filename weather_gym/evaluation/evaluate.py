@@ -51,7 +51,7 @@ from weather_gym.evaluation.report import report_paths, write_report
 from weather_gym.evaluation.runner import check_results_path, run_cells
 from weather_gym.paths import PPO_CONES_MODEL
 from weather_gym.perception import evaluate as score
-from weather_gym.perception.detectors import detector_id
+from weather_gym.perception.detector_spec import detector_id
 from weather_gym.pipeline import PERCEPTION_MODES, make_env
 from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 from weather_gym.tracks import load_track

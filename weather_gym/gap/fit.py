@@ -39,8 +39,8 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from weather_gym.gap.compare import GapMeter
-from weather_gym.gap.model import apply_chain, insert_position
 from weather_gym.gap.signals import SignalMask, frame_signals, signal_mask
+from weather_gym.gap.weather_model import apply_chain, insert_position
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
 __all__ = ["K_GRID", "PENALTY", "SCALE_PARAMS", "Candidate", "FitResult", "Evaluator", "candidates", "screen", "fit",

@@ -27,7 +27,7 @@ blends from no change (0) to the measured curve (1). A model file holds them lik
     b = [0.0, 0.01, ...]
 
 They are not registered as weather effects (the weather registry's effects have scalar parameters):
-:data:`MEASURED` is their registry, and :func:`~weather_gym.gap.model.read_model` reads both. The
+:data:`MEASURED` is their registry, and :func:`~weather_gym.gap.weather_model.read_model` reads both. The
 curves are measured at the comparison size of the gap run (noise at another resolution differs).
 
 Example:

@@ -34,8 +34,8 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym.camera import CameraConfig
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_config import CameraConfig
+from weather_gym.camera_isp import CameraModel
 from weather_gym.datasets.coco import ANNOTATIONS, JOURNAL, CocoWriter, load_coco
 from weather_gym.datasets.render import ViewRenderer, render_dataset
 from weather_gym.envs.config import EnvConfig

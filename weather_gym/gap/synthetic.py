@@ -23,8 +23,8 @@ from tqdm import tqdm
 from weather_gym._io import atomic_write, atomic_write_json, check_output, resolve_inside, write_image
 from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
 from weather_gym.errors import InputError
-from weather_gym.gap.model import apply_chain
 from weather_gym.gap.simulate import frame_state
+from weather_gym.gap.weather_model import apply_chain
 from weather_gym.weather import Compose, KnobEffect, parse_weather
 
 __all__ = ["degrade_dataset"]

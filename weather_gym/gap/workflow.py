@@ -41,7 +41,7 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym._io import atomic_write_json, check_output, exclusive
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_isp import CameraModel
 from weather_gym.errors import InputError
 from weather_gym.gap.compare import (
     ALPHA,
@@ -70,12 +70,12 @@ from weather_gym.gap.fit import (
     screen,
 )
 from weather_gym.gap.measured import KIND, MEASURED, MEASURED_PARAMS, PARTNERS, estimate, shape_text
-from weather_gym.gap.model import describe, insert_position, model_tables, read_model, write_model
 from weather_gym.gap.perception import detect_frames, match_frames, perception_stats
 from weather_gym.gap.report import PLOT_NAMES, write_markdown, write_plots
 from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS, signal_table, signal_weights
 from weather_gym.gap.simulate import COMPARE_WIDTH, MIN_FRAMES, MODES, GapData, simulate
-from weather_gym.perception.detectors import load_detector
+from weather_gym.gap.weather_model import describe, insert_position, model_tables, read_model, write_model
+from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.labels import SmallRule
 from weather_gym.sim.config import SCENES
 from weather_gym.weather import EFFECTS, KnobEffect

@@ -5,7 +5,7 @@ Runtime needs onnxruntime only; ``model.py`` and ``train.py`` need the ``train``
 Example:
     >>> import numpy as np
     >>> from weather_gym.perception import ConeDetector, detections_to_cones, evaluate
-    >>> from weather_gym.camera import CameraConfig
+    >>> from weather_gym.camera_config import CameraConfig
     >>> det = ConeDetector()
     >>> cones = detections_to_cones(det(np.zeros((376, 672, 3), np.uint8)), CameraConfig())
     >>> cones["ranges"].shape
@@ -17,15 +17,15 @@ from __future__ import annotations
 from weather_gym._lazy import lazy_exports
 
 _LAZY = {
-    "ConeDetector": "weather_gym.perception.detector",
-    "Detector": "weather_gym.perception.detectors",
-    "DetectorSpec": "weather_gym.perception.detectors",
-    "load_detector": "weather_gym.perception.detectors",
-    "as_detector": "weather_gym.perception.detectors",
+    "ConeDetector": "weather_gym.perception.onnx_detector",
+    "Detector": "weather_gym.perception.detector_spec",
+    "DetectorSpec": "weather_gym.perception.detector_spec",
+    "load_detector": "weather_gym.perception.detector_spec",
+    "as_detector": "weather_gym.perception.detector_spec",
     "YoloDetector": "weather_gym.perception.yolo",
     "SmallRule": "weather_gym.perception.labels",
-    "Detections": "weather_gym.perception.detector",
-    "DEFAULT_MODEL": "weather_gym.perception.detector",
+    "Detections": "weather_gym.perception.onnx_detector",
+    "DEFAULT_MODEL": "weather_gym.perception.onnx_detector",
     "detections_to_cones": "weather_gym.perception.ranging",
     "cones_to_observation": "weather_gym.perception.ranging",
     "evaluate": "weather_gym.perception.scoring",

@@ -5,7 +5,7 @@ of valid rows, so stable-baselines3 and vectorized envs accept it.
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera import CameraConfig
+    >>> from weather_gym.camera_config import CameraConfig
     >>> from weather_gym.perception.cones import pack_cones, CONE_FIELDS
     >>> cones, mask = pack_cones(classes=np.array([0]), ranges=np.array([5.0]), bearings=np.array([0.1]),
     ...                          scores=np.array([0.9]), boxes=np.array([[300, 180, 320, 210.]]),
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import InputError
 

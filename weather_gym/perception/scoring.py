@@ -40,7 +40,7 @@ from pycocotools.coco import COCO
 from pycocotools.cocoeval import COCOeval
 from tqdm import tqdm
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import InputError
 from weather_gym.perception.ignore import inside_mask

@@ -42,9 +42,7 @@ from weather_gym.datasets.coco import load_coco
 from weather_gym.errors import FileFormatError, InputError, LimitError, MissingInputError
 from weather_gym.limits import check_image_size, check_seed
 from weather_gym.perception.augment import camera_look, paste_distractors
-from weather_gym.perception.detector import Detections, load_model_metadata
-from weather_gym.perception.labels import hidden_mask
-from weather_gym.perception.model import (
+from weather_gym.perception.conenet import (
     DEFAULT_BLOCKS,
     NUM_CLASSES,
     STRIDE,
@@ -54,6 +52,8 @@ from weather_gym.perception.model import (
     DWBlock,
     layout,
 )
+from weather_gym.perception.labels import hidden_mask
+from weather_gym.perception.onnx_detector import Detections, load_model_metadata
 from weather_gym.perception.preprocess import PAD_VALUE, decode, letterbox, letterbox_params
 from weather_gym.perception.scoring import evaluate
 

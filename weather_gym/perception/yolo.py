@@ -43,10 +43,10 @@ import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.perception.detector import Detections, check_frame, rebuild_detector
-from weather_gym.perception.detector_base import DetectorBase
 from weather_gym.perception.labels import DEFAULT_CLASSES, IGNORE, parse_class_map
+from weather_gym.perception.onnx_detector import Detections, check_frame, rebuild_detector
 from weather_gym.perception.preprocess import letterbox
+from weather_gym.perception.protocol import DetectorBase
 
 __all__ = ["YoloDetector", "resolve_class_map", "LAYOUTS"]
 

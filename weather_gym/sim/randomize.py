@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from weather_gym._toml import read_toml
-from weather_gym.camera import CameraConfig
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_config import CameraConfig
+from weather_gym.camera_isp import CameraModel
 from weather_gym.errors import FileFormatError, InputError
 from weather_gym.sim.ego import EGO_VARIANTS
 from weather_gym.sim.look import Look

@@ -7,7 +7,7 @@ its flat top to the plate, the plate a band across its full projected width. Con
 ground seen from above, so a nearer cone is always lower in the image; occlusion is then a per-column
 "skyline": going from near to far, a cone is visible in a column only above the tops of the nearer
 cones there. What is left gives, per visible cone, the same fields as the rendered ground truth
-(``weather_gym.sim.camera``): the visible box (xyxy, pixel edges), class, cone id, range, bearing and
+(``weather_gym.sim.camera_sensor``): the visible box (xyxy, pixel edges), class, cone id, range, bearing and
 the number of visible pixels (pixel centres inside the silhouette, as a rasterizer counts them).
 
 Knocked (tilted) cones are boxed by their projected corners and counted as that box.
@@ -17,7 +17,7 @@ rendered ground truth on real laps.
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera import CameraConfig
+    >>> from weather_gym.camera_config import CameraConfig
     >>> from weather_gym.sim.visibility import visible_cones
     >>> cam = CameraConfig(width=160, height=90)
     >>> xy = np.array([[5.0, 0.0], [6.0, 0.0], [5.0, 30.0]])        # ahead, just behind it, far left
@@ -35,7 +35,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.sim.meshes import cone_dimensions

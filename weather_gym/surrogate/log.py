@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym._io import atomic_file, check_output
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 
@@ -134,7 +134,7 @@ def visibility(boxes: np.ndarray, classes: np.ndarray, ranges: np.ndarray, beari
 
     Example:
         >>> import numpy as np
-        >>> from weather_gym.camera import CameraConfig
+        >>> from weather_gym.camera_config import CameraConfig
         >>> v = visibility(np.array([[0, 0, 5, 14.]]), np.array([1]), np.array([5.0]), np.array([0.0]), CameraConfig())
         >>> round(float(v[0]), 2)
         0.64

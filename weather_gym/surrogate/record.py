@@ -16,9 +16,9 @@ from dataclasses import asdict
 from typing import Any
 
 from weather_gym.agents import make_agent, run_episode
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.errors import InputError
-from weather_gym.perception.detectors import detector_id
+from weather_gym.perception.detector_spec import detector_id
 from weather_gym.pipeline import make_env
 from weather_gym.surrogate.conditions import condition_of
 from weather_gym.surrogate.log import (

@@ -31,7 +31,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.surrogate.log import _HEIGHTS
 from weather_gym.surrogate.model import CROWDED, ERR_RANGE_EDGES, QUANTILES, Point, crowding, hat_terms
 

@@ -2,7 +2,7 @@
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera import CameraConfig
+    >>> from weather_gym.camera_config import CameraConfig
     >>> from weather_gym.perception.cones import pack_cones
     >>> from weather_gym.viz.overlay import cone_list_boxes
     >>> cam = CameraConfig()

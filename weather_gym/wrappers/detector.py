@@ -39,11 +39,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
-from weather_gym.perception.detectors import DetectorSpec, as_detector, load_detector
+from weather_gym.perception.detector_spec import DetectorSpec, as_detector, load_detector
 from weather_gym.perception.ranging import (
     DEPTH_QUANTILE,
     check_depth_quantile,
@@ -60,7 +60,7 @@ class DetectorWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
 
     Args:
         env: an env whose observation is an RGB image Box or a Dict with one under ``image_key``.
-        detector: any :class:`~weather_gym.perception.detectors.Detector` (a callable
+        detector: any :class:`~weather_gym.perception.detector_spec.Detector` (a callable
             ``frame -> Detections``), a detector spec (``"yolov8:model.onnx"``, ``"conenet:PATH"``,
             a ConeNet ``.onnx`` path; see ``weather_gym.perception.load_detector``), or None (the
             shipped model).

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.camera_model import CameraModel, CameraPipeline
+from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.errors import InputError
 
 

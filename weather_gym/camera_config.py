@@ -1,7 +1,7 @@
 """Pinhole camera parameters shared by the simulator, the detector and the agents (no PyBullet here).
 
 Example:
-    >>> from weather_gym.camera import CameraConfig
+    >>> from weather_gym.camera_config import CameraConfig
     >>> cam = CameraConfig()            # ZED-like 672x376, 90 deg horizontal field of view
     >>> round(cam.fx, 1), cam.bearing(cam.cx)
     (336.0, 0.0)

@@ -1,7 +1,7 @@
 """Any detector, one protocol: ``frame -> Detections``; :func:`load_detector` picks one from a spec.
 
 A :class:`Detector` is anything called with an RGB uint8 frame ``(H, W, 3)`` that returns
-:class:`~weather_gym.perception.detector.Detections` (boxes xyxy in the frame's pixels, scores,
+:class:`~weather_gym.perception.onnx_detector.Detections` (boxes xyxy in the frame's pixels, scores,
 classes as indices into ``CONE_CLASSES``). :func:`as_detector` gives any such callable what the rest
 of weather-gym uses (``detect_batch``, ``score_threshold``, ``input_size`` for the too-small rule).
 
@@ -23,7 +23,7 @@ class name; default: the export's class names mapped like a dataset import), ``r
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.perception.detectors import load_detector, as_detector
+    >>> from weather_gym.perception.detector_spec import load_detector, as_detector
     >>> det = load_detector("conenet")                  # the shipped model
     >>> det.input_size, det.resize
     ((512, 288), 'letterbox')
@@ -46,8 +46,8 @@ import numpy as np
 
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.limits import check_image_size
-from weather_gym.perception.detector import DEFAULT_MODEL, ConeDetector, Detections, check_frame
-from weather_gym.perception.detector_base import Detector, DetectorBase
+from weather_gym.perception.onnx_detector import DEFAULT_MODEL, ConeDetector, Detections, check_frame
+from weather_gym.perception.protocol import Detector, DetectorBase
 from weather_gym.perception.yolo import YoloDetector
 
 __all__ = ["Detector", "DetectorBase", "CallableDetector", "DetectorSpec", "KINDS", "as_detector", "load_detector",

@@ -1,7 +1,7 @@
 """``--camera-model realistic|ideal|FILE.toml``: the camera's finishing stage, as commands take it.
 
 Example:
-    >>> from weather_gym.cli._camera_model_arg import camera_model_arg
+    >>> from weather_gym.cli._camera_isp_arg import camera_model_arg
     >>> camera_model_arg("ideal").enabled, camera_model_arg("realistic").jpeg_quality
     (False, 90)
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from weather_gym._toml import read_toml
-from weather_gym.camera_model import CameraModel
+from weather_gym.camera_isp import CameraModel
 from weather_gym.errors import InputError
 
 __all__ = ["add_camera_model_arg", "camera_model_arg"]

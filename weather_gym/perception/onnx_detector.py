@@ -95,7 +95,7 @@ class ConeDetector:
 
     Call with one frame ``(H, W, 3)`` -> ``Detections``, or a batch ``(N, H, W, 3)`` / list of
     frames -> ``list[Detections]``. Boxes are in the original frame's pixels. It follows the
-    :class:`~weather_gym.perception.detectors.Detector` protocol (``resize`` is always ``letterbox``).
+    :class:`~weather_gym.perception.detector_spec.Detector` protocol (``resize`` is always ``letterbox``).
     """
 
     resize = "letterbox"

@@ -14,7 +14,7 @@ ground-truth boxes go through :meth:`CameraPipeline.distort_boxes` (and segmenta
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera_model import CameraModel, CameraPipeline
+    >>> from weather_gym.camera_isp import CameraModel, CameraPipeline
     >>> img = np.full((40, 60, 3), 128, np.uint8)
     >>> off = CameraPipeline(CameraModel(enabled=False), 60, 40)
     >>> bool((off.apply(img, np.random.default_rng(0)) == img).all())

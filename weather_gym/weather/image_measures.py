@@ -2,7 +2,7 @@
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.weather.metrics import ssim
+    >>> from weather_gym.weather.image_measures import ssim
     >>> a = np.random.default_rng(0).integers(0, 256, (32, 32, 3), dtype=np.uint8)
     >>> ssim(a, a)
     1.0

@@ -1,11 +1,11 @@
 """The detector interface: the ``Detector`` protocol and ``DetectorBase``, shared by every adapter.
 
-``weather_gym.perception.detectors`` re-exports both (with the spec parser ``load_detector``).
+``weather_gym.perception.detector_spec`` re-exports both (with the spec parser ``load_detector``).
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.perception.detector import Detections
-    >>> from weather_gym.perception.detector_base import DetectorBase
+    >>> from weather_gym.perception.onnx_detector import Detections
+    >>> from weather_gym.perception.protocol import DetectorBase
     >>> class Empty(DetectorBase):
     ...     def detect_batch(self, images, score_threshold=None):
     ...         return [Detections(np.zeros((0, 4), np.float32), np.zeros(0, np.float32), np.zeros(0, np.int64))
@@ -21,7 +21,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from weather_gym.perception.detector import Detections, check_frame
+from weather_gym.perception.onnx_detector import Detections, check_frame
 
 
 @runtime_checkable

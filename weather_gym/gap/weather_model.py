@@ -24,7 +24,7 @@ model (common random numbers make candidate models comparable).
 
 Example:
     >>> import tempfile, os
-    >>> from weather_gym.gap.model import read_model, write_model
+    >>> from weather_gym.gap.weather_model import read_model, write_model
     >>> path = os.path.join(tempfile.mkdtemp(), "m.toml")
     >>> write_model(path, [__import__("weather_gym.weather", fromlist=["make"]).make("dim", k=0.6)])
     >>> [(e.name, e.k) for e in read_model(path)]

@@ -32,7 +32,7 @@ import numpy as np
 
 from weather_gym.agents._checks import check_action
 from weather_gym.errors import InputError
-from weather_gym.wrappers.episode import EpisodeStatistics, latencies
+from weather_gym.wrappers.episode_statistics import EpisodeStatistics, latencies
 
 __all__ = ["EpisodeResult", "run_episode"]
 

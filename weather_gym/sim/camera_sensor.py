@@ -5,7 +5,7 @@ from geometry (:mod:`weather_gym.sim.visibility`); ``render(segmentation=False)`
 segmentation pass (the sky is then found from the depth buffer).
 
 Example (needs PyBullet; see ``World.render``):
-    >>> from weather_gym.sim.camera import depth_from_zbuffer
+    >>> from weather_gym.sim.camera_sensor import depth_from_zbuffer
     >>> import numpy as np
     >>> float(depth_from_zbuffer(np.array([1.0], np.float32), near=0.1, far=80.0)[0])
     80.0
@@ -21,7 +21,7 @@ import numpy as np
 import pybullet as p
 from scipy import ndimage
 
-from weather_gym.camera import CameraConfig
+from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.sim.look import Look
 from weather_gym.sim.renderer import quiet_if_egl

@@ -1,7 +1,7 @@
 """Pictures and sweeps for people: detections under weather, mAP versus the severity knob k.
 
 Example:
-    >>> from weather_gym.perception.report import STUDY_POINTS
+    >>> from weather_gym.perception.plots import STUDY_POINTS
     >>> STUDY_POINTS["dim"]
     (0.78, 0.273)
 """

@@ -32,7 +32,7 @@ CHANGELOG.md, "Detector: after v5").
 
 Example:
     >>> import torch
-    >>> from weather_gym.perception.model import ConeNet
+    >>> from weather_gym.perception.conenet import ConeNet
     >>> net = ConeNet().eval()
     >>> out = net(torch.zeros(1, 3, 288, 512))
     >>> tuple(out.shape)  # (batch, 4 classes + 2 size + 2 offset, H/4, W/4)
