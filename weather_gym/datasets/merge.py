@@ -77,10 +77,8 @@ def _check_agree(sources: Sequence[Path], datasets: list[Any]) -> list[dict]:
     return list(datasets[0].data["categories"])
 
 
-def merge_coco(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
-               overwrite: bool = False) -> Path:
-    """Pool the COCO folders ``sources`` (at least two) into the new folder ``out``; returns ``out``."""
-    srcs = [Path(s) for s in sources]
+def _check_paths(srcs: list[Path], out: Path) -> None:
+    """At least two distinct sources, and an output folder outside every one of them."""
     if len(srcs) < 2:
         raise InputError(f"merge needs at least two source datasets, got {len(srcs)}")
     seen: dict[Path, Path] = {}
@@ -89,10 +87,16 @@ def merge_coco(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
         if r in seen:
             raise InputError(f"source dataset {s} is given twice (also as {seen[r]})")
         seen[r] = s
-    out = Path(out)
     for s in srcs:
         if out.resolve() == s.resolve() or out.resolve().is_relative_to(s.resolve()):
             raise OutputPathError(f"output folder {out} is, or lies inside, the source dataset {s}")
+
+
+def merge_coco(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
+               overwrite: bool = False) -> Path:
+    """Pool the COCO folders ``sources`` (at least two) into the new folder ``out``; returns ``out``."""
+    srcs, out = [Path(s) for s in sources], Path(out)
+    _check_paths(srcs, out)
     datasets = [load_coco(s) for s in srcs]  # validates every source before anything is written
     categories = _check_agree(srcs, datasets)
     by_name = {c["name"]: c["id"] for c in categories}

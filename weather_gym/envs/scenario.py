@@ -119,15 +119,7 @@ def load_scenario(path: str | Path) -> Scenario:
         raise FileFormatError(f"{path}: [env] must be a table of EnvConfig fields, got {env!r}")
     env = dict(env)
     _check_keys(f"{path} [env]", env, (*ENV_KEYS, "max_episode_steps", "max_episode_s"))
-    max_steps = env.pop("max_episode_steps", None)
-    max_s = env.pop("max_episode_s", None)
-    if max_steps is not None and max_s is not None:
-        raise FileFormatError(f"{path} [env]: give max_episode_s or max_episode_steps, not both")
-    if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1):
-        raise FileFormatError(f"{path} [env]: max_episode_steps must be an integer >= 1, got {max_steps!r}")
-    if max_s is not None and (isinstance(max_s, bool) or not isinstance(max_s, int | float)
-                              or not math.isfinite(max_s) or max_s <= 0):
-        raise FileFormatError(f"{path} [env]: max_episode_s must be a number of seconds > 0, got {max_s!r}")
+    max_steps, max_s = _pop_time_limit(path, env)
     env = _confine_paths(path, env, "env", "track")
     sections = {}
     for name, cls in SECTIONS.items():
@@ -159,6 +151,20 @@ def load_scenario(path: str | Path) -> Scenario:
     elif max_s is not None:
         sc = dataclasses.replace(sc, max_episode_s=float(max_s))
     return sc
+
+
+def _pop_time_limit(path: Path, env: dict[str, Any]) -> tuple[Any, Any]:
+    """Pop and check ``max_episode_steps`` / ``max_episode_s`` from an [env] table (at most one)."""
+    max_steps = env.pop("max_episode_steps", None)
+    max_s = env.pop("max_episode_s", None)
+    if max_steps is not None and max_s is not None:
+        raise FileFormatError(f"{path} [env]: give max_episode_s or max_episode_steps, not both")
+    if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1):
+        raise FileFormatError(f"{path} [env]: max_episode_steps must be an integer >= 1, got {max_steps!r}")
+    if max_s is not None and (isinstance(max_s, bool) or not isinstance(max_s, int | float)
+                              or not math.isfinite(max_s) or max_s <= 0):
+        raise FileFormatError(f"{path} [env]: max_episode_s must be a number of seconds > 0, got {max_s!r}")
+    return max_steps, max_s
 
 
 def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) -> dict[str, Any]:

@@ -60,6 +60,46 @@ def _texture(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     return np.clip(cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR), 0, 255).astype(np.uint8)
 
 
+def _draw_shape(layer: np.ndarray, kind: str, rng: np.random.Generator, box: tuple[int, int, int, int],
+                clipped: tuple[int, int, int, int]) -> None:
+    """Draw one clutter shape of ``kind`` into ``layer`` in place (``box`` unclipped, ``clipped`` inside it)."""
+    x0, y0, x1, y1 = box
+    cx0, cy0, cx1, cy1 = clipped
+    bw, bh = x1 - x0, y1 - y0
+    if kind == "board":
+        layer[cy0:cy1, cx0:cx1] = _colour(rng)
+        if rng.random() < 0.5:  # stripes or lettering-like bars
+            n = int(rng.integers(1, 5))
+            col = _STRIPE_COLOURS[int(rng.integers(len(_STRIPE_COLOURS)))]
+            for k in range(n):
+                ys = cy0 + int((k + 0.5) * (cy1 - cy0) / n)
+                cv2.line(layer, (cx0, ys), (cx1 - 1, ys), col, max(1, (cy1 - cy0) // (3 * n)))
+    elif kind == "pole":
+        layer[cy0:cy1, cx0:cx1] = _colour(rng) if rng.random() < 0.4 else tuple(int(v) for v in rng.uniform(150, 255, 3))
+    elif kind == "fence":
+        col = tuple(int(v) for v in rng.uniform(40, 220, 3))
+        step = int(rng.integers(3, 9))
+        for xx in range(cx0, cx1, step):
+            cv2.line(layer, (xx, cy0), (min(cx1 - 1, xx + step), cy1 - 1), col, 1)
+            cv2.line(layer, (min(cx1 - 1, xx + step), cy0), (xx, cy1 - 1), col, 1)
+    elif kind == "texture":
+        layer[cy0:cy1, cx0:cx1] = _texture(rng, cy1 - cy0, cx1 - cx0)
+    elif kind == "blob":
+        cv2.ellipse(layer, ((x0 + x1) // 2, (y0 + y1) // 2), (bw // 2, bh // 2), 0, 0, 360, _colour(rng), -1)
+    elif kind == "barrel":
+        body = _colour(rng)
+        cv2.rectangle(layer, (cx0, cy0), (cx1 - 1, cy1 - 1), body, -1)
+        if rng.random() < 0.6:
+            col = _STRIPE_COLOURS[int(rng.integers(len(_STRIPE_COLOURS)))]
+            ys = (cy0 + cy1) // 2
+            cv2.line(layer, (cx0, ys), (cx1 - 1, ys), col, max(1, (cy1 - cy0) // 6))
+    else:  # random erasing: grey or noise
+        if rng.random() < 0.5:
+            layer[cy0:cy1, cx0:cx1] = int(rng.integers(0, 256))
+        else:
+            layer[cy0:cy1, cx0:cx1] = rng.integers(0, 256, (cy1 - cy0, cx1 - cx0, 3), dtype=np.uint8)
+
+
 def paste_distractors(image: np.ndarray, boxes: np.ndarray, rng: np.random.Generator, *, max_shapes: int = 8,
                       ego_band: float = 0.3) -> np.ndarray:
     """Return a copy of ``image`` (H, W, 3 uint8) with up to ``max_shapes`` unlabelled clutter shapes
@@ -90,38 +130,7 @@ def paste_distractors(image: np.ndarray, boxes: np.ndarray, rng: np.random.Gener
         cx0, cy0, cx1, cy1 = max(0, x0), max(0, y0), min(w, x1), min(h, y1)
         if cx1 <= cx0 or cy1 <= cy0:
             continue
-        if kind == "board":
-            layer[cy0:cy1, cx0:cx1] = _colour(rng)
-            if rng.random() < 0.5:  # stripes or lettering-like bars
-                n = int(rng.integers(1, 5))
-                col = _STRIPE_COLOURS[int(rng.integers(len(_STRIPE_COLOURS)))]
-                for k in range(n):
-                    ys = cy0 + int((k + 0.5) * (cy1 - cy0) / n)
-                    cv2.line(layer, (cx0, ys), (cx1 - 1, ys), col, max(1, (cy1 - cy0) // (3 * n)))
-        elif kind == "pole":
-            layer[cy0:cy1, cx0:cx1] = _colour(rng) if rng.random() < 0.4 else tuple(int(v) for v in rng.uniform(150, 255, 3))
-        elif kind == "fence":
-            col = tuple(int(v) for v in rng.uniform(40, 220, 3))
-            step = int(rng.integers(3, 9))
-            for xx in range(cx0, cx1, step):
-                cv2.line(layer, (xx, cy0), (min(cx1 - 1, xx + step), cy1 - 1), col, 1)
-                cv2.line(layer, (min(cx1 - 1, xx + step), cy0), (xx, cy1 - 1), col, 1)
-        elif kind == "texture":
-            layer[cy0:cy1, cx0:cx1] = _texture(rng, cy1 - cy0, cx1 - cx0)
-        elif kind == "blob":
-            cv2.ellipse(layer, ((x0 + x1) // 2, (y0 + y1) // 2), (bw // 2, bh // 2), 0, 0, 360, _colour(rng), -1)
-        elif kind == "barrel":
-            body = _colour(rng)
-            cv2.rectangle(layer, (cx0, cy0), (cx1 - 1, cy1 - 1), body, -1)
-            if rng.random() < 0.6:
-                col = _STRIPE_COLOURS[int(rng.integers(len(_STRIPE_COLOURS)))]
-                ys = (cy0 + cy1) // 2
-                cv2.line(layer, (cx0, ys), (cx1 - 1, ys), col, max(1, (cy1 - cy0) // 6))
-        else:  # random erasing: grey or noise
-            if rng.random() < 0.5:
-                layer[cy0:cy1, cx0:cx1] = int(rng.integers(0, 256))
-            else:
-                layer[cy0:cy1, cx0:cx1] = rng.integers(0, 256, (cy1 - cy0, cx1 - cx0, 3), dtype=np.uint8)
+        _draw_shape(layer, str(kind), rng, (x0, y0, x1, y1), (cx0, cy0, cx1, cy1))
     if rng.random() < ego_band:
         # bodywork from the bottom edge: a polygon in dark carbon, white or red paint, not over a cone
         top = int(h * rng.uniform(0.65, 0.95))

@@ -145,32 +145,36 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
         raise InputError(f"detector resize must be 'letterbox' or 'stretch', got {resize!r}")
     if score_threshold is not None and not 0.0 <= float(score_threshold) <= 1.0:
         raise InputError(f"detector score threshold must be in [0, 1], got {score_threshold}")
-    kind, path = "conenet", None
-    if spec is not None:
-        text = os.fspath(spec)
-        head, sep, tail = text.partition(":")
-        head_l = _ALIASES.get(head.lower(), head.lower())
-        if sep and head_l in KINDS:
-            kind, path = head_l, tail
-            if not path:
-                raise InputError(f"detector {text!r}: give the ONNX file after the colon, e.g. {head_l}:model.onnx")
-        elif sep and not Path(text).is_file():
-            raise InputError(f"detector {text!r}: unknown kind {head!r}; expected conenet, conenet:PATH, yolov8:PATH, "
-                             "yolov5:PATH, yolo:PATH or a path to a ConeNet .onnx file")
-        elif not sep and head_l in KINDS:
-            if head_l != "conenet":
-                raise InputError(f"detector {text!r}: a YOLO detector needs its ONNX file, e.g. {head_l}:model.onnx")
-        elif text.lower().endswith(".onnx") or Path(text).is_file():
-            path = text
-        else:
-            raise InputError(f"detector {text!r}: expected conenet, conenet:PATH, yolov8:PATH, yolov5:PATH, yolo:PATH "
-                             "or a path to a ConeNet .onnx file")
+    kind, path = ("conenet", None) if spec is None else _kind_and_path(os.fspath(spec))
     if path is not None and not Path(path).is_file():
         raise MissingInputError(f"detector model {path} not found")
     if input_size:
         _check_input_size(tuple(int(v) for v in input_size))
     return DetectorSpec(kind, path, classes, resize, tuple(input_size) if input_size else None,
                         None if score_threshold is None else float(score_threshold))
+
+
+def _kind_and_path(text: str) -> tuple[str, str | None]:
+    """The detector kind and ONNX path named by a spec string (``kind:PATH``, a kind, or a path)."""
+    kind, path = "conenet", None
+    head, sep, tail = text.partition(":")
+    head_l = _ALIASES.get(head.lower(), head.lower())
+    if sep and head_l in KINDS:
+        kind, path = head_l, tail
+        if not path:
+            raise InputError(f"detector {text!r}: give the ONNX file after the colon, e.g. {head_l}:model.onnx")
+    elif sep and not Path(text).is_file():
+        raise InputError(f"detector {text!r}: unknown kind {head!r}; expected conenet, conenet:PATH, yolov8:PATH, "
+                         "yolov5:PATH, yolo:PATH or a path to a ConeNet .onnx file")
+    elif not sep and head_l in KINDS:
+        if head_l != "conenet":
+            raise InputError(f"detector {text!r}: a YOLO detector needs its ONNX file, e.g. {head_l}:model.onnx")
+    elif text.lower().endswith(".onnx") or Path(text).is_file():
+        path = text
+    else:
+        raise InputError(f"detector {text!r}: expected conenet, conenet:PATH, yolov8:PATH, yolov5:PATH, yolo:PATH "
+                         "or a path to a ConeNet .onnx file")
+    return kind, path
 
 
 def _parse_size(text: str) -> tuple[int, int]:

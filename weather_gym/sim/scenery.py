@@ -27,6 +27,7 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,87 +106,129 @@ KINDS: dict[str, tuple[float, float, float]] = {
 }
 
 
+def _fence(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+           out: list[Prism]) -> None:
+    """fence: a run of panels (mesh fence, sometimes with a banner cover)."""
+    tile = pick(tx.TILE_FENCE + tx.TILE_BANNER)
+    for k in range(int(rng.integers(2, 7))):
+        px, py = x + k * 3.5 * math.cos(yaw), y + k * 3.5 * math.sin(yaw)
+        out.append(Prism(_box(px, py, yaw, 3.45, 0.05), 0.0, 2.0, tile, (7, 1)))
+
+
+def _barrier(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+             out: list[Prism]) -> None:
+    """barrier: barrier."""
+    tile = pick(tx.TILE_BARRIER)
+    for k in range(int(rng.integers(2, 8))):
+        px, py = x + k * 1.5 * math.cos(yaw), y + k * 1.5 * math.sin(yaw)
+        out.append(Prism(_box(px, py, yaw, 1.45, 0.5), 0.0, 0.8, tile, tile))
+
+
+def _tyres(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+           out: list[Prism]) -> None:
+    """tyres: tyres."""
+    tile = pick(tx.TILE_TYRES)
+    for k in range(int(rng.integers(1, 5))):
+        px, py = x + k * 0.62 * math.cos(yaw), y + k * 0.62 * math.sin(yaw)
+        out.append(Prism(_cyl(px, py, 0.3), 0.0, 0.22 * int(rng.integers(2, 6)), tile, (7, 0), wrap=True))
+
+
+def _banner(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+            out: list[Prism]) -> None:
+    """banner: banner."""
+    tile = pick(tx.TILE_BANNER)
+    length = float(rng.uniform(2.0, 6.0))
+    z0 = float(rng.choice([0.0, 0.0, 1.5, 3.0]))
+    out.append(Prism(_box(x, y, yaw, length, 0.04), z0, z0 + float(rng.uniform(0.6, 1.2)), tile, (7, 3)))
+    if z0 > 0:  # on two posts
+        for e in (-0.5, 0.5):
+            px, py = x + e * length * math.cos(yaw), y + e * length * math.sin(yaw)
+            out.append(Prism(_box(px, py, yaw, 0.08, 0.08), 0.0, z0, (7, 2), (7, 2)))
+
+
+def _tent(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+          out: list[Prism]) -> None:
+    """tent: a gazebo: canopy on four legs, sometimes a back wall."""
+    tile = pick(tx.TILE_TENT)
+    size = float(rng.choice([3.0, 3.0, 4.5, 6.0]))
+    h = float(rng.uniform(2.1, 2.5))
+    out.append(Prism(_box(x, y, yaw, size, size), h, h + 0.35, tile, tile))
+    for ex, ey in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+        lx, ly = 0.47 * size * ex, 0.47 * size * ey
+        px = x + lx * math.cos(yaw) - ly * math.sin(yaw)
+        py = y + lx * math.sin(yaw) + ly * math.cos(yaw)
+        out.append(Prism(_box(px, py, yaw, 0.06, 0.06), 0.0, h, (7, 2), (7, 2)))
+    if rng.random() < 0.6:
+        bx, by = x + nx * 0.48 * size, y + ny * 0.48 * size
+        out.append(Prism(_box(bx, by, yaw, size, 0.03), 0.0, h, tile, tile))
+    for _ in range(int(rng.integers(0, 3))):  # a table / boxes under it
+        out.append(Prism(_box(x + rng.uniform(-1, 1), y + rng.uniform(-1, 1), yaw, 1.2, 0.6), 0.0, 0.75,
+                         pick(tx.TILE_SOLID), pick(tx.TILE_SOLID)))
+
+
+def _pole(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+          out: list[Prism]) -> None:
+    """pole: pole."""
+    h = float(rng.uniform(3.0, 10.0))
+    out.append(Prism(_cyl(x, y, 0.07, 6), 0.0, h, (6, 2), (6, 2), wrap=True))
+    if rng.random() < 0.5:
+        out.append(Prism(_box(x, y, yaw, 0.6, 0.25), h, h + 0.2, (6, 3), (6, 3)))
+
+
+def _people(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+            out: list[Prism]) -> None:
+    """people: a group of people: legs, torso, head."""
+    for _ in range(int(rng.integers(1, 5))):
+        px, py = x + rng.uniform(-1.5, 1.5), y + rng.uniform(-1.5, 1.5)
+        a = float(rng.uniform(0, 2 * math.pi))
+        scale = float(rng.uniform(0.9, 1.08))
+        legs = pick(tx.TILE_SOLID[:4] + tx.TILE_SOLID[9:10] + tx.TILE_SOLID[5:6])
+        torso = pick(tx.TILE_SOLID + tx.TILE_DISTRACTOR[:4])  # hi-vis jackets in cone colours too
+        skin = pick(tx.TILE_SKIN)
+        out.append(Prism(_box(px, py, a, 0.32, 0.2), 0.0, 0.85 * scale, legs, legs))
+        out.append(Prism(_box(px, py, a, 0.44, 0.24), 0.85 * scale, 1.45 * scale, torso, torso))
+        out.append(Prism(_box(px, py, a, 0.19, 0.21), 1.47 * scale, 1.72 * scale, skin, pick(tx.TILE_SOLID[:3])))
+
+
+def _container(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+               out: list[Prism]) -> None:
+    """container: container / trailer / pit box."""
+    tile = pick(tx.TILE_BUILDING)
+    lx, ly, lz = float(rng.choice([6.0, 12.0])), 2.4, float(rng.choice([2.6, 2.9]))
+    out.append(Prism(_box(x, y, yaw, lx, ly), 0.0, lz, tile, (6, 2)))
+
+
+def _distractor(rng: np.random.Generator, pick: Callable, x: float, y: float, yaw: float, nx: float, ny: float,
+                out: list[Prism]) -> None:
+    """distractor: cone-coloured things that are not cones (never labelled)."""
+    tile = pick(tx.TILE_DISTRACTOR)
+    shape = int(rng.integers(4))
+    if shape == 0:  # bucket / bin
+        r, h = float(rng.uniform(0.14, 0.3)), float(rng.uniform(0.3, 0.9))
+        out.append(Prism(_cyl(x, y, r), 0.0, h, tile, tile, wrap=True))
+    elif shape == 1:  # bollard / post
+        out.append(Prism(_cyl(x, y, float(rng.uniform(0.05, 0.1)), 8), 0.0, float(rng.uniform(0.6, 1.1)),
+                         tile, tile, wrap=True))
+    elif shape == 2:  # crate / bag / box
+        a = float(rng.uniform(0, math.pi))
+        out.append(Prism(_box(x, y, a, float(rng.uniform(0.25, 0.7)), float(rng.uniform(0.2, 0.5))), 0.0,
+                         float(rng.uniform(0.15, 0.5)), tile, tile))
+    else:  # a flag / sign board
+        out.append(Prism(_box(x, y, yaw, float(rng.uniform(0.4, 1.2)), 0.03), 0.0, float(rng.uniform(0.4, 1.0)),
+                         tile, tile))
+
+
+_KIND_ITEMS: dict[str, Callable] = {"fence": _fence, "barrier": _barrier, "tyres": _tyres, "banner": _banner,
+                                    "tent": _tent, "pole": _pole, "people": _people, "container": _container,
+                                    "distractor": _distractor}
+
+
 def _items(kind: str, rng: np.random.Generator, x: float, y: float, yaw: float, side: int) -> list[Prism]:
     """The prisms of one clutter item of ``kind`` at (x, y), facing the track along ``yaw``."""
     pick = lambda tiles: tiles[int(rng.integers(len(tiles)))]  # noqa: E731
     out: list[Prism] = []
     nx, ny = -math.sin(yaw) * side, math.cos(yaw) * side  # away from the track
-    if kind == "fence":  # a run of panels (mesh fence, sometimes with a banner cover)
-        tile = pick(tx.TILE_FENCE + tx.TILE_BANNER)
-        for k in range(int(rng.integers(2, 7))):
-            px, py = x + k * 3.5 * math.cos(yaw), y + k * 3.5 * math.sin(yaw)
-            out.append(Prism(_box(px, py, yaw, 3.45, 0.05), 0.0, 2.0, tile, (7, 1)))
-    elif kind == "barrier":
-        tile = pick(tx.TILE_BARRIER)
-        for k in range(int(rng.integers(2, 8))):
-            px, py = x + k * 1.5 * math.cos(yaw), y + k * 1.5 * math.sin(yaw)
-            out.append(Prism(_box(px, py, yaw, 1.45, 0.5), 0.0, 0.8, tile, tile))
-    elif kind == "tyres":
-        tile = pick(tx.TILE_TYRES)
-        for k in range(int(rng.integers(1, 5))):
-            px, py = x + k * 0.62 * math.cos(yaw), y + k * 0.62 * math.sin(yaw)
-            out.append(Prism(_cyl(px, py, 0.3), 0.0, 0.22 * int(rng.integers(2, 6)), tile, (7, 0), wrap=True))
-    elif kind == "banner":
-        tile = pick(tx.TILE_BANNER)
-        length = float(rng.uniform(2.0, 6.0))
-        z0 = float(rng.choice([0.0, 0.0, 1.5, 3.0]))
-        out.append(Prism(_box(x, y, yaw, length, 0.04), z0, z0 + float(rng.uniform(0.6, 1.2)), tile, (7, 3)))
-        if z0 > 0:  # on two posts
-            for e in (-0.5, 0.5):
-                px, py = x + e * length * math.cos(yaw), y + e * length * math.sin(yaw)
-                out.append(Prism(_box(px, py, yaw, 0.08, 0.08), 0.0, z0, (7, 2), (7, 2)))
-    elif kind == "tent":  # a gazebo: canopy on four legs, sometimes a back wall
-        tile = pick(tx.TILE_TENT)
-        size = float(rng.choice([3.0, 3.0, 4.5, 6.0]))
-        h = float(rng.uniform(2.1, 2.5))
-        out.append(Prism(_box(x, y, yaw, size, size), h, h + 0.35, tile, tile))
-        for ex, ey in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-            lx, ly = 0.47 * size * ex, 0.47 * size * ey
-            px = x + lx * math.cos(yaw) - ly * math.sin(yaw)
-            py = y + lx * math.sin(yaw) + ly * math.cos(yaw)
-            out.append(Prism(_box(px, py, yaw, 0.06, 0.06), 0.0, h, (7, 2), (7, 2)))
-        if rng.random() < 0.6:
-            bx, by = x + nx * 0.48 * size, y + ny * 0.48 * size
-            out.append(Prism(_box(bx, by, yaw, size, 0.03), 0.0, h, tile, tile))
-        for _ in range(int(rng.integers(0, 3))):  # a table / boxes under it
-            out.append(Prism(_box(x + rng.uniform(-1, 1), y + rng.uniform(-1, 1), yaw, 1.2, 0.6), 0.0, 0.75,
-                             pick(tx.TILE_SOLID), pick(tx.TILE_SOLID)))
-    elif kind == "pole":
-        h = float(rng.uniform(3.0, 10.0))
-        out.append(Prism(_cyl(x, y, 0.07, 6), 0.0, h, (6, 2), (6, 2), wrap=True))
-        if rng.random() < 0.5:
-            out.append(Prism(_box(x, y, yaw, 0.6, 0.25), h, h + 0.2, (6, 3), (6, 3)))
-    elif kind == "people":  # a group of people: legs, torso, head
-        for _ in range(int(rng.integers(1, 5))):
-            px, py = x + rng.uniform(-1.5, 1.5), y + rng.uniform(-1.5, 1.5)
-            a = float(rng.uniform(0, 2 * math.pi))
-            scale = float(rng.uniform(0.9, 1.08))
-            legs = pick(tx.TILE_SOLID[:4] + tx.TILE_SOLID[9:10] + tx.TILE_SOLID[5:6])
-            torso = pick(tx.TILE_SOLID + tx.TILE_DISTRACTOR[:4])  # hi-vis jackets in cone colours too
-            skin = pick(tx.TILE_SKIN)
-            out.append(Prism(_box(px, py, a, 0.32, 0.2), 0.0, 0.85 * scale, legs, legs))
-            out.append(Prism(_box(px, py, a, 0.44, 0.24), 0.85 * scale, 1.45 * scale, torso, torso))
-            out.append(Prism(_box(px, py, a, 0.19, 0.21), 1.47 * scale, 1.72 * scale, skin, pick(tx.TILE_SOLID[:3])))
-    elif kind == "container":  # container / trailer / pit box
-        tile = pick(tx.TILE_BUILDING)
-        lx, ly, lz = float(rng.choice([6.0, 12.0])), 2.4, float(rng.choice([2.6, 2.9]))
-        out.append(Prism(_box(x, y, yaw, lx, ly), 0.0, lz, tile, (6, 2)))
-    elif kind == "distractor":  # cone-coloured things that are not cones (never labelled)
-        tile = pick(tx.TILE_DISTRACTOR)
-        shape = int(rng.integers(4))
-        if shape == 0:  # bucket / bin
-            r, h = float(rng.uniform(0.14, 0.3)), float(rng.uniform(0.3, 0.9))
-            out.append(Prism(_cyl(x, y, r), 0.0, h, tile, tile, wrap=True))
-        elif shape == 1:  # bollard / post
-            out.append(Prism(_cyl(x, y, float(rng.uniform(0.05, 0.1)), 8), 0.0, float(rng.uniform(0.6, 1.1)),
-                             tile, tile, wrap=True))
-        elif shape == 2:  # crate / bag / box
-            a = float(rng.uniform(0, math.pi))
-            out.append(Prism(_box(x, y, a, float(rng.uniform(0.25, 0.7)), float(rng.uniform(0.2, 0.5))), 0.0,
-                             float(rng.uniform(0.15, 0.5)), tile, tile))
-        else:  # a flag / sign board
-            out.append(Prism(_box(x, y, yaw, float(rng.uniform(0.4, 1.2)), 0.03), 0.0, float(rng.uniform(0.4, 1.0)),
-                             tile, tile))
+    _KIND_ITEMS[kind](rng, pick, x, y, yaw, nx, ny, out)
     return out
 
 
