@@ -25,6 +25,7 @@ from pathlib import Path
 from weather_gym.cli import run_command
 from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.evaluation.evaluate import EvalConfig, evaluate
+from weather_gym.evaluation.report import report_replaceable, write_report
 
 
 def find_sidecar(model: Path) -> Path:
@@ -83,7 +84,9 @@ def _evaluate(args) -> int:
         severities=[int(s) for s in args.severities.split(",") if s], seeds=range(args.seeds),
         tracks=[t for t in args.tracks.split(",") if t] if args.tracks else None,
         max_steps=args.max_steps, laps=args.laps, perception=args.perception)
-    rows = evaluate(config, args.out, workers=args.workers, backend=args.backend, overwrite=args.overwrite)
+    replace = report_replaceable(args.out, overwrite=args.overwrite)  # refuse someone else's report before running
+    rows = evaluate(config, args.out, workers=args.workers, backend=args.backend)
+    write_report(rows, args.out, config=config, overwrite=replace)
     failed = sum(r["status"] != "ok" for r in rows)
     print(f"{len(rows) - failed} ok, {failed} failed; report: {args.out / 'report.md'}")
     return 1 if failed else 0

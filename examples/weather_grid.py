@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.weather import EFFECTS, make
 
 KS = (0.25, 0.5, 0.75)

@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym._output_args import add_overwrite_arg
 
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "docs" / "img" / "world.png"
 

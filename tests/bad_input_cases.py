@@ -227,21 +227,20 @@ def _cli(id: str, culprit: str, *argv: str, out: str | None = None, forbid: str 
     return Case(id=id, culprit=culprit, argv=tuple(argv), out=out, forbid=forbid)
 
 
-DEG = ("--effect", "dim", "--k", "0.5")
+DEG = ("--weather", "dim:0.5")
 EV = ("evaluate", "--agent", "gt_pure_pursuit", "--perception", "oracle", "--effects", "droplets",
       "--severities", "0", "--seeds", "1", "--backend", "serial", "--no-progress")
 
 CASES: list[Case] = [
     # ---- degrade
     _cli("degrade-missing-input", "nope.png", "degrade", "{w}/nope.png", "{w}/o/x.png", *DEG, out="o"),
-    _cli("degrade-k-out-of-range", "k", "degrade", "{w}/img.png", "{w}/o/x.png", "--effect", "dim", "--k", "2",
+    _cli("degrade-k-out-of-range", "k", "degrade", "{w}/img.png", "{w}/o/x.png", "--weather", "dim:2",
          out="o"),
-    _cli("degrade-unknown-effect", "snow", "degrade", "{w}/img.png", "{w}/o/x.png", "--effect", "snow", "--k",
-         "0.5", out="o"),
-    _cli("degrade-param-without-value", "persistent", "degrade", "{w}/img.png", "{w}/o/x.png", "--effect",
-         "droplets", "--k", "0.5", "--param", "persistent", out="o"),
-    _cli("degrade-weather-and-effect", "--weather", "degrade", "{w}/img.png", "{w}/o/x.png", *DEG, "--weather",
-         "dim:0.3", out="o"),
+    _cli("degrade-unknown-effect", "snow", "degrade", "{w}/img.png", "{w}/o/x.png", "--weather", "snow:0.5",
+         out="o"),
+    _cli("degrade-param-without-value", "persistent", "degrade", "{w}/img.png", "{w}/o/x.png", "--weather",
+         "droplets:0.5:persistent", out="o"),
+    _cli("degrade-no-weather", "--weather", "degrade", "{w}/img.png", "{w}/o/x.png", out="o"),
     _cli("degrade-output-without-extension", "noext", "degrade", "{w}/img.png", "{w}/o/noext", *DEG, out="o"),
     _cli("degrade-output-exists", "exists.png", "degrade", "{w}/img.png", "{w}/exists.png", *DEG),
     _cli("degrade-empty-weather", "empty weather spec", "degrade", "{w}/img.png", "{w}/o/x.png", "--weather", "",
@@ -252,8 +251,8 @@ CASES: list[Case] = [
          out="o_imgs"),
     _cli("degrade-video-to-image", "x.png", "degrade", "{w}/clip.mp4", "{w}/o/x.png", *DEG, out="o"),
     _cli("degrade-unknown-input-kind", "secret.txt", "degrade", "{w}/secret.txt", "{w}/o/x.png", *DEG, out="o"),
-    _cli("degrade-depth-size-mismatch", "depth_small.png", "degrade", "{w}/img.png", "{w}/o/x.png", "--effect",
-         "fog", "--k", "0.5", "--depth", "{w}/depth_small.png", out="o"),
+    _cli("degrade-depth-size-mismatch", "depth_small.png", "degrade", "{w}/img.png", "{w}/o/x.png", "--weather",
+         "fog:0.5", "--depth", "{w}/depth_small.png", out="o"),
     # ---- detector
     _cli("detector-eval-json-onto-the-labels", "annotations.json", "detector", "eval", "{w}/ds", "--limit", "2",
          "--json", "{w}/ds/annotations.json"),
@@ -267,7 +266,7 @@ CASES: list[Case] = [
     _cli("detector-eval-corrupt-model", "corrupt.onnx", "detector", "eval", "{w}/ds", "--model",
          "{w}/corrupt.onnx"),
     _cli("detector-eval-threads-zero", "threads", "detector", "eval", "{w}/ds", "--threads", "0"),
-    _cli("detector-eval-effect-without-k", "--k", "detector", "eval", "{w}/ds", "--effect", "dim"),
+    _cli("detector-eval-weather-without-k", "dim", "detector", "eval", "{w}/ds", "--weather", "dim"),
     _cli("detector-eval-json-under-a-file", "afile", "detector", "eval", "{w}/ds", "--json", "{w}/afile/r.json"),
     _cli("detector-eval-empty-weather", "empty weather spec", "detector", "eval", "{w}/ds", "--weather", ""),
     _cli("detector-predict-1x5000", "strip.png", "detector", "predict", "{w}/strip.png", "--out", "{w}/o/p.png",
@@ -278,8 +277,8 @@ CASES: list[Case] = [
          "{w}/exists.png"),
     _cli("detector-predict-threshold", "threshold", "detector", "predict", "{w}/img.png", "--out", "{w}/o/p.png",
          "--threshold", "2", out="o"),
-    _cli("detector-sweep-ks-out-of-range", "--ks", "detector", "sweep", "{w}/ds", "--ks", "0,2"),
-    _cli("detector-sweep-json-exists", "exists.json", "detector", "sweep", "{w}/ds", "--ks", "0", "--effects",
+    _cli("detector-sweep-k-grid-out-of-range", "--k-grid", "detector", "sweep", "{w}/ds", "--k-grid", "0,2"),
+    _cli("detector-sweep-json-exists", "exists.json", "detector", "sweep", "{w}/ds", "--k-grid", "0", "--weather",
          "dim", "--json", "{w}/exists.json"),
     _cli("detector-figure-index", "--index", "detector", "figure", "{w}/ds", "--index", "99", "--out",
          "{w}/o/f.png", out="o"),
@@ -413,13 +412,15 @@ CASES: list[Case] = [
     _cli("evaluate-huge-camera", "width", *EV, "--env-kwargs", '{"camera": {"width": 100000, "height": 100000}}',
          "--out", "{w}/o_ev", out="o_ev"),
     # ---- sweep
-    _cli("sweep-k-out-of-range", "--k", "sweep", "--effect", "dim", "--k", "0:2:0.5", "--dataset", "{w}/ds",
-         "--out", "{w}/o_sw", out="o_sw"),
-    _cli("sweep-missing-dataset", "nope", "sweep", "--effect", "dim", "--dataset", "{w}/nope", "--out",
+    _cli("sweep-k-out-of-range", "--k-grid", "sweep", "--weather", "dim", "--k-grid", "0:2:0.5", "--dataset",
+         "{w}/ds", "--out", "{w}/o_sw", out="o_sw"),
+    _cli("sweep-missing-dataset", "nope", "sweep", "--weather", "dim", "--dataset", "{w}/nope", "--out",
          "{w}/o_sw", out="o_sw"),
-    _cli("sweep-unknown-effect", "snow", "sweep", "--effect", "snow", "--dataset", "{w}/ds", "--out", "{w}/o_sw",
+    _cli("sweep-unknown-effect", "snow", "sweep", "--weather", "snow", "--dataset", "{w}/ds", "--out", "{w}/o_sw",
          out="o_sw"),
-    _cli("sweep-someones-plot", "curves.png", "sweep", "--effect", "dim", "--k", "0", "--seeds", "1", "--dataset",
+    _cli("sweep-fixed-k", "k is left open", "sweep", "--weather", "dim:0.5", "--dataset", "{w}/ds", "--out",
+         "{w}/o_sw", out="o_sw"),
+    _cli("sweep-someones-plot", "curves.png", "sweep", "--weather", "dim", "--k-grid", "0", "--seeds", "1", "--dataset",
          "{w}/ds", "--backend", "serial", "--no-progress", "--out", "{w}/sweep_plot"),
     # ---- calibrate
     _cli("calibrate-missing-curve", "nope.csv", "calibrate", "--curve", "{w}/nope.csv", "--measured",

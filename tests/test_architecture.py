@@ -9,7 +9,11 @@ methods too), so an upward dependency cannot hide in a function body. Three rule
    the evaluation runner;
 3. everything else is imported at module level: an import inside a function is only for those heavy,
    optional packages (or a module of ours that imports one of them at module level), or an optional
-   dependency guarded by ``try: import x`` / ``except ImportError`` (PyYAML, PyAV, fcntl).
+   dependency guarded by ``try: import x`` / ``except ImportError`` (PyYAML, PyAV, fcntl);
+4. no import cycle: the module-level imports among our modules (those under ``if TYPE_CHECKING:`` left
+   out) form no strongly connected component of more than one module;
+5. no arrow up a layer: the layers, joined by every import between them (inside functions too), form
+   no cycle, so the layers have one order and every import runs down it.
 """
 
 from __future__ import annotations
@@ -21,8 +25,8 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "weather_gym"
 
-PLUMBING = {"registry", "_io", "errors", "limits", "paths", "cone_spec", "cone_arrays", "_lazy", "_toml",
-            "_lock", "_confine"}
+PLUMBING = {"registry", "_io", "_inputs", "_figures", "_output_args", "errors", "limits", "paths", "cone_spec",
+            "cone_arrays", "_lazy", "_toml", "_lock", "_confine", "_markdown"}
 """Shared plumbing with no layer of its own: importable from anywhere, imports no layer."""
 
 SUBLAYERS = {"perception.train": "perception_tools", "perception.conenet": "perception_tools",
@@ -42,7 +46,7 @@ ALLOWED: dict[str, set[str]] = {
     "perception": {"camera", "weather"},
     "surrogate": {"perception", "weather", "camera"},
     "wrappers": {"weather", "perception", "camera", "surrogate"},
-    "pipeline": {"envs", "weather", "wrappers", "root"},
+    "pipeline": {"envs", "weather", "wrappers", "perception", "surrogate", "root"},
     "agents": {"tracks", "camera", "perception", "wrappers"},
     "datasets": {"envs", "sim", "tracks", "camera", "weather", "perception", "pipeline", "agents"},
     "perception_tools": {"perception", "datasets", "camera", "weather"},
@@ -66,7 +70,7 @@ HEAVY: dict[str, set[str]] = {
 }
 """Heavy package -> the layers that may import it. ``bench`` compares against a torch baseline;
 ``agents`` holds the SB3 feature extractor (a torch module); ``numba`` compiles the geometric ground
-truth (``sim.visibility``) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.model``'s
+truth (``sim.visibility``) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s
 crowding) and stays out of the other layers (a compile costs seconds on a cold cache)."""
 
 NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather"}}
@@ -97,8 +101,10 @@ def layer_of(module: str) -> str | None:
     head = parts[1]
     if head in PLUMBING:
         return "plumbing"
-    if head in ("tracks", "_track_geometry"):
+    if head in ("tracks", "_track", "_track_csv", "_track_geometry", "_track_layout", "track_plot"):
         return "tracks"
+    if head == "perception_modes":  # the registry of perception modes: the pipeline builder's layer
+        return "pipeline"
     if head in ("camera_config", "camera_isp"):
         return "camera"
     if head == "__version__":
@@ -188,8 +194,8 @@ def test_layers_import_only_what_the_table_allows(module):
             continue
         if src == "plumbing":
             bad.append((line, target, "plumbing imports no layer"))
-        elif dst == "cli" and src not in ("cli", "bench"):
-            bad.append((line, target, "only the CLI (and the bench commands it runs) imports the CLI"))
+        elif dst == "cli":
+            bad.append((line, target, "only the CLI imports the CLI"))
         elif src in TOP:
             continue
         elif dst not in ALLOWED.get(src, set()):
@@ -237,3 +243,128 @@ def test_training_a_detector_does_not_need_the_simulator():
              "import weather_gym.perception.train, weather_gym.datasets.coco\n")
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
+
+
+# ---------------------------------------------------------------------------------- cycles (rules 4, 5)
+def _type_checking_lines(path: Path) -> set[int]:
+    """Lines of the import statements under ``if TYPE_CHECKING:`` (annotations only: never run)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    lines: set[int] = set()
+    for node in ast.walk(tree):
+        test = getattr(node, "test", None)
+        if isinstance(node, ast.If) and ((isinstance(test, ast.Name) and test.id == "TYPE_CHECKING")
+                                         or (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")):
+            lines.update(n.lineno for stmt in node.body for n in ast.walk(stmt)
+                         if isinstance(n, (ast.Import, ast.ImportFrom)))
+    return lines
+
+
+def module_graph(modules: dict[str, Path]) -> dict[str, set[str]]:
+    """Module -> the modules of ``modules`` it imports when it is imported (module level, not under
+    ``if TYPE_CHECKING:``)."""
+    graph = {}
+    for m, path in modules.items():
+        skip = _type_checking_lines(path)
+        graph[m] = {t for t, line, in_function in _imports(m, path)
+                    if not in_function and line not in skip and t in modules and t != m}
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one node (Tarjan's algorithm, iterative), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph.get(root, ()))))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    found.append(sorted(component))
+    return sorted(found)
+
+
+def test_the_cycle_finder_finds_a_planted_cycle(tmp_path):
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}) == [["a", "b", "c"]]
+    assert cycles({"a": {"b"}, "b": set(), "c": {"c"}}) == []                  # a chain; a self-import
+    assert cycles({"a": {"b"}, "b": {"a"}, "c": {"d"}, "d": {"c"}}) == [["a", "b"], ["c", "d"]]
+    (tmp_path / "a.py").write_text("import weather_gym.probe.b\n")
+    (tmp_path / "b.py").write_text("import weather_gym.probe.a\n")
+    (tmp_path / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                                   "    import weather_gym.probe.a\n")
+    (tmp_path / "d.py").write_text("def f():\n    import weather_gym.probe.c\n")
+    probe = {f"weather_gym.probe.{n}": tmp_path / f"{n}.py" for n in "abcd"}
+    graph = module_graph(probe)
+    assert graph["weather_gym.probe.c"] == set() and graph["weather_gym.probe.d"] == set()
+    assert cycles(graph) == [["weather_gym.probe.a", "weather_gym.probe.b"]]   # planted: found
+    (tmp_path / "b.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                                   "    import weather_gym.probe.a\n")
+    assert cycles(module_graph(probe)) == []                                     # annotations only: no cycle
+
+
+def test_no_import_cycle():
+    found = cycles(module_graph(MODULES))
+    assert not found, ("import cycles (move the shared piece into a module both import): "
+                       + "; ".join(" <-> ".join(c) for c in found))
+
+
+def layer_graph() -> dict[str, set[str]]:
+    """Layer -> the layers its modules import (every import, inside functions too; plumbing left out)."""
+    graph: dict[str, set[str]] = {}
+    for module, imports in IMPORTS.items():
+        src = layer_of(module)
+        for target, _, _ in imports:
+            dst = layer_of(target)
+            if dst is not None and dst not in (src, "plumbing"):
+                graph.setdefault(src, set()).add(dst)
+    return graph
+
+
+def test_no_arrow_up_a_layer():
+    graph = layer_graph()
+    found = cycles(graph)
+    where = {(layer_of(m), layer_of(t)): f"{m} -> {t}" for m, imps in IMPORTS.items() for t, _, _ in imps}
+    assert not found, "layers import each other (one of these arrows runs up): " + "; ".join(
+        ", ".join(f"{a} -> {b} ({where[(a, b)]})" for a in c for b in sorted(graph.get(a, ())) if b in c)
+        for c in found)
+    assert not cycles({k: set(v) for k, v in ALLOWED.items()}), "the layer table itself allows a cycle"
+
+
+
+@pytest.mark.parametrize("module", ["weather_gym", "weather_gym.envs", "weather_gym.wrappers", "weather_gym.weather"])
+def test_importing_the_package_does_not_load_matplotlib(module):
+    """Plotting lives in modules only plotting callers import (``_figures``, ``track_plot``, the reports)."""
+    import subprocess
+    import sys
+
+    probe = f"import {module}, sys; assert 'matplotlib' not in sys.modules, sorted(sys.modules)"
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, f"import {module} loads matplotlib: " + run.stderr[-400:]

@@ -1,6 +1,8 @@
 """Docs snippets run as pasted: a ``make_vec_env`` (async, forkserver workers that import the script)
 sits under ``if __name__ == "__main__":`` in every Python block of the README and docs, and a script
-that leaves the guard out still runs (its workers start with fork, with a warning)."""
+that leaves the guard out still runs (its workers start with fork, with a warning). Every ``python``
+block of ``docs/extending.md`` runs as it is, and every relative link of the README, the changelog and
+the docs leads to a file that exists."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+RECIPES = ROOT / "docs" / "extending.md"
 
 
 def _python_blocks(path: Path) -> list[str]:
@@ -56,3 +59,22 @@ def test_an_unguarded_script_falls_back_to_fork_with_a_warning(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     assert "cones (2, 64, 14)" in done.stdout
     assert f"{script}:2, outside `if __name__ == \"__main__\":`" in done.stderr and "with fork instead" in done.stderr
+
+
+@pytest.mark.parametrize("index", range(len(_python_blocks(RECIPES))))
+def test_every_extending_recipe_runs(index, tmp_path):
+    script = tmp_path / f"recipe_{index}.py"
+    script.write_text(_python_blocks(RECIPES)[index], encoding="utf-8")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 0, f"docs/extending.md python block {index}:\n{done.stderr[-2000:]}"
+
+
+def test_every_relative_link_in_the_docs_resolves():
+    pages = [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    broken = []
+    for page in pages:
+        for target in re.findall(r"\]\(([^)\s]+)\)", page.read_text(encoding="utf-8")):
+            path = target.split("#", 1)[0]
+            if path and not re.match(r"[a-z]+:", path) and not (page.parent / path).exists():
+                broken.append(f"{page.relative_to(ROOT)}: {target}")
+    assert not broken, "links to missing files:\n" + "\n".join(broken)

@@ -8,6 +8,7 @@ import stat
 import numpy as np
 import pytest
 
+from weather_gym._figures import save_figure
 from weather_gym._io import (
     atomic_file,
     atomic_path,
@@ -16,7 +17,6 @@ from weather_gym._io import (
     check_output,
     derived_outputs_replaceable,
     resolve_inside,
-    save_figure,
     write_image,
 )
 from weather_gym.errors import InputError, OutputExistsError, OutputPathError, OutsideRootError

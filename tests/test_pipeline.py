@@ -21,12 +21,12 @@ def _chain(env) -> list[type]:
 
 
 def test_one_vocabulary_for_every_caller():
-    from weather_gym.cli.lap import PERCEPTION_CHOICES
+    from weather_gym.cli.lap import perception_choices
     from weather_gym.evaluation.evaluate import PERCEPTIONS
 
     assert set(PERCEPTION_MODES) == {"camera", "detector", "oracle", "gt_cones", "surrogate"}
     assert PERCEPTIONS == tuple(PERCEPTION_MODES)
-    assert PERCEPTION_CHOICES == ("auto", *PERCEPTION_MODES)
+    assert perception_choices() == ("auto", *PERCEPTION_MODES)
 
 
 @pytest.mark.parametrize("perception,keys,wrapper", [

@@ -41,7 +41,6 @@ Example:
 from __future__ import annotations
 
 import contextlib
-import contextvars
 import errno
 import hashlib
 import json
@@ -53,7 +52,6 @@ from pathlib import Path
 from typing import IO, Any
 
 import cv2
-import matplotlib.pyplot as plt
 import numpy as np
 
 try:
@@ -61,8 +59,9 @@ try:
 except ModuleNotFoundError:  # pragma: no cover - Windows: no advisory locks
     fcntl = None
 
+from weather_gym._inputs import check_not_input, declare_inputs, resolve_inside
 from weather_gym._lock import exclusive_folder
-from weather_gym.errors import InputError, OutputExistsError, OutputPathError, OutsideRootError
+from weather_gym.errors import InputError, OutputExistsError, OutputPathError
 
 __all__ = [
     "atomic_file",
@@ -77,75 +76,9 @@ __all__ = [
     "exists_message",
     "open_append",
     "resolve_inside",
-    "save_figure",
     "write_failure",
     "write_image",
 ]
-
-
-# ------------------------------------------------------------------------------------ confinement
-def resolve_inside(root: str | os.PathLike, relative: str | os.PathLike, *, what: str) -> Path:
-    """``root / relative``, resolved, after checking that it stays inside ``root``.
-
-    ``relative`` comes from a file (a dataset's ``file_name``, a scenario's track CSV, ...);
-    ``what`` says where (``"DIR/annotations.json: image 3 'file_name'"``) and starts the message
-    of the :class:`OutsideRootError` raised for an absolute path, a ``..`` that climbs out, or a
-    symlink inside ``root`` that points outside it.
-    """
-    if not isinstance(relative, (str, os.PathLike)) or not os.fspath(relative):
-        raise OutsideRootError(f"{what}: expected a relative path inside {root}, got {relative!r}")
-    text = os.fspath(relative)
-    if "\x00" in text:
-        raise OutsideRootError(f"{what}: {text!r} contains a NUL byte")
-    if Path(text).is_absolute() or Path(text).drive:
-        raise OutsideRootError(f"{what}: {text!r} is an absolute path; paths here must be relative to {root}")
-    base = Path(root).resolve()
-    target = (base / text).resolve()
-    if not target.is_relative_to(base):
-        raise OutsideRootError(f"{what}: {text!r} leads outside {root} (to {target}); "
-                               f"paths here must stay inside {root}")
-    return target
-
-
-# ------------------------------------------------------------------------- an input is never an output
-_INPUTS: contextvars.ContextVar[tuple[tuple[Path, Path, str], ...]] = contextvars.ContextVar(
-    "weather_gym_inputs", default=())
-
-
-def declare_inputs(*paths: str | os.PathLike | None) -> None:
-    """Declare what the running command reads (files or folders; ``None`` is skipped).
-
-    From then on (in this context: the CLI runs each command in a fresh one) :func:`check_output`,
-    :func:`check_not_input` and every writer here refuse an output that is, or lies inside, one of
-    them, ``overwrite`` or not.
-
-    Example:
-        >>> import contextvars, tempfile, pathlib
-        >>> d = pathlib.Path(tempfile.mkdtemp())
-        >>> def cmd():
-        ...     declare_inputs(d / "log.npz")
-        ...     check_output(d / "log.npz", overwrite=True)
-        >>> contextvars.copy_context().run(cmd)
-        Traceback (most recent call last):
-        ...
-        weather_gym.errors.OutputPathError: output ... is an input of this command (...); ...
-    """
-    entries = list(_INPUTS.get())
-    for p in paths:
-        if p is not None:
-            entries.append((Path(os.path.abspath(p)), Path(p).resolve(), str(p)))
-    _INPUTS.set(tuple(entries))
-
-
-def check_not_input(path: str | os.PathLike, *, what: str = "output") -> None:
-    """Refuse (:class:`OutputPathError`) an output ``path`` that is, or lies inside, a declared input."""
-    a, r = Path(os.path.abspath(path)), Path(path).resolve()
-    for ia, ir, name in _INPUTS.get():
-        same = a == ia or r == ir
-        if same or a.is_relative_to(ia) or r.is_relative_to(ir):
-            where = "is an input" if same else "lies inside an input"
-            raise OutputPathError(f"{what} {path} {where} of this command ({name}); an input is never an "
-                                  "output, --overwrite or not: choose another path")
 
 
 # ------------------------------------------------------------------------------------ one writer
@@ -492,20 +425,6 @@ def write_image(path: str | os.PathLike, image: Any, *, overwrite: bool = False,
         raise OutputPathError(f"cannot write image {p}: OpenCV cannot encode a {arr.dtype} {arr.shape} image "
                               f"as {p.suffix or '(no suffix)'}; use .png or .jpg")
     return atomic_write(p, buf.tobytes(), overwrite=overwrite)
-
-
-def save_figure(fig: Any, path: str | os.PathLike, *, overwrite: bool = False, close: bool = True,
-                **savefig_kwargs: Any) -> Path:
-    """Save a matplotlib figure safely (format from the suffix, no timestamp metadata); close it."""
-    p = Path(path)
-    savefig_kwargs.setdefault("metadata", {"Software": None} if p.suffix.lower() == ".png" else None)
-    try:
-        with atomic_file(p, "wb", overwrite=overwrite) as f:
-            fig.savefig(f, format=(p.suffix[1:].lower() or "png"), **savefig_kwargs)
-    finally:
-        if close:
-            plt.close(fig)
-    return p
 
 
 def file_id(path: str | os.PathLike) -> str:

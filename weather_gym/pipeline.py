@@ -7,23 +7,12 @@ builds N of them in a Gymnasium vector env. The lap and evaluate commands, datas
 benchmarks and the examples all build their envs here, so a policy is evaluated on exactly the
 observation it was trained on.
 
-Perception modes (``PERCEPTION_MODES``), i.e. what the agent observes:
-
-* ``camera``   - no perception: ``Dict(image, depth, state)``, the (weathered) camera frame.
-* ``detector`` - ``DetectorWrapper``: the cone detector on the (weathered) image -> ``Dict(cones, mask, state)``.
-* ``oracle``   - ``GroundTruthConeWrapper`` on the rendered ground truth (pixel-exact visibility) -> cone list.
-* ``gt_cones`` - ground-truth cones from geometry: the camera renders nothing at all
-  (``camera_images=False, ground_truth="geometry"``); the cone list comes from projecting the cones
-  through the camera model (frustum, range, occlusion; :mod:`weather_gym.sim.visibility`). Thousands
-  of steps per second: for training controllers on cone lists.
-
-* ``surrogate`` - ``SurrogatePerceptionWrapper``: the same render-free ground truth as ``gt_cones``, turned
-  into what the shipped detector reports in the weather (misses, class confusion, range and bearing
-  errors, false positives, misses that persist over frames) by a model fitted on full-pipeline runs
-  (:mod:`weather_gym.surrogate`; ``docs/surrogate.md``). Same observation and ``info`` as ``detector``.
-
-``oracle`` and ``gt_cones`` take ``OracleNoise`` fields in ``perception_kwargs`` (``miss_prob``, ...);
-``surrogate`` takes ``model`` (a model path), ``max_cones``, ``latency_in_info``.
+Perception modes, i.e. what the agent observes, are the entries of
+:data:`weather_gym.perception_modes.PERCEPTION_MODES` (``camera``, ``detector``, ``oracle``,
+``gt_cones``, ``surrogate``); each entry says how it wraps the env (``PerceptionMode.wrap``) and what
+the env must be (``env_overrides``: the render-free modes switch the camera off). ``oracle`` and
+``gt_cones`` take ``OracleNoise`` fields in ``perception_kwargs`` (``miss_prob``, ...); ``surrogate``
+takes ``model`` (a model path), ``max_cones``, ``latency_in_info``.
 
 Example:
     >>> from weather_gym.pipeline import make_env
@@ -53,86 +42,44 @@ from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import Scenario, build_config, episode_steps, load_scenario
 from weather_gym.errors import InputError, LimitError, StateError
-from weather_gym.weather import parse_weather, to_spec
-from weather_gym.wrappers import (
-    DetectorWrapper,
-    EpisodeStatistics,
-    GroundTruthConeWrapper,
-    SurrogatePerceptionWrapper,
-    WeatherWrapper,
-)
+from weather_gym.perception_modes import PERCEPTION_MODES, default_mode, detector_mode, perception_mode
+from weather_gym.wrappers import EpisodeStatistics
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
 
 DEFAULT_ENV_ID = "WeatherGym/ConeTrack-v0"
 
-PERCEPTION_MODES: dict[str, str] = {
-    "camera": "no perception: the (weathered) camera image, depth and state",
-    "detector": "the cone detector on the (weathered) image -> cone list",
-    "oracle": "the rendered frame's ground truth (pixel-exact visibility) -> cone list",
-    "gt_cones": "ground-truth cones from geometry, nothing rendered (fast; for training controllers)",
-    "surrogate": "the detector's cone list in the weather, drawn from a fitted statistical model; nothing rendered",
-}
-"""Every perception mode, with what the agent observes."""
-
-_RENDER_FREE = {"camera_images": False, "ground_truth": "geometry"}
-
 
 def check_perception(perception: str) -> str:
-    """``perception`` if it is a mode of :data:`PERCEPTION_MODES`, else a ``ValueError`` listing them."""
-    if perception not in PERCEPTION_MODES:
-        raise InputError(f"unknown perception {perception!r}; valid: {', '.join(PERCEPTION_MODES)}")
-    return perception
+    """``perception`` if it is a registered mode (:data:`PERCEPTION_MODES`), else an ``InputError`` listing them."""
+    return perception_mode(perception).name
 
 
-def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str = "camera", detector: Any = None,
+def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str | None = None, detector: Any = None,
                   perception_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
     """``env`` -> ``WeatherWrapper(weather)`` (when there is weather; always under a detector, clear
-    by default, so the weather can change per episode) -> the ``perception`` wrapper.
+    by default, so the weather can change per episode) -> the ``perception`` wrapper: the mode's
+    ``PerceptionMode.wrap`` (default: the first registered mode, the camera).
 
     ``detector`` is passed to ``DetectorWrapper`` as its ``detector`` argument (anything it accepts:
     a model path, a detector object, None for the shipped model); ``perception_kwargs`` are the
     perception wrapper's other keyword arguments.
     """
-    check_perception(perception)
+    mode = default_mode() if perception is None else perception_mode(perception)
     kwargs = dict(perception_kwargs or {})
     if detector is not None:
-        if perception != "detector":
-            raise InputError(f"detector= is given but perception is {perception!r}; it needs perception='detector'")
+        if not mode.runs_detector:
+            raise InputError(f"detector= is given but perception is {perception!r}; it needs " + " or ".join(
+                f"perception={m.name!r}" for m in PERCEPTION_MODES.values() if m.runs_detector))
         if "detector" in kwargs:
             raise InputError("give the detector once: detector= or perception_kwargs['detector'], not both")
         kwargs["detector"] = detector
-    images = isinstance(env.observation_space, gym.spaces.Dict) and "image" in env.observation_space.spaces
-    if perception == "surrogate":
-        if images:
-            raise InputError("perception 'surrogate' renders nothing: build the env with camera_images=False, "
-                             "ground_truth='geometry' (make_env does)")
-
-        return SurrogatePerceptionWrapper(env, weather=weather, **kwargs)
-    if weather is None and perception == "detector" and images:
-        weather = "clear"  # a WeatherWrapper under the detector, so reset(options={"weather": ...}) and set_weather work
-    if weather is not None:
-        effect = parse_weather(weather)  # a bad spec fails here, with the parser's message
-        if images:
-            env = WeatherWrapper(env, weather=effect)
-        elif to_spec(effect):  # clear weather on an env without images is no weather at all
-            raise InputError(f"weather {weather!r} acts on camera images, and this env renders none (perception "
-                             f"{perception!r}); take perception 'oracle', 'detector' or 'surrogate' to drive in weather")
-    if perception == "detector":
-        if not images:
-            raise InputError("perception 'detector' needs camera images (camera_images=True)")
-
-        return DetectorWrapper(env, **kwargs)
-    if perception in ("oracle", "gt_cones"):
-        return GroundTruthConeWrapper(env, **kwargs)
-    if kwargs:
-        raise InputError(f"perception_kwargs {sorted(kwargs)} given, but perception 'camera' takes none")
-    return env
+    return mode.wrap(env, weather, kwargs)
 
 
 def _scenario_perception(sc: Scenario) -> tuple[str, Any, dict[str, Any]]:
     table = dict(sc.perception or {})
-    mode = table.pop("mode", "camera")
+    mode = table.pop("mode", default_mode().name)
     detector = table.pop("detector", None)
     return mode, detector, table
 
@@ -155,19 +102,18 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     if detector is True or isinstance(detector, Mapping):  # the older form: detector=True / a dict of wrapper kwargs
         table = {} if detector is True else dict(detector)
         if table.pop("enabled", True) is False:
-            perception, detector = perception or "camera", None
+            perception, detector = perception or default_mode().name, None
         else:
-            perception = perception or "detector"
+            perception = perception or detector_mode().name
             detector = table.pop("detector", None)
             perception_kwargs = {**table, **dict(perception_kwargs or {})}
     if perception is None:
-        perception = "detector" if detector is not None and sc_mode == "camera" else sc_mode
-    check_perception(perception)
+        perception = detector_mode().name if detector is not None and sc_mode == default_mode().name else sc_mode
+    mode = perception_mode(perception)
     if perception == sc_mode:
         detector = sc_detector if detector is None else detector
         perception_kwargs = {**sc_kwargs, **dict(perception_kwargs or {})}
-    if perception in ("gt_cones", "surrogate"):
-        overrides = {**_RENDER_FREE, **overrides}
+    overrides = {**mode.env_overrides, **overrides}
     env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
     try:
         return wrap_pipeline(env, weather=_weather_spec(sc, weather, severity), perception=perception,

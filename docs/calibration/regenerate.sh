@@ -5,10 +5,11 @@
 #
 #   bash docs/calibration/regenerate.sh            # from the repository root, in the venv
 #
-# Resumable: a finished sweep or transfer cell is never run again (delete docs/calibration/curves.csv,
-# sweep.json and transfer/cells.csv to start over). Cells are keyed by effect spec, k, seed, evaluation set
+# Resumable: a finished sweep or transfer cell is never run again (delete docs/calibration/curves.*,
+# sweep.json and transfer/cells.* to start over). Cells are keyed by effect spec, k, seed, evaluation set
 # and detector (a new model gets new rows, the old ones are ignored by model_id), not by the effect's code:
-# after changing what an effect draws, delete its rows from curves.csv, remeasured.csv and transfer/cells.csv.
+# after changing what an effect draws, delete its rows from curves.csv, remeasured.csv and transfer/cells.csv
+# and delete their .sqlite stores (rebuilt from the CSVs on the next run).
 set -euo pipefail
 SETS=${SETS:-scratch/calib}              # the rendered evaluation sets (git-ignored; rendered deterministically)
 WORKERS=${WORKERS:-2}
@@ -38,12 +39,12 @@ render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --s
 
 # the study's faithful effects and the physical dim on the four-track set, on a 0.1 grid (refractive drops
 # too, for the physical alternative); the shipped modes on the pool, the night camera finer where it falls
-weather-gym sweep --effect droplets --effect dim --effect dim:mode=physical --effect droplets:mode=refractive \
-  --k 0:1:0.1 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
-weather-gym sweep --effect droplets:mode=refractive --k 0:1:0.1 --seeds 2 \
+weather-gym sweep --weather droplets,dim,dim:k:mode=physical,droplets:k:mode=refractive \
+  --k-grid 0:1:0.1 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+weather-gym sweep --weather droplets:k:mode=refractive --k-grid 0:1:0.1 --seeds 2 \
   --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
-weather-gym sweep --effect dim:mode=night \
-  --k 0,0.2,0.4,0.5,0.55,0.6,0.625,0.65,0.675,0.7,0.725,0.75,0.775,0.8,0.825,0.85,0.875,0.9,0.925,0.95,0.975,1 \
+weather-gym sweep --weather dim:k:mode=night \
+  --k-grid 0,0.2,0.4,0.5,0.55,0.6,0.625,0.65,0.675,0.7,0.725,0.75,0.775,0.8,0.825,0.85,0.875,0.9,0.925,0.95,0.975,1 \
   --seeds 3 --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
 
 id_of() { python -c "from weather_gym._io import file_id; print(file_id('$1/annotations.json'))"; }

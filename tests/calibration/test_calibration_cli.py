@@ -21,12 +21,12 @@ def _run(capsys, *argv):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--effect", "snow"], "unknown weather effect 'snow'; valid names: blur, dim, droplets"),
-    (["--effect", "dim:mode=dark"], "mode"),
-    (["--effect", "droplets", "--k", "0:1"], "START:STOP:STEP with three numbers"),
-    (["--effect", "droplets", "--k", "0:2:0.5"], r"k must lie in [0, 1]"),
-    (["--effect", "droplets", "--seeds", "0"], "--seeds must be >= 1"),
-    (["--effect", "droplets", "--workers", "0"], "--workers must be >= 1"),
+    (["--weather", "snow"], "unknown weather effect 'snow'; valid names: blur, dim, droplets"),
+    (["--weather", "dim:k:mode=dark"], "mode"),
+    (["--weather", "droplets", "--k-grid", "0:1"], "START:STOP:STEP with three numbers"),
+    (["--weather", "droplets", "--k-grid", "0:2:0.5"], r"k must lie in [0, 1]"),
+    (["--weather", "droplets", "--seeds", "0"], "--seeds must be >= 1"),
+    (["--weather", "droplets", "--workers", "0"], "--workers must be >= 1"),
 ])
 def test_sweep_bad_input(capsys, tmp_path, argv, message):
     rc, _, err = _run(capsys, "sweep", *argv, "--dataset", str(tmp_path), "--out", str(tmp_path / "o"))
@@ -35,7 +35,7 @@ def test_sweep_bad_input(capsys, tmp_path, argv, message):
 
 
 def test_sweep_missing_dataset(capsys, tmp_path):
-    rc, _, err = _run(capsys, "sweep", "--effect", "droplets", "--dataset", str(tmp_path / "nope"),
+    rc, _, err = _run(capsys, "sweep", "--weather", "droplets", "--dataset", str(tmp_path / "nope"),
                       "--out", str(tmp_path / "o"))
     assert rc == 2 and "nope not found" in err
 
@@ -88,7 +88,7 @@ def test_calibrate_from_a_curve_file_alone(capsys, tmp_path):
 @pytest.mark.slow
 def test_sweep_then_calibrate_on_a_rendered_set(capsys, tmp_path, calib_set_8):
     out = tmp_path / "sweep"
-    argv = ["sweep", "--effect", "droplets", "--effect", "dim", "--k", "0,0.5,1", "--seeds", "2",
+    argv = ["sweep", "--weather", "droplets", "--weather", "dim", "--k-grid", "0,0.5,1", "--seeds", "2",
             "--dataset", str(calib_set_8), "--out", str(out), "--workers", "2", "--no-progress"]
     rc, stdout, err = _run(capsys, *argv)
     assert rc == 0, err

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.datasets import coco as coco_mod
-from weather_gym.datasets import load_coco, render_dataset
+from weather_gym.datasets import coco_writer, load_coco, render_dataset
 from weather_gym.datasets.render import episode_plan
 
 pytestmark = pytest.mark.slow
@@ -39,13 +38,13 @@ def test_records_and_annotations_carry_the_contract_fields(rendered):
 
 
 def test_same_seed_same_bytes_and_interrupted_render_resumes(rendered, tmp_path, monkeypatch):
-    class Crash(coco_mod.CocoWriter):
+    class Crash(coco_writer.CocoWriter):
         def add(self, *a, **k):
             if self.done >= 3:
                 raise KeyboardInterrupt
             return super().add(*a, **k)
 
-    monkeypatch.setattr(coco_mod, "CocoWriter", Crash)  # render writes through coco.CocoWriter
+    monkeypatch.setattr(coco_writer, "CocoWriter", Crash)  # render writes through coco_writer.CocoWriter
     with pytest.raises(KeyboardInterrupt):
         render_dataset(tmp_path / "b", **KW)
     monkeypatch.undo()

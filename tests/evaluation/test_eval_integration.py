@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from weather_gym.evaluation.evaluate import EvalConfig, evaluate, make_cells, run_cell
+from weather_gym.evaluation.report import write_report
 from weather_gym.perception.onnx_detector import DEFAULT_MODEL
 
 
@@ -56,4 +57,5 @@ def test_reduced_grid_with_the_detector_degrades_with_severity(tmp_path):
         clear, worst = by[effect, 0], by[effect, 4]
         assert clear["det_frames"] == 150  # the frames the agent acted on and clear["detector_latency_ms"] > 0
         assert worst["det_map50"] < clear["det_map50"], effect
+    write_report(rows, tmp_path, config=config)  # the report is the caller's (weather-gym evaluate writes it)
     assert (tmp_path / "plots" / "det_map50.png").exists()

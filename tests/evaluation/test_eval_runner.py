@@ -1,15 +1,14 @@
-"""The generic cell runner: tidy rows, resume, failures and crashes recorded, backends agree."""
+"""The generic cell runner: tidy rows, resume, failures and crashes recorded, backends agree, one writer."""
 
 from __future__ import annotations
 
 import csv
-import fcntl
-import multiprocessing
 import os
 import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
@@ -17,7 +16,7 @@ import eval_cellfns as fns
 import pytest
 
 from weather_gym.errors import OutputPathError
-from weather_gym.evaluation.runner import _run_isolated, read_results, run_cells
+from weather_gym.evaluation.runner import read_results, run_cells
 
 HERE = Path(__file__).resolve().parent
 
@@ -108,7 +107,7 @@ def test_process_backend_matches_serial_and_limits_threads(tmp_path):
     run_cells(fns.grid(), fns.metrics, serial, backend="serial", progress=False)
     rows = run_cells(fns.grid(), fns.with_env, proc, backend="process", workers=2, progress=False)
     assert _table(proc, drop=("elapsed_s", "omp", "pid")) == _table(serial)
-    assert {r["omp"] for r in rows} == {1}  # workers start with one thread per library
+    assert {r["omp"] for r in rows} == {"1"}  # workers start with one thread per library
     assert os.getpid() not in {r["pid"] for r in rows}
 
 
@@ -123,10 +122,10 @@ def test_segfault_is_a_failed_cell_and_innocent_cells_survive(tmp_path):
     assert {k: r["score"] for k, r in by_key.items()} == expected
 
 
-def test_process_exit_is_reported_with_its_code():
-    ctx = multiprocessing.get_context("spawn")
-    status, error, _ = _run_isolated(ctx, fns.hard_exit, fns.Cell("dim", 1, 0), ("effect", "severity", "seed"))
-    assert status == "failed" and "exited with code 3" in error
+def test_process_exit_is_reported_with_its_code(tmp_path):
+    cells = [fns.Cell("dim", 1, 0), fns.Cell("dim", 0, 0)]
+    rows = run_cells(cells, fns.hard_exit, tmp_path / "results.csv", backend="process", workers=2, progress=False)
+    assert [r["status"] for r in rows] == ["failed", "ok"] and "EXIT(3)" in rows[0]["error"]
 
 
 def test_bad_return_value_is_a_failed_cell(tmp_path):
@@ -167,6 +166,24 @@ def test_other_configuration_is_refused_and_file_kept(tmp_path):
     with pytest.raises(ValueError, match="not a results file"):
         run_cells(fns.grid()[:1], fns.metrics, other, backend="serial", progress=False)
     assert path.read_bytes() == before and other.read_text() == "name,value\nx,1\n"
+    assert not (tmp_path / "notes.sqlite").exists()  # no store is started beside a file that is not ours
+
+
+def test_a_results_csv_without_its_store_is_imported_once(tmp_path, env_log):
+    """A results.csv of the version that kept only the CSV resumes: its cells are not run again."""
+    reference, path = tmp_path / "reference.csv", tmp_path / "results.csv"
+    run_cells(fns.grid(), fns.metrics, reference, backend="serial", progress=False)
+    path.write_text("".join(reference.read_text().splitlines(keepends=True)[:6]))  # header and 5 rows, no store
+    assert [r["score"] for r in read_results(path)][:2] == [1.0, 1.01]
+    rows = run_cells(fns.grid(), fns.logged, path, backend="serial", progress=False)
+    assert len(_calls(env_log)) == 7 and all(r["status"] == "ok" for r in rows)
+    assert _table(path) == _table(reference) and (tmp_path / "results.sqlite").exists()
+    other = tmp_path / "stack" / "results.csv"  # a key that reads as a number stays the cells' text
+    other.parent.mkdir()
+    other.write_text("stack,seed,status,error,elapsed_s,y\n6104597533e3,0,ok,,0.1,5\n")
+    rows = run_cells([{"stack": "6104597533e3", "seed": 0}], lambda cell: {"y": 0}, other, backend="serial",
+                     progress=False)
+    assert (rows[0]["stack"], rows[0]["y"]) == ("6104597533e3", 5)  # resumed, not run again
 
 
 def test_bad_arguments(tmp_path):
@@ -184,18 +201,24 @@ def test_bad_arguments(tmp_path):
         run_cells([{"x": 1}], fns.metrics, blocker / "results.csv", backend="serial")
 
 
-def test_second_writer_is_refused(tmp_path):
+def test_second_writer_is_refused(tmp_path, monkeypatch):
+    monkeypatch.setenv("EVAL_TEST_SLEEP", "0.2")
     path = tmp_path / "results.csv"
-    fd = os.open(tmp_path, os.O_RDONLY)  # what a concurrent run holds
+    first = threading.Thread(target=run_cells, args=(fns.grid(), fns.slow, path),
+                             kwargs={"backend": "serial", "progress": False})
+    first.start()  # a concurrent run holds the results while it writes them
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        t0 = time.monotonic()
+        while not (path.exists() and path.read_text().count("\n") > 1):
+            assert time.monotonic() - t0 < 30, "the first run wrote no row"
+            time.sleep(0.01)
         with pytest.raises(FileExistsError, match="another run is writing results in"):
-            run_cells(fns.grid()[:1], fns.metrics, path, backend="serial", progress=False)
-        assert not path.exists()
+            run_cells(fns.grid(), fns.metrics, path, backend="serial", progress=False)
     finally:
-        os.close(fd)
-    run_cells(fns.grid()[:1], fns.metrics, path, backend="serial", progress=False)  # released: runs
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv"]  # nothing left behind
+        first.join()
+    rows = run_cells(fns.grid(), fns.logged, path, backend="serial", progress=False)  # released: resumes
+    assert all(r["status"] == "ok" for r in rows)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv", "results.sqlite"]  # nothing else left
 
 
 _SCRIPT = textwrap.dedent(

@@ -268,7 +268,7 @@ class _OneFrame:
 
 @pytest.mark.parametrize("tiny_negatives", [False, True])
 def test_tiny_negatives_make_a_tiny_cone_a_negative_for_the_other_classes_only(tiny_negatives):
-    from weather_gym.perception.train import _Frames
+    from weather_gym.perception.train.data import _Frames
 
     cfg = TrainConfig(crop_size=None, stride=2, hidden=True, tiny_negatives=tiny_negatives)
     _, heat, ign, *_ = _Frames([_OneFrame()], cfg, train=False)[0]
@@ -399,7 +399,7 @@ def _kitti_import(tmp_path, n: int = 3, size: tuple[int, int] = (320, 240), seed
 
 def test_mix_draws_each_folders_share_of_every_epoch_seeded(tmp_path):
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.train import _Frames
+    from weather_gym.perception.train.data import _Frames
 
     a = load_coco(write_synth_dataset(tmp_path / "a", 6, seed=1))
     b = load_coco(_kitti_import(tmp_path, n=2))
@@ -421,7 +421,7 @@ def test_mix_draws_each_folders_share_of_every_epoch_seeded(tmp_path):
 
 def test_an_imported_set_trains_with_its_ignore_mask_and_regions_as_no_loss(tmp_path):
     from weather_gym.datasets.coco import load_coco
-    from weather_gym.perception.train import _Frames
+    from weather_gym.perception.train.data import _Frames
 
     ds = load_coco(_kitti_import(tmp_path, n=1))
     assert ds.image(0).shape == (240, 320, 3)

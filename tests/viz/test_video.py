@@ -126,8 +126,8 @@ def test_a_full_disk_is_a_typed_error_and_leaves_no_file(tmp_path, suffix):
     vw.release()
     out = tmp_path / "out"
     out.mkdir()
-    r = subprocess.run([sys.executable, "-c", _FULL_DISK, "degrade", str(src), str(out / f"d{suffix}"), "--effect",
-                        "noise", "--k", "0.5", "--quiet"], capture_output=True, text=True, timeout=120)
+    r = subprocess.run([sys.executable, "-c", _FULL_DISK, "degrade", str(src), str(out / f"d{suffix}"), "--weather",
+                        "noise:0.5", "--quiet"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr
     assert "error: cannot write" in r.stderr and "Traceback" not in r.stderr
     assert list(out.iterdir()) == []

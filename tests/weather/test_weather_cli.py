@@ -31,7 +31,7 @@ def frame():
 def test_degrade_one_image(tmp_path, frame):
     src = tmp_path / "in.png"
     _write(src, frame)
-    assert main(["degrade", str(src), str(tmp_path / "out.png"), "--effect", "dim", "--k", "0.55"]) == 0
+    assert main(["degrade", str(src), str(tmp_path / "out.png"), "--weather", "dim:0.55"]) == 0
     np.testing.assert_array_equal(_read(tmp_path / "out.png"), make("dim", k=0.55)(frame))
     np.testing.assert_array_equal(_read(src), frame)  # input untouched
     outdir = tmp_path / "outdir"
@@ -43,15 +43,15 @@ def test_degrade_one_image(tmp_path, frame):
 def test_degrade_never_overwrites(tmp_path, frame, capsys):
     src = tmp_path / "in.png"
     _write(src, frame)
-    assert main(["degrade", str(src), str(src), "--effect", "dim", "--k", "0.5"]) == 2
+    assert main(["degrade", str(src), str(src), "--weather", "dim:0.5"]) == 2
     assert "overwrite the input" in capsys.readouterr().err
     np.testing.assert_array_equal(_read(src), frame)
     out = tmp_path / "out.png"
     _write(out, frame)
-    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5"]) == 2
+    assert main(["degrade", str(src), str(out), "--weather", "dim:0.5"]) == 2
     assert "pass --overwrite" in capsys.readouterr().err
-    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--overwrite"]) == 0
-    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--force"]) == 0  # old name
+    assert main(["degrade", str(src), str(out), "--weather", "dim:0.5", "--overwrite"]) == 0
+    assert main(["degrade", str(src), str(out), "--weather", "dim:0.5", "--force"]) == 0  # old name
     assert "--force is deprecated" in capsys.readouterr().err
 
 
@@ -61,7 +61,7 @@ def test_degrade_a_folder_mirrors_names_and_resumes(tmp_path, frame, capsys):
         _write(src / rel, frame)
     (src / "notes.txt").write_text("not an image")
     out = tmp_path / "wet"
-    args = ["degrade", str(src), str(out), "--effect", "droplets", "--k", "0.8", "--seed", "1", "--quiet"]
+    args = ["degrade", str(src), str(out), "--weather", "droplets:0.8", "--seed", "1", "--quiet"]
     assert main(args) == 0
     assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()) == \
         ["a.png", "sub/b.png", "sub/c.jpg"]
@@ -72,7 +72,7 @@ def test_degrade_a_folder_mirrors_names_and_resumes(tmp_path, frame, capsys):
     np.testing.assert_array_equal(_read(out / "a.png"), a)
     # per-image seeds: the same image under another name gets other droplets, same name same droplets
     assert not np.array_equal(_read(out / "sub" / "b.png"), a)
-    assert main(["degrade", str(src), str(src / "inside"), "--effect", "dim", "--k", "0.1"]) == 2
+    assert main(["degrade", str(src), str(src / "inside"), "--weather", "dim:0.1"]) == 2
     assert "inside it" in capsys.readouterr().err
 
 
@@ -95,8 +95,8 @@ def test_degrade_a_video_with_persistent_droplets(tmp_path, frame):
         vw.write(cv2.cvtColor(np.roll(frame, i, axis=1), cv2.COLOR_RGB2BGR))
     vw.release()
     out = tmp_path / "lap_wet.avi"
-    assert main(["degrade", str(src), str(out), "--effect", "droplets", "--k", "0.7",
-                 "--param", "persistent=true", "--quiet"]) == 0
+    assert main(["degrade", str(src), str(out), "--weather", "droplets:0.7:persistent=true",
+                 "--quiet"]) == 0
     cap = cv2.VideoCapture(str(out))
     n = 0
     while cap.read()[0]:
@@ -105,10 +105,11 @@ def test_degrade_a_video_with_persistent_droplets(tmp_path, frame):
 
 
 @pytest.mark.parametrize(("argv", "message"), [
-    (["--effect", "dim"], "give --effect NAME and --k K"),
-    (["--effect", "dim", "--k", "0.5", "--weather", "fog:0.2"], "not both"),
-    (["--effect", "dim", "--k", "1.5"], "outside"),
-    (["--effect", "dim", "--k", "0.5", "--param", "stops"], "must be NAME=VALUE"),
+    ([], "give the weather with --weather SPEC"),
+    (["--weather", "dim"], "must be NAME:K"),
+    (["--weather", "dim:1.5"], "outside"),
+    (["--weather", "dim:0.5:stops"], "must be PARAM=VALUE"),
+    (["--weather", "[{\"name\": \"dim\""], "not valid JSON"),
     (["--weather", "sleet:0.3"], "unknown weather effect"),
 ])
 def test_degrade_errors(tmp_path, frame, capsys, argv, message):
@@ -154,10 +155,10 @@ def test_degrade_a_folder_stops_at_an_unreadable_image_unless_told_to_skip(tmp_p
         _write(src / rel, frame)
     (src / "b.png").write_bytes((src / "b.png").read_bytes()[:60])  # cut short
     out = tmp_path / "out"
-    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--quiet"]) == 2
+    assert main(["degrade", str(src), str(out), "--weather", "dim:0.5", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "b.png" in err and "--skip-unreadable" in err
-    assert main(["degrade", str(src), str(out), "--effect", "dim", "--k", "0.5", "--quiet", "--skip-unreadable"]) == 0
+    assert main(["degrade", str(src), str(out), "--weather", "dim:0.5", "--quiet", "--skip-unreadable"]) == 0
     text = capsys.readouterr().out
     assert "skipped 1 unreadable image(s): b.png" in text
     assert sorted(p.name for p in out.iterdir()) == ["a.png", "c.png"]

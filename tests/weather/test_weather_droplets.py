@@ -131,13 +131,12 @@ def test_droplets_land_grow_merge_and_run_off(scene):
 
 def test_default_persistent_dynamics_keep_about_the_study_count(scene):
     img = scene[0][:94, :168].copy()
-    p = _persistent()
-    p.reset(1)
-    p(img)
-    n0 = len(p.drops)
-    for _ in range(3000):  # 100 s at 30 fps
-        p._advance(img.shape, p._episode_rng())
-    assert 0.3 * n0 <= len(p.drops) <= 3 * n0
+    run = _persistent().start(1)
+    run(img)
+    n0 = len(run.episode.drops.r)
+    for _ in range(3000):  # 100 s at 30 fps: sampling moves the lens on, nothing is rendered
+        run.sample(img.shape)
+    assert 0.3 * n0 <= len(run.episode.drops.r) <= 3 * n0
 
 
 def test_persistent_droplets_survive_a_ramp_of_k(scene):

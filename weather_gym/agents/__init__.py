@@ -11,6 +11,9 @@
   cone list like ``mapper_pure_pursuit``; needs stable-baselines3 (``pip install -e ".[rl]"``).
 
 Callers always pass the step's ``info``; perception-driven agents never read ground truth from it.
+Each factory declares the observation keys its agent reads (:func:`agent_observes`: ``cones``,
+``mask``, ``state`` for the cone-list drivers, none for ``gt_pure_pursuit``, unknown for ``sb3``),
+so a perception mode that does not give them is refused before the episode starts.
 :func:`run_episode` is the one loop that drives an agent through an episode (``EpisodeResult``).
 
 Example:
@@ -18,6 +21,8 @@ Example:
     >>> from weather_gym.agents import AGENTS, Agent
     >>> AGENTS.names()
     ['gt_pure_pursuit', 'mapper_pure_pursuit', 'ppo_cones', 'sb3']
+    >>> sorted(agent_observes("mapper_pure_pursuit")), agent_observes("gt_pure_pursuit")
+    (['cones', 'mask', 'state'], frozenset())
     >>> class Straight:                       # a user's own stack: two methods are enough
     ...     def reset(self, seed=None, info=None): pass
     ...     def act(self, obs, info=None): return np.array([0.0, 0.3], np.float32)
@@ -27,7 +32,8 @@ Example:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
@@ -43,7 +49,11 @@ if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import Track
 
-__all__ = ["Agent", "AGENTS", "EpisodeResult", "check_action", "make_agent", "run_episode"]
+__all__ = ["Agent", "AGENTS", "EpisodeResult", "agent_observes", "check_action", "make_agent", "observes",
+           "run_episode"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+CONE_LIST_KEYS = frozenset({"cones", "mask", "state"})
 
 
 @runtime_checkable
@@ -65,22 +75,41 @@ def make_agent(name: str, track: Track, camera: CameraConfig, **kwargs: Any) -> 
     return AGENTS.get(name)(track, camera, **kwargs)
 
 
+def observes(keys: Iterable[str] | None) -> Callable[[F], F]:
+    """Declare on an agent factory the observation keys its agent reads (None: not known in advance)."""
+
+    def mark(factory: F) -> F:
+        factory.observes = None if keys is None else frozenset(keys)  # type: ignore[attr-defined]
+        return factory
+
+    return mark
+
+
+def agent_observes(name: str) -> frozenset[str] | None:
+    """The observation keys registered agent ``name`` reads (None: not declared, e.g. a loaded policy)."""
+    return getattr(AGENTS.get(name), "observes", None)
+
+
 @AGENTS.register("gt_pure_pursuit")
+@observes(())
 def _gt_pure_pursuit(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     return GroundTruthPurePursuit(track, camera, **kwargs)
 
 
 @AGENTS.register("mapper_pure_pursuit")
+@observes(CONE_LIST_KEYS)
 def _mapper_pure_pursuit(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     return MapperPurePursuit(track, camera, **kwargs)
 
 
 @AGENTS.register("sb3")
+@observes(None)
 def _sb3(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     return SB3Agent(track, camera, **kwargs)
 
 
 @AGENTS.register("ppo_cones")
+@observes(CONE_LIST_KEYS)
 def _ppo_cones(track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
     return SB3Agent(track, camera, path=PPO_CONES_MODEL, algo="PPO", **kwargs)
 

@@ -8,6 +8,16 @@ Example:
     >>> from weather_gym.agents import AGENTS
     >>> agent = AGENTS.get("sb3")(None, None, path="runs/ppo_cones.zip", algo="PPO")  # doctest: +SKIP
     >>> agent.act(obs)                                                                # doctest: +SKIP
+
+A stand-in model (anything with ``predict``) shows the contract without loading one:
+    >>> import numpy as np
+    >>> class Straight:
+    ...     def predict(self, obs, state=None, deterministic=True):
+    ...         return np.array([0.0, 0.5]), None
+    >>> agent = AGENTS.get("sb3")(None, None, model=Straight())
+    >>> agent.reset(seed=0)
+    >>> agent.act({"state": np.zeros(5, np.float32)})
+    array([0. , 0.5], dtype=float32)
 """
 
 from __future__ import annotations

@@ -14,6 +14,8 @@ import statistics
 import time
 from collections.abc import Callable
 
+from weather_gym._markdown import markdown_table as table_lines
+
 
 def median_ms(fn: Callable[[], object], repeats: int = 50, warmup: int = 5) -> float:
     """Median wall time of ``fn()`` in milliseconds."""
@@ -42,9 +44,8 @@ def machine_line() -> str:
 
 
 def markdown_table(header: list[str], rows: list[list[object]]) -> str:
+    """``rows`` under ``header`` as a Markdown table (tabulate), floats to 3 decimals."""
     def fmt(v: object) -> str:
         return f"{v:.3f}" if isinstance(v, float) else str(v)
 
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(fmt(v) for v in r) + " |" for r in rows]
-    return "\n".join(lines)
+    return "\n".join(table_lines(header, [[fmt(v) for v in r] for r in rows]))

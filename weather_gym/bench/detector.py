@@ -13,6 +13,12 @@ Reports, each a median of many runs after a warm-up:
 
 Example:
     weather-gym bench detector --repeats 100 --out bench_detector.md
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['bench', 'detector', '--repeats', '100', '--out', 'bench_detector.md'])
+    >>> args.target, args.repeats, args.batch
+    ('detector', 100, 8)
 """
 
 from __future__ import annotations
@@ -27,9 +33,9 @@ from typing import Any
 import numpy as np
 
 from weather_gym._io import atomic_write, check_output
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.perception.onnx_detector import ConeDetector
 from weather_gym.perception.ranging import detections_to_cones
 from weather_gym.pipeline import make_env

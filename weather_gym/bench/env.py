@@ -10,6 +10,12 @@ other processes on the same cores lower every number.
 
 Example:
     weather-gym bench env --envs 1,2,4 --modes sync,async --resolutions 672x376,336x188 --out bench_env.md
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['bench', 'env', '--envs', '1,2,4', '--modes', 'sync,async'])
+    >>> args.target, args.envs, args.modes
+    ('env', '1,2,4', 'sync,async')
 """
 
 from __future__ import annotations
@@ -27,8 +33,8 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym._io import atomic_write, check_output
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.bench._timing import machine_line, markdown_table
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
 from weather_gym.weather import parse_weather
 

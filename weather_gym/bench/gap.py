@@ -1,7 +1,7 @@
 """``weather-gym bench gap``: the gap workflow's wall time on large frames, scaled once vs not scaled.
 
 Builds ``--frames`` clean frames at ``--size`` (the simulator with random looks: a stand-in for a
-camera's clear recording) and an "adverse" copy with a hidden effect (``--effect``), then times the
+camera's clear recording) and an "adverse" copy with hidden weather (``--weather SPEC``), then times the
 whole same-camera run ``weather-gym gap ADVERSE --reference CLEAR`` (loading, signals, the search,
 the detector on the held-out frames, the report; plots off) as a user runs it:
 
@@ -13,6 +13,12 @@ kept in ``--workdir`` (a temporary folder by default) and reused.
 
 Example:
     weather-gym bench gap --frames 200 --size 1024x768 --baseline --out bench_gap.md
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['bench', 'gap', '--frames', '200', '--size', '1024x768', '--baseline'])
+    >>> args.target, args.frames, args.size, args.baseline
+    ('gap', 200, '1024x768', True)
 """
 
 from __future__ import annotations
@@ -25,14 +31,15 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym._io import atomic_write, check_output
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.camera_config import CameraConfig
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.datasets import render_dataset
 from weather_gym.datasets.coco import ANNOTATIONS
 from weather_gym.errors import InputError
 from weather_gym.gap.synthetic import degrade_dataset
 from weather_gym.gap.workflow import GapConfig, run_gap
+from weather_gym.weather.option import add_weather_arg, weather_from_arg
 
 
 def register(targets) -> None:
@@ -40,7 +47,7 @@ def register(targets) -> None:
                            description=__doc__.split("\n\n")[1])
     p.add_argument("--frames", type=int, default=200, help="frames per set (default %(default)s)")
     p.add_argument("--size", default="1024x768", help="frame size WxH (default %(default)s)")
-    p.add_argument("--effect", default="blur:0.5", help="hidden effect of the adverse set (default %(default)s)")
+    add_weather_arg(p, default="blur:0.5", help="hidden weather of the adverse set (default %(default)s)")
     p.add_argument("--repeats", type=int, default=1, help="timed runs per row (default %(default)s)")
     p.add_argument("--baseline", action="store_true", help="also time the run without scaling (slow)")
     p.add_argument("--workdir", type=Path, default=None, help="keep the frames here (default: a temporary folder)")
@@ -49,16 +56,16 @@ def register(targets) -> None:
     p.set_defaults(func=_run)
 
 
-def make_sets(root: Path, frames: int, size: tuple[int, int], effect: str) -> tuple[Path, Path, float]:
-    """``(clear, adverse, seconds)``: rendered clear frames and a copy with ``effect`` (reused when present)."""
+def make_sets(root: Path, frames: int, size: tuple[int, int], weather: str) -> tuple[Path, Path, float]:
+    """``(clear, adverse, seconds)``: rendered clear frames and a copy with ``weather`` (a spec; reused when present)."""
 
     t0 = time.perf_counter()
-    clear, adverse = root / "clear", root / f"adverse_{effect.replace(':', '_').replace(',', '_')}"
+    clear, adverse = root / "clear", root / f"adverse_{weather.replace(':', '_').replace(',', '_')}"
     if not (clear / ANNOTATIONS).is_file():
         render_dataset(clear, tracks=["small_track"], frames=frames, seed=3, randomize=True, frames_per_episode=10,
                        camera=CameraConfig().scaled(*size), progress=True, overwrite=True)
     if not (adverse / ANNOTATIONS).is_file():
-        degrade_dataset(clear, adverse, effect, seed=4242, progress=True, overwrite=True)
+        degrade_dataset(clear, adverse, weather_from_arg(weather), seed=4242, progress=True, overwrite=True)
     return clear, adverse, time.perf_counter() - t0
 
 
@@ -86,7 +93,7 @@ def _run(args) -> int:
         tmp = tempfile.TemporaryDirectory(prefix="wg_bench_gap_")
         root = Path(tmp.name)
     try:
-        clear, adverse, t_make = make_sets(root, args.frames, (w, h), args.effect)
+        clear, adverse, t_make = make_sets(root, args.frames, (w, h), args.weather)
         print(f"sets ready in {t_make:.0f} s: {clear}, {adverse}")
         rows = []
         cases = [("scaled once (--compare-width 672)", 672)] + ([("baseline: not scaled", None)] if args.baseline else [])
@@ -103,7 +110,7 @@ def _run(args) -> int:
                          f"{report['gap_after']:.3f}", tm.get("simulate_s"), tm.get("diagnose_s"), tm.get("compare_s")])
         table = markdown_table(["run", "compared at", "wall s", "wall min", "named", "held-out gap", "load s",
                                 "search s", "compare s"], rows)
-        text = (f"gap workflow, same-camera mode, {args.frames} frames at {w}x{h} per set, hidden {args.effect}, "
+        text = (f"gap workflow, same-camera mode, {args.frames} frames at {w}x{h} per set, hidden {args.weather}, "
                 f"median of {args.repeats}\n{machine_line()}\n\n{table}\n")
         print(text)
         if args.out is not None:

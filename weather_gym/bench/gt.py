@@ -15,6 +15,12 @@ table: other processes on the same cores lower every number.
 
 Example:
     $ weather-gym bench gt --tracks small_track,hairpin --camera 672x376
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['bench', 'gt', '--tracks', 'small_track,hairpin', '--camera', '672x376'])
+    >>> args.target, args.tracks, args.steps
+    ('gt', 'small_track,hairpin', 900)
 """
 
 from __future__ import annotations

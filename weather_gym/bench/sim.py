@@ -2,6 +2,12 @@
 
 Example:
     $ weather-gym bench sim --repeats 30
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['bench', 'sim', '--repeats', '30'])
+    >>> args.target, args.repeats, args.track
+    ('sim', 30, 'small_track')
 """
 
 from __future__ import annotations

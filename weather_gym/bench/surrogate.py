@@ -14,6 +14,12 @@ per CPU-second of all its threads).
 
 Example:
     $ weather-gym bench surrogate --weather droplets@3 --num-envs 1,2,4
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['bench', 'surrogate', '--weather', 'droplets@3', '--num-envs', '1,2,4'])
+    >>> args.target, args.weather, args.num_envs
+    ('surrogate', 'droplets@3', '1,2,4')
 """
 
 from __future__ import annotations

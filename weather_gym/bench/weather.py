@@ -22,6 +22,12 @@ on content).
 
 Example:
     weather-gym bench weather --repeats 200 --out bench_weather.md
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['bench', 'weather', '--repeats', '200', '--out', 'bench_weather.md'])
+    >>> args.target, args.repeats, args.sizes
+    ('weather', 200, '608x352,672x376,1280x720')
 """
 
 from __future__ import annotations
@@ -36,8 +42,8 @@ import cv2
 import numpy as np
 
 from weather_gym._io import atomic_write, check_output
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.bench._timing import machine_line, markdown_table
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
 from weather_gym.weather import EFFECTS, make
 from weather_gym.weather.reference import study_dim, study_droplets

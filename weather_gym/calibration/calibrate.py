@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym._io import atomic_write, check_output
-from weather_gym._toml import toml_value
+from weather_gym._toml import toml_document
 from weather_gym.calibration.curve import Curve, invert
 from weather_gym.calibration.measured import MeasuredLevel, levels_by_condition
 from weather_gym.calibration.sweep import KEY_FIELDS, SweepEffect, make_sweep_cells, run_sweep_cell
@@ -241,9 +241,10 @@ def _copied_row(row: Mapping[str, Any], base: str | os.PathLike | None) -> dict[
     return fields
 
 
-def _toml_value(v: Any) -> str:
-    """Preset values: floats to 4 decimals, NaN and infinities as TOML's ``nan``/``inf``, None as ""."""
-    return toml_value(v, digits=4, none='""')
+def _effect_text(effect: Mapping[str, Any]) -> str:
+    """An effect table without its k in the ``--effect`` grammar of ``weather-gym sweep`` (for a comment)."""
+    params = ",".join(f"{k}={v}" for k, v in effect.items() if k != "name")
+    return f"{effect['name']}:{params}" if params else str(effect["name"])
 
 
 HEADER = """\
@@ -292,27 +293,23 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
     if used:
         lines.append("#")
         for cond, (curve, eff) in sorted(used.items()):
-            lines.append(f"# {cond}: curve {curve!r}, effect {_toml_value(eff)} with the k below.")
+            lines.append(f"# {cond}: curve {curve!r}, effect {_effect_text(eff)} with the k below.")
     lines.append("")
-    for k, v in meta.items():
-        if k in ("calibrated", "calibrated_conditions"):
-            continue
-        lines.append(f"{k} = {_toml_value(v)}")
+    rows = []
     for cond in CONDITIONS:
         if not any((cond, s) in done for s in SEVERITIES) and cond not in base_tables:
             continue
         for sev in SEVERITIES:
-            lines += ["", "[[presets]]"]
             if (cond, sev) in done:
-                fields = done[cond, sev].toml_fields()
+                rows.append(done[cond, sev].toml_fields())
             elif cond not in base_tables:
                 raise InputError(f"condition {cond!r}: severity {sev} was not calibrated and the base presets "
                                  f"have no row for it")
             else:
-                fields = _copied_row(base_tables[cond][sev], base)
-            for k, v in fields.items():
-                lines.append(f"{k} = {_toml_value(v)}")
-    text = "\n".join(lines) + "\n"
+                rows.append(_copied_row(base_tables[cond][sev], base))
+    document = {k: v for k, v in meta.items() if k not in ("calibrated", "calibrated_conditions")}
+    # floats to 4 decimals, NaN and infinities as TOML's nan/inf, None as ""
+    text = "\n".join(lines) + "\n" + toml_document({**document, "presets": rows}, digits=4, none="")
     # the loader's own validation: a file it would refuse is never written
     return atomic_write(path, text, check=load_presets, overwrite=overwrite)
 

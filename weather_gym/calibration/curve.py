@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.calibration import sweep as _sweep  # cyclic pair: attributes used at call time
+from weather_gym.calibration.sweep_effect import SweepEffect
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.weather import EFFECTS
 
@@ -106,7 +106,7 @@ class Curve:
     def table(self, k: float) -> dict[str, Any]:
         """The effect table (``{name, k, ...params}``) of this curve at ``k``."""
 
-        return _sweep.SweepEffect(self.name or self.label, dict(self.params)).table(k)
+        return SweepEffect(self.name or self.label, dict(self.params)).table(k)
 
 
 @dataclass
@@ -228,6 +228,59 @@ def _float(path: Path, lineno: int, col: str, text: str | None) -> float:
         raise InputError(f"{path}, row {lineno}: column {col!r} must be a number, got {text!r}") from None
 
 
+def _row_values(path: Path, lineno: int, r: dict, metric: str, extra_cols: list[str]) -> tuple[float, int, dict]:
+    """``(k, seed, {"v": metric, extra columns...})`` of one curve-file row, checked."""
+    k = _float(path, lineno, "k", r.get("k"))
+    if not 0.0 <= k <= 1.0:
+        raise InputError(f"{path}, row {lineno}: k = {k:g} is outside [0, 1]")
+    try:
+        seed = int(r.get("seed") or "")
+    except ValueError:
+        raise InputError(f"{path}, row {lineno}: column 'seed' must be an integer, got {r.get('seed')!r}") from None
+    v = _float(path, lineno, metric, r.get(metric))
+    if math.isfinite(v) and not 0.0 <= v <= 1.0:
+        raise InputError(f"{path}, row {lineno}: {metric} = {v:g} is outside [0, 1]")
+    vals = {"v": v}
+    for c in extra_cols:
+        try:
+            vals[c] = float(r.get(c) or "nan")
+        except ValueError:
+            vals[c] = math.nan
+    return k, seed, vals
+
+
+def _curve(path: Path, label: str, cells: dict[tuple[float, int], dict[str, Any]], meta: dict[str, set],
+           metric: str, extra_cols: list[str]) -> Curve:
+    """One label's rows as a :class:`Curve` (refused when they mix datasets, models or specs)."""
+    for key in ("dataset_id", "model_id", "spec"):
+        if len(meta[key]) > 1:
+            raise InputError(
+                f"curve file {path}: effect {label!r} mixes {len(meta[key])} values of {key} "
+                f"({', '.join(sorted(meta[key]))}); a resumed sweep with a new model or dataset keeps the old rows - "
+                f"choose one (--{key.replace('_', '-')}) or sweep into a fresh folder")
+    ks = np.array(sorted({k for k, _ in cells}))
+    seeds = tuple(sorted({s for _, s in cells}))
+    values = np.full((len(ks), len(seeds)), np.nan)
+    extra = {c: np.full((len(ks), len(seeds)), np.nan) for c in extra_cols}
+    for (k, s), vals in cells.items():
+        i, j = int(np.searchsorted(ks, k)), seeds.index(s)
+        values[i, j] = vals["v"]
+        for c in extra_cols:
+            extra[c][i, j] = vals[c]
+    keep = np.isfinite(values).any(axis=1)
+    spec = next(iter(meta["spec"]), "") or "{}"
+    try:
+        params = json.loads(spec)
+    except json.JSONDecodeError:
+        raise InputError(f"curve file {path}: effect {label!r} has a 'spec' that is not JSON: {spec!r}") from None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns (a class absent from the set)
+        extra_mean = {c: np.nanmean(a[keep], axis=1) for c, a in extra.items()}
+    return Curve(label=label, ks=ks[keep], seeds=seeds, values=values[keep], metric=metric,
+                 name=effect_name(label), params=params, dataset_id=next(iter(meta["dataset_id"]), ""),
+                 model_id=next(iter(meta["model_id"]), ""), source=str(path), extra=extra_mean)
+
+
 def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str | None = None,
                 dataset_id: str | None = None, model_id: str | None = None) -> dict[str, Curve]:
     """Read a curve file (``weather-gym sweep``'s ``curves.csv``) into one :class:`Curve` per effect label.
@@ -246,6 +299,8 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
                          f"{', '.join((*REQUIRED_COLUMNS, metric))} (as written by `weather-gym sweep`); "
                          f"it has: {', '.join(header) or '(no header)'}")
     extra_cols = [c for c in header if c.startswith(("recall", "ap50_")) or c == "map"]
+    wanted = {key: want for key, want in (("dataset_id", dataset_id), ("model_id", model_id))
+              if want is not None and key in header}
     data: dict[str, dict[tuple[float, int], dict[str, Any]]] = {}
     info: dict[str, dict[str, set]] = {}
     for lineno, r in enumerate(rows, start=2):
@@ -254,28 +309,9 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
         label = (r.get("effect") or "").strip()
         if not label:
             raise InputError(f"{path}, row {lineno}: empty 'effect'")
-        if effect is not None and label != effect:
+        if (effect is not None and label != effect) or any(r.get(key) != want for key, want in wanted.items()):
             continue
-        if dataset_id is not None and "dataset_id" in header and r.get("dataset_id") != dataset_id:
-            continue
-        if model_id is not None and "model_id" in header and r.get("model_id") != model_id:
-            continue
-        k = _float(path, lineno, "k", r.get("k"))
-        if not 0.0 <= k <= 1.0:
-            raise InputError(f"{path}, row {lineno}: k = {k:g} is outside [0, 1]")
-        try:
-            seed = int(r.get("seed") or "")
-        except ValueError:
-            raise InputError(f"{path}, row {lineno}: column 'seed' must be an integer, got {r.get('seed')!r}") from None
-        v = _float(path, lineno, metric, r.get(metric))
-        if math.isfinite(v) and not 0.0 <= v <= 1.0:
-            raise InputError(f"{path}, row {lineno}: {metric} = {v:g} is outside [0, 1]")
-        vals = {"v": v}
-        for c in extra_cols:
-            try:
-                vals[c] = float(r.get(c) or "nan")
-            except ValueError:
-                vals[c] = math.nan
+        k, seed, vals = _row_values(path, lineno, r, metric, extra_cols)
         data.setdefault(label, {})[(k, seed)] = vals
         meta = info.setdefault(label, {"spec": set(), "dataset_id": set(), "model_id": set()})
         for key in meta:
@@ -284,34 +320,4 @@ def load_curves(path: str | os.PathLike, *, metric: str = "map50", effect: str |
     if not data:
         what = f" for effect {effect!r}" if effect else ""
         raise InputError(f"curve file {path} has no usable (status ok) rows{what}")
-    curves = {}
-    for label, cells in data.items():
-        meta = info[label]
-        for key in ("dataset_id", "model_id", "spec"):
-            if len(meta[key]) > 1:
-                raise InputError(
-                    f"curve file {path}: effect {label!r} mixes {len(meta[key])} values of {key} "
-                    f"({', '.join(sorted(meta[key]))}); a resumed sweep with a new model or dataset keeps the old rows - "
-                    f"choose one (--{key.replace('_', '-')}) or sweep into a fresh folder")
-        ks = np.array(sorted({k for k, _ in cells}))
-        seeds = tuple(sorted({s for _, s in cells}))
-        values = np.full((len(ks), len(seeds)), np.nan)
-        extra = {c: np.full((len(ks), len(seeds)), np.nan) for c in extra_cols}
-        for (k, s), vals in cells.items():
-            i, j = int(np.searchsorted(ks, k)), seeds.index(s)
-            values[i, j] = vals["v"]
-            for c in extra_cols:
-                extra[c][i, j] = vals[c]
-        keep = np.isfinite(values).any(axis=1)
-        spec = next(iter(meta["spec"]), "") or "{}"
-        try:
-            params = json.loads(spec)
-        except json.JSONDecodeError:
-            raise InputError(f"curve file {path}: effect {label!r} has a 'spec' that is not JSON: {spec!r}") from None
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns (a class absent from the set)
-            extra_mean = {c: np.nanmean(a[keep], axis=1) for c, a in extra.items()}
-        curves[label] = Curve(label=label, ks=ks[keep], seeds=seeds, values=values[keep], metric=metric,
-                              name=effect_name(label), params=params, dataset_id=next(iter(meta["dataset_id"]), ""),
-                              model_id=next(iter(meta["model_id"]), ""), source=str(path), extra=extra_mean)
-    return curves
+    return {label: _curve(path, label, cells, info[label], metric, extra_cols) for label, cells in data.items()}

@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 from weather_gym.datasets import load_coco
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.perception import evaluate
+from weather_gym.perception import score_detections
 from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.scoring import small_rule
 from weather_gym.weather.presets import ALIASES, CONDITIONS, SEVERITIES, canonical_condition
@@ -229,8 +229,8 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
     levels = []
     for (cond, sev), pairs in sorted(groups.items()):
         rule = rules[(cond, sev)]
-        r = evaluate([g for g, _ in pairs], [d for _, d in pairs], score_threshold=det.score_threshold,
-                     min_box_height=rule.min_height_px, too_small=rule.describe())
+        r = score_detections([g for g, _ in pairs], [d for _, d in pairs], score_threshold=det.score_threshold,
+                             min_box_height=rule.min_height_px, too_small=rule.describe())
         if not math.isfinite(r.map50):
             raise InputError(f"measured set {', '.join(sources[cond, sev])} ({cond} severity {sev}) has no scorable cones")
         levels.append(MeasuredLevel(cond, sev, domain, float(r.map50), math.nan,

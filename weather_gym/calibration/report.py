@@ -29,11 +29,13 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from weather_gym._io import atomic_write, save_figure
+from weather_gym._figures import save_figure
+from weather_gym._io import atomic_write
+from weather_gym._markdown import markdown_table
 from weather_gym.calibration.shapes import STUDY_SHAPE, ShapeFit, fit_shapes
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 
-if TYPE_CHECKING:  # pragma: no cover - annotations only (curve imports sweep, which imports this module)
+if TYPE_CHECKING:  # pragma: no cover - annotations only
     from weather_gym.calibration.curve import Curve
 
 __all__ = ["agreement", "plot_calibration", "plot_curves", "plot_recall_by_range", "plot_study_comparison",
@@ -258,6 +260,27 @@ def _f(v: float, nd: int = 3) -> str:
     return "n/a" if v is None or not math.isfinite(v) else f"{v:.{nd}f}"
 
 
+def _curve_value_rows(curves: Mapping[str, Curve]) -> list[list[str]]:
+    """Rows of the report's "Curve values" table: one per k swept by any curve, with each curve's
+    ``mean ± sd (mean / ideal)`` there (blank where that curve did not sweep k)."""
+    rows = []
+    for k in sorted({float(k) for c in curves.values() for k in c.ks}):
+        cells = []
+        for c in curves.values():
+            i = np.flatnonzero(np.isclose(c.ks, k))
+            if i.size == 0:
+                cells.append("")
+                continue
+            m, s = c.mean[i[0]], c.sd[i[0]]
+            try:
+                rel = f" ({m / c.ideal:.3f})"
+            except ValueError:
+                rel = ""
+            cells.append(f"{m:.3f} ± {s:.3f}{rel}")
+        rows.append([f"{k:g}", *cells])
+    return rows
+
+
 def write_report(calibs: Sequence[Any], curves: Mapping[str, Curve], out_dir: str | os.PathLike, *,
                  command: str | None = None, presets_path: str | os.PathLike | None = None,
                  study: Mapping[str, tuple[float, float]] | None = None, levels: Sequence[Any] = (),
@@ -276,71 +299,60 @@ def write_report(calibs: Sequence[Any], curves: Mapping[str, Curve], out_dir: st
         md += [f"Presets written to `{presets_path}`.", ""]
     md += [f"Matching: **{match}** ({'mAP / mAP in ideal conditions of the same domain' if match == 'relative' else 'mAP itself'}); "
            "metric: mAP@0.5 (pycocotools). k interval: where mean -/+ 1 sd over seeds meets the target.", ""]
-    md += ["## Curves", "", "| curve | clean mAP@0.5 (k = 0) | seeds | k values | model | eval set |",
-           "|---|---|---|---|---|---|"]
+    rows = []
     for lb, c in curves.items():
         try:
             ideal = _f(c.ideal)
         except ValueError:
             ideal = "n/a"
-        md.append(f"| {lb} | {ideal} | {len(c.seeds)} | {len(c.ks)} ({c.ks[0]:g}..{c.ks[-1]:g}) | `{c.model_id}` | `{c.dataset_id}` |")
-    md += ["", "## Presets", "", "![calibration](calibration.png)", "",
-           "| condition | S | description | measured mAP | target | k | k interval | predicted | achieved (mean ± sd) | "
-           f"achieved − target | k if {'absolute' if match == 'relative' else 'relative'} | reachable | note |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        rows.append([lb, ideal, len(c.seeds), f"{len(c.ks)} ({c.ks[0]:g}..{c.ks[-1]:g})", f"`{c.model_id}`",
+                     f"`{c.dataset_id}`"])
+    md += ["## Curves", "", *markdown_table(
+        ["curve", "clean mAP@0.5 (k = 0)", "seeds", "k values", "model", "eval set"], rows)]
+    rows = []
     for c in calibs:
         if c.severity == 0:
             continue
         ach = c.achieved
         diff = ach - c.target if math.isfinite(ach) else math.nan
-        md.append(f"| {c.condition} | {c.severity} | {c.description} | {_f(c.measured_map)} | {_f(c.target)} | "
-                  f"{c.k:.3f} | [{c.k_interval[0]:.3f}, {c.k_interval[1]:.3f}] | {_f(c.predicted)} | "
-                  f"{_f(ach)} ± {_f(c.achieved_sd)} | {_f(diff, 3)} | {_f(c.k_other)} | "
-                  f"{'yes' if c.reachable else '**no**'} | {c.note} |")
+        rows.append([c.condition, c.severity, c.description, _f(c.measured_map), _f(c.target), f"{c.k:.3f}",
+                     f"[{c.k_interval[0]:.3f}, {c.k_interval[1]:.3f}]", _f(c.predicted),
+                     f"{_f(ach)} ± {_f(c.achieved_sd)}", _f(diff, 3), _f(c.k_other),
+                     "yes" if c.reachable else "**no**", c.note])
+    md += ["", "## Presets", "", "![calibration](calibration.png)", "", *markdown_table(
+        ["condition", "S", "description", "measured mAP", "target", "k", "k interval", "predicted",
+         "achieved (mean ± sd)", "achieved − target", f"k if {'absolute' if match == 'relative' else 'relative'}",
+         "reachable", "note"], rows)]
     sources = sorted({c.achieved_source for c in calibs if c.severity > 0 and c.achieved_source})
     if sources:
         md += ["", "Achieved: " + "; ".join(sources) + "."]
     md += ["", "## Shapes", "",
            "Two-parameter least-squares fits to the mean curve (relative to k = 0) over the swept k; the study "
-           "reported droplets ≈ linear and dimming ≈ exponential. Logistic (3 parameters) for diagnosis.", "",
-           "| curve | R² linear | R² exponential | R² logistic | study's shape | agrees |", "|---|---|---|---|---|---|"]
+           "reported droplets ≈ linear and dimming ≈ exponential. Logistic (3 parameters) for diagnosis.", ""]
     all_fits = {lb: fit_shapes(c.ks, c.scaled(relative_fits)[0]) for lb, c in curves.items()}
+    shapes = []
     for lb, c in curves.items():
-        fits = all_fits[lb]
-        base = c.name or lb
-        md.append(f"| {lb} | {fits['linear'].r2:.3f} | {fits['exponential'].r2:.3f} | {fits['logistic'].r2:.3f} | "
-                  f"{STUDY_SHAPE.get(base, '-')} | {agreement(base, fits)} |")
+        fits, base = all_fits[lb], c.name or lb
+        shapes.append([lb, f"{fits['linear'].r2:.3f}", f"{fits['exponential'].r2:.3f}", f"{fits['logistic'].r2:.3f}",
+                       STUDY_SHAPE.get(base, "-"), agreement(base, fits)])
+    md += markdown_table(["curve", "R² linear", "R² exponential", "R² logistic", "study's shape", "agrees"], shapes)
     md += ["", "Fitted parameters (relative units): " + "; ".join(
         f"{lb}: linear {f['linear'].params['a']:.3f} {f['linear'].params['b']:+.3f} k, "
         f"exponential {f['exponential'].params['a']:.3f} exp(-{f['exponential'].params['b']:.3f} k), "
         f"logistic k50 = {f['logistic'].params['k50']:.3f}"
         for lb, f in all_fits.items()) + "."]
-    md += ["", "## Curve values", "", "| k | " + " | ".join(f"{lb} mAP (rel.)" for lb in curves) + " |",
-           "|---|" + "---|" * len(curves)]
-    all_k = sorted({float(k) for c in curves.values() for k in c.ks})
-    for k in all_k:
-        cells = []
-        for c in curves.values():
-            i = np.flatnonzero(np.isclose(c.ks, k))
-            if i.size == 0:
-                cells.append("")
-                continue
-            m, s = c.mean[i[0]], c.sd[i[0]]
-            try:
-                rel = f" ({m / c.ideal:.3f})"
-            except ValueError:
-                rel = ""
-            cells.append(f"{m:.3f} ± {s:.3f}{rel}")
-        md.append(f"| {k:g} | " + " | ".join(cells) + " |")
+    md += ["", "## Curve values", ""]
+    md += markdown_table(["k", *(f"{lb} mAP (rel.)" for lb in curves)], _curve_value_rows(curves))
     if study is not None:
         md += ["", "## Beside the study", "", "![study comparison](study_comparison.png)", ""]
         sim_clean = study.get("none", (0, math.nan))[1]
-        md += ["| effect | study k (Fig. 7) | study mAP (rel.) | ours at that k: mAP (rel.) |", "|---|---|---|---|"]
+        beside = []
         for lb, c in curves.items():
             base = c.name or lb
             if base in study:
                 k, m = study[base]
-                md.append(f"| {lb} | {k:g} | {m:.3f} ({m / sim_clean:.3f}) | {c.at(k):.3f} ({c.at(k, True):.3f}) |")
+                beside.append([lb, f"{k:g}", f"{m:.3f} ({m / sim_clean:.3f})", f"{c.at(k):.3f} ({c.at(k, True):.3f})"])
+        md += markdown_table(["effect", "study k (Fig. 7)", "study mAP (rel.)", "ours at that k: mAP (rel.)"], beside)
     return atomic_write(out_dir / "calibration_report.md", "\n".join(md) + "\n", overwrite=overwrite)
 
 

@@ -33,20 +33,21 @@ import math
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from dataclasses import replace as _replace
 from pathlib import Path
 from typing import Any
 
 from weather_gym._io import atomic_write_json, derived_outputs_replaceable, file_id
-from weather_gym.calibration import curve as _curve  # cyclic pair: attributes used at call time
+from weather_gym.calibration.curve import load_curves
 from weather_gym.calibration.report import plot_curves
+from weather_gym.calibration.sweep_effect import SweepEffect, parse_effect
 from weather_gym.datasets.coco import ANNOTATIONS, load_coco
 from weather_gym.errors import InputError
 from weather_gym.evaluation.runner import check_results_path, run_cells
 from weather_gym.perception import score_dataset
 from weather_gym.perception.detector_spec import detector_id, load_detector, parse_detector_spec
-from weather_gym.weather import EFFECTS, make
+from weather_gym.weather import make
 
 __all__ = [
     "CURVE_FILE",
@@ -69,86 +70,6 @@ KEY_FIELDS = ("effect", "spec", "k", "seed", "dataset_id", "model_id")
 
 
 # ------------------------------------------------------------------------------------------ parsing
-def _value(text: str) -> Any:
-    low = text.strip().lower()
-    if low in ("true", "false"):
-        return low == "true"
-    for conv in (int, float):
-        try:
-            return conv(text)
-        except ValueError:
-            pass
-    return text.strip()
-
-
-@dataclass(frozen=True)
-class SweepEffect:
-    """An effect to sweep: its registry ``name`` and fixed non-``k`` ``params`` (canonical: defaults dropped).
-
-    ``label`` names its curve: the name, then the values of the non-default parameters
-    (``dim`` + ``mode="physical"`` -> ``dim_physical``).
-    """
-
-    name: str
-    params: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def label(self) -> str:
-        vals = [str(v) for _, v in sorted(self.params.items())]
-        return "_".join([self.name, *vals]).replace(" ", "")
-
-    @property
-    def spec(self) -> str:
-        """The non-default parameters as canonical JSON (a key field of the curve file)."""
-        return json.dumps(self.params, sort_keys=True)
-
-    def table(self, k: float) -> dict[str, Any]:
-        """The effect table at ``k`` (as in presets and model files), with choice parameters spelled out.
-
-        Example:
-            >>> parse_effect("dim").table(0.3)
-            {'name': 'dim', 'k': 0.3, 'mode': 'faithful'}
-        """
-
-        cls = EFFECTS.get(self.name)
-        effect = cls(k=float(k), **self.params)
-        explicit = {p: getattr(effect, p) for p in getattr(cls, "CHOICES", {})}
-        return {"name": self.name, "k": float(k), **explicit, **self.params}
-
-    def make(self, k: float):
-        return make(self.name, k=float(k), **self.params)
-
-
-def parse_effect(text: str) -> SweepEffect:
-    """``NAME`` or ``NAME:PARAM=VALUE[,PARAM=VALUE...]`` -> :class:`SweepEffect` (validated).
-
-    Unknown effects raise ``ValueError`` listing the valid names; unknown or invalid parameters name
-    the parameter. ``k`` may not be fixed here (it is what the sweep varies).
-    """
-
-    if not isinstance(text, str) or not text.strip():
-        raise InputError(f"--effect must be NAME or NAME:PARAM=VALUE,..., got {text!r}")
-    name, _, rest = text.strip().partition(":")
-    name = name.strip()
-    EFFECTS.get(name)  # ValueError listing the valid names
-    params: dict[str, Any] = {}
-    for item in filter(None, (p.strip() for p in rest.split(","))):
-        key, eq, val = item.partition("=")
-        if not eq or not key.strip():
-            raise InputError(f"effect {text!r}: parameter {item!r} must be PARAM=VALUE (e.g. dim:mode=physical)")
-        key = key.strip()
-        if key == "k":
-            raise InputError(f"effect {text!r}: k is what the sweep varies; give it with --k, not in the effect")
-        params[key] = _value(val)
-    default = make(name, k=0.0)
-    try:
-        effect = make(name, k=0.0, **params)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"effect {text!r}: {exc}") from None
-    canonical = {p: getattr(effect, p) for p in params if getattr(effect, p) != getattr(default, p)}
-    return SweepEffect(name, canonical)
-
-
 def parse_k_range(text: str) -> tuple[float, ...]:
     """``START:STOP:STEP`` (both ends included), ``K1,K2,...`` or one ``K``; every k in [0, 1].
 
@@ -300,7 +221,7 @@ def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequen
     wall = time.perf_counter() - t0
     _write_meta(out, cells, effects, ks, seeds, dataset, model, wall, command, replace)
     if plot:
-        curves = _curve.load_curves(out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
+        curves = load_curves(out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
         plot_curves(curves, out / "curves.png", recall_out=out / "curves_recall.png", overwrite=replace)
     return rows
 

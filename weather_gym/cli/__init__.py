@@ -2,7 +2,8 @@
 
 Every module in this package whose name does not start with ``_`` is one sub-command: it defines
 ``register(subparsers)`` which adds its parser and sets ``func`` (called with the parsed args,
-returns an exit code). Heavy imports happen inside ``func`` so ``--help`` stays fast.
+returns an exit code). Imports sit at module level; only heavy optional packages are imported
+inside functions (the rule ``tests/test_architecture.py`` checks).
 
 Errors: a :class:`weather_gym.errors.WeatherGymError` (bad input, an output that exists, a path
 outside its folder, ...) is printed as ``error: MESSAGE`` with exit status 2; anything else is a
@@ -12,6 +13,11 @@ with 130, SIGTERM with 143, after cleaning up (no temporary file or worker proce
 Example:
     >>> from weather_gym.cli import main
     >>> main(["--version"])  # doctest: +SKIP
+
+A command line parsed into the sub-command's function and options (nothing runs):
+    >>> args = build_parser().parse_args(["lap", "--track", "peanut", "--laps", "2"])
+    >>> args.command, args.track, args.laps, args.func.__module__
+    ('lap', 'peanut', 2, 'weather_gym.cli.lap')
 """
 
 from __future__ import annotations

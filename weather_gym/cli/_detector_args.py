@@ -5,6 +5,14 @@
 ``--detector-resize``, ``--detector-input``, ``--detector-threshold``; see
 ``weather_gym.perception.detector_spec``. Commands that had ``--model PATH`` keep it as another
 spelling of ``--detector conenet:PATH``.
+
+Example:
+    >>> import argparse
+    >>> parser = argparse.ArgumentParser()
+    >>> add_detector_args(parser)
+    >>> spec = detector_spec_from_args(parser.parse_args(["--detector", "conenet", "--detector-threshold", "0.4"]))
+    >>> spec.kind, spec.path, spec.score_threshold
+    ('conenet', None, 0.4)
 """
 
 from __future__ import annotations

@@ -1,6 +1,11 @@
 """``weather-gym bench TARGET``: speed benchmarks (median of many runs, baseline side by side).
 
 Each module in ``weather_gym.bench`` is one target with ``register(subparsers)``.
+
+Example:
+    >>> from weather_gym.cli import build_parser
+    >>> build_parser().parse_args(["bench", "sim", "--repeats", "30"]).target
+    'sim'
 """
 
 from __future__ import annotations

@@ -11,6 +11,12 @@ Reads the mean curve of each condition's effect (droplets -> droplets, low_light
 ``--use low_light=dim_physical``), reads off the k where it meets each measured severity (relative
 drop by default), writes a presets TOML that ``weather_gym.weather.load_presets`` accepts, and a
 report (Markdown + plots). With ``--dataset`` the chosen k are re-measured there.
+
+A command line parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['calibrate', '--curve', 'runs/sweep/curves.csv', '--measured', 'ideal=data/real_clear', '--out', 'my_presets.toml'])
+    >>> args.measured, args.match, args.metric
+    (['ideal=data/real_clear'], 'relative', 'map50')
 """
 
 from __future__ import annotations
@@ -22,12 +28,12 @@ import sys
 from pathlib import Path
 
 from weather_gym._io import check_output, declare_inputs, derived_outputs_replaceable
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.calibration.calibrate import calibrate, fill_from_curves, parse_use, remeasure, write_presets
 from weather_gym.calibration.curve import load_curves
 from weather_gym.calibration.measured import load_measured
 from weather_gym.calibration.report import REPORT_FILES, study_points, write_report
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.weather.presets import load_presets

@@ -9,6 +9,12 @@ Examples:
     weather-gym dataset mask data/real --set ego_mask.png                             # store with the dataset
     weather-gym dataset info data/real
     weather-gym dataset merge data/peanut data/hairpin data/realistic --out data/pool   # one set of many tracks
+
+The last command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['dataset', 'merge', 'data/peanut', 'data/hairpin', 'data/realistic', '--out', 'data/pool'])
+    >>> args.dataset_command, [str(p) for p in args.src], str(args.out)
+    ('merge', ['data/peanut', 'data/hairpin', 'data/realistic'], 'data/pool')
 """
 
 from __future__ import annotations
@@ -20,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from weather_gym._io import check_output, declare_inputs, write_image
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cli._camera_isp_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco

@@ -3,9 +3,9 @@
 The study's offline mode: existing recordings or datasets get the same weather the simulator gets.
 
 Examples:
-    weather-gym degrade frame.png frame_wet.png --effect droplets --k 0.55
+    weather-gym degrade frame.png frame_wet.png --weather droplets:0.55
     weather-gym degrade images/ images_dusk/ --weather low_light@3 --seed 1
-    weather-gym degrade lap.mp4 lap_wet.mp4 --effect droplets --k 0.55 --param persistent=true
+    weather-gym degrade lap.mp4 lap_wet.mp4 --weather droplets:0.55:persistent=true
     weather-gym degrade dataset/images out/images --weather fog:0.5 --depth dataset/depth
 
 * INPUT: an image (.png .jpg .jpeg .bmp .tif .tiff .webp), a folder (its images, recursively) or a
@@ -19,11 +19,16 @@ Examples:
   result does not depend on the order or on resuming); a video is one episode from ``--seed``.
 * ``--depth``: metric depth as uint16 PNG in millimetres (the dataset layout), a file for an
   image or a folder mirroring the input folder (same relative names, .png).
+
+A command line parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['degrade', 'frames/', 'out/', '--weather', 'droplets:0.55,dim:0.3', '--seed', '1'])
+    >>> str(args.input), str(args.output), args.weather, args.seed
+    ('frames', 'out', 'droplets:0.55,dim:0.3', 1)
 """
 
 from __future__ import annotations
 
-import json
 import zlib
 from pathlib import Path
 
@@ -32,13 +37,13 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym._io import atomic_path, check_output, declare_inputs, write_image
-from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.datasets.coco import read_image
 from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
 from weather_gym.limits import check_image_size
 from weather_gym.viz.video import VideoWriter, check_free_space
-from weather_gym.weather import make, parse_weather
+from weather_gym.weather.option import add_weather_arg, weather_from_arg
 
 IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_EXTS = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
@@ -47,16 +52,10 @@ _FOURCC = {".avi": "MJPG", ".mkv": "MJPG"}
 
 def register(sub) -> None:
     p = sub.add_parser("degrade", help="apply weather to an image, a folder of images or a video",
-                       description=__doc__.split("\n\n")[1],
-                       epilog="Weather: either --effect NAME --k K [--param NAME=VALUE ...], or --weather SPEC "
-                              "('droplets:0.55,dim:0.3', 'low_light@2', a JSON list of {name, k, ...}).")
+                       description=__doc__.split("\n\n")[1])
     p.add_argument("input", type=Path, help="image file, folder of images, or video file")
     p.add_argument("output", type=Path, help="output file or folder (names mirror the input)")
-    p.add_argument("--effect", help="effect name (droplets, dim, fog, ...)")
-    p.add_argument("--k", type=float, help="severity in [0, 1]")
-    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="extra effect parameter, repeatable (e.g. --param persistent=true)")
-    p.add_argument("--weather", help="a weather spec instead of --effect/--k")
+    add_weather_arg(p, help="the weather to apply (required)")
     p.add_argument("--seed", type=seed_arg, default=0, help="random seed (default %(default)s)")
     p.add_argument("--depth", type=Path, help="depth PNG (uint16 mm) or folder of them mirroring INPUT")
     add_overwrite_arg(p)
@@ -64,37 +63,6 @@ def register(sub) -> None:
                    help="in a folder, skip images that cannot be read (listed at the end) instead of stopping")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
-
-
-def _param_value(text: str):
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
-
-
-def build_weather(effect: str | None, k: float | None, params: list[str], weather: str | None):
-    """The effect the options describe (``--weather`` or ``--effect/--k/--param``)."""
-
-    if weather is not None:
-        if effect is not None or k is not None or params:
-            raise InputError("give either --weather or --effect/--k/--param, not both")
-        text = weather.strip()
-        if text[:1] in ("[", "{"):
-            try:
-                return parse_weather(json.loads(text))
-            except json.JSONDecodeError as exc:
-                raise InputError(f"--weather {weather!r}: not valid JSON ({exc.msg})") from None
-        return parse_weather(text)
-    if effect is None or k is None:
-        raise InputError("give --effect NAME and --k K (or --weather SPEC)")
-    kwargs = {}
-    for item in params:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise InputError(f"--param {item!r} must be NAME=VALUE")
-        kwargs[name.strip()] = _param_value(value.strip())
-    return make(effect, k=k, **kwargs)
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -128,8 +96,7 @@ def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel
     img = _read_rgb(src)
     check_image_size(img.shape, what=str(src))
     d = _read_depth(depth, img.shape) if depth is not None else None
-    weather.reset(_image_seed(seed, rel))
-    write_image(dst, weather(img, depth=d), overwrite=overwrite)
+    write_image(dst, weather.start(_image_seed(seed, rel))(img, depth=d), overwrite=overwrite)
 
 
 def _folder(weather, args) -> int:
@@ -222,7 +189,7 @@ def _video(weather, src: Path, dst: Path, args) -> int:
             writer = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
         else:
             writer = _Cv2Video(dst, fps, (w, h), args.overwrite)
-        weather.reset(args.seed)
+        run = weather.start(args.seed)  # the video is one episode
         n = 0
         try:
             with tqdm(total=total, desc="degrade", unit="frame", disable=args.quiet) as bar:
@@ -230,7 +197,7 @@ def _video(weather, src: Path, dst: Path, args) -> int:
                     ok, bgr = cap.read()
                     if not ok:
                         break
-                    writer.write(weather(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)))
+                    writer.write(run(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)))
                     n += 1
                     bar.update(1)
         except BaseException:
@@ -247,7 +214,10 @@ def _video(weather, src: Path, dst: Path, args) -> int:
 
 
 def _run(args) -> int:
-    weather = build_weather(args.effect, args.k, args.param, args.weather)
+    if args.weather is None:
+        raise InputError("give the weather with --weather SPEC (e.g. droplets:0.55, low_light@2 or "
+                         "droplets:0.55,dim:0.3)")
+    weather = weather_from_arg(args.weather)
     src = args.input
     declare_inputs(src, args.depth)
     if not src.exists():

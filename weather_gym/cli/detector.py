@@ -3,11 +3,17 @@
 Examples:
     weather-gym detector train --data data/train --val data/val --epochs 30 --seed 0 --out model.onnx
     weather-gym detector eval data/val
-    weather-gym detector eval data/val --effect droplets --k 0.55 --seed 0
-    weather-gym detector eval data/val --weather "dim:0.78"
-    weather-gym detector predict frame.png --out annotated.png --effect dim --k 0.78
-    weather-gym detector sweep data/val --plot docs/img/detections_map_vs_k.png
+    weather-gym detector eval data/val --weather droplets:0.55 --seed 0
+    weather-gym detector eval data/val --weather low_light@2
+    weather-gym detector predict frame.png --out annotated.png --weather dim:0.78
+    weather-gym detector sweep data/val --weather droplets,dim --k-grid 0,0.55,0.78 --plot docs/img/detections_map_vs_k.png
     weather-gym detector figure data/val --index 40 --out docs/img/detections.png
+
+The second command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['detector', 'eval', 'data/val'])
+    >>> args.detector_command, str(args.dataset), args.seed
+    ('eval', 'data/val', 0)
 """
 
 from __future__ import annotations
@@ -18,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from weather_gym._io import atomic_write_json, check_output, declare_inputs, write_image
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.datasets.coco import load_coco, read_image
 from weather_gym.errors import InputError, LimitError, MissingDependencyError, MissingInputError
@@ -33,7 +39,8 @@ from weather_gym.perception.plots import (
     sweep_map_vs_k,
 )
 from weather_gym.perception.scoring import score_dataset
-from weather_gym.weather import make, parse_weather
+from weather_gym.weather.option import OPEN_K_GRAMMAR, add_weather_arg, weather_from_arg
+from weather_gym.weather.spec import parse_open_k
 
 
 def register(sub) -> None:
@@ -102,9 +109,7 @@ def register(sub) -> None:
     e = cmds.add_parser("eval", help="score the detector on a COCO folder (optionally under weather)")
     e.add_argument("dataset", type=Path)
     add_detector_args(e, legacy_model=True)
-    e.add_argument("--effect", default=None, help="weather effect name (e.g. droplets, dim)")
-    e.add_argument("--k", type=float, default=None, help="severity of --effect in [0, 1]")
-    e.add_argument("--weather", default=None, help="any weather spec instead of --effect/--k, e.g. 'droplets:0.55,dim:0.3'")
+    add_weather_arg(e, help="weather applied to every image (default: none)")
     e.add_argument("--seed", type=seed_arg, default=0, help="seed of the weather (default %(default)s)")
     e.add_argument("--limit", type=int, default=None, help="score only the first N images")
     e.add_argument("--threads", type=int, default=2)
@@ -116,8 +121,7 @@ def register(sub) -> None:
     pr.add_argument("image", type=Path)
     pr.add_argument("--out", type=Path, required=True, help="annotated PNG to write")
     add_detector_args(pr, legacy_model=True)
-    pr.add_argument("--effect", default=None)
-    pr.add_argument("--k", type=float, default=None)
+    add_weather_arg(pr, help="weather applied to the image first (default: none)")
     pr.add_argument("--seed", type=seed_arg, default=0)
     pr.add_argument("--threshold", type=float, default=None, help="score threshold (default: the model's)")
     add_overwrite_arg(pr, help="replace an existing --out")
@@ -126,8 +130,10 @@ def register(sub) -> None:
     sw = cmds.add_parser("sweep", help="mAP versus k for droplets and dim (the study's Figures 3 and 5)")
     sw.add_argument("dataset", type=Path)
     add_detector_args(sw, legacy_model=True)
-    sw.add_argument("--ks", default="0,0.2,0.4,0.55,0.7,0.78,0.9", help="comma-separated k values")
-    sw.add_argument("--effects", default="droplets,dim")
+    sw.add_argument("--weather", default="droplets,dim", metavar="SPEC",
+                    help=f"effects to sweep, {OPEN_K_GRAMMAR} (default %(default)s)")
+    sw.add_argument("--k-grid", default="0,0.2,0.4,0.55,0.7,0.78,0.9", metavar="K1,K2,...",
+                    help="the k values of every --weather effect, comma-separated (default %(default)s)")
     sw.add_argument("--seed", type=seed_arg, default=0)
     sw.add_argument("--limit", type=int, default=None)
     sw.add_argument("--threads", type=int, default=2)
@@ -144,21 +150,6 @@ def register(sub) -> None:
     fg.add_argument("--out", type=Path, required=True, help="PNG to write")
     add_overwrite_arg(fg, help="replace an existing --out")
     fg.set_defaults(func=_figure)
-
-
-def _weather(args):
-    if getattr(args, "weather", None) is not None:
-        if args.effect is not None:
-            raise InputError("give either --weather or --effect/--k, not both")
-        return args.weather
-    if args.effect is None:
-        if args.k is not None:
-            raise InputError("--k needs --effect")
-        return None
-
-    if args.k is None:
-        raise InputError(f"--effect {args.effect} needs --k (severity in [0, 1])")
-    return make(args.effect, k=args.k)
 
 
 def _train(args) -> int:
@@ -215,16 +206,14 @@ def _eval(args) -> int:
     declare_inputs(args.dataset)
     _check_limit(args.limit)
     _check_threads(args.threads)
-    weather = _weather(args)
-    if isinstance(weather, str):
-        parse_weather(weather)  # a bad spec fails now, not after loading everything
+    weather = weather_from_arg(args.weather)  # a bad spec fails now, not after loading everything
     if args.json is not None:
         check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     ds = load_coco(args.dataset)
     _check_not_empty(ds)
     det = detector_from_args(args, threads=args.threads)
     result = score_dataset(ds, det, weather, seed=args.seed, limit=args.limit, progress=True)
-    label = "clear" if weather is None else (args.weather or f"{args.effect} k={args.k}")
+    label = "clear" if weather is None else args.weather
     print(f"{args.dataset} | {det.name} | weather: {label} | seed {args.seed}")
     print(result.table())
     if args.json is not None:
@@ -256,11 +245,9 @@ def _predict(args) -> int:
         raise InputError(f"--threshold must be a score in [0, 1], got {args.threshold}")
     image = read_image(args.image)
     check_image_size(image.shape, what=str(args.image))
-    weather = _weather(args)
+    weather = weather_from_arg(args.weather)
     if weather is not None:
-        eff = parse_weather(weather)
-        eff.reset(args.seed)
-        image = eff(image, rng=np.random.default_rng(args.seed))
+        image = weather.start(args.seed)(image, rng=np.random.default_rng(args.seed))
     if args.threshold is not None:
         args.detector_threshold = args.threshold
     det = detector_from_args(args)
@@ -273,11 +260,17 @@ def _predict(args) -> int:
 def _sweep(args) -> int:
     declare_inputs(args.dataset)
     try:
-        ks = sorted({float(v) for v in args.ks.split(",")})
+        ks = sorted({float(v) for v in args.k_grid.split(",")})
     except ValueError:
-        raise InputError(f"--ks must be comma-separated numbers, got {args.ks!r}") from None
+        raise InputError(f"--k-grid must be comma-separated numbers, got {args.k_grid!r}") from None
     if any(not 0 <= k <= 1 for k in ks):
-        raise InputError(f"--ks must lie in [0, 1], got {ks}")
+        raise InputError(f"--k-grid must lie in [0, 1], got {ks}")
+    effects = []
+    for name, params in parse_open_k(args.weather):
+        if params:
+            raise InputError(f"--weather {args.weather!r}: detector sweep varies plain effects (NAME,NAME...); "
+                             f"for {name} with parameters use `weather-gym sweep`")
+        effects.append(name)
     _check_limit(args.limit)
     _check_threads(args.threads)
     if args.plot is not None:
@@ -287,7 +280,6 @@ def _sweep(args) -> int:
     ds = load_coco(args.dataset, cache_images=True)
     _check_not_empty(ds)
     det = detector_from_args(args, threads=args.threads)
-    effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     sweep = sweep_map_vs_k(ds, det, ks, effects, seed=args.seed, limit=args.limit)
     print(f"{args.dataset} | {det.name} | seed {args.seed}")
     print("effect     k      mAP@0.5  mAP@.5:.95  relative   study (relative)")

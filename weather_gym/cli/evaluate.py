@@ -10,6 +10,12 @@ Examples:
     weather-gym evaluate --agent gt_pure_pursuit --perception oracle --seeds 1 --max-steps 300 --out runs/smoke
     weather-gym evaluate --agent sb3 --agent-kwargs '{"path": "ppo.zip"}' --perception oracle --out runs/ppo
     weather-gym evaluate ... --backend ray --ray-address auto       # on a running Ray cluster
+
+The second command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['evaluate', '--agent', 'gt_pure_pursuit', '--perception', 'oracle', '--seeds', '1', '--max-steps', '300', '--out', 'runs/smoke'])
+    >>> args.agents, args.perception, args.seeds, args.max_steps
+    ('gt_pure_pursuit', 'oracle', 1, 300)
 """
 
 from __future__ import annotations
@@ -18,15 +24,18 @@ import argparse
 import json
 import shlex
 import sys
+import time
 from pathlib import Path
 
 from weather_gym._io import declare_inputs
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
-from weather_gym.evaluation.evaluate import PERCEPTIONS, EvalConfig, evaluate, make_cells
+from weather_gym.evaluation.evaluate import DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
+from weather_gym.evaluation.report import report_replaceable, write_report
 from weather_gym.evaluation.runner import check_results_path
+from weather_gym.perception_modes import PERCEPTION_MODES, modes_where, perception_mode
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -74,17 +83,17 @@ def register(sub) -> None:
     g.add_argument("--tracks", default="small_track", help="track names / 'random:SEED' / cone CSV paths, comma-separated")
     e = p.add_argument_group("episode")
     e.add_argument("--env-id", default="WeatherGym/ConeTrack-v0", help="Gymnasium id of the scenario")
-    e.add_argument("--perception", default="detector", choices=PERCEPTIONS,
-                   help="detector: the ONNX detector; oracle: ground-truth cone list; camera: raw weathered image; "
-                        "gt_cones: ground-truth cones from geometry, nothing rendered (clear weather only); "
-                        "surrogate: the detector's statistics in the weather, nothing rendered (docs/surrogate.md)")
+    e.add_argument("--perception", default=DEFAULT_PERCEPTION, choices=tuple(PERCEPTION_MODES),
+                   help="what the agent sees: " + "; ".join(f"{m.name}: {m.describe()}"
+                                                             for m in PERCEPTION_MODES.values()))
     e.add_argument("--laps", type=int, default=1, help="laps per episode")
     e.add_argument("--max-steps", type=int, default=3000, help="step limit per episode (30 steps = 1 s)")
     e.add_argument("--agent-kwargs", default=None, help="JSON object of agent factory arguments")
     e.add_argument("--env-kwargs", default=None, help='JSON object of gymnasium.make arguments, e.g. \'{"camera": {"width": 336, "height": 188}}\'')
     e.add_argument("--perception-kwargs", default=None, help="JSON object of the perception wrapper's arguments (DetectorWrapper / GroundTruthConeWrapper / SurrogatePerceptionWrapper)")
     e.add_argument("--presets", type=Path, default=None, help="presets TOML (default: the shipped one)")
-    add_detector_args(e, what="for --perception detector; the same as the detector keys of --perception-kwargs")
+    add_detector_args(e, what=f"for --perception {' / '.join(modes_where(runs_detector=True))}; the same as the "
+                               "detector keys of --perception-kwargs")
     r = p.add_argument_group("run")
     r.add_argument("--out", type=Path, required=True, help="output folder (results.csv, report.md, plots/)")
     add_overwrite_arg(r, help="replace a report.md or plots/ in --out that no earlier run of this grid wrote "
@@ -119,8 +128,9 @@ def _perception_kwargs(args) -> dict:
              "detector_resize": args.detector_resize, "detector_input": args.detector_input,
              "score_threshold": args.detector_threshold}
     given = {k: v for k, v in given.items() if v is not None}
-    if given and args.perception != "detector":
-        raise InputError(f"--detector options go with --perception detector, not {args.perception}")
+    if given and not perception_mode(args.perception).runs_detector:
+        raise InputError(f"--detector options go with --perception {' / '.join(modes_where(runs_detector=True))}, "
+                         f"not {args.perception}")
     clash = sorted(set(given) & set(kw))
     if clash:
         raise InputError(f"{', '.join(clash)} given both as --detector options and in --perception-kwargs; give each once")
@@ -139,9 +149,12 @@ def _run(args) -> int:
     check_results_path(args.out / "results.csv")
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "evaluate" in sys.argv[1:2] else None
     print(f"{len(cells)} cells -> {args.out / 'results.csv'} ({args.backend}, {args.workers} workers)", file=sys.stderr)
+    replace = report_replaceable(args.out, overwrite=args.overwrite)  # someone else's report: refused now
+    started = time.perf_counter()
     rows = evaluate(config, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
-                    progress=not args.no_progress, retry_failed=not args.skip_failed, command=command,
-                    overwrite=args.overwrite)
+                    progress=not args.no_progress, retry_failed=not args.skip_failed)
+    write_report(rows, args.out, config=config, wall_s=time.perf_counter() - started, command=command,
+                 overwrite=replace)
     failed = [r for r in rows if r["status"] != "ok"]
     print(f"{len(rows) - len(failed)} ok, {len(failed)} failed; report: {args.out / 'report.md'}")
     for r in failed[:5]:

@@ -9,6 +9,12 @@ Examples:
     weather-gym gap data/real_wet --reference data/real_clear --out out/gap_wet      # same camera
     weather-gym gap data/real_wet --reference data/real_clear --mode did --track small_track --out out/gap_did
     weather-gym gap data/measured --out out/gap_clean --seed 3     # no --model: the clean simulator
+
+The second command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['gap', 'data/real_wet', '--reference', 'data/real_clear', '--out', 'out/gap_wet'])
+    >>> str(args.measured), str(args.reference), args.mode
+    ('data/real_wet', 'data/real_clear', 'auto')
 """
 
 from __future__ import annotations

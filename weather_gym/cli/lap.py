@@ -8,6 +8,12 @@ Examples:
     weather-gym lap --agent sb3 --agent-arg path=runs/ppo.zip --perception detector
     weather-gym lap --agent mapper_pure_pursuit --perception gt_cones     # nothing rendered: fast
     weather-gym lap --agent mapper_pure_pursuit --perception surrogate --weather droplets@3
+
+A command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['lap', '--track', 'small_track', '--agent', 'mapper_pure_pursuit', '--perception', 'oracle', '--laps', '2'])
+    >>> args.track, args.agent, args.perception, args.laps
+    ('small_track', 'mapper_pure_pursuit', 'oracle', 2)
 """
 
 from __future__ import annotations
@@ -22,36 +28,47 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym.agents import AGENTS, run_episode
+from weather_gym.agents import AGENTS, agent_observes, run_episode
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
 from weather_gym.errors import InputError
-from weather_gym.perception import evaluate as score
+from weather_gym.evaluation.metrics import DetectorScoring, Episode, episode_metrics, lap_lines
 from weather_gym.perception.ranging import check_depth_quantile
-from weather_gym.pipeline import PERCEPTION_MODES, check_perception, make_env
+from weather_gym.perception_modes import (
+    PERCEPTION_MODES,
+    PerceptionMode,
+    auto_mode,
+    check_agent_observes,
+    modes_where,
+    perception_mode,
+)
+from weather_gym.pipeline import make_env
 from weather_gym.tracks import load_track
 from weather_gym.viz.overlay import TopDownView, compose_frame, cone_list_boxes, draw_boxes
 from weather_gym.viz.video import FrameSampler, VideoWriter, check_output_path, save_strip
 from weather_gym.weather import parse_weather
 
-PERCEPTION_CHOICES = ("auto", *PERCEPTION_MODES)
-PERCEPTION_AGENTS = frozenset({"mapper_pure_pursuit", "ppo_cones"})
-"""Agents that read cone lists: ``--perception auto`` gives them the detector."""
+AUTO = "auto"
+"""``--perception auto``: the first registered mode that gives what the agent observes."""
 MIN_SPEED_FOR_LIMIT = 2.0
 """Default time limit: every lap may take up to length / 2 m/s (at least a minute)."""
 
-EPILOG = """\
-perception (what the agent sees; the modes of weather_gym.pipeline.PERCEPTION_MODES):
-  auto      detector for agents that read cone lists (mapper_pure_pursuit, ppo_cones), else camera
-  camera    no perception: the (weathered) image, depth and state; gt_pure_pursuit drives from info
-  detector  the ONNX cone detector on the (weathered) camera image -> cone list
-  oracle    the rendered frame's ground truth as a perfect cone list
-  gt_cones  ground-truth cones from geometry; no frame is rendered (fast; no weather, no video)
-  surrogate the detector's cone list in the weather drawn from a fitted model (docs/surrogate.md);
-            no frame is rendered (fast; no video)
+def perception_choices() -> tuple[str, ...]:
+    """``--perception``'s choices: ``auto`` and every registered mode."""
+    return (AUTO, *PERCEPTION_MODES)
 
+
+def _epilog() -> str:
+    modes = [f"  {AUTO:<9} the first mode below that gives what the agent reads (agents that read cone lists:"
+             f" {auto_mode(frozenset({'cones'})).name}), else {auto_mode(()).name}"]
+    modes += [f"  {m.name:<9} {m.describe()}" for m in PERCEPTION_MODES.values()]
+    return ("perception (what the agent sees; the modes of weather_gym.perception_modes.PERCEPTION_MODES):\n"
+            + "\n".join(modes) + "\n\n" + EPILOG)
+
+
+EPILOG = """\
 weather: a spec for weather_gym.weather.parse_weather, e.g. droplets:0.55, "droplets:0.55,dim:0.3",
   droplets@3 (a calibrated preset, severity 0-4), low_light@2, clear.
 
@@ -74,7 +91,7 @@ def register(sub) -> None:
         description="Drive scripted laps through the whole pipeline (simulator -> weather -> perception -> "
                     "agent) and report lap times, cones hit, off-track events and cross-track error; "
                     "optionally record a video or a PNG strip.",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--track", help="track name, 'random:SEED' or a cone CSV (default: the scenario's track); "
                                    "see `weather-gym tracks list`")
     p.add_argument("--env", default="WeatherGym/ConeTrack-v0", help="Gymnasium env id (default %(default)s)")
@@ -83,11 +100,11 @@ def register(sub) -> None:
     p.add_argument("--agent-arg", action="append", default=[], metavar="KEY=VALUE",
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
-    p.add_argument("--perception", choices=PERCEPTION_CHOICES, default="auto", help="what the agent sees (see below)")
-    add_detector_args(p, what="for --perception detector")
+    p.add_argument("--perception", choices=perception_choices(), default=AUTO, help="what the agent sees (see below)")
+    add_detector_args(p, what=f"for --perception {' / '.join(modes_where(runs_detector=True))}")
     p.add_argument("--depth-quantile", type=float, default=None, metavar="Q",
-                   help="quantile of the depths inside a detection's box that gives its range (perception "
-                        "detector; default the median, 0.5; 0.25 ranges far cones better: docs/perception.md)")
+                   help="quantile of the depths inside a detection's box that gives its range (a perception "
+                        "that runs the detector; default the median, 0.5; 0.25 ranges far cones better: docs/perception.md)")
     p.add_argument("--laps", type=int, default=1, help="laps to drive (default %(default)s)")
     p.add_argument("--seed", type=seed_arg, default=0, help="episode seed (default %(default)s)")
     p.add_argument("--max-steps", type=int,
@@ -153,8 +170,20 @@ def default_max_steps(env_id: str, track: str | None, laps: int) -> int:
     return int(math.ceil(laps * max(60.0, length / MIN_SPEED_FOR_LIMIT) * cfg.sim.control_hz))
 
 
+def _perception_kwargs(mode: PerceptionMode, recording: bool, depth_quantile: float | None) -> dict[str, Any]:
+    """The perception wrapper's keyword arguments for ``mode``: its recording ones when ``recording``, and
+    ``depth_quantile`` (checked; only for a mode that runs the detector)."""
+    kwargs = dict(mode.record_kwargs) if recording else {}
+    if depth_quantile is not None:
+        if not mode.runs_detector:
+            raise InputError(f"--depth-quantile ranges the detector's boxes, and perception is {mode.name!r}; "
+                             f"it needs --perception {' or '.join(modes_where(runs_detector=True))}")
+        kwargs["depth_quantile"] = check_depth_quantile(depth_quantile)
+    return kwargs
+
+
 def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = None, agent: str = "gt_pure_pursuit",
-             agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = "auto",
+             agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = AUTO,
              detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
              overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None) -> dict[str, Any]:
@@ -164,14 +193,16 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     and the episode from :func:`weather_gym.agents.run_episode`.
     """
 
-    if perception != "auto":
-        check_perception(perception)
     factory = AGENTS.get(agent)
-    mode = perception if perception != "auto" else ("detector" if agent in PERCEPTION_AGENTS else "camera")
+    observes = agent_observes(agent)
+    mode = auto_mode(observes) if perception == AUTO else perception_mode(perception)
+    check_agent_observes(agent, observes, mode)
     recording = video is not None or strip is not None
-    if recording and mode in ("gt_cones", "surrogate"):
-        raise InputError(f"--video/--strip record the camera, and perception {mode} renders none; "
-                         "take --perception oracle for a video of ground-truth driving")
+    if recording and not mode.can_record_video:
+        alike = (modes_where(can_record_video=True, observation=mode.observation)
+                 or modes_where(can_record_video=True))
+        raise InputError(f"--video/--strip record the camera, and perception {mode.name} renders none; take "
+                         f"--perception {' or '.join(alike)} for a video")
     if max_steps is None:
         max_steps = default_max_steps(env_id, track, laps)
     env_kwargs: dict[str, Any] = {"laps": laps}
@@ -179,13 +210,8 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         env_kwargs["track"] = track
     if weather is not None:
         parse_weather(weather)  # a bad spec fails here, with the parser's message
-    perception_kwargs = {"keep_image": True} if recording and mode != "camera" else {}
-    if depth_quantile is not None:
-        if mode != "detector":
-            raise InputError(f"--depth-quantile ranges the detector's boxes, and perception is {mode!r}; "
-                             "it needs --perception detector")
-        perception_kwargs["depth_quantile"] = check_depth_quantile(depth_quantile)
-    env = make_env(env_id, perception=mode, weather=weather, detector=detector if mode == "detector" else None,
+    perception_kwargs = _perception_kwargs(mode, recording, depth_quantile)
+    env = make_env(env_id, perception=mode.name, weather=weather, detector=detector if mode.runs_detector else None,
                    perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, **env_kwargs)
     recorder = None
     try:
@@ -194,7 +220,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         hz = float(base.config.sim.control_hz)
         driver = factory(trk, camera, **(agent_kwargs or {}))
         bar = _LapProgress(laps * trk.length, f"{agent} on {trk.name}", enabled=progress)
-        seen = _SeenByPerception(score_detector=mode == "detector")
+        scoring = DetectorScoring(mode, final_frame=True)  # every frame the detector saw, the last one too
         state: dict[str, Any] = {}
 
         def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
@@ -205,7 +231,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
                 if recording:
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
                                          state["weather"])
-            seen.add(info)
+            scoring(step, obs, info, done)
             if recorder is not None:
                 recorder.add(obs, info, laps)
             if step and step % 30 == 0:
@@ -226,15 +252,12 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         env.close()
     result = {
         "env": env_id, "track": track or trk.name, "event": trk.event, "track_length_m": float(trk.length), "agent": agent,
-        "perception": mode, "weather": state["weather"], "seed": seed, "laps_requested": laps,
+        "perception": mode.name, "weather": state["weather"], "seed": seed, "laps_requested": laps,
         "lap_times_s": list(res.lap_times_s), "completed": res.completed, "end": res.end_reason,
         "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,
-        "cones_hit": res.cones_hit, "off_track_events": res.off_track_events,
-        "cte_mean_m": res.cte_mean_m, "cte_max_m": res.cte_max_m, "max_steps": max_steps, "renderer": renderer,
-        "weather_latency_ms": res.weather_latency_ms if state["weathered"] and mode != "surrogate" else None,
-        "detector_latency_ms": res.detector_latency_ms if mode == "detector" else None,
+        "max_steps": max_steps, "renderer": renderer,
+        "metrics": episode_metrics(Episode(res, driver, trk, mode, scoring.scores(), state["weathered"]), lap=True),
     }
-    result.update(seen.summary())
     cone_map = getattr(driver, "last_map", None)
     if cone_map is not None:
         result["map"] = cone_map.summary()
@@ -244,27 +267,6 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         result["video_codec"] = recorder.video.codec if recorder is not None and recorder.video is not None else None
         result["strip"] = str(strip) if strip is not None else None
     return result
-
-
-class _SeenByPerception:
-    """The detector's mAP@0.5 on the frames of the lap it saw (pycocotools, against the env's ground truth)."""
-
-    def __init__(self, *, score_detector: bool) -> None:
-        self.score_detector = score_detector
-        self.gts: list[Any] = []
-        self.dets: list[Any] = []
-
-    def add(self, info: dict) -> None:
-        if self.score_detector and info.get("gt") is not None and info.get("detections") is not None:
-            self.gts.append(info["gt"])
-            self.dets.append(info["detections"])
-
-    def summary(self) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        if self.gts:
-            res = score(self.gts, self.dets)
-            out.update(det_map50=float(res.map50), det_recall=float(res.recall), det_frames=int(res.n_images))
-        return out
 
 
 class _LapProgress:
@@ -312,15 +314,7 @@ def format_result(r: dict[str, Any]) -> str:
     end = r["end"] if r["end"] != "time_limit" else f"time_limit, {r['max_steps']} steps"
     lines.append(f"laps completed: {len(r['lap_times_s'])}/{r['laps_requested']} ({end}) in {r['steps']} steps, "
                  f"{r['sim_time_s']:.1f} s simulated, {r['wall_time_s']:.1f} s wall, renderer {r['renderer']}")
-    lines.append(f"cones hit: {r['cones_hit']}   off-track events: {r['off_track_events']}")
-    lines.append(f"cross-track error: mean {r['cte_mean_m']:.3f} m, max {r['cte_max_m']:.3f} m")
-    if r.get("det_frames"):
-        lines.append(f"detector: mAP@0.5 {r['det_map50']:.3f}, recall {r['det_recall']:.3f} on the {r['det_frames']} "
-                     f"frames it saw")
-    added = [f"{name} {r[key]:.1f} ms" for name, key in (("weather", "weather_latency_ms"),
-                                                         ("detector", "detector_latency_ms")) if r.get(key) is not None]
-    if added:
-        lines.append("added per step: " + ", ".join(added))
+    lines += lap_lines(r["metrics"])  # the metrics of weather_gym.evaluation.metrics.METRICS, in their lap form
     if "map" in r:
         m = r["map"]
         lines.append(f"map: {m['confirmed']} confirmed cones, mean position std {m['mean_position_std_m']:.3f} m, "

@@ -4,6 +4,12 @@ Examples:
     weather-gym surrogate log --track small_track --weather droplets@3 --seeds 0,1 --steps 600 --out logs/d3.npz
     weather-gym surrogate fit logs/*.npz --out model.npz
     weather-gym surrogate validate --track hairpin --full-logs scratch/val_logs --out docs/surrogate/validation
+
+A ``fit`` command line, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['surrogate', 'fit', 'logs/a.npz', 'logs/b.npz', '--out', 'model.npz'])
+    >>> args.action, [str(p) for p in args.logs], str(args.out)
+    ('fit', ['logs/a.npz', 'logs/b.npz'], 'model.npz')
 """
 
 from __future__ import annotations
@@ -13,13 +19,14 @@ import sys
 from pathlib import Path
 
 from weather_gym._io import check_output, declare_inputs, exclusive
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import int_list, seed_list
 from weather_gym.errors import InputError
+from weather_gym.perception_modes import detector_mode, perception_mode
 from weather_gym.surrogate.log import concat_logs, load_log, save_log
 from weather_gym.surrogate.model import fit, save_model
-from weather_gym.surrogate.record import record
+from weather_gym.surrogate.record import loggable_modes, record
 from weather_gym.surrogate.validate import validate
 from weather_gym.tracks import load_track
 
@@ -44,8 +51,9 @@ def register(sub) -> None:
     lg.add_argument("--agent", default="gt_pure_pursuit", choices=("gt_pure_pursuit", "mapper_pure_pursuit"),
                     help="driver: gt_pure_pursuit (the true track) or mapper_pure_pursuit (drives on the cone "
                          "list; its lap metrics are kept) (default %(default)s)")
-    lg.add_argument("--perception", default="detector", choices=("detector", "surrogate"),
-                    help="detector: the full pipeline (default); surrogate: the same tables from the surrogate")
+    lg.add_argument("--perception", default=detector_mode().name, choices=loggable_modes(),
+                    help="a perception that reports detections: detector, the full pipeline (default); "
+                         "surrogate, the same tables from the surrogate")
     add_detector_args(lg, what="the detector whose errors are logged")
     lg.add_argument("--out", type=Path, required=True, metavar="LOG.npz", help="output log")
     add_overwrite_arg(lg)
@@ -84,7 +92,7 @@ def _log(args) -> int:
     for t in tracks:
         load_track(t)
     seeds = seed_list(args.seeds, "--seeds")
-    detector = detector_spec_from_args(args) if args.perception == "detector" else None
+    detector = detector_spec_from_args(args) if perception_mode(args.perception).runs_detector else None
     with exclusive(args.out, message=f"another run is writing {args.out}; wait for it or choose another --out"):
         log = record(tracks=tracks, weathers=args.weather or ["clear"], seeds=seeds, steps=args.steps,
                      detector=detector, agent=args.agent, perception=args.perception,

@@ -1,19 +1,26 @@
 """``weather-gym sweep``: the detector's mAP versus an effect's k on a fixed rendered set (resumable).
 
 Examples:
-    weather-gym sweep --effect droplets --k 0:1:0.05 --seeds 5 --dataset data/eval_peanut --out runs/sweep
-    weather-gym sweep --effect droplets --effect dim --effect dim:mode=physical --k 0:1:0.05 --seeds 5 \\
+    weather-gym sweep --weather droplets --k-grid 0:1:0.05 --seeds 5 --dataset data/eval_peanut --out runs/sweep
+    weather-gym sweep --weather droplets,dim,dim:k:mode=physical --k-grid 0:1:0.05 --seeds 5 \\
         --dataset data/eval_peanut --out docs/calibration
 
 Writes OUT/curves.csv (tidy: effect, spec, k, seed, dataset_id, model_id, status, error, elapsed_s,
 map50, map, ap50_<class>, recall, recall_<range>, ...), OUT/curves.png (mean and spread per effect),
 OUT/curves_recall.png (recall by range) and OUT/sweep.json (what was run). Re-running the same
 command skips finished cells.
+
+The first command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['sweep', '--weather', 'droplets', '--k-grid', '0:1:0.05', '--seeds', '5', '--dataset', 'data/eval_peanut', '--out', 'runs/sweep'])
+    >>> args.seeds, str(args.dataset), str(args.out)
+    (5, 'data/eval_peanut', 'runs/sweep')
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import shlex
 import sys
 from pathlib import Path
@@ -21,9 +28,11 @@ from pathlib import Path
 import numpy as np
 
 from weather_gym._io import declare_inputs
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.calibration.curve import load_curves
 from weather_gym.calibration.sweep import (
     CURVE_FILE,
+    SweepEffect,
     make_sweep_cells,
     parse_effect,
     parse_k_range,
@@ -31,10 +40,11 @@ from weather_gym.calibration.sweep import (
     run_sweep,
 )
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
-from weather_gym.cli._output_args import add_overwrite_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
-from weather_gym.errors import MissingInputError
+from weather_gym.errors import InputError, MissingInputError
 from weather_gym.evaluation.runner import check_results_path
+from weather_gym.weather.option import OPEN_K_GRAMMAR
+from weather_gym.weather.spec import parse_open_k
 
 
 def register(sub) -> None:
@@ -46,9 +56,10 @@ def register(sub) -> None:
                     "OUT/curves.png, OUT/curves_recall.png and OUT/sweep.json.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    p.add_argument("--effect", action="append", required=True, metavar="NAME[:PARAM=VALUE,...]",
-                   help="effect to sweep; repeat for several (e.g. --effect droplets --effect dim:mode=physical)")
-    p.add_argument("--k", default="0:1:0.05", help="k values: START:STOP:STEP (ends included) or K1,K2,...")
+    p.add_argument("--weather", action="append", required=True, metavar="SPEC",
+                   help=f"effects to sweep, {OPEN_K_GRAMMAR}; repeatable")
+    p.add_argument("--k-grid", default="0:1:0.05",
+                   help="k values of every effect: START:STOP:STEP (ends included) or K1,K2,...")
     seeds = p.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=5, help="number of weather realisations per k: seeds 0..N-1")
     seeds.add_argument("--seed-list", default=None, help="explicit seeds, comma-separated (instead of --seeds)")
@@ -63,9 +74,26 @@ def register(sub) -> None:
     p.set_defaults(func=_run)
 
 
+def sweep_effects(spec: str) -> list[SweepEffect]:
+    """The effects of a ``--weather`` spec with k left open, as the sweep's :class:`SweepEffect`.
+
+    Example:
+        >>> [e.label for e in sweep_effects("droplets,dim:k:mode=physical")]
+        ['droplets', 'dim_physical']
+    """
+    out = []
+    for name, params in parse_open_k(spec):
+        text = ",".join(f"{k}={v if isinstance(v, str) else json.dumps(v)}" for k, v in params.items())
+        out.append(parse_effect(f"{name}:{text}" if text else name))
+    return out
+
+
 def _run(args) -> int:
-    effects = [parse_effect(e) for e in args.effect]
-    ks = parse_k_range(args.k)
+    effects = [e for spec in args.weather for e in sweep_effects(spec)]
+    try:
+        ks = parse_k_range(args.k_grid)
+    except InputError as exc:  # its messages name the values as --k
+        raise InputError(str(exc).replace("--k ", "--k-grid ", 1)) from None
     seeds = parse_seeds(args.seeds, args.seed_list)
     check_runner_args(args)
     declare_inputs(args.dataset)

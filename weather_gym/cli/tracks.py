@@ -6,6 +6,12 @@ Examples:
     weather-gym tracks show random:7 --out random7.png
     weather-gym tracks show --all --out docs/img/tracks.png --overwrite
     weather-gym tracks export random:7 --out my_track.csv
+
+The last command line above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['tracks', 'export', 'random:7', '--out', 'my_track.csv'])
+    >>> args.tracks_command, args.track, str(args.out)
+    ('export', 'random:7', 'my_track.csv')
 """
 
 from __future__ import annotations
@@ -15,9 +21,11 @@ from pathlib import Path
 import matplotlib
 import matplotlib.pyplot as plt
 
-from weather_gym._io import check_output, save_figure
-from weather_gym.cli._output_args import add_overwrite_arg
+from weather_gym._figures import save_figure
+from weather_gym._io import check_output
+from weather_gym._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
+from weather_gym.track_plot import plot_track
 from weather_gym.tracks import TRACKS, load_track
 
 ALL_SEED = 7
@@ -81,13 +89,13 @@ def _show(args) -> int:
         for ax, name in zip(axes.flat, names, strict=False):
             t = load_track(name, seed=args.seed)
             shown = f"random:{args.seed}" if name == "random" else name
-            t.plot(ax, title=f"{shown}: {t.length:.0f} m, {len(t.cones_xy)} cones ({t.event})")
+            plot_track(t, ax, title=f"{shown}: {t.length:.0f} m, {len(t.cones_xy)} cones ({t.event})")
         for ax in list(axes.flat)[len(names):]:
             ax.axis("off")
         fig.legend(*_legend(axes), loc="lower right", fontsize=10, ncol=2)
     else:
         fig, ax = plt.subplots(figsize=(8, 8))
-        load_track(args.track, seed=args.seed).plot(ax)
+        plot_track(load_track(args.track, seed=args.seed), ax)
         ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
     save_figure(fig, args.out, overwrite=args.overwrite, dpi=110)

@@ -5,6 +5,12 @@ Examples:
     weather-gym train --out runs/ppo --resume                          # after a stop (Ctrl-C included)
     weather-gym train --out runs/smoke --timesteps 4096 --n-envs 2     # a smoke run
     weather-gym train --out runs/sur --perception surrogate --surrogate-weathers clear,droplets@2,low_light@1
+
+The smoke run above, parsed (nothing runs):
+    >>> from weather_gym.cli import build_parser
+    >>> args = build_parser().parse_args(['train', '--out', 'runs/smoke', '--timesteps', '4096', '--n-envs', '2'])
+    >>> str(args.out), args.timesteps, args.n_envs, args.perception
+    ('runs/smoke', 4096, 2, 'gt_cones')
 """
 
 from __future__ import annotations

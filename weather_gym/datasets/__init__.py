@@ -14,14 +14,14 @@ from weather_gym._lazy import lazy_exports
 
 _LAZY = {
     "CocoDataset": "weather_gym.datasets.coco",
-    "CocoWriter": "weather_gym.datasets.coco",
+    "CocoWriter": "weather_gym.datasets.coco_writer",
     "load_coco": "weather_gym.datasets.coco",
-    "read_image": "weather_gym.datasets.coco",
-    "read_depth_png": "weather_gym.datasets.coco",
+    "read_image": "weather_gym.datasets.coco_files",
+    "read_depth_png": "weather_gym.datasets.coco_files",
     "render_dataset": "weather_gym.datasets.render",
     "import_dataset": "weather_gym.datasets.importers",
     "propose_mask": "weather_gym.datasets.masks",
-    "read_mask": "weather_gym.datasets.masks",
+    "read_mask": "weather_gym.datasets.coco_files",
     "write_mask": "weather_gym.datasets.masks",
     "set_dataset_mask": "weather_gym.datasets.masks",
     "ViewRenderer": "weather_gym.datasets.render",

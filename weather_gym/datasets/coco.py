@@ -33,7 +33,6 @@ Example:
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
@@ -41,73 +40,30 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from weather_gym._confine import confined
-from weather_gym._io import (
-    atomic_write_json,
-    check_not_input,
-    exclusive,
-    open_append,
-    resolve_inside,
-    write_failure,
-    write_image,
-)
+from weather_gym._io import resolve_inside
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.datasets import masks as _masks  # cyclic pair: attributes used at call time
-from weather_gym.errors import (
-    FileFormatError,
-    InputError,
-    MissingInputError,
-    OutputExistsError,
-    OutputPathError,
+from weather_gym.datasets.coco_files import (
+    ANNOTATIONS,
+    DEPTH_SCALE,
+    JOURNAL,
+    read_depth_png,
+    read_image,
+    read_mask,
+    record_path,
+    write_depth_png,
 )
+from weather_gym.datasets.coco_writer import CocoWriter
+from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.limits import check_image_size
-from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, tiny_mask, xywh_to_xyxy
+from weather_gym.perception.labels import xywh_to_xyxy
 from weather_gym.tracks import is_track_file
 
-__all__ = ["CocoDataset", "CocoWriter", "load_coco", "read_image", "read_depth_png", "record_path", "write_depth_png"]
-
-ANNOTATIONS = "annotations.json"
-JOURNAL = "annotations.partial.jsonl"
-DEPTH_SCALE = 1000.0  # depth PNG units per metre (millimetres)
-
-
-def _nonempty_file(path: str | os.PathLike, kind: str) -> Path:
-    """``path`` as a Path; FileNotFoundError / ValueError naming it when it is missing or empty."""
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"{kind} file {path} not found")
-    if path.stat().st_size == 0:
-        raise FileFormatError(f"{kind} file {path} is empty (0 bytes)")
-    return path
-
-
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an RGB uint8 image; clear errors for a missing, empty or undecodable file."""
-    path = _nonempty_file(path, "image")
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if bgr is None or bgr.size == 0:
-        raise FileFormatError(f"image file {path} could not be decoded as an image")
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-
-
-def write_depth_png(path: str | os.PathLike, depth_m: np.ndarray, *, overwrite: bool = False) -> None:
-    """Write float metres as uint16 millimetres (values beyond 65.535 m saturate), safely (``weather_gym._io``)."""
-    d = np.asarray(depth_m, dtype=np.float64)
-    mm = np.clip(np.rint(np.nan_to_num(d, nan=0.0, posinf=65.535) * DEPTH_SCALE), 0, 65535).astype(np.uint16)
-    write_image(path, mm, rgb=False, overwrite=overwrite)
-
-
-def read_depth_png(path: str | os.PathLike) -> np.ndarray:
-    """Read a uint16 millimetre depth PNG as float32 metres."""
-    path = _nonempty_file(path, "depth")
-    mm = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if mm is None or mm.ndim != 2 or mm.dtype != np.uint16:
-        raise FileFormatError(f"depth file {path} is not a single-channel 16-bit PNG of millimetres")
-    return mm.astype(np.float32) / np.float32(DEPTH_SCALE)
+__all__ = ["ANNOTATIONS", "DEPTH_SCALE", "JOURNAL", "CocoDataset", "CocoWriter", "load_coco", "read_image",
+           "read_depth_png", "record_path", "write_depth_png"]
 
 
 class CocoDataset:
@@ -188,7 +144,7 @@ class CocoDataset:
     def _mask(self, rel: str, rec: dict) -> np.ndarray:
         m = self._masks.get(rel)
         if m is None:
-            m = _masks.read_mask(resolve_inside(self.root, rel, what=f"{self.annotations_path}: ignore mask"),
+            m = read_mask(resolve_inside(self.root, rel, what=f"{self.annotations_path}: ignore mask"),
                           (int(rec["width"]), int(rec["height"])))
             m.setflags(write=False)
             self._masks[rel] = m
@@ -281,25 +237,8 @@ def _fail(path: Path, msg: str):
     raise FileFormatError(f"{path}: {msg}")
 
 
-def record_path(root: str | os.PathLike, record: dict, key: str) -> Path:
-    """The file an image record's ``key`` (``file_name``, ``depth_file``, a ``track`` CSV) names, resolved
-    inside the dataset folder ``root``: an absolute path, a ``..`` or a symlink that leads outside
-    raises :class:`~weather_gym.errors.OutsideRootError` (a dataset cannot make us read or write
-    elsewhere)."""
-    return resolve_inside(root, record[key], what=f"{Path(root) / ANNOTATIONS}: image {record.get('id')!r} {key!r}")
-
-
-def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images: bool = False) -> CocoDataset:
-    """Open and validate a COCO cone dataset folder.
-
-    ``cache_images=True`` keeps decoded frames in memory (about 0.75 MB per 672x376 frame): for
-    repeated scoring of the same frames (calibration sweeps).
-
-    Raises ``FileNotFoundError`` for a missing folder, ``annotations.json`` or image file, and
-    ``ValueError`` (naming the file and the offending key/value) for malformed annotations or empty
-    image files.
-    """
-    root = Path(root)
+def _read_annotations(root: Path) -> tuple[Path, dict]:
+    """``root``'s ``annotations.json`` (path, parsed object with its three lists checked)."""
     if not root.is_dir():
         raise MissingInputError(f"dataset folder {root} not found")
     path = root / ANNOTATIONS
@@ -318,224 +257,76 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
     for key in ("images", "annotations", "categories"):
         if not isinstance(data.get(key), list):
             _fail(path, f"missing or invalid key {key!r} (expected a list)")
+    return path, data
+
+
+def _check_image(path: Path, root: Path, im: Any, ids: set, check_files: bool) -> None:
+    """One image record: its keys and types, a unique id, and the files it names inside ``root``."""
+    for key in ("id", "file_name", "width", "height"):
+        if not isinstance(im, dict) or key not in im:
+            _fail(path, f"image record {im!r} has no {key!r}")
+    if not isinstance(im["id"], int) or isinstance(im["id"], bool):
+        _fail(path, f"image record id {im['id']!r} is not an integer")
+    if not isinstance(im["file_name"], str):
+        _fail(path, f"image {im['id']}: 'file_name' must be a string, got {im['file_name']!r}")
+    for key in ("width", "height"):
+        if not isinstance(im[key], int) or isinstance(im[key], bool) or im[key] < 1:
+            _fail(path, f"image {im['id']}: {key!r} must be a positive integer, got {im[key]!r}")
+    check_image_size((im["height"], im["width"]), what=f"{path}: image {im['id']}")  # the one frame bound
+    if im["id"] in ids:
+        _fail(path, f"duplicate image id {im['id']}")
+    ids.add(im["id"])
+    f = record_path(root, im, "file_name")
+    if im.get("depth_file") is not None:
+        record_path(root, im, "depth_file")
+    if isinstance(im.get("track"), str) and is_track_file(im["track"]):
+        record_path(root, im, "track")
+    if im.get("ignore_mask") is not None:
+        record_path(root, im, "ignore_mask")
+    if check_files:
+        if not f.is_file():
+            raise MissingInputError(f"{path}: image {im['id']} points to {f}, which does not exist")
+        if f.stat().st_size == 0:
+            _fail(path, f"image {im['id']} file {f} is empty (0 bytes)")
+
+
+def _check_annotation(path: Path, a: Any, ids: set, cat_ids: set) -> None:
+    if not isinstance(a, dict):
+        _fail(path, f"annotation {a!r} is not an object")
+    if not isinstance(a.get("image_id"), int) or a["image_id"] not in ids:
+        _fail(path, f"annotation {a.get('id')} refers to unknown image_id {a.get('image_id')!r}")
+    if not isinstance(a.get("category_id"), int) or a["category_id"] not in cat_ids:
+        _fail(path, f"annotation {a.get('id')} has unknown category_id {a.get('category_id')!r}")
+    b = a.get("bbox")
+    if (not isinstance(b, list) or len(b) != 4 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in b)
+            or b[2] < 0 or b[3] < 0):
+        _fail(path, f"annotation {a.get('id')} has an invalid bbox {b!r} (expected [x, y, w, h], w, h >= 0)")
+
+
+def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images: bool = False) -> CocoDataset:
+    """Open and validate a COCO cone dataset folder.
+
+    ``cache_images=True`` keeps decoded frames in memory (about 0.75 MB per 672x376 frame): for
+    repeated scoring of the same frames (calibration sweeps).
+
+    Raises ``FileNotFoundError`` for a missing folder, ``annotations.json`` or image file, and
+    ``ValueError`` (naming the file and the offending key/value) for malformed annotations or empty
+    image files.
+    """
+    root = Path(root)
+    path, data = _read_annotations(root)
     for c in data["categories"]:
         if not isinstance(c, dict) or c.get("name") not in CONE_CLASSES or not isinstance(c.get("id"), int):
             _fail(path, f"category {c!r} is not one of {list(CONE_CLASSES)} with an integer id")
     cat_ids = {c["id"] for c in data["categories"]}
-    ids = set()
+    ids: set = set()
     for im in data["images"]:
-        for key in ("id", "file_name", "width", "height"):
-            if not isinstance(im, dict) or key not in im:
-                _fail(path, f"image record {im!r} has no {key!r}")
-        if not isinstance(im["id"], int) or isinstance(im["id"], bool):
-            _fail(path, f"image record id {im['id']!r} is not an integer")
-        if not isinstance(im["file_name"], str):
-            _fail(path, f"image {im['id']}: 'file_name' must be a string, got {im['file_name']!r}")
-        for key in ("width", "height"):
-            if not isinstance(im[key], int) or isinstance(im[key], bool) or im[key] < 1:
-                _fail(path, f"image {im['id']}: {key!r} must be a positive integer, got {im[key]!r}")
-        check_image_size((im["height"], im["width"]), what=f"{path}: image {im['id']}")  # the one frame bound
-        if im["id"] in ids:
-            _fail(path, f"duplicate image id {im['id']}")
-        ids.add(im["id"])
-        f = record_path(root, im, "file_name")
-        if im.get("depth_file") is not None:
-            record_path(root, im, "depth_file")
-        if isinstance(im.get("track"), str) and is_track_file(im["track"]):
-            record_path(root, im, "track")
-        if im.get("ignore_mask") is not None:
-            record_path(root, im, "ignore_mask")
-        if check_files:
-            if not f.is_file():
-                raise MissingInputError(f"{path}: image {im['id']} points to {f}, which does not exist")
-            if f.stat().st_size == 0:
-                _fail(path, f"image {im['id']} file {f} is empty (0 bytes)")
+        _check_image(path, root, im, ids, check_files)
     for a in data["annotations"]:
-        if not isinstance(a, dict):
-            _fail(path, f"annotation {a!r} is not an object")
-        if not isinstance(a.get("image_id"), int) or a["image_id"] not in ids:
-            _fail(path, f"annotation {a.get('id')} refers to unknown image_id {a.get('image_id')!r}")
-        if not isinstance(a.get("category_id"), int) or a["category_id"] not in cat_ids:
-            _fail(path, f"annotation {a.get('id')} has unknown category_id {a.get('category_id')!r}")
-        b = a.get("bbox")
-        if (not isinstance(b, list) or len(b) != 4 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in b)
-                or b[2] < 0 or b[3] < 0):
-            _fail(path, f"annotation {a.get('id')} has an invalid bbox {b!r} (expected [x, y, w, h], w, h >= 0)")
+        _check_annotation(path, a, ids, cat_ids)
     info = data.get("info") if isinstance(data.get("info"), dict) else {}
     if info.get("ignore_mask") is not None:
         mask_file = resolve_inside(root, info["ignore_mask"], what=f"{path}: info.ignore_mask")
         if check_files and not mask_file.is_file():
             raise MissingInputError(f"{path}: info.ignore_mask points to {mask_file}, which does not exist")
     return CocoDataset(root, data, cache_images=cache_images)
-
-
-def _same_settings(journal: Path, before: Any, now: dict | None) -> None:
-    """Refuse to resume ``journal`` with other settings than the interrupted run's (InputError naming them)."""
-    if now is None or before == now:
-        return
-    if not isinstance(before, dict):
-        raise FileFormatError(f"{journal}: its settings line is not a table; pass --overwrite to start again")
-    diff = [k for k in sorted(set(before) | set(now)) if before.get(k) != now.get(k)]
-    shown = "; ".join(f"{k}: {before.get(k)!r} there, {now.get(k)!r} now" for k in diff[:4])
-    raise InputError(f"--resume: {journal} was written with other settings ({', '.join(diff)}): {shown}. "
-                     "Resume with the same settings, or pass --overwrite to start again")
-
-
-class CocoWriter:
-    """Write frames into a COCO folder; resumable (a journal of finished frames is kept until ``close``).
-
-    ``add(image, record, gt, depth=None)`` writes ``images/NNNNNN.png`` (``.jpg`` with ``jpeg_quality``:
-    4-7x smaller, lossy) and ``depth/NNNNNN.png``, and returns the image id. ``gt`` holds arrays ``boxes`` (xyxy), ``classes`` and optionally
-    ``ranges``, ``bearings``, ``cone_ids``, ``pixels``. ``close()`` writes ``annotations.json``
-    atomically and removes the journal. An existing ``annotations.json`` is never overwritten unless
-    ``overwrite=True``; with ``resume=True`` the journal of an interrupted run is read back and
-    ``done`` tells how many frames are already written.
-    """
-
-    def __init__(self, root: str | os.PathLike, *, overwrite: bool = False, resume: bool = False,
-                 min_box_height: float = MIN_BOX_HEIGHT_PX, info: dict | None = None,
-                 jpeg_quality: int | None = None, identity: dict | None = None) -> None:
-        self.root = Path(root)
-        self.min_box_height = float(min_box_height)
-        if jpeg_quality is not None and not (isinstance(jpeg_quality, int) and 1 <= jpeg_quality <= 100):
-            raise InputError(f"jpeg_quality must be an integer in 1..100 (None: PNG), got {jpeg_quality!r}")
-        self.jpeg_quality = jpeg_quality
-        if self.root.exists() and not self.root.is_dir():
-            raise OutputPathError(f"dataset folder {self.root} exists and is not a folder")
-        check_not_input(self.root, what="dataset folder")
-        self.root.mkdir(parents=True, exist_ok=True)
-        self._lock = contextlib.ExitStack()  # one writer per folder, held until close() / abort()
-        self._lock.enter_context(exclusive(self.root, message=(
-            f"another run is writing the dataset {self.root}; wait for it to finish or choose another --out")))
-        try:
-            self._open(overwrite, resume, info, identity)
-        except BaseException:
-            self._lock.close()
-            raise
-
-    def _open(self, overwrite: bool, resume: bool, info: dict | None, identity: dict | None) -> None:
-        ann = self.root / ANNOTATIONS
-        if ann.exists() and not overwrite:
-            raise OutputExistsError(f"{ann} already exists; choose another --out folder or pass --overwrite")
-        journal = self.root / JOURNAL
-        if journal.exists() and not (resume or overwrite):
-            raise OutputExistsError(f"{journal} exists (an interrupted render): pass --resume to continue it "
-                                  "or --overwrite to start again")
-        (self.root / "images").mkdir(parents=True, exist_ok=True)
-        (self.root / "depth").mkdir(parents=True, exist_ok=True)
-        self.images: list[dict] = []
-        self.annotations: list[dict] = []
-        self.info = dict(info or {})
-        settings = None if identity is None else json.loads(json.dumps(identity, default=str))
-        fresh = True
-        if resume and journal.exists():
-            with open(journal, encoding="utf-8", errors="replace") as f:
-                for line in f:
-                    line = line.strip()
-                    if not line:
-                        continue
-                    try:
-                        entry = json.loads(line)
-                    except json.JSONDecodeError:
-                        break  # a line cut short by the interruption: that frame is redone
-                    if "settings" in entry:  # the first line: what the interrupted run was asked for
-                        _same_settings(journal, entry["settings"], settings)
-                        fresh = False
-                        continue
-                    self.images.append(entry["image"])
-                    self.annotations.extend(entry["annotations"])
-            fresh = fresh and not self.images
-        elif journal.exists():
-            journal.unlink()
-        if ann.exists() and overwrite:
-            ann.unlink()
-        self._journal = open_append(journal)
-        if settings is not None and fresh:
-            self._journal.write(json.dumps({"settings": settings}) + "\n")
-            self._journal.flush()
-        self._closed = False
-
-    @property
-    def done(self) -> int:
-        """Frames already written (from a resumed journal plus this run)."""
-        return len(self.images)
-
-    def add(self, image: np.ndarray, record: dict, gt: dict, depth: np.ndarray | None = None) -> int:
-        image = np.asarray(image)
-        if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-            raise InputError(f"image must be uint8 (H, W, 3) RGB, got {image.dtype} {image.shape}")
-        idx = len(self.images)
-        name = f"{idx:06d}.png"
-        image_name = name if self.jpeg_quality is None else f"{idx:06d}.jpg"
-        params = () if self.jpeg_quality is None else (cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality)
-        # the dataset's own frames: a resumed or --overwrite render replaces them (the folder-level check is above)
-        write_image(self.root / "images" / image_name, image, overwrite=True, params=params)
-        rec = {"id": idx, "file_name": f"images/{image_name}", "width": int(image.shape[1]),
-               "height": int(image.shape[0])}
-        if depth is not None:
-            write_depth_png(self.root / "depth" / name, depth, overwrite=True)
-            rec["depth_file"] = f"depth/{name}"
-        rec.update(record)
-        boxes = np.asarray(gt["boxes"], dtype=np.float64).reshape(-1, 4)
-        classes = np.asarray(gt["classes"], dtype=np.int64).reshape(-1)
-        tiny = tiny_mask(boxes, self.min_box_height)
-        anns = []
-        for k in range(boxes.shape[0]):
-            x1, y1, x2, y2 = (float(v) for v in boxes[k])
-            a = {
-                "id": len(self.annotations) + k + 1,
-                "image_id": idx,
-                "category_id": int(classes[k]) + 1,
-                "bbox": [x1, y1, x2 - x1, y2 - y1],
-                "area": (x2 - x1) * (y2 - y1),
-                "iscrowd": int(tiny[k]),
-            }
-            for key, out, conv in (("ranges", "range", float), ("bearings", "bearing", float),
-                                   ("cone_ids", "cone_id", int), ("pixels", "pixels", int)):
-                if key in gt:
-                    a[out] = conv(np.asarray(gt[key]).reshape(-1)[k])
-            anns.append(a)
-        self.images.append(rec)
-        self.annotations.extend(anns)
-        try:
-            self._journal.write(json.dumps({"image": rec, "annotations": anns}) + "\n")
-            self._journal.flush()
-        except OSError as exc:  # a full disk is the machine's state, not a bug
-            raise write_failure(self.root / JOURNAL, exc) from None
-        return idx
-
-    def close(self) -> Path:
-        """Write ``annotations.json`` and remove the journal; returns the annotations path."""
-        if self._closed:
-            return self.root / ANNOTATIONS
-        self._journal.close()
-        data = {
-            "info": {"description": "weather-gym rendered cone frames", "min_box_height_px": self.min_box_height,
-                     **self.info},
-            "images": self.images,
-            "annotations": self.annotations,
-            "categories": CATEGORIES,
-        }
-        try:
-            atomic_write_json(self.root / ANNOTATIONS, data)
-            (self.root / JOURNAL).unlink(missing_ok=True)
-        finally:
-            self._closed = True
-            self._lock.close()
-        return self.root / ANNOTATIONS
-
-    def abort(self) -> None:
-        """Stop without writing annotations.json (the journal stays, for ``resume=True``)."""
-        if not self._closed:
-            self._journal.close()
-            self._closed = True
-        self._lock.close()
-
-    def __enter__(self) -> CocoWriter:
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()

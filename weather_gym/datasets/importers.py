@@ -62,45 +62,42 @@ import json
 import math
 import os
 import shutil
-import warnings
 from collections import Counter
-from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import cv2
-import numpy as np
-from PIL import Image
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from weather_gym._confine import confined_file, read_bytes, read_text, walk_files
+from weather_gym._confine import read_bytes, read_text
 from weather_gym._io import atomic_write, atomic_write_json, file_id, resolve_inside
 from weather_gym._lock import exclusive_folder
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import ANNOTATIONS
+from weather_gym.datasets.import_frames import IMAGE_EXTS, SourceFrame, image_size
+from weather_gym.datasets.import_geometry import (
+    MIN_POSE_ROWS,
+    project_only3d,
+    range_bearing,
+    recognise_location_frame,
+)
+from weather_gym.datasets.import_readers import read_source
 from weather_gym.datasets.masks import MASK_FILE, read_mask, write_mask
 from weather_gym.errors import (
     FileFormatError,
     InputError,
-    LimitError,
     MissingInputError,
     OutputExistsError,
     OutputPathError,
-    OutsideRootError,
 )
-from weather_gym.limits import MAX_IMAGE_PIXELS, check_image_size
 from weather_gym.perception.labels import CATEGORIES, DEFAULT_CLASSES, IGNORE, SmallRule, parse_class_map
 from weather_gym.weather.presets import CONDITIONS, canonical_condition
 
-__all__ = ["FORMATS", "DEFAULT_CLASSES", "IGNORE", "parse_class_map", "parse_intrinsics", "import_dataset"]
+__all__ = ["FORMATS", "DEFAULT_CLASSES", "IGNORE", "MIN_POSE_ROWS", "PARTIAL", "parse_class_map", "parse_intrinsics",
+           "import_dataset", "IMAGE_EXTS"]
 
 FORMATS = ("kitti", "yolo", "coco", "supervisely")
-IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp")
-_KITTI_DIRS = {"images": ("images", "image_2", "image"), "labels": ("labels", "label_2", "label"), "calib": ("calib",)}
 
 
 # ------------------------------------------------------------------------------------ arguments
@@ -143,563 +140,6 @@ def _condition(condition: str | None, severity: int | None) -> tuple[str | None,
     if severity is None or not 1 <= int(severity) <= 4:
         raise InputError(f"--condition {condition} needs --severity 1-4, got {severity}")
     return c, int(severity)
-
-
-# ------------------------------------------------------------------------------------ reading sources
-@dataclass
-class _Box:
-    cls: str
-    box: tuple[float, float, float, float]  # xyxy pixels
-    where: str
-    range: float = math.nan
-    bearing: float = math.nan
-    crowd: bool = False
-    location: tuple[float, float, float] | None = None
-    size3d: tuple[float, float] | None = None  # KITTI (h, w) in metres
-
-
-@dataclass
-class _Frame:
-    image: Path  # the resolved file (confined to the source folder)
-    rel: str  # where it goes under OUT/images/
-    source_file: str = ""  # the path under the source folder, as found there
-    boxes: list[_Box] = field(default_factory=list)
-    only3d: list[tuple[str, tuple[float, float, float], tuple[float, float, float], str]] = field(default_factory=list)
-    intrinsics: dict[str, float] | None = None
-    size: tuple[int, int] = (0, 0)
-    stated_size: tuple[int, int] | None = None  # (w, h) the labels state (COCO, Supervisely)
-    label: Path | None = None  # the label file, for the resume identity
-
-
-@dataclass
-class _Read:
-    """What a reader found: frames, counts of rows left out, label files without an image, the layout."""
-
-    frames: list[_Frame]
-    stats: Counter = field(default_factory=Counter)
-    unmatched: list[str] = field(default_factory=list)
-    layout: str = ""
-
-
-_NOT_LABELS = frozenset({"classes.txt", "train.txt", "val.txt", "valid.txt", "test.txt", "readme.txt", "license.txt"})
-"""``.txt`` files of a darknet folder that are not label files."""
-
-
-def _find_dir(src: Path, names: Sequence[str], what: str, required: bool = True) -> Path | None:
-    for n in names:
-        if (src / n).is_dir():
-            return src / n
-    if required:
-        raise MissingInputError(f"{src}: no {what} folder (looked for {', '.join(n + '/' for n in names)})")
-    return None
-
-
-def _is_image(p: Path) -> bool:
-    return p.suffix.lower() in IMAGE_EXTS
-
-
-def _images_under(folder: Path, root: Path) -> list[Path]:
-    files = [p for p in walk_files(folder, root) if _is_image(p)]
-    if not files:
-        raise MissingInputError(f"{folder}: no images ({', '.join(IMAGE_EXTS)})")
-    return files
-
-
-def _rel(path: Path, base: Path) -> str:
-    return path.relative_to(base).as_posix()
-
-
-def _check_box(x1: float, y1: float, x2: float, y2: float, where: str) -> tuple[float, float, float, float]:
-    if not all(math.isfinite(v) for v in (x1, y1, x2, y2)):
-        raise FileFormatError(f"{where}: box ({x1}, {y1}, {x2}, {y2}) is not finite")
-    if x2 <= x1 or y2 <= y1:
-        raise FileFormatError(f"{where}: box ({x1:g}, {y1:g}, {x2:g}, {y2:g}) is empty or inverted (expected x1 < x2, y1 < y2)")
-    return (x1, y1, x2, y2)
-
-
-def _floats(parts: Sequence[str], where: str, what: str) -> list[float]:
-    try:
-        return [float(v) for v in parts]
-    except ValueError:
-        raise FileFormatError(f"{where}: expected numbers for {what}, got {' '.join(parts)!r}") from None
-
-
-def _frame(img: Path, rel: str, src: Path) -> _Frame:
-    """A frame for the image ``img`` found under ``src``: resolved inside it (a link out is refused)."""
-    return _Frame(confined_file(img, src), rel, _rel(img, src))
-
-
-def _labelled(images: Path, labels: Path, src: Path, fmt: str, *, unmatched: list[str]) -> Iterator[tuple[Path, _Frame]]:
-    """Each image under ``images`` with its label file (mirrored under ``labels``, ``.txt``) and a new frame;
-    label files without an image are added to ``unmatched``."""
-    imgs = _images_under(images, src)
-    stems = {p.relative_to(images).with_suffix("") for p in imgs}
-    unmatched += [_rel(p, src) for p in walk_files(labels, src)
-                  if p.suffix == ".txt" and p.relative_to(labels).with_suffix("") not in stems]
-    for img in imgs:
-        lab = (labels / img.relative_to(images)).with_suffix(".txt")
-        if not lab.is_file():
-            raise MissingInputError(f"{img}: its {fmt} label file {lab} is missing (every image needs one; an "
-                                    "empty file means no cones)")
-        fr = _frame(img, _rel(img, images), src)
-        fr.label = lab
-        yield lab, fr
-
-
-def _read_kitti(src: Path) -> _Read:
-    images = _find_dir(src, _KITTI_DIRS["images"], "images")
-    labels = _find_dir(src, _KITTI_DIRS["labels"], "labels")
-    calib = _find_dir(src, _KITTI_DIRS["calib"], "calib", required=False)
-    res = _Read([], layout=f"{images.name}/ + {labels.name}/")
-    for lab, fr in _labelled(images, labels, src, "KITTI", unmatched=res.unmatched):
-        for n, line in enumerate(read_text(lab, root=src).splitlines(), 1):
-            parts = line.split()
-            if not parts:
-                continue
-            where = f"{lab}:{n}"
-            if len(parts) not in (15, 16):
-                raise FileFormatError(f"{where}: a KITTI row has 15 values (type truncated occluded alpha x1 y1 x2 y2 "
-                                 f"h w l x y z rotation_y) or 16 (with score), got {len(parts)}")
-            v = _floats(parts[1:15], where, "the KITTI columns")
-            x1, y1, x2, y2 = v[3:7]
-            if x1 == y1 == x2 == y2 == 0.0:
-                res.stats["rows without a 2D box (3D only): left out"] += 1
-                if any(v[10:13]) and all(d > 0 for d in v[7:9]):  # (h, w, l), location: projected later
-                    fr.only3d.append((parts[0], tuple(v[7:10]), tuple(v[10:13]), where))
-                continue
-            loc = tuple(v[10:13]) if any(v[7:13]) else None
-            size3d = (v[7], v[8]) if v[7] > 0 and v[8] > 0 else None
-            fr.boxes.append(_Box(parts[0], _check_box(x1, y1, x2, y2, where), where, location=loc, size3d=size3d))
-        if calib is not None:
-            fr.intrinsics = _kitti_calib((calib / fr.rel).with_suffix(".txt"), src)
-        res.frames.append(fr)
-    return res
-
-
-def _kitti_calib(path: Path, src: Path) -> dict[str, float] | None:
-    if not path.is_file():
-        return None
-    for n, line in enumerate(read_text(path, root=src).splitlines(), 1):
-        key, _, rest = line.partition(":")
-        if key.strip() in ("P2", "P_rect_02", "K"):
-            v = _floats(rest.split(), f"{path}:{n}", key.strip())
-            if key.strip() == "K" and len(v) == 9:
-                return {"fx": v[0], "fy": v[4], "cx": v[2], "cy": v[5]}
-            if len(v) == 12:
-                return {"fx": v[0], "fy": v[5], "cx": v[2], "cy": v[6]}
-            raise FileFormatError(f"{path}:{n}: {key.strip()} needs 12 values (3x4 projection) or K 9 values, got {len(v)}")
-    raise FileFormatError(f"{path}: no P2 (or K) line with the camera intrinsics")
-
-
-def _yolo_names(src: Path) -> list[str] | None:
-    for name in ("classes.txt", "obj.names"):
-        if (src / name).is_file() or (src / name).is_symlink():
-            return [ln.strip() for ln in read_text(src / name, root=src).splitlines() if ln.strip()]
-    for name in ("data.yaml", "dataset.yaml"):
-        if (src / name).is_file() or (src / name).is_symlink():
-            return _yaml_names(src / name, src)
-    return None
-
-
-def _yaml_names(path: Path, src: Path) -> list[str]:
-    """``names`` of a YOLO data.yaml: a list (inline or block) or an index -> name mapping."""
-    text = read_text(path, root=src)
-    try:
-        import yaml
-    except ImportError:  # a minimal reader of the two usual forms
-        names = _yaml_names_plain(text)
-    else:
-        try:
-            data = yaml.safe_load(text)
-        except (yaml.YAMLError, RecursionError) as exc:
-            raise FileFormatError(f"{path} is not valid YAML: {exc}") from None
-        names = data.get("names") if isinstance(data, dict) else None
-    if isinstance(names, dict):
-        try:
-            names = [str(names[k]) for k in sorted(names, key=int)]
-        except (TypeError, ValueError):
-            raise FileFormatError(f"{path}: 'names' keys must be class indices 0, 1, ...") from None
-    if not isinstance(names, list) or not names:
-        raise FileFormatError(f"{path}: expected a 'names' list (or index: name mapping) of the classes")
-    return [str(n) for n in names]
-
-
-def _yaml_names_plain(text: str) -> list[str] | None:
-    names, block = None, None
-    for line in text.splitlines():
-        s = line.split("#", 1)[0].rstrip()
-        if s.startswith("names:"):
-            rest = s[6:].strip()
-            if rest.startswith("["):
-                return [t.strip().strip("'\"") for t in rest.strip("[]").split(",") if t.strip()]
-            block = []
-            continue
-        if block is not None:
-            if not s.startswith((" ", "\t", "-")):
-                break
-            t = s.strip()
-            if t.startswith("-"):
-                block.append(t[1:].strip().strip("'\""))
-            elif ":" in t:
-                block.append(t.split(":", 1)[1].strip().strip("'\""))
-    return names if names is not None else block
-
-
-def _yolo_rows(lab: Path, src: Path, fr: _Frame, names: list[str] | None) -> None:
-    w, h = fr.size
-    for n, line in enumerate(read_text(lab, root=src).splitlines(), 1):
-        parts = line.split()
-        if not parts:
-            continue
-        where = f"{lab}:{n}"
-        if len(parts) != 5:
-            raise FileFormatError(f"{where}: a YOLO row has 5 values (class cx cy w h, normalised to the image), "
-                             f"got {len(parts)}")
-        try:
-            idx = int(parts[0])
-        except ValueError:
-            raise FileFormatError(f"{where}: class must be an integer index, got {parts[0]!r}") from None
-        cx, cy, bw, bh = _floats(parts[1:], where, "cx cy w h")
-        if not all(-0.01 <= v <= 1.01 for v in (cx, cy, bw, bh)):
-            raise FileFormatError(f"{where}: cx cy w h must be normalised to [0, 1], got {' '.join(parts[1:])}")
-        if names is not None and not 0 <= idx < len(names):
-            raise FileFormatError(f"{where}: class index {idx} is outside the {len(names)} class names of {src}")
-        cls = names[idx] if names is not None else str(idx)
-        box = ((cx - bw / 2) * w, (cy - bh / 2) * h, (cx + bw / 2) * w, (cy + bh / 2) * h)
-        fr.boxes.append(_Box(cls, _check_box(*box, where), where))
-
-
-def _read_yolo(src: Path) -> _Read:
-    """``images/`` + ``labels/`` (mirrored), or the darknet layout: ``img.jpg`` and ``img.txt`` side by side."""
-    names = _yolo_names(src)
-    if (src / "images").is_dir() and (src / "labels").is_dir():
-        res = _Read([], layout="images/ + labels/")
-        pairs = list(_labelled(src / "images", src / "labels", src, "YOLO", unmatched=res.unmatched))
-    else:
-        res = _Read([], layout="labels beside the images (darknet)")
-        files = walk_files(src, src)
-        imgs = [p for p in files if _is_image(p)]
-        if not imgs:
-            raise MissingInputError(f"{src}: no images ({', '.join(IMAGE_EXTS)}): expected images/ + labels/, or "
-                                    "images with their .txt label files beside them (darknet)")
-        stems = {p.with_suffix("") for p in imgs}
-        res.unmatched += [_rel(p, src) for p in files if p.suffix == ".txt" and p.with_suffix("") not in stems
-                          and p.name.lower() not in _NOT_LABELS]
-        pairs = []
-        for img in imgs:
-            lab = img.with_suffix(".txt")
-            if not lab.is_file() and not lab.is_symlink():
-                raise MissingInputError(f"{img}: its YOLO label file {lab} is missing (in the darknet layout every "
-                                        "image needs a .txt beside it; an empty file means no cones)")
-            fr = _frame(img, _rel(img, src), src)
-            fr.label = lab
-            pairs.append((lab, fr))
-    for lab, fr in pairs:
-        fr.size = _image_size(fr, src)
-        _yolo_rows(lab, src, fr, names)
-        res.frames.append(fr)
-    return res
-
-
-def _json(path: Path, src: Path | None, what: str) -> Any:
-    text = read_text(path, root=src)
-    try:
-        return json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise FileFormatError(f"{path} is not a valid {what} JSON file: {exc}") from None
-
-
-def _read_coco(src: Path, annotations: Path | None) -> _Read:
-    if annotations is None:
-        cands = sorted(p for p in src.iterdir() if p.suffix == ".json" and (p.is_file() or p.is_symlink()))
-        if len(cands) != 1:
-            raise MissingInputError(f"{src}: expected exactly one COCO *.json file, found "
-                                    f"{len(cands)} ({', '.join(p.name for p in cands) or 'none'}); pass --annotations")
-        annotations = cands[0]
-        data = _json(annotations, src, "COCO")
-    else:  # named on the command line: the user's choice, read where it is
-        if not annotations.is_file():
-            raise MissingInputError(f"--annotations {annotations} not found")
-        data = _json(annotations, None, "COCO")
-    for key in ("images", "annotations", "categories"):
-        if not isinstance(data, dict) or not isinstance(data.get(key), list):
-            raise FileFormatError(f"{annotations}: missing or invalid key {key!r} (expected a list)")
-    cats = {}
-    for c in data["categories"]:
-        if not isinstance(c, dict) or not _is_id(c.get("id")) or "name" not in c:
-            raise FileFormatError(f"{annotations}: category {c!r} needs an id (an integer or a string) and a name")
-        cats[c["id"]] = str(c["name"])
-    # the frames are looked for beside the JSON (when it lies in SRC), in SRC and in SRC/images, never outside SRC
-    near = Path(os.path.realpath(annotations.parent))
-    bases = list(dict.fromkeys(([near] if near.is_relative_to(src) else []) + [src, src / "images"]))
-    frames, by_id, seen = [], {}, set()
-    for im in data["images"]:
-        if not isinstance(im, dict) or not _is_id(im.get("id")) or not isinstance(im.get("file_name"), str):
-            raise FileFormatError(f"{annotations}: image record {im!r} needs an id (an integer or a string) and a "
-                                  "file_name")
-        rel = im["file_name"]
-        what = f"{annotations}: image {im['id']} 'file_name'"
-        if not rel or "\x00" in rel or Path(rel).is_absolute():
-            raise OutsideRootError(f"{what}: {rel!r} must be a path relative to the images' folder inside {src}")
-        cands = [Path(os.path.normpath(b / rel)) for b in bases]
-        cands = [c for c in cands if _lexically_inside(c, src)]
-        if not cands:
-            raise OutsideRootError(f"{what}: {rel!r} leads outside {src}; the frames must lie inside the source folder")
-        path = next((c for c in cands if c.is_file() or c.is_symlink()), None)
-        if path is None:
-            raise MissingInputError(f"{annotations}: image {im['id']} file {rel} not found under "
-                                    f"{' or '.join(str(b) for b in bases)}")
-        if ".." in Path(rel).parts:
-            rel = _rel(path, Path(os.path.normpath(src)))
-        if im["id"] in by_id:
-            raise FileFormatError(f"{annotations}: duplicate image id {im['id']!r}")
-        if rel in seen:
-            raise FileFormatError(f"{annotations}: image {im['id']}: file {rel} is listed twice")
-        seen.add(rel)
-        fr = _frame(path, Path(rel).as_posix(), src)
-        fr.stated_size = _stated_size(im.get("width"), im.get("height"), f"{annotations}: image {im['id']}")
-        frames.append(fr)
-        by_id[im["id"]] = fr
-    for a in data["annotations"]:
-        where = f"{annotations}: annotation {a.get('id') if isinstance(a, dict) else a!r}"
-        if not isinstance(a, dict) or not _is_id(a.get("image_id")) or a["image_id"] not in by_id:
-            raise FileFormatError(f"{where} refers to an unknown image_id")
-        if not _is_id(a.get("category_id")) or a["category_id"] not in cats:
-            raise FileFormatError(f"{where} has an unknown category_id {a.get('category_id')!r}")
-        b = a.get("bbox")
-        if not isinstance(b, list) or len(b) != 4:
-            raise FileFormatError(f"{where}: bbox {b!r} is not [x, y, w, h]")
-        x, y, w, h = _floats([str(v) for v in b], where, "bbox")
-        box = _Box(cats[a["category_id"]], _check_box(x, y, x + w, y + h, where), where, crowd=bool(a.get("iscrowd")))
-        rng = a.get("range")
-        box.range = float(rng) if isinstance(rng, int | float) and not isinstance(rng, bool) else math.nan
-        by_id[a["image_id"]].boxes.append(box)
-    return _Read(frames, layout=f"COCO {annotations.name}")
-
-
-def _is_id(v: Any) -> bool:
-    return isinstance(v, int | str) and not isinstance(v, bool)
-
-
-def _lexically_inside(path: Path, src: Path) -> bool:
-    base = Path(os.path.normpath(os.path.abspath(src)))
-    p = Path(os.path.normpath(os.path.abspath(path)))
-    return p == base or p.is_relative_to(base)
-
-
-def _stated_size(w: Any, h: Any, where: str) -> tuple[int, int] | None:
-    """The ``width``/``height`` a label file states (None when it states none)."""
-    if w is None and h is None:
-        return None
-    if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (w, h)):
-        raise FileFormatError(f"{where}: width and height must be positive integers, got {w!r} x {h!r}")
-    return int(w), int(h)
-
-
-def _read_supervisely(src: Path) -> _Read:
-    """A Supervisely project (FSOCO): ``meta.json`` (classes) and per dataset ``img/`` + ``ann/<image>.json``;
-    rectangles become boxes, other geometries are counted and left out."""
-    meta_file = src / "meta.json"
-    if not meta_file.is_file() and not meta_file.is_symlink():
-        raise MissingInputError(f"{src}: no meta.json (a Supervisely project holds meta.json and dataset folders "
-                                "with img/ and ann/)")
-    meta = _json(meta_file, src, "Supervisely meta")
-    classes = meta.get("classes") if isinstance(meta, dict) else None
-    if not isinstance(classes, list) or not all(isinstance(c, dict) and isinstance(c.get("title"), str)
-                                                for c in classes):
-        raise FileFormatError(f"{meta_file}: expected 'classes': a list of objects with a 'title'")
-    titles = {c["title"] for c in classes}
-    datasets = [src] if (src / "img").is_dir() else []
-    datasets += [d for d in sorted(src.iterdir()) if d.is_dir() and (d / "img").is_dir()]
-    if not datasets:
-        raise MissingInputError(f"{src}: no dataset folders with img/ and ann/ (Supervisely layout: "
-                                "PROJECT/meta.json, PROJECT/DATASET/img/NAME, PROJECT/DATASET/ann/NAME.json)")
-    res = _Read([], layout="Supervisely project (meta.json, DATASET/img/ + DATASET/ann/)")
-    for ds in datasets:
-        img_dir, ann_dir = ds / "img", ds / "ann"
-        if not ann_dir.is_dir():
-            raise MissingInputError(f"{ds}: img/ without ann/ (every image needs ann/NAME.json)")
-        imgs = _images_under(img_dir, src)
-        names = {_rel(p, img_dir) for p in imgs}
-        res.unmatched += [_rel(p, src) for p in walk_files(ann_dir, src)
-                          if p.suffix == ".json" and _rel(p, ann_dir)[:-5] not in names]
-        prefix = "" if ds == src else f"{ds.name}/"
-        for img in imgs:
-            ann = ann_dir / f"{_rel(img, img_dir)}.json"
-            if not ann.is_file() and not ann.is_symlink():
-                raise MissingInputError(f"{img}: its Supervisely annotation {ann} is missing (every image needs one)")
-            fr = _frame(img, prefix + _rel(img, img_dir), src)
-            fr.label = ann
-            _supervisely_objects(ann, src, fr, titles, res.stats)
-            res.frames.append(fr)
-    return res
-
-
-def _supervisely_objects(ann: Path, src: Path, fr: _Frame, titles: set[str], stats: Counter) -> None:
-    data = _json(ann, src, "Supervisely annotation")
-    if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
-        raise FileFormatError(f"{ann}: expected an object with 'size' and an 'objects' list")
-    size = data.get("size")
-    if not isinstance(size, dict):
-        raise FileFormatError(f"{ann}: 'size' must be {{\"height\": H, \"width\": W}}, got {size!r}")
-    fr.stated_size = _stated_size(size.get("width"), size.get("height"), f"{ann}: size")
-    for k, obj in enumerate(data["objects"]):
-        where = f"{ann}: object {k}"
-        if not isinstance(obj, dict) or not isinstance(obj.get("classTitle"), str):
-            raise FileFormatError(f"{where}: expected an object with a 'classTitle' and a 'geometryType'")
-        if obj["classTitle"] not in titles:
-            raise FileFormatError(f"{where}: class {obj['classTitle']!r} is not among the classes of "
-                                  f"{src / 'meta.json'}")
-        geom = obj.get("geometryType")
-        if geom != "rectangle":
-            stats[f"objects of geometry {geom} (not a box): left out"] += 1
-            continue
-        pts = (obj.get("points") or {}).get("exterior") if isinstance(obj.get("points"), dict) else None
-        if not (isinstance(pts, list) and len(pts) == 2 and all(isinstance(p, list) and len(p) == 2 for p in pts)):
-            raise FileFormatError(f"{where}: a rectangle needs points.exterior [[x1, y1], [x2, y2]], got {pts!r}")
-        (xa, ya), (xb, yb) = (_floats([str(v) for v in p], where, "points.exterior") for p in pts)
-        box = _check_box(min(xa, xb), min(ya, yb), max(xa, xb), max(ya, yb), where)
-        fr.boxes.append(_Box(obj["classTitle"], box, where))
-
-
-_GREY_MODES = frozenset({"1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "F"})
-"""Pillow modes of single-channel frames (refused: the detector and the effects take colour frames)."""
-
-
-def _image_size(fr: _Frame, src: Path) -> tuple[int, int]:
-    """(width, height) of a frame as every reader decodes it (an EXIF rotation applied, as labelling tools
-    show it): the header is read first and the size bound checked (:func:`~weather_gym.limits.check_image_size`)
-    before the frame is decoded."""
-    where = fr.image if not fr.source_file else src / fr.source_file
-    mode = None
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            with Image.open(fr.image) as im:
-                (w, h), mode = im.size, im.mode
-                if im.getexif().get(0x0112) in (5, 6, 7, 8):  # EXIF orientation: turned by 90 degrees
-                    w, h = h, w
-    except Image.DecompressionBombError:
-        raise LimitError(f"{where}: image is larger than {MAX_IMAGE_PIXELS / 1e6:.0f} MP (the most supported)") from None
-    except (OSError, SyntaxError, ValueError):
-        w = h = None  # not a format Pillow reads: OpenCV decides below
-    if w is not None:
-        check_image_size((h, w), what=str(where))
-    if mode is None:  # Pillow could not tell the channels: OpenCV's undecorated decode does
-        raw = cv2.imread(str(fr.image), cv2.IMREAD_UNCHANGED)
-        channels = None if raw is None or raw.size == 0 else (1 if raw.ndim == 2 else raw.shape[2])
-    else:
-        channels = 1 if mode in _GREY_MODES else 3
-    if channels is not None and channels not in (3, 4):
-        raise FileFormatError(f"image file {where} has {channels} channel(s); expected colour (RGB) frames")
-    img = cv2.imread(str(fr.image), cv2.IMREAD_COLOR)  # as weather_gym.datasets.coco.read_image decodes it
-    if img is None or img.size == 0:
-        raise FileFormatError(f"image file {where} could not be decoded as an image")
-    check_image_size(img.shape, what=str(where))
-    return int(img.shape[1]), int(img.shape[0])
-
-
-# ------------------------------------------------------------------------------------ geometry
-def _location_frame(frames: list[_Frame], requested: str) -> tuple[str, str]:
-    """Which frame KITTI 3D locations are in: ``camera`` (x right, z forward) or ``vehicle`` (x forward,
-    y left), recognised from which puts the cones on the side of the image their 2D box is on."""
-    if requested not in ("auto", "camera", "vehicle", "none"):
-        raise InputError(f"location frame must be auto, camera, vehicle or none, got {requested!r}")
-    if requested != "auto":
-        return requested, f"{requested} (given)"
-    votes = Counter()
-    n = 0
-    for fr in frames:
-        w = fr.size[0]
-        cx = fr.intrinsics["cx"] if fr.intrinsics else w / 2.0
-        for b in fr.boxes:
-            if b.location is None:
-                continue
-            u = 0.5 * (b.box[0] + b.box[2]) - cx
-            if abs(u) < 0.05 * w:
-                continue
-            x, y, z = b.location
-            n += 1
-            votes["camera"] += (np.sign(x) == np.sign(u)) and z > 0
-            votes["vehicle"] += (np.sign(-y) == np.sign(u)) and x > 0
-    if n < 5:
-        return "none", f"none ({n} cones with both a 3D location and a 2D box off the centre: too few to tell)"
-    best, hits = max(votes.items(), key=lambda t: t[1]) if votes else ("none", 0)
-    if hits < 0.9 * n:
-        return "none", (f"none (neither frame puts >= 90 % of {n} cones on the side of their 2D box: camera "
-                        f"{votes['camera']}, vehicle {votes['vehicle']})")
-    return best, f"{best} (recognised: {hits} of {n} cones on the side of their 2D box)"
-
-
-MIN_POSE_ROWS = 8
-"""Rows with both a 2D box and a 3D location needed to fit the camera pose for projecting 3D-only cones."""
-
-
-def _camera_axes(loc: np.ndarray, h: np.ndarray, frame: str) -> tuple[np.ndarray, np.ndarray]:
-    """Bottom and top centre of cones in camera-like axes (x right, y down, z forward)."""
-    x, y, z = loc.T
-    if frame == "camera":  # KITTI: the location is the bottom centre, y down
-        bottom = np.c_[x, y, z]
-    else:  # vehicle: x forward, y left, z up
-        bottom = np.c_[-y, -z, x]
-    top = bottom - np.c_[np.zeros_like(h), h, np.zeros_like(h)]
-    return bottom, top
-
-
-def _project(pose: np.ndarray, k: Mapping[str, float], loc: np.ndarray, hw: np.ndarray, frame: str):
-    """xyxy boxes and forward distances of cones (locations ``loc``, sizes ``hw`` = (h, w)) under ``pose``
-    (rotation vector, translation of the 3D frame into the camera)."""
-
-    rot = Rotation.from_rotvec(pose[:3])
-    bottom, top = (rot.apply(p) + pose[3:] for p in _camera_axes(loc, hw[:, 0], frame))
-    zb = np.maximum(bottom[:, 2], 1e-6)
-    zt = np.maximum(top[:, 2], 1e-6)
-    ub = k["fx"] * bottom[:, 0] / zb + k["cx"]
-    vb = k["fy"] * bottom[:, 1] / zb + k["cy"]
-    vt = k["fy"] * top[:, 1] / zt + k["cy"]
-    half = k["fx"] * hw[:, 1] / 2 / zb
-    return np.c_[ub - half, vt, ub + half, vb], bottom[:, 2]
-
-
-def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    x1, y1 = np.maximum(box[0], boxes[:, 0]), np.maximum(box[1], boxes[:, 1])
-    x2, y2 = np.minimum(box[2], boxes[:, 2]), np.minimum(box[3], boxes[:, 3])
-    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
-    area = lambda b: (b[..., 2] - b[..., 0]) * (b[..., 3] - b[..., 1])  # noqa: E731
-    return inter / np.maximum(area(box) + area(boxes) - inter, 1e-9)
-
-
-def _fit_pose(frames: list[_Frame], frame: str) -> tuple[np.ndarray, float] | None:
-    """The 3D frame's pose in the camera, fitted (robust least squares) to the rows that carry both a 2D box
-    and a 3D location; with the median absolute error in pixels. None with too few rows or no intrinsics."""
-
-    rows = [(b.box, b.location, b.size3d, fr.intrinsics) for fr in frames for b in fr.boxes
-            if b.location is not None and b.size3d is not None and fr.intrinsics is not None]
-    if frame not in ("camera", "vehicle") or len(rows) < MIN_POSE_ROWS:
-        return None
-    k = rows[0][3]
-    if any(r[3] != k for r in rows):
-        return None
-    boxes = np.array([r[0] for r in rows], float)
-    loc = np.array([r[1] for r in rows], float)
-    hw = np.array([r[2] for r in rows], float)
-
-    def residual(p):
-        return (_project(p, k, loc, hw, frame)[0] - boxes).ravel()
-
-    fit = least_squares(residual, np.zeros(6), loss="soft_l1", f_scale=5.0)
-    return fit.x, float(np.median(np.abs(residual(fit.x))))
-
-
-def _range_bearing(loc: tuple[float, float, float], frame: str) -> tuple[float, float]:
-    x, y, z = loc
-    if frame == "camera":
-        fwd, left = z, -x
-    elif frame == "vehicle":
-        fwd, left = x, y
-    else:
-        return math.nan, math.nan
-    return math.hypot(fwd, left), math.atan2(left, fwd)
 
 
 # ------------------------------------------------------------------------------------ import
@@ -755,7 +195,7 @@ def _clear(out: Path) -> None:
             raise OutputPathError(f"cannot replace {p}: {exc.strerror or exc}") from None
 
 
-def _identity(fmt: str, src: Path, frames: list[_Frame], settings: dict[str, Any]) -> dict[str, Any]:
+def _identity(fmt: str, src: Path, frames: list[SourceFrame], settings: dict[str, Any]) -> dict[str, Any]:
     """What an import is made of: the format, the source, the settings and every source file's size and time
     (a resumed import must continue the same one)."""
     h = hashlib.sha256()
@@ -834,24 +274,17 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
         raise
 
 
-def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str], cond: str | None,
+def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str], cond: str | None,  # noqa: C901
             sev: int | None, given_k: dict[str, float] | None, detector: Any, mask: Any, annotations: Any,
             location_frame: str, project_3d: bool, progress: bool) -> dict[str, Any]:
     # 1. read and validate everything before writing anything
-    if fmt == "kitti":
-        read = _read_kitti(src)
-    elif fmt == "yolo":
-        read = _read_yolo(src)
-    elif fmt == "supervisely":
-        read = _read_supervisely(src)
-    else:
-        read = _read_coco(src, Path(annotations) if annotations is not None else None)
+    read = read_source(fmt, src, Path(annotations) if annotations is not None else None)
     frames, stats = read.frames, read.stats
     if not frames:
         raise FileFormatError(f"{src}: no frames to import")
     for fr in tqdm(frames, desc="check", unit="frame", disable=not progress):
         if fr.size == (0, 0):
-            fr.size = _image_size(fr, src)
+            fr.size = image_size(fr, src)
         if fr.stated_size is not None and fr.stated_size != fr.size:
             raise FileFormatError(f"{src / fr.source_file} is {fr.size[0]}x{fr.size[1]} but its labels state "
                                   f"{fr.stated_size[0]}x{fr.stated_size[1]}")
@@ -889,8 +322,8 @@ def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str],
             except ValueError as exc:
                 raise FileFormatError(f"{src / fr.source_file}: {exc}") from None
             fr.intrinsics = k
-    loc_frame, loc_why = _location_frame(frames, location_frame) if fmt == "kitti" else ("none", "none")
-    projected = _project_only3d(frames, loc_frame) if fmt == "kitti" and project_3d else None
+    loc_frame, loc_why = recognise_location_frame(frames, location_frame) if fmt == "kitti" else ("none", "none")
+    projected = project_only3d(frames, loc_frame) if fmt == "kitti" and project_3d else None
     rules = {s: SmallRule.for_image(s, detector) for s in sizes}
     mask_arr = read_mask(mask, size) if mask is not None else None
     settings = {"annotations": None if annotations is None else os.path.realpath(annotations), "classes": cmap,
@@ -940,7 +373,7 @@ def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str],
                 n_small += 1
             else:
                 per_class[target] += 1
-            rng, bear = (_range_bearing(b.location, loc_frame) if b.location is not None else (b.range, b.bearing))
+            rng, bear = (range_bearing(b.location, loc_frame) if b.location is not None else (b.range, b.bearing))
             if math.isfinite(rng):
                 a["range"], a["bearing"] = float(rng), float(bear)
             anns.append(a)
@@ -995,43 +428,3 @@ def _clear_but_marker(out: Path) -> None:
 
 def _sizes_text(sizes: Mapping[tuple[int, int], int]) -> str:
     return ", ".join(f"{w}x{h} ({n})" for (w, h), n in sorted(sizes.items()))
-
-
-def _project_only3d(frames: list[_Frame], loc_frame: str) -> dict | None:
-    """Ignore regions for the 3D-only rows: ``{frame index: [(class, xyxy)], "summary": str}``, or None when
-    the camera pose cannot be fitted. Each projected box is grown by the fit's median error plus a quarter
-    of its size on every side (a region, not a label), clipped to the frame; cones behind the camera, out
-    of the frame or nearer than 0.5 m are skipped, and so are rows that repeat a cone with a 2D box (the
-    projection overlaps one at IoU >= 0.3)."""
-    if not any(fr.only3d for fr in frames):
-        return None
-    fitted = _fit_pose(frames, loc_frame)
-    if fitted is None:
-        return None
-    pose, err = fitted
-    out: dict[Any, Any] = {}
-    n = n_out = n_dup = 0
-    for i, fr in enumerate(frames):
-        if not fr.only3d or fr.intrinsics is None:
-            continue
-        loc = np.array([r[2] for r in fr.only3d], float)
-        hw = np.array([r[1][:2] for r in fr.only3d], float)
-        boxes, fwd = _project(pose, fr.intrinsics, loc, hw, loc_frame)
-        labelled = np.array([b.box for b in fr.boxes], float).reshape(-1, 4)
-        w, h = fr.size
-        for (cls, *_), b, z in zip(fr.only3d, boxes, fwd, strict=True):
-            if len(labelled) and _iou(b, labelled).max() >= 0.3:
-                n_dup += 1
-                continue
-            grow = np.array([-1, -1, 1, 1]) * (err + 0.25 * np.array([b[2] - b[0], b[3] - b[1]] * 2))
-            g = b + grow
-            if z < 0.5 or g[2] <= 0 or g[3] <= 0 or g[0] >= w or g[1] >= h:
-                n_out += 1
-                continue
-            g = (max(0.0, g[0]), max(0.0, g[1]), min(float(w), g[2]), min(float(h), g[3]))
-            out.setdefault(i, []).append((cls, tuple(float(v) for v in g)))
-            n += 1
-    out["summary"] = (f"{n} 3D-only cones in view projected into ignore regions ({n_out} behind or out of the frame, "
-                      f"{n_dup} repeating a cone with a 2D box); "
-                      f"camera pose fitted to the rows with both boxes, median error {err:.1f} px")
-    return out

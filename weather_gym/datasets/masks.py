@@ -36,34 +36,14 @@ import cv2
 import numpy as np
 
 from weather_gym._io import atomic_write, atomic_write_json, resolve_inside
-from weather_gym.datasets import coco as _coco  # cyclic pair: attributes used at call time
-from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputExistsError
+from weather_gym.datasets.coco import load_coco
+from weather_gym.datasets.coco_files import ANNOTATIONS, read_mask
+from weather_gym.errors import InputError, OutputExistsError
 
 __all__ = ["MASK_FILE", "read_mask", "write_mask", "propose_mask", "mask_preview", "set_dataset_mask"]
 
 MASK_FILE = "ignore_mask.png"
 _WORK_WIDTH = 192
-
-
-def read_mask(path: str | os.PathLike, size: tuple[int, int] | None = None) -> np.ndarray:
-    """A mask PNG as a boolean ``(H, W)`` array (True = ignored); ``size`` (W, H) is checked when given."""
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"ignore mask {path} not found")
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if raw is None or raw.size == 0:
-        raise FileFormatError(f"ignore mask {path} could not be decoded as an image (expected a PNG, white = ignored)")
-    if raw.ndim == 3:
-        raw = cv2.cvtColor(raw[..., :3], cv2.COLOR_BGR2GRAY)
-    if raw.dtype == np.uint16:
-        raw = (raw >> 8).astype(np.uint8)
-    if raw.dtype != np.uint8:
-        raise FileFormatError(f"ignore mask {path} has pixel type {raw.dtype}; expected an 8-bit PNG (white = ignored)")
-    mask = raw >= 128
-    if size is not None and (mask.shape[1], mask.shape[0]) != tuple(size):
-        raise FileFormatError(f"ignore mask {path} is {mask.shape[1]}x{mask.shape[0]} but the frames are "
-                         f"{size[0]}x{size[1]}; a mask must have the frames' size")
-    return mask
 
 
 def _png(mask: np.ndarray) -> bytes:
@@ -169,7 +149,7 @@ def set_dataset_mask(root: str | os.PathLike, mask_path: str | os.PathLike, *, f
     ``overwrite``.
     """
 
-    ds = _coco.load_coco(root)
+    ds = load_coco(root)
     root = Path(root)
     if frame is None:
         sizes = {(int(r["width"]), int(r["height"])) for r in ds.images}
@@ -180,7 +160,7 @@ def set_dataset_mask(root: str | os.PathLike, mask_path: str | os.PathLike, *, f
     else:
         rec = next((r for r in ds.images if r["file_name"] == frame), None)
         if rec is None:
-            raise InputError(f"{root / _coco.ANNOTATIONS}: no image with file_name {frame!r}")
+            raise InputError(f"{root / ANNOTATIONS}: no image with file_name {frame!r}")
         size = (int(rec["width"]), int(rec["height"]))
         rel = f"masks/{Path(frame).stem}.png"
     mask = read_mask(mask_path, size)
@@ -189,10 +169,10 @@ def set_dataset_mask(root: str | os.PathLike, mask_path: str | os.PathLike, *, f
     if (current or dest.exists()) and not overwrite:
         raise OutputExistsError(f"{root} already has an ignore mask ({current or rel}); pass --overwrite to replace it")
     atomic_write(dest, _png(mask), overwrite=overwrite)
-    data = json.loads((root / _coco.ANNOTATIONS).read_text())
+    data = json.loads((root / ANNOTATIONS).read_text())
     if rec is None:
         data.setdefault("info", {})["ignore_mask"] = rel
     else:
         next(r for r in data["images"] if r["file_name"] == frame)["ignore_mask"] = rel
-    atomic_write_json(root / _coco.ANNOTATIONS, data, overwrite=True)  # the dataset's own index, one key added
+    atomic_write_json(root / ANNOTATIONS, data, overwrite=True)  # the dataset's own index, one key added
     return dest

@@ -9,6 +9,10 @@ then saves every ``every``-th env step while ``gt_pure_pursuit`` drives. Everyth
 Example:
     >>> from weather_gym.datasets.render import render_dataset
     >>> render_dataset("scratch/demo", tracks=["small_track"], frames=10, seed=0)   # doctest: +SKIP
+
+How ``frames`` are spread over tracks and episodes (nothing is rendered):
+    >>> episode_plan(["peanut", "hairpin"], frames=5, frames_per_episode=2)
+    [('peanut', 2), ('peanut', 1), ('hairpin', 2)]
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from weather_gym._io import atomic_write
 from weather_gym.agents import AGENTS
 from weather_gym.camera_config import CameraConfig
 from weather_gym.camera_isp import CameraModel
-from weather_gym.datasets import coco as _coco  # cyclic pair: attributes used at call time
+from weather_gym.datasets import coco_writer
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError
 from weather_gym.limits import check_seed
@@ -96,6 +100,34 @@ def _start_pose(track, rng: np.random.Generator, lateral_max: float,
     return (x - off * math.sin(h), y + off * math.cos(h), h + dyaw)
 
 
+def _checked_settings(seed: int, scene: str, ranges, every: int,
+                      camera_model: CameraModel | None) -> tuple[RandomizeRanges, CameraModel]:
+    """:func:`render_dataset`'s settings checked; ``(ranges, camera_model)`` with their defaults filled in."""
+    check_seed(seed)
+    if scene not in SCENES:
+        raise InputError(f"scene must be one of {SCENES}, got {scene!r}")
+    if ranges is not None and not isinstance(ranges, RandomizeRanges):
+        raise InputError(f"ranges must be a RandomizeRanges, got {type(ranges).__name__}")
+    if every < 1:
+        raise InputError(f"every must be >= 1, got {every}")
+    if camera_model is None:
+        camera_model = EnvConfig().camera_model  # the env's default finishing stage
+    if not isinstance(camera_model, CameraModel):
+        raise InputError(f"camera_model must be a CameraModel, got {type(camera_model).__name__}")
+    return ranges or RandomizeRanges(), camera_model
+
+
+def _episode_look(rng: np.random.Generator, realistic: bool, randomize: bool, ranges: RandomizeRanges,
+                  camera: CameraConfig, camera_model: CameraModel) -> tuple[Any, CameraModel, CameraConfig]:
+    """``(look, camera model, camera)`` of one episode: drawn from ``rng`` when ``randomize``."""
+    if realistic and randomize:
+        draw = sample_realistic(rng, ranges)
+        return draw.look, draw.camera_model, draw.camera(camera)
+    if realistic:
+        return REALISTIC_LOOK, camera_model, camera
+    return (sample_look(rng) if randomize else DEFAULT_LOOK), camera_model, camera
+
+
 def render_dataset(
     out: str | os.PathLike,
     *,
@@ -140,19 +172,8 @@ def render_dataset(
     """
 
 
-    check_seed(seed)
-    if scene not in SCENES:
-        raise InputError(f"scene must be one of {SCENES}, got {scene!r}")
-    if ranges is not None and not isinstance(ranges, RandomizeRanges):
-        raise InputError(f"ranges must be a RandomizeRanges, got {type(ranges).__name__}")
+    ranges, camera_model = _checked_settings(seed, scene, ranges, every, camera_model)
     realistic = scene == "realistic"
-    ranges = ranges or RandomizeRanges()
-    if every < 1:
-        raise InputError(f"every must be >= 1, got {every}")
-    if camera_model is None:
-        camera_model = EnvConfig().camera_model  # the env's default finishing stage
-    if not isinstance(camera_model, CameraModel):
-        raise InputError(f"camera_model must be a CameraModel, got {type(camera_model).__name__}")
     camera = camera or CameraConfig()
     plan = episode_plan(list(tracks), int(frames), int(frames_per_episode))
     # every episode's seed comes from the master seed, so resuming replays exactly the same episodes
@@ -164,7 +185,7 @@ def render_dataset(
     # a resumed render must be asked for exactly what the interrupted one was (seed included)
     identity = {**info, "camera": camera.to_dict(), "camera_model": camera_model.to_dict(),
                 "jpeg_quality": jpeg_quality, "lateral_max": float(lateral_max)}
-    writer = _coco.CocoWriter(out, overwrite=overwrite, resume=resume, jpeg_quality=jpeg_quality, info=info,
+    writer = coco_writer.CocoWriter(out, overwrite=overwrite, resume=resume, jpeg_quality=jpeg_quality, info=info,
                               identity=identity)
     try:
         recorded = _record_tracks(Path(out), list(tracks))
@@ -183,14 +204,7 @@ def render_dataset(
                 written += n_frames
                 continue
             rng = np.random.default_rng(ep_seed)
-            ep_camera, model = camera, camera_model
-            if realistic and randomize:
-                draw = sample_realistic(rng, ranges)
-                look, model, ep_camera = draw.look, draw.camera_model, draw.camera(camera)
-            elif realistic:
-                look = REALISTIC_LOOK
-            else:
-                look = sample_look(rng) if randomize else DEFAULT_LOOK
+            look, model, ep_camera = _episode_look(rng, realistic, randomize, ranges, camera, camera_model)
             if env_track != (track_spec, ep_camera):
                 if env is not None:
                     env.close()

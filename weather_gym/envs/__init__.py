@@ -2,6 +2,11 @@
 
 Names are imported lazily, so registering the ids (on ``import weather_gym``) does not load
 PyBullet; it is loaded when an env is made.
+
+Example:
+    >>> from weather_gym.envs import EnvConfig, END_REASONS
+    >>> EnvConfig(track="peanut").track, "off_track" in END_REASONS
+    ('peanut', True)
 """
 
 from __future__ import annotations

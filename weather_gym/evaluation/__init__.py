@@ -1,7 +1,8 @@
 """Robustness evaluation: a generic resumable cell runner, the evaluation grid, and its reports.
 
 * :mod:`~weather_gym.evaluation.runner` - ``run_cells(cells, cell_fn, results_path, ...)``: parallel
-  (local processes or Ray), resumable, one tidy CSV row per cell; reused by the calibration sweep.
+  (joblib: local processes or Ray), resumable, one stored row per cell
+  (:mod:`~weather_gym.evaluation.results_store`: SQLite, exported as a tidy CSV); reused by the calibration sweep.
 * :mod:`~weather_gym.evaluation.evaluate` - ``EvalConfig``, ``make_cells``, ``run_cell``, ``evaluate``:
   agents x tracks x effects x severities x seeds through weather presets.
 * :mod:`~weather_gym.evaluation.report` - ``write_report``: Markdown table and metric-vs-severity plots.

@@ -4,7 +4,9 @@
 expands it into ``EvalCell`` s (every field that changes the result is in the cell, so a results file
 never mixes configurations silently; what the fields do not name, the model files and the resolved
 scenario, is fingerprinted in ``stack``: see :func:`stack_id`), ``run_cell`` drives one episode and returns its metrics, and
-``evaluate`` runs the grid on :func:`weather_gym.evaluation.runner.run_cells` (parallel, resumable).
+``evaluate`` runs the grid on :func:`weather_gym.evaluation.runner.run_cells` (parallel, resumable)
+and returns the rows; the report (:func:`weather_gym.evaluation.report.write_report`) is written by
+its caller (``weather-gym evaluate``).
 
 Severity -> weather goes through :func:`weather_gym.weather.presets.preset_spec` (the shipped
 ``presets.toml``; ``dim`` is an alias of the ``low_light`` condition). The resolved effect list is a
@@ -13,8 +15,9 @@ the cells run again; nothing here changes.
 
 Pipeline of a cell: :func:`weather_gym.pipeline.make_env` (``env_id``, ``track``, ``laps``,
 ``max_episode_steps``, ``env_kwargs``; weather: the cell's preset; perception: a mode of
-``weather_gym.pipeline.PERCEPTION_MODES``) -> the agent from ``AGENTS`` -> one episode of
-:func:`weather_gym.agents.run_episode` from ``reset(seed=seed)``.
+``weather_gym.perception_modes.PERCEPTION_MODES``) -> the agent from ``AGENTS`` -> one episode of
+:func:`weather_gym.agents.run_episode` from ``reset(seed=seed)`` -> every metric of
+:data:`weather_gym.evaluation.metrics.METRICS`.
 
 Example:
     >>> import json
@@ -29,36 +32,40 @@ from __future__ import annotations
 import hashlib
 import inspect
 import json
-import math
 import numbers
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
-from scipy.spatial import cKDTree
 
-from weather_gym._io import derived_outputs_replaceable, file_id
-from weather_gym.agents import AGENTS, make_agent, run_episode
+from weather_gym._io import file_id
+from weather_gym.agents import AGENTS, agent_observes, make_agent, run_episode
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.errors import InputError
-from weather_gym.evaluation.metrics import MAP_MATCH_RADIUS_M, METRICS
-from weather_gym.evaluation.report import report_paths, write_report
+from weather_gym.evaluation.metrics import (
+    MAP_MATCH_RADIUS_M,
+    METRICS,
+    DetectorScoring,
+    Episode,
+    episode_metrics,
+    map_precision_recall,
+)
 from weather_gym.evaluation.runner import check_results_path, run_cells
 from weather_gym.paths import PPO_CONES_MODEL
-from weather_gym.perception import evaluate as score
-from weather_gym.perception.detector_spec import detector_id
-from weather_gym.pipeline import PERCEPTION_MODES, make_env
-from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
+from weather_gym.perception_modes import (
+    PERCEPTION_MODES,
+    PerceptionMode,
+    check_agent_observes,
+    detector_mode,
+    perception_mode,
+)
+from weather_gym.pipeline import make_env
 from weather_gym.tracks import load_track
 from weather_gym.weather.presets import canonical_condition, preset_spec
-from weather_gym.wrappers.detector import DetectorWrapper
 from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise
-from weather_gym.wrappers.surrogate import SurrogatePerceptionWrapper
 
 __all__ = [
     "CELL_KEY_FIELDS",
@@ -79,7 +86,9 @@ __all__ = [
 DEFAULT_ENV_ID = "WeatherGym/ConeTrack-v0"
 DEFAULT_TRACK = "small_track"
 PERCEPTIONS = tuple(PERCEPTION_MODES)
-"""Every metric ``run_cell`` returns, with its meaning (the columns after the key fields)."""
+"""Every perception mode (at import time; :data:`~weather_gym.perception_modes.PERCEPTION_MODES` is the registry)."""
+DEFAULT_PERCEPTION = detector_mode().name
+"""The evaluation's default perception: the first mode that runs the detector."""
 
 
 def _json(value: Any) -> str:
@@ -100,7 +109,7 @@ class EvalCell:
     seed: int
     track: str
     env_id: str = DEFAULT_ENV_ID
-    perception: str = "detector"
+    perception: str = DEFAULT_PERCEPTION
     laps: int = 1
     max_steps: int = 3000
     weather: str = "[]"  # the preset's effect list, JSON
@@ -124,11 +133,8 @@ class EvalConfig:
         seeds: episode seeds (``reset(seed=...)``: weather realisation, odometry noise, ...).
         tracks: track names, ``random:SEED`` or cone CSV paths (anything ``gymnasium.make(track=...)`` takes).
         env_id: a Gymnasium id registered by weather-gym (a scenario).
-        perception: a mode of ``weather_gym.pipeline.PERCEPTION_MODES``: ``detector`` (the ONNX
-            detector), ``oracle`` (the rendered ground truth as a cone list), ``gt_cones`` (ground-truth
-            cones from geometry; nothing rendered, so no weather), ``surrogate`` (the detector's
-            statistics in the cell's weather, drawn from ``weather_gym.surrogate``; nothing rendered)
-            or ``camera`` (no perception).
+        perception: a mode of ``weather_gym.perception_modes.PERCEPTION_MODES`` (default: the
+            ONNX detector); a mode that takes no weather runs at severity 0 only.
         laps: laps per episode; max_steps: the episode's time limit in steps (``TimeLimit``).
         agent_kwargs, env_kwargs, perception_kwargs: JSON-able keyword arguments of the agent factory,
             of ``gymnasium.make`` (e.g. ``{"camera": {"width": 336, "height": 188}}``) and of the
@@ -143,7 +149,7 @@ class EvalConfig:
     seeds: tuple[int, ...] = (0, 1, 2)
     tracks: tuple[str, ...] = (DEFAULT_TRACK,)
     env_id: str = DEFAULT_ENV_ID
-    perception: str = "detector"
+    perception: str = DEFAULT_PERCEPTION
     laps: int = 1
     max_steps: int = 3000
     agent_kwargs: Mapping[str, Any] = field(default_factory=dict)
@@ -198,18 +204,16 @@ def stack_id(config: EvalConfig, agent: str, *, env_config: EnvConfig | None = N
 
     So a results file resumed after the detector, a default or a scenario changed runs its cells
     again instead of mixing old rows in. Changes of the code itself are not seen: after one, use a
-    new output folder (or delete ``results.csv``). ``env_config``: the resolved scenario, when the
+    new output folder (or delete ``results.sqlite`` and ``results.csv``). ``env_config``: the resolved scenario, when the
     caller has it already.
     """
 
     parts: dict[str, str] = {}
     resolved = env_config if env_config is not None else _resolved_env(config)
     parts["env"] = repr(resolved) if resolved is not None else config.env_id
-    kw = dict(config.perception_kwargs)
-    if config.perception == "detector":
-        parts["detector"] = detector_id(kw.get("detector"))
-    elif config.perception == "surrogate":
-        parts["surrogate"] = file_id(kw.get("model") or SHIPPED_MODEL)
+    fingerprint = perception_mode(config.perception).fingerprint
+    if fingerprint is not None:
+        parts.update(fingerprint(dict(config.perception_kwargs)))
     policy = dict(config.agent_kwargs).get("path") if agent == "sb3" else PPO_CONES_MODEL if agent == "ppo_cones" else None
     if isinstance(policy, (str, Path)) and Path(policy).is_file():
         parts["policy"] = file_id(policy)
@@ -245,8 +249,7 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         raise InputError(f"effects {', '.join(effects)} name the same condition twice (dim is low_light)")
     severities = _check_names("severities", config.severities)
     seeds = tuple(_check_int("a seed", s, 0) for s in _check_names("seeds", config.seeds))
-    if config.perception not in PERCEPTIONS:
-        raise InputError(f"unknown perception {config.perception!r}; valid: {', '.join(PERCEPTIONS)}")
+    mode = perception_mode(config.perception)
     if config.env_id not in gym.registry:
         ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
         raise InputError(f"unknown env id {config.env_id!r}; weather-gym ids: {', '.join(ours)}")
@@ -263,22 +266,13 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         raise InputError(f"env_kwargs may not set {', '.join(clash)}: use EvalConfig.perception / perception_kwargs")
     env_config = _resolved_env(config)  # camera sizes and other overrides are checked now, not in every cell
     _check_perception_kwargs(config.perception, dict(config.perception_kwargs))
+    for a in agents:
+        check_agent_observes(a, agent_observes(a), mode)
     if config.agent_kwargs:  # a bad agent argument fails now, not in every cell
         for a in agents:
             _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
-    if config.perception == "surrogate":  # a weather the surrogate has no model of fails now, not in every cell
-        model = load_model(dict(config.perception_kwargs).get("model"))
-        for (e, s), w in weather.items():
-            try:
-                model.point(json.loads(w))
-            except InputError as exc:
-                raise type(exc)(f"perception surrogate, {e}@{s}: {exc}") from None
-    if config.perception == "gt_cones":
-        wet = sorted(f"{e}@{s}" for (e, s), w in weather.items() if json.loads(w))
-        if wet:
-            raise InputError(f"perception gt_cones renders no camera frame, so weather cannot act on it; "
-                             f"{', '.join(wet)} would be clear weather: evaluate gt_cones at severity 0 only")
+    _check_weather_for_mode(mode, weather, config.perception_kwargs)  # fails now, not in every cell
     stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
@@ -290,10 +284,26 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     return cells
 
 
+def _check_weather_for_mode(mode: PerceptionMode, weather: Mapping[tuple[str, Any], str],
+                            perception_kwargs: Mapping[str, Any]) -> None:
+    """Refuse, before any cell runs, a weather (``{(effect, severity): spec JSON}``) that perception ``mode``
+    cannot produce, and any weather at all for a mode that renders no camera frame."""
+    if mode.check_weather is not None:
+        for (e, s), w in weather.items():
+            try:
+                mode.check_weather(dict(perception_kwargs), w)
+            except InputError as exc:
+                raise type(exc)(f"perception {mode.name}, {e}@{s}: {exc}") from None
+    if not mode.takes_weather:
+        wet = sorted(f"{e}@{s}" for (e, s), w in weather.items() if json.loads(w))
+        if wet:
+            raise InputError(f"perception {mode.name} renders no camera frame, so weather cannot act on it; "
+                             f"{', '.join(wet)} would be clear weather: evaluate {mode.name} at severity 0 only")
+
+
 def _check_perception_kwargs(perception: str, kwargs: dict[str, Any]) -> None:
     """Refuse keys the perception wrapper does not take, and bad oracle noise values, before any cell runs."""
-    wrapper = {"detector": DetectorWrapper, "oracle": GroundTruthConeWrapper, "gt_cones": GroundTruthConeWrapper,
-               "surrogate": SurrogatePerceptionWrapper}.get(perception)
+    wrapper = perception_mode(perception).wrapper
     if wrapper is None:
         if kwargs:
             raise InputError(f"--perception-kwargs {sorted(kwargs)}: perception {perception!r} takes none")
@@ -302,7 +312,7 @@ def _check_perception_kwargs(perception: str, kwargs: dict[str, Any]) -> None:
     allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
     allowed -= {"self", "env", "weather"}
     noise = {}
-    if wrapper is GroundTruthConeWrapper:
+    if wrapper is GroundTruthConeWrapper:  # OracleNoise fields as keywords
         noise = {k: v for k, v in kwargs.items() if k in {f.name for f in fields(OracleNoise)}}
         allowed |= {f.name for f in fields(OracleNoise)}
     unknown = sorted(set(kwargs) - allowed)
@@ -329,114 +339,39 @@ def _check_agent_kwargs(name: str, track: Any, camera: Any, kwargs: dict[str, An
 
 
 # ------------------------------------------------------------------------------------------ the cell
-def map_precision_recall(mapped_xy: np.ndarray, true_xy: np.ndarray,
-                         radius: float = MAP_MATCH_RADIUS_M) -> tuple[float, float]:
-    """Share of mapped cones within ``radius`` of a true cone, and of true cones within ``radius`` of
-    a mapped one (class-agnostic; NaN precision for an empty map).
-
-    Example:
-        >>> import numpy as np
-        >>> map_precision_recall(np.array([[0, 0.3], [5, 5]]), np.array([[0, 0], [1, 0], [2, 0], [3, 0.]]))
-        (0.5, 0.25)
-    """
-
-    mapped_xy = np.asarray(mapped_xy, dtype=np.float64).reshape(-1, 2)
-    true_xy = np.asarray(true_xy, dtype=np.float64).reshape(-1, 2)
-    if len(true_xy) == 0:
-        raise InputError("the track has no cones to compare the map with")
-    if len(mapped_xy) == 0:
-        return math.nan, 0.0
-    d_map, _ = cKDTree(true_xy).query(mapped_xy)
-    d_true, _ = cKDTree(mapped_xy).query(true_xy)
-    return float(np.mean(d_map <= radius)), float(np.mean(d_true <= radius))
-
-
-def _agent_map_xy(agent: Any) -> np.ndarray | None:
-    """Confirmed map cones (odometry frame, which starts at the true start pose) of a mapping agent."""
-    mapper = getattr(agent, "mapper", None)
-    if mapper is None or not hasattr(mapper, "map"):
-        return None
-    return np.asarray(mapper.map(confirmed_only=True).xy, dtype=np.float64).reshape(-1, 2)
-
-
 def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
     """Drive one episode of ``cell`` and return the metrics in :data:`METRICS` (NaN/None where not defined)."""
 
     if isinstance(cell, Mapping):
         cell = EvalCell(**cell)
-    weather = json.loads(cell.weather)
+    mode = perception_mode(cell.perception)
     env = make_env(cell.env_id, track=cell.track, laps=cell.laps, max_episode_steps=cell.max_steps,
-                   weather=weather,
-                   perception=cell.perception, perception_kwargs=json.loads(cell.perception_kwargs),
-                   **json.loads(cell.env_kwargs))
+                   weather=json.loads(cell.weather), perception=mode.name,
+                   perception_kwargs=json.loads(cell.perception_kwargs), **json.loads(cell.env_kwargs))
     try:
         base = env.unwrapped
         track, camera = base.track, base.config.camera
         agent = make_agent(cell.agent, track, camera, **json.loads(cell.agent_kwargs))
-        score_detector = cell.perception == "detector"
-        gts: list[Any] = []
-        dets: list[Any] = []
-
-        def seen(step: int, obs: Any, info: dict, done: bool) -> None:
-            # every frame the agent acts on (the reset frame included, the final one not)
-            if score_detector and not done and info.get("gt") is not None and info.get("detections") is not None:
-                gts.append(info["gt"])
-                dets.append(info["detections"])
-
-        res = run_episode(env, agent, seed=cell.seed, on_step=seen, agent_name=cell.agent)
-        out: dict[str, Any] = {
-            "laps_completed": res.laps_completed,
-            "completed": int(res.completed),
-            "lap_time_s": float(np.mean(res.lap_times_s)) if res.lap_times_s else None,
-            "progress": res.progress,
-            "cones_hit": res.cones_hit,
-            "off_track_events": res.off_track_events,
-            "cte_mean_m": res.cte_mean_m,
-            "cte_max_m": res.cte_max_m,
-            "end_reason": res.end_reason,
-            "steps": res.steps,
-            "sim_time_s": res.sim_time_s,
-        }
-        mapped = _agent_map_xy(agent)
-        if mapped is None:
-            out.update(map_cones=None, map_precision=None, map_recall=None)
-        else:
-            precision, recall = map_precision_recall(mapped, track.cones_xy)
-            out.update(map_cones=len(mapped), map_precision=precision, map_recall=recall)
-        if score_detector and gts:
-            r = score(gts, dets)
-            out.update(det_map50=r.map50, det_recall=r.recall, det_frames=r.n_images)
-        else:
-            out.update(det_map50=None, det_recall=None, det_frames=0)
-        wl, dl = res.weather_latency_ms, res.detector_latency_ms
-        out.update(weather_latency_ms=wl, detector_latency_ms=dl, added_latency_ms=wl + dl)
-        return out
+        # every frame the agent acts on (the reset frame included, the final one not)
+        scoring = DetectorScoring(mode)
+        res = run_episode(env, agent, seed=cell.seed, on_step=scoring, agent_name=cell.agent)
+        return episode_metrics(Episode(res, agent, track, mode, scoring.scores()))
     finally:
         env.close()
 
 
 # ----------------------------------------------------------------------------------------- the grid
 def evaluate(config: EvalConfig, out_dir: str | Path, *, workers: int | None = None, backend: str = "process",
-             ray_address: str | None = None, progress: bool = True, retry_failed: bool = True,
-             report: bool = True, command: str | None = None, overwrite: bool = False) -> list[dict[str, Any]]:
-    """Run the grid of ``config`` into ``out_dir/results.csv`` (resuming) and write the report.
-
-    Returns this grid's rows (see :data:`METRICS`). ``out_dir/report.md`` and ``out_dir/plots/`` are
-    rewritten from them when ``report`` is true; when ``out_dir`` holds no results.csv yet, an
-    existing report or plot there is refused before any cell runs, unless ``overwrite``.
+             ray_address: str | None = None, progress: bool = True, retry_failed: bool = True) -> list[dict[str, Any]]:
+    """Run the grid of ``config`` into ``out_dir/results.csv`` (resuming) and return this grid's rows
+    (see :data:`METRICS`). The report is its caller's to write
+    (:func:`weather_gym.evaluation.report.write_report`; ``weather-gym evaluate`` does).
     """
 
     cells = make_cells(config)
-    out = Path(out_dir)
-    results = check_results_path(out / "results.csv")
-    replace = derived_outputs_replaceable(results, report_paths(out) if report else [], overwrite=overwrite)
-    started = time.perf_counter()
-    rows = run_cells(cells, run_cell, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
+    results = check_results_path(Path(out_dir) / "results.csv")
+    return run_cells(cells, run_cell, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
                      ray_address=ray_address, progress=progress, retry_failed=retry_failed, desc="evaluate")
-    if report:
-        write_report(rows, out, config=config, wall_s=time.perf_counter() - started, command=command,
-                     overwrite=replace)
-    return rows
 
 
 def config_summary(config: EvalConfig) -> dict[str, Any]:

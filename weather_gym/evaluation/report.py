@@ -1,8 +1,11 @@
 """Reports of an evaluation: aggregated Markdown table and metric-vs-severity plots (matplotlib, Agg).
 
-``write_report(rows, out_dir)`` writes ``out_dir/report.md`` and ``out_dir/plots/<metric>.png``
-(one line per effect and agent, mean over seeds with the spread over seeds shaded: min to max, and
-each seed as a dot). ``aggregate`` is the mean / std / count over seeds behind both.
+``write_report(rows, out_dir)`` writes ``out_dir/report.md`` (Markdown tables by tabulate) and
+``out_dir/plots/<metric>.png`` (one line per effect and agent, mean over seeds with the spread over
+seeds shaded: min to max, and each seed as a dot): the table's columns and the plots are the metrics
+of :data:`weather_gym.evaluation.metrics.METRICS` marked ``table`` / ``plot``. ``aggregate`` is the
+mean / std / count over seeds behind both. ``weather-gym evaluate`` writes the report after the grid
+ran (:func:`report_replaceable` first, so a report someone else wrote is refused before any cell runs).
 
 Example:
     >>> from weather_gym.evaluation.report import aggregate
@@ -26,37 +29,18 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from weather_gym._io import atomic_write, save_figure
+from weather_gym._figures import save_figure
+from weather_gym._io import atomic_write, derived_outputs_replaceable
+from weather_gym._markdown import markdown_table
+from weather_gym.evaluation import metrics as registry
 from weather_gym.evaluation.metrics import METRICS
 from weather_gym.weather.presets import DEFAULT_PRESETS, preset_entry
 
-__all__ = ["PLOT_METRICS", "TABLE_METRICS", "aggregate", "plot_metric", "report_paths", "write_report"]
+__all__ = ["aggregate", "plot_metric", "report_paths", "report_replaceable", "write_report"]
 
-TABLE_METRICS: tuple[str, ...] = (
-    "completed", "progress", "lap_time_s", "cones_hit", "off_track_events", "cte_mean_m", "cte_max_m",
-    "map_precision", "map_recall", "det_map50", "added_latency_ms",
-)
-"""Columns of the report's table (mean ± std over seeds)."""
-
-PLOT_METRICS: tuple[str, ...] = (
-    "progress", "completed", "lap_time_s", "cones_hit", "off_track_events", "cte_mean_m",
-    "map_precision", "map_recall", "det_map50", "added_latency_ms",
-)
-"""One plot each (metrics with no value in any row are skipped)."""
-
-LABELS = {
-    "completed": "lap completion (share of seeds)",
-    "progress": "progress along the lap (0..1)",
-    "lap_time_s": "lap time (s)",
-    "cones_hit": "cones hit",
-    "off_track_events": "off-track events",
-    "cte_mean_m": "mean cross-track error (m)",
-    "cte_max_m": "max cross-track error (m)",
-    "map_precision": "map precision (0.5 m)",
-    "map_recall": "map recall (0.5 m)",
-    "det_map50": "detector mAP@0.5 on frames seen",
-    "added_latency_ms": "added latency per step (ms)",
-}
+def _label(metric: str) -> str:
+    m = METRICS.get(metric)
+    return (m.label or m.name) if m is not None else metric
 
 
 def _num(v: Any) -> float:
@@ -162,8 +146,8 @@ def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8, title=" / ".join(varying), title_fontsize=8)
-    axes[0][0].set_ylabel(LABELS.get(metric, metric))
-    fig.suptitle(title or f"{LABELS.get(metric, metric)} vs {x}\nline: mean over seeds, band: min..max, dots: seeds",
+    axes[0][0].set_ylabel(_label(metric))
+    fig.suptitle(title or f"{_label(metric)} vs {x}\nline: mean over seeds, band: min..max, dots: seeds",
                  fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path, overwrite=overwrite, dpi=110)
@@ -171,7 +155,7 @@ def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path
 
 def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> list[str]:
     seen = list(dict.fromkeys((r.get("effect"), r.get("severity"), _hashable(r.get("weather"))) for r in rows))
-    lines = ["| effect | severity | weather (preset effect list) | k |", "|---|---|---|---|"]
+    lines: list[str] = []
     try:
         def status(e: Any, s: Any) -> str:
             try:
@@ -185,20 +169,22 @@ def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> l
     except Exception:  # noqa: BLE001 - the report still lists the specs the cells used
         def status(e: Any, s: Any) -> str:
             return "?"
-    for e, s, w in sorted(seen, key=lambda t: (str(t[0]), _num(t[1]))):
-        spec = w if isinstance(w, str) else json.dumps(w)
-        lines.append(f"| {e} | {s} | `{spec}` | {status(e, s)} |")
-    return lines
+    table = [(e, s, f"`{w if isinstance(w, str) else json.dumps(w)}`", status(e, s))
+             for e, s, w in sorted(seen, key=lambda t: (str(t[0]), _num(t[1])))]
+    return lines + markdown_table(["effect", "severity", "weather (preset effect list)", "k"], table)
 
 
 def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, config: Any = None,
                  wall_s: float | None = None, command: str | None = None,
                  group_by: Sequence[str] = ("agent", "track", "effect", "severity"),
-                 table_metrics: Sequence[str] = TABLE_METRICS,
-                 plot_metrics: Sequence[str] = PLOT_METRICS, overwrite: bool = False) -> Path:
+                 table_metrics: Sequence[str] | None = None, plot_metrics: Sequence[str] | None = None,
+                 overwrite: bool = False) -> Path:
     """Write ``out_dir/report.md`` and ``out_dir/plots/*.png`` from evaluation rows; return the report path.
 
+    ``table_metrics`` / ``plot_metrics``: default the registry's (``Metric.table`` / ``Metric.plot``).
     Existing files are replaced only with ``overwrite`` (see :func:`report_paths`)."""
+    table_metrics = registry.table_metrics() if table_metrics is None else table_metrics
+    plot_metrics = registry.plot_metrics() if plot_metrics is None else plot_metrics
     out = Path(out_dir)
     plots = out / "plots"
     rows = list(rows)
@@ -216,20 +202,14 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
     md += [summary + ". Raw rows: [results.csv](results.csv).", ""]
     if config is not None:
         cfg = asdict(config) if is_dataclass(config) else dict(config)
-        md += ["| setting | value |", "|---|---|"]
-        for k, v in cfg.items():
-            text = ", ".join(map(str, v)) if isinstance(v, (list, tuple)) else json.dumps(v, default=str)
-            md.append(f"| {k} | {text.replace('|', '/')} |")
-        md.append("")
+        settings = [(k, (", ".join(map(str, v)) if isinstance(v, (list, tuple)) else json.dumps(v, default=str))
+                     .replace("|", "/")) for k, v in cfg.items()]
+        md += [*markdown_table(["setting", "value"], settings), ""]
 
     md += ["## Results (mean ± std over seeds)", ""]
-    header = [*group_by, "ok/failed", *metrics]
-    md.append("| " + " | ".join(header) + " |")
-    md.append("|" + "---|" * len(header))
-    for a in agg:
-        cells = [str(a[g]) for g in group_by] + [f"{a['n']}/{a['n_failed']}"]
-        cells += [_fmt(a[f"{m}_mean"], a[f"{m}_std"], a[f"{m}_count"]) for m in metrics]
-        md.append("| " + " | ".join(cells) + " |")
+    md += markdown_table([*group_by, "ok/failed", *metrics],
+                         [[*(a[g] for g in group_by), f"{a['n']}/{a['n_failed']}",
+                           *(_fmt(a[f"{m}_mean"], a[f"{m}_std"], a[f"{m}_count"]) for m in metrics)] for a in agg])
     md.append("")
 
     written = []
@@ -245,18 +225,25 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
     md += _severity_table(rows, getattr(config, "presets", None))
     md.append("")
     if failed:
-        md += ["## Failed cells", "", "| " + " | ".join([*group_by, "seed", "error"]) + " |",
-               "|" + "---|" * (len(group_by) + 2)]
-        for r in failed:
-            err = str(r.get("error") or "").replace("|", "\\|")
-            md.append("| " + " | ".join([*(str(r.get(g)) for g in group_by), str(r.get("seed")), err]) + " |")
-        md.append("")
+        md += ["## Failed cells", "", *markdown_table(
+            [*group_by, "seed", "error"],
+            [[*(r.get(g) for g in group_by), r.get("seed"), str(r.get("error") or "").replace("|", "\\|")]
+             for r in failed]), ""]
 
-    md += ["## Metrics", ""] + [f"- `{k}`: {v}" for k, v in METRICS.items()] + [""]
+    md += ["## Metrics", ""] + [f"- `{m.name}`: {m.doc}" for m in METRICS.values()] + [""]
     return atomic_write(out / "report.md", "\n".join(md), overwrite=overwrite)
 
 
-def report_paths(out_dir: str | Path, plot_metrics: Sequence[str] = PLOT_METRICS) -> list[Path]:
+def report_paths(out_dir: str | Path, plot_metrics: Sequence[str] | None = None) -> list[Path]:
     """The files :func:`write_report` may write in ``out_dir`` (report.md and one plot per metric)."""
     out = Path(out_dir)
-    return [out / "report.md", *(out / "plots" / f"{m}.png" for m in plot_metrics)]
+    names = registry.plot_metrics() if plot_metrics is None else plot_metrics
+    return [out / "report.md", *(out / "plots" / f"{m}.png" for m in names)]
+
+
+def report_replaceable(out_dir: str | Path, *, overwrite: bool = False) -> bool:
+    """May the report of the results in ``out_dir/results.csv`` replace the files there? Call it
+    before the grid runs: an existing report or plot in a folder without results.csv is refused
+    (``OutputExistsError``) unless ``overwrite``. Returns the ``overwrite`` flag for :func:`write_report`."""
+    return derived_outputs_replaceable(Path(out_dir) / "results.csv", report_paths(out_dir), overwrite=overwrite)
+

@@ -93,18 +93,17 @@ class MeasuredEffect(KnobEffect):
     CURVES: ClassVar[dict[str, tuple[float, float, bool]]] = {}  # field -> (lo, hi, monotone)
     MEASURED: ClassVar[bool] = True
 
-    def __post_init__(self) -> None:
-        who = self.name
-        k = self.k
-        if isinstance(k, bool) or not isinstance(k, int | float) or not math.isfinite(float(k)) or not 0 <= k <= 1:
-            raise InputError(f"{who}: parameter k={k!r} must be a finite number in [0.0, 1.0]")
-        object.__setattr__(self, "k", float(k))
-        for f in dataclasses.fields(self):
-            if f.name in self.CURVES:
-                lo, hi, mono = self.CURVES[f.name]
-                object.__setattr__(self, f.name, _curve(who, f.name, getattr(self, f.name), lo, hi, mono))
-        object.__setattr__(self, "_rng", None)
-        self._reset_state()
+    @classmethod
+    def _checked_value(cls, who: str, f: dataclasses.Field, v: Any) -> Any:
+        """``k`` a finite number in [0, 1]; a curve field a tuple of floats in its range (and monotone)."""
+        if f.name == "k":
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)) or not 0 <= v <= 1:
+                raise InputError(f"{who}: parameter k={v!r} must be a finite number in [0.0, 1.0]")
+            return float(v)
+        if f.name in cls.CURVES:
+            lo, hi, mono = cls.CURVES[f.name]
+            return _curve(who, f.name, v, lo, hi, mono)
+        return super()._checked_value(who, f, v)
 
     def params(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -197,7 +196,6 @@ class BlurKernel(MeasuredEffect):
     CURVES: ClassVar = {"kernel": (0.0, 1.0, False)}
 
     def __post_init__(self) -> None:
-        super().__post_init__()
         n = math.isqrt(len(self.kernel))
         if n * n != len(self.kernel) or n % 2 == 0 or abs(sum(self.kernel) - 1.0) > 0.01:
             raise InputError(f"{self.name}: parameter kernel must hold an odd square of weights (row by row) that "

@@ -27,7 +27,9 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from weather_gym._io import atomic_write, save_figure
+from weather_gym._figures import save_figure
+from weather_gym._io import atomic_write
+from weather_gym._markdown import markdown_table
 
 __all__ = ["write_plots", "write_markdown", "markdown"]
 
@@ -95,21 +97,7 @@ def write_plots(report: dict[str, Any], session: Any, out: str | os.PathLike, *,
     # 2. perception detail
     pb, pa = report.get("perception_before"), report.get("perception_after")
     if pb and pa:
-        groups = [("per_class", "AP@0.5 per class"), ("recall_by_range", "recall by range"),
-                  ("recall_by_size", "recall by box height")]
-        fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
-        for ax, (key, title) in zip(axes, groups):
-            cats = [c for c in pb[key] if pb[key][c]["measured"] is not None or pb[key][c]["sim"] is not None]
-            xx = np.arange(len(cats))
-            for j, (lab, vals, col) in enumerate((("measured", [pb[key][c]["measured"] for c in cats], "#333"),
-                                                  ("sim, input model", [pb[key][c]["sim"] for c in cats], "#b54"),
-                                                  ("sim, final model", [pa[key][c]["sim"] for c in cats], "#58a"))):
-                ax.bar(xx + (j - 1) * 0.27, [np.nan if v is None else v for v in vals], 0.27, label=lab, color=col)
-            ax.set_xticks(xx, cats, rotation=20, ha="right")
-            ax.set_ylim(0, 1.05)
-            ax.set_title(title)
-        axes[0].legend(loc="lower left", fontsize=8)
-        save(fig, "perception.png")
+        save(_perception_figure(pb, pa), "perception.png")
 
     # 3. disagreements before / after
     before = {r["signal"]: r for r in report.get("disagreements", []) if r.get("level") == "image"}
@@ -137,21 +125,7 @@ def write_plots(report: dict[str, Any], session: Any, out: str | os.PathLike, *,
     for i, s in enumerate(report.get("steps", []), 1):
         if not s.get("screening"):
             continue
-        fig, ax = plt.subplots(figsize=(7, 4))
-        chosen = s["added"]["name"]
-        for c in s["screening"]:
-            ks, gs = zip(*c["curve"])
-            hl = c["candidate"].split("(")[0] == chosen and c["candidate"] == s["fit"]["candidate"]
-            ax.plot(ks, gs, "-o" if hl else "-", lw=2.5 if hl else 1, ms=4, label=c["candidate"],
-                    color=None if not hl else "k", zorder=3 if hl else 2)
-        if s.get("fit_gap_before") is not None:
-            ax.axhline(s["fit_gap_before"], color="gray", ls=":", lw=1, label="model before this step")
-        ax.set_yscale("log")
-        ax.set_xlabel("k")
-        ax.set_ylabel("gap on the fitting frames")
-        ax.set_title(f"step {i}: every candidate on a k grid (chosen: {s['added']['describe']})", fontsize=9)
-        ax.legend(fontsize=7, ncol=2)
-        save(fig, f"screening_step{i}.png")
+        save(_screening_figure(i, s), f"screening_step{i}.png")
 
     # 5. one frame
     if session is not None:
@@ -169,6 +143,46 @@ def write_plots(report: dict[str, Any], session: Any, out: str | os.PathLike, *,
                     ax.set_axis_off()
             save(fig, "frames.png")
     return names
+
+
+def _perception_figure(pb: dict[str, Any], pa: dict[str, Any]) -> plt.Figure:
+    """``perception.png``: AP@0.5 per class, recall by range and by box height; measured, and simulated by
+    the input model (``pb``, the report's ``perception_before``) and the final one (``pa``)."""
+    groups = [("per_class", "AP@0.5 per class"), ("recall_by_range", "recall by range"),
+              ("recall_by_size", "recall by box height")]
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    for ax, (key, title) in zip(axes, groups):
+        cats = [c for c in pb[key] if pb[key][c]["measured"] is not None or pb[key][c]["sim"] is not None]
+        xx = np.arange(len(cats))
+        for j, (lab, vals, col) in enumerate((("measured", [pb[key][c]["measured"] for c in cats], "#333"),
+                                              ("sim, input model", [pb[key][c]["sim"] for c in cats], "#b54"),
+                                              ("sim, final model", [pa[key][c]["sim"] for c in cats], "#58a"))):
+            ax.bar(xx + (j - 1) * 0.27, [np.nan if v is None else v for v in vals], 0.27, label=lab, color=col)
+        ax.set_xticks(xx, cats, rotation=20, ha="right")
+        ax.set_ylim(0, 1.05)
+        ax.set_title(title)
+    axes[0].legend(loc="lower left", fontsize=8)
+    return fig
+
+
+def _screening_figure(i: int, s: dict[str, Any]) -> plt.Figure:
+    """``screening_step<i>.png``: the fitting-frame gap against k of every candidate screened in step ``s``
+    (the chosen one in bold black)."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    chosen = s["added"]["name"]
+    for c in s["screening"]:
+        ks, gs = zip(*c["curve"])
+        hl = c["candidate"].split("(")[0] == chosen and c["candidate"] == s["fit"]["candidate"]
+        ax.plot(ks, gs, "-o" if hl else "-", lw=2.5 if hl else 1, ms=4, label=c["candidate"],
+                color=None if not hl else "k", zorder=3 if hl else 2)
+    if s.get("fit_gap_before") is not None:
+        ax.axhline(s["fit_gap_before"], color="gray", ls=":", lw=1, label="model before this step")
+    ax.set_yscale("log")
+    ax.set_xlabel("k")
+    ax.set_ylabel("gap on the fitting frames")
+    ax.set_title(f"step {i}: every candidate on a k grid (chosen: {s['added']['describe']})", fontsize=9)
+    ax.legend(fontsize=7, ncol=2)
+    return fig
 
 
 def _frame_panel(session: Any) -> list[tuple[str, np.ndarray, np.ndarray]] | None:
@@ -200,7 +214,7 @@ def _frame_panel(session: Any) -> list[tuple[str, np.ndarray, np.ndarray]] | Non
             ("simulated, final model", last, last[ya:yb, xa:xb])]
 
 
-def markdown(report: dict[str, Any]) -> str:
+def markdown(report: dict[str, Any]) -> str:  # noqa: C901 (one section per finding kind, in order)
     """The text of ``report.md``."""
     r = report
     lines = ["# Sim-versus-measured gap report", ""]
@@ -228,9 +242,9 @@ def markdown(report: dict[str, Any]) -> str:
                   "## Differences from the clean simulator (domain or weather: cannot tell)", "",
                   f"Compared: {dom.get('compared', '')}.", ""]
         if dom.get("differences"):
-            lines += ["| difference | signals | detail |", "|---|---|---|"]
-            for d in dom["differences"]:
-                lines.append(f"| {d['name']} | {', '.join(d.get('signals', [])[:6])} | {d['detail']} |")
+            lines += markdown_table(["difference", "signals", "detail"],
+                                    [[d["name"], ", ".join(d.get("signals", [])[:6]), d["detail"]]
+                                     for d in dom["differences"]])
         else:
             lines.append("None significant.")
         if dom.get("perception"):
@@ -277,17 +291,17 @@ def markdown(report: dict[str, Any]) -> str:
     pb, pa = r.get("perception_before"), r.get("perception_after")
     lines += ["## Perception gap", ""]
     if pb and pa:
-        lines += ["| | measured | simulated, input model | simulated, final model |", "|---|---|---|---|",
-                  f"| mAP@0.5 | {_f(pb['map50_measured'])} | {_f(pb['map50_sim'])} | {_f(pa['map50_sim'])} |",
-                  f"| sim - measured | | {_f(pb['diff'], '+.3f')}{_ci(pb['diff_ci95'])} | "
-                  f"{_f(pa['diff'], '+.3f')}{_ci(pa['diff_ci95'])} |"]
+        table = [["mAP@0.5", _f(pb["map50_measured"]), _f(pb["map50_sim"]), _f(pa["map50_sim"])],
+                 ["sim - measured", "", f"{_f(pb['diff'], '+.3f')}{_ci(pb['diff_ci95'])}",
+                  f"{_f(pa['diff'], '+.3f')}{_ci(pa['diff_ci95'])}"]]
         for key, title in (("per_class", "AP@0.5"), ("recall_by_range", "recall"), ("recall_by_size", "recall")):
             for c, v in pb[key].items():
                 if v["measured"] is None and v["sim"] is None:
                     continue
-                lines.append(f"| {title} {c} | {_f(v['measured'])} | {_f(v['sim'])} | {_f(pa[key][c]['sim'])} |")
+                table.append([f"{title} {c}", _f(v["measured"]), _f(v["sim"]), _f(pa[key][c]["sim"])])
         for k, v in pb["scores"].items():
-            lines.append(f"| {k} | {_f(v['measured'])} | {_f(v['sim'])} | {_f(pa['scores'][k]['sim'])} |")
+            table.append([k, _f(v["measured"]), _f(v["sim"]), _f(pa["scores"][k]["sim"])])
+        lines += markdown_table(["", "measured", "simulated, input model", "simulated, final model"], table)
         lines += ["", f"Perception gap |mAP_sim - mAP_measured|: **{_f(r.get('perception_gap_before'))} -> "
                       f"{_f(r.get('perception_gap_after'))}** (95 % bootstrap intervals over frames in brackets).", ""]
     else:
@@ -301,13 +315,12 @@ def markdown(report: dict[str, Any]) -> str:
 
     steps = r.get("steps", [])
     if steps:
-        lines += ["## Steps", "", "| step | added | gap before -> after | reduction (95 % CI) | p | |mAP gap| | evidence |",
-                  "|---|---|---|---|---|---|---|"]
-        for i, s in enumerate(steps, 1):
-            lines.append(f"| {i} | `{s['added']['describe']}` | {_f(s['gap_before'])} -> {_f(s['gap_after'])} | "
-                         f"{_ci(s['reduction_ci95']).strip()} | {_f(s['p_value'], '.4f')} | "
-                         f"{_f(s['perception_gap_before'])} -> {_f(s['perception_gap_after'])} | "
-                         f"{s['evidence']['summary']} |")
+        lines += ["## Steps", "", *markdown_table(
+            ["step", "added", "gap before -> after", "reduction (95 % CI)", "p", "\\|mAP gap\\|", "evidence"],
+            [[i, f"`{s['added']['describe']}`", f"{_f(s['gap_before'])} -> {_f(s['gap_after'])}",
+              _ci(s["reduction_ci95"]).strip(), _f(s["p_value"], ".4f"),
+              f"{_f(s['perception_gap_before'])} -> {_f(s['perception_gap_after'])}", s["evidence"]["summary"]]
+             for i, s in enumerate(steps, 1)])]
         lines.append("")
         for i, s in enumerate(steps, 1):
             alts = ", ".join(f"`{a['describe']}` {_f(a['held_gap'])}" for a in s.get("alternatives", [])[1:])
@@ -316,10 +329,10 @@ def markdown(report: dict[str, Any]) -> str:
                          + ", ".join(f"{c['candidate']} (k={_f(c['k'], '.2f')}: {_f(c['fit_gap'])})" for c in screened))
         lines.append("")
     if r.get("refits"):
-        lines += ["## Re-fitted parameters", "", "| effect | changed | gap before -> after |", "|---|---|---|"]
-        for f in r["refits"]:
-            ch = ", ".join(f"{p} {_f(a, '.4g')} -> {_f(b, '.4g')}" for p, (a, b) in f["changed"].items())
-            lines.append(f"| {f['name']} | {ch} | {_f(f['gap_before'])} -> {_f(f['gap_after'])} |")
+        lines += ["## Re-fitted parameters", "", *markdown_table(
+            ["effect", "changed", "gap before -> after"],
+            [[f["name"], ", ".join(f"{p} {_f(a, '.4g')} -> {_f(b, '.4g')}" for p, (a, b) in f["changed"].items()),
+              f"{_f(f['gap_before'])} -> {_f(f['gap_after'])}"] for f in r["refits"]])]
         lines.append("")
 
     lines += ["## Disagreements", "",
@@ -330,10 +343,11 @@ def markdown(report: dict[str, Any]) -> str:
         rows = [d for d in r.get(key, []) if d.get("significant")]
         lines += [f"**{title}:** {len(rows)} significant", ""]
         if rows:
-            lines += ["| signal | level | sim | measured | difference (95 % CI) | effect size |", "|---|---|---|---|---|---|"]
-            for d in rows[:30]:
-                lines.append(f"| {d['signal']} | {d['level']} | {_f(d['sim'], '.4g')} | {_f(d['measured'], '.4g')} | "
-                             f"{_f(d['difference'], '+.4g')}{_ci(d['ci95'], '.3g')} | {_f(d['effect_size'], '.1f')} |")
+            lines += markdown_table(
+                ["signal", "level", "sim", "measured", "difference (95 % CI)", "effect size"],
+                [[d["signal"], d["level"], _f(d["sim"], ".4g"), _f(d["measured"], ".4g"),
+                  f"{_f(d['difference'], '+.4g')}{_ci(d['ci95'], '.3g')}", _f(d["effect_size"], ".1f")]
+                 for d in rows[:30]])
             lines.append("")
 
     lines += ["## Updated model", "", "```toml"]

@@ -9,6 +9,18 @@ poses (and looks), which makes the copy look like a real recording (unpaired mod
 Example:
     >>> from weather_gym.gap.synthetic import degrade_dataset
     >>> degrade_dataset("data/clean", "data/measured", "blur:0.6,noise:0.3", seed=99)  # doctest: +SKIP
+
+On a one-frame COCO set made on the spot:
+    >>> import numpy as np, tempfile
+    >>> from pathlib import Path
+    >>> from weather_gym.datasets.coco_writer import CocoWriter
+    >>> root = Path(tempfile.mkdtemp())
+    >>> with CocoWriter(root / "clean") as w:
+    ...     w.add(np.full((36, 64, 3), 128, np.uint8), {"track": "demo"},
+    ...           {"boxes": np.array([[1, 1, 5, 7.]]), "classes": np.array([0])})
+    0
+    >>> degrade_dataset(root / "clean", root / "measured", "blur:0.6,noise:0.3", seed=99).relative_to(root)
+    PosixPath('measured/annotations.json')
 """
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym._io import atomic_write
-from weather_gym._toml import toml_value
+from weather_gym._toml import toml_document
 from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.gap.measured import MEASURED, PARTNERS, make_measured
 from weather_gym.weather import EFFECTS, KnobEffect, make
@@ -120,8 +120,8 @@ def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
             lines.append("")
         if comments and i in comments:
             lines += [f"# {c}" for c in comments[i].splitlines()]
-        lines.append("[[effects]]")
-        lines += [f"{k} = {toml_value(v, finite=True)}" for k, v in table.items()]
+        lines.append("[[effects]]")  # one table per effect, so that its comment stands above it
+        lines.append(toml_document(table, finite=True).rstrip("\n"))  # flat: every effect parameter is a scalar
     atomic_write(path, "\n".join(lines) + "\n", overwrite=overwrite)
 
 

@@ -30,6 +30,7 @@ _LAZY = {
     "cones_to_observation": "weather_gym.perception.ranging",
     "evaluate": "weather_gym.perception.scoring",
     "score_dataset": "weather_gym.perception.scoring",
+    "score_detections": "weather_gym.perception.scoring",
     "EvalResult": "weather_gym.perception.scoring",
     "MIN_BOX_HEIGHT_PX": "weather_gym.perception.labels",
     "CONE_FIELDS": "weather_gym.perception.cones",

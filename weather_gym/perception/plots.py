@@ -19,7 +19,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym._io import save_figure, write_image
+from weather_gym._figures import save_figure
+from weather_gym._io import write_image
 from weather_gym.perception.draw import draw_detections
 from weather_gym.perception.scoring import score_dataset
 from weather_gym.weather import make

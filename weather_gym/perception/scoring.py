@@ -1,6 +1,6 @@
 """Detector scoring with pycocotools: mAP@0.5, COCO mAP@[.5:.95], per-class AP and recall by range.
 
-``evaluate(gt, detections)`` takes either a ``CocoDataset`` (plus one ``Detections`` per image, in
+``score_detections(gt, detections)`` (also importable as ``evaluate``) takes either a ``CocoDataset`` (plus one ``Detections`` per image, in
 dataset order) or in-memory per-frame lists: ``gt[i]`` a dict of arrays ``boxes`` (K, 4 xyxy pixels),
 ``classes`` and optionally ``iscrowd``, ``ranges`` (e.g. ``info["gt"]`` of the env), and
 ``detections[i]`` a ``Detections`` or a dict with ``boxes``, ``scores``, ``classes``.
@@ -18,10 +18,10 @@ IoU 0.5 by a detection scoring at least ``score_threshold``.
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.perception.scoring import evaluate
+    >>> from weather_gym.perception.scoring import score_detections
     >>> gt = [{"boxes": np.array([[10, 10, 30, 50.]]), "classes": np.array([1]), "ranges": np.array([6.0])}]
     >>> det = [{"boxes": np.array([[11, 10, 30, 49.]]), "scores": np.array([0.9]), "classes": np.array([1])}]
-    >>> r = evaluate(gt, det)
+    >>> r = score_detections(gt, det)
     >>> round(r.map50, 3), r.recall_by_range["5-10 m"]
     (1.0, (1.0, 1))
 """
@@ -47,7 +47,7 @@ from weather_gym.perception.ignore import inside_mask
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, SmallRule, tiny_mask, xyxy_to_xywh
 from weather_gym.weather import parse_weather
 
-__all__ = ["EvalResult", "evaluate", "score_dataset", "small_rule", "coco_lists", "coco_eval", "DEFAULT_RANGE_BINS"]
+__all__ = ["EvalResult", "evaluate", "score_dataset", "score_detections", "small_rule", "coco_lists", "coco_eval", "DEFAULT_RANGE_BINS"]
 
 DEFAULT_RANGE_BINS: tuple[float, ...] = (0.0, 5.0, 10.0, 15.0, 20.0, math.inf)
 
@@ -216,7 +216,7 @@ def coco_eval(images: list[dict], gt_anns: list[dict], dt_anns: list[dict], *,
     return ev
 
 
-def evaluate(
+def score_detections(
     gt: Any,
     detections: Sequence[Any],
     *,
@@ -277,6 +277,10 @@ def evaluate(
                       too_small=too_small or (f"box height < {min_box_height:.3g} px" if min_box_height is not None
                                               else f"box height < {MIN_BOX_HEIGHT_PX:g} px, as stored"),
                       n_detections=len(dt_anns), score_threshold=float(score_threshold), map50_blue_yellow=map50_by)
+
+
+evaluate = score_detections
+"""The name :func:`score_detections` had before; kept for code that imports it."""
 
 
 def small_rule(dataset: Any, detector: Any = None) -> SmallRule | None:
@@ -341,6 +345,6 @@ def score_dataset(
     rule = small_rule(dataset, detector)
     if rule is not None and "min_box_height" not in evaluate_kwargs:
         evaluate_kwargs.update(min_box_height=rule.min_height_px, too_small=rule.describe())
-    result = evaluate(gts, dets, **evaluate_kwargs)
+    result = score_detections(gts, dets, **evaluate_kwargs)
     result.extra.update(effect=None if eff is None else getattr(eff, "params", lambda: str(eff))(), seed=int(seed))
     return result

@@ -41,39 +41,41 @@ Example:
     (2, 300000, 256, 'ConeListPolicy')
 """
 
+
 from __future__ import annotations
 
 import argparse
-import ast
-import csv
 import dataclasses
 import importlib
-import inspect
 import json
-import re
 import shlex
-import shutil
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
-import matplotlib
-import numpy as np
-from matplotlib import pyplot as plt
-from tqdm.auto import tqdm
-
-from weather_gym._io import atomic_path, atomic_write_json, save_figure
-from weather_gym.errors import FileFormatError, InputError, MissingDependencyError, OutputExistsError
+from weather_gym._io import atomic_path, atomic_write_json
+from weather_gym.errors import InputError, OutputExistsError
 from weather_gym.limits import check_seed
-from weather_gym.pipeline import make_env
 from weather_gym.rl import HYPERPARAMS
+from weather_gym.rl.hyperparams import load_hyperparams, resolve_hyperparams
 from weather_gym.rl.pretrain import PretrainConfig, pretrain
-from weather_gym.wrappers import WeatherRandomizer
+from weather_gym.rl.run_outputs import (
+    RUN_FILES,
+    _checkpoint_steps,
+    _metadata_callbacks,
+    _remove_run,
+    latest_checkpoint,
+    model_metadata,
+    plot_learning_curve,
+    plot_pretrain_curve,
+)
+from weather_gym.rl.training_env import LapSuccess, RandomStart, make_training_env
 
-__all__ = ["DEFAULT_TRACKS", "LapSuccess", "RandomStart", "build_parser", "latest_checkpoint", "load_hyperparams",
-           "make_training_env", "model_metadata", "plot_learning_curve", "plot_pretrain_curve", "resolve_hyperparams", "train"]
+__all__ = ["DEFAULT_TRACKS", "DEFAULT_NOISE", "LapSuccess", "RandomStart", "build_parser", "latest_checkpoint",
+           "load_hyperparams", "make_training_env", "model_metadata", "plot_learning_curve", "plot_pretrain_curve",
+           "resolve_hyperparams", "train", "RUN_FILES"]
 
 DEFAULT_TRACKS = ("peanut", "fsds_training", "b_shape", "jellybean", "hairpin", "oval", "random:1", "random:2")
 DEFAULT_EVAL_TRACK = "small_track"
@@ -86,289 +88,6 @@ EVAL_MAX_STEPS = 1800
 """Step limit of a held-out evaluation episode (60 s: a lap of small_track takes about 20 s)."""
 INTERRUPTED = 130
 """Exit status after Ctrl-C (the model so far is saved)."""
-_SPAWN_KEY = (0x57A27,)  # the start-point draw, apart from the env's own streams for the same seed
-_RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "policy_kwargs")
-"""Keys of a hyper-parameter section that are not PPO keywords."""
-_CLI_PPO = {"n_steps": "n_steps", "batch_size": "batch_size", "n_epochs": "n_epochs",
-            "learning_rate": "learning_rate", "gamma": "gamma", "ent_coef": "ent_coef"}
-
-
-class RandomStart(gym.Wrapper):
-    """Start an episode at a random arc length of the track (from the reset seed); ``info["start_s"]``.
-
-    A share ``line_share`` of the episodes starts at the start line from rest instead: a policy trained
-    only on rolling starts anywhere never learns to leave the line (docs/rl.md, "The start line").
-    """
-
-    def __init__(self, env: gym.Env, line_share: float = 0.25) -> None:
-        if not 0.0 <= float(line_share) <= 1.0:
-            raise InputError(f"RandomStart: line_share={line_share!r} must be in [0, 1]")
-        super().__init__(env)
-        self.line_share = float(line_share)
-        self._rng: np.random.Generator | None = None
-
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        if seed is not None or self._rng is None:
-            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=_SPAWN_KEY))
-        options = dict(options or {})
-        track = self.env.unwrapped.track
-        at_line = self._rng.uniform() < self.line_share
-        if track.closed and not at_line and "start_s" not in options and "start_pose" not in options:
-            options["start_s"] = float(self._rng.uniform(0.0, track.length))
-        obs, info = self.env.reset(seed=seed, options=options)
-        return obs, {**info, "start_s": options.get("start_s", 0.0)}
-
-
-class LapSuccess(gym.Wrapper):
-    """``info["is_success"]`` at the end of an episode: the requested laps were driven (for EvalCallback)."""
-
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        if terminated or truncated:
-            info = {**info, "is_success": bool(info.get("lap", 0) >= max(1, self.env.unwrapped.config.laps)
-                                               or info.get("finished", False))}
-        return obs, reward, terminated, truncated, info
-
-
-def make_training_env(env_id: str, track: str, perception: str, noise: dict[str, Any], max_steps: int,
-                      env_kwargs: dict[str, Any], weather: dict[str, Any] | None = None,
-                      random_start: bool = True, surrogate_weather: str = "clear") -> gym.Env:
-    """One env of the run (module level, so vector-env workers can build it)."""
-    pk = dict(noise) if perception in ("gt_cones", "oracle") else {}
-    env = make_env(env_id, track=track, perception=perception, perception_kwargs=pk or None,
-                   max_episode_steps=max_steps, episode_statistics=False,
-                   weather=surrogate_weather if perception == "surrogate" else
-                   "clear" if perception != "gt_cones" else None, **dict(env_kwargs))
-    if weather and perception not in ("gt_cones", "surrogate"):
-        env = WeatherRandomizer(env, **weather)
-    if random_start:
-        env = RandomStart(env)
-    return LapSuccess(env)
-
-
-# ------------------------------------------------------------------ hyper-parameters
-def _literal(text: Any, where: str) -> Any:
-    """A value of rl-zoo3's string-encoded keys: Python literals and ``dict(...)`` calls of them."""
-    if not isinstance(text, str):
-        return text
-
-    def ev(node: ast.AST) -> Any:
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args:
-            return {kw.arg: ev(kw.value) for kw in node.keywords}
-        if isinstance(node, ast.Dict):
-            return {ev(k): ev(v) for k, v in zip(node.keys, node.values)}
-        if isinstance(node, ast.List | ast.Tuple):
-            vals = [ev(e) for e in node.elts]
-            return vals if isinstance(node, ast.List) else tuple(vals)
-        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
-            return -ev(node.operand)
-        if isinstance(node, ast.Constant):
-            return node.value
-        raise InputError(f"{where}: only literals and dict(...) are read here, got {ast.unparse(node)!r}")
-
-    try:
-        return ev(ast.parse(text, mode="eval").body)
-    except SyntaxError:
-        raise InputError(f"{where}: not a Python expression: {text!r}") from None
-
-
-def load_hyperparams(path: str | Path, key: str) -> dict[str, Any]:
-    """Section ``key`` of an rl-zoo3 hyper-parameter YAML file, checked: ``{"n_envs", "n_timesteps",
-    "policy", "normalize" (VecNormalize keywords), "policy_kwargs", "ppo" (PPO keywords)}``."""
-    try:
-        import yaml
-    except ImportError:
-        raise MissingDependencyError("reading a hyper-parameter file needs PyYAML (pip install pyyaml)") from None
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"hyper-parameter file {path} not found")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise FileFormatError(f"{path}: not YAML ({exc})") from None
-    if not isinstance(data, dict) or key not in data or not isinstance(data[key], dict):
-        keys = sorted(data) if isinstance(data, dict) else []
-        raise FileFormatError(f"{path}: no section {key!r} (sections: {keys})")
-    from stable_baselines3 import PPO
-
-    sec = dict(data[key])
-    where = f"{path} [{key}]"
-    valid_ppo = set(inspect.signature(PPO.__init__).parameters) - {"self", "policy", "env", "_init_setup_model"}
-    unknown = sorted(set(sec) - set(_RUN_KEYS) - valid_ppo)
-    if unknown:
-        raise FileFormatError(f"{where}: unknown key(s) {unknown}; valid: {sorted(set(_RUN_KEYS) | valid_ppo)}")
-    normalize = _literal(sec.pop("normalize", False), f"{where} normalize")
-    if normalize is True:
-        normalize = {}
-    if normalize is not False and not isinstance(normalize, dict):
-        raise FileFormatError(f"{where}: normalize must be true/false or a dict of VecNormalize keywords")
-    policy_kwargs = _literal(sec.pop("policy_kwargs", {}), f"{where} policy_kwargs")
-    if not isinstance(policy_kwargs, dict):
-        raise FileFormatError(f"{where}: policy_kwargs must be a dict")
-    out = {"n_envs": sec.pop("n_envs", 1), "n_timesteps": sec.pop("n_timesteps", None),
-           "policy": sec.pop("policy", "MultiInputPolicy"), "normalize": normalize, "policy_kwargs": policy_kwargs}
-    for name in ("n_envs", "n_timesteps"):
-        v = out[name]
-        if isinstance(v, float) and v.is_integer():
-            v = out[name] = int(v)
-        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
-            raise FileFormatError(f"{where}: {name} must be an integer >= 1, got {v!r}")
-    out["ppo"] = sec
-    return out
-
-
-def resolve_hyperparams(args: argparse.Namespace) -> dict[str, Any]:
-    """The run's hyper-parameters: the file's section, with the options given on the command line."""
-    hp = load_hyperparams(args.hyperparams, args.hyperparams_key)
-    if args.n_envs is not None:
-        hp["n_envs"] = args.n_envs
-    if args.timesteps is not None:
-        hp["n_timesteps"] = args.timesteps
-    if hp["n_timesteps"] is None:
-        raise InputError(f"{args.hyperparams} [{args.hyperparams_key}] has no n_timesteps; give --timesteps")
-    for opt, key in _CLI_PPO.items():
-        if getattr(args, opt) is not None:
-            hp["ppo"][key] = getattr(args, opt)
-    if args.log_std_init is not None:
-        hp["policy_kwargs"]["log_std_init"] = args.log_std_init
-    return hp
-
-
-# ------------------------------------------------------------------ outputs
-def _tqdm_callback(total: int):
-    """A tqdm bar over env steps, with the latest mean episode reward (SB3's own bar needs ``rich``)."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class TqdmCallback(BaseCallback):
-        def _on_training_start(self) -> None:
-            self.bar = tqdm(total=total, initial=self.model.num_timesteps, desc="PPO", unit="step",
-                            dynamic_ncols=True)
-
-        def _on_step(self) -> bool:
-            self.bar.update(self.training_env.num_envs)
-            return True
-
-        def _on_rollout_end(self) -> None:
-            buf = self.model.ep_info_buffer
-            if buf:
-                self.bar.set_postfix(ep_rew=f"{np.mean([e['r'] for e in buf]):.1f}",
-                                     ep_len=f"{np.mean([e['l'] for e in buf]):.0f}")
-
-        def _on_training_end(self) -> None:
-            self.bar.close()
-
-    return TqdmCallback()
-
-
-def _metadata_callbacks(meta, checkpoints: Path, checkpoint_freq: int, best: Path):
-    """SB3's ``CheckpointCallback`` writing ``ppo_<N>_steps.json`` beside each checkpoint, and the
-    callback that writes ``best/best_model.json`` whenever ``EvalCallback`` saves a new best model."""
-    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
-
-    class CheckpointWithMetadata(CheckpointCallback):
-        def _on_step(self) -> bool:
-            go_on = super()._on_step()
-            if self.n_calls % self.save_freq == 0:
-                zip_path = Path(self._checkpoint_path(extension="zip"))
-                atomic_write_json(zip_path.with_suffix(".json"), meta(self.num_timesteps), indent=2, overwrite=True)
-            return go_on
-
-    class BestMetadata(BaseCallback):
-        def _on_step(self) -> bool:
-            atomic_write_json(best / "best_model.json", meta(self.num_timesteps), indent=2, overwrite=True)
-            return True
-
-    return (CheckpointWithMetadata(checkpoint_freq, str(checkpoints), name_prefix="ppo", save_vecnormalize=True),
-            BestMetadata())
-
-
-def _checkpoint_steps(path: Path | None) -> int:
-    m = re.fullmatch(r"ppo_(\d+)_steps\.zip", path.name) if path is not None else None
-    return int(m.group(1)) if m else 0
-
-
-def latest_checkpoint(folder: Path) -> Path | None:
-    """The checkpoint with the most steps in ``folder`` (``ppo_<steps>_steps.zip``), or None."""
-    found = sorted(folder.glob("ppo_*_steps.zip"), key=_checkpoint_steps)
-    return found[-1] if found else None
-
-
-def plot_learning_curve(out: Path) -> Path | None:
-    """``out/learning_curve.png`` from every segment's ``progress.csv``: training and held-out reward,
-    held-out lap completion."""
-    matplotlib.use("Agg")
-    rows: list[dict[str, str]] = []
-    for f in sorted((out / "logs").glob("*/progress.csv")):
-        with f.open(newline="") as fh:
-            rows += list(csv.DictReader(fh))
-    if not rows:
-        return None
-
-    def series(key: str) -> tuple[np.ndarray, np.ndarray]:
-        pts = sorted((float(r["time/total_timesteps"]), float(r[key])) for r in rows
-                     if r.get(key) not in (None, "") and r.get("time/total_timesteps") not in (None, ""))
-        return (np.array([p[0] for p in pts]), np.array([p[1] for p in pts])) if pts else (np.zeros(0), np.zeros(0))
-
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
-    for key, label in (("rollout/ep_rew_mean", "training tracks (mean of the last 100 episodes)"),
-                       ("eval/mean_reward", "held-out track (EvalCallback)")):
-        x, y = series(key)
-        if len(x):
-            ax1.plot(x, y, marker="." if key.startswith("eval") else None, label=label)
-    ax1.set_xlabel("environment steps")
-    ax1.set_ylabel("episode reward (m of progress, penalties)")
-    ax1.legend(fontsize=8)
-    ax1.grid(alpha=0.3)
-    x, y = series("eval/success_rate")
-    if len(x):
-        ax2.plot(x, y, marker=".", color="tab:green")
-    ax2.set_xlabel("environment steps")
-    ax2.set_ylabel("lap completion on the held-out track")
-    ax2.set_ylim(-0.05, 1.05)
-    ax2.grid(alpha=0.3)
-    fig.suptitle(f"PPO on the cone list ({out.name})")
-    fig.tight_layout()
-    return save_figure(fig, out / "learning_curve.png", overwrite=True, dpi=110)
-
-
-def plot_pretrain_curve(out: Path, record: dict[str, Any] | None) -> Path | None:
-    """``out/pretrain_curve.png`` from a warm start's record (``run.json["pretrain"]``): the behaviour-cloning
-    loss before and after each DAgger round's fit, and per round the share of the steps the expert drove and
-    the share of ended episodes that were laps."""
-    rounds = (record or {}).get("rounds_log") or []
-    if not rounds:
-        return None
-    matplotlib.use("Agg")
-    r = np.array([x["round"] for x in rounds])
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
-    ax1.semilogy(r, [x["loss_before"] for x in rounds], "o--", label="before the round's fit (new data included)")
-    ax1.semilogy(r, [x["loss"] for x in rounds], "o-", label="after the fit")
-    ax1.set_xlabel("DAgger round")
-    ax1.set_ylabel("BC loss (MSE of the policy mean to the expert's action)")
-    ax1.legend(fontsize=8)
-    ax1.grid(alpha=0.3)
-    ax2.plot(r, [x["expert_share"] for x in rounds], "o-", label="steps driven by the expert")
-    ax2.plot(r, [x["laps"] / max(x["episodes"], 1) for x in rounds], "o-", label="ended episodes that were laps")
-    ax2.set_xlabel("DAgger round")
-    ax2.set_ylim(-0.05, 1.05)
-    ax2.legend(fontsize=8)
-    ax2.grid(alpha=0.3)
-    fig.suptitle(f"warm start: behaviour cloning of {record.get('expert')} with DAgger ({out.name})")
-    fig.tight_layout()
-    return save_figure(fig, out / "pretrain_curve.png", overwrite=True, dpi=110)
-
-
-def model_metadata(settings: dict[str, Any], hp: dict[str, Any], seed: int, eval_track: str,
-                   timesteps: int, pretrain: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The JSON written beside every saved model (final, checkpoint, best): the env it was trained on
-    (and, after ``--pretrain``, the warm start's record: expert, steps, rounds, BC loss per round)."""
-    extra = {"pretrain": pretrain} if pretrain is not None else {}
-    return {**extra, "algo": "PPO", "timesteps": int(timesteps), "n_envs": hp["n_envs"], "seed": seed,
-            "env_id": settings["env_id"], "track": eval_track, "train_tracks": settings["tracks"],
-            "perception": settings["perception"], "train_noise": settings["noise"],
-            "env_kwargs": settings["env_kwargs"], "train_weather": settings["weather"],
-            "train_max_steps": settings["max_steps"], "policy": hp["policy"],
-            "features": "weather_gym.agents.sb3_features.ConeListExtractor"}
 
 
 # ------------------------------------------------------------------ command line
@@ -489,19 +208,10 @@ def _close(env: Any) -> None:
         pass
 
 
-def train(args: argparse.Namespace) -> int:
-    """Run (or resume) the training of ``args``; 0 when done, :data:`INTERRUPTED` after Ctrl-C."""
-    import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
-    from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
-
-    _check_args(args)
-    torch.set_num_threads(args.torch_threads)
-    hp = resolve_hyperparams(args)
+def _start_run(args: argparse.Namespace, s: dict[str, Any]) -> tuple[Path | None, dict[str, Any]]:
+    """(checkpoint to resume from or None, run record) for ``--out``: the run to continue (``--resume``,
+    with the same settings ``s``), or a new one in an empty folder (emptied first with ``--overwrite``)."""
     out: Path = args.out
-    s = _settings(args, hp)
     checkpoints = out / "checkpoints"
     run_file = out / "run.json"
     if args.resume and args.overwrite:
@@ -513,13 +223,31 @@ def train(args: argparse.Namespace) -> int:
         run = json.loads(run_file.read_text())
         if run["settings"] != json.loads(json.dumps(s)):
             raise InputError(f"--resume with other settings than the run in {out}: {run['settings']} vs {s}")
-    else:
-        if out.exists() and any(out.iterdir()):
-            if not args.overwrite:
-                raise OutputExistsError(f"{out} exists and is not empty; pass --resume to continue that run, "
-                                        "--overwrite to start a new one there, or give another --out")
-            _remove_run(out)
-        ckpt, run = None, {"settings": s, "segments": []}
+        return ckpt, run
+    if out.exists() and any(out.iterdir()):
+        if not args.overwrite:
+            raise OutputExistsError(f"{out} exists and is not empty; pass --resume to continue that run, "
+                                    "--overwrite to start a new one there, or give another --out")
+        _remove_run(out)
+    return None, {"settings": s, "segments": []}
+
+
+def train(args: argparse.Namespace) -> int:
+    """Run (or resume) the training of ``args``; 0 when done, :data:`INTERRUPTED` after Ctrl-C."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import CallbackList, EvalCallback, ProgressBarCallback
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+
+    _check_args(args)
+    torch.set_num_threads(args.torch_threads)
+    hp = resolve_hyperparams(args)
+    out: Path = args.out
+    s = _settings(args, hp)
+    checkpoints = out / "checkpoints"
+    run_file = out / "run.json"
+    ckpt, run = _start_run(args, s)
 
     def meta(steps: int) -> dict[str, Any]:
         return model_metadata(s, hp, args.seed, args.eval_track, steps, run.get("pretrain"))
@@ -578,8 +306,11 @@ def train(args: argparse.Namespace) -> int:
         eval_env.seed(10_000 + args.seed)
         checkpoint_cb, best_cb = _metadata_callbacks(meta, checkpoints, max(args.checkpoint_freq // n_envs, 1),
                                                      out / "best")
+        # tqdm + rich (rl_zoo3's dependencies); tqdm marks its rich bar experimental on every run: not the user's concern
+        warnings.filterwarnings("ignore", message="rich is experimental/alpha")
+        progress = ProgressBarCallback()
         callbacks = CallbackList([
-            _tqdm_callback(total),
+            progress,
             checkpoint_cb,
             EvalCallback(eval_env, n_eval_episodes=args.eval_episodes, eval_freq=max(args.eval_freq // n_envs, 1),
                          best_model_save_path=str(out / "best"), log_path=str(out / "logs" / segment),
@@ -592,6 +323,7 @@ def train(args: argparse.Namespace) -> int:
                 model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=False)
             except KeyboardInterrupt:
                 interrupted = True
+                progress.on_training_end()  # close the bar (its live display) that learn() left open
                 print(f"interrupted after {model.num_timesteps} steps: saving the model so far", file=sys.stderr)
         with atomic_path(out / "model.zip", overwrite=True) as tmp:  # this run's own file
             model.save(str(tmp))
@@ -616,20 +348,6 @@ def train(args: argparse.Namespace) -> int:
               f"{checkpoints}), or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
         return INTERRUPTED
     return 0
-
-
-RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png", "checkpoints", "best",
-             "logs")
-"""What a run writes in its folder (``--overwrite`` removes these, nothing else)."""
-
-
-def _remove_run(out: Path) -> None:
-    for name in RUN_FILES:
-        path = out / name
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)
-        elif path.exists() or path.is_symlink():
-            path.unlink()
 
 
 def _class(path: str) -> type:

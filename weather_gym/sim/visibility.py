@@ -88,7 +88,7 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
 
 
 @numba.njit(cache=True, nogil=True)
-def _visible(ex, ey, ez, heading, pitch, fx, fy, cx, cy, near, far, width, height, xy, cls,
+def _visible(ex, ey, ez, heading, pitch, fx, fy, cx, cy, near, far, width, height, xy, cls,  # noqa: C901 (one compiled loop)
              tilt_idx, tilt_org, tilt_rot, shape):  # pragma: no cover (compiled; tested through visible_cones)
     """The kernel of :func:`visible_cones`: (ids, boxes, ranges, bearings, pixels) of the visible cones."""
     n = xy.shape[0]

@@ -15,6 +15,13 @@ Example:
     >>> frame.rgb.shape                                     # doctest: +SKIP
     (376, 672, 3)
     >>> world.close()                                       # doctest: +SKIP
+
+Without a renderer (physics and geometric ground truth only) a world is cheap:
+    >>> from weather_gym.sim.config import SimConfig
+    >>> world = World(load_track("small_track"), sim=SimConfig(renderer="none"))
+    >>> world.renderer_name, world.cone_xy.shape
+    ('none', (..., 2))
+    >>> world.close()
 """
 
 from __future__ import annotations
@@ -22,9 +29,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from pathlib import Path
 
-import cv2
 import numpy as np
 import pybullet as p
 
@@ -32,26 +37,20 @@ from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim import scenery
-from weather_gym.sim.camera_sensor import CameraFrame, CameraSensor
+from weather_gym.sim.camera_sensor import CameraSensor
 from weather_gym.sim.car import Car
-from weather_gym.sim.cast_shadows import ShadowCaster, shadow_strength
+from weather_gym.sim.cast_shadows import ShadowCaster
 from weather_gym.sim.config import CarConfig, SimConfig
-from weather_gym.sim.ego import EGO_DEPTH_M, clip_ground_truth, composite, ego_overlay
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
-from weather_gym.sim.meshes import box_obj, cone_dimensions, cone_obj, quad_obj
-from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
-from weather_gym.sim.scenery_textures import (
-    add_skyline,
-    asphalt_tile,
-    clutter_atlas,
-    realistic_cone_texture,
-    runoff_tile,
-)
-from weather_gym.sim.textures import cone_texture, ground_texture, sky_panorama
+from weather_gym.sim.meshes import box_obj, cone_dimensions, cone_obj
+from weather_gym.sim.renderer import renderer_flag
+from weather_gym.sim.scene_files import clutter_file, ground_file, realistic_ground_files
+from weather_gym.sim.scenery_textures import add_skyline, realistic_cone_texture
+from weather_gym.sim.textures import cone_texture, sky_panorama
+from weather_gym.sim.world_views import WorldViews
 
 GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
-GROUND_TEXTURE_PX = 2048
 REAR_OVERHANG_M = 0.45
 CONE_REACH_M = 0.35
 """Margin (m) around the car's body within which cones get contact physics: a big cone's base
@@ -60,64 +59,7 @@ RESTING_SPEED = 1e-3
 """A knocked cone slower than this (m/s and rad/s, each component) lies still."""
 
 
-_GROUND_FILES: dict[tuple, Path] = {}
-"""(track geometry, extent, ground look) -> ground mesh file: worlds of the same track share it."""
-
-
-def _ground_file(track, extent: tuple[float, float, float, float], look: Look) -> Path:
-    """The ground's textured mesh file for ``track`` under ``look`` (texture made once per process)."""
-    geometry = tuple(np.ascontiguousarray(a, dtype=np.float64).tobytes()
-                     for a in (track.centerline, track.half_width_left, track.half_width_right))
-    key = (geometry, bool(track.closed), extent, look.asphalt_rgb, look.grass_rgb, look.kerb_rgb, look.ground_seed)
-    path = _GROUND_FILES.get(key)
-    if path is None or not path.exists():
-        tex = ground_texture(np.asarray(track.centerline), np.asarray(track.half_width_left),
-                             np.asarray(track.half_width_right), bool(track.closed), extent, look,
-                             size=GROUND_TEXTURE_PX)
-        path = mesh_file("ground", quad_obj(*extent), tex)
-        if len(_GROUND_FILES) >= 64:
-            _GROUND_FILES.pop(next(iter(_GROUND_FILES)))
-        _GROUND_FILES[key] = path
-    return path
-
-
-_REALISTIC_FILES: dict[tuple, Path] = {}
-
-
-def _cached_file(key: tuple, make) -> Path:
-    """A content-named mesh file made once per process for ``key`` (bounded: oldest dropped)."""
-    path = _REALISTIC_FILES.get(key)
-    if path is None or not path.exists():
-        path = make()
-        if len(_REALISTIC_FILES) >= 256:
-            _REALISTIC_FILES.pop(next(iter(_REALISTIC_FILES)))
-        _REALISTIC_FILES[key] = path
-    return path
-
-
-def _track_key(track) -> tuple:
-    return tuple(np.ascontiguousarray(a, dtype=np.float64).tobytes()
-                 for a in (track.centerline, track.half_width_left, track.half_width_right)) + (bool(track.closed),)
-
-
-def _realistic_ground_files(track, extent: tuple[float, float, float, float], look: Look) -> list[Path]:
-    """The realistic ground: a run-off quad (grass / gravel / paved, tiled) and the asphalt strip
-    along the track (tiled, with patches and painted lines)."""
-    x0, y0, x1, y1 = extent
-    runoff = _cached_file(("runoff", extent, look.grass_rgb, look.ground_seed), lambda: mesh_file(
-        "runoff", quad_obj(x0, y0, x1, y1, uv_repeat=(x1 - x0) / scenery.RUNOFF_TILE_M),
-        runoff_tile(look.grass_rgb, look.ground_seed)))
-    strip = _cached_file(("asphalt", _track_key(track), look.asphalt_rgb, look.ground_seed), lambda: mesh_file(
-        "asphalt", scenery.asphalt_strip_obj(track), asphalt_tile(look.asphalt_rgb, look.ground_seed)))
-    return [runoff, strip]
-
-
-def _clutter_file(track, layout: int) -> Path:
-    return _cached_file(("clutter", _track_key(track), int(layout)), lambda: mesh_file(
-        "clutter", scenery.clutter_obj(scenery.clutter_layout(track, int(layout))), clutter_atlas(0)))
-
-
-class World:
+class World(WorldViews):
     """Scene + car + camera for one track. Not thread-safe; one per env."""
 
     def __init__(
@@ -281,8 +223,8 @@ class World:
         if ground_key != self._ground_key:
             shapes = self._ground_shapes.get(ground_key)
             if shapes is None:
-                paths = (_realistic_ground_files(track, self._ground_extent, look) if self.realistic
-                         else [_ground_file(track, self._ground_extent, look)])
+                paths = (realistic_ground_files(track, self._ground_extent, look) if self.realistic
+                         else [ground_file(track, self._ground_extent, look)])
                 shapes = [p.createVisualShape(p.GEOM_MESH, fileName=str(f), physicsClientId=c) for f in paths]
                 self._ground_shapes[ground_key] = shapes
             for b in self._ground_visuals:
@@ -295,7 +237,7 @@ class World:
             if new_clutter:
                 shape = self._clutter_shapes.get(look.clutter_seed)
                 if shape is None:
-                    shape = p.createVisualShape(p.GEOM_MESH, fileName=str(_clutter_file(track, look.clutter_seed)),
+                    shape = p.createVisualShape(p.GEOM_MESH, fileName=str(clutter_file(track, look.clutter_seed)),
                                                 physicsClientId=c)
                     self._clutter_shapes[look.clutter_seed] = shape
                 if self._clutter_body is not None:
@@ -453,94 +395,6 @@ class World:
     def cone_displacement(self) -> np.ndarray:
         """Distance of each cone from where it was placed (m)."""
         return np.hypot(*(self._cone_xy - self._cone_home).T)
-
-    # ------------------------------------------------------------------ sensors
-    def render(self, segmentation: bool = True) -> CameraFrame:
-        """The car camera's frame at the car's current pose; ``segmentation=False`` skips the
-        segmentation pass (and its ground truth: take :meth:`ground_truth` instead)."""
-        if self.renderer_name == "none":
-            raise RuntimeError("this world renders no camera frames (renderer 'none'); "
-                               "use ground_truth() for the visible cones")
-        self._activate()
-        if not self._warmed_up:
-            # The renderer's very first frame can differ from every later one of the same scene
-            # (far textured quads: seen with the realistic world's asphalt patches), so frame 0 of
-            # the first episode would not match frame 0 of the next one with the same seed. One
-            # throw-away frame makes every frame a function of the scene alone.
-            self._warmed_up = True
-            self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
-                               segmentation=True)
-        frame = self.camera.render(self.car.pose, self._cone_lut, self._cone_xy, self.cone_classes, self._light,
-                                   segmentation=segmentation, hide=self._ego_mask())
-        if self._caster is not None and frame.rgb is not None and frame.depth is not None:
-            self._cast_shadows(frame)
-        overlay = self._ego()
-        if overlay is not None and frame.rgb is not None:
-            composite(frame.rgb, overlay)
-            if frame.depth is not None:
-                frame.depth[overlay.mask] = np.float32(EGO_DEPTH_M)
-        return frame
-
-    def _cast_shadows(self, frame: CameraFrame) -> None:
-        """Darken the ground in the standing cones' shadows (before the ego car's overlay covers it).
-        A cone tilted more than 10 degrees (knocked over) casts none."""
-        look = self.look
-        xy = self._cone_xy
-        standing = np.ones(len(xy), dtype=bool)
-        if self._cone_tilt:
-            xy = xy.copy()
-            for i, (origin, rot) in self._cone_tilt.items():
-                standing[i] = rot[2, 2] >= math.cos(math.radians(10.0))
-                xy[i] = origin[:2]  # the base's centre, not the centre of mass
-        eye, heading, pitch = self.camera.mount_pose(self.car.pose)
-        assert self._caster is not None
-        self._caster.apply(frame.rgb, frame.depth, eye, heading, pitch, xy[standing],
-                           self._cone_plate[standing], self._cone_height[standing], self._light["lightDirection"],
-                           shadow_strength(look.ambient, look.diffuse))
-
-    def _ego(self):
-        """The ego car's overlay for the current look and camera (None: none in view)."""
-        if not self.realistic or self._look is None or self._look.ego_seed < 0:
-            return None
-        cam = self.camera_config
-        return ego_overlay(self._look.ego_seed, cam.width, cam.height)
-
-    def _ego_mask(self):
-        overlay = self._ego()
-        return None if overlay is None else overlay.mask
-
-    def ground_truth(self):
-        """The cones the car camera sees now, from geometry (``ConeArrays``; nothing is rendered).
-        Occlusion by clutter is not modelled (see :mod:`weather_gym.sim.scenery`); the ego car's
-        overlay cuts the boxes (:func:`weather_gym.sim.ego.clip_ground_truth`)."""
-        gt = self.camera.geometric_ground_truth(self.car.pose, self._cone_xy, self.cone_classes,
-                                                tilted=self._cone_tilt or None)
-        overlay = self._ego()
-        return gt if overlay is None else clip_ground_truth(gt, overlay)
-
-    def render_chase(self, width: int = 640, height: int = 360, distance: float = 7.0, height_m: float = 3.5) -> np.ndarray:
-        """A third-person view from behind and above the car, for humans (videos, ``render()``)."""
-        self._activate()
-        x, y, yaw = self.car.pose
-        eye = [x - distance * math.cos(yaw), y - distance * math.sin(yaw), height_m]
-        target = [x + 6 * math.cos(yaw), y + 6 * math.sin(yaw), 0.0]
-        view = p.computeViewMatrix(eye, target, [0, 0, 1])
-        proj = p.computeProjectionMatrixFOV(60, width / height, 0.1, 150)
-        c = self._client
-        q = p.getQuaternionFromEuler([0, 0, yaw])
-        body = [x + self._car_body_dx * math.cos(yaw), y + self._car_body_dx * math.sin(yaw), self._car_body_z]
-        p.resetBasePositionAndOrientation(self._car_visual, body, q, physicsClientId=c)
-        try:
-            flag = renderer_flag(self.renderer_name)  # "none" renders the chase view with TinyRenderer
-            with quiet_if_egl(flag):
-                _, _, rgba, _, seg = p.getCameraImage(width, height, view, proj, renderer=flag, physicsClientId=c,
-                                                      **self._light)[:5]
-        finally:
-            p.resetBasePositionAndOrientation(self._car_visual, [0, 0, -10], [0, 0, 0, 1], physicsClientId=c)
-        rgb = cv2.cvtColor(np.asarray(rgba, np.uint8).reshape(height, width, 4), cv2.COLOR_RGBA2RGB)
-        bg = np.asarray(seg).reshape(height, width) < 0
-        rgb[bg] = np.asarray(self.look.sky_top_rgb, np.uint8)
-        return rgb
 
     # ------------------------------------------------------------------ lifetime
     @property

@@ -7,6 +7,11 @@ episode driver), so it sits above them, like the evaluation.
 Example:
     >>> from weather_gym.surrogate.record import record
     >>> log = record(tracks=["small_track"], weathers=["clear"], seeds=[0], steps=5)   # doctest: +SKIP
+
+The surrogate's own tables (nothing rendered, a few milliseconds a step):
+    >>> log = record(tracks=["small_track"], weathers=["clear"], seeds=[0], steps=3, perception="surrogate")
+    >>> len(log), log.episodes[0]["steps"]
+    (4, 3)
 """
 
 from __future__ import annotations
@@ -15,10 +20,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from typing import Any
 
-from weather_gym.agents import make_agent, run_episode
+from weather_gym.agents import agent_observes, make_agent, run_episode
 from weather_gym.camera_config import CameraConfig
 from weather_gym.errors import InputError
 from weather_gym.perception.detector_spec import detector_id
+from weather_gym.perception_modes import check_agent_observes, detector_mode, modes_where, perception_mode
 from weather_gym.pipeline import make_env
 from weather_gym.surrogate.conditions import condition_of
 from weather_gym.surrogate.log import (
@@ -34,23 +40,27 @@ from weather_gym.surrogate.log import (
 )
 from weather_gym.weather import current_spec
 
-__all__ = ["record"]
+__all__ = ["loggable_modes", "record"]
 
 
 def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[int], steps: int,
-           detector: Any = None, env_kwargs: dict[str, Any] | None = None, perception: str = "detector",
+           detector: Any = None, env_kwargs: dict[str, Any] | None = None, perception: str | None = None,
            agent: str = "gt_pure_pursuit", perception_kwargs: dict[str, Any] | None = None,
            progress: Callable[[str], None] | None = None) -> SurrogateLog:
     """Drive ``steps`` steps (at most) per (track, weather, seed) and log them.
 
-    ``perception``: ``detector`` (the full pipeline, the default) or ``surrogate`` (the same tables
-    from the surrogate, for validation). ``agent``: the driver (``gt_pure_pursuit``: the true
+    ``perception``: a mode that gives ``info["detections"]`` (``PerceptionMode.gives_detections``):
+    ``detector`` (the full pipeline, the default) or ``surrogate`` (the same tables from the
+    surrogate, for validation). ``agent``: the driver (``gt_pure_pursuit``: the true
     track; ``mapper_pure_pursuit``: drives on the cone list it receives). ``detector``: the
     ``DetectorWrapper``'s detector (None: the shipped model). ``env_kwargs``: further ``EnvConfig``
     overrides (``camera=...``). Each episode's lap metrics are kept in ``episodes``.
     """
-    if perception not in ("detector", "surrogate"):
-        raise InputError(f"surrogate log: perception must be 'detector' or 'surrogate', got {perception!r}")
+    mode = detector_mode() if perception is None else perception_mode(perception)
+    if not mode.gives_detections:
+        raise InputError(f"surrogate log: perception must be one of {', '.join(map(repr, loggable_modes()))} "
+                         f"(a mode that reports detections), got {mode.name!r}")
+    check_agent_observes(agent, agent_observes(agent), mode)
 
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         raise InputError(f"steps must be an integer >= 1, got {steps!r}")
@@ -63,8 +73,11 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
     camera_cfg = None
     for track in tracks:
         for weather in weathers:
-            extra = {"ground_truth": "geometry", "detector": detector} if perception == "detector" else {}
-            env = make_env(perception=perception, weather=weather, track=track, max_episode_steps=steps,
+            # a rendering mode takes the geometric ground truth too, so both modes log the same truth
+            extra = {"ground_truth": "geometry"} if mode.renders_frames else {}
+            if mode.runs_detector:
+                extra["detector"] = detector
+            env = make_env(perception=mode.name, weather=weather, track=track, max_episode_steps=steps,
                            perception_kwargs=perception_kwargs, **extra, **dict(env_kwargs or {}))
             try:
                 base = env.unwrapped
@@ -78,7 +91,7 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
                     cond, k = condition_of(weather)
                     episodes.append({"track": str(track), "weather": current_spec(spec), "condition": cond, "k": k,
                                      "seed": int(seed), "steps": int(res.steps), "end": res.end_reason, "agent": agent,
-                                     "perception": perception, "completed": bool(res.completed),
+                                     "perception": mode.name, "completed": bool(res.completed),
                                      "lap_time_s": res.lap_times_s[0] if res.lap_times_s else None,
                                      "cones_hit": int(res.cones_hit), "cte_mean_m": float(res.cte_mean_m),
                                      "progress": float(res.progress)})
@@ -94,6 +107,11 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
             "iou": IOU_MATCH}
     return SurrogateLog(_stack(merged["cones"], CONE_COLUMNS), _stack(merged["fps"], FP_COLUMNS),
                         _stack(merged["frames"], FRAME_COLUMNS), episodes, meta)
+
+
+def loggable_modes() -> list[str]:
+    """The perception modes a surrogate log can record (those that report detections)."""
+    return modes_where(gives_detections=True)
 
 
 def _detector_name(detector: Any) -> str:

@@ -195,7 +195,7 @@ class _Tables:
 
 
 @numba.njit(cache=True, nogil=True)
-def _draw_cones(prob, u, cls, ids, ranges, bearings, boxes, box_h, crowd, bins, last_step, last_det, step, rho,
+def _draw_cones(prob, u, cls, ids, ranges, bearings, boxes, box_h, crowd, bins, last_step, last_det, step, rho,  # noqa: C901 (compiled)
                 cum, q, loose_box_d, part_rows):  # pragma: no cover (compiled; tested through FrameSampler)
     """The per-cone draws of one frame from the probabilities ``prob`` (3, n: detected, loose, part)
     and the uniforms ``u`` (9, n): (classes, ranges, bearings, scores, boxes) of the reported cones,

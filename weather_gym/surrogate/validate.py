@@ -37,7 +37,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.stats import t
 
-from weather_gym._io import atomic_write, check_output, save_figure
+from weather_gym._figures import save_figure
+from weather_gym._io import atomic_write, check_output
 from weather_gym.errors import InputError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
 from weather_gym.perception.scoring import DEFAULT_RANGE_BINS

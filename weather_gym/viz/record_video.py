@@ -18,6 +18,10 @@ Example:
     >>> obs, info = env.reset(seed=0)                                                  # doctest: +SKIP
     >>> for _ in range(30): obs, *_ = env.step(env.action_space.sample())             # doctest: +SKIP
     >>> env.close()                       # writes rl-video-episode-0.mp4 (31 frames)  # doctest: +SKIP
+
+Which episodes the default trigger records (Gymnasium's ``capped_cubic_video_schedule``):
+    >>> [n for n in range(100) if capped_cubic_video_schedule(n)]
+    [0, 1, 8, 27, 64]
 """
 
 from __future__ import annotations

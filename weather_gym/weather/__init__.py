@@ -9,7 +9,9 @@ No PyBullet here: the layer works on any uint8 RGB image stream (numpy + OpenCV 
   condition x severity table.
 
 Every effect: ``effect(image, *, depth=None, state=None, rng=None) -> new image`` and
-``effect.reset(seed)``; see :mod:`weather_gym.weather.base` and ``docs/weather.md``.
+``effect.reset(seed)``, built from ``effect.sample(rng, shape, episode) -> draw`` and a pure
+``effect.render(image, draw)``; ``effect.start(seed)`` is an episode of its own
+(:class:`EffectRun`); see :mod:`weather_gym.weather.base` and ``docs/weather.md``.
 
 Example:
     >>> import numpy as np
@@ -37,7 +39,7 @@ from weather_gym.weather import (  # noqa: F401
     rain,
     vignette,
 )
-from weather_gym.weather.base import DEFAULT_SEED, STATE_KEYS, Effect, KnobEffect
+from weather_gym.weather.base import DEFAULT_SEED, STATE_KEYS, Effect, EffectRun, KnobEffect
 from weather_gym.weather.blur import Blur
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.dim import Dim
@@ -57,7 +59,7 @@ from weather_gym.weather.vignette import Vignette
 
 __all__ = [
     "CONDITIONS", "DEFAULT_SEED", "EFFECTS", "SEVERITIES", "STATE_KEYS",
-    "Blur", "Compose", "Dim", "Droplets", "Effect", "Exposure", "Fog", "Glare", "Jpeg", "KnobEffect",
+    "Blur", "Compose", "Dim", "Droplets", "Effect", "EffectRun", "Exposure", "Fog", "Glare", "Jpeg", "KnobEffect",
     "MotionBlur", "Noise", "Rain", "Ramp", "Vignette",
     "current_spec", "load_presets", "make", "parse_weather", "preset_entry", "preset_spec",
     "register_effect", "to_spec",

@@ -143,16 +143,33 @@ def _noise_tables(mean_bytes: bytes | None, sigma_bytes: bytes) -> tuple[np.ndar
     return readonly(table), mean_bytes is not None, unit * _half_normal_u8()[1]
 
 
+def _noise_words(shape: tuple[int, ...]) -> tuple[int, int]:
+    """``(frames, 64-bit words per frame)`` of the sensor-noise draw of an image or batch ``shape``."""
+    frames = 1 if len(shape) == 3 else int(shape[0])
+    n = int(shape[-3]) * int(shape[-2]) * int(shape[-1])
+    return frames, 2 + (n + 63) // 64
+
+
+def sensor_noise_draw(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    """The random words :func:`add_sensor_noise` needs for a frame or batch of ``shape``:
+    ``(frames, words)`` uint64, a window offset and pitch then one sign bit per value, per frame."""
+    frames, per = _noise_words(shape)
+    return rng.bit_generator.random_raw(frames * per).reshape(frames, per)
+
+
 def add_sensor_noise(img: np.ndarray, mean_lut: np.ndarray | None, sigma_lut: np.ndarray,
-                     rng: np.random.Generator, out: np.ndarray | None = None) -> np.ndarray:
+                     raw: np.ndarray | np.random.Generator, out: np.ndarray | None = None) -> np.ndarray:
     """``mean_lut[I] + round(sigma_lut[I] * z)``, clipped to 0-255, ``z`` standard normal per value.
 
     ``mean_lut`` None means the identity. ``img`` is a C-contiguous uint8 ``H x W x 3`` frame or an
     ``N x H x W x 3`` batch (the same noise as frame-by-frame calls); the result goes to ``out``
     (C-contiguous, new when None). ``z`` is a fresh random sign times a magnitude from :func:`noise_bank` (see
     the comment above), 256 equiprobable levels as :func:`gauss_lut`; sigma is resolved to 1/255
-    of its largest value in the table.
+    of its largest value in the table. ``raw``: the random words, :func:`sensor_noise_draw` (or a
+    generator to draw them from).
     """
+    if isinstance(raw, np.random.Generator):
+        raw = sensor_noise_draw(raw, img.shape)
     table, with_mean, scale = _noise_tables(None if mean_lut is None else np.asarray(mean_lut, np.float32).tobytes(),
                                             np.asarray(sigma_lut, np.float32).tobytes())
     frames = img.reshape(-1, *img.shape[-3:])
@@ -164,8 +181,7 @@ def add_sensor_noise(img: np.ndarray, mean_lut: np.ndarray | None, sigma_lut: np
     n = rows * cols
     size, offsets, pitches = _bank_plan(rows, cols)
     bank = noise_bank(size)
-    per = 2 + (n + 63) // 64
-    raw = rng.bit_generator.random_raw(n_frames * per).reshape(n_frames, per)
+    raw = np.asarray(raw).reshape(n_frames, -1)
     picks = raw[:, :2].tolist()
     for i in range(n_frames):
         signs = np.unpackbits(raw[i, 2:].view(np.uint8), count=n).reshape(rows, cols)

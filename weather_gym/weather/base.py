@@ -1,10 +1,18 @@
 """The effect contract shared by every weather effect.
 
-An effect is an immutable configuration (a frozen dataclass validated at construction) plus, for
-the few stateful effects, per-episode state. Every effect is called the same way::
+An effect is an immutable configuration (a frozen dataclass validated at construction). Producing
+a frame has two parts, as in Albumentations' ``get_params`` / ``apply``:
+
+    draw = effect.sample(rng, shape, episode)          # every random value of the frame
+    out = effect.render(image, draw, depth=..., state=...)   # pure: no generator, nothing changes
+
+Per-episode state (the episode generator, the lens drops of persistent droplets, a ramp's
+position) lives in an :class:`EffectRun`, not in the effect: ``run = effect.start(seed)`` and then
+``run(image)`` frame after frame (``WeatherWrapper`` holds one per episode). For convenience every
+effect is also called directly, with a run of its own behind it::
 
     effect(image, *, depth=None, state=None, rng=None) -> new uint8 image
-    effect.reset(seed)            # start a new episode
+    effect.reset(seed)            # start a new episode of that run
 
 * ``image``: uint8 ``H x W x 3`` RGB (or a batch ``N x H x W x 3``), C-contiguous or not, never
   modified. The result is a new array of the same shape and dtype.
@@ -15,8 +23,9 @@ the few stateful effects, per-episode state. Every effect is called the same way
   that need them use documented defaults otherwise. A batch
   takes one mapping for all frames or a sequence of ``N`` mappings.
 * ``rng``: optional ``numpy.random.Generator``. Without it the effect draws from its episode
-  generator, ``numpy.random.default_rng(seed)`` from the last ``reset(seed)``; if ``reset`` was
-  never called, from ``default_rng(DEFAULT_SEED)`` created at first use. There is no global RNG.
+  generator, ``numpy.random.default_rng(seed)`` from the last ``reset(seed)`` (or
+  ``start(seed)``); if ``reset`` was never called, from ``default_rng(DEFAULT_SEED)`` created at
+  first use. There is no global RNG.
 
 ``k`` in ``[0, 1]`` is the one severity knob of an effect; ``k = 0`` returns an exact copy.
 
@@ -27,11 +36,16 @@ Example:
     >>> out = make("dim", k=0.5)(img)
     >>> int(out[0, 0, 0]), int(img[0, 0, 0])   # the input is untouched
     (100, 200)
+    >>> noise = make("noise", k=0.5)
+    >>> draw = noise.sample(np.random.default_rng(0), img.shape)
+    >>> bool((noise.render(img, draw) == noise(img, rng=np.random.default_rng(0))).all())
+    True
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 from collections.abc import Mapping, Sequence
@@ -42,7 +56,8 @@ import numpy as np
 from weather_gym.errors import InputError, LimitError
 from weather_gym.limits import check_image_size
 
-__all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "Effect", "KnobEffect", "check_image", "check_depth"]
+__all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "CheckedArgs", "Effect", "EffectRun", "KnobEffect", "check_depth",
+           "check_image"]
 
 #: Seed of the episode generator of an effect whose ``reset`` was never called.
 DEFAULT_SEED = 20220607
@@ -151,82 +166,159 @@ def check_seed(seed: Any, who: str) -> np.random.SeedSequence:
     raise InputError(f"{who}: seed must be a non-negative int, a numpy SeedSequence or None, got {seed!r}")
 
 
+class EffectRun:
+    """One episode of an effect: its episode generator and per-episode state, called like the effect.
+
+    ``effect.start(seed)`` returns one; ``run(image, depth=..., state=..., rng=...)`` makes the
+    next frame (``rng`` overrides the episode generator for that frame, the state still moves on);
+    ``run.restart(seed)`` begins a new episode. Each run is independent: two runs of one effect
+    never share state.
+
+    Example:
+        >>> import numpy as np
+        >>> from weather_gym.weather import make
+        >>> lens = make("droplets", k=0.55, persistent=True)
+        >>> a, b = lens.start(3), lens.start(3)
+        >>> bool((a(np.zeros((120, 200, 3), np.uint8)) == b(np.zeros((120, 200, 3), np.uint8))).all())
+        True
+    """
+
+    def __init__(self, effect: Effect, seed: SeedLike = None) -> None:
+        self.effect = effect
+        self.restart(seed)
+
+    def restart(self, seed: SeedLike = None) -> None:
+        """A new episode: the generator becomes ``default_rng(seed)``, the state starts afresh."""
+        self.rng = np.random.default_rng(check_seed(seed, self.effect.name or type(self.effect).__name__))
+        self.episode = self.effect.new_episode()
+
+    def adopt(self, other: EffectRun) -> None:
+        """Continue ``other``'s episode (its generator and state) with this run's effect."""
+        self.rng, self.episode = other.rng, other.episode
+
+    @property
+    def current(self) -> Effect:
+        """The effect (for a ramp: with the k) that the next frame gets."""
+        return self.effect
+
+    def sample(self, shape: tuple[int, ...], rng: np.random.Generator | None = None) -> Any:
+        """The draw of the next frame (or batch) of ``shape``; moves the episode on by that many frames."""
+        return self.effect.sample(rng if rng is not None else self.rng, tuple(shape), self.episode)
+
+    def __call__(self, image: np.ndarray, *, depth: np.ndarray | None = None,
+                 state: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None,
+                 rng: np.random.Generator | None = None) -> np.ndarray:
+        who = self.effect.name or type(self.effect).__name__
+        img, batched = check_image(image, who)
+        d = check_depth(depth, img.shape, who)
+        st = check_state(state, img.shape[0] if batched else None, who)
+        out = self._produce(img, d, st, check_rng(rng, who), batched)
+        if np.may_share_memory(out, image):  # the contract: always a new array
+            out = out.copy()
+        return out
+
+    def _produce(self, img: np.ndarray, depth: np.ndarray | None, state: Any,
+                 rng: np.random.Generator | None, batched: bool) -> np.ndarray:
+        """Validated input -> output: sample, then render."""
+        return self.effect._render(img, self.sample(img.shape, rng), depth, state, batched)
+
+
 class Effect:
     """Base of everything that degrades images (effects, :class:`Compose`, schedules).
 
-    Subclasses implement ``_run(img, depth, state, rng)`` for one frame (``img`` is a
-    C-contiguous uint8 ``H x W x 3`` array that must not be modified) and may override
-    ``_run_into`` (one frame written into a given array: batches then need no extra copy) and
-    ``_run_batch`` when frames can be processed together.
+    Subclasses implement :meth:`sample` (random values -> a draw), ``_render`` (validated input
+    and a draw -> a new image, pure) and, when they keep state across frames, :meth:`new_episode`
+    and a run class (``start``).
     """
 
     name: ClassVar[str] = ""
-    #: True when the effect keeps state across frames of an episode (see :meth:`reset`).
+    #: True when the effect keeps state across frames of an episode (see :class:`EffectRun`).
     stateful: ClassVar[bool] = False
 
     # -- public API --------------------------------------------------------------------------
     def __call__(self, image: np.ndarray, *, depth: np.ndarray | None = None,
                  state: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None,
                  rng: np.random.Generator | None = None) -> np.ndarray:
-        who = self.name or type(self).__name__
-        img, batched = check_image(image, who)
-        d = check_depth(depth, img.shape, who)
-        st = check_state(state, img.shape[0] if batched else None, who)
-        out = self._process(img, d, st, check_rng(rng, who), batched)
-        if np.may_share_memory(out, image):  # the contract: always a new array
-            out = out.copy()
-        return out
+        """The next frame of this effect's own run (see :class:`EffectRun`)."""
+        return self._own_run(image, depth=depth, state=state, rng=rng)
+
+    def start(self, seed: SeedLike = None) -> EffectRun:
+        """A new, independent episode of this effect."""
+        return EffectRun(self, seed)
 
     def reset(self, seed: SeedLike = None) -> None:
-        """Start a new episode: the episode generator becomes ``default_rng(seed)``."""
-        object.__setattr__(self, "_rng", np.random.default_rng(check_seed(seed, self.name)))
-        self._reset_state()
+        """Start a new episode of the effect's own run: its generator becomes ``default_rng(seed)``."""
+        self._own_run.restart(seed)
+
+    @property
+    def current(self) -> Effect:
+        """The effect the next frame of the own run gets (a ramp: its effect at the current k)."""
+        return self._own_run.current
+
+    def new_episode(self) -> Any:
+        """Fresh per-episode state that :meth:`sample` moves on (``None``: the effect keeps none)."""
+        return None
+
+    def sample(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any = None) -> Any:
+        """Every random value of one frame (``shape`` ``(H, W, 3)``) or batch (``(N, H, W, 3)``)."""
+        raise NotImplementedError
+
+    def render(self, image: np.ndarray, draw: Any = None, *, depth: np.ndarray | None = None,
+               state: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None) -> np.ndarray:
+        """The degraded image for ``draw`` (from :meth:`sample`): pure, no generator, nothing changes."""
+        who = self.name or type(self).__name__
+        img, batched = check_image(image, who)
+        out = self._render(img, draw, check_depth(depth, img.shape, who),
+                           check_state(state, img.shape[0] if batched else None, who), batched)
+        return out.copy() if np.may_share_memory(out, image) else out
 
     def params(self) -> dict[str, Any]:
         raise NotImplementedError
 
     # -- for subclasses ----------------------------------------------------------------------
-    def _episode_rng(self) -> np.random.Generator:
-        rng = getattr(self, "_rng", None)
-        if rng is None:
-            self.reset(DEFAULT_SEED)
-            rng = self._rng
-        return rng
+    @functools.cached_property
+    def _own_run(self) -> EffectRun:
+        """The run behind ``effect(image)`` and ``effect.reset(seed)``, started at first use."""
+        return self.start(None)
 
-    def _reset_state(self) -> None:
-        """Clear per-episode state (stateful effects override)."""
-
-    def _process(self, img: np.ndarray, depth: np.ndarray | None, state: Any,
-                 rng: np.random.Generator | None, batched: bool) -> np.ndarray:
-        """Validated input -> output; ``rng`` None means this effect's episode generator."""
-        g = rng if rng is not None else self._episode_rng()
-        if batched:
-            return self._run_batch(img, depth, state, g)
-        return self._run(img, depth, state, g)
-
-    def _run(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
-             rng: np.random.Generator) -> np.ndarray:
+    def _render(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: Any,
+                batched: bool) -> np.ndarray:
+        """Validated input (C-contiguous, never modified) and a draw -> a new array."""
         raise NotImplementedError
 
-    def _run_batch(self, imgs: np.ndarray, depth: np.ndarray | None, states: list[dict[str, float]],
-                   rng: np.random.Generator) -> np.ndarray:
-        out = np.empty_like(imgs)
-        for i in range(imgs.shape[0]):
-            self._run_into(imgs[i], None if depth is None else depth[i], states[i], rng, out[i])
-        return out
 
-    def _run_into(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
-                  rng: np.random.Generator, out: np.ndarray) -> None:
-        """One frame written into ``out`` (a C-contiguous uint8 array of the image's shape)."""
-        np.copyto(out, self._run(img, depth, state, rng))
+def keyword_args(who: str, fields: Sequence[dataclasses.Field], args: tuple[Any, ...],
+                 kwargs: dict[str, Any]) -> dict[str, Any]:
+    """Positional and keyword constructor arguments of a dataclass as one keyword dict."""
+    if len(args) > len(fields):
+        raise TypeError(f"{who}: takes at most {len(fields)} positional arguments, got {len(args)}")
+    given = dict(kwargs)
+    for f, v in zip(fields, args, strict=False):
+        if f.name in given:
+            raise TypeError(f"{who}: got multiple values for argument {f.name!r}")
+        given[f.name] = v
+    return given
 
 
 def _is_real(v: Any) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, bool)
 
 
+class CheckedArgs(type):
+    """Metaclass of frozen dataclasses whose arguments are checked and normalised before the instance
+    is built: ``cls._checked(args, kwargs)`` returns the keywords to build it with (for
+    :class:`KnobEffect`: ``1`` -> ``1.0`` for a float parameter, ``numpy.bool_`` -> ``bool``), so
+    nothing is set on the instance afterwards."""
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        if dataclasses.is_dataclass(cls):
+            kwargs = cls._checked(args, kwargs)
+            args = ()
+        return super().__call__(*args, **kwargs)
+
+
 @dataclasses.dataclass(frozen=True)
-class KnobEffect(Effect):
+class KnobEffect(Effect, metaclass=CheckedArgs):
     """An effect with one severity knob ``k`` in ``[0, 1]`` and named physical parameters.
 
     Class attributes a subclass declares:
@@ -237,8 +329,12 @@ class KnobEffect(Effect):
     * ``PARAM_LIMITS``: ``{param: (lo, hi)}`` valid ranges of the other numeric parameters.
     * ``CHOICES``: ``{param: (allowed strings...)}``.
 
-    Every constructor argument is a float, int, bool or str, so :meth:`params` is JSON/TOML
-    serialisable and ``make(name, **effect.params())`` rebuilds an equal effect.
+    and implements ``_render_into(img, draw, depth, state, out)`` (one frame written into ``out``)
+    or ``_render_frame(img, draw, depth, state)`` (a new array), plus ``_sample_frame(rng, shape,
+    episode)`` when it draws random values. ``k = 0`` is an exact copy without drawing anything
+    (unless ``keeps_time``). Every constructor argument is a float, int, bool or str, so
+    :meth:`params` is JSON/TOML serialisable and ``make(name, **effect.params())`` rebuilds an
+    equal effect.
     """
 
     k: float = 0.0
@@ -247,36 +343,43 @@ class KnobEffect(Effect):
     PARAM_LIMITS: ClassVar[Mapping[str, tuple[float, float]]] = {}
     CHOICES: ClassVar[Mapping[str, tuple[str, ...]]] = {}
 
-    def __post_init__(self) -> None:
-        who = self.name or type(self).__name__
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            ftype = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
-            if f.name in self.CHOICES:
-                allowed = self.CHOICES[f.name]
-                if v not in allowed:
-                    raise InputError(f"{who}: parameter {f.name}={v!r} must be one of {', '.join(allowed)}")
-            elif ftype == "bool":
-                if not isinstance(v, bool | np.bool_):
-                    raise InputError(f"{who}: parameter {f.name}={v!r} must be true or false")
-                object.__setattr__(self, f.name, bool(v))
-            elif ftype in ("float", "int"):
-                lo, hi = self.bounds_of(f.name)
-                if not _is_real(v) or not math.isfinite(float(v)):
-                    raise InputError(f"{who}: parameter {f.name}={v!r} must be a finite number in [{lo}, {hi}]")
-                if ftype == "int":
-                    if float(v) != int(v):
-                        raise InputError(f"{who}: parameter {f.name}={v!r} must be an integer in [{lo}, {hi}]")
-                    v = int(v)
-                else:
-                    v = float(v)
-                if not lo <= v <= hi:
-                    raise InputError(f"{who}: parameter {f.name}={v!r} is outside [{lo}, {hi}]")
-                object.__setattr__(self, f.name, v)
-            else:  # pragma: no cover - a programming error in an effect definition
-                raise TypeError(f"{who}: parameter {f.name} has unsupported type {ftype}")
-        object.__setattr__(self, "_rng", None)
-        self._reset_state()
+    @classmethod
+    def _checked(cls, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
+        """Constructor arguments as keywords, each checked against its declared type and range."""
+        who = cls.name or cls.__name__
+        fields = [f for f in dataclasses.fields(cls) if f.init]
+        given = keyword_args(who, fields, args, kwargs)
+        for f in fields:
+            if f.name in given:
+                given[f.name] = cls._checked_value(who, f, given[f.name])
+        return given
+
+    @classmethod
+    def _checked_value(cls, who: str, f: dataclasses.Field, v: Any) -> Any:
+        ftype = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+        if f.name in cls.CHOICES:
+            allowed = cls.CHOICES[f.name]
+            if v not in allowed:
+                raise InputError(f"{who}: parameter {f.name}={v!r} must be one of {', '.join(allowed)}")
+            return v
+        if ftype == "bool":
+            if not isinstance(v, bool | np.bool_):
+                raise InputError(f"{who}: parameter {f.name}={v!r} must be true or false")
+            return bool(v)
+        if ftype not in ("float", "int"):
+            return v  # a subclass's own kind of parameter (it checks it itself)
+        lo, hi = cls.bounds_of(f.name)
+        if not _is_real(v) or not math.isfinite(float(v)):
+            raise InputError(f"{who}: parameter {f.name}={v!r} must be a finite number in [{lo}, {hi}]")
+        if ftype == "int":
+            if float(v) != int(v):
+                raise InputError(f"{who}: parameter {f.name}={v!r} must be an integer in [{lo}, {hi}]")
+            v = int(v)
+        else:
+            v = float(v)
+        if not lo <= v <= hi:
+            raise InputError(f"{who}: parameter {f.name}={v!r} is outside [{lo}, {hi}]")
+        return v
 
     @classmethod
     def bounds_of(cls, param: str) -> tuple[float, float]:
@@ -298,45 +401,74 @@ class KnobEffect(Effect):
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
     def with_params(self, **changes: Any) -> KnobEffect:
-        """A copy with some parameters changed that keeps this effect's episode (RNG and state)."""
+        """A copy with some parameters changed whose own run continues this effect's episode."""
         new = dataclasses.replace(self, **changes)
-        object.__setattr__(new, "_rng", self._rng)
-        new._adopt_state(self)
+        new._own_run.adopt(self._own_run)
         return new
 
-    def _adopt_state(self, other: KnobEffect) -> None:
-        """Take over ``other``'s per-episode state (stateful effects override)."""
+    # -- sampling ----------------------------------------------------------------------------
+    @property
+    def keeps_time(self) -> bool:
+        """True when :meth:`sample` must run at ``k = 0`` too (state that moves on every frame)."""
+        return False
 
-    def _run(self, img, depth, state, rng):
+    def sample(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any = None) -> Any:
+        """The draw of one frame, or a list of one draw per frame for a batch; ``None`` when idle."""
+        if self.k == 0.0 and not self.keeps_time:
+            return None
+        if len(shape) == 4:
+            return [self._sample_frame(rng, shape[1:], episode) for _ in range(shape[0])]
+        return self._sample_frame(rng, shape, episode)
+
+    def _sample_frame(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any) -> Any:
+        """Random values of one ``H x W x 3`` frame (default: none)."""
+        if hasattr(self, "_apply_into"):  # an effect written against the fused hook (gap/measured.py)
+            return _Fused(rng)
+        return None
+
+    # -- rendering ---------------------------------------------------------------------------
+    def _render(self, img, draw, depth, state, batched):
         if self.k == 0.0:
-            self._idle(img.shape, rng)
             return img.copy()
-        return self._apply(img, depth, state, rng)
+        if batched:
+            return self._render_batch(img, draw, depth, state)
+        return self._render_frame(img, draw, depth, state)
 
-    def _run_into(self, img, depth, state, rng, out):
-        if self.k == 0.0:
-            self._idle(img.shape, rng)
-            np.copyto(out, img)
-        else:
-            self._apply_into(img, depth, state, rng, out)
-
-    def _idle(self, shape: tuple[int, ...], rng: np.random.Generator) -> None:
-        """Called instead of ``_apply`` when ``k == 0`` (stateful effects keep time going)."""
-
-    def _apply(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
-               rng: np.random.Generator) -> np.ndarray:
-        """The degraded frame (``k > 0``), a new array. Subclasses override this or :meth:`_apply_into`."""
-        if type(self)._apply_into is KnobEffect._apply_into:
-            raise NotImplementedError(f"{type(self).__name__} implements neither _apply nor _apply_into")
-        out = np.empty_like(img)
-        self._apply_into(img, depth, state, rng, out)
+    def _render_batch(self, imgs: np.ndarray, draws: list[Any] | None, depth: np.ndarray | None,
+                      states: list[dict[str, float]]) -> np.ndarray:
+        out = np.empty_like(imgs)
+        for i in range(imgs.shape[0]):
+            self._render_into(imgs[i], None if draws is None else draws[i], None if depth is None else depth[i],
+                              states[i], out[i])
         return out
 
-    def _apply_into(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
-                    rng: np.random.Generator, out: np.ndarray) -> None:
-        """:meth:`_apply` written into ``out``; batches call this frame by frame, with no extra copy."""
-        np.copyto(out, self._apply(img, depth, state, rng))
+    def _render_frame(self, img: np.ndarray, draw: Any, depth: np.ndarray | None,
+                      state: dict[str, float]) -> np.ndarray:
+        """The degraded frame (``k > 0``), a new array. Subclasses override this or :meth:`_render_into`."""
+        if type(self)._render_into is KnobEffect._render_into and not isinstance(draw, _Fused):
+            raise NotImplementedError(f"{type(self).__name__} implements neither _render_frame nor _render_into")
+        out = np.empty_like(img)
+        self._render_into(img, draw, depth, state, out)
+        return out
+
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
+        """:meth:`_render_frame` written into ``out``; batches call this frame by frame, with no extra copy."""
+        if isinstance(draw, _Fused):
+            self._apply_into(img, depth, state, draw.rng, out)
+        else:
+            np.copyto(out, self._render_frame(img, draw, depth, state))
+
+    def _reset_state(self) -> None:
+        """No per-effect state: kept for subclasses written against the fused hook (gap/measured.py)."""
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.params().items())
         return f"{type(self).__name__}({args})"
+
+
+@dataclasses.dataclass(frozen=True)
+class _Fused:
+    """The draw of an effect that draws while it renders (``_apply_into(img, depth, state, rng, out)``)."""
+
+    rng: np.random.Generator

@@ -39,5 +39,5 @@ class Blur(KnobEffect):
 
     PARAM_BOUNDS: ClassVar = {"max_radius_frac": (0.001, 0.05)}
 
-    def _apply_into(self, img, depth, state, rng, out):
+    def _render_into(self, img, draw, depth, state, out):
         smooth(img, 0.5 * self.k * self.max_radius_frac * img.shape[1], out, exact=True)

@@ -13,66 +13,95 @@ Example:
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Iterable
-from typing import Any, ClassVar
+from collections.abc import Iterable, Iterator
+from typing import Any
 
 import numpy as np
 
 from weather_gym.errors import InputError
-from weather_gym.weather.base import Effect, SeedLike, check_seed
+from weather_gym.weather.base import Effect, EffectRun, SeedLike, check_seed
 
-__all__ = ["Compose"]
+__all__ = ["Compose", "ComposeRun"]
 
 
-@dataclasses.dataclass(frozen=True, init=False)
 class Compose(Effect):
-    """Apply ``effects`` one after the other (each gets the depth, state and generator)."""
+    """Apply ``effects`` one after the other (each gets the depth, state and generator). Immutable."""
 
-    name: ClassVar[str] = "compose"
-
-    effects: tuple[Effect, ...]
+    name = "compose"
 
     def __init__(self, effects: Iterable[Effect] = ()) -> None:
         effects = tuple(effects)
         for i, e in enumerate(effects):
             if not isinstance(e, Effect):
                 raise InputError(f"compose: item {i} must be a weather effect, got {type(e).__name__}")
-        object.__setattr__(self, "effects", effects)
-        object.__setattr__(self, "_rng", None)
+        self._effects = effects
+
+    @property
+    def effects(self) -> tuple[Effect, ...]:
+        return self._effects
 
     @property
     def stateful(self) -> bool:  # type: ignore[override]
         return any(e.stateful for e in self.effects)
 
-    def reset(self, seed: SeedLike = None) -> None:
-        """New episode: each effect is reset with its own child of ``SeedSequence(seed)``."""
-        ss = check_seed(seed, self.name)
-        object.__setattr__(self, "_rng", np.random.default_rng(ss))
-        for e, child in zip(self.effects, ss.spawn(len(self.effects)), strict=True):
-            e.reset(child)
+    def start(self, seed: SeedLike = None) -> ComposeRun:
+        """A new episode: each effect gets a run seeded with its own child of ``SeedSequence(seed)``."""
+        return ComposeRun(self, seed)
+
+    def sample(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any = None) -> tuple[Any, ...]:
+        """One draw per effect, in order (``episode``: the effects' episode states, or None)."""
+        episodes = episode if episode is not None else [e.new_episode() for e in self.effects]
+        return tuple(e.sample(rng, shape, ep) for e, ep in zip(self.effects, episodes, strict=True))
 
     def params(self) -> dict[str, Any]:
         return {"effects": [e.params() | {"name": e.name} for e in self.effects]}
 
-    def _episode_rng(self) -> np.random.Generator:
-        if self._rng is None:
-            self.reset(None)
-        return self._rng
-
-    def _process(self, img, depth, state, rng, batched):
-        if rng is None:
-            self._episode_rng()  # children get their seeds from the default seed on first use
+    def _render(self, img, draw, depth, state, batched):
         out = img
-        for e in self.effects:
-            out = np.ascontiguousarray(e._process(out, depth, state, rng, batched))
+        for e, d in zip(self.effects, draw, strict=True):
+            out = np.ascontiguousarray(e._render(out, d, depth, state, batched))
         return out if out is not img else img.copy()
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Compose) and self.effects == other.effects
+
+    def __hash__(self) -> int:
+        return hash(("compose", self.effects))
 
     def __len__(self) -> int:
         return len(self.effects)
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Effect]:
         return iter(self.effects)
 
     def __repr__(self) -> str:
         return f"Compose({list(self.effects)!r})"
+
+
+class ComposeRun(EffectRun):
+    """One episode of a :class:`Compose`: a run per effect; a frame goes through them in order."""
+
+    effect: Compose
+
+    def restart(self, seed: SeedLike = None) -> None:
+        ss = check_seed(seed, self.effect.name)
+        self.runs = [e.start(child) for e, child in zip(self.effect.effects, ss.spawn(len(self.effect)), strict=True)]
+        self.rng = np.random.default_rng(ss)
+        self.episode = [r.episode for r in self.runs]
+
+    def adopt(self, other: EffectRun) -> None:
+        super().adopt(other)
+        self.runs = other.runs
+
+    @property
+    def current(self) -> Compose:
+        return Compose(r.current for r in self.runs)
+
+    def sample(self, shape, rng=None):
+        return tuple(r.sample(shape, rng) for r in self.runs)
+
+    def _produce(self, img, depth, state, rng, batched):
+        out = img
+        for r in self.runs:  # each effect samples right before it renders
+            out = np.ascontiguousarray(r._produce(out, depth, state, rng, batched))
+        return out if out is not img else img.copy()

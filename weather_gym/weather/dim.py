@@ -68,6 +68,7 @@ from weather_gym.weather._common import (
     into,
     linear_of_code,
     readonly,
+    sensor_noise_draw,
     smooth,
     srgb_encode,
     srgb_slope,
@@ -75,7 +76,8 @@ from weather_gym.weather._common import (
 from weather_gym.weather.geometry import EgoMotion
 from weather_gym.weather.registry import register_effect
 
-__all__ = ["Dim", "add_chroma_blotches", "chroma_grid", "auto_exposure", "black_level_lut", "brightness_lut"]
+__all__ = ["Dim", "add_chroma_blotches", "auto_exposure", "black_level_lut", "brightness_lut", "chroma_draw",
+           "chroma_grid"]
 
 
 @lru_cache(maxsize=256)
@@ -128,17 +130,27 @@ def chroma_grid(shape: tuple[int, ...], cell_px: float) -> tuple[int, int]:
     return max(int(math.ceil(shape[0] / cell_px)), 1), max(int(math.ceil(shape[1] / cell_px)), 1)
 
 
-def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, rng: np.random.Generator,
+def chroma_draw(rng: np.random.Generator, shape: tuple[int, ...], cell_px: float) -> np.ndarray:
+    """The random bytes of :func:`add_chroma_blotches` on a frame of ``shape``: 3 per grid cell."""
+    gh, gw = chroma_grid(shape, cell_px)
+    n = gh * gw * 3
+    return rng.bit_generator.random_raw(-(-n // 8)).view(np.uint8)[:n]
+
+
+def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.ndarray | np.random.Generator,
                         weight: np.ndarray | None = None) -> None:
     """Add low-frequency colour noise in place: zero-luma RGB offsets of std ``sigma`` (code values)
     drawn on a grid of ``cell_px`` cells and enlarged smoothly (what a denoiser leaves of colour noise).
 
+    ``raw``: the random bytes, :func:`chroma_draw` (or a generator to draw them from);
     ``weight``: optional float32 ``(rows, cols)`` factor per cell (:func:`chroma_grid`).
     """
+    if isinstance(raw, np.random.Generator):
+        raw = chroma_draw(raw, img.shape, cell_px)
     h, w = img.shape[:2]
     gh, gw = chroma_grid(img.shape, cell_px)
-    n = gh * gw * 3  # standard normals as random bytes through 256 equiprobable quantiles
-    z = gauss_lut()[rng.bit_generator.random_raw(-(-n // 8)).view(np.uint8)[:n]].reshape(gh, gw, 3)
+    # standard normals as random bytes through 256 equiprobable quantiles
+    z = gauss_lut()[raw].reshape(gh, gw, 3)
     z -= z.mean(axis=2, keepdims=True)  # colour only: the three offsets sum to zero
     z *= np.float32(sigma * math.sqrt(1.5))
     if weight is not None:
@@ -218,11 +230,11 @@ class Dim(EgoMotion):
         return auto_exposure(2.0 ** (-self.k * self.stops), self.exposure_s, self.max_exposure_s,
                              self.max_gain)
 
-    def _physical(self, img, depth, state, rng, out) -> np.ndarray:
+    def _physical(self, img, draw, depth, state, out) -> np.ndarray:
         t, gain, residual = self.exposure()
         smeared = self.smear(img, depth, state, t - self.exposure_s)  # img itself when there is no blur
         mean, sigma = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)
-        add_sensor_noise(smeared, mean, sigma, rng, out)
+        add_sensor_noise(smeared, mean, sigma, draw[0], out)
         return smeared
 
     # -- night ---------------------------------------------------------------------------------
@@ -241,8 +253,8 @@ class Dim(EgoMotion):
         return (self.denoise_px * math.sqrt((gain - 1.0) / 15.0), self.chroma_noise * stops,
                 min(self.black_level * stops, 0.5), min(self.desaturate * stops, 1.0))
 
-    def _night(self, img, depth, state, rng, out) -> None:
-        smeared = self._physical(img, depth, state, rng, out)
+    def _night(self, img, draw, depth, state, out) -> None:
+        smeared = self._physical(img, draw, depth, state, out)
         sigma, chroma, black, desat = self.isp()
         if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
             into(smooth(out.copy(), sigma, out, exact=True), out)
@@ -252,7 +264,7 @@ class Dim(EgoMotion):
             gh, gw = chroma_grid(img.shape, self.chroma_cell_px)
             level = cv2.cvtColor(cv2.resize(smeared, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
             weight = np.minimum(noise[level] / max(float(noise[_CHROMA_REF_CODE]), 1e-6), 4.0)
-            add_chroma_blotches(out, chroma, self.chroma_cell_px, rng, weight)
+            add_chroma_blotches(out, chroma, self.chroma_cell_px, draw[1], weight)
         if black > 0:
             f = flat(out)
             into(cv2.LUT(f, black_level_lut(black), dst=f), f)
@@ -260,15 +272,25 @@ class Dim(EgoMotion):
             grey = cv2.cvtColor(cv2.cvtColor(out, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
             into(cv2.addWeighted(out, 1.0 - desat, grey, desat, 0.0), out)
 
-    def _apply_into(self, img, depth, state, rng, out):
+    # -- sampling and rendering ------------------------------------------------------------------
+    def _sample_frame(self, rng, shape, episode):
+        """``(sensor noise words, chroma bytes or None)``; nothing in the faithful mode."""
+        if self.mode == "faithful":
+            return None
+        noise = sensor_noise_draw(rng, shape)
+        if self.mode == "night" and self.isp()[1] > 0:
+            return noise, chroma_draw(rng, shape, self.chroma_cell_px)
+        return noise, None
+
+    def _render_into(self, img, draw, depth, state, out):
         if self.mode == "faithful":
             self._faithful(img, out)
         elif self.mode == "physical":
-            self._physical(img, depth, state, rng, out)
+            self._physical(img, draw, depth, state, out)
         else:
-            self._night(img, depth, state, rng, out)
+            self._night(img, draw, depth, state, out)
 
-    def _run_batch(self, imgs, depth, states, rng):
+    def _render_batch(self, imgs, draws, depth, states):
         if self.mode == "faithful":
-            return imgs.copy() if self.k == 0.0 else self._faithful(imgs, np.empty_like(imgs))
-        return super()._run_batch(imgs, depth, states, rng)
+            return self._faithful(imgs, np.empty_like(imgs))
+        return super()._render_batch(imgs, draws, depth, states)

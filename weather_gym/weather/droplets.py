@@ -46,19 +46,19 @@ Example:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import ClassVar
 
 import cv2
 import numpy as np
 
-from weather_gym.weather.base import KnobEffect
+from weather_gym.weather.base import EffectRun, KnobEffect
 from weather_gym.weather.lens_drops import drop_layout, render_lens_drops
 from weather_gym.weather.reference import STUDY_FOG_COEF, fog_layout
 from weather_gym.weather.registry import register_effect
 
-__all__ = ["Droplets", "render_discs"]
+__all__ = ["DiscDraw", "Droplets", "LensDraw", "render_discs"]
 
 
 @lru_cache(maxsize=64)
@@ -130,6 +130,32 @@ class _Drops:
             setattr(self, name, getattr(self, name)[keep])
 
 
+@dataclass
+class _Lens:
+    """The per-episode state of a droplets run: the persistent drops (``None`` until the first frame)."""
+
+    drops: _Drops | None = None
+
+
+@dataclass(frozen=True)
+class DiscDraw:
+    """One frame of the faithful mode: disc centres ``(x, y)`` and radii, in pixels."""
+
+    centres: np.ndarray | list = field(repr=False)
+    radii: np.ndarray | list = field(repr=False)
+
+
+@dataclass(frozen=True)
+class LensDraw:
+    """One frame of the refractive mode: every drop (shown when ``u < k``), pixels and degrees."""
+
+    x: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    r: np.ndarray = field(repr=False)
+    theta: np.ndarray = field(repr=False)
+    u: np.ndarray = field(repr=False)
+
+
 @register_effect
 @dataclass(frozen=True)
 class Droplets(KnobEffect):
@@ -177,23 +203,25 @@ class Droplets(KnobEffect):
     }
     CHOICES: ClassVar = {"mode": ("faithful", "refractive")}
 
-    # -- persistent state -------------------------------------------------------------------
-    def _reset_state(self) -> None:
-        object.__setattr__(self, "_drops", None)
+    # -- persistent state (in the run: see EffectRun) -------------------------------------------
+    def new_episode(self) -> _Lens:
+        return _Lens()
 
-    def _adopt_state(self, other: KnobEffect) -> None:
-        object.__setattr__(self, "_drops", getattr(other, "_drops", None))
+    @property
+    def keeps_time(self) -> bool:
+        return self.persistent
 
-    def wipe(self) -> None:
-        """Wipe the lens: every droplet of the persistent mode is gone (new ones land later)."""
-        d = self._drops
+    def wipe(self, run: EffectRun | None = None) -> None:
+        """Wipe the lens of ``run`` (default: the effect's own run): every persistent droplet is gone
+        (new ones land later). ``WeatherWrapper(...).run`` is the run of the wrapper's episode."""
+        d = (self._own_run if run is None else run).episode.drops
         if d is not None:
             d.take(np.zeros(len(d.r), bool))
 
     @property
     def drops(self) -> np.ndarray:
-        """Current droplets of the persistent mode as an ``(N, 3)`` array of ``x, y, radius`` (px)."""
-        d = self._drops
+        """Droplets of the own run's persistent mode as an ``(N, 3)`` array of ``x, y, radius`` (px)."""
+        d = self._own_run.episode.drops
         if d is None:
             return np.empty((0, 3))
         return np.stack([d.x, d.y, d.r], axis=1)
@@ -205,17 +233,16 @@ class Droplets(KnobEffect):
     def _lens_layout(self, h: int, w: int, rng: np.random.Generator, n: int) -> tuple[np.ndarray, ...]:
         return drop_layout(h, w, rng, n, self.drop_radius, self.contact_deg)
 
-    def _advance(self, shape: tuple[int, ...], rng: np.random.Generator) -> _Drops:
+    def _advance(self, shape: tuple[int, ...], rng: np.random.Generator, lens: _Lens) -> _Drops:
         """Initialise (first frame, new size) or move the persistent droplets on by one frame."""
         if self.mode == "refractive":
-            return self._advance_lens(shape, rng)
+            return self._advance_lens(shape, rng, lens)
         h, w = shape[:2]
-        d = self._drops
+        d = lens.drops
         if d is None or d.shape != (h, w) or d.theta is not None:
             c, radius = self._layout(h, w, rng)
-            d = _Drops((h, w), float(radius), len(c), c[:, 0].copy(), c[:, 1].copy(),
-                       np.full(len(c), float(radius)))
-            object.__setattr__(self, "_drops", d)
+            d = lens.drops = _Drops((h, w), float(radius), len(c), c[:, 0].copy(), c[:, 1].copy(),
+                                    np.full(len(c), float(radius)))
             return d
         dt = 1.0 / self.fps
         d.frames += 1
@@ -239,15 +266,14 @@ class Droplets(KnobEffect):
             d.x, d.y, d.r = d.x[keep], d.y[keep], d.r[keep]
         return d
 
-    def _advance_lens(self, shape: tuple[int, ...], rng: np.random.Generator) -> _Drops:
+    def _advance_lens(self, shape: tuple[int, ...], rng: np.random.Generator, lens: _Lens) -> _Drops:
         """:meth:`_advance` of the refractive mode: the drops of full severity, shown when ``u < k``."""
         h, w = shape[:2]
-        d = self._drops
+        d = lens.drops
         if d is None or d.shape != (h, w) or d.theta is None:
             x, y, r, th, u = self._lens_layout(h, w, rng, self.drop_count)
             # a drop runs once it is run_radius times the largest radius of the distribution
-            d = _Drops((h, w), self.drop_radius * h * 1.25, self.drop_count, x, y, r, theta=th, u=u)
-            object.__setattr__(self, "_drops", d)
+            d = lens.drops = _Drops((h, w), self.drop_radius * h * 1.25, self.drop_count, x, y, r, theta=th, u=u)
             return d
         dt = 1.0 / self.fps
         d.frames += 1
@@ -288,33 +314,27 @@ class Droplets(KnobEffect):
                 d.u[i] = min(d.u[i], d.u[j])
             d.take(np.arange(n) != j)
 
-    # -- rendering ---------------------------------------------------------------------------
-    def _idle(self, shape, rng):
+    # -- sampling ----------------------------------------------------------------------------
+    def _sample_frame(self, rng, shape, episode):
+        """The frame's discs (:class:`DiscDraw`) or drops (:class:`LensDraw`); the persistent mode
+        moves the episode's drops on (a fresh lens when there is no episode)."""
+        h, w = shape[:2]
         if self.persistent:
-            self._advance(shape, rng)
-
-    def _apply_into(self, img, depth, state, rng, out):
+            d = self._advance(shape, rng, episode if episode is not None else _Lens())
+            if self.mode == "refractive":
+                return LensDraw(d.x.copy(), d.y.copy(), d.r.copy(), d.theta.copy(), d.u.copy())
+            return DiscDraw(np.rint(np.stack([d.x, d.y], axis=1)).astype(np.int64), np.rint(d.r).astype(np.int64))
         if self.mode == "refractive":
-            self._apply_lens(img, rng, out)
-            return
-        alpha = self.k * self.fog_coef
-        if self.persistent:
-            d = self._advance(img.shape, rng)
-            centres = np.rint(np.stack([d.x, d.y], axis=1)).astype(np.int64)
-            radii = np.rint(d.r).astype(np.int64)
-        else:
-            _, radius, centres = fog_layout(img.shape[0], img.shape[1], self.fog_coef, rng)
-            radii = [radius] * len(centres)
-        render_discs(img, centres, radii, alpha, out)
+            return LensDraw(*self._lens_layout(h, w, rng, self.drop_count))
+        _, radius, centres = fog_layout(h, w, self.fog_coef, rng)
+        return DiscDraw(centres, [radius] * len(centres))
 
-    def _apply_lens(self, img: np.ndarray, rng: np.random.Generator, out: np.ndarray) -> None:
-        """Refractive mode: drops with ``u < k`` shown, radii scaled by ``(1 + k) / 2``."""
-        if self.persistent:
-            d = self._advance(img.shape, rng)
-            x, y, r, th, u = d.x, d.y, d.r, d.theta, d.u
-        else:
-            x, y, r, th, u = self._lens_layout(img.shape[0], img.shape[1], rng, self.drop_count)
-        show = u < self.k
-        render_lens_drops(img, x[show], y[show], r[show] * (0.5 + 0.5 * self.k), th[show], out,
-                          hfov_deg=self.hfov_deg, look_up=self.look_up, defocus=self.defocus,
-                          blur=self.blur, rim=self.rim, highlight=self.highlight)
+    # -- rendering ---------------------------------------------------------------------------
+    def _render_into(self, img, draw, depth, state, out):
+        if isinstance(draw, LensDraw):  # refractive: drops with u < k shown, radii scaled by (1 + k) / 2
+            show = draw.u < self.k
+            render_lens_drops(img, draw.x[show], draw.y[show], draw.r[show] * (0.5 + 0.5 * self.k),
+                              draw.theta[show], out, hfov_deg=self.hfov_deg, look_up=self.look_up,
+                              defocus=self.defocus, blur=self.blur, rim=self.rim, highlight=self.highlight)
+            return
+        render_discs(img, draw.centres, draw.radii, self.k * self.fog_coef, out)

@@ -77,8 +77,8 @@ class Exposure(KnobEffect):
         return exposure_lut(sign * self.k * self.max_stops, self.k * self.gamma_error, self.k * self.flare,
                             self.k * self.contrast)
 
-    def _apply_into(self, img, depth, state, rng, out):
+    def _render_into(self, img, draw, depth, state, out):
         into(cv2.LUT(flat(img), self._lut(), dst=flat(out)), flat(out))
 
-    def _run_batch(self, imgs, depth, states, rng):
-        return imgs.copy() if self.k == 0.0 else self._apply(imgs, None, {}, rng)  # one LUT pass
+    def _render_batch(self, imgs, draws, depth, states):
+        return self._render_frame(imgs, None, None, {})  # one LUT pass

@@ -80,7 +80,7 @@ class Fog(CameraGeometry):
         """Extinction coefficient (1/m) at this k."""
         return self.k * KOSCHMIEDER / self.min_visibility_m
 
-    def _apply_into(self, img, depth, state, rng, out):
+    def _render_into(self, img, draw, depth, state, out):
         h, w = img.shape[:2]
         fx = focal_px(state, w, self.hfov_deg)
         gray = 255.0 * self.airlight

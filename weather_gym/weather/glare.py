@@ -110,7 +110,7 @@ class Glare(KnobEffect):
         spread = cv2.convertScaleAbs(spread, alpha=self.k * self.bloom)
         return cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
 
-    def _apply_into(self, img, depth, state, rng, out):
+    def _render_into(self, img, draw, depth, state, out):
         h, w = img.shape[:2]
         flare = (h, w, self.source_x, self.source_y, self.radius_frac, self.ghosts, self.veil, self.k)
         if self.bloom > 0:

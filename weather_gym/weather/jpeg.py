@@ -56,12 +56,10 @@ class Jpeg(KnobEffect):
             raise RuntimeError("jpeg: OpenCV could not encode the image")
         return cv2.imdecode(buf, cv2.IMREAD_COLOR_RGB)
 
-    def _apply(self, img, depth, state, rng):
+    def _render_frame(self, img, draw, depth, state):
         return self._code(cv2.cvtColor(img, cv2.COLOR_RGB2BGR), self._params())
 
-    def _run_batch(self, imgs, depth, states, rng):
-        if self.k == 0.0:
-            return imgs.copy()
+    def _render_batch(self, imgs, draws, depth, states):
         params = self._params()
         out = np.empty_like(imgs)
         bgr = np.empty_like(imgs[0])  # one reused (cache-warm) buffer

@@ -34,7 +34,13 @@ from typing import ClassVar
 
 import numpy as np
 
-from weather_gym.weather._common import add_sensor_noise, linear_of_code, readonly, srgb_slope
+from weather_gym.weather._common import (
+    add_sensor_noise,
+    linear_of_code,
+    readonly,
+    sensor_noise_draw,
+    srgb_slope,
+)
 from weather_gym.weather.base import KnobEffect
 from weather_gym.weather.registry import register_effect
 
@@ -95,17 +101,22 @@ class Noise(KnobEffect):
     def _sigma(self) -> np.ndarray:
         return noise_sigma_lut(self.k * self.max_gain, self.full_well_e, self.read_noise_e)
 
-    def _apply_into(self, img, depth, state, rng, out):
+    def sample(self, rng, shape, episode=None):
+        """The random words of the frame's (or batch's) noise, :func:`sensor_noise_draw`; ``None`` at k = 0."""
+        return None if self.k == 0.0 else sensor_noise_draw(rng, shape)
+
+    def _render_into(self, img, draw, depth, state, out):
         n = float(state.get("binning", 1.0) or 1.0)
         if n > 1.0:
             mean, sigma = binned_noise_luts(tuple(float(v) for v in self._sigma()), n)
-            add_sensor_noise(img, mean, sigma, rng, out)
+            add_sensor_noise(img, mean, sigma, draw, out)
             return
-        add_sensor_noise(img, None, self._sigma(), rng, out)
+        add_sensor_noise(img, None, self._sigma(), draw, out)
 
-    def _run_batch(self, imgs, depth, states, rng):
-        if self.k == 0.0:
-            return imgs.copy()
+    def _render_batch(self, imgs, draws, depth, states):
         if any(float(s.get("binning", 1.0) or 1.0) > 1.0 for s in states):
-            return super()._run_batch(imgs, depth, states, rng)
-        return add_sensor_noise(imgs, None, self._sigma(), rng)  # one draw, shared tables
+            out = np.empty_like(imgs)
+            for i in range(imgs.shape[0]):
+                self._render_into(imgs[i], draws[i:i + 1], None, states[i], out[i])
+            return out
+        return add_sensor_noise(imgs, None, self._sigma(), draws)  # shared tables

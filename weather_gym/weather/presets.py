@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.weather import spec as _spec  # spec imports this module: attribute use at call time
+from weather_gym.weather.tables import effect_from_table
 
 try:
     import tomllib
@@ -92,7 +92,8 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
             sev = _check_severity(t["severity"])
             if not isinstance(t["effects"], list):
                 raise FileFormatError(f"effects must be a list of {{name, k, ...}} tables, got {t['effects']!r}")
-            _spec.parse_weather(t["effects"])
+            for e in t["effects"]:
+                effect_from_table(e)
         except ValueError as exc:
             raise FileFormatError(f"{where}: {exc}") from None
         if sev in out[cond]:

@@ -53,24 +53,29 @@ class Rain(KnobEffect):
     }
     PARAM_LIMITS: ClassVar = {"slant_deg": (-60.0, 60.0), "brightness": (0.0, 1.0), "thickness": (1, 10)}
 
-    def streaks(self, h: int, w: int, rng: np.random.Generator) -> np.ndarray:
-        """uint8 ``H x W`` streak mask (255 = fully covered) of one frame."""
-        mask = np.zeros((h, w), np.uint8)
+    def _sample_frame(self, rng, shape, episode):
+        """The frame's streaks: an ``(n, 2, 1, 2)`` int32 array of segment ends (pixels)."""
+        h, w = shape[:2]
         n = int(rng.poisson(self.k * self.density * h * w / 1e4))
         if n == 0:
-            return mask
+            return np.empty((0, 2, 1, 2), np.int32)
         length = self.length_frac * h * rng.uniform(0.5, 1.5, size=n)
         a = math.radians(self.slant_deg)
         dx, dy = length * math.sin(a), length * math.cos(a)
         x0 = rng.uniform(min(-dx.max(), 0), w + max(-dx.min(), 0), size=n)
         y0 = rng.uniform(-dy.max(), h, size=n)
         seg = np.stack([np.stack([x0, y0], 1), np.stack([x0 + dx, y0 + dy], 1)], 1)
-        cv2.polylines(mask, list(np.rint(seg).astype(np.int32).reshape(n, 2, 1, 2)), False, 255,
-                      self.thickness, cv2.LINE_AA)
+        return np.rint(seg).astype(np.int32).reshape(n, 2, 1, 2)
+
+    def streak_mask(self, h: int, w: int, segments: np.ndarray) -> np.ndarray:
+        """uint8 ``H x W`` streak mask (255 = fully covered) of the drawn ``segments``."""
+        mask = np.zeros((h, w), np.uint8)
+        if len(segments):
+            cv2.polylines(mask, list(segments), False, 255, self.thickness, cv2.LINE_AA)
         return mask
 
-    def _apply_into(self, img, depth, state, rng, out):
+    def _render_into(self, img, draw, depth, state, out):
         h, w = img.shape[:2]
         veil = self.k * self.haze
-        w8 = cv2.convertScaleAbs(self.streaks(h, w, rng), alpha=self.streak_alpha * (1 - veil), beta=255 * veil)
+        w8 = cv2.convertScaleAbs(self.streak_mask(h, w, draw), alpha=self.streak_alpha * (1 - veil), beta=255 * veil)
         blend_into(img, blend_terms(w8, 255.0 * self.brightness), out)

@@ -16,32 +16,28 @@ Example:
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import numbers
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
 from weather_gym.errors import InputError
-from weather_gym.weather.base import Effect, KnobEffect, SeedLike
+from weather_gym.weather.base import Effect, EffectRun, KnobEffect, SeedLike, check_seed
 from weather_gym.weather.registry import make
 
-__all__ = ["Ramp"]
+__all__ = ["Ramp", "RampRun"]
 
 
-@dataclasses.dataclass(frozen=True, init=False)
 class Ramp(Effect):
-    """Effect ``effect`` whose k goes linearly from ``k_start`` to ``k_end`` over ``steps`` frames, then holds."""
+    """Effect ``effect`` whose k goes linearly from ``k_start`` to ``k_end`` over ``steps`` frames, then holds.
 
-    name: ClassVar[str] = "ramp"
-    stateful: ClassVar[bool] = True
+    Immutable; the position in the ramp lives in its run (:class:`RampRun`, see
+    :class:`~weather_gym.weather.base.EffectRun`).
+    """
 
-    effect: str
-    k_start: float
-    k_end: float
-    steps: int
-    effect_params: tuple[tuple[str, Any], ...]
+    name = "ramp"
+    stateful = True
 
     def __init__(self, effect: str, k_start: float = 0.0, k_end: float = 1.0, steps: int = 600,
                  **params: Any) -> None:
@@ -53,72 +49,108 @@ class Ramp(Effect):
         if "k" in params:
             raise InputError("ramp: give k_start and k_end, not k")
         make(effect, k=float(k_start), **params)  # validates the effect name and its parameters
-        object.__setattr__(self, "effect", effect)
-        object.__setattr__(self, "k_start", float(k_start))
-        object.__setattr__(self, "k_end", float(k_end))
-        object.__setattr__(self, "steps", int(steps))
-        object.__setattr__(self, "effect_params", tuple(sorted(params.items())))
-        object.__setattr__(self, "_rng", None)
-        self._reset_state()
+        self._config = (effect, float(k_start), float(k_end), int(steps), tuple(sorted(params.items())))
+
+    effect = property(lambda self: self._config[0], doc="Name of the ramped effect.")
+    k_start = property(lambda self: self._config[1], doc="k of the first frame.")
+    k_end = property(lambda self: self._config[2], doc="k from frame ``steps`` on.")
+    steps = property(lambda self: self._config[3], doc="Frames the ramp takes.")
+    effect_params = property(lambda self: self._config[4], doc="The effect's other parameters, sorted.")
 
     def k_at(self, step: int) -> float:
         """k after ``step`` frames of the episode."""
         return self.k_start + (self.k_end - self.k_start) * min(step / self.steps, 1.0)
 
-    @property
-    def step(self) -> int:
-        """Frames processed in this episode."""
-        return self._step
+    def first(self) -> KnobEffect:
+        """The effect at ``k_start``."""
+        return make(self.effect, k=self.k_start, **dict(self.effect_params))
+
+    def start(self, seed: SeedLike = None) -> RampRun:
+        return RampRun(self, seed)
 
     @property
-    def current(self) -> KnobEffect:
-        """The effect (with its k) that the next frame gets."""
-        return self._current
+    def step(self) -> int:
+        """Frames processed in the episode of the ramp's own run."""
+        return self._own_run.step
 
     @property
     def k(self) -> float:
-        return self._current.k
+        return self.current.k
 
     def params(self) -> dict[str, Any]:
         return {"effect": self.effect, "k_start": self.k_start, "k_end": self.k_end, "steps": self.steps,
                 **dict(self.effect_params)}
 
-    def reset(self, seed: SeedLike = None) -> None:
-        super().reset(seed)
-        self._current.reset(seed)
+    def sample(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any = None) -> Any:
+        """``(effect at this frame's k, its draw)``, or a list of them for a batch; moves ``episode``
+        (a :class:`RampRun`'s state: pass ``run.episode``) on."""
+        run = episode if episode is not None else self.start(None).episode
+        return run.draw(shape, rng)
 
-    def _reset_state(self) -> None:
-        object.__setattr__(self, "_step", 0)
-        object.__setattr__(self, "_current", make(self.effect, k=self.k_start, **dict(self.effect_params)))
-
-    def _episode_rng(self) -> np.random.Generator:
-        if self._rng is None:
-            self.reset(None)
-        return self._rng
-
-    def _process(self, img, depth, state, rng, batched):
+    def _render(self, img, draw, depth, state, batched):
         if not batched:
-            return self._frame(img, depth, state, rng)
+            effect, d = draw
+            return effect._render(img, d, depth, state, False)
         out = np.empty_like(img)
-        for i in range(img.shape[0]):  # each frame written straight into the batch
-            cur = self._advance()
-            cur._run_into(img[i], None if depth is None else depth[i], state[i],
-                          rng if rng is not None else cur._episode_rng(), out[i])
+        for i, (effect, d) in enumerate(draw):  # each frame written straight into the batch
+            if effect.k == 0.0:
+                np.copyto(out[i], img[i])
+            else:
+                effect._render_into(img[i], d, None if depth is None else depth[i], state[i], out[i])
         return out
 
-    def _advance(self) -> KnobEffect:
-        """The effect for the next frame (its k for this step); counts the frame."""
-        if self._rng is None:
-            self.reset(None)
-        k = self.k_at(self._step)
-        if not math.isclose(k, self._current.k, rel_tol=0, abs_tol=1e-12):
-            object.__setattr__(self, "_current", self._current.with_params(k=k))
-        object.__setattr__(self, "_step", self._step + 1)
-        return self._current
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Ramp) and self._config == other._config
 
-    def _frame(self, img, depth, state, rng):
-        return self._advance()._process(img, depth, state, rng, False)
+    def __hash__(self) -> int:
+        return hash(("ramp", self._config))
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.params().items())
         return f"Ramp({args})"
+
+
+class _RampEpisode:
+    """Where a ramp is: frames done and the effect run of the current k."""
+
+    def __init__(self, ramp: Ramp, seed: SeedLike) -> None:
+        self.ramp = ramp
+        self.step = 0
+        self.effect = ramp.first()
+        self.effect.reset(seed)
+
+    def draw(self, shape: tuple[int, ...], rng: np.random.Generator | None) -> Any:
+        if len(shape) == 4:
+            return [self.draw(shape[1:], rng) for _ in range(shape[0])]
+        effect = self._advance()
+        return effect, effect._own_run.sample(shape, rng)
+
+    def _advance(self) -> KnobEffect:
+        """The effect for the next frame (its k for this step); counts the frame."""
+        k = self.ramp.k_at(self.step)
+        if not math.isclose(k, self.effect.k, rel_tol=0, abs_tol=1e-12):
+            self.effect = self.effect.with_params(k=k)  # its run continues the episode
+        self.step += 1
+        return self.effect
+
+
+class RampRun(EffectRun):
+    """One episode of a :class:`Ramp`: the frame count and the run of the effect at the current k."""
+
+    effect: Ramp
+
+    def restart(self, seed: SeedLike = None) -> None:
+        self.rng = np.random.default_rng(check_seed(seed, self.effect.name))
+        self.episode = _RampEpisode(self.effect, seed)
+
+    @property
+    def step(self) -> int:
+        """Frames processed in this episode."""
+        return self.episode.step
+
+    @property
+    def current(self) -> KnobEffect:
+        return self.episode.effect
+
+    def sample(self, shape, rng=None):
+        return self.episode.draw(tuple(shape), rng)

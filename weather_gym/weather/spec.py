@@ -13,6 +13,10 @@
   ``[[effects]]`` array), where ``{"name": "ramp", "effect": "dim", "k_start": ..., ...}`` is a ramp;
 * a list mixing all of the above (applied in order).
 
+Commands that vary k themselves (sweeps) take the same strings with k left open:
+``"droplets,dim:k:mode=physical"`` (``NAME`` or ``NAME:k:PARAM=VALUE:...``), read by
+:func:`parse_open_k`.
+
 One effect comes back as itself, several as a ``Compose``. ``to_spec`` is the inverse: a list of
 plain tables, JSON/TOML serialisable, with every parameter.
 
@@ -35,35 +39,20 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from weather_gym.errors import InputError
-from weather_gym.weather import presets as _presets  # presets imports this module: attribute use at call time
-from weather_gym.weather.base import Effect, KnobEffect
+from weather_gym.weather.base import Effect, EffectRun, KnobEffect
 from weather_gym.weather.compose import Compose
-from weather_gym.weather.registry import EFFECTS, make
+from weather_gym.weather.presets import preset_spec
+from weather_gym.weather.registry import make
 from weather_gym.weather.schedule import Ramp
+from weather_gym.weather.tables import effect_from_table
 
-__all__ = ["current_spec", "parse_weather", "to_spec"]
+__all__ = ["current_spec", "parse_open_k", "parse_weather", "to_spec"]
 
 _CLEAR = ("clear", "none")
 
 
 def _number(v: Any) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, bool)
-
-
-def _from_table(table: Mapping[str, Any]) -> Effect:
-    name = table.get("name")
-    if not isinstance(name, str):
-        raise InputError(f"weather table {dict(table)!r} needs a 'name' (one of {', '.join(EFFECTS.names())}, ramp)")
-    rest = {k: v for k, v in table.items() if k != "name"}
-    if name == "ramp":
-        if "effect" not in rest:
-            raise InputError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
-        return Ramp(**rest)
-    if name == "compose":
-        return Compose([_from_table(t) for t in rest.get("effects", [])])
-    if "k" not in rest:
-        raise InputError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
-    return make(name, **rest)
 
 
 def _from_item(name: Any, value: Any) -> Effect:
@@ -80,7 +69,7 @@ def _from_item(name: Any, value: Any) -> Effect:
 
 
 def _preset(condition: Any, severity: Any) -> list[Effect]:
-    return [_from_table(t) for t in _presets.preset_spec(condition, severity)]
+    return [effect_from_table(t) for t in preset_spec(condition, severity)]
 
 
 def _param_value(text: str) -> Any:
@@ -112,17 +101,48 @@ def _from_string(text: str) -> list[Effect]:
             except ValueError:
                 raise InputError(f"weather spec item {item!r}: k {k!r} must be a number in [0, 1] "
                                  "(the form is NAME:K or NAME:K:PARAM=VALUE:...)") from None
-            kwargs: dict[str, Any] = {}
-            for p in params:
-                key, sep, value = p.partition("=")
-                if not sep or not key.strip():
-                    raise InputError(f"weather spec item {item!r}: parameter {p!r} must be PARAM=VALUE "
-                                     "(the form is NAME:K:PARAM=VALUE:..., e.g. dim:0.5:mode=physical)")
-                kwargs[key.strip()] = _param_value(value.strip())
-            out.append(make(name, k=kv, **kwargs))
+            out.append(make(name, k=kv, **_item_params(item, params)))
         else:
             raise InputError(f"weather spec item {item!r} must be NAME:K (e.g. droplets:0.55) or "
                              f"CONDITION@SEVERITY (e.g. droplets@3), or 'clear'")
+    return out
+
+
+def _item_params(item: str, params: list[str]) -> dict[str, Any]:
+    kwargs: dict[str, Any] = {}
+    for p in params:
+        key, sep, value = p.partition("=")
+        if not sep or not key.strip():
+            raise InputError(f"weather spec item {item!r}: parameter {p!r} must be PARAM=VALUE "
+                             "(the form is NAME:K:PARAM=VALUE:..., e.g. dim:0.5:mode=physical)")
+        kwargs[key.strip()] = _param_value(value.strip())
+    return kwargs
+
+
+def parse_open_k(text: str) -> list[tuple[str, dict[str, Any]]]:
+    """A weather spec string with k left open -> ``[(effect name, parameters), ...]`` (validated).
+
+    Each comma-separated item is ``NAME`` or ``NAME:k:PARAM=VALUE:...``: the spec grammar with the
+    letter ``k`` where the number goes, for commands that choose k themselves (sweeps).
+
+    Example:
+        >>> parse_open_k("droplets,dim:k:mode=physical")
+        [('droplets', {}), ('dim', {'mode': 'physical'})]
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise InputError(f"expected effects with k left open, e.g. 'droplets,dim:k:mode=physical', got {text!r}")
+    out = []
+    for raw in text.split(","):
+        item = raw.strip()
+        name, *rest = (p.strip() for p in item.split(":"))
+        if "@" in item or (rest and rest[0] != "k"):
+            raise InputError(f"weather spec item {item!r}: here k is left open (it is varied); write NAME or "
+                             f"NAME:k[:PARAM=VALUE...], e.g. droplets or dim:k:mode=physical")
+        kwargs = _item_params(item, rest[1:])
+        if "k" in kwargs:
+            raise InputError(f"weather spec item {item!r}: k is left open here (it is varied), not a parameter")
+        make(name, k=0.0, **kwargs)  # names an unknown effect or parameter
+        out.append((name, kwargs))
     return out
 
 
@@ -140,7 +160,7 @@ def _effects(spec: Any) -> list[Effect]:
         return _preset(spec[0], spec[1])
     if isinstance(spec, Mapping):
         if "name" in spec or "k" in spec:
-            return [_from_table(spec)]
+            return [effect_from_table(spec)]
         return [_from_item(name, value) for name, value in spec.items()]
     if isinstance(spec, Sequence):
         out: list[Effect] = []
@@ -168,10 +188,9 @@ def to_spec(effect: Effect) -> list[dict[str, Any]]:
     raise InputError(f"cannot write {type(effect).__name__} as a weather spec")
 
 
-def current_spec(effect: Effect) -> list[dict[str, Any]]:
-    """Like :func:`to_spec`, but a ramp appears as its effect with the k of the last frame it made."""
-    if isinstance(effect, Compose):
-        return [t for e in effect.effects for t in current_spec(e)]
-    if isinstance(effect, Ramp):
-        return to_spec(effect.current)
-    return to_spec(effect)
+def current_spec(weather: Effect | EffectRun) -> list[dict[str, Any]]:
+    """Like :func:`to_spec`, but a ramp appears as its effect with the k of the last frame it made.
+
+    ``weather``: a run (:meth:`Effect.start`), or an effect (then its own run).
+    """
+    return to_spec(weather.current)

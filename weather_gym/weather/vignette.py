@@ -53,7 +53,7 @@ class Vignette(KnobEffect):
     PARAM_BOUNDS: ClassVar = {"exponent": (0.5, 8.0)}
     PARAM_LIMITS: ClassVar = {"center_x": (0.0, 1.0), "center_y": (0.0, 1.0)}
 
-    def _apply_into(self, img, depth, state, rng, out):
+    def _render_into(self, img, draw, depth, state, out):
         h, w = img.shape[:2]
         g = _gain_map(h, w, self.k, self.exponent, self.center_x, self.center_y)
         into(cv2.multiply(img, g, dst=out, scale=1 / 255), out)

@@ -11,6 +11,11 @@ one module plus one line in ``_LAZY``.
 
 Example:
     >>> from weather_gym.wrappers import WeatherWrapper  # doctest: +SKIP
+
+The lazily exported names:
+    >>> import weather_gym.wrappers as wrappers
+    >>> "GroundTruthConeWrapper" in wrappers.__all__, wrappers.GroundTruthConeWrapper.__module__
+    (True, 'weather_gym.wrappers.ground_truth')
 """
 
 from __future__ import annotations

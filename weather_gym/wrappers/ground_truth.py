@@ -15,6 +15,15 @@ Example:
     >>> obs, info = env.reset(seed=0)                                         # doctest: +SKIP
     >>> sorted(obs), obs["cones"].shape                                       # doctest: +SKIP
     (['cones', 'mask', 'state'], (64, 14))
+
+On an env without camera images (ground truth from geometry, nothing rendered):
+    >>> import gymnasium as gym, weather_gym
+    >>> env = GroundTruthConeWrapper(gym.make("WeatherGym/ConeTrack-v0", camera_images=False,
+    ...                                       ground_truth="geometry"), miss_prob=0.2)
+    >>> obs, info = env.reset(seed=0)
+    >>> sorted(obs), obs["cones"].shape
+    (['cones', 'mask', 'state'], (64, 14))
+    >>> env.close()
 """
 
 from __future__ import annotations

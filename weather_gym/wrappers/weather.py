@@ -10,7 +10,9 @@ The weather is anything :func:`~weather_gym.weather.parse_weather` accepts (an e
 ``"low_light@2"``, ...) and can be changed for the next episode with
 ``reset(options={"weather": spec})`` (the other options go to the wrapped env).
 
-Randomness: the wrapper's own generator, derived from the reset seed (a ``SeedSequence`` child
+Each episode is a run of the weather (``weather.start(seed)``, an
+:class:`~weather_gym.weather.EffectRun`): the weather object itself is never changed, so one
+object can serve several envs. Randomness: the wrapper's own generator, derived from the reset seed (a ``SeedSequence`` child
 of ``seed``, distinct from the env's own stream); ``reset(seed=None)`` continues the sequence, or
 on the first reset starts from the env's ``np_random_seed``. Same seeds, same frames: same bytes.
 
@@ -58,7 +60,7 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.errors import InputError
-from weather_gym.weather import Effect, current_spec, parse_weather
+from weather_gym.weather import Effect, EffectRun, current_spec, parse_weather
 
 __all__ = ["STATE_FIELDS", "WeatherWrapper"]
 
@@ -106,6 +108,7 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             raise InputError(f"WeatherWrapper: fx must be a positive focal length in pixels, got {fx!r}")
         self.fx = fx
         self._weather: Effect = parse_weather(weather)
+        self._run: EffectRun | None = None  # the weather's episode, started on reset
         self._ss: np.random.SeedSequence | None = None
         self._rng: np.random.Generator | None = None
         self._latency_ms = 0.0
@@ -120,6 +123,11 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         return self._latency_ms
 
     @property
+    def run(self) -> EffectRun | None:
+        """The weather's run of this episode (its generator and state; None before the first reset)."""
+        return self._run
+
+    @property
     def weather(self) -> Effect:
         """The weather effect applied to the observations (assigning a spec calls ``set_weather``)."""
         return self._weather
@@ -132,8 +140,9 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         """Change the weather from the next frame on, mid-episode or between episodes.
 
         ``spec`` is anything :func:`~weather_gym.weather.parse_weather` takes (``"rain@2"``,
-        ``{"fog": 0.4}``, an effect, ``"clear"``...); an effect object is copied, so one object
-        given to several envs (``VectorEnv.call``) never shares its state. The new weather's random
+        ``{"fog": 0.4}``, an effect, ``"clear"``...); an effect object is copied, and each env keeps
+        its own run of it, so one object given to several envs (``VectorEnv.call``) never shares
+        state. The new weather's random
         stream is the next child of the episode's seed sequence: the same calls at the same steps
         give the same bytes. Returns the new weather as a spec (``to_spec``-style list of tables).
 
@@ -156,9 +165,9 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         """
         effect = copy.deepcopy(parse_weather(spec))
         if self._ss is not None:  # inside an episode: a fresh, repeatable stream for the new weather
-            effect.reset(self._ss.spawn(1)[0])
+            self._run = effect.start(self._ss.spawn(1)[0])
         self._weather = effect
-        return current_spec(effect)
+        return current_spec(self._run if self._run is not None else effect)
 
     # -- episode -----------------------------------------------------------------------------
     def _seed_episode(self, seed: int | None) -> None:
@@ -170,7 +179,12 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
                         if isinstance(base, int | np.integer) and base >= 0 else np.random.SeedSequence())
         rng_ss, effect_ss = self._ss.spawn(1)[0].spawn(2)
         self._rng = np.random.default_rng(rng_ss)
-        self._weather.reset(effect_ss)
+        self._run = self._weather.start(effect_ss)
+
+    def _episode_run(self) -> EffectRun:
+        if self._run is None:  # observation() called before any reset: the default episode
+            self._run = self._weather.start(None)
+        return self._run
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         options = dict(options or {})
@@ -187,7 +201,7 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         return obs, reward, terminated, truncated, self._info(info)
 
     def _info(self, info: dict[str, Any]) -> dict[str, Any]:
-        out = {**info, "weather": current_spec(self._weather)}
+        out = {**info, "weather": current_spec(self._run if self._run is not None else self._weather)}
         if self.latency_in_info:
             out["weather_latency_ms"] = self._latency_ms
         return out
@@ -210,11 +224,11 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         t0 = time.perf_counter()
         if self._is_dict:
             depth = observation[self.depth_key] if self.depth_key is not None else None
-            image = self._weather(observation[self.image_key], depth=depth, state=self._state(observation),
-                                  rng=self._rng)
+            image = self._episode_run()(observation[self.image_key], depth=depth,
+                                        state=self._state(observation), rng=self._rng)
             out = {**observation, self.image_key: image}
         else:
-            image = out = self._weather(observation, rng=self._rng)
+            image = out = self._episode_run()(observation, rng=self._rng)
         self._latency_ms = 1000.0 * (time.perf_counter() - t0)
         self._last_image = image
         return out

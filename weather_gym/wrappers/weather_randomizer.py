@@ -29,7 +29,8 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from functools import cached_property
 from typing import Any
 
 import gymnasium as gym
@@ -37,6 +38,7 @@ import numpy as np
 
 from weather_gym.errors import InputError
 from weather_gym.weather import make
+from weather_gym.weather.base import CheckedArgs, keyword_args
 from weather_gym.weather.presets import canonical_condition, preset_spec
 from weather_gym.wrappers.weather import WeatherWrapper
 
@@ -59,7 +61,7 @@ def _k_range(name: str, value: Any) -> tuple[float, float]:
 
 
 @dataclass(frozen=True)
-class RandomWeather:
+class RandomWeather(metaclass=CheckedArgs):
     """What ``WeatherRandomizer`` draws (see the module doc).
 
     Attributes:
@@ -84,15 +86,21 @@ class RandomWeather:
     schedule: str = "episode"
     every: int = 300
 
-    def __post_init__(self) -> None:
-        presets = (self.presets,) if isinstance(self.presets, str) else tuple(self.presets)
-        object.__setattr__(self, "presets", tuple(canonical_condition(c) for c in presets))
-        object.__setattr__(self, "severities", tuple(self.severities))
-        if self.presets and not self.severities:
-            raise InputError("RandomWeather: presets need at least one severity")
-        for c in self.presets:
-            for s in self.severities:
-                preset_spec(c, s)  # names an unknown condition or severity
+    @classmethod
+    def _checked(cls, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
+        """The arguments with ``presets`` (one or several) canonical and ``severities`` a tuple."""
+        given = keyword_args("RandomWeather", fields(cls), args, kwargs)
+        if "presets" in given:
+            presets = given["presets"]
+            presets = (presets,) if isinstance(presets, str) else tuple(presets)
+            given["presets"] = tuple(canonical_condition(c) for c in presets)
+        if "severities" in given:
+            given["severities"] = tuple(given["severities"])
+        return given
+
+    @cached_property
+    def _tables(self) -> dict[str, tuple[tuple[float, float], dict[str, Any]]]:
+        """effect name -> ``((k low, k high), other parameters)``, checked."""
         tables: dict[str, tuple[tuple[float, float], dict[str, Any]]] = {}
         for name, value in dict(self.effects).items():
             params = dict(value) if isinstance(value, Mapping) else {"k": value}
@@ -101,7 +109,15 @@ class RandomWeather:
             lo, hi = _k_range(name, params.pop("k"))
             make(name, k=hi, **params)  # names an unknown effect or parameter
             tables[name] = ((lo, hi), params)
-        object.__setattr__(self, "_tables", tables)
+        return tables
+
+    def __post_init__(self) -> None:
+        if self.presets and not self.severities:
+            raise InputError("RandomWeather: presets need at least one severity")
+        for c in self.presets:
+            for s in self.severities:
+                preset_spec(c, s)  # names an unknown condition or severity
+        tables = self._tables  # checks every entry
         if not self.presets and not tables:
             raise InputError("RandomWeather: give presets and/or effects to draw from")
         for name in ("p", "p_clear"):

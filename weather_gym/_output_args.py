@@ -1,8 +1,15 @@
-"""The one overwrite option of every command that writes files: ``--overwrite``.
+"""The one overwrite option of every command that writes files: ``--overwrite`` (the CLI and the bench commands).
 
 Without it an existing output is never replaced (``error: output ... already exists; pass
 --overwrite ...``, exit status 2). ``--force``, the name some commands used before, is kept as a
 hidden alias that prints a deprecation warning.
+
+Example:
+    >>> import argparse
+    >>> parser = argparse.ArgumentParser()
+    >>> add_overwrite_arg(parser)
+    >>> parser.parse_args([]).overwrite, parser.parse_args(["--overwrite"]).overwrite
+    (False, True)
 """
 
 from __future__ import annotations

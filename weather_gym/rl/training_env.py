@@ -1,0 +1,76 @@
+"""The envs a PPO run trains and evaluates on: the pipeline's env with a random start point
+(:class:`RandomStart`) and ``info["is_success"]`` for SB3's ``EvalCallback`` (:class:`LapSuccess`).
+
+Example:
+    >>> env = make_training_env("WeatherGym/ConeTrack-v0", "small_track", "gt_cones", {}, 50, {})
+    >>> obs, info = env.reset(seed=0)
+    >>> sorted(obs), "start_s" in info
+    (['cones', 'mask', 'state'], True)
+    >>> env.close()
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from weather_gym.errors import InputError
+from weather_gym.pipeline import make_env
+from weather_gym.wrappers import WeatherRandomizer
+
+_SPAWN_KEY = (0x57A27,)  # the start-point draw, apart from the env's own streams for the same seed
+
+
+class RandomStart(gym.Wrapper):
+    """Start an episode at a random arc length of the track (from the reset seed); ``info["start_s"]``.
+
+    A share ``line_share`` of the episodes starts at the start line from rest instead: a policy trained
+    only on rolling starts anywhere never learns to leave the line (docs/rl.md, "The start line").
+    """
+
+    def __init__(self, env: gym.Env, line_share: float = 0.25) -> None:
+        if not 0.0 <= float(line_share) <= 1.0:
+            raise InputError(f"RandomStart: line_share={line_share!r} must be in [0, 1]")
+        super().__init__(env)
+        self.line_share = float(line_share)
+        self._rng: np.random.Generator | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if seed is not None or self._rng is None:
+            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=_SPAWN_KEY))
+        options = dict(options or {})
+        track = self.env.unwrapped.track
+        at_line = self._rng.uniform() < self.line_share
+        if track.closed and not at_line and "start_s" not in options and "start_pose" not in options:
+            options["start_s"] = float(self._rng.uniform(0.0, track.length))
+        obs, info = self.env.reset(seed=seed, options=options)
+        return obs, {**info, "start_s": options.get("start_s", 0.0)}
+
+
+class LapSuccess(gym.Wrapper):
+    """``info["is_success"]`` at the end of an episode: the requested laps were driven (for EvalCallback)."""
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if terminated or truncated:
+            info = {**info, "is_success": bool(info.get("lap", 0) >= max(1, self.env.unwrapped.config.laps)
+                                               or info.get("finished", False))}
+        return obs, reward, terminated, truncated, info
+
+
+def make_training_env(env_id: str, track: str, perception: str, noise: dict[str, Any], max_steps: int,
+                      env_kwargs: dict[str, Any], weather: dict[str, Any] | None = None,
+                      random_start: bool = True, surrogate_weather: str = "clear") -> gym.Env:
+    """One env of the run (module level, so vector-env workers can build it)."""
+    pk = dict(noise) if perception in ("gt_cones", "oracle") else {}
+    env = make_env(env_id, track=track, perception=perception, perception_kwargs=pk or None,
+                   max_episode_steps=max_steps, episode_statistics=False,
+                   weather=surrogate_weather if perception == "surrogate" else
+                   "clear" if perception != "gt_cones" else None, **dict(env_kwargs))
+    if weather and perception not in ("gt_cones", "surrogate"):
+        env = WeatherRandomizer(env, **weather)
+    if random_start:
+        env = RandomStart(env)
+    return LapSuccess(env)

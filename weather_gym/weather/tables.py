@@ -1,0 +1,44 @@
+"""Effect tables (``{"name": "dim", "k": 0.6, ...}``, a TOML ``[[effects]]`` entry) to effects.
+
+The one reader of tables, below both :mod:`.spec` (every spec form) and :mod:`.presets` (whose
+file holds tables), so neither imports the other's reader.
+
+Example:
+    >>> from weather_gym.weather.tables import effect_from_table
+    >>> effect_from_table({"name": "dim", "k": 0.5, "mode": "physical"}).params()["mode"]
+    'physical'
+    >>> effect_from_table({"name": "ramp", "effect": "dim", "k_end": 0.8}).k_end
+    0.8
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from weather_gym.errors import InputError
+from weather_gym.weather.base import Effect
+from weather_gym.weather.compose import Compose
+from weather_gym.weather.registry import EFFECTS, make
+from weather_gym.weather.schedule import Ramp
+
+__all__ = ["effect_from_table"]
+
+
+def effect_from_table(table: Mapping[str, Any]) -> Effect:
+    """The effect (a ``ramp`` or ``compose`` table included) that ``table`` describes; errors name it."""
+    if not isinstance(table, Mapping):
+        raise InputError(f"expected a weather table {{name, k, ...}}, got {table!r}")
+    name = table.get("name")
+    if not isinstance(name, str):
+        raise InputError(f"weather table {dict(table)!r} needs a 'name' (one of {', '.join(EFFECTS.names())}, ramp)")
+    rest = {k: v for k, v in table.items() if k != "name"}
+    if name == "ramp":
+        if "effect" not in rest:
+            raise InputError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
+        return Ramp(**rest)
+    if name == "compose":
+        return Compose([effect_from_table(t) for t in rest.get("effects", [])])
+    if "k" not in rest:
+        raise InputError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
+    return make(name, **rest)
