@@ -58,6 +58,7 @@ from typing import Any
 from weather_gym._io import atomic_path, atomic_write_json
 from weather_gym.errors import InputError, OutputExistsError
 from weather_gym.limits import check_seed
+from weather_gym.perception_modes import CONES, modes_where, perception_mode
 from weather_gym.rl import HYPERPARAMS
 from weather_gym.rl.hyperparams import load_hyperparams, resolve_hyperparams
 from weather_gym.rl.pretrain import PretrainConfig, pretrain
@@ -71,7 +72,7 @@ from weather_gym.rl.run_outputs import (
     plot_learning_curve,
     plot_pretrain_curve,
 )
-from weather_gym.rl.training_env import LapSuccess, RandomStart, make_training_env
+from weather_gym.rl.training_env import LapSuccess, RandomStart, make_training_env, takes_oracle_noise
 
 __all__ = ["DEFAULT_TRACKS", "DEFAULT_NOISE", "LapSuccess", "RandomStart", "build_parser", "latest_checkpoint",
            "load_hyperparams", "make_training_env", "model_metadata", "plot_learning_curve", "plot_pretrain_curve",
@@ -83,7 +84,8 @@ DEFAULT_HYPERPARAMS_KEY = "WeatherGym/ConeTrackCones-v0"
 DEFAULT_NOISE = {"miss_prob": 0.15, "range_noise": 0.05, "bearing_noise": 0.01, "false_positives": 0.3,
                  "swap_prob": 0.02, "max_range": 22.0}
 """OracleNoise of training: roughly what the detector does wrong on clean frames (see docs/rl.md)."""
-PERCEPTIONS = ("gt_cones", "oracle", "detector", "surrogate")
+PERCEPTIONS = tuple(modes_where(observation=CONES))
+"""The perception modes PPO can train on: those that give a cone list."""
 EVAL_MAX_STEPS = 1800
 """Step limit of a held-out evaluation episode (60 s: a lap of small_track takes about 20 s)."""
 INTERRUPTED = 130
@@ -179,12 +181,14 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
         raise InputError("--tracks is empty")
     if args.eval_track in tracks:
         raise InputError(f"--eval-track {args.eval_track} is also a training track: it would not be held out")
-    if weather and args.perception in ("gt_cones", "surrogate"):
+    mode = perception_mode(args.perception)
+    if weather and not mode.renders_frames:
         raise InputError(f"--weather acts on camera images; {args.perception} renders none (use --perception detector, "
                          "or --surrogate-weathers)")
-    sw = [w.strip() for w in args.surrogate_weathers.split(",") if w.strip()] if args.perception == "surrogate" else []
+    own_weather = mode.takes_weather and not mode.renders_frames  # draws cones in its own weather
+    sw = [w.strip() for w in args.surrogate_weathers.split(",") if w.strip()] if own_weather else []
     out = {"env_id": args.env_id, "perception": args.perception,
-           "noise": noise if args.perception in ("gt_cones", "oracle") else {},
+           "noise": noise if takes_oracle_noise(mode) else {},
            "max_steps": args.max_steps, "env_kwargs": env_kwargs, "weather": weather, "tracks": tracks,
            "hyperparams": {k: v for k, v in hp.items() if k != "n_timesteps"}}
     if sw:

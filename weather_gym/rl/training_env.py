@@ -17,8 +17,9 @@ import gymnasium as gym
 import numpy as np
 
 from weather_gym.errors import InputError
+from weather_gym.perception_modes import PerceptionMode, perception_mode
 from weather_gym.pipeline import make_env
-from weather_gym.wrappers import WeatherRandomizer
+from weather_gym.wrappers import GroundTruthConeWrapper, WeatherRandomizer
 
 _SPAWN_KEY = (0x57A27,)  # the start-point draw, apart from the env's own streams for the same seed
 
@@ -64,13 +65,26 @@ def make_training_env(env_id: str, track: str, perception: str, noise: dict[str,
                       env_kwargs: dict[str, Any], weather: dict[str, Any] | None = None,
                       random_start: bool = True, surrogate_weather: str = "clear") -> gym.Env:
     """One env of the run (module level, so vector-env workers can build it)."""
-    pk = dict(noise) if perception in ("gt_cones", "oracle") else {}
+    mode = perception_mode(perception)
+    pk = dict(noise) if takes_oracle_noise(mode) else {}
     env = make_env(env_id, track=track, perception=perception, perception_kwargs=pk or None,
                    max_episode_steps=max_steps, episode_statistics=False,
-                   weather=surrogate_weather if perception == "surrogate" else
-                   "clear" if perception != "gt_cones" else None, **dict(env_kwargs))
-    if weather and perception not in ("gt_cones", "surrogate"):
+                   weather=_start_weather(mode, surrogate_weather), **dict(env_kwargs))
+    if weather and mode.renders_frames:
         env = WeatherRandomizer(env, **weather)
     if random_start:
         env = RandomStart(env)
     return LapSuccess(env)
+
+
+def takes_oracle_noise(mode: PerceptionMode) -> bool:
+    """Whether the mode's cone list is ground truth that ``--noise`` (``OracleNoise``) degrades."""
+    return mode.wrapper is GroundTruthConeWrapper
+
+
+def _start_weather(mode: PerceptionMode, surrogate_weather: str) -> str | None:
+    """The weather an env starts in: the surrogate's own for a render-free mode that takes weather
+    (it draws cones in it), none where the mode takes no weather, else clear (randomised per episode)."""
+    if not mode.takes_weather:
+        return None
+    return surrogate_weather if not mode.renders_frames else "clear"
