@@ -43,6 +43,7 @@ import gymnasium as gym
 from weather_gym._io import file_id
 from weather_gym.errors import InputError
 from weather_gym.perception.detector_spec import detector_id
+from weather_gym.registry import add_unique
 from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 from weather_gym.weather import parse_weather, to_spec
 from weather_gym.wrappers import (
@@ -117,10 +118,7 @@ PERCEPTION_MODES: dict[str, PerceptionMode] = {}
 
 def register_mode(mode: PerceptionMode) -> PerceptionMode:
     """Add ``mode`` (a name may be registered once)."""
-    if mode.name in PERCEPTION_MODES and PERCEPTION_MODES[mode.name] is not mode:
-        raise InputError(f"perception mode {mode.name!r} is already registered")
-    PERCEPTION_MODES[mode.name] = mode
-    return mode
+    return add_unique(PERCEPTION_MODES, "perception mode", mode.name, mode)
 
 
 def perception_mode(name: str | PerceptionMode) -> PerceptionMode:

@@ -23,6 +23,18 @@ from weather_gym.errors import InputError
 T = TypeVar("T")
 
 
+def add_unique(items: dict[str, T], kind: str, name: str, obj: T) -> T:
+    """Put ``obj`` in ``items`` under ``name``; a name already taken by another object is an error.
+
+    The one registration rule: :class:`Registry` uses it, and so do the registries kept as plain
+    ordered dicts because their order means something (perception modes, metrics).
+    """
+    if name in items and items[name] is not obj:
+        raise InputError(f"{kind} {name!r} is already registered")
+    items[name] = obj
+    return obj
+
+
 class Registry(Generic[T]):
     """A name -> object mapping whose lookup errors list the valid names."""
 
@@ -34,10 +46,7 @@ class Registry(Generic[T]):
         """Register ``obj`` under ``name``; without ``obj`` acts as a decorator."""
 
         def _add(o: T) -> T:
-            if name in self._items and self._items[name] is not o:
-                raise InputError(f"{self.kind} {name!r} is already registered")
-            self._items[name] = o
-            return o
+            return add_unique(self._items, self.kind, name, o)
 
         return _add if obj is None else _add(obj)
 

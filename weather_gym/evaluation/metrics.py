@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree
 
 from weather_gym.errors import InputError
 from weather_gym.perception.scoring import EvalResult, score_detections
+from weather_gym.registry import add_unique
 
 if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.agents import EpisodeResult
@@ -143,10 +144,7 @@ METRICS: dict[str, Metric] = {}
 
 def register_metric(metric: Metric) -> Metric:
     """Add ``metric`` (a name may be registered once)."""
-    if metric.name in METRICS and METRICS[metric.name] is not metric:
-        raise InputError(f"metric {metric.name!r} is already registered")
-    METRICS[metric.name] = metric
-    return metric
+    return add_unique(METRICS, "metric", metric.name, metric)
 
 
 def table_metrics() -> list[str]:
