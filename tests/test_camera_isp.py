@@ -78,3 +78,45 @@ def test_bad_parameters_are_input_errors_naming_the_field(field, value):
 def test_unknown_key_names_it():
     with pytest.raises(InputError, match="nosuch"):
         CameraModel.from_dict({"enabled": True, "nosuch": 1})
+
+
+def test_sensor_noise_is_the_integer_formula_saturated_at_both_ends():
+    """The noise stage is exactly clip(img + (sigma*8 * z*32) >> 8, 0, 255) in integers (OpenCV's
+    saturating add does the clipping), also where the noise pushes past black or white."""
+    import cv2
+
+    img = _scene()
+    img[:20], img[20:40] = 0, 255
+    model = CameraModel.ideal().with_(enabled=True, read_noise=25.0, shot_noise=10.0)
+    pipe = CameraPipeline(model, 200, 120)
+    out = pipe.apply(img, np.random.default_rng(3))
+    rng = np.random.default_rng(3)
+    pipe.reseed(rng)
+    oy, ox = (int(v) for v in rng.integers(0, 64, 2))
+    toned = cv2.LUT(img, pipe._lut)
+    z = pipe._bank[oy:oy + 120, ox:ox + 200].astype(np.int32)
+    sigma8 = cv2.LUT(toned, pipe._sigma8).astype(np.int32)
+    want = np.clip(toned.astype(np.int32) + ((sigma8 * z) >> 8), 0, 255).astype(np.uint8)
+    assert np.array_equal(out, want)
+    assert (out[:20] == 0).any() and (out[:20] > 0).any() and (out[20:40] == 255).any() and (out[20:40] < 255).any()
+
+
+def test_distorted_boxes_are_the_float32_bounds_of_the_edge_points_clipped_to_the_image():
+    """distort_boxes writes its bounds straight into float32: the same bytes as the bounds of the
+    distorted edge points, cast, then clipped (boxes inside, across and outside the image)."""
+    from weather_gym.camera_isp import _EDGE_POINTS
+
+    pipe = CameraPipeline(CameraModel(), 672, 376, fx=336.0)
+    assert pipe.model.distorts
+    rng = np.random.default_rng(4)
+    xy = rng.uniform(-300, 900, (200, 2))
+    boxes = np.vstack([np.hstack([xy, xy + rng.exponential(40, (200, 2))]), [[0, 0, 672, 376], [5, 5, 5, 5]]])
+    boxes = boxes.astype(np.float32)
+    pts = boxes.astype(np.float64) @ _EDGE_POINTS
+    x, y = pipe._distort_xy(pts[:, :32], pts[:, 32:])
+    want = np.stack([x.min(1), y.min(1), x.max(1), y.max(1)], 1).astype(np.float32)
+    want[:, 0::2] = np.clip(want[:, 0::2], 0, 672)
+    want[:, 1::2] = np.clip(want[:, 1::2], 0, 376)
+    got = pipe.distort_boxes(boxes)
+    assert got.dtype == np.float32 and got.shape == (202, 4) and got.tobytes() == want.tobytes()
+    assert pipe.distort_boxes(np.zeros((0, 4))).shape == (0, 4)

@@ -279,9 +279,9 @@ class CameraPipeline:
             bank = self._bank
             oy, ox = (int(v) for v in rng.integers(0, 64, 2))
             n = bank[oy:oy + self.height, ox:ox + self.width]
-            sig = cv2.LUT(img, self._sigma8).astype(np.int16)  # sigma * 8
-            noise = (sig * n) >> 8  # sigma*8 * z*32 / 256 = sigma * z
-            img = np.clip(img.astype(np.int16) + noise, 0, 255).astype(np.uint8)
+            noise = np.multiply(cv2.LUT(img, self._sigma8), n, dtype=np.int16)  # sigma*8 * z*32
+            np.right_shift(noise, 8, out=noise)  # / 256 = sigma * z
+            img = cv2.add(img, noise, dtype=cv2.CV_8U)  # saturated to 0..255
         if m.jpeg_quality > 0:
             params = [cv2.IMWRITE_JPEG_QUALITY, int(m.jpeg_quality),
                       cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
@@ -338,7 +338,10 @@ class CameraPipeline:
         # 8 points along each edge, as one matrix product: (n, 4) xyxy @ (4, 64) -> 32 x and 32 y
         pts = boxes.astype(np.float64) @ _EDGE_POINTS
         x, y = self._distort_xy(pts[:, :32], pts[:, 32:])
-        out = np.stack([x.min(1), y.min(1), x.max(1), y.max(1)], 1).astype(np.float32)
-        out[:, 0::2] = np.clip(out[:, 0::2], 0, self.width)
-        out[:, 1::2] = np.clip(out[:, 1::2], 0, self.height)
-        return out
+        out = np.empty((len(boxes), 4), np.float32)  # the bounds, rounded to float32 as they are written
+        np.minimum.reduce(x, 1, out=out[:, 0])
+        np.minimum.reduce(y, 1, out=out[:, 1])
+        np.maximum.reduce(x, 1, out=out[:, 2])
+        np.maximum.reduce(y, 1, out=out[:, 3])
+        np.maximum(out, 0, out=out)  # clipped to the image
+        return np.minimum(out, np.array([self.width, self.height] * 2, np.float32), out=out)

@@ -139,3 +139,26 @@ def test_random_starts_keep_a_share_at_the_start_line():
     assert 4 <= at_line <= 18 and starts == again  # ~25 %, and the same seeds give the same starts
     with pytest.raises(InputError, match="line_share"):
         RandomStart(env, line_share=1.5)
+
+
+def test_ppo_steps_envs_in_one_process_with_lean_infos(tmp_path, monkeypatch):
+    """The default vector env: DummyVecEnv (render-free envs step faster in the process than over IPC),
+    each env's info cut to INFO_KEYS (DummyVecEnv deep-copies the infos every step)."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from weather_gym.rl.training_env import LeanInfo
+
+    seen = {}
+
+    def no_learning(self, total_timesteps, **kwargs):  # the envs as PPO would step them, nothing learnt
+        seen["vec"], seen["eval"] = self.env, kwargs["callback"].callbacks[-1].eval_env
+        return self
+
+    monkeypatch.setattr(PPO, "learn", no_learning)
+    assert main(["train", "--out", str(tmp_path / "run"), "--n-envs", "2", "--tracks", "hairpin,oval",
+                 "--perception", "surrogate", "--timesteps", "64", "--n-steps", "32", "--batch-size", "32"]) == 0
+    for vec in (seen["vec"], seen["eval"]):
+        while not isinstance(vec, DummyVecEnv):  # VecNormalize -> VecMonitor -> DummyVecEnv
+            vec = vec.venv
+        assert all(isinstance(env, LeanInfo) for env in vec.envs)

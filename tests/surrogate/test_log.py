@@ -73,6 +73,6 @@ def test_matching_is_greedy_by_score_and_class_agnostic():
     assert match_detections(gt, det, np.array([0.5, 0.9, 0.8])).tolist() == [-1, 0, -1]
 
 
-def test_unmodelled_weather_fails_before_driving():
-    with pytest.raises(InputError, match="no model of weather effect 'fog'"):
-        record(tracks=["hairpin"], weathers=["fog@2"], seeds=[0], steps=5)
+def test_two_effects_at_once_fail_before_driving():
+    with pytest.raises(InputError, match="one weather effect at a time"):
+        record(tracks=["hairpin"], weathers=["fog@2,droplets@3"], seeds=[0], steps=5)

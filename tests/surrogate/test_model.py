@@ -98,7 +98,11 @@ def test_save_load_round_trip_and_interpolation(tmp_path):
     with pytest.raises(InputError, match="beyond"):
         back.point({"droplets": 0.6})
     with pytest.raises(InputError, match="no model of weather effect 'fog'"):
-        back.point("fog@2")
+        back.point("fog@2")  # the model itself is strict; the wrapper falls back (resolve)
+    point, note = back.resolve("fog@2")
+    assert point is back.clear and "no fit of weather effect fog (k 0.5)" in note
+    point, note = back.resolve({"droplets": 0.2})
+    assert note is None and point.detection_probability(*args)[0] == p_half
 
 
 def _broken(tmp_path, name, edit):

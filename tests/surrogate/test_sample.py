@@ -67,3 +67,63 @@ def test_the_samplers_probabilities_are_the_models():
             got = tables.probabilities(feats, cls)
             for row, kind in enumerate(("detected", "loose", "part")):
                 np.testing.assert_array_equal(got[row], point.probability_of(feats, cls, kind=kind))
+
+
+GOLDEN_672 = "a77ef56e11d95532704df55d8e5c9548d2264575e123a04006adc967b78f8df7"
+"""sha256 of 150 surrogate steps at 672x376 in clear, droplets@3 and low_light@1 (seed 5): the shipped
+model's samples at its fitting camera, recorded before the camera-size scaling; they must not change."""
+
+
+def test_the_fitting_cameras_samples_are_unchanged():
+    import hashlib
+
+    from weather_gym.pipeline import make_env
+
+    h = hashlib.sha256()
+    for weather in ("clear", "droplets@3", "low_light@1"):
+        env = make_env(perception="surrogate", weather=weather, max_episode_steps=200)
+        try:
+            obs, info = env.reset(seed=5)
+            for _ in range(150):
+                obs, _, term, trunc, info = env.step(np.array([0.3, 0.05], np.float32))
+                for k in ("cones", "mask"):
+                    h.update(np.ascontiguousarray(obs[k]).tobytes())
+                for k in ("boxes", "scores", "classes", "ranges", "bearings"):
+                    h.update(np.ascontiguousarray(info["detections"][k]).tobytes())
+                if term or trunc:
+                    obs, info = env.reset()
+        finally:
+            env.close()
+    assert h.hexdigest() == GOLDEN_672
+
+
+def test_false_positives_logged_at_the_fitting_camera_land_in_the_same_place_of_another():
+    model = load_model(SHIPPED_MODEL)
+    from weather_gym.camera_config import CameraConfig
+
+    point = model.point("droplets@3")
+    big = FrameSampler(point, CameraConfig(width=1344, height=752), fit_camera=(672, 376))
+    same = FrameSampler(point, CameraConfig(), fit_camera=(672, 376))
+    ra, rb = np.random.default_rng(1), np.random.default_rng(1)
+    a = np.concatenate([big(None, ra, step=t)["boxes"] for t in range(20)])  # false positives only
+    b = np.concatenate([same(None, rb, step=t)["boxes"] for t in range(20)])
+    assert len(a) == len(b) > 0
+    np.testing.assert_allclose(a, 2 * b, rtol=1e-6)
+
+
+def test_the_samplers_probabilities_are_the_models_at_knots_outside_them_and_at_nan():
+    """The compiled logits reproduce np.interp's special cases: a feature exactly at a knot, below the
+    first, above the last, NaN."""
+    from weather_gym.surrogate.point import BEARING_KNOTS, CROWD_KNOTS, LOGH_KNOTS, RANGE_KNOTS, VIS_KNOTS
+    from weather_gym.surrogate.sample import _Tables
+
+    point = load_model(SHIPPED_MODEL).point("droplets@3")
+    specials = [np.r_[k, k[0] - 1.0, k[-1] + 1.0, (k[:-1] + k[1:]) / 2, np.nan]
+                for k in (RANGE_KNOTS, BEARING_KNOTS, LOGH_KNOTS, VIS_KNOTS, CROWD_KNOTS)]
+    n = max(len(s) for s in specials)
+    feats = tuple(np.resize(s, n) for s in specials)
+    cls = np.arange(n) % 4
+    got = _Tables(point).probabilities(feats, cls)
+    for row, kind in enumerate(("detected", "loose", "part")):
+        np.testing.assert_array_equal(got[row], point.probability_of(feats, cls, kind=kind))
+    assert np.isnan(got).any() and not np.isnan(got).all()

@@ -31,3 +31,16 @@ def test_validate_writes_the_report(tmp_path):
     assert (tmp_path / "val" / "full_logs" / "droplets_2.npz").is_file()  # recorded once, reused next time
     with pytest.raises(InputError, match="was used for fitting"):
         validate(track="small_track", severities=[0], out=tmp_path / "val2")
+
+
+@pytest.mark.slow
+def test_validate_at_another_camera_and_a_nominal_effect(tmp_path):
+    res = validate(track="hairpin", weathers=["clear", "rain@2"], seeds=[0], surrogate_seeds=[0], steps=6,
+                   camera=(336, 188), out=tmp_path / "val")
+    text = (tmp_path / "val" / "report.md").read_text()
+    assert "camera 336x188" in text and "| rain@2 |" in text
+    assert "rain@2: perception surrogate: no fit of weather effect rain" in text  # the fallback, said
+    assert res["camera"] == "336x188" and "fallback" in res["rows"][1] and "fallback" not in res["rows"][0]
+    with pytest.raises(InputError, match="a log of a 336x188 camera, not 672x376"):
+        validate(track="hairpin", weathers=["clear"], seeds=[0, 1], surrogate_seeds=[0], steps=8, camera=(672, 376),
+                 full_logs=tmp_path / "val" / "full_logs", out=tmp_path / "val2")

@@ -8,6 +8,7 @@ import pytest
 
 from weather_gym.errors import InputError
 from weather_gym.weather import make
+from weather_gym.weather._common import smooth
 from weather_gym.weather.dim import add_chroma_blotches, auto_exposure, black_level_lut
 from weather_gym.weather.reference import study_dim
 
@@ -100,6 +101,16 @@ def test_night_denoiser_smear_removes_high_frequencies(scene):
     assert _hf_energy(denoised) < 0.5 * _hf_energy(raw)
     sigma, chroma, black, desat = make("dim", **args, denoise_px=1.0).isp()
     assert sigma > 0.5 and chroma == 0.0 and black == 0.0 and desat == 0.0
+
+
+@pytest.mark.parametrize("denoise_px", [0.5, 0.85, 1.6, 3.0])  # a blended fraction; a box pass and a fraction; halved
+def test_night_denoiser_in_place_equals_smoothing_a_copy(scene, denoise_px):
+    img, depth = scene
+    args = dict(k=0.9, mode="night", chroma_noise=0.0, black_level=0.0, desaturate=0.0)
+    e = make("dim", denoise_px=denoise_px, **args)
+    sensor = make("dim", denoise_px=0.0, **args)(img, depth=depth, state=STILL, rng=np.random.default_rng(0))
+    want = smooth(sensor, e.isp()[0], exact=True)
+    np.testing.assert_array_equal(e(img, depth=depth, state=STILL, rng=np.random.default_rng(0)), want)
 
 
 def test_night_isp_strength_follows_the_gain():

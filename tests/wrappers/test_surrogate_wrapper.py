@@ -76,8 +76,8 @@ def test_weather_changes_pick_the_condition(no_render):
         assert wrapper("droplets@1")[0]["name"] == "droplets"
         _, _, _, _, info = env.step(ACTION)
         assert info["weather"][0]["k"] == pytest.approx(preset_spec("droplets", 1)[0]["k"])
-        with pytest.raises(InputError, match="no model of weather effect 'fog'"):
-            wrapper("fog@2")
+        with pytest.raises(InputError, match="one weather effect at a time"):
+            wrapper("droplets@3,low_light@1")
         # darker: fewer cones reported than in clear weather, on the same frames
         clear, _ = _run(env, seed=1, steps=60, options={"weather": "clear"})
         dark, _ = _run(env, seed=1, steps=60, options={"weather": "low_light@4"})
@@ -90,8 +90,8 @@ def test_weather_changes_pick_the_condition(no_render):
 def test_bad_settings_are_typed_errors(tmp_path):
     with pytest.raises(InputError, match="k=0.99 is beyond"):
         make_env(perception="surrogate", weather={"dim": {"k": 0.99, "mode": "night"}})  # it ends at low_light@4
-    with pytest.raises(InputError, match="refit it for this camera"):
-        make_env(perception="surrogate", camera={"width": 96, "height": 54})
+    with pytest.raises(InputError, match="fitted with other effect parameters"):
+        make_env(perception="surrogate", weather={"droplets": {"k": 0.3, "mode": "faithful"}})
     with pytest.raises(InputError, match="does not exist"):
         make_env(perception="surrogate", perception_kwargs={"model": str(tmp_path / "none.npz")})
 
@@ -176,3 +176,81 @@ def test_a_car_standing_for_a_long_time_keeps_plain_detections():
         copy.deepcopy(info)
     finally:
         env.close()
+
+
+def _first_frame(env, seed=0):
+    """Cone id -> (box height in camera pixels, the model's box-height feature) on the first frame."""
+    _, info = env.reset(seed=seed)
+    gt = info["gt"]
+    box_h = np.asarray(gt["boxes"])[:, 3] - np.asarray(gt["boxes"])[:, 1]
+    factor = env.get_wrapper_attr("box_factor")
+    return {int(i): (h, h * factor) for i, h in zip(gt["cone_ids"], box_h, strict=True)}
+
+
+@pytest.mark.parametrize("size", [(336, 188), (1280, 720)])
+def test_any_camera_size_scales_the_box_feature_to_the_detectors_input(no_render, size):
+    """A model fitted at 672x376 runs at other cameras: the same cone gets the box height it has at the
+    detector's input there (the input follows the camera: at 336x188 half the 672x376 one)."""
+    from weather_gym.perception.labels import input_scale
+    from weather_gym.surrogate.camera import detector_input_size
+
+    ref = make_env(perception="surrogate", weather="droplets@3", max_episode_steps=30)
+    env = make_env(perception="surrogate", weather="droplets@3", max_episode_steps=30,
+                   camera={"width": size[0], "height": size[1]})
+    try:
+        assert ref.get_wrapper_attr("box_factor") == 1.0
+        scale = input_scale(size, detector_input_size(*size))
+        assert env.get_wrapper_attr("box_factor") == pytest.approx(scale / input_scale((672, 376), (512, 288)))
+        assert env.get_wrapper_attr("range_factor") == pytest.approx(672 / size[0])  # same field of view
+        a, b = _first_frame(ref), _first_frame(env)
+        common = [i for i in a if i in b and a[i][0] > 20 and b[i][0] > 10]  # whole near cones in both
+        assert len(common) >= 2
+        # the feature is the box height at the detector's input: camera pixels x the input scale
+        ratio = np.array([b[i][1] / a[i][1] for i in common])
+        np.testing.assert_allclose(ratio, size[1] / 376 * scale / (512 / 672), rtol=0.05)
+        out, info = _run(env, seed=0, steps=20)
+        assert sum(np.frombuffer(x[-64:], np.int8).sum() for x in out) > 0  # it reports cones
+    finally:
+        ref.close()
+        env.close()
+
+
+def test_the_fitting_camera_keeps_its_samples(no_render):
+    """At 672x376 the box feature is the camera's own box height (factor exactly 1, nothing rescaled)."""
+    env = make_env(perception="surrogate", weather="droplets@3", max_episode_steps=30)
+    try:
+        assert env.get_wrapper_attr("box_factor") == 1.0
+        assert env.get_wrapper_attr("_sampler")._rescale_fp is False
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("weather", ["rain@2", "fog@1", {"blur": 0.5}])
+def test_a_nominal_effect_falls_back_to_clear_with_a_warning(no_render, weather):
+    from weather_gym.surrogate.conditions import SurrogateFallbackWarning
+
+    with pytest.warns(SurrogateFallbackWarning, match="modelled as clear weather"):
+        env = make_env(perception="surrogate", weather=weather, max_episode_steps=30)
+    clear = make_env(perception="surrogate", weather="clear", max_episode_steps=30)
+    try:
+        got, info = _run(env, seed=2, steps=10)
+        assert "no fit of weather effect" in info["surrogate_fallback"]
+        assert env.get_wrapper_attr("fallback") == info["surrogate_fallback"]
+        assert info["weather"][0]["name"] != "droplets"  # the weather reported is the one asked for
+        want, clear_info = _run(clear, seed=2, steps=10)
+        assert got == want and "surrogate_fallback" not in clear_info  # clear weather's draws
+        with pytest.warns(SurrogateFallbackWarning):
+            env.get_wrapper_attr("set_weather")("droplets@3,rain@1")  # the fitted effect stays
+        _, info = env.reset(seed=2)
+        assert "rain" in info["surrogate_fallback"] and env.get_wrapper_attr("fallback")
+        env.get_wrapper_attr("set_weather")("droplets@3")
+        _, info = env.reset(seed=2)
+        assert "surrogate_fallback" not in info and env.get_wrapper_attr("fallback") is None
+    finally:
+        env.close()
+        clear.close()
+
+
+def test_an_unknown_effect_still_raises():
+    with pytest.raises(InputError, match="hail"):
+        make_env(perception="surrogate", weather="hail@2")

@@ -29,6 +29,32 @@ def median_ms(fn: Callable[[], object], repeats: int = 50, warmup: int = 5) -> f
     return 1000.0 * statistics.median(times)
 
 
+def interleaved_ms(fns: dict[str, Callable[[], object]], repeats: int, warmup: int, budget_s: float, run: int = 4) -> dict[str, float]:
+    """Median milliseconds per call of each function, the functions taking turns.
+
+    Each round gives every function, in turn, one untimed call (its data back in the caches) and
+    ``run`` timed calls back to back; ``run=0``: one timed call per round and no untimed one
+    (caches as the other functions left them). ``repeats`` timed calls per function at most, fewer
+    when that takes much longer than ``budget_s`` (but at least 15 when ``repeats`` allows).
+    """
+    t0 = time.perf_counter()
+    for _ in range(max(warmup, 1)):
+        for fn in fns.values():
+            fn()
+    per_call = (time.perf_counter() - t0) / max(warmup, 1)  # one call of each
+    calls = min(repeats, max(15, int(budget_s / max(per_call * (1 + 1 / max(run, 1)), 1e-9))))
+    times: dict[str, list[float]] = {k: [] for k in fns}
+    while len(next(iter(times.values()))) < calls:
+        for k, fn in fns.items():
+            if run:
+                fn()
+            for _ in range(max(run, 1)):
+                t = time.perf_counter()
+                fn()
+                times[k].append(time.perf_counter() - t)
+    return {k: 1000.0 * statistics.median(v) for k, v in times.items()}
+
+
 def machine_line() -> str:
     """One line describing the machine the numbers were taken on."""
     cpu = platform.processor() or platform.machine()

@@ -11,14 +11,22 @@ Reports, each a median of many runs after a warm-up:
 * the whole step (``--step``): ``ConeTrackEnv.step`` (physics + render), weather (droplets k=0.55),
   detector + ranging, and the end-to-end rate of ``env -> WeatherWrapper -> DetectorWrapper``.
 
+With ``--sizes 336x188,672x376,1280x720`` it times only ``detect()`` (one thread) on a frame of each
+camera size (the 672x376 frame resized), with the input following the camera (the default) and, as
+the baseline in the same run, pinned at the native 512x288 (``input_size="native"``), the two
+alternating run by run.
+
 Example:
     weather-gym bench detector --repeats 100 --out bench_detector.md
+    weather-gym bench detector --sizes 336x188,672x376,1280x720 --repeats 50
 
 The first command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
     >>> args = build_parser().parse_args(['bench', 'detector', '--repeats', '100', '--out', 'bench_detector.md'])
     >>> args.target, args.repeats, args.batch
     ('detector', 100, 8)
+    >>> parse_sizes("336x188,672x376")
+    [(336, 188), (672, 376)]
 """
 
 from __future__ import annotations
@@ -30,12 +38,15 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from weather_gym._io import atomic_write, check_output
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
+from weather_gym.errors import InputError
+from weather_gym.limits import MAX_CAMERA_SIDE, check_image_size
 from weather_gym.perception.onnx_detector import ConeDetector
 from weather_gym.perception.ranging import detections_to_cones
 from weather_gym.pipeline import make_env
@@ -51,9 +62,56 @@ def register(targets) -> None:
     p.add_argument("--no-baseline", action="store_true", help="skip the YOLOv3-tiny baseline")
     p.add_argument("--step", action="store_true", help="also time the whole env step (needs the simulator)")
     p.add_argument("--steps", type=int, default=150, help="env steps timed with --step (default %(default)s)")
+    p.add_argument("--sizes", default=None, metavar="WxH,...",
+                   help="time only detect() at these camera sizes, input following the camera vs pinned at "
+                        "512x288 (e.g. 336x188,672x376,1280x720)")
     p.add_argument("--out", type=Path, help="also write the markdown tables to this file")
     add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
+
+
+def parse_sizes(text: str) -> list[tuple[int, int]]:
+    """``"336x188,672x376"`` -> ``[(336, 188), (672, 376)]``; InputError naming ``--sizes`` otherwise."""
+    sizes = []
+    for part in text.split(","):
+        w, sep, h = part.strip().lower().partition("x")
+        if not (sep and w.isdigit() and h.isdigit()):
+            raise InputError(f"--sizes {text!r}: {part.strip()!r} is not WxH in pixels (e.g. 336x188,672x376)")
+        check_image_size((int(h), int(w)), what=f"--sizes {part.strip()}")
+        if max(int(w), int(h)) > MAX_CAMERA_SIDE:
+            raise InputError(f"--sizes {part.strip()}: a camera side is at most {MAX_CAMERA_SIDE} pixels")
+        sizes.append((int(w), int(h)))
+    return sizes
+
+
+def size_benchmark(model=None, sizes=((336, 188), (672, 376), (1280, 720)), repeats: int = 50,
+                   frame: np.ndarray | None = None) -> list[list[Any]]:
+    """``detect()`` ms on one thread at each camera size: input pinned at native (baseline) vs following."""
+    frame = _frame() if frame is None else frame
+    pinned = ConeDetector(model, threads=1, input_size="native")
+    follow = ConeDetector(model, threads=1)
+    rows = []
+    for w, h in sizes:
+        im = frame if (w, h) == (frame.shape[1], frame.shape[0]) else cv2.resize(
+            frame, (w, h), interpolation=cv2.INTER_AREA if w < frame.shape[1] else cv2.INTER_LINEAR)
+        times: dict[str, list[float]] = {"pinned": [], "follow": []}
+        for i in range(repeats + 5):  # alternate, so load changes hit both alike; 5 warm-up runs
+            for name, det in (("pinned", pinned), ("follow", follow)):
+                t0 = time.perf_counter()
+                det(im)
+                if i >= 5:
+                    times[name].append(time.perf_counter() - t0)
+        pm, fm = (1000 * float(np.median(times[k])) for k in ("pinned", "follow"))
+        pin_in, fol_in = pinned.input_size_for(w, h), follow.input_size_for(w, h)
+        rows.append([f"{w}x{h}", "x".join(map(str, pin_in)), pm, "x".join(map(str, fol_in)), fm, pm / fm])
+    return rows
+
+
+def format_sizes(rows: list[list[Any]], repeats: int) -> str:
+    return "\n".join([f"Machine: {machine_line()}", "",
+                      f"detect() per frame, 1 thread, median of {repeats} (pinned and follow alternating):", "",
+                      markdown_table(["camera", "pinned input", "pinned ms", "follow input", "follow ms",
+                                      "speed-up"], rows)])
 
 
 def _frame() -> np.ndarray:
@@ -228,8 +286,11 @@ def format_table(res: dict[str, Any]) -> str:
 def _run(args) -> int:
     if args.out is not None:
         check_output(args.out, overwrite=args.overwrite, what="--out")
-    res = run_benchmark(args.model, args.repeats, args.batch, not args.no_baseline, args.step, args.steps)
-    text = format_table(res)
+    if args.sizes is not None:
+        text = format_sizes(size_benchmark(args.model, parse_sizes(args.sizes), args.repeats), args.repeats)
+    else:
+        res = run_benchmark(args.model, args.repeats, args.batch, not args.no_baseline, args.step, args.steps)
+        text = format_table(res)
     print(text)
     if args.out is not None:
         atomic_write(args.out, text + "\n", overwrite=args.overwrite)

@@ -2,6 +2,7 @@
 
 Example:
     $ weather-gym bench sim --repeats 30
+    $ weather-gym bench sim --naive --repeats 40   # the default camera env step vs a naive TinyRenderer frame
 
 The first command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
@@ -19,15 +20,20 @@ from dataclasses import replace
 
 import numpy as np
 
-from weather_gym.bench._timing import machine_line, markdown_table, median_ms
+from weather_gym.agents import make_agent
+from weather_gym.bench._timing import interleaved_ms, machine_line, markdown_table, median_ms
 from weather_gym.camera_config import CameraConfig
 from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.errors import InputError
 from weather_gym.pipeline import make_env
+from weather_gym.sim import renderer as _renderer
+from weather_gym.sim.baseline import NAIVE_CYLINDERS, naive_scene
 from weather_gym.sim.config import SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK
 from weather_gym.sim.world import World
 from weather_gym.tracks import load_track
+
+NAIVE_SIZES = ((672, 376), (336, 188))
 
 
 def register(targets) -> None:
@@ -37,6 +43,11 @@ def register(targets) -> None:
                                        "renderer, and whole env steps (physics + camera + ground truth).")
     p.add_argument("--track", default="small_track", help="track to time on (default: small_track)")
     p.add_argument("--repeats", type=int, default=40, help="timed calls per measurement (median is reported)")
+    p.add_argument("--naive", action="store_true",
+                   help="only the default camera env step (make_env() defaults: physics, render, camera model, "
+                        "segmentation ground truth) against a naive TinyRenderer frame of a bare PyBullet scene "
+                        "(ground + 80 cone-sized cylinders) at 672x376 and 336x188, the rows taking turns call by "
+                        "call; also the env with renderer='tiny' (what runs where EGL does not load)")
     p.add_argument("--worlds", action="store_true",
                    help="only the world comparison: plain (baseline) vs realistic scene with EGL at 672x376, "
                         "with and without the segmentation pass, the cast shadows' cost (off; a low sun), "
@@ -48,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise InputError(f"--repeats must be >= 1, got {args.repeats}")
     track = load_track(args.track)
+    if args.naive:
+        return _naive(args, track)
     if args.worlds:
         return _worlds(args, track)
     rows = []
@@ -130,4 +143,76 @@ def _worlds(args: argparse.Namespace, track) -> int:
     print(f"Track: {args.track}; renderer {renderer}; 672x376; median of {args.repeats} calls after warm-up")
     print(markdown_table(["world", "frame + segmentation GT ms", "frame only ms", "frame + geometric GT ms"], rows))
     print(markdown_table(["finishing stage", "ms per 672x376 frame"], cm))
+    return 0
+
+
+def _driving_actions(track_name: str, n: int) -> list[np.ndarray]:
+    """``n`` actions of ``gt_pure_pursuit`` from the start of a seed-0 episode (taken render-free: the
+    car's motion does not depend on the camera), so the timed env drives the track and sees cones."""
+    env = make_env(track=track_name, camera_images=False, ground_truth="geometry", episode_statistics=False)
+    try:
+        agent = make_agent("gt_pure_pursuit", env.unwrapped.track, env.unwrapped.config.camera)
+        _, info = env.reset(seed=0)
+        agent.reset(seed=0, info=info)
+        actions = []
+        for _ in range(n):
+            action = agent.act(None, info)
+            actions.append(action)
+            _, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                break
+        return actions
+    finally:
+        env.close()
+
+
+class _Driver:
+    """Steps ``env`` through ``actions`` (a new seed-0 episode when they run out or the episode ends)."""
+
+    def __init__(self, env, actions: list[np.ndarray]) -> None:
+        self.env, self.actions, self.i = env, actions, 0
+        self.info = env.reset(seed=0)[1]
+
+    def __call__(self) -> None:
+        if self.i == len(self.actions):
+            self.env.reset(seed=0)
+            self.i = 0
+        _, _, terminated, truncated, self.info = self.env.step(self.actions[self.i])
+        self.i += 1
+        if terminated or truncated:
+            self.i = len(self.actions)
+
+
+def _naive(args: argparse.Namespace, track) -> int:
+    """The default camera env step against a naive TinyRenderer frame of the same size (the rows take turns)."""
+    actions = _driving_actions(args.track, 400)
+    rows = []
+    for w, h in NAIVE_SIZES:
+        cam = CameraConfig(width=w, height=h)
+        frame, close = naive_scene(cam)
+        envs = {"default": make_env(track=args.track, camera=cam)}
+        try:
+            drivers = {"naive": frame}
+            drivers["default"] = _Driver(envs["default"], actions)
+            default_renderer = drivers["default"].info["renderer"]
+            if default_renderer != "tiny":
+                envs["tiny"] = make_env(track=args.track, camera=cam, sim=SimConfig(renderer="tiny"))
+                drivers["tiny"] = _Driver(envs["tiny"], actions)
+            ms = interleaved_ms(drivers, repeats=args.repeats, warmup=3, budget_s=1e9, run=0)
+        finally:
+            close()
+            for env in envs.values():
+                env.close()
+        detail = f" ({_renderer.renderer_detail()})" if default_renderer == "egl" and _renderer.renderer_detail() else ""
+        rows.append([f"{w}x{h}", "naive TinyRenderer frame (baseline)", ms["naive"], 1.0])
+        rows.append([f"{w}x{h}", f"default camera env step, renderer {default_renderer}{detail}", ms["default"],
+                     ms["naive"] / ms["default"]])
+        if "tiny" in ms:
+            rows.append([f"{w}x{h}", "default camera env step, renderer tiny (no EGL)", ms["tiny"],
+                         ms["naive"] / ms["tiny"]])
+    print(f"Machine: {machine_line()}; load average {os.getloadavg()[0]:.2f} at the end")
+    print(f"Track: {args.track} ({len(track.cones_xy)} cones), driven by gt_pure_pursuit from a seed-0 start; "
+          f"naive scene: ground + {NAIVE_CYLINDERS} cylinders; median of {args.repeats} calls per row, "
+          "the rows taking turns call by call")
+    print(markdown_table(["resolution", "row", "ms per call", "speed-up vs naive frame"], rows))
     return 0

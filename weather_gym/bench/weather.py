@@ -33,8 +33,6 @@ The first command line above, parsed (nothing runs):
 from __future__ import annotations
 
 import os
-import statistics
-import time
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +41,7 @@ import numpy as np
 
 from weather_gym._io import atomic_write, check_output
 from weather_gym._output_args import add_overwrite_arg
-from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.bench._timing import interleaved_ms, machine_line, markdown_table
 from weather_gym.errors import InputError
 from weather_gym.weather import EFFECTS, make
 from weather_gym.weather.reference import study_dim, study_droplets
@@ -98,32 +96,6 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
             cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
             cases.append((f"dim night (k={k})", make(name, k=k, mode="night")))
     return cases
-
-
-def interleaved_ms(fns: dict[str, Any], repeats: int, warmup: int, budget_s: float, run: int = 4) -> dict[str, float]:
-    """Median milliseconds per call of each function, the functions taking turns.
-
-    Each round gives every function, in turn, one untimed call (its data back in the caches) and
-    ``run`` timed calls back to back; ``run=0``: one timed call per round and no untimed one
-    (caches as the other functions left them). ``repeats`` timed calls per function at most, fewer
-    when that takes much longer than ``budget_s`` (but at least 15 when ``repeats`` allows).
-    """
-    t0 = time.perf_counter()
-    for _ in range(max(warmup, 1)):
-        for fn in fns.values():
-            fn()
-    per_call = (time.perf_counter() - t0) / max(warmup, 1)  # one call of each
-    calls = min(repeats, max(15, int(budget_s / max(per_call * (1 + 1 / max(run, 1)), 1e-9))))
-    times: dict[str, list[float]] = {k: [] for k in fns}
-    while len(next(iter(times.values()))) < calls:
-        for k, fn in fns.items():
-            if run:
-                fn()
-            for _ in range(max(run, 1)):
-                t = time.perf_counter()
-                fn()
-                times[k].append(time.perf_counter() - t)
-    return {k: 1000.0 * statistics.median(v) for k, v in times.items()}
 
 
 def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batch: int,

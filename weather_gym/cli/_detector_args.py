@@ -39,7 +39,8 @@ def add_detector_args(p, *, what: str | None = None, legacy_model: bool = False)
     p.add_argument("--detector-resize", default=None, choices=("letterbox", "stretch"),
                    help="how a YOLO detector's input is made (default letterbox)")
     p.add_argument("--detector-input", default=None, metavar="WxH",
-                   help="input size of a YOLO export with a dynamic input (e.g. 640x640)")
+                   help="input size of a YOLO export with a dynamic input (e.g. 640x640); the ConeNet input "
+                        "follows the camera (672x376 -> 512x288) unless pinned: WxH (multiples of 32) or native")
     p.add_argument("--detector-threshold", type=float, default=None,
                    help="operating score threshold (default: the detector's)")
 

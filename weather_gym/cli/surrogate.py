@@ -35,6 +35,16 @@ def _names(text: str) -> list[str]:
     return [x.strip() for x in text.split(",") if x.strip()]
 
 
+def _camera_size(text: str | None) -> tuple[int, int] | None:
+    """``--camera WxH`` (None: the scenario's camera)."""
+    if text is None:
+        return None
+    w, sep, h = text.lower().partition("x")
+    if not (sep and w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
+        raise InputError(f"--camera must look like 336x188 (width x height in pixels), got {text!r}")
+    return int(w), int(h)
+
+
 def register(sub) -> None:
     p = sub.add_parser("surrogate", help="perception surrogate: log the full pipeline, fit, validate",
                        description="A statistical model of what the detector reports in each weather "
@@ -76,6 +86,11 @@ def register(sub) -> None:
     va.add_argument("--full-logs", type=Path, default=None, metavar="DIR",
                     help="folder of full-pipeline logs of this track (clear.npz, droplets_3.npz, ...): reused, "
                          "missing ones recorded there (default OUT/full_logs)")
+    va.add_argument("--weathers", default=None, metavar="SPECS",
+                    help="comma-separated weathers to check instead of --conditions x --severities "
+                         "(e.g. clear,droplets@3,rain@2)")
+    va.add_argument("--camera", default=None, metavar="WxH",
+                    help="camera size both pipelines run at (default: the scenario's, 672x376)")
     va.add_argument("--out", type=Path, required=True, metavar="DIR", help="report folder (report.md, PNGs, JSON)")
     add_overwrite_arg(va)
     va.set_defaults(func=_validate)
@@ -121,7 +136,8 @@ def _validate(args) -> int:
     validate(model=args.model, track=args.track, conditions=_names(args.conditions),
              severities=int_list(args.severities, "--severities"), seeds=seed_list(args.seeds, "--seeds"),
              surrogate_seeds=seed_list(args.surrogate_seeds, "--surrogate-seeds"), steps=args.steps,
-             full_logs=args.full_logs,
+             full_logs=args.full_logs, camera=_camera_size(args.camera),
+             weathers=_names(args.weathers) if args.weathers else None,
              out=args.out, overwrite=args.overwrite,
              progress=lambda line: print(line, file=sys.stderr, flush=True))
     return 0

@@ -21,12 +21,17 @@ class name; default: the export's class names mapped like a dataset import), ``r
 (``letterbox``, the default, or ``stretch``), ``input_size`` (for exports with a dynamic input),
 ``score_threshold``, ``nms_iou``. See :mod:`weather_gym.perception.yolo`.
 
+ConeNet option: ``input_size`` -- by default the shipped model's input follows the camera
+(:func:`~weather_gym.perception.onnx_detector.input_size_for`: 672x376 -> 512x288, 336x188 -> 256x160,
+never above 512x288); ``"native"`` pins it at the model's native 512x288 (every frame letterboxed
+into it), ``(W, H)`` / ``"WxH"`` at that size (sides multiples of 32, up to 3136).
+
 Example:
     >>> import numpy as np
     >>> from weather_gym.perception.detector_spec import load_detector, as_detector
     >>> det = load_detector("conenet")                  # the shipped model
-    >>> det.input_size, det.resize
-    ((512, 288), 'letterbox')
+    >>> det.input_size, det.resize, det.follow, det.input_size_for(336, 188)
+    ((512, 288), 'letterbox', True, (256, 160))
     >>> from weather_gym.perception import Detections
     >>> mine = as_detector(lambda frame: Detections())  # your own function frame -> Detections
     >>> len(mine(np.zeros((40, 60, 3), np.uint8))), mine.score_threshold
@@ -46,7 +51,13 @@ import numpy as np
 
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.limits import check_image_size
-from weather_gym.perception.onnx_detector import DEFAULT_MODEL, ConeDetector, Detections, check_frame
+from weather_gym.perception.onnx_detector import (
+    DEFAULT_MODEL,
+    ConeDetector,
+    Detections,
+    check_frame,
+    parse_input_size,
+)
 from weather_gym.perception.protocol import Detector, DetectorBase
 from weather_gym.perception.yolo import YoloDetector
 
@@ -101,22 +112,24 @@ class DetectorSpec:
     path: str | None = None
     classes: str | None = None
     resize: str | None = None
-    input_size: tuple[int, int] | None = None
+    input_size: tuple[int, int] | str | None = None
     score_threshold: float | None = None
 
     def __str__(self) -> str:
         s = self.kind if self.path is None else f"{self.kind}:{self.path}"
         opts = [f"{k}={v}" for k, v in (("classes", self.classes), ("resize", self.resize),
-                                         ("input", None if self.input_size is None else "x".join(map(str, self.input_size))),
+                                         ("input", self.input_size if self.input_size is None or isinstance(self.input_size, str)
+                                          else "x".join(map(str, self.input_size))),
                                          ("threshold", self.score_threshold)) if v is not None]
         return s + (f" ({', '.join(opts)})" if opts else "")
 
     def load(self, threads: int = 1) -> Any:
         if self.kind == "conenet":
-            if self.classes is not None or self.resize not in (None, "letterbox") or self.input_size is not None:
-                raise InputError(f"detector {self}: classes, resize and input size are options of YOLO detectors; "
+            if self.classes is not None or self.resize not in (None, "letterbox"):
+                raise InputError(f"detector {self}: classes and resize are options of YOLO detectors; "
                                  "the ConeNet detector has its own (from its sidecar JSON)")
-            return ConeDetector(self.path, threads=threads, score_threshold=self.score_threshold)
+            return ConeDetector(self.path, threads=threads, score_threshold=self.score_threshold,
+                                input_size=self.input_size)
 
         layout = {"yolov8": "v8", "yolov5": "v5", "yolo": "auto"}[self.kind]
         return YoloDetector(self.path, layout=layout, classes=self.classes, resize=self.resize or "letterbox",
@@ -133,14 +146,13 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
 
         if isinstance(classes, Mapping):
             classes = ",".join(f"{k}={v}" for k, v in classes.items())
-        changes = {k: v for k, v in (("classes", classes), ("resize", resize), ("score_threshold", score_threshold),
-                                     ("input_size", _parse_size(input_size) if isinstance(input_size, str)
-                                      else input_size)) if v is not None}
+        changes = {k: v for k, v in (("classes", classes), ("resize", resize), ("score_threshold", score_threshold))
+                   if v is not None}
+        if input_size is not None:
+            changes["input_size"] = _input_option(spec.kind, input_size)
         return replace(spec, **changes)
     if isinstance(classes, Mapping):
         classes = ",".join(f"{k}={v}" for k, v in classes.items())
-    if isinstance(input_size, str):
-        input_size = _parse_size(input_size)
     if resize not in (None, "letterbox", "stretch"):
         raise InputError(f"detector resize must be 'letterbox' or 'stretch', got {resize!r}")
     if score_threshold is not None and not 0.0 <= float(score_threshold) <= 1.0:
@@ -148,9 +160,8 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
     kind, path = ("conenet", None) if spec is None else _kind_and_path(os.fspath(spec))
     if path is not None and not Path(path).is_file():
         raise MissingInputError(f"detector model {path} not found")
-    if input_size:
-        _check_input_size(tuple(int(v) for v in input_size))
-    return DetectorSpec(kind, path, classes, resize, tuple(input_size) if input_size else None,
+    input_size = _input_option(kind, input_size)
+    return DetectorSpec(kind, path, classes, resize, input_size,
                         None if score_threshold is None else float(score_threshold))
 
 
@@ -175,6 +186,29 @@ def _kind_and_path(text: str) -> tuple[str, str | None]:
         raise InputError(f"detector {text!r}: expected conenet, conenet:PATH, yolov8:PATH, yolov5:PATH, yolo:PATH "
                          "or a path to a ConeNet .onnx file")
     return kind, path
+
+
+def _input_option(kind: str, value: tuple[int, int] | str | None) -> tuple[int, int] | str | None:
+    """The ``input_size`` option checked: (W, H), ``"native"`` (ConeNet only) or None (ConeNet: follow the camera)."""
+    if value is None or (kind == "conenet" and value == "follow"):
+        return None
+    if isinstance(value, str) and value.lower() in ("follow", "native"):
+        if kind != "conenet":
+            raise InputError(f"detector input size {value!r} (--detector-input): 'follow' and 'native' are options "
+                             "of the ConeNet detector; give a YOLO export's input as WxH, e.g. 640x640")
+        return None if value.lower() == "follow" else "native"
+    if isinstance(value, str):
+        size = _parse_size(value)
+    else:
+        try:
+            size = (int(value[0]), int(value[1]))
+        except (TypeError, ValueError, IndexError):
+            raise InputError(f"detector input size {value!r} (--detector-input): expected WxH in pixels, "
+                             "e.g. 640x640") from None
+        _check_input_size(size)
+    if kind == "conenet":
+        size = parse_input_size(size, what=f"detector input size {size[0]}x{size[1]} (--detector-input)")
+    return size
 
 
 def _parse_size(text: str) -> tuple[int, int]:
@@ -214,6 +248,6 @@ def detector_id(spec: Any) -> str:
     with open(s.path or DEFAULT_MODEL, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
-    if s.kind != "conenet" or s.score_threshold is not None:
+    if s.kind != "conenet" or s.score_threshold is not None or s.input_size is not None:
         h.update(repr((s.kind, s.classes, s.resize, s.input_size, s.score_threshold)).encode())
     return h.hexdigest()[:12]

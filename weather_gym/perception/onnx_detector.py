@@ -15,6 +15,7 @@ Example:
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,11 +25,84 @@ import numpy as np
 
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import InputError, MissingInputError
+from weather_gym.limits import MAX_CAMERA_SIDE, check_image_size
 from weather_gym.perception.preprocess import decode, letterbox
 
-__all__ = ["ConeDetector", "Detections", "DEFAULT_MODEL", "load_model_metadata"]
+__all__ = ["ConeDetector", "Detections", "DEFAULT_MODEL", "NATIVE_INPUT", "REFERENCE_CAMERA", "INPUT_MULTIPLE",
+           "input_size_for", "native_scale", "load_model_metadata"]
 
 DEFAULT_MODEL = Path(__file__).resolve().parent / "models" / "cone_detector.onnx"
+
+NATIVE_INPUT: tuple[int, int] = (512, 288)
+"""The shipped model's native input (W, H): the input it was trained at, for its reference camera."""
+REFERENCE_CAMERA: tuple[int, int] = (672, 376)
+"""The camera (W, H) whose frames fill the native input (672x376 letterboxed x512/672 into 512x288)."""
+INPUT_MULTIPLE = 32
+"""Every ConeNet input side is a multiple of this: the backbone halves the image five times (stride 32)."""
+
+
+def parse_input_size(value: Any, *, what: str, multiple: int = INPUT_MULTIPLE,
+                     max_side: int = 3136) -> tuple[int, int]:
+    """A pinned ConeNet input ``(W, H)`` / ``"WxH"`` checked: each side a multiple of ``multiple`` from
+    ``multiple`` to ``max_side``; InputError naming ``what`` otherwise."""
+    if isinstance(value, str):
+        w, sep, h = value.lower().partition("x")
+        size: Any = (w, h) if sep else None
+    else:
+        size = value
+    try:
+        wh = (int(size[0]), int(size[1])) if size is not None and len(size) == 2 else None
+        if wh is not None and any(float(v) != n for v, n in zip(size, wh, strict=True)):
+            wh = None
+    except (TypeError, ValueError):
+        wh = None
+    if wh is None:
+        raise InputError(f"{what}: expected 'follow', 'native', (W, H) or 'WxH' in pixels, e.g. 512x288")
+    if any(v < multiple or v > max_side or v % multiple for v in wh):
+        raise InputError(f"{what}: each side must be a multiple of {multiple} from {multiple} to {max_side} "
+                         "(the network halves the image five times), e.g. 512x288")
+    return wh
+
+
+def native_scale(native: tuple[int, int] = NATIVE_INPUT, reference: tuple[int, int] = REFERENCE_CAMERA) -> float:
+    """The scale a reference-camera frame is letterboxed at into the native input (512/672 = 0.762)."""
+    return min(native[0] / reference[0], native[1] / reference[1])
+
+
+def _up(n: float, multiple: int) -> int:
+    """``n`` rounded up to a multiple of ``multiple`` (at least one)."""
+    return max(1, math.ceil(round(n, 6) / multiple)) * multiple
+
+
+def input_size_for(camera_width: int, camera_height: int, *, native: tuple[int, int] = NATIVE_INPUT,
+                   reference: tuple[int, int] = REFERENCE_CAMERA, multiple: int = INPUT_MULTIPLE) -> tuple[int, int]:
+    """The detector input (W, H) for frames of ``camera_width`` x ``camera_height`` (the shipped model by default).
+
+    The input follows the camera at the model's native scale (``native`` / ``reference``: 512/672),
+    each side rounded *up* to a multiple of ``multiple`` (32) and at most the native side: a camera
+    smaller than the reference gets a proportionally smaller input (never scaled below the native
+    scale); the reference camera gets exactly the native 512x288; a larger camera gets the native input
+    and is letterboxed down into it, as with a pinned input (following a 1280x720 camera up to 992x576
+    measured 4.6x slower and less accurate: docs/model_card.md, "Speed"). The letterbox pads the
+    remainder. Pin a larger input with ``ConeDetector(input_size=(W, H))``.
+
+    Example:
+        >>> from weather_gym.perception.onnx_detector import input_size_for
+        >>> input_size_for(672, 376), input_size_for(336, 188), input_size_for(1280, 720)
+        ((512, 288), (256, 160), (512, 288))
+    """
+    for v, what in ((camera_width, "width"), (camera_height, "height")):
+        if isinstance(v, bool) or not isinstance(v, int | np.integer):
+            raise InputError(f"camera {what} must be a whole number of pixels, got {v!r}")
+    w, h = int(camera_width), int(camera_height)
+    check_image_size((h, w), what=f"detector input for a {w}x{h} camera")
+    return _follow(w, h, native, reference, multiple)
+
+
+def _follow(w: int, h: int, native: tuple[int, int], reference: tuple[int, int], multiple: int) -> tuple[int, int]:
+    """:func:`input_size_for` without the size check (any frame the detector accepts)."""
+    scale = native_scale(native, reference)
+    return min(native[0], _up(w * scale, multiple)), min(native[1], _up(h * scale, multiple))
 
 
 @dataclass
@@ -92,10 +166,19 @@ class ConeDetector:
         threads: onnxruntime intra-op threads (1 = one CPU core).
         max_detections: at most this many detections per frame, best first.
         nms_iou: IoU of the class-agnostic box NMS after the heatmap peak filter (None = off).
+        input_size: the network input. ``None`` / ``"follow"`` (default for a model whose input height
+            and width are symbolic, as the shipped one's): it follows each frame's size,
+            :meth:`input_size_for` (672x376 -> 512x288, 336x188 -> 256x160, never above the native
+            input: 1280x720 -> 512x288), so a small camera is proportionally faster. ``"native"``:
+            always the model's native input (512x288, every frame letterboxed into it). ``(W, H)`` or
+            ``"WxH"``: always that size; each side a multiple of ``INPUT_MULTIPLE`` (32) from 32 to
+            3136 (a 4096-px camera at the native scale).
 
     Call with one frame ``(H, W, 3)`` -> ``Detections``, or a batch ``(N, H, W, 3)`` / list of
     frames -> ``list[Detections]``. Boxes are in the original frame's pixels. It follows the
     :class:`~weather_gym.perception.detector_spec.Detector` protocol (``resize`` is always ``letterbox``).
+    ``input_size`` is the pinned input, or when following the input at the reference camera (the
+    native one); ``follow`` says which.
     """
 
     resize = "letterbox"
@@ -108,6 +191,7 @@ class ConeDetector:
         threads: int = 1,
         max_detections: int = 100,
         nms_iou: float | None = 0.7,
+        input_size: tuple[int, int] | str | None = None,
     ) -> None:
         import onnxruntime as ort
 
@@ -139,16 +223,10 @@ class ConeDetector:
             raise InputError(f"detector model {path} must have one input and one output, "
                              f"got {len(inp)} inputs and {len(outs)} outputs")
         shape = inp[0].shape
-        if len(shape) != 4 or shape[1] != 3 or not all(isinstance(v, int) for v in shape[2:]):
-            raise InputError(f"detector model {path} has input shape {shape}; expected (batch, 3, H, W) with fixed H, W")
+        if len(shape) != 4 or shape[1] != 3:
+            raise InputError(f"detector model {path} has input shape {shape}; expected (batch, 3, H, W)")
         self.input_name = inp[0].name
-        self.input_size: tuple[int, int] = (int(shape[3]), int(shape[2]))  # (W, H)
-        want = self.meta.get("input_size")
-        if want is not None and tuple(want) != self.input_size:
-            raise InputError(f"detector model {path} has input {self.input_size[0]}x{self.input_size[1]} but its "
-                             f"metadata {path.with_suffix('.json')} says {want[0]}x{want[1]}")
-        if self.input_size[0] % self.stride or self.input_size[1] % self.stride:
-            raise InputError(f"detector model {path}: input size {self.input_size} is not a multiple of stride {self.stride}")
+        self._set_input(path, shape, input_size)
         oshape = outs[0].shape
         nc = len(self.classes)
         if len(oshape) != 4 or oshape[1] != nc + 4:
@@ -164,33 +242,90 @@ class ConeDetector:
         self.threads = threads
         self.name = f"conenet:{path.name}"
         self._init_kwargs = {"model": str(path), "score_threshold": score_threshold, "threads": threads,
-                             "max_detections": max_detections, "nms_iou": nms_iou}
+                             "max_detections": max_detections, "nms_iou": nms_iou, "input_size": input_size}
+
+    def _set_input(self, path: Path, shape: list, input_size: tuple[int, int] | str | None) -> None:
+        """The native input, the reference camera and the follow / pinned choice (checked)."""
+        fixed = (int(shape[3]), int(shape[2])) if all(isinstance(v, int) for v in shape[2:]) else None
+        want = self.meta.get("input_size")
+        if fixed is not None and want is not None and tuple(want) != fixed:
+            raise InputError(f"detector model {path} has input {fixed[0]}x{fixed[1]} but its "
+                             f"metadata {path.with_suffix('.json')} says {want[0]}x{want[1]}")
+        if fixed is None and want is None:
+            raise InputError(f"detector model {path} has a symbolic input size {shape} and no input_size in its "
+                             f"metadata {path.with_suffix('.json')}; add it (the native input, e.g. [512, 288])")
+        self.native_size: tuple[int, int] = fixed or (int(want[0]), int(want[1]))
+        self.reference_camera: tuple[int, int] = tuple(int(v) for v in self.meta.get("reference_camera",
+                                                                                      REFERENCE_CAMERA))
+        self.input_multiple = int(self.meta.get("input_multiple", INPUT_MULTIPLE))
+        m, of = (self.stride, "stride") if fixed else (self.input_multiple, "input_multiple")
+        if self.native_size[0] % m or self.native_size[1] % m:
+            raise InputError(f"detector model {path}: input size {self.native_size} is not a multiple of {of} {m}")
+        what = f"detector input_size {input_size!r}"
+        if input_size is None or input_size == "follow":
+            self.follow = fixed is None
+            if input_size == "follow" and fixed is not None:
+                raise InputError(f"{what}: detector model {path} has a fixed input {fixed[0]}x{fixed[1]}; it "
+                                 "cannot follow the camera (export it with a symbolic height and width)")
+            self.input_size: tuple[int, int] = self.native_size
+            return
+        self.follow = False
+        if input_size == "native":
+            self.input_size = self.native_size
+            return
+        size = parse_input_size(input_size, what=what, multiple=self.input_multiple, max_side=self._max_side())
+        if fixed is not None and size != fixed:
+            raise InputError(f"{what}: detector model {path} has a fixed input {fixed[0]}x{fixed[1]}")
+        self.input_size = size
+
+    def _max_side(self) -> int:
+        """The largest pinned input side: the native-scale input of the largest camera (3136 for 4096 px)."""
+        return _up(MAX_CAMERA_SIDE * native_scale(self.native_size, self.reference_camera), self.input_multiple)
+
+    def input_size_for(self, width: int, height: int) -> tuple[int, int]:
+        """The network input (W, H) a ``width`` x ``height`` frame is letterboxed into: the pinned size,
+        or when following the camera, :func:`input_size_for` at this model's native scale."""
+        if not self.follow:
+            return self.input_size
+        return _follow(int(width), int(height), self.native_size, self.reference_camera, self.input_multiple)
 
     def __reduce__(self) -> tuple:
         """Copied and pickled as its constructor arguments (an onnxruntime session cannot be pickled)."""
         return rebuild_detector, (type(self), self._init_kwargs)
 
     def __repr__(self) -> str:
-        return (f"ConeDetector({str(self.path)!r}, input={self.input_size[0]}x{self.input_size[1]}, "
+        inp = "follow" if self.follow else f"{self.input_size[0]}x{self.input_size[1]}"
+        return (f"ConeDetector({str(self.path)!r}, input={inp}, "
                 f"score_threshold={self.score_threshold}, threads={self.threads})")
 
     # ------------------------------------------------------------------ inference
     def _check(self, image: Any, where: str) -> np.ndarray:
         return check_frame(image, where)
 
-    def raw(self, images: list[np.ndarray]) -> tuple[np.ndarray, list]:
-        """Letterbox ``images`` and run the graph; returns (output, letterboxes)."""
-        w, h = self.input_size
-        batch = np.empty((len(images), 3, h, w), np.float32)
-        lbs = []
-        for i, im in enumerate(images):
-            x, lb = letterbox(im, self.input_size)
-            batch[i] = x.transpose(2, 0, 1)
-            lbs.append(lb)
-        if self.batch_fixed is not None and self.batch_fixed != len(images):
-            outs = [self.session.run(None, {self.input_name: batch[i : i + 1]})[0] for i in range(len(images))]
-            return np.concatenate(outs), lbs
-        return self.session.run(None, {self.input_name: batch})[0], lbs
+    def raw(self, images: list[np.ndarray]) -> tuple[np.ndarray | list[np.ndarray], list]:
+        """Letterbox ``images`` and run the graph; returns (output, letterboxes). Frames that get the same
+        input size (:meth:`input_size_for`) run as one batch; the output is ``(N, C+4, h, w)`` when all
+        do, else a list of each frame's ``(C+4, h, w)``."""
+        sizes = [self.input_size_for(im.shape[1], im.shape[0]) for im in images]
+        outs: list[np.ndarray] = [None] * len(images)  # type: ignore[list-item]
+        lbs: list = [None] * len(images)
+        for size in dict.fromkeys(sizes):
+            idx = [i for i, s in enumerate(sizes) if s == size]
+            w, h = size
+            batch = np.empty((len(idx), 3, h, w), np.float32)
+            for j, i in enumerate(idx):
+                x, lbs[i] = letterbox(images[i], size)
+                batch[j] = x.transpose(2, 0, 1)
+            if self.batch_fixed is not None and self.batch_fixed != len(idx):
+                out = np.concatenate([self.session.run(None, {self.input_name: batch[j : j + 1]})[0]
+                                      for j in range(len(idx))])
+            else:
+                out = self.session.run(None, {self.input_name: batch})[0]
+            if len(idx) == len(images):
+                return out, lbs
+            for j, i in enumerate(idx):
+                outs[i] = out[j]
+        return outs, lbs
 
     def detect_batch(self, images: list[np.ndarray] | np.ndarray, score_threshold: float | None = None) -> list[Detections]:
         """Detections for each frame of a batch (list of frames or an (N, H, W, 3) array)."""

@@ -259,18 +259,17 @@ def train(args: argparse.Namespace) -> int:
     n_envs, total = hp["n_envs"], hp["n_timesteps"]
     tracks = s["tracks"]
     sw = s.get("surrogate_weathers") or ["clear"]
-    make = [lambda i=i: make_training_env(s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"],
-                                          s["max_steps"], s["env_kwargs"], s["weather"],
-                                          surrogate_weather=sw[i % len(sw)])
-            for i in range(n_envs)]
+    make = [lambda i=i, lean_info=True: make_training_env(
+        s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"], s["max_steps"], s["env_kwargs"],
+        s["weather"], surrogate_weather=sw[i % len(sw)], lean_info=lean_info) for i in range(n_envs)]
     make[0]().close()  # a bad setting fails here, in this process, with its message
-    vec = VecMonitor((SubprocVecEnv if args.vec == "subproc" else DummyVecEnv)(make))
+    vec = VecMonitor((SubprocVecEnv if args.vec == "subproc" else DummyVecEnv)(make))  # infos: INFO_KEYS only
     normalize = hp["normalize"]
     if normalize is not False:  # rl-zoo3's `normalize`: VecNormalize keywords; its state is saved with each checkpoint
         vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
     eval_env = VecMonitor(DummyVecEnv([lambda: make_training_env(
         s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
-        random_start=False, surrogate_weather=sw[0])]))
+        random_start=False, surrogate_weather=sw[0], lean_info=True)]))
     if normalize is not False:
         eval_env = VecNormalize(eval_env, **{**normalize, "norm_reward": False, "training": False})
     segment = f"steps{_checkpoint_steps(ckpt):09d}"
@@ -297,7 +296,7 @@ def train(args: argparse.Namespace) -> int:
             model = PPO.load(str(ckpt), env=vec, device="cpu")
             vec.seed(args.seed + model.num_timesteps)
         if ckpt is None and "pretrain" in s:
-            teach = [m() for m in make]  # plain envs of the same settings, stepped in this process
+            teach = [m(lean_info=False) for m in make]  # the same envs with the whole info (the expert's)
             try:
                 run["pretrain"] = pretrain(model.policy, teach, _pretrain_config(args), args.seed)
             except KeyboardInterrupt:

@@ -43,7 +43,9 @@ class CameraFrame:
 def depth_from_zbuffer(zbuf: np.ndarray, near: float, far: float) -> np.ndarray:
     """Convert OpenGL's non-linear depth buffer (0..1) to metric z-depth in metres."""
     z = np.asarray(zbuf, dtype=np.float32)
-    depth = np.float32(far * near) / (np.float32(far) - np.float32(far - near) * z)
+    depth = np.multiply(z, np.float32(far - near))  # the same float32 operations, in one buffer
+    np.subtract(np.float32(far), depth, out=depth)
+    np.divide(np.float32(far * near), depth, out=depth)
     return np.minimum(depth, np.float32(far), out=depth)  # float32 rounding at z=1 overshoots far by ~1e-3
 
 
@@ -134,7 +136,10 @@ class CameraSensor:
         seg = np.asarray(seg, dtype=np.int32).reshape(c.height, c.width)
         self._composite_sky(rgb, seg < 0, heading)
         # body id -> cone index; ids outside the table clip onto its last entry, which is -1
-        cone_seg = np.take(cone_lut, seg + 1, mode="clip")
+        # (clipped indices, then plain indexing: several times faster than np.take(mode="clip"))
+        index = seg + 1
+        np.clip(index, 0, cone_lut.shape[0] - 1, out=index)
+        cone_seg = cone_lut[index]
         if hide is not None:
             cone_seg[hide] = -1
         gt = self._ground_truth(cone_seg, eye, heading, cone_xy, cone_classes)
@@ -156,20 +161,25 @@ class CameraSensor:
         last = int(rows_with_sky[-1]) + 1
         cols = np.round((heading + self._col_angles) / (2 * math.pi) * self._pano.shape[1]).astype(np.intp)
         cols %= self._pano.shape[1]
-        sky = self._pano.take(self._sky_rows[:last], axis=0).take(cols, axis=1)
-        np.copyto(rgb[:last], sky, where=background[:last, :, None])
+        # the image's columns first (the panorama is wider than the image), then its rows; a masked
+        # copy in OpenCV (``rgb[:last]`` is a contiguous view, written in place)
+        sky = self._pano.take(cols, axis=1).take(self._sky_rows[:last], axis=0)
+        cv2.copyTo(sky, background[:last].view(np.uint8), rgb[:last])
 
     @staticmethod
     def _ground_truth(cone_seg, eye, heading, cone_xy, cone_classes) -> ConeArrays:
         n = cone_xy.shape[0]
-        labels = cone_seg + 1
+        rows = np.flatnonzero((cone_seg >= 0).any(axis=1))
+        if rows.size == 0:
+            return empty_gt()
+        top = int(rows[0])  # only the band of rows with cone pixels is labelled and searched
+        labels = cone_seg[top:int(rows[-1]) + 1] + 1
         counts = np.bincount(labels.ravel(), minlength=n + 1)[1:]
         visible = np.flatnonzero(counts)
-        if visible.size == 0:
-            return empty_gt()
         slices = ndimage.find_objects(labels, max_label=n)
         boxes = np.array(
-            [[slices[i][1].start, slices[i][0].start, slices[i][1].stop, slices[i][0].stop] for i in visible],
+            [[slices[i][1].start, slices[i][0].start + top, slices[i][1].stop, slices[i][0].stop + top]
+             for i in visible],
             dtype=np.float32,
         )
         d = cone_xy[visible] - eye[:2]

@@ -4,7 +4,9 @@ The full pipeline (render -> weather -> ONNX detector) is the reference; the sur
 statistics on the render-free ground truth (``perception="gt_cones"``'s geometry), thousands of
 steps per second, for training controllers on cone lists.
 
-* :mod:`~weather_gym.surrogate.conditions` - weather spec -> (condition, k) of the model.
+* :mod:`~weather_gym.surrogate.conditions` - weather spec -> (condition, k) of the model; the
+  clear-weather fallback for effects without a fit.
+* :mod:`~weather_gym.surrogate.camera` - any camera size: box sizes at the detector's input.
 * :mod:`~weather_gym.surrogate.log` - full-pipeline runs -> per-cone / false-positive logs (``.npz``).
 * :mod:`~weather_gym.surrogate.model` - fit the model from logs, save / load it (validated).
 * :mod:`~weather_gym.surrogate.sample` - draw one frame's cone list from the model.

@@ -52,7 +52,14 @@ import numpy as np
 
 from weather_gym._io import atomic_file, check_output
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.surrogate.conditions import condition_defaults, condition_of, effect_params
+from weather_gym.surrogate.camera import box_factor, fitted_input_size
+from weather_gym.surrogate.conditions import (
+    condition_defaults,
+    condition_of,
+    effect_params,
+    fallback_note,
+    split_nominal,
+)
 from weather_gym.surrogate.fitting import (
     CONFUSION_PRIOR,
     L2,
@@ -106,6 +113,53 @@ class SurrogateModel:
     def conditions(self) -> list[str]:
         return ["clear", *self.points]
 
+    def box_factor(self, width: int, height: int) -> float:
+        """What a box height in pixels of a ``width`` x ``height`` camera is multiplied by to be the model's
+        box-height feature (the same size at the detector's input; 1.0 at the fitting camera, or when the
+        model names no camera): :func:`weather_gym.surrogate.camera.box_factor`.
+
+        Example:
+            >>> from weather_gym.surrogate.model import load_model
+            >>> load_model().box_factor(672, 376), round(load_model().box_factor(336, 188), 3)
+            (1.0, 1.0)
+        """
+        size = self.camera_size
+        if size is None or size == (int(width), int(height)):
+            return 1.0  # (a model of a detector with another input, at its own camera, too)
+        return box_factor(size, (int(width), int(height)), fit_input=fitted_input_size(self.meta))
+
+    def range_factor(self, camera: Any) -> float:
+        """A cone's range times this is the range at which it has the same box height in the fitting
+        camera's pixels (the fitting camera's ``fy`` over ``camera``'s; 1.0 at the fitting camera, or when
+        the model names no camera): the depth-ranging error is a matter of how many depth pixels the box
+        holds, so the range error is drawn from that range's bin.
+
+        Example:
+            >>> from weather_gym.camera_config import CameraConfig
+            >>> from weather_gym.surrogate.model import load_model
+            >>> load_model().range_factor(CameraConfig()), load_model().range_factor(CameraConfig(width=336, height=188))
+            (1.0, 2.0)
+        """
+        cam = self.meta.get("camera") or {}
+        if "width" not in cam or "hfov_deg" not in cam:
+            return 1.0
+        fy = cam.get("fy_px") or int(cam["width"]) / (2.0 * math.tan(math.radians(float(cam["hfov_deg"])) / 2.0))
+        return 1.0 if fy == camera.fy else float(fy) / float(camera.fy)
+
+    def resolve(self, weather: Any) -> tuple[Point, str | None]:
+        """The parameters for a weather spec and, when some of its effects have no fit here (the nominal
+        presets: rain, fog, ...), the note that they are modelled as clear weather (else None); see
+        :func:`weather_gym.surrogate.conditions.split_nominal`.
+
+        Example:
+            >>> from weather_gym.surrogate.model import load_model
+            >>> point, note = load_model().resolve("rain@2")
+            >>> point is load_model().clear, note.startswith("perception surrogate: no fit of weather effect rain")
+            (True, True)
+        """
+        kept, dropped = split_nominal(weather, self.conditions())
+        return self.point(kept), (fallback_note(dropped) if dropped else None)
+
     def point(self, weather: Any) -> Point:
         """The parameters for a weather spec (interpolated in k between fitted points).
 
@@ -119,7 +173,9 @@ class SurrogateModel:
         if cond == "clear":
             return self.clear
         if cond not in self.points:
-            raise InputError(f"the surrogate model has no condition {cond!r}; it has {', '.join(self.conditions())}")
+            raise InputError(f"the perception surrogate has no model of weather effect {cond!r}; this model has "
+                             f"{', '.join(self.conditions())} (SurrogatePerceptionWrapper models an effect without a fit "
+                             f"as clear weather, with a warning: SurrogateModel.resolve)")
         fitted = self.effects.get(cond, {})
         given = effect_params(weather)
         dflt = condition_defaults(cond)  # a parameter the effect gained after the fit: its default
@@ -182,6 +238,8 @@ def fit(log: Any, sources: Sequence[str] = ()) -> SurrogateModel:
     meta = {"schema": MODEL_SCHEMA, "camera": log.meta.get("camera", {}), "detector": log.meta.get("detector"),
             "tracks": sorted({str(e.get("track")) for e in log.episodes}), "sources": [os.path.basename(s) for s in sources],
             "episodes": len(log.episodes)}
+    if log.meta.get("detector_input"):  # the detector's input at the fitting camera (surrogate.camera)
+        meta["detector_input"] = [int(v) for v in log.meta["detector_input"]]
     return SurrogateModel(clear=fitted[("clear", 0.0)], points=points, effects=effects, meta=meta)
 
 

@@ -67,10 +67,11 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
     if not tracks or not weathers or not seeds:
         raise InputError("surrogate log needs at least one track, one weather and one seed")
     for w in weathers:
-        condition_of(w)  # an unmodelled weather fails before any driving
+        condition_of(w)  # two effects at once fail before any driving
     parts: list[_Recorder] = []
     episodes: list[dict[str, Any]] = []
     camera_cfg = None
+    det_input = None
     for track in tracks:
         for weather in weathers:
             # a rendering mode takes the geometric ground truth too, so both modes log the same truth
@@ -82,6 +83,8 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
             try:
                 base = env.unwrapped
                 camera_cfg = base.config.camera
+                if mode.runs_detector:
+                    det_input = _detector_input(env.get_wrapper_attr("detector"), camera_cfg)
                 for seed in seeds:
                     rec = _Recorder(len(episodes), camera_cfg)
                     driver = make_agent(agent, base.track, camera_cfg)
@@ -104,7 +107,7 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
                 env.close()
     merged = {name: {k: [x for r in parts for x in getattr(r, name)[k]] for k in cols} for name, cols in _TABLES.items()}
     meta = {"schema": LOG_SCHEMA, "camera": _camera_dict(camera_cfg), "detector": _detector_name(detector),
-            "iou": IOU_MATCH}
+            "iou": IOU_MATCH, **({"detector_input": det_input} if det_input else {})}
     return SurrogateLog(_stack(merged["cones"], CONE_COLUMNS), _stack(merged["fps"], FP_COLUMNS),
                         _stack(merged["frames"], FRAME_COLUMNS), episodes, meta)
 
@@ -112,6 +115,13 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
 def loggable_modes() -> list[str]:
     """The perception modes a surrogate log can record (those that report detections)."""
     return modes_where(gives_detections=True)
+
+
+def _detector_input(detector: Any, camera: CameraConfig) -> list[int] | None:
+    """The detector's input (W, H) for this camera's frames (None: it does not say)."""
+    rule = getattr(detector, "input_size_for", None)
+    size = rule(camera.width, camera.height) if callable(rule) else getattr(detector, "input_size", None)
+    return [int(size[0]), int(size[1])] if size is not None else None
 
 
 def _detector_name(detector: Any) -> str:

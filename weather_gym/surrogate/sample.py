@@ -8,9 +8,10 @@ crowded one for a cone whose box overlaps another's), at the true range and bear
 drawn from that range bin's quantiles, with a score drawn from the score quantiles; each cone may
 also carry a part detection (a logged one, placed relative to its box); then a negative-binomial
 number of false positives away from the cones, drawn from the logged ones.
-The probabilities are computed with numpy over the cones of the frame, the draws from them in one
-compiled kernel (numba; the same operations, cone by cone); the random numbers come from the
-caller's generator only.
+The logits of the three probability models are computed in one compiled kernel (numba; np.interp's
+arithmetic, one knot lookup per feature for the three models), their tanh by numpy, the draws in a
+second kernel (the same operations, cone by cone, written straight into the reported float32 arrays);
+the random numbers come from the caller's generator only.
 
 Example:
     >>> import numpy as np
@@ -39,10 +40,7 @@ __all__ = ["FrameSampler"]
 
 _NQ = len(QUANTILES) - 1
 _NB = len(ERR_RANGE_EDGES) - 1
-try:  # np.interp without its Python-level argument checks (the same C function, the same numbers)
-    from numpy._core._multiarray_umath import interp as _interp
-except ImportError:  # pragma: no cover (another numpy layout)
-    _interp = np.interp
+_EDGES = np.array(ERR_RANGE_EDGES, np.float64)  # (a global of the compiled kernels: a constant)
 
 
 class FrameSampler:
@@ -51,10 +49,23 @@ class FrameSampler:
     Args:
         point: the model parameters for the current weather.
         camera: the camera (for the visibility feature); default ``CameraConfig()``.
+        box_factor: box heights in this camera's pixels times this are the model's box-height feature
+            (the same size at the detector's input; ``SurrogateModel.box_factor``; 1.0: the fitting camera).
+        range_factor: a cone's range times this is the range at which it has the same box height in the
+            fitting camera's pixels: its range error is drawn from that range bin (the depth inside a box
+            of so many camera pixels; ``SurrogateModel.range_factor``; 1.0: the fitting camera).
+        fit_camera: (W, H) of the camera the model was fitted at: the logged false positives' boxes are
+            rescaled from it to ``camera`` (None: the same camera).
     """
 
-    def __init__(self, point: Point, camera: Any = None) -> None:
+    def __init__(self, point: Point, camera: Any = None, *, box_factor: float = 1.0,
+                 fit_camera: tuple[int, int] | None = None, range_factor: float = 1.0) -> None:
         self.camera = camera if camera is not None else CameraConfig()
+        self.box_factor = float(box_factor)
+        self.range_factor = float(range_factor)
+        fw, fh = fit_camera if fit_camera is not None else (self.camera.width, self.camera.height)
+        self._fp_scale = np.array([self.camera.width / fw, self.camera.height / fh] * 2)
+        self._rescale_fp = bool(np.any(self._fp_scale != 1.0))
         self.set_point(point)
         self._fy_h = self.camera.fy * _HEIGHTS
         self._last_step = np.full(256, -10, np.int64)
@@ -64,6 +75,8 @@ class FrameSampler:
         """New parameters (new weather) from the next frame; the cones' states are kept."""
         self.point = point
         self._tab = _Tables(point)
+        split = point.stats.get("fp_rows_a")  # two fitted points' false-positive rows: (rows of a, weight of b)
+        self._fp_split = None if split is None else (int(split), float(point.stats["fp_weight_b"]))
 
     def reset(self) -> None:
         self._last_step[:] = -10
@@ -98,29 +111,31 @@ class FrameSampler:
             full = self._fy_h[cls] / np.maximum(rng_ * np.cos(brg), 0.1)
             vis = np.minimum(box_h / full, 1.0)  # = log.visibility, inlined (this runs every step)
             crowd = crowding(boxes) if n > 1 else None
-            z = t.probabilities(Point.features(rng_, brg, box_h, vis, crowd), cls)
+            box_f = box_h if self.box_factor == 1.0 else box_h * self.box_factor  # at the detector's input
+            th = t.tanh_half(Point.features(rng_, brg, box_f, vis, crowd), cls)
             max_id = int(ids.max())
             if max_id >= len(self._last_step):
                 self._grow(max_id)
             u = rng.random((9, n))
-            bins = np.minimum(ERR_RANGE_EDGES.searchsorted(rng_, "right"), _NB) - 1
-            bins %= _NB  # (numpy's indexing of a bin -1)
-            parts = [_draw_cones(z, u, cls, ids, rng_, brg, boxes, box_h, t.zeros[:n] if crowd is None else crowd,
-                                 bins, self._last_step, self._last_det, step, float(p.rho), t.cum, t.q,
-                                 t.loose_box_d, t.part_rows)]
+            det = _draw_cones(th, u, cls, ids, rng_, brg, boxes, box_h, t.zeros[:n] if crowd is None else crowd,
+                              self.range_factor, self._last_step, self._last_det, step,
+                              float(p.rho), t.cum, t.q, t.loose_box_d, t.part_rows)
         else:
-            parts = [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 4)))]
+            det = (np.zeros(0, np.int64), np.zeros(0, np.float32), np.zeros(0, np.float32),
+                   np.zeros(0, np.float32), np.zeros((0, 4), np.float32))
         m = self._fp_count(rng)
-        if m:
-            rows = self._fp_rows(rng, m)
-            parts.append((rows[:, 2].astype(np.int64), rows[:, 0], rows[:, 1], rows[:, 3], rows[:, 4:8]))
-        if len(parts) > 1:
-            rep, ranges, bearings, scores, out_boxes = (np.concatenate(a) for a in zip(*parts, strict=True))
+        if not m:
+            rep, ranges, bearings, scores, out_boxes = det
         else:
-            rep, ranges, bearings, scores, out_boxes = parts[0]
-        return {"boxes": out_boxes.astype(np.float32), "scores": scores.astype(np.float32),
-                "classes": rep.astype(np.int64), "ranges": ranges.astype(np.float32),
-                "bearings": bearings.astype(np.float32)}
+            rows = self._fp_rows(rng, m)
+            if self._rescale_fp:  # logged at the fitting camera: the same place in this camera's frame
+                rows = rows.astype(np.float64)
+                rows[:, 4:8] *= self._fp_scale
+            rows32 = rows.astype(np.float32)
+            rep = np.concatenate([det[0], rows[:, 2].astype(np.int64)])
+            ranges, bearings, scores = (np.concatenate([det[1 + i], rows32[:, c]]) for i, c in enumerate((0, 1, 3)))
+            out_boxes = np.concatenate([det[4], rows32[:, 4:8]])
+        return {"boxes": out_boxes, "scores": scores, "classes": rep, "ranges": ranges, "bearings": bearings}
 
     def _fp_count(self, rng: np.random.Generator) -> int:
         p = self.point
@@ -137,10 +152,9 @@ class FrameSampler:
         rows = p.fp_rows
         if not len(rows):
             return np.zeros((0, 8))
-        split = p.stats.get("fp_rows_a")
-        if split is None:
+        if self._fp_split is None:
             return rows[rng.integers(0, len(rows), m)]
-        na, w = int(split), float(p.stats["fp_weight_b"])
+        na, w = self._fp_split
         nb = len(rows) - na
         from_b = rng.random(m) < w
         in_b = na + rng.integers(0, max(nb, 1), m)
@@ -157,12 +171,18 @@ class _Tables:
 
     def __init__(self, p: Point) -> None:
         hats = [hat_terms(w) for w in (p.coef, p.coef_loose, p.coef_part)]
-        self.w0 = np.array([[w[0]] for w in (p.coef, p.coef_loose, p.coef_part)])
-        # per feature: its knots, and the hat values of each kind (Point.probability_of's terms)
-        self.interp = [(hats[0][0][f][0], [h[0][f][1] for h in hats]) for f in range(5)]
-        self.cls = np.array([h[1] for h in hats])
-        self.crowd0 = np.array([[vals[0]] for vals in self.interp[4][1]])  # no other cone: crowding 0
-        self.terms = np.zeros((5, 3, 256))
+        self.w0 = np.array([w[0] for w in (p.coef, p.coef_loose, p.coef_part)], np.float64)
+        # per feature: its knots (padded to the longest), and the hat values of each kind at them
+        # (Point.probability_of's terms; the three kinds share the knots)
+        knots = [hats[0][0][f][0] for f in range(5)]
+        self.n_knots = np.array([len(k) for k in knots], np.int64)
+        self.knots = np.zeros((5, self.n_knots.max()))
+        self.vals = np.zeros((3, 5, self.n_knots.max()))
+        for f, k in enumerate(knots):
+            self.knots[f, :len(k)] = k
+            for kind, h in enumerate(hats):
+                self.vals[kind, f, :len(k)] = h[0][f][1]
+        self.cls = np.ascontiguousarray([h[1] for h in hats], np.float64)
         self.cum = np.cumsum(np.stack([p.confusion, p.confusion_crowded, p.confusion_loose]), axis=-1)
         score_q = np.broadcast_to(p.score_q, p.range_err_q.shape)
         loose_score_q = np.broadcast_to(p.loose_score_q, p.range_err_q.shape)
@@ -176,31 +196,116 @@ class _Tables:
     def probabilities(self, x: tuple, cls: np.ndarray) -> np.ndarray:
         """(3, n): P(detected), P(loose | not detected), P(part) of each cone, from ``x`` =
         :meth:`Point.features` (crowding None: no other cone): :meth:`Point.probability_of`'s operations,
-        in its order, for the three kinds at once."""
+        in its order, for the three kinds at once (the logits in one compiled kernel: ``np.interp``'s
+        arithmetic, one knot lookup per feature for the three kinds)."""
+        th = self.tanh_half(x, cls)
+        th += 1.0  # model._sigmoid: 0.5 * (1.0 + np.tanh(0.5 * z))
+        th *= 0.5
+        return th
+
+    def tanh_half(self, x: tuple, cls: np.ndarray) -> np.ndarray:
+        """(3, n) ``np.tanh(0.5 * z)`` of the logits ``z`` of :meth:`probabilities` (the probability is
+        ``0.5 * (1.0 + this)``; :func:`_draw_cones` finishes it cone by cone)."""
+        crowd = x[4]
         n = len(cls)
-        if n > self.terms.shape[2]:
-            self.terms = np.zeros((5, 3, 2 * n))
-        terms = self.terms
-        for f, (knots, vals) in enumerate(self.interp):
-            if x[f] is not None:
-                for kind in range(3):
-                    terms[f, kind, :n] = _interp(x[f], knots, vals[kind])
-        z = self.w0 + terms[0, :, :n]
-        z += terms[1, :, :n]
-        z += terms[2, :, :n]
-        z += terms[3, :, :n]
-        z += self.crowd0 if x[4] is None else terms[4, :, :n]
-        z += self.cls[:, cls]
-        return 0.5 * (1.0 + np.tanh(0.5 * z))  # model._sigmoid
+        if crowd is None and n > len(self.zeros):
+            self.zeros = np.zeros(2 * n)
+        f = [np.ascontiguousarray(v, np.float64).reshape(n) for v in x[:4]]
+        c = self.zeros[:n] if crowd is None else np.ascontiguousarray(crowd, np.float64).reshape(n)
+        z = _logits(f[0], f[1], f[2], f[3], c, crowd is not None, np.asarray(cls, np.int64).reshape(n),
+                    self.knots, self.n_knots, self.vals, self.w0, self.cls)
+        return np.tanh(z, out=z)  # numpy's tanh (the compiled kernel's could differ in the last bit)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _interp_at(x, knots, vals, j, nk):  # pragma: no cover (compiled)
+    """np.interp(x, knots[:nk], vals[:nk]) with the knot bin ``j`` of ``x`` (-1 below the first knot, nk
+    above the last): numpy's arithmetic and special cases (arr_interp in compiled_base.c)."""
+    if x != x:
+        return x
+    if j == -1:
+        return vals[0]
+    if j == nk or j == nk - 1 or knots[j] == x:
+        return vals[min(j, nk - 1)]
+    slope = (vals[j + 1] - vals[j]) / (knots[j + 1] - knots[j])
+    r = slope * (x - knots[j]) + vals[j]
+    if r != r:  # nan in one direction: the other
+        r = slope * (x - knots[j + 1]) + vals[j + 1]
+        if r != r and vals[j] == vals[j + 1]:
+            r = vals[j]
+    return r
 
 
 @numba.njit(cache=True, nogil=True)
-def _draw_cones(prob, u, cls, ids, ranges, bearings, boxes, box_h, crowd, bins, last_step, last_det, step, rho,  # noqa: C901 (compiled)
-                cum, q, loose_box_d, part_rows):  # pragma: no cover (compiled; tested through FrameSampler)
-    """The per-cone draws of one frame from the probabilities ``prob`` (3, n: detected, loose, part)
-    and the uniforms ``u`` (9, n): (classes, ranges, bearings, scores, boxes) of the reported cones,
-    then of the part detections; updates the cones' Markov states."""
+def _logits(r, b, h, v, c, has_crowd, cls, knots, n_knots, vals, w0, cls_off):  # pragma: no cover (compiled)
+    """(3, n) half logits of the three kinds: 0.5 * (w0 + the five features' interpolated terms + the
+    class offset), summed in :meth:`Point.probability_of`'s order (crowding 0's term when ``has_crowd``
+    is False)."""
     n = cls.shape[0]
+    z = np.empty((3, n))
+    for i in range(n):
+        for k in range(3):
+            z[k, i] = w0[k]
+        for f in range(5):
+            if f == 0:
+                x = r[i]
+            elif f == 1:
+                x = b[i]
+            elif f == 2:
+                x = h[i]
+            elif f == 3:
+                x = v[i]
+            else:
+                x = c[i]
+            nk = n_knots[f]
+            if f == 4 and not has_crowd:
+                for k in range(3):
+                    z[k, i] = z[k, i] + vals[k, 4, 0]
+                continue
+            if x < knots[f, 0]:
+                j = -1
+            elif x > knots[f, nk - 1]:
+                j = nk
+            else:
+                j = 0
+                while j < nk - 1 and knots[f, j + 1] <= x:
+                    j += 1
+            for k in range(3):
+                z[k, i] = z[k, i] + _interp_at(x, knots[f], vals[k, f], j, nk)
+        for k in range(3):
+            z[k, i] = 0.5 * (z[k, i] + cls_off[k, cls[i]])
+    return z
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _range_bin(r):  # pragma: no cover (compiled)
+    """The error bin of range ``r``: min(ERR_RANGE_EDGES.searchsorted(r, "right"), _NB) - 1, with numpy's
+    indexing of -1 (the last bin) and its sorting of NaN after every edge."""
+    c = 0
+    if r != r:
+        c = _EDGES.shape[0]
+    else:
+        while c < _EDGES.shape[0] and _EDGES[c] <= r:
+            c += 1
+    b = min(c, _NB) - 1
+    return b + _NB if b < 0 else b
+
+
+@numba.njit(cache=True, nogil=True)
+def _draw_cones(th, u, cls, ids, ranges, bearings, boxes, box_h, crowd, range_factor, last_step, last_det, step, rho,  # noqa: C901 (compiled)
+                cum, q, loose_box_d, part_rows):  # pragma: no cover (compiled; tested through FrameSampler)
+    """The per-cone draws of one frame from the probabilities ``0.5 * (1.0 + th)`` (3, n: detected,
+    loose, part; :meth:`_Tables.tanh_half`), the range bins of ``ranges`` (range errors: of ``ranges *
+    range_factor``, scaled back by ``1 / range_factor``) and the uniforms ``u`` (9, n): (classes, ranges, bearings, scores, boxes; float32 but the classes) of
+    the reported cones, then of the part detections; updates the cones' Markov states."""
+    n = cls.shape[0]
+    prob = 0.5 * (1.0 + th)  # model._sigmoid's last operations
+    err_scale = 1.0 / range_factor
+    bins = np.empty(n, np.int64)
+    rbins = np.empty(n, np.int64)
+    for i in range(n):
+        bins[i] = _range_bin(ranges[i])
+        rbins[i] = bins[i] if range_factor == 1.0 else _range_bin(ranges[i] * range_factor)
     det = np.empty(n, np.bool_)
     loose = np.empty(n, np.bool_)
     k = 0
@@ -239,9 +344,9 @@ def _draw_cones(prob, u, cls, ids, ranges, bearings, boxes, box_h, crowd, bins, 
             pos = u[2 + t, i] * _NQ
             j = min(int(pos), _NQ - 1)
             f = pos - j
-            at = t * block + base * (_NQ + 1) + j
+            at = t * block + (base if t else (_NB if loose[i] else 0) + rbins[i]) * (_NQ + 1) + j
             out[o, t] = q[at] * (1.0 - f) + q[at + 1] * f
-        out[o, 0] += ranges[i]
+        out[o, 0] = out[o, 0] * err_scale + ranges[i]
         out[o, 1] += bearings[i]
         if loose[i]:  # a box a little off
             d = loose_box_d[int(u[6, i] * loose_box_d.shape[0])]
@@ -261,4 +366,14 @@ def _draw_cones(prob, u, cls, ids, ranges, bearings, boxes, box_h, crowd, bins, 
                 for j in range(4):
                     out[o, 3 + j] = boxes[i, j] + pr[j] * box_h[i]
                 o += 1
-    return classes, out[:, 0], out[:, 1], out[:, 2], out[:, 3:]
+    boxes32 = np.empty((m, 4), np.float32)  # the reported dtypes (the same rounding as numpy's astype)
+    ranges32 = np.empty(m, np.float32)
+    bearings32 = np.empty(m, np.float32)
+    scores32 = np.empty(m, np.float32)
+    for o in range(m):
+        ranges32[o] = out[o, 0]
+        bearings32[o] = out[o, 1]
+        scores32[o] = out[o, 2]
+        for j in range(4):
+            boxes32[o, j] = out[o, 3 + j]
+    return classes, ranges32, bearings32, scores32, boxes32

@@ -28,6 +28,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -40,14 +41,16 @@ from scipy.stats import t
 from weather_gym._figures import save_figure
 from weather_gym._io import atomic_write, check_output
 from weather_gym.errors import InputError
-from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
+from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX, SmallRule
 from weather_gym.perception.scoring import DEFAULT_RANGE_BINS
+from weather_gym.surrogate.camera import detector_input_size
+from weather_gym.surrogate.conditions import SurrogateFallbackWarning
 from weather_gym.surrogate.log import SurrogateLog, load_log, save_log
 from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 from weather_gym.surrogate.record import record
 from weather_gym.weather.presets import canonical_condition
 
-__all__ = ["cone_stats", "miss_runs", "validate", "STAT_NAMES", "LAP_METRICS"]
+__all__ = ["cone_stats", "miss_runs", "min_box_height", "validate", "STAT_NAMES", "LAP_METRICS"]
 
 BLOCK = 50
 BOOT = 300
@@ -79,10 +82,22 @@ def miss_runs(episode: np.ndarray, cone_id: np.ndarray, frame: np.ndarray, detec
     return np.bincount(run_id[miss], minlength=int(starts.sum())).astype(np.int64)
 
 
+def min_box_height(log: SurrogateLog) -> float:
+    """The scored box height (camera pixels) of the log's camera: the too-small rule at the detector's input
+    (``SmallRule``; 8 px at 672x376, where the detector's input is 512x288)."""
+    cam = log.meta.get("camera") or {}
+    if "width" not in cam or "height" not in cam:
+        return MIN_BOX_HEIGHT_PX
+    size = (int(cam["width"]), int(cam["height"]))
+    given = log.meta.get("detector_input")
+    inp = (int(given[0]), int(given[1])) if given else detector_input_size(*size)
+    return SmallRule(size, inp).min_height_px
+
+
 def _pieces(log: SurrogateLog) -> dict[str, np.ndarray]:
     """Per-row inputs of the statistics, cones of at least the scored box height."""
     c = log.cones
-    keep = c["box_h"] >= MIN_BOX_HEIGHT_PX
+    keep = c["box_h"] >= min_box_height(log)
     return {k: (v[keep] if k != "box" else v[keep]) for k, v in c.items()}
 
 
@@ -90,7 +105,7 @@ def cone_stats(log: SurrogateLog, cones: dict[str, np.ndarray] | None = None,
                frames: dict[str, np.ndarray] | None = None) -> dict[str, float]:
     """The cone-list statistics (:data:`STAT_NAMES`) of a log (or of given rows of it).
 
-    Cones shorter than the scored box height (``MIN_BOX_HEIGHT_PX``) are left out, as the scoring does.
+    Cones shorter than the scored box height (:func:`min_box_height`) are left out, as the scoring does.
     """
     c = cones if cones is not None else _pieces(log)
     fr = frames if frames is not None else log.frames
@@ -199,11 +214,15 @@ def validate(*, model: str | os.PathLike | None = None, track: str = "hairpin",
              conditions: Sequence[str] = ("droplets", "low_light"), severities: Sequence[int] = (0, 1, 2, 3, 4),
              seeds: Sequence[int] = (0, 1, 2), surrogate_seeds: Sequence[int] = tuple(range(10)), steps: int = 900,
              full_logs: str | os.PathLike | None = None, out: str | os.PathLike, overwrite: bool = False,
-             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+             progress: Callable[[str], None] | None = None, camera: tuple[int, int] | None = None,
+             weathers: Sequence[str] | None = None) -> dict[str, Any]:
     """Run the validation and write ``OUT/report.md``, ``OUT/validation.json`` and two PNGs; returns the numbers.
 
     ``full_logs``: a folder of full-pipeline logs of this track (``clear.npz``, ``droplets_3.npz``...):
     the ones there are reused, the missing ones recorded and saved there (default ``OUT/full_logs``).
+    ``camera``: (W, H) of the camera both run at (None: the scenario's, 672x376); a reused log must be of
+    that camera. ``weathers``: the weathers to check (e.g. ``["clear", "droplets@3", "rain@2"]``), instead of
+    every ``conditions`` x ``severities``; an effect the model has no fit of runs on its fallback (clear).
     """
 
     for s in severities:
@@ -221,25 +240,41 @@ def validate(*, model: str | os.PathLike | None = None, track: str = "hairpin",
     logs_dir = Path(full_logs) if full_logs is not None else out / "full_logs"
     say = progress or (lambda line: None)
     rng = np.random.default_rng(0)
+    env_kwargs = {} if camera is None else {"camera": {"width": int(camera[0]), "height": int(camera[1])}}
     results: dict[str, Any] = {"track": track, "model": os.path.basename(model_path), "seeds": list(seeds),
                                "surrogate_seeds": list(surrogate_seeds), "steps": steps, "rows": []}
-    for weather in _weathers(conditions, severities):
+    for weather in (list(weathers) if weathers else _weathers(conditions, severities)):
         f = logs_dir / f"{weather.replace('@', '_')}.npz"
         if f.is_file():
             full = load_log(f)
             if full.episodes and full.episodes[0].get("track") != track:
                 raise InputError(f"{f} is a log of track {full.episodes[0].get('track')!r}, not {track!r}")
+            cam = full.meta.get("camera") or {}
+            if camera is not None and (cam.get("width"), cam.get("height")) != tuple(camera):
+                raise InputError(f"{f} is a log of a {cam.get('width')}x{cam.get('height')} camera, not "
+                                 f"{camera[0]}x{camera[1]}")
         else:
             say(f"full pipeline: {weather} on {track}, seeds {list(seeds)}")
-            full = record(tracks=[track], weathers=[weather], seeds=seeds, steps=steps, agent="mapper_pure_pursuit")
+            full = record(tracks=[track], weathers=[weather], seeds=seeds, steps=steps, agent="mapper_pure_pursuit",
+                          env_kwargs=env_kwargs)
             save_log(full, f)
         say(f"surrogate: {weather} on {track}, seeds {list(surrogate_seeds)}")
-        sur = record(tracks=[track], weathers=[weather], seeds=surrogate_seeds, steps=steps,
-                     agent="mapper_pure_pursuit", perception="surrogate", perception_kwargs={"model": str(model_path)})
+        with warnings.catch_warnings(record=True) as caught:  # the fallback for an effect without a fit
+            warnings.simplefilter("always", SurrogateFallbackWarning)
+            sur = record(tracks=[track], weathers=[weather], seeds=surrogate_seeds, steps=steps,
+                         agent="mapper_pure_pursuit", perception="surrogate",
+                         perception_kwargs={"model": str(model_path)}, env_kwargs=env_kwargs)
+        fallback = next((str(w.message) for w in caught if issubclass(w.category, SurrogateFallbackWarning)), None)
+        cam = full.meta.get("camera") or {}
+        results.setdefault("camera", f"{cam.get('width')}x{cam.get('height')}")
+        results.setdefault("min_box_height_px", min_box_height(full))
+        if full.meta.get("detector_input"):
+            results.setdefault("detector_input", "x".join(str(v) for v in full.meta["detector_input"]))
         per_seed = _per_episode(full)
         boot = _bootstrap(full, rng)
         full_pooled, sur_pooled = cone_stats(full), cone_stats(sur)
-        row: dict[str, Any] = {"weather": weather, "stats": {}, "laps": {}}
+        row: dict[str, Any] = {"weather": weather, "stats": {}, "laps": {},
+                               **({"fallback": fallback} if fallback else {})}
         for k in STAT_NAMES:
             lo_s, hi_s = _seed_interval([p[k] for p in per_seed])
             lo_b, hi_b = boot[k]
@@ -265,10 +300,13 @@ def validate(*, model: str | os.PathLike | None = None, track: str = "hairpin",
 
 
 def _markdown(res: dict[str, Any], model: Any) -> str:
+    size = f"; camera {res['camera']}" if res.get("camera") else ""
+    if res.get("detector_input"):
+        size += f" (detector input {res['detector_input']})"
     lines = [f"# Perception surrogate validation: track {res['track']}", "",
-             f"Model `{res['model']}` (fitted on {', '.join(model.meta.get('tracks', []))}); full pipeline seeds "
+             f"Model `{res['model']}` (fitted on {', '.join(model.meta.get('tracks', []))}){size}; full pipeline seeds "
              f"{res['seeds']}, surrogate seeds {res['surrogate_seeds']}; `mapper_pure_pursuit`, one lap, at most "
-             f"{res['steps']} steps. Statistics over cones of at least {MIN_BOX_HEIGHT_PX:g} px (the scored ones); a recall bin with fewer "
+             f"{res['steps']} steps. Statistics over cones of at least {res.get('min_box_height_px', MIN_BOX_HEIGHT_PX):g} px (the scored ones); a recall bin with fewer "
              f"than {MIN_CONES} cones is n/a.",
              "", "A cell reads `surrogate (full-pipeline 95 % interval)`, marked **x** when outside.", "",
              "## Cone-list statistics", ""]
@@ -287,6 +325,9 @@ def _markdown(res: dict[str, Any], model: Any) -> str:
             nd = 3 if k.startswith(("range error", "wrong class")) else 2
             cells.append(f"{_fmt(s['surrogate'], nd)} ({_fmt(s['lo'], nd)}-{_fmt(s['hi'], nd)}){mark}")
         lines.append(f"| {row['weather']} | " + " | ".join(cells) + " |")
+    notes = [f"* {row['weather']}: {row['fallback']}" for row in res["rows"] if row.get("fallback")]
+    if notes:
+        lines += ["", "Fallbacks (the surrogate ran clear weather for these):", "", *notes]
     lines += ["", f"Inside the interval: {n_pass} of {n_all} checks.", "", "## Lap metrics (mapper_pure_pursuit)", "",
               "Full pipeline mean +- sd across seeds vs surrogate mean +- sd; **x**: the means differ by more than "
               "2 pooled sd.", "", "| weather | " + " | ".join(LAP_METRICS) + " |", "|---|" + "---|" * len(LAP_METRICS)]

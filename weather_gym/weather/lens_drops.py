@@ -17,8 +17,10 @@ blurred by ``defocus`` (image heights): out of focus.
 
 **Speed**: the per-drop sampling map, weights and highlight depend only on the drop's integer
 radius, its contact angle (10 degree bins) and the frame geometry; they are computed once
-(:func:`_drop_maps`, cached). Each drop then costs one ``cv2.remap`` of half its box's size
-(the content is blurred anyway), a shade and highlight, a scale-up and one blend into its box.
+(:func:`_drop_maps`, cached). The contents of all drops of a frame, each at half its box's size
+(the content is blurred anyway), are made together: one ``cv2.remap``, one shade multiply and one
+highlight add over all their pixels (OpenCV computes every pixel on its own, so this is byte for
+byte each drop's own calls). Each drop then costs a scale-up and one blend into its box.
 
 Example:
     >>> import numpy as np
@@ -49,6 +51,8 @@ CONTACT_SPREAD_DEG, CONTACT_RANGE_DEG = 20.0, (15.0, 90.0)
 #: Downscale factor of the copy the drop contents are sampled from.
 SAMPLE_SCALE = 4
 _THETA_BIN = 10.0
+#: Width (pixels) of the rows the drops' contents are computed in together (OpenCV's remap takes < 32767).
+_ATLAS_W = 4096
 
 
 def drop_layout(h: int, w: int, rng: np.random.Generator, count: int, radius: float,
@@ -84,11 +88,12 @@ def _drop_maps(r: int, theta_deg: float, fx: float, look_up: float, edge: float,
                highlight: float, sx: float, sy: float) -> tuple[np.ndarray, ...]:
     """Cached per-drop arrays on the drop's padded box (side ``2 (r + pad) + 1``).
 
-    Returns ``pad``; at half the box's size (``r + pad + 1``), the sampling offsets in the small
-    copy's pixels relative to the drop centre mapped there (OpenCV's fixed-point pair: integer
-    offsets and interpolation indices), the drop's shading (transmission and rim, RGB uint8 with
-    255 = 1) times the drop's opacity and its highlight (RGB uint8); at full size the frame's
-    remaining weight ``1 - alpha`` (RGB uint8, 255 = 1); all read-only.
+    Returns ``pad``; at half the box's size (``n = r + pad + 1``, flattened to ``n * n`` pixels
+    row by row), the sampling offsets in the small copy's pixels relative to the drop centre
+    mapped there (OpenCV's fixed-point pair: integer offsets and interpolation indices), the
+    drop's shading (transmission and rim, RGB uint8 with 255 = 1) times the drop's opacity and
+    its highlight (RGB uint8); at full size the frame's remaining weight ``1 - alpha`` (RGB uint8,
+    255 = 1); all read-only.
     """
     pad = int(math.ceil(2.0 * edge)) + 1
     c = np.arange(-(r + pad), r + pad + 1, dtype=np.float64)
@@ -118,8 +123,9 @@ def _drop_maps(r: int, theta_deg: float, fx: float, look_up: float, edge: float,
     def rgb(a: np.ndarray) -> np.ndarray:
         return cv2.cvtColor(np.rint(np.clip(a, 0, 255)).astype(np.uint8), cv2.COLOR_GRAY2RGB)
 
-    out = list(cv2.convertMaps(half(offx / sx), half(offy / sy), cv2.CV_16SC2))
-    out += [rgb(half(alpha * shade * 255.0)), rgb(half(add)), rgb((1.0 - alpha) * 255.0)]
+    mxy, mf = cv2.convertMaps(half(offx / sx), half(offy / sy), cv2.CV_16SC2)
+    out = [mxy.reshape(-1, 2), mf.reshape(-1), rgb(half(alpha * shade * 255.0)).reshape(-1, 3),
+           rgb(half(add)).reshape(-1, 3), rgb((1.0 - alpha) * 255.0)]
     for a in out:
         a.setflags(write=False)
     return (pad, *out)
@@ -162,21 +168,43 @@ def render_lens_drops(img: np.ndarray, x, y, r, theta, out: np.ndarray | None = 
     ix = np.rint(np.asarray(x, np.float64)).astype(np.int64)
     iy = np.rint(np.asarray(y, np.float64)).astype(np.int64)
     shx, shy = np.rint((ix + 0.5) / sx - 0.5), np.rint((iy + 0.5) / sy - 0.5)  # centres in the copy
-    for rad, t, cx, cy, dx, dy in zip(ri.tolist(), tb.tolist(), ix.tolist(), iy.tolist(), shx.tolist(),
-                                      shy.tolist(), strict=True):
-        pad, mx, my, gain, add, keep = _drop_maps(rad, t, fx, look_up, edge, rim, highlight, sx_k, sy_k)
-        half = rad + pad
-        x0, y0 = max(cx - half, 0), max(cy - half, 0)
-        x1, y1 = min(cx + half + 1, w), min(cy + half + 1, h)
-        if x0 >= x1 or y0 >= y1:
-            continue
-        sl = (slice(y0 - cy + half, y1 - cy + half), slice(x0 - cx + half, x1 - cx + half))
-        src = cv2.remap(small, cv2.add(mx, (dx, dy, 0.0, 0.0)), my, cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE)
-        cv2.multiply(src, gain, dst=src, scale=1.0 / 255.0)
-        cv2.add(src, add, dst=src)
-        src = cv2.resize(src, (2 * half + 1, 2 * half + 1), interpolation=cv2.INTER_LINEAR)
-        roi = out[y0:y1, x0:x1]
-        cv2.multiply(roi, keep[sl], dst=roi, scale=1.0 / 255.0)
-        cv2.add(roi, src[sl], dst=roi)
+    maps = [_drop_maps(rad, t, fx, look_up, edge, rim, highlight, sx_k, sy_k) for rad, t in zip(ri.tolist(), tb.tolist())]
+    pad = maps[0][0]  # the same for every drop (it depends on the edge blur only)
+    half = ri + pad
+    x0, y0 = np.maximum(ix - half, 0), np.maximum(iy - half, 0)
+    x1, y1 = np.minimum(ix + half + 1, w), np.minimum(iy + half + 1, h)
+    on = (x0 < x1) & (y0 < y1)
+    if not on.any():
+        return out
+    maps = [m for m, o in zip(maps, on.tolist(), strict=True) if o]
+    half, ix, iy, shx, shy, x0, y0, x1, y1 = (a[on] for a in (half, ix, iy, shx, shy, x0, y0, x1, y1))
+    # every drop's content at half size in one remap, multiply and add (each pixel is computed on
+    # its own, so this is each drop's own remap), laid out as rows of _ATLAS_W pixels
+    count = (half + 1) ** 2
+    total = int(count.sum())
+    rows = -(-total // _ATLAS_W)
+    xy, frac, gain, add = (np.zeros((rows * _ATLAS_W, *shape), dt) for shape, dt in (
+        ((2,), np.int16), ((), np.uint16), ((3,), np.uint8), ((3,), np.uint8)))
+    for j, dst in ((1, xy), (2, frac), (3, gain), (4, add)):
+        np.concatenate([m[j] for m in maps], out=dst[:total])
+    # the drops' centres in the copy fit int16 (its sides are at most MAX_IMAGE_SIDE / SAMPLE_SCALE)
+    shift = np.repeat(np.stack([shx, shy], axis=1).astype(np.int16), count, axis=0)
+    cv2.add(xy[:total], shift, dst=xy[:total])  # each drop's map moved to its centre (saturating, as per drop)
+    src = cv2.remap(small, xy.reshape(rows, _ATLAS_W, 2), frac.reshape(rows, _ATLAS_W), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    cv2.multiply(src, gain.reshape(rows, _ATLAS_W, 3), dst=src, scale=1.0 / 255.0)
+    cv2.add(src, add.reshape(rows, _ATLAS_W, 3), dst=src)
+    content = src.reshape(-1, 3)
+    # then per drop, in order: scale its content up to its box and blend it in
+    start = 0
+    for m, hf, cx, cy, a0, b0, a1, b1 in zip(maps, half.tolist(), ix.tolist(), iy.tolist(), x0.tolist(), y0.tolist(),
+                                             x1.tolist(), y1.tolist(), strict=True):
+        n = hf + 1
+        side = 2 * hf + 1
+        big = cv2.resize(content[start:start + n * n].reshape(n, n, 3), (side, side), interpolation=cv2.INTER_LINEAR)
+        start += n * n
+        by, bx = b0 - cy + hf, a0 - cx + hf
+        roi = out[b0:b1, a0:a1]
+        cv2.multiply(roi, m[5][by:by + b1 - b0, bx:bx + a1 - a0], dst=roi, scale=1.0 / 255.0)
+        cv2.add(roi, big[by:by + b1 - b0, bx:bx + a1 - a0], dst=roi)
     return out

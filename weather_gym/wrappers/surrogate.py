@@ -22,9 +22,16 @@ changed twice in 55 frames; docs/surrogate.md).
 
 The weather changes like the ``WeatherWrapper``'s: ``reset(options={"weather": spec})``,
 ``set_weather(spec)`` (through other wrappers: ``env.get_wrapper_attr("set_weather")(...)``; vector
-envs: ``envs.call("set_weather", ...)``) or assigning ``weather``. A weather the model does not
-cover (another effect, k beyond the fitted range, other effect parameters) is an ``InputError``
-when it is set.
+envs: ``envs.call("set_weather", ...)``) or assigning ``weather``. An effect the model has no fit of
+(the nominal presets: rain, fog, blur, ...) is modelled as clear weather, with a
+``SurrogateFallbackWarning``, ``info["surrogate_fallback"]`` on every step and the ``fallback``
+attribute saying so (docs/surrogate.md, "Nominal effects"). A weather the model cannot cover (k
+beyond the fitted range, other parameters of a fitted effect, two fitted effects at once) is an
+``InputError`` when it is set.
+
+Any camera size: the model's box-height feature is the cone's box height at the detector's input
+(``box_factor``: :func:`weather_gym.surrogate.camera.box_factor`), so a model fitted at 672x376
+applies at 336x188 or 1280x720 (docs/surrogate.md, "Camera size").
 
 Randomness: a child of the env's generator seeded at ``reset(seed=...)``: same seed, same bytes.
 
@@ -41,7 +48,9 @@ from __future__ import annotations
 
 import copy
 import os
+import re
 import time
+import warnings
 from typing import Any
 
 import gymnasium as gym
@@ -52,6 +61,7 @@ from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
+from weather_gym.surrogate.conditions import SurrogateFallbackWarning
 from weather_gym.surrogate.model import SurrogateModel, load_model
 from weather_gym.surrogate.sample import FrameSampler
 from weather_gym.weather import current_spec, parse_weather
@@ -80,6 +90,11 @@ def frames_change_by_themselves(effect: Any) -> bool:
     probe.reset(0)
     first = probe(_PROBE)
     return any(not np.array_equal(first, probe(_PROBE)) for _ in range(29))
+
+
+def _warn_fallback(note: str | None) -> None:
+    if note is not None:  # once per effect and place (Python's default warning filter)
+        warnings.warn(re.sub(r" \(k [^)]*\)", "", note), SurrogateFallbackWarning, stacklevel=3)
 
 
 class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -115,17 +130,18 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.model = model
         camera = getattr(getattr(env.unwrapped, "config", None), "camera", None)
         self.camera = camera if isinstance(camera, CameraConfig) else CameraConfig()
-        size = model.camera_size
-        if size is not None and size != (self.camera.width, self.camera.height):
-            raise InputError(f"the surrogate model was fitted for a {size[0]}x{size[1]} camera, the env's is "
-                             f"{self.camera.width}x{self.camera.height}; refit it for this camera (docs/surrogate.md)")
+        self.box_factor = model.box_factor(self.camera.width, self.camera.height)  # any camera size
         self.max_cones = max_cones
         self.latency_in_info = bool(latency_in_info)
         self.observation_space = spaces.Dict({**cone_list_space(max_cones).spaces, "state": inner["state"]})
         self._report_weather = weather is not None
         self._effect = parse_weather(weather)
         self._spec = current_spec(self._effect)
-        self._sampler = FrameSampler(model.point(self._spec), self.camera)
+        point, self._fallback = model.resolve(self._spec)
+        self.range_factor = model.range_factor(self.camera)
+        self._sampler = FrameSampler(point, self.camera, box_factor=self.box_factor, fit_camera=model.camera_size,
+                                     range_factor=self.range_factor)
+        _warn_fallback(self._fallback)
         self._weather_changes = frames_change_by_themselves(self._effect)  # probed once per weather
         self._view: tuple[bytes, bytes] | None = None
         self._rng: np.random.Generator | None = None
@@ -147,13 +163,22 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         """Model ``spec`` from the next frame on; returns it as a list of effect tables."""
         effect = copy.deepcopy(parse_weather(spec))
         tables = current_spec(effect)
-        self._sampler.set_point(self.model.point(tables))  # an unmodelled weather fails here
+        point, fallback = self.model.resolve(tables)  # a weather the model cannot cover fails here
+        self._sampler.set_point(point)
+        self._fallback = fallback
+        _warn_fallback(fallback)
         self._weather_changes = frames_change_by_themselves(effect)
         self._view = None
         self._effect = effect
         self._spec = tables
         self._report_weather = True
         return [dict(t) for t in tables]
+
+    @property
+    def fallback(self) -> str | None:
+        """None, or the note that the current weather has effects without a fit, modelled as clear weather
+        (also ``info["surrogate_fallback"]`` on every step while it holds)."""
+        return self._fallback
 
     @property
     def latency_ms(self) -> float:
@@ -184,6 +209,8 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if self._report_weather:
             out_info["weather"] = [dict(t) for t in self._spec]  # nothing is drawn: the spec only changes when set
         out_info["detections"] = self._last
+        if self._fallback is not None:
+            out_info["surrogate_fallback"] = self._fallback
         self._latency = 1000.0 * (time.perf_counter() - t0)
         if self.latency_in_info:
             out_info["detector_latency_ms"] = self._latency

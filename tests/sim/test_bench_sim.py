@@ -1,0 +1,20 @@
+"""``weather-gym bench sim --naive``: the default camera env step beside a naive TinyRenderer frame
+(runs and prints both rows; no timing is asserted)."""
+
+from __future__ import annotations
+
+from weather_gym.bench import sim as bench_sim
+from weather_gym.cli import main
+
+
+def test_bench_sim_naive_prints_the_baseline_and_the_default_env(monkeypatch, capsys):
+    monkeypatch.setattr(bench_sim, "NAIVE_SIZES", ((96, 54),))
+    assert main(["bench", "sim", "--naive", "--repeats", "2"]) == 0
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines() if line.startswith("| 96x54")]
+    assert any("naive TinyRenderer frame (baseline)" in r for r in rows)
+    assert any("default camera env step, renderer" in r for r in rows)
+    if "renderer egl" in out:  # where EGL loads, the TinyRenderer fallback gets its own row
+        assert any("default camera env step, renderer tiny (no EGL)" in r for r in rows)
+    assert "speed-up vs naive frame" in out
+
