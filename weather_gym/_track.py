@@ -259,10 +259,8 @@ class Track:
         s = float(s_a[idx]) + tk * float(seg_len[idx])
         if self.closed:
             s = s % self.length
-        h = self._unwrapped_heading  # _heading_at's arithmetic on float64 scalars (no 1-element arrays)
-        h0 = h[idx]
-        out = h0 + min(max(tk, 0.0), 1.0) * (h[min(idx + 1, len(h) - 1)] - h0)
-        return Projection(s, lateral, float(np.arctan2(np.sin(out), np.cos(out))), idx)
+        heading = self._heading_at(np.array([idx]), np.array([tk]))
+        return Projection(s, lateral, float(heading[0]), idx)
 
     def half_widths_at(self, s: float | np.ndarray) -> tuple:
         """Left and right half widths interpolated at arc length ``s``."""

@@ -72,8 +72,8 @@ class LeanInfo(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Pass on only the ``info`` entries named in ``keys`` (default :data:`INFO_KEYS`); the rest
     (``gt``, ``detections``, ``pose``, ``camera``, ``weather``, ...) is dropped.
 
-    SB3's ``DummyVecEnv`` deep-copies every env's info on every step: on a render-free env the copy
-    of the whole info took about a third of the step. The observation and reward are untouched.
+    SB3's ``DummyVecEnv`` deep-copies every env's info on every step: with the whole info, 8 surrogate
+    envs stepped 1.17-1.27x slower (docs/rl.md, "Speed"). The observation and reward are untouched.
 
     Example:
         >>> env = LeanInfo(make_training_env("WeatherGym/ConeTrack-v0", "small_track", "gt_cones", {}, 50, {}))

@@ -24,19 +24,15 @@ from __future__ import annotations
 from typing import Any
 
 from weather_gym.perception import onnx_detector
-from weather_gym.perception.labels import DEFAULT_INPUT_SIZE, input_scale
+from weather_gym.perception.labels import input_scale
 
 __all__ = ["box_factor", "detector_input_size", "fitted_input_size"]
 
 
 def detector_input_size(width: int, height: int) -> tuple[int, int]:
-    """(W, H) of the shipped detector's input for a ``width`` x ``height`` camera."""
-    rule = getattr(onnx_detector, "input_size_for", None)  # the input follows the camera
-    if callable(rule):
-        w, h = rule(int(width), int(height))
-        return int(w), int(h)
-    size = onnx_detector.load_model_metadata(onnx_detector.DEFAULT_MODEL).get("input_size") or DEFAULT_INPUT_SIZE
-    return int(size[0]), int(size[1])  # a fixed input
+    """(W, H) of the shipped detector's input for a ``width`` x ``height`` camera (its input follows the
+    camera: :func:`weather_gym.perception.onnx_detector.input_size_for`)."""
+    return onnx_detector.input_size_for(int(width), int(height))
 
 
 def fitted_input_size(meta: dict[str, Any]) -> tuple[int, int] | None:

@@ -44,13 +44,14 @@ import json
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from weather_gym._io import atomic_file, check_output
+from weather_gym.camera_config import CameraConfig
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.surrogate.camera import box_factor, fitted_input_size
 from weather_gym.surrogate.conditions import (
@@ -91,6 +92,8 @@ from weather_gym.surrogate.point import (
 __all__ = ["MODEL_SCHEMA", "SHIPPED_MODEL", "SurrogateModel", "Point", "design", "fit_logistic", "fit_point",
            "fit", "save_model", "load_model", "ERR_RANGE_EDGES", "QUANTILES", "CROWDED", "crowding", "hat_terms",
            "crowding_column", "CONFUSION_PRIOR", "L2", "MAX_FP_ROWS", "MIN_BIN_ROWS"]
+
+_CAMERA_FIELDS = frozenset(f.name for f in fields(CameraConfig))
 
 MODEL_SCHEMA = 1
 SHIPPED_MODEL = Path(__file__).with_name("models") / "shipped.npz"
@@ -143,8 +146,8 @@ class SurrogateModel:
         cam = self.meta.get("camera") or {}
         if "width" not in cam or "hfov_deg" not in cam:
             return 1.0
-        fy = cam.get("fy_px") or int(cam["width"]) / (2.0 * math.tan(math.radians(float(cam["hfov_deg"])) / 2.0))
-        return 1.0 if fy == camera.fy else float(fy) / float(camera.fy)
+        fit = CameraConfig(**{k: v for k, v in cam.items() if k in _CAMERA_FIELDS})  # its fy, as the env's
+        return 1.0 if fit.fy == camera.fy else fit.fy / float(camera.fy)
 
     def resolve(self, weather: Any) -> tuple[Point, str | None]:
         """The parameters for a weather spec and, when some of its effects have no fit here (the nominal

@@ -296,8 +296,9 @@ def _draw_cones(th, u, cls, ids, ranges, bearings, boxes, box_h, crowd, range_fa
                 cum, q, loose_box_d, part_rows):  # pragma: no cover (compiled; tested through FrameSampler)
     """The per-cone draws of one frame from the probabilities ``0.5 * (1.0 + th)`` (3, n: detected,
     loose, part; :meth:`_Tables.tanh_half`), the range bins of ``ranges`` (range errors: of ``ranges *
-    range_factor``, scaled back by ``1 / range_factor``) and the uniforms ``u`` (9, n): (classes, ranges, bearings, scores, boxes; float32 but the classes) of
-    the reported cones, then of the part detections; updates the cones' Markov states."""
+    range_factor``, scaled back by ``1 / range_factor``) and the uniforms ``u`` (9, n): (classes,
+    ranges, bearings, scores, boxes; float32 but the classes) of the reported cones, then of the part
+    detections; updates the cones' Markov states."""
     n = cls.shape[0]
     prob = 0.5 * (1.0 + th)  # model._sigmoid's last operations
     err_scale = 1.0 / range_factor
