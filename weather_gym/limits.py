@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from weather_gym.errors import LimitError
+from weather_gym.errors import InputError, LimitError
 
 __all__ = ["MIN_IMAGE_SIDE", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_CAMERA_SIDE", "MAX_SEED", "check_image_size",
-           "check_seed"]
+           "check_seed", "parse_size", "parse_sizes"]
 
 MIN_IMAGE_SIDE = 8
 """Smallest image side (pixels) an effect or the detector accepts."""
@@ -61,3 +61,31 @@ def check_image_size(shape: Sequence[int], *, what: str = "image", min_side: int
     if h * w > MAX_IMAGE_PIXELS:
         raise LimitError(f"{what}: image is {w}x{h} = {h * w / 1e6:.0f} MP; at most {MAX_IMAGE_PIXELS / 1e6:.0f} MP "
                          "are supported")
+
+
+def parse_size(text: str, *, what: str, example: str = "672x376") -> tuple[int, int]:
+    """``"WxH"`` -> ``(W, H)``, whole pixels >= 1 (the bounds are the caller's); InputError naming ``what``.
+
+    Example:
+        >>> parse_size("336x188", what="--camera")
+        (336, 188)
+        >>> parse_size("336by188", what="--camera")
+        Traceback (most recent call last):
+        ...
+        weather_gym.errors.InputError: --camera must be WxH in pixels (e.g. 672x376), got '336by188'
+    """
+    w, sep, h = str(text).lower().partition("x")
+    w, h = w.strip(), h.strip()
+    if not (sep and w.isdigit() and h.isdigit() and int(w) >= 1 and int(h) >= 1):
+        raise InputError(f"{what} must be WxH in pixels (e.g. {example}), got {text!r}")
+    return int(w), int(h)
+
+
+def parse_sizes(text: str, *, what: str, example: str = "336x188,672x376") -> list[tuple[int, int]]:
+    """``"WxH,WxH,..."`` -> ``[(W, H), ...]`` (:func:`parse_size` of each item).
+
+    Example:
+        >>> parse_sizes("336x188, 672x376", what="--sizes")
+        [(336, 188), (672, 376)]
+    """
+    return [parse_size(item, what=f"{what} {text!r}: each item", example=example) for item in str(text).split(",")]

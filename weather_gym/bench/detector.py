@@ -47,6 +47,7 @@ from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table, median_ms
 from weather_gym.errors import InputError
 from weather_gym.limits import MAX_CAMERA_SIDE, check_image_size
+from weather_gym.limits import parse_sizes as size_list
 from weather_gym.perception.onnx_detector import ConeDetector
 from weather_gym.perception.ranging import detections_to_cones
 from weather_gym.pipeline import make_env
@@ -72,15 +73,11 @@ def register(targets) -> None:
 
 def parse_sizes(text: str) -> list[tuple[int, int]]:
     """``"336x188,672x376"`` -> ``[(336, 188), (672, 376)]``; InputError naming ``--sizes`` otherwise."""
-    sizes = []
-    for part in text.split(","):
-        w, sep, h = part.strip().lower().partition("x")
-        if not (sep and w.isdigit() and h.isdigit()):
-            raise InputError(f"--sizes {text!r}: {part.strip()!r} is not WxH in pixels (e.g. 336x188,672x376)")
-        check_image_size((int(h), int(w)), what=f"--sizes {part.strip()}")
-        if max(int(w), int(h)) > MAX_CAMERA_SIDE:
-            raise InputError(f"--sizes {part.strip()}: a camera side is at most {MAX_CAMERA_SIDE} pixels")
-        sizes.append((int(w), int(h)))
+    sizes = size_list(text, what="--sizes")
+    for w, h in sizes:
+        check_image_size((h, w), what=f"--sizes {w}x{h}")
+        if max(w, h) > MAX_CAMERA_SIDE:
+            raise InputError(f"--sizes {w}x{h}: a camera side is at most {MAX_CAMERA_SIDE} pixels")
     return sizes
 
 

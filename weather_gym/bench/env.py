@@ -36,6 +36,7 @@ from weather_gym._io import atomic_write, check_output
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.errors import InputError
+from weather_gym.limits import parse_sizes
 from weather_gym.weather import parse_weather
 
 PIPELINES = ("clean", "weather+detector")
@@ -73,15 +74,10 @@ def _ints(text: str, what: str) -> list[int]:
 
 
 def _resolutions(text: str) -> list[tuple[int, int]]:
-    out = []
-    for item in text.split(","):
-        try:
-            w, h = (int(v) for v in item.lower().split("x"))
-        except ValueError:
-            raise InputError(f"--resolutions: {item!r} must look like 672x376") from None
+    out = parse_sizes(text, what="--resolutions", example="672x376,336x188")
+    for w, h in out:
         if w < 16 or h < 16:
-            raise InputError(f"--resolutions: {item!r} is too small (at least 16x16)")
-        out.append((w, h))
+            raise InputError(f"--resolutions: {w}x{h} is too small (at least 16x16)")
     return out
 
 

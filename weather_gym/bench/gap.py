@@ -39,6 +39,7 @@ from weather_gym.datasets.coco import ANNOTATIONS
 from weather_gym.errors import InputError
 from weather_gym.gap.synthetic import degrade_dataset
 from weather_gym.gap.workflow import GapConfig, run_gap
+from weather_gym.limits import parse_size
 from weather_gym.weather.option import add_weather_arg, weather_from_arg
 
 
@@ -79,10 +80,7 @@ def time_run(clear: Path, adverse: Path, out: Path, compare_width: int | None) -
 
 
 def _run(args) -> int:
-    try:
-        w, h = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        raise InputError(f"--size must be WxH, e.g. 1024x768, got {args.size!r}") from None
+    w, h = parse_size(args.size, what="--size", example="1024x768")
     if args.frames < 8 or args.repeats < 1:
         raise InputError("--frames must be >= 8 and --repeats >= 1")
     if args.out is not None:

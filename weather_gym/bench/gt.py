@@ -37,6 +37,7 @@ from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.camera_config import CameraConfig
 from weather_gym.errors import InputError
+from weather_gym.limits import parse_size
 from weather_gym.pipeline import make_env
 from weather_gym.sim.config import SCENES, SimConfig
 from weather_gym.sim.world import World
@@ -146,10 +147,7 @@ def steps_per_s(perception: str, camera: CameraConfig, block: int, repeats: int)
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        w, h = (int(v) for v in args.camera.lower().split("x"))
-    except ValueError:
-        raise InputError(f"--camera must look like 672x376, got {args.camera!r}") from None
+    w, h = parse_size(args.camera, what="--camera")
     for name in ("steps", "every", "block", "repeats"):
         if getattr(args, name) < 1:
             raise InputError(f"--{name} must be >= 1, got {getattr(args, name)}")

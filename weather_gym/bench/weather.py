@@ -43,6 +43,7 @@ from weather_gym._io import atomic_write, check_output
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.bench._timing import interleaved_ms, machine_line, markdown_table
 from weather_gym.errors import InputError
+from weather_gym.limits import parse_sizes
 from weather_gym.weather import EFFECTS, make
 from weather_gym.weather.reference import study_dim, study_droplets
 from weather_gym.weather.sample import sample_frame
@@ -69,16 +70,6 @@ def register(targets) -> None:
     p.add_argument("--out", type=Path, help="also write the markdown table to this file")
     add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
-
-
-def _parse_sizes(text: str) -> list[tuple[int, int]]:
-    sizes = []
-    for item in text.split(","):
-        w, sep, h = item.strip().lower().partition("x")
-        if not sep or not w.isdigit() or not h.isdigit() or int(w) < 1 or int(h) < 1:
-            raise InputError(f"--sizes: {item!r} must be WxH, e.g. 672x376")
-        sizes.append((int(w), int(h)))
-    return sizes
 
 
 def _cases(names: list[str]) -> list[tuple[str, Any]]:
@@ -195,7 +186,7 @@ def _run(args) -> int:
     if args.repeats < 1 or args.warmup < 0 or args.batch < 0:
         raise InputError("--repeats must be >= 1, --warmup and --batch >= 0")
     load0 = os.getloadavg()[0]
-    res = run_benchmark(_parse_sizes(args.sizes), args.repeats, args.warmup, args.batch, names, args.cold)
+    res = run_benchmark(parse_sizes(args.sizes, what="--sizes"), args.repeats, args.warmup, args.batch, names, args.cold)
     how = ("one call per row per turn, caches as the other rows left them (`--cold`)" if args.cold else
            "rows taking turns, each turn an untimed call and 4 timed ones back to back")
     text = (f"Machine: {res['machine']}; one OpenCV thread; median of up to {res['repeats']} calls per row "

@@ -23,6 +23,7 @@ from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._seed_arg import int_list, seed_list
 from weather_gym.errors import InputError
+from weather_gym.limits import parse_size
 from weather_gym.perception_modes import detector_mode, perception_mode
 from weather_gym.surrogate.log import concat_logs, load_log, save_log
 from weather_gym.surrogate.model import fit, save_model
@@ -37,12 +38,7 @@ def _names(text: str) -> list[str]:
 
 def _camera_size(text: str | None) -> tuple[int, int] | None:
     """``--camera WxH`` (None: the scenario's camera)."""
-    if text is None:
-        return None
-    w, sep, h = text.lower().partition("x")
-    if not (sep and w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
-        raise InputError(f"--camera must look like 336x188 (width x height in pixels), got {text!r}")
-    return int(w), int(h)
+    return None if text is None else parse_size(text, what="--camera", example="336x188")
 
 
 def register(sub) -> None:

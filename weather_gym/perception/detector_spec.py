@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from weather_gym.errors import InputError, MissingInputError
-from weather_gym.limits import check_image_size
+from weather_gym.limits import check_image_size, parse_size
 from weather_gym.perception.onnx_detector import (
     DEFAULT_MODEL,
     ConeDetector,
@@ -212,13 +212,7 @@ def _input_option(kind: str, value: tuple[int, int] | str | None) -> tuple[int, 
 
 
 def _parse_size(text: str) -> tuple[int, int]:
-    w, sep, h = text.lower().partition("x")
-    try:
-        size = (int(w), int(h))
-    except ValueError:
-        size = (0, 0)
-    if not sep or min(size) < 1:
-        raise InputError(f"detector input size {text!r} (--detector-input): expected WxH in pixels, e.g. 640x640")
+    size = parse_size(text, what="detector input size (--detector-input)", example="640x640")
     _check_input_size(size)
     return size
 

@@ -57,7 +57,7 @@ from typing import Any
 
 from weather_gym._io import atomic_path, atomic_write_json
 from weather_gym.errors import InputError, OutputExistsError
-from weather_gym.limits import check_seed
+from weather_gym.limits import check_seed, parse_size
 from weather_gym.perception_modes import CONES, modes_where, perception_mode
 from weather_gym.rl import HYPERPARAMS
 from weather_gym.rl.hyperparams import load_hyperparams, resolve_hyperparams
@@ -166,10 +166,7 @@ def _check_args(args: argparse.Namespace) -> None:
 def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
     env_kwargs: dict[str, Any] = {}
     if args.camera:
-        try:
-            w, h = (int(v) for v in args.camera.lower().split("x"))
-        except ValueError:
-            raise InputError(f"--camera must look like 336x188, got {args.camera!r}") from None
+        w, h = parse_size(args.camera, what="--camera", example="336x188")
         env_kwargs["camera"] = {"width": w, "height": h}
     try:
         noise = json.loads(args.noise)
