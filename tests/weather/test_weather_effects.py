@@ -206,3 +206,15 @@ def test_jpeg_quality_follows_k(scene):
     assert make("jpeg", k=0.0).quality == 100 and make("jpeg", k=1.0).quality == 5
     err = [np.abs(make("jpeg", k=k)(img).astype(int) - img).mean() for k in (0.2, 0.6, 1.0)]
     assert err[0] < err[1] < err[2]
+
+
+@pytest.mark.parametrize("exact", [False, True])
+@pytest.mark.parametrize(("shape", "sigma"), [((40, 60, 3), 0.8), ((40, 60, 3), 2 ** 0.5), ((40, 60, 3), 1.6),
+                                              ((40, 60, 3), 3.0), ((6, 7, 3), 3.0)])
+def test_smooth_in_place_equals_smoothing_into_a_new_frame(shape, sigma, exact):
+    """``smooth(img, sigma, img)`` is the same bytes as into a new frame, also where it is one box pass."""
+    img = np.random.default_rng(3).integers(0, 256, shape, dtype=np.uint8)
+    want = smooth(img, sigma, exact=exact)
+    same = img.copy()
+    assert smooth(same, sigma, same, exact=exact) is same
+    np.testing.assert_array_equal(same, want)

@@ -306,7 +306,7 @@ def smooth(img: np.ndarray, sigma: float, out: np.ndarray | None = None, *, exac
     above ``sigma = 2.5`` the frame is halved first (area average) and enlarged back (linear),
     which adds about 1 px^2 itself. Border: reflected. Without ``exact``, a combination of passes
     within 10 % of the variance is used as it is (fewest passes); with it the result changes
-    continuously with ``sigma`` (what fitting a blur needs).
+    continuously with ``sigma`` (what fitting a blur needs). ``out`` may be ``img`` (smoothed in place).
     """
     if out is None:
         out = np.empty_like(img)

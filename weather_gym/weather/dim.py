@@ -62,7 +62,6 @@ import cv2
 import numpy as np
 
 from weather_gym.weather._common import (
-    _box_passes,
     add_sensor_noise,
     flat,
     gauss_lut,
@@ -258,9 +257,7 @@ class Dim(EgoMotion):
         smeared = self._physical(img, draw, depth, state, out)
         sigma, chroma, black, desat = self.isp()
         if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
-            sizes, frac = _box_passes(sigma * sigma, exact=True)
-            # smooth reads its input before it writes out, except for a single box pass
-            into(smooth(out if frac or len(sizes) != 1 or sigma > 2.5 else out.copy(), sigma, out, exact=True), out)
+            into(smooth(out, sigma, out, exact=True), out)  # in place
         if chroma > 0:  # colour noise follows the sensor noise of each cell's level
             _, gain, residual = self.exposure()
             noise = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)[1]
