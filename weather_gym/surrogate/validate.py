@@ -43,7 +43,7 @@ from weather_gym._io import atomic_write, check_output
 from weather_gym.errors import InputError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX, SmallRule
 from weather_gym.perception.scoring import DEFAULT_RANGE_BINS
-from weather_gym.surrogate.camera import detector_input_size
+from weather_gym.surrogate.camera import fitted_input_size
 from weather_gym.surrogate.conditions import SurrogateFallbackWarning
 from weather_gym.surrogate.log import SurrogateLog, load_log, save_log
 from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
@@ -85,13 +85,11 @@ def miss_runs(episode: np.ndarray, cone_id: np.ndarray, frame: np.ndarray, detec
 def min_box_height(log: SurrogateLog) -> float:
     """The scored box height (camera pixels) of the log's camera: the too-small rule at the detector's input
     (``SmallRule``; 8 px at 672x376, where the detector's input is 512x288)."""
-    cam = log.meta.get("camera") or {}
-    if "width" not in cam or "height" not in cam:
+    inp = fitted_input_size(log.meta)  # the recorded detector input, else the shipped detector's
+    if inp is None:  # no camera named
         return MIN_BOX_HEIGHT_PX
-    size = (int(cam["width"]), int(cam["height"]))
-    given = log.meta.get("detector_input")
-    inp = (int(given[0]), int(given[1])) if given else detector_input_size(*size)
-    return SmallRule(size, inp).min_height_px
+    cam = log.meta["camera"]
+    return SmallRule((int(cam["width"]), int(cam["height"])), inp).min_height_px
 
 
 def _pieces(log: SurrogateLog) -> dict[str, np.ndarray]:
