@@ -85,3 +85,34 @@ def test_pose_is_the_rear_axle():
 def test_bad_car_config_is_a_clear_error(field, value):
     with pytest.raises(ValueError, match=field):
         CarConfig(**{field: value})
+
+
+def _manoeuvre(car: Car) -> None:
+    """Weave at full throttle, brake, roll on; friction changing every third step (as a wet patch would)."""
+    for t in range(720):
+        steer = 1.0 if (t // 90) % 2 == 0 else -0.7
+        pedal = 1.0 if t < 400 else (-0.8 if t < 500 else 0.3)
+        car.step(DT, steer, pedal, None if t % 3 else 0.6)
+
+
+def test_the_model_gives_the_same_floats_as_ever():
+    """Same seed, same bytes across versions: the compiled model reproduces, to the last bit, the
+    state that the model's pure-Python form reached after this manoeuvre (pinned when it was compiled)."""
+    car = Car(CarConfig(friction=0.9))
+    car.reset(1.0, -2.0, 0.3, speed=4.0)
+    _manoeuvre(car)
+    s = car.state
+    assert (s.x, s.y, s.yaw, s.vx, s.vy, s.yaw_rate, s.steer) == (
+        0.7588201261776661, 5.792060014403517, 2.490019735472817, 3.359578925223307, -0.5017221715794608,
+        -0.6828919027456029, -0.315)
+
+
+def test_n_steps_in_one_call_equal_n_calls():
+    one, many = Car(), Car()
+    for car in (one, many):
+        car.reset(0.0, 0.0, 0.2, speed=6.0)
+    for _ in range(200):
+        for _ in range(8):
+            one.step(DT, 0.4, 0.6)
+        many.step(DT, 0.4, 0.6, n=8)
+    assert one.state == many.state

@@ -166,3 +166,30 @@ def test_egl_in_a_forked_child_that_cannot_use_it_is_a_clear_error(world, monkey
     monkeypatch.delenv("WEATHER_GYM_RENDERER", raising=False)
     with pytest.raises(RuntimeError, match="forked from one that already used.*spawn"):  # never a silent switch
         World(load_track("acceleration"), sim=SimConfig(renderer=requested), camera=CameraConfig(width=32, height=18))
+
+
+@pytest.mark.parametrize("scene", ["realistic", "plain"])
+def test_a_world_without_camera_frames_shows_its_look_in_the_chase_view(scene):
+    """Renderer 'none' (cone-list scenarios) makes its textures only when the chase view needs them:
+    the chase view is the same as a rendering world's, and follows every look set before it."""
+    track = load_track("small_track")
+    other = sample_look(np.random.default_rng(4))
+    views = {}
+    for renderer in ("tiny", "none"):
+        w = World(track, sim=SimConfig(renderer=renderer, scene=scene))
+        try:
+            w.reset(track.start_pose)
+            own = w.look
+            a = w.render_chase(160, 90)
+            w.set_look(other)
+            w.set_look(own)  # set and set back before any view: nothing of `other` may show
+            b = w.render_chase(160, 90)
+            w.set_look(other)
+            views[renderer] = (a, b, w.render_chase(160, 90))
+        finally:
+            w.close()
+    for tiny, none in zip(views["tiny"], views["none"], strict=True):
+        assert np.array_equal(tiny, none)
+    a, b, c = views["none"]
+    assert np.array_equal(a, b)
+    assert np.abs(a.astype(int) - c).mean() > 5

@@ -90,7 +90,8 @@ class World(WorldViews):
             self.renderer_name = self._lease.renderer
             self._build()
             self.camera = CameraSensor(self.camera_config, self._client, renderer_flag(self.renderer_name), self.sim.shadows)
-            self._look: Look | None = None
+            self._look: Look | None = None  # the look set ...
+            self._applied_look: Look | None = None  # ... and the one the scene shows (see set_look)
             self._warmed_up = False  # the first frame of a renderer's life differs (see render())
             self.set_look(look if look is not None else (REALISTIC_LOOK if self.realistic else DEFAULT_LOOK))
         except BaseException:
@@ -214,9 +215,21 @@ class World(WorldViews):
 
     # ------------------------------------------------------------------ appearance
     def set_look(self, look: Look) -> None:
-        """Apply an appearance (textures are regenerated only when they change)."""
+        """Apply an appearance (textures are regenerated only when they change).
+
+        A world that renders no camera frames (renderer "none": the cone-list scenarios) makes its
+        textures only when a view first needs them (:meth:`render_chase`): building the ground and
+        sky textures takes about 0.4 s per world, and training on cone lists never looks at them."""
+        self._look = look
+        if self.renderer_name != "none":
+            self._apply_look()
+
+    def _apply_look(self) -> None:
+        """Make the scene look like ``self._look`` (see :meth:`set_look`)."""
         self._activate()
-        old = self._look
+        look = self._look
+        assert look is not None
+        old = self._applied_look
         track = self.track
         c = self._client
         ground_key = (look.asphalt_rgb, look.grass_rgb, look.kerb_rgb, look.ground_seed)
@@ -270,7 +283,7 @@ class World(WorldViews):
             "lightDiffuseCoeff": look.diffuse,
             "lightSpecularCoeff": look.specular,
         }
-        self._look = look
+        self._applied_look = look
 
     def _place_shadows(self, look: Look) -> None:
         """Shift the contact shadows away from the sun (more for a low sun) and darken them with the
@@ -360,8 +373,7 @@ class World(WorldViews):
         c = self._client
         lut = self._cone_lut
         if self._cones_out_of_reach():
-            for _ in range(self.sim.substeps):
-                self.car.step(dt, steer, pedal, friction)
+            self.car.step(dt, steer, pedal, friction, n=self.sim.substeps)
             self._place_car_body()
             return touched
         for _ in range(self.sim.substeps):

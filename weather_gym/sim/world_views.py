@@ -96,6 +96,8 @@ class WorldViews:
 
     def render_chase(self, width: int = 640, height: int = 360, distance: float = 7.0, height_m: float = 3.5) -> np.ndarray:
         """A third-person view from behind and above the car, for humans (videos, ``render()``)."""
+        if self._applied_look is not self._look:  # a world without camera frames makes its textures now
+            self._apply_look()
         self._activate()
         x, y, yaw = self.car.pose
         eye = [x - distance * math.cos(yaw), y - distance * math.sin(yaw), height_m]
