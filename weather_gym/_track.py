@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from weather_gym import _track_geometry as geo
@@ -221,46 +222,15 @@ class Track:
                 np.ascontiguousarray(d[:, 1]), seg_len / 2.0)
 
     def _project_one(self, x: float, y: float, s_hint: float | None, window: float) -> Projection:
-        """:meth:`project` of one point: the same arithmetic on 1-D arrays and floats, fewer array calls
-        (tests/test_tracks.py checks that both paths give the same floats)."""
+        """:meth:`project` of one point: the same arithmetic in one compiled call (every env step;
+        tests/test_tracks.py checks that both paths give the same floats)."""
         _, _, seg_len, len2, s_a, _ = self._segs
         ax, ay, dx, dy, half = self._seg_columns
-        if s_hint is None:
-            cand = None
-        else:
-            ds = s_a - float(s_hint)
-            if self.closed:
-                ds = np.mod(ds + self.length / 2.0, self.length) - self.length / 2.0
-            near = np.abs(ds + half) <= window + half
-            cand = np.flatnonzero(near)
-            if not cand.size:
-                cand = np.array([int(np.argmin(np.abs(ds)))])
-        if cand is None:
-            relx, rely, dcx, dcy, l2 = x - ax, y - ay, dx, dy, len2
-        else:
-            relx, rely, dcx, dcy, l2 = x - ax[cand], y - ay[cand], dx[cand], dy[cand], len2[cand]
-        t = (relx * dcx + rely * dcy) / l2
-        if self.closed:
-            t = np.minimum(np.maximum(t, 0.0), 1.0)
-        else:
-            n = len(ax)
-            idx_all = np.arange(n) if cand is None else cand
-            lo = np.where(idx_all == 0, -np.inf, 0.0)
-            hi = np.where(idx_all == n - 1, np.inf, 1.0)
-            t = np.minimum(np.maximum(t, lo), hi)
-        fx = relx - t * dcx
-        fy = rely - t * dcy
-        dist2 = fx * fx + fy * fy
-        k = int(np.argmin(dist2))
-        idx = k if cand is None else int(cand[k])
-        tk = float(t[k])
-        cross = float(dx[idx]) * float(rely[k]) - float(dy[idx]) * float(relx[k])
-        lateral = math.copysign(math.sqrt(float(dist2[k])), cross)
-        s = float(s_a[idx]) + tk * float(seg_len[idx])
-        if self.closed:
-            s = s % self.length
-        heading = self._heading_at(np.array([idx]), np.array([tk]))
-        return Projection(s, lateral, float(heading[0]), idx)
+        s, lateral, sin_h, cos_h, idx = _project_point(
+            x, y, ax, ay, dx, dy, half, len2, seg_len, s_a, self._unwrapped_heading, self.closed, self.length,
+            s_hint is not None, 0.0 if s_hint is None else float(s_hint), float(window))
+        # NumPy's arctan2, as the array path's (libm's atan2 differs from it in the last bit)
+        return Projection(s, lateral, float(np.arctan2(sin_h, cos_h)), idx)
 
     def half_widths_at(self, s: float | np.ndarray) -> tuple:
         """Left and right half widths interpolated at arc length ``s``."""
@@ -288,3 +258,50 @@ class Track:
         x, y, yaw = self.start_pose
         rows.append(f"car_start,{x!r},{y!r},{yaw!r},0.0,0.0,0.0")
         return atomic_write(path, "\n".join(rows) + "\n", overwrite=overwrite)
+
+
+@numba.njit(cache=True, nogil=True)
+def _project_point(x, y, ax, ay, dx, dy, half, len2, seg_len, s_a, h, closed, length, use_hint, s_hint,
+                   window):  # pragma: no cover (compiled)
+    """:meth:`Track.project` of one point, operation for operation as the array path computes it:
+    ``(s, lateral, sin and cos of the heading, segment index)``."""
+    n = ax.shape[0]
+    near = np.zeros(n, dtype=np.bool_)
+    if use_hint:
+        found = False
+        closest, closest_ds = 0, np.inf
+        for i in range(n):
+            ds = s_a[i] - s_hint
+            if closed:
+                ds = (ds + length / 2.0) % length - length / 2.0
+            if abs(ds + half[i]) <= window + half[i]:
+                near[i] = True
+                found = True
+            if abs(ds) < closest_ds:
+                closest, closest_ds = i, abs(ds)
+        if not found:
+            near[closest] = True
+    else:
+        near[:] = True
+    best, best_d2, best_t, best_rx, best_ry = -1, np.inf, 0.0, 0.0, 0.0
+    for i in range(n):
+        if not near[i]:
+            continue
+        rx, ry = x - ax[i], y - ay[i]
+        t = (rx * dx[i] + ry * dy[i]) / len2[i]
+        lo = -np.inf if (not closed and i == 0) else 0.0
+        hi = np.inf if (not closed and i == n - 1) else 1.0
+        t = min(max(t, lo), hi)
+        fx = rx - t * dx[i]
+        fy = ry - t * dy[i]
+        d2 = fx * fx + fy * fy
+        if d2 < best_d2 or best < 0:
+            best, best_d2, best_t, best_rx, best_ry = i, d2, t, rx, ry
+    cross = dx[best] * best_ry - dy[best] * best_rx
+    lateral = math.copysign(math.sqrt(best_d2), cross)
+    s = s_a[best] + best_t * seg_len[best]
+    if closed:
+        s = s % length
+    nxt = min(best + 1, h.shape[0] - 1)
+    out = h[best] + min(max(best_t, 0.0), 1.0) * (h[nxt] - h[best])
+    return s, lateral, math.sin(out), math.cos(out), best
