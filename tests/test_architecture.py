@@ -66,12 +66,14 @@ HEAVY: dict[str, set[str]] = {
     "onnx": {"perception_tools"},
     "ray": {"evaluation", "cli"},
     "stable_baselines3": {"agents", "rl"},
-    "numba": {"sim", "surrogate"},
+    "numba": {"sim", "surrogate", "tracks"},
 }
 """Heavy package -> the layers that may import it. ``bench`` compares against a torch baseline;
 ``agents`` holds the SB3 feature extractor (a torch module); ``numba`` compiles the geometric ground
-truth (``sim.visibility``) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s
-crowding) and stays out of the other layers (a compile costs seconds on a cold cache)."""
+truth (``sim.visibility``), the car's dynamics (``sim.car``), one point's centerline projection
+(``_track_kernel``, imported by ``Track`` on first use, so that loading a track does not load numba) and
+the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s crowding) and stays out of the
+other layers (its import takes about a second, a compile seconds on a cold cache)."""
 
 NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather"}}
 
@@ -101,7 +103,8 @@ def layer_of(module: str) -> str | None:
     head = parts[1]
     if head in PLUMBING:
         return "plumbing"
-    if head in ("tracks", "_track", "_track_csv", "_track_geometry", "_track_layout", "track_plot"):
+    if head in ("tracks", "_track", "_track_csv", "_track_geometry", "_track_kernel", "_track_layout",
+                "track_plot"):
         return "tracks"
     if head == "perception_modes":  # the registry of perception modes: the pipeline builder's layer
         return "pipeline"
@@ -368,3 +371,16 @@ def test_importing_the_package_does_not_load_matplotlib(module):
     probe = f"import {module}, sys; assert 'matplotlib' not in sys.modules, sorted(sys.modules)"
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, f"import {module} loads matplotlib: " + run.stderr[-400:]
+
+
+def test_loading_a_track_does_not_load_numba():
+    """The one-point projection's kernel (``_track_kernel``) is imported on first use: a tool that only
+    reads, plots or projects arrays of a track does not pay numba's import (about a second)."""
+    import subprocess
+    import sys
+
+    probe = ("import sys, numpy as np; from weather_gym.tracks import load_track; t = load_track('small_track'); "
+             "t.project(np.array([1.0]), np.array([2.0])); assert 'numba' not in sys.modules; "
+             "t.project(1.0, 2.0); assert 'numba' in sys.modules")
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-600:]

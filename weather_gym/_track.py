@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
 from weather_gym import _track_geometry as geo
@@ -224,9 +223,12 @@ class Track:
     def _project_one(self, x: float, y: float, s_hint: float | None, window: float) -> Projection:
         """:meth:`project` of one point: the same arithmetic in one compiled call (every env step;
         tests/test_tracks.py checks that both paths give the same floats)."""
+        # numba is loaded on the first call, not with a track
+        from weather_gym._track_kernel import project_point
+
         _, _, seg_len, len2, s_a, _ = self._segs
         ax, ay, dx, dy, half = self._seg_columns
-        s, lateral, sin_h, cos_h, idx = _project_point(
+        s, lateral, sin_h, cos_h, idx = project_point(
             x, y, ax, ay, dx, dy, half, len2, seg_len, s_a, self._unwrapped_heading, self.closed, self.length,
             s_hint is not None, 0.0 if s_hint is None else float(s_hint), float(window))
         # NumPy's arctan2, as the array path's (libm's atan2 differs from it in the last bit)
@@ -258,50 +260,3 @@ class Track:
         x, y, yaw = self.start_pose
         rows.append(f"car_start,{x!r},{y!r},{yaw!r},0.0,0.0,0.0")
         return atomic_write(path, "\n".join(rows) + "\n", overwrite=overwrite)
-
-
-@numba.njit(cache=True, nogil=True)
-def _project_point(x, y, ax, ay, dx, dy, half, len2, seg_len, s_a, h, closed, length, use_hint, s_hint,
-                   window):  # pragma: no cover (compiled)
-    """:meth:`Track.project` of one point, operation for operation as the array path computes it:
-    ``(s, lateral, sin and cos of the heading, segment index)``."""
-    n = ax.shape[0]
-    near = np.zeros(n, dtype=np.bool_)
-    if use_hint:
-        found = False
-        closest, closest_ds = 0, np.inf
-        for i in range(n):
-            ds = s_a[i] - s_hint
-            if closed:
-                ds = (ds + length / 2.0) % length - length / 2.0
-            if abs(ds + half[i]) <= window + half[i]:
-                near[i] = True
-                found = True
-            if abs(ds) < closest_ds:
-                closest, closest_ds = i, abs(ds)
-        if not found:
-            near[closest] = True
-    else:
-        near[:] = True
-    best, best_d2, best_t, best_rx, best_ry = -1, np.inf, 0.0, 0.0, 0.0
-    for i in range(n):
-        if not near[i]:
-            continue
-        rx, ry = x - ax[i], y - ay[i]
-        t = (rx * dx[i] + ry * dy[i]) / len2[i]
-        lo = -np.inf if (not closed and i == 0) else 0.0
-        hi = np.inf if (not closed and i == n - 1) else 1.0
-        t = min(max(t, lo), hi)
-        fx = rx - t * dx[i]
-        fy = ry - t * dy[i]
-        d2 = fx * fx + fy * fy
-        if d2 < best_d2 or best < 0:
-            best, best_d2, best_t, best_rx, best_ry = i, d2, t, rx, ry
-    cross = dx[best] * best_ry - dy[best] * best_rx
-    lateral = math.copysign(math.sqrt(best_d2), cross)
-    s = s_a[best] + best_t * seg_len[best]
-    if closed:
-        s = s % length
-    nxt = min(best + 1, h.shape[0] - 1)
-    out = h[best] + min(max(best_t, 0.0), 1.0) * (h[nxt] - h[best])
-    return s, lateral, math.sin(out), math.cos(out), best
