@@ -2,6 +2,14 @@
 
 A module of its own so that loading a track does not load numba (about 1.3 s to import): ``Track``
 imports it on the first one-point projection.
+
+Example (one point through this kernel, the same floats as the array path):
+    >>> import numpy as np
+    >>> from weather_gym.tracks import load_track
+    >>> t = load_track("small_track")
+    >>> p, q = t.project(1.0, 2.0), t.project(np.array([1.0]), np.array([2.0]))
+    >>> (p.s, p.lateral, p.heading, p.index) == (q.s[0], q.lateral[0], q.heading[0], q.index[0])
+    True
 """
 
 from __future__ import annotations
