@@ -59,6 +59,7 @@ class _TimedLap:
     (the agent is not timed); :meth:`block` times block ``r`` of ``block`` steps."""
 
     def __init__(self, perception: str, track: str, weather: str | None, block: int, repeats: int) -> None:
+        self.perception = perception
         self.block_steps = block
         self.env = make_env(perception=perception, weather=weather, track=track, laps=0, max_episode_steps=10**9,
                             episode_statistics=False)
