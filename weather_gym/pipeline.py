@@ -208,8 +208,9 @@ MAX_SYNC_ENVS = 64
 """Most envs :func:`make_vec_env` builds in one process (``"sync"``); ``"async"`` allows 4 per CPU core."""
 
 
-def _start_method(context: str | None) -> str | None:
-    """``context``, or ``"fork"`` where a ``spawn``/``forkserver`` worker would re-run unguarded script code."""
+def start_method(context: str | None, caller: str = "make_vec_env") -> str | None:
+    """``context``, or ``"fork"`` where a ``spawn``/``forkserver`` worker would re-run unguarded script code
+    (with a ``RuntimeWarning`` naming ``caller`` and the line; a ``StateError`` where there is no fork)."""
 
     method = context if context is not None else multiprocessing.get_start_method()
     if method not in ("spawn", "forkserver"):
@@ -218,10 +219,10 @@ def _start_method(context: str | None) -> str | None:
     if where is None:
         return context
     if "fork" not in multiprocessing.get_all_start_methods():
-        raise StateError(f"make_vec_env is called at {where}, outside `if __name__ == \"__main__\":`; "
+        raise StateError(f"{caller} is called at {where}, outside `if __name__ == \"__main__\":`; "
                          f"{method} workers import that script and would run it again: put the call "
                          "under the guard")
-    warnings.warn(f"make_vec_env is called at {where}, outside `if __name__ == \"__main__\":`, where "
+    warnings.warn(f"{caller} is called at {where}, outside `if __name__ == \"__main__\":`, where "
                   f"{method} workers would run the script again: starting them with fork instead (put "
                   "the call under the guard to keep forkserver)", RuntimeWarning, stacklevel=3)
     return "fork"
@@ -298,6 +299,6 @@ def make_vec_env(env_id: str = DEFAULT_ENV_ID, num_envs: int = 2, *, vectorizati
     if vectorization_mode == "async":
         if context is not None:
             vk.setdefault("context", context)
-        vk["context"] = _start_method(vk.get("context"))
+        vk["context"] = start_method(vk.get("context"))
         return gym.vector.AsyncVectorEnv(fns, **vk)
     raise InputError(f"vectorization_mode must be 'sync' or 'async', got {vectorization_mode!r}")

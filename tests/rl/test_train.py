@@ -141,24 +141,34 @@ def test_random_starts_keep_a_share_at_the_start_line():
         RandomStart(env, line_share=1.5)
 
 
-def test_ppo_steps_envs_in_one_process_with_lean_infos(tmp_path, monkeypatch):
-    """The default vector env: DummyVecEnv (render-free envs step faster in the process than over IPC),
-    each env's info cut to INFO_KEYS (DummyVecEnv deep-copies the infos every step)."""
+def test_ppo_steps_render_free_envs_in_two_processes_with_lean_infos(tmp_path, monkeypatch):
+    """The default vector env for render-free perception on 2 cores: SplitVecEnv (half the envs in a
+    second process, stepped at the same time; the held-out evaluation in one process), each env's
+    info cut to INFO_KEYS (DummyVecEnv deep-copies the infos every step)."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv
 
+    from weather_gym.rl import train as train_module
+    from weather_gym.rl.split_vec_env import SplitVecEnv
     from weather_gym.rl.training_env import LeanInfo
 
     seen = {}
 
     def no_learning(self, total_timesteps, **kwargs):  # the envs as PPO would step them, nothing learnt
         seen["vec"], seen["eval"] = self.env, kwargs["callback"].callbacks[-1].eval_env
+        seen["wrapped"] = self.env.env_is_wrapped(LeanInfo)
         return self
 
     monkeypatch.setattr(PPO, "learn", no_learning)
+    monkeypatch.setattr(train_module.os, "sched_getaffinity", lambda pid: {0, 1})
     assert main(["train", "--out", str(tmp_path / "run"), "--n-envs", "2", "--tracks", "hairpin,oval",
                  "--perception", "surrogate", "--timesteps", "64", "--n-steps", "32", "--batch-size", "32"]) == 0
-    for vec in (seen["vec"], seen["eval"]):
-        while not isinstance(vec, DummyVecEnv):  # VecNormalize -> VecMonitor -> DummyVecEnv
-            vec = vec.venv
-        assert all(isinstance(env, LeanInfo) for env in vec.envs)
+    assert seen["wrapped"] == [True, True]
+    vec = seen["vec"]
+    while not isinstance(vec, SplitVecEnv):  # VecNormalize -> VecMonitor -> SplitVecEnv
+        vec = vec.venv
+    assert vec.num_envs == 2 and all(isinstance(env, LeanInfo) for env in vec._local.envs)
+    vec = seen["eval"]
+    while not isinstance(vec, DummyVecEnv):
+        vec = vec.venv
+    assert all(isinstance(env, LeanInfo) for env in vec.envs)

@@ -48,6 +48,7 @@ import argparse
 import dataclasses
 import importlib
 import json
+import os
 import shlex
 import sys
 import time
@@ -90,6 +91,28 @@ EVAL_MAX_STEPS = 1800
 """Step limit of a held-out evaluation episode (60 s: a lap of small_track takes about 20 s)."""
 INTERRUPTED = 130
 """Exit status after Ctrl-C (the model so far is saved)."""
+VEC_KINDS = ("auto", "split", "dummy", "subproc")
+"""``--vec``: how the training envs are vectorised (see :func:`vec_kind`)."""
+
+
+def vec_kind(vec: str, perception: str, n_envs: int, cores: int | None = None) -> str:
+    """The vector env ``--vec`` asks for; ``"auto"`` resolves to ``"split"`` (:class:`SplitVecEnv`:
+    half the envs in a second process) for render-free perception with at least 2 envs and 2 usable
+    cores, else ``"dummy"``. Every kind gives the same observations (each env is seeded as in
+    ``DummyVecEnv``).
+
+    Example:
+        >>> vec_kind("auto", "surrogate", 8, cores=2), vec_kind("auto", "detector", 8, cores=2)
+        ('split', 'dummy')
+    """
+    if vec not in VEC_KINDS:
+        raise InputError(f"--vec must be one of {', '.join(VEC_KINDS)}, got {vec!r}")
+    if vec != "auto":
+        return vec
+    if cores is None:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    render_free = not perception_mode(perception).renders_frames
+    return "split" if render_free and n_envs >= 2 and cores >= 2 else "dummy"
 
 
 # ------------------------------------------------------------------ command line
@@ -107,8 +130,11 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     p.add_argument("--timesteps", type=int, default=None, help="total environment steps (default: n_timesteps)")
     p.add_argument("--n-envs", type=int, default=None, help="parallel envs, env i drives tracks[i %% len] "
                    "(default: n_envs)")
-    p.add_argument("--vec", choices=("dummy", "subproc"), default="dummy",
-                   help="DummyVecEnv (one process; best for gt_cones/surrogate) or SubprocVecEnv (rendered perception)")
+    p.add_argument("--vec", choices=VEC_KINDS, default="auto",
+                   help="split: half the envs in a second process, stepped at the same time (SplitVecEnv; "
+                        "render-free perception on >= 2 cores); dummy: DummyVecEnv, one process; subproc: "
+                        "SubprocVecEnv, a process per env (rendered perception); auto: split for gt_cones/"
+                        "surrogate with >= 2 envs and >= 2 usable cores, else dummy")
     p.add_argument("--env-id", default="WeatherGym/ConeTrack-v0",
                    help="the scenario (an id with camera images, so the policy evaluates through the detector)")
     p.add_argument("--tracks", default=",".join(DEFAULT_TRACKS), help="training tracks, comma-separated")
@@ -241,6 +267,8 @@ def train(args: argparse.Namespace) -> int:
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
+    from weather_gym.rl.split_vec_env import SplitVecEnv
+
     _check_args(args)
     torch.set_num_threads(args.torch_threads)
     hp = resolve_hyperparams(args)
@@ -260,7 +288,8 @@ def train(args: argparse.Namespace) -> int:
         s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"], s["max_steps"], s["env_kwargs"],
         s["weather"], surrogate_weather=sw[i % len(sw)], lean_info=lean_info) for i in range(n_envs)]
     make[0]().close()  # a bad setting fails here, in this process, with its message
-    vec = VecMonitor((SubprocVecEnv if args.vec == "subproc" else DummyVecEnv)(make))  # infos: INFO_KEYS only
+    kind = vec_kind(args.vec, s["perception"], n_envs)
+    vec = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
     normalize = hp["normalize"]
     if normalize is not False:  # rl-zoo3's `normalize`: VecNormalize keywords; its state is saved with each checkpoint
         vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
