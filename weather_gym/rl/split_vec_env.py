@@ -78,7 +78,7 @@ def _worker(conn: Any, env_fns: CloudpickleWrapper) -> None:
                 conn.send(("ok", None))
                 break
             else:
-                raise ValueError(f"unknown command {cmd!r}")
+                raise RuntimeError(f"SplitVecEnv worker: unknown command {cmd!r} (a bug in weather-gym)")
             conn.send(("ok", result))
         except Exception as exc:  # noqa: BLE001 - sent to the main process and raised there
             conn.send(("error", (_picklable(exc), traceback.format_exc())))
