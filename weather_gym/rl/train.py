@@ -96,8 +96,8 @@ VEC_KINDS = ("auto", "split", "dummy", "subproc")
 
 
 def vec_kind(vec: str, perception: str, n_envs: int, cores: int | None = None) -> str:
-    """The vector env ``--vec`` asks for; ``"auto"`` resolves to ``"split"`` (:class:`SplitVecEnv`:
-    half the envs in a second process) for render-free perception with at least 2 envs and 2 usable
+    """The vector env ``--vec`` asks for; ``"auto"`` resolves to ``"split"`` (``SplitVecEnv``: a
+    little over half the envs in a second process) for render-free perception with at least 2 envs and 2 usable
     cores, else ``"dummy"``. Every kind gives the same observations (each env is seeded as in
     ``DummyVecEnv``).
 
@@ -131,7 +131,7 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     p.add_argument("--n-envs", type=int, default=None, help="parallel envs, env i drives tracks[i %% len] "
                    "(default: n_envs)")
     p.add_argument("--vec", choices=VEC_KINDS, default="auto",
-                   help="split: half the envs in a second process, stepped at the same time (SplitVecEnv; "
+                   help="split: 5 of 8 envs in a second process, stepped at the same time (SplitVecEnv; "
                         "render-free perception on >= 2 cores); dummy: DummyVecEnv, one process; subproc: "
                         "SubprocVecEnv, a process per env (rendered perception); auto: split for gt_cones/"
                         "surrogate with >= 2 envs and >= 2 usable cores, else dummy")
