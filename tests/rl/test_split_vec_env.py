@@ -121,6 +121,25 @@ def test_an_error_in_the_worker_is_raised_with_its_traceback():
         vec.close()
 
 
+def test_the_worker_starts_with_spawn_where_there_is_no_forkserver(monkeypatch):
+    import multiprocessing
+
+    started = []
+    real = multiprocessing.get_context
+
+    def spy(method=None):
+        started.append(method)
+        return real(method)
+
+    monkeypatch.setattr(multiprocessing, "get_all_start_methods", lambda: ["spawn"])
+    monkeypatch.setattr(multiprocessing, "get_context", spy)
+    vec = SplitVecEnv(_cartpoles(2))
+    try:
+        assert started == ["spawn"] and vec.reset().shape == (2, 4)
+    finally:
+        vec.close()
+
+
 def test_close_after_an_unfinished_step_takes_the_answer_and_ends_the_worker():
     vec = SplitVecEnv(_cartpoles(3))
     vec.reset()

@@ -108,15 +108,16 @@ class SplitVecEnv(VecEnv):
     Args:
         env_fns: functions that build the envs (picklable with cloudpickle, like SB3's ``SubprocVecEnv``).
         local: how many envs stay in this process; default :func:`split_point` (a little under half).
-        context: the worker's start method (``forkserver`` by default; in a script, create the env under
-            ``if __name__ == "__main__":``, or the worker starts with ``fork`` and a warning).
+        context: the worker's start method (None: ``forkserver``, or ``spawn`` where there is none, as
+            SB3's ``SubprocVecEnv``; in a script, create the env under ``if __name__ == "__main__":``,
+            or the worker starts with ``fork`` and a warning).
 
     Errors in the worker are raised here, with the worker's traceback as a note. Ctrl-C interrupts
     only this process; :meth:`close` then ends the worker.
     """
 
     def __init__(self, env_fns: Sequence[Callable[[], gym.Env]], local: int | None = None,
-                 context: str | None = "forkserver") -> None:
+                 context: str | None = None) -> None:
         n = len(env_fns)
         if n < 2:
             raise InputError(f"SplitVecEnv needs at least 2 envs (one per process), got {n}")
@@ -124,6 +125,8 @@ class SplitVecEnv(VecEnv):
         if isinstance(local, bool) or not isinstance(local, int) or not 1 <= local < n:
             raise InputError(f"SplitVecEnv: local must be an integer in [1, {n - 1}] for {n} envs, got {local!r}")
         self._k = local
+        if context is None:  # as SB3's SubprocVecEnv: forkserver where the platform has it
+            context = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         ctx = mp.get_context(start_method(context, "SplitVecEnv"))
         self._conn, child = ctx.Pipe()
         self._process = ctx.Process(target=_worker, args=(child, CloudpickleWrapper(list(env_fns[local:]))),
