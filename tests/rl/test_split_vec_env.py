@@ -148,6 +148,13 @@ def test_close_after_an_unfinished_step_takes_the_answer_and_ends_the_worker():
     assert not vec._process.is_alive() and vec._process.exitcode == 0
 
 
+def test_an_env_that_fails_to_build_in_the_worker_is_raised_with_its_error():
+    fns = [lambda: gym.make("CartPole-v1"), lambda: gym.make("NoSuchEnv-v0")]
+    with pytest.raises(gym.error.Error) as info:
+        SplitVecEnv(fns)
+    assert "SplitVecEnv worker process, envs 1-1" in "".join(getattr(info.value, "__notes__", []))
+
+
 def test_a_dead_worker_is_reported_not_waited_for():
     vec = SplitVecEnv(_cartpoles(2))
     try:

@@ -125,6 +125,7 @@ class SplitVecEnv(VecEnv):
         if isinstance(local, bool) or not isinstance(local, int) or not 1 <= local < n:
             raise InputError(f"SplitVecEnv: local must be an integer in [1, {n - 1}] for {n} envs, got {local!r}")
         self._k = local
+        self._remote_envs = f"envs {local}-{n - 1}"  # named in the worker's errors, also while building
         if context is None:  # as SB3's SubprocVecEnv: forkserver where the platform has it
             context = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         ctx = mp.get_context(start_method(context, "SplitVecEnv"))
@@ -168,7 +169,7 @@ class SplitVecEnv(VecEnv):
             exc, tb = data
             if exc is None:
                 raise RuntimeError(f"SplitVecEnv: an env in the worker process failed:\n{tb}")
-            exc.add_note(f"(raised in the SplitVecEnv worker process, envs {self._k}-{self.num_envs - 1}):\n{tb}")
+            exc.add_note(f"(raised in the SplitVecEnv worker process, {self._remote_envs}):\n{tb}")
             raise exc
         return data
 
