@@ -251,6 +251,26 @@ def test_a_nominal_effect_falls_back_to_clear_with_a_warning(no_render, weather)
         clear.close()
 
 
+def test_the_fallback_warning_names_the_effect_once_whatever_its_severity(no_render):
+    """The warning's text leaves out k, so Python's default filter shows it once per effect and place
+    (a severity sweep over rain does not repeat it); ``fallback`` and the info keep the k."""
+    import warnings
+
+    from weather_gym.surrogate.conditions import SurrogateFallbackWarning
+
+    env = make_env(perception="surrogate", weather="clear", max_episode_steps=30)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("default")
+            for spec in ("rain@1", "rain@2", "rain:0.3", "fog@1"):
+                env.get_wrapper_attr("set_weather")(spec)
+        texts = [str(w.message) for w in caught if issubclass(w.category, SurrogateFallbackWarning)]
+        assert len(texts) == 2 and "effect rain:" in texts[0] and "effect fog:" in texts[1]
+        assert "(k " not in texts[0] and "fog (k 0." in env.get_wrapper_attr("fallback")
+    finally:
+        env.close()
+
+
 def test_an_unknown_effect_still_raises():
     with pytest.raises(InputError, match="hail"):
         make_env(perception="surrogate", weather="hail@2")

@@ -75,9 +75,10 @@ def split_nominal(weather: Any, conditions: Any) -> tuple[list[dict[str, Any]], 
     return kept, dropped
 
 
-def fallback_note(dropped: list[dict[str, Any]]) -> str:
-    """The one line that says which effects were modelled as clear weather, and why."""
-    names = ", ".join(f"{t.get('name')} (k {float(t.get('k', 0.0)):g})" for t in dropped)
+def fallback_note(dropped: list[dict[str, Any]], *, with_k: bool = True) -> str:
+    """The one line that says which effects were modelled as clear weather, and why; ``with_k=False``
+    leaves out their k (the warning's text: one warning per effect, whatever its severity)."""
+    names = ", ".join(f"{t.get('name')}" + (f" (k {float(t.get('k', 0.0)):g})" if with_k else "") for t in dropped)
     return (f"perception surrogate: no fit of weather effect {names}: modelled as {FALLBACK} weather, i.e. the "
             f"detector's cone list without that effect (a nominal preset, its damage not measured; "
             f"docs/surrogate.md, 'Nominal effects')")

@@ -44,7 +44,7 @@ from weather_gym.errors import InputError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX, SmallRule
 from weather_gym.perception.scoring import DEFAULT_RANGE_BINS
 from weather_gym.surrogate.camera import fitted_input_size
-from weather_gym.surrogate.conditions import SurrogateFallbackWarning
+from weather_gym.surrogate.conditions import SurrogateFallbackWarning, fallback_note, split_nominal
 from weather_gym.surrogate.log import SurrogateLog, load_log, save_log
 from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 from weather_gym.surrogate.record import record
@@ -257,12 +257,13 @@ def validate(*, model: str | os.PathLike | None = None, track: str = "hairpin",
                           env_kwargs=env_kwargs)
             save_log(full, f)
         say(f"surrogate: {weather} on {track}, seeds {list(surrogate_seeds)}")
-        with warnings.catch_warnings(record=True) as caught:  # the fallback for an effect without a fit
-            warnings.simplefilter("always", SurrogateFallbackWarning)
+        with warnings.catch_warnings():  # the report names the fallback (below)
+            warnings.simplefilter("ignore", SurrogateFallbackWarning)
             sur = record(tracks=[track], weathers=[weather], seeds=surrogate_seeds, steps=steps,
                          agent="mapper_pure_pursuit", perception="surrogate",
                          perception_kwargs={"model": str(model_path)}, env_kwargs=env_kwargs)
-        fallback = next((str(w.message) for w in caught if issubclass(w.category, SurrogateFallbackWarning)), None)
+        _, dropped = split_nominal(weather, m.conditions())
+        fallback = fallback_note(dropped, with_k=False) if dropped else None
         cam = full.meta.get("camera") or {}
         results.setdefault("camera", f"{cam.get('width')}x{cam.get('height')}")
         results.setdefault("min_box_height_px", min_box_height(full))

@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import copy
 import os
-import re
 import time
 import warnings
 from typing import Any
@@ -61,7 +60,7 @@ from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
-from weather_gym.surrogate.conditions import SurrogateFallbackWarning
+from weather_gym.surrogate.conditions import SurrogateFallbackWarning, fallback_note, split_nominal
 from weather_gym.surrogate.model import SurrogateModel, load_model
 from weather_gym.surrogate.sample import FrameSampler
 from weather_gym.weather import current_spec, parse_weather
@@ -92,9 +91,12 @@ def frames_change_by_themselves(effect: Any) -> bool:
     return any(not np.array_equal(first, probe(_PROBE)) for _ in range(29))
 
 
-def _warn_fallback(note: str | None) -> None:
-    if note is not None:  # once per effect and place (Python's default warning filter)
-        warnings.warn(re.sub(r" \(k [^)]*\)", "", note), SurrogateFallbackWarning, stacklevel=3)
+def _warn_fallback(model: SurrogateModel, tables: Any) -> None:
+    """Warn when ``tables`` has effects ``model`` has no fit of (once per effect and place: the text
+    leaves out their k, and Python's default warning filter shows a text once)."""
+    _, dropped = split_nominal(tables, model.conditions())
+    if dropped:
+        warnings.warn(fallback_note(dropped, with_k=False), SurrogateFallbackWarning, stacklevel=3)
 
 
 class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -141,7 +143,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.range_factor = model.range_factor(self.camera)
         self._sampler = FrameSampler(point, self.camera, box_factor=self.box_factor, fit_camera=model.camera_size,
                                      range_factor=self.range_factor)
-        _warn_fallback(self._fallback)
+        _warn_fallback(model, self._spec)
         self._weather_changes = frames_change_by_themselves(self._effect)  # probed once per weather
         self._view: tuple[bytes, bytes] | None = None
         self._rng: np.random.Generator | None = None
@@ -166,7 +168,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         point, fallback = self.model.resolve(tables)  # a weather the model cannot cover fails here
         self._sampler.set_point(point)
         self._fallback = fallback
-        _warn_fallback(fallback)
+        _warn_fallback(self.model, tables)
         self._weather_changes = frames_change_by_themselves(effect)
         self._view = None
         self._effect = effect
