@@ -6,10 +6,10 @@
 #   bash docs/calibration/regenerate.sh            # from the repository root, in the venv
 #
 # Resumable: a finished sweep or transfer cell is never run again (delete docs/calibration/curves.*,
-# sweep.json and transfer/cells.* to start over). Cells are keyed by effect spec, k, seed, evaluation set
+# sweep.json and transfer/**/cells.* to start over). Cells are keyed by effect spec, k, seed, evaluation set
 # and detector (a new model gets new rows, the old ones are ignored by model_id), not by the effect's code:
-# after changing what an effect draws, delete its rows from curves.csv, remeasured.csv and transfer/cells.csv
-# and delete their .sqlite stores (rebuilt from the CSVs on the next run).
+# after changing what an effect draws, delete its rows from curves.csv, remeasured.csv and the transfer/**/cells.csv
+# files and delete their .sqlite stores (rebuilt from the CSVs on the next run).
 set -euo pipefail
 SETS=${SETS:-scratch/calib}              # the rendered evaluation sets (git-ignored; rendered deterministically)
 WORKERS=${WORKERS:-2}
