@@ -35,11 +35,16 @@ for t in "${HELD[@]}"; do
   render "$SETS/held_${t//:/}" --track "$t" --frames 80 --seed 707
 done
 # the same eight tracks three times as long (two more 80-frame sets each, merged with the first): how much
-# of a preset's spread over the held-out sets is the 80-frame sample, not the track
+# of a preset's spread over the held-out sets is the 80-frame sample, not the track (checked at the end)
+RESAMPLES=(); HELD240=()
 for t in "${HELD[@]}"; do
-  for seed in 710 711; do render "$SETS/held_${t//:/}_$seed" --track "$t" --frames 80 --seed "$seed"; done
+  for seed in 710 711; do
+    render "$SETS/held_${t//:/}_$seed" --track "$t" --frames 80 --seed "$seed"
+    RESAMPLES+=(--set "$t ($seed)=$SETS/held_${t//:/}_$seed")
+  done
   [ -f "$SETS/held240_${t//:/}/annotations.json" ] || weather-gym dataset merge "$SETS/held_${t//:/}" \
     "$SETS/held_${t//:/}_710" "$SETS/held_${t//:/}_711" --out "$SETS/held240_${t//:/}"
+  HELD240+=(--set "$t=$SETS/held240_${t//:/}")
 done
 render "$SETS/held_realistic" --track peanut --track random:82 --frames 80 --seed 708 --scene realistic
 render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --seed 709 --scene realistic
@@ -76,11 +81,5 @@ TRANSFER+=(--set "realistic (peanut, random:82)=$SETS/held_realistic" --set "rea
 [ -n "$REAL" ] && TRANSFER+=(--set "real (Estoril, masked)=$REAL")
 python docs/calibration/transfer.py "${TRANSFER[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer"
 # the spread of 80-frame sets of one track: the two more samples of each held-out track, then all three merged
-RESAMPLES=()
-for t in "${HELD[@]}"; do
-  for seed in 710 711; do RESAMPLES+=(--set "$t ($seed)=$SETS/held_${t//:/}_$seed"); done
-done
 python docs/calibration/transfer.py "${RESAMPLES[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/resamples"
-HELD240=()
-for t in "${HELD[@]}"; do HELD240+=(--set "$t=$SETS/held240_${t//:/}"); done
 python docs/calibration/transfer.py "${HELD240[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/held240"
