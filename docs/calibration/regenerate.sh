@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerate every calibration artefact: the evaluation sets (if missing), the k sweeps, the shipped presets
 # (weather_gym/weather/presets.toml), the physical-dim alternative (weather_gym/calibration/presets_physical.toml),
-# the transfer check on held-out sets and the reports and plots in docs/calibration/.
+# the transfer check on held-out sets (and what their spread follows) and the reports and plots in docs/calibration/.
 #
 #   bash docs/calibration/regenerate.sh            # from the repository root, in the venv
 #
@@ -46,6 +46,13 @@ for t in "${HELD[@]}"; do
     "$SETS/held_${t//:/}_710" "$SETS/held_${t//:/}_711" --out "$SETS/held240_${t//:/}"
   HELD240+=(--set "$t=$SETS/held240_${t//:/}")
 done
+# the first 80-frame set of each held-out track again with the camera model's vignetting off (same poses
+# and looks; the vignetting check at the end)
+NOVIG=()
+for t in "${HELD[@]}"; do
+  render "$SETS/held_novig_${t//:/}" --track "$t" --frames 80 --seed 707 --camera-model "$OUT/no_vignetting.toml"
+  NOVIG+=(--set "$t=$SETS/held_novig_${t//:/}")
+done
 render "$SETS/held_realistic" --track peanut --track random:82 --frames 80 --seed 708 --scene realistic
 render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --seed 709 --scene realistic
 
@@ -83,3 +90,9 @@ python docs/calibration/transfer.py "${TRANSFER[@]}" --seeds 2 --workers "$WORKE
 # the spread of 80-frame sets of one track: the two more samples of each held-out track, then all three merged
 python docs/calibration/transfer.py "${RESAMPLES[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/resamples"
 python docs/calibration/transfer.py "${HELD240[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/held240"
+# the same first sets without vignetting; then where in the frame each set's cones are against its relative
+# mAP, over the held-out and resampled sets (docs/calibration.md, "Why low light spreads over tracks")
+python docs/calibration/transfer.py "${NOVIG[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/no_vignetting"
+PLACE=(--transfer "$OUT/transfer" "${TRANSFER[@]}" --transfer "$OUT/transfer/resamples" "${RESAMPLES[@]}"
+       --transfer "$OUT/transfer/held240" "${HELD240[@]}")
+python docs/calibration/placement.py "${PLACE[@]}" --reference "calibration pool=$POOL" --out "$OUT/transfer/placement"
