@@ -96,3 +96,4 @@ python docs/calibration/transfer.py "${NOVIG[@]}" --seeds 2 --workers "$WORKERS"
 PLACE=(--transfer "$OUT/transfer" "${TRANSFER[@]}" --transfer "$OUT/transfer/resamples" "${RESAMPLES[@]}"
        --transfer "$OUT/transfer/held240" "${HELD240[@]}")
 python docs/calibration/placement.py "${PLACE[@]}" --reference "calibration pool=$POOL" --out "$OUT/transfer/placement"
+python docs/calibration/edge_recall.py "${HELD240[@]}" --out "$OUT/transfer/placement"   # which cones go first
