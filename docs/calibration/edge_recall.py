@@ -4,7 +4,7 @@ For every ``--set NAME=DIR`` the shipped detector scores the set clean and at ea
 low-light preset (weather seed ``--seed``: the frames of the transfer check's cells of that seed),
 and the blue and yellow cones' recall at the detector's operating score (pycocotools' matching at IoU
 0.5, as in every recall the project reports) is split by where the cone's box centre is: beyond
-``placement.EDGE_RADIUS`` of the frame's half-diagonal ellipse ("edge") or inside it ("centre"). The
+``EDGE_RADIUS`` (:mod:`weather_gym.datasets.frame_position`) of the frame's half-diagonal ellipse ("edge") or inside it ("centre"). The
 split rides on ``score_dataset``'s recall by range, with each cone's range replaced by its region.
 Writes ``OUT/edge_recall.csv`` and ``OUT/edge_recall.md``.
 
@@ -18,11 +18,11 @@ import csv
 from pathlib import Path
 
 import numpy as np
-from placement import EDGE_RADIUS
 from tqdm import tqdm
 
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
+from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_radius
 from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.scoring import score_dataset
 from weather_gym.weather import make
@@ -48,10 +48,9 @@ class _ByRegion:
     def gt(self, i: int) -> dict[str, np.ndarray]:
         g = dict(self._ds.gt(i))
         rec = self._ds.record(i)
-        b = g["boxes"]
-        cx = (b[:, 0] + b[:, 2]) / rec["width"] - 1.0
-        cy = (b[:, 1] + b[:, 3]) / rec["height"] - 1.0
-        region = (np.hypot(cx, cy) > EDGE_RADIUS).astype(np.float32)
+        b = g["boxes"].astype(np.float64)  # xyxy
+        xywh = np.stack([b[:, 0], b[:, 1], b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]], axis=1)
+        region = (edge_radius(xywh, rec["width"], rec["height"]) > EDGE_RADIUS).astype(np.float32)
         g["ranges"] = np.where(np.isin(g["classes"], BLUE_YELLOW), region, -1.0).astype(np.float32)
         return g
 

@@ -2,10 +2,9 @@
 
 At the steep low-light presets the held-out tracks spread by more than a preset may miss by. This
 script puts each set's relative mAP (from ``transfer.py`` outputs) next to two properties of the set:
-the share of its blue and yellow cones that the camera sees near the frame's edge (box centre at a
-normalised radius ``hypot((x - w/2) / (w/2), (y - h/2) / (h/2)) > 0.8``: the corners and the far
-left and right, where the lens's vignetting darkens the frame and the barrel distortion squeezes
-it), and the mean absolute yaw rate of the car over the set's frames (the turns' motion blur). It
+the share of its blue and yellow cones that the camera sees near the frame's edge
+(:mod:`weather_gym.datasets.frame_position`: box centre beyond 0.8 of the frame's half-diagonal
+ellipse, the corners and the far left and right; `weather-gym dataset info` prints it too), and the mean absolute yaw rate of the car over the set's frames (the turns' motion blur). It
 writes ``OUT/placement.csv`` (one row per set), ``OUT/placement.md`` (per preset: the correlation of
 relative mAP with each property over the sets, and the least-squares slope) and ``OUT/placement.png``.
 
@@ -20,13 +19,13 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 from pathlib import Path
 
 import numpy as np
 
-EDGE_RADIUS = 0.8
-CLASSES = ("blue", "yellow")
+from weather_gym.datasets.coco import load_coco
+from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_share
+
 PRESETS = (("low_light", 1), ("low_light", 2), ("low_light", 3), ("droplets", 4))
 TOLERANCE = 0.05
 
@@ -34,22 +33,12 @@ TOLERANCE = 0.05
 def set_properties(folder: Path) -> dict[str, float] | None:
     """Frames, blue/yellow cones, the share of them near the frame's edge and the mean |yaw rate|;
     None when the set's records are not rendered ones (no ``track``)."""
-    data = json.loads((folder / "annotations.json").read_text())
-    images = {im["id"]: im for im in data["images"]}
-    if not images or not all("track" in im for im in images.values()):
+    ds = load_coco(folder)
+    if not len(ds) or not all("track" in im for im in ds.images):
         return None
-    cats = {c["id"]: c["name"] for c in data["categories"]}
-    edge = total = 0
-    for a in data["annotations"]:
-        if cats.get(a["category_id"]) not in CLASSES or a.get("iscrowd") or a.get("ignore"):
-            continue
-        im = images[a["image_id"]]
-        x, y, w, h = a["bbox"]
-        cx, cy = (x + w / 2) / (im["width"] / 2) - 1, (y + h / 2) / (im["height"] / 2) - 1
-        edge += float(np.hypot(cx, cy) > EDGE_RADIUS)
-        total += 1
-    yaw = np.abs([float(im.get("yaw_rate", 0.0)) for im in images.values()])
-    return {"frames": len(images), "cones": total, "edge_share": edge / max(total, 1),
+    near, total = edge_share(ds)
+    yaw = np.abs([float(im.get("yaw_rate", 0.0)) for im in ds.images])
+    return {"frames": len(ds), "cones": total, "edge_share": near / max(total, 1),
             "mean_abs_yaw_rate": float(yaw.mean())}
 
 

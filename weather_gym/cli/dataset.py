@@ -33,6 +33,7 @@ from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
+from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_share
 from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS, import_dataset
 from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
 from weather_gym.datasets.merge import merge_coco
@@ -234,6 +235,11 @@ def _info(args) -> int:
         m = ds.ignore_mask(0)
         print(f"ignore mask: {info.get('ignore_mask') or 'per frame'} "
               f"({100.0 * float(m.mean()) if m is not None else 0.0:.1f} % of frame 0)")
+    near, scored = edge_share(ds)
+    if scored:
+        print(f"blue/yellow cones near the frame's edge (box centre beyond {EDGE_RADIUS:g} of the half-diagonal): "
+              f"{near} of {scored} ({100.0 * near / scored:.1f} %; low light's damage grows with it, "
+              "docs/calibration.md)")
     tracks = Counter(im.get("track") for im in ds.images if im.get("track"))
     if tracks:
         print("tracks: " + ", ".join(f"{t} ({n})" for t, n in sorted(tracks.items())))
