@@ -4,8 +4,9 @@ For every ``--set NAME=DIR`` the shipped detector scores the set clean and at ea
 low-light preset (weather seed ``--seed``: the frames of the transfer check's cells of that seed),
 and the blue and yellow cones' recall at the detector's operating score (pycocotools' matching at IoU
 0.5, as in every recall the project reports) is split by where the cone's box centre is: beyond
-``EDGE_RADIUS`` (:mod:`weather_gym.datasets.frame_position`) of the frame's half-diagonal ellipse ("edge") or inside it ("centre"). The
-split rides on ``score_dataset``'s recall by range, with each cone's range replaced by its region.
+``EDGE_RADIUS`` (:mod:`weather_gym.datasets.frame_position`) of the frame's half-diagonal ellipse
+("edge") or inside it ("centre"). The split rides on ``score_dataset``'s recall by range, with each
+cone's range replaced by its region.
 Writes ``OUT/edge_recall.csv`` and ``OUT/edge_recall.md``.
 
     python docs/calibration/edge_recall.py --set b_shape=scratch/calib/held240_b_shape --out /tmp/edge
@@ -24,9 +25,10 @@ from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
 from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_radius
 from weather_gym.perception.detector_spec import load_detector
+from weather_gym.perception.labels import xyxy_to_xywh
 from weather_gym.perception.scoring import score_dataset
-from weather_gym.weather import make
 from weather_gym.weather.presets import load_presets
+from weather_gym.weather.tables import effect_from_table
 
 BLUE_YELLOW = [CONE_CLASSES.index("blue"), CONE_CLASSES.index("yellow")]
 REGIONS = (0.0, 0.5, 1.5)  # "range" 0: centre, 1: edge
@@ -48,9 +50,7 @@ class _ByRegion:
     def gt(self, i: int) -> dict[str, np.ndarray]:
         g = dict(self._ds.gt(i))
         rec = self._ds.record(i)
-        b = g["boxes"].astype(np.float64)  # xyxy
-        xywh = np.stack([b[:, 0], b[:, 1], b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]], axis=1)
-        region = (edge_radius(xywh, rec["width"], rec["height"]) > EDGE_RADIUS).astype(np.float32)
+        region = (edge_radius(xyxy_to_xywh(g["boxes"]), rec["width"], rec["height"]) > EDGE_RADIUS).astype(np.float32)
         g["ranges"] = np.where(np.isin(g["classes"], BLUE_YELLOW), region, -1.0).astype(np.float32)
         return g
 
@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> None:
             raise SystemExit(f"--set must be NAME=DIR, got {text!r}")
         sets[name] = path
     data = load_presets()
-    conditions = [("clear", None)] + [(f"low_light@{sev}", dict(e["effects"][0]))
+    conditions = [("clear", None)] + [(f"low_light@{sev}", e["effects"][0])
                                       for sev, e in sorted(data["presets"]["low_light"].items())
                                       if e.get("calibrated") and sev in (1, 2)]
     det = load_detector(None)
@@ -77,11 +77,7 @@ def main(argv: list[str] | None = None) -> None:
         ds = _ByRegion(load_coco(path))
         row = {"set": name}
         for label, table in conditions:
-            effect = None
-            if table is not None:
-                params = dict(table)
-                eff_name, k = params.pop("name"), float(params.pop("k"))
-                effect = make(eff_name, k=k, **params)
+            effect = None if table is None else effect_from_table(table)
             r = score_dataset(ds, det, effect, seed=args.seed, range_bins=REGIONS)
             (centre, n_centre), (edge, n_edge) = r.recall_by_range.values()
             row.update({f"{label} centre": centre, f"{label} edge": edge, "cones centre": n_centre,

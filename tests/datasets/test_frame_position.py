@@ -39,6 +39,7 @@ def test_edge_share_counts_scored_blue_and_yellow_cones_only(tmp_path):
     assert edge_share(ds) == (1, 3)
     assert edge_share(ds, classes=("blue", "yellow", "orange")) == (2, 4)
     assert edge_share(ds, radius=1.5) == (0, 3)
+    assert edge_share(ds, scored=lambda a: True) == (2, 4)  # the caller's rule: the tiny corner cone counts
 
 
 def test_dataset_info_prints_the_edge_share(tmp_path, capsys):

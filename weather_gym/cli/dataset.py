@@ -235,7 +235,7 @@ def _info(args) -> int:
         m = ds.ignore_mask(0)
         print(f"ignore mask: {info.get('ignore_mask') or 'per frame'} "
               f"({100.0 * float(m.mean()) if m is not None else 0.0:.1f} % of frame 0)")
-    near, scored = edge_share(ds)
+    near, scored = edge_share(ds, scored=lambda a: not a.get("ignore") and not is_small(a))  # as counted above
     if scored:
         print(f"blue/yellow cones near the frame's edge (box centre beyond {EDGE_RADIUS:g} of the half-diagonal): "
               f"{near} of {scored} ({100.0 * near / scored:.1f} %; low light's damage grows with it, "

@@ -16,7 +16,7 @@ Example:
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -28,26 +28,31 @@ EDGE_CLASSES = ("blue", "yellow")
 """The classes counted: the track's boundary cones, the metric the low-light presets were calibrated on."""
 
 
-def edge_radius(boxes_xywh: np.ndarray, width: float, height: float) -> np.ndarray:
+def edge_radius(boxes_xywh: np.ndarray, width, height) -> np.ndarray:
     """Normalised radius of each COCO ``[x, y, w, h]`` box centre: 0 at the frame's centre, 1 on the
-    ellipse through the middles of its sides, about 1.41 in its corners."""
+    ellipse through the middles of its sides, about 1.41 in its corners (``width``, ``height``: the
+    frame's size, one for all boxes or one per box)."""
     b = np.asarray(boxes_xywh, dtype=np.float64).reshape(-1, 4)
-    cx = (b[:, 0] + b[:, 2] / 2) / (width / 2) - 1.0
-    cy = (b[:, 1] + b[:, 3] / 2) / (height / 2) - 1.0
+    cx = (b[:, 0] + b[:, 2] / 2) / (np.asarray(width) / 2) - 1.0
+    cy = (b[:, 1] + b[:, 3] / 2) / (np.asarray(height) / 2) - 1.0
     return np.hypot(cx, cy)
 
 
-def edge_share(ds, classes: Iterable[str] = EDGE_CLASSES, radius: float = EDGE_RADIUS) -> tuple[int, int]:
-    """``(near the edge, all)`` of a ``CocoDataset``'s scored cones of ``classes``: the ones a detector
-    is scored on, i.e. neither an ignore region nor flagged too small (``iscrowd``)."""
+def _stored_scored(a: dict) -> bool:
+    """Scored by the dataset's own flags: neither an ignore region nor flagged too small (``iscrowd``)."""
+    return not a.get("iscrowd") and not a.get("ignore")
+
+
+def edge_share(ds, classes: Iterable[str] = EDGE_CLASSES, radius: float = EDGE_RADIUS,
+               scored: Callable[[dict], bool] = _stored_scored) -> tuple[int, int]:
+    """``(near the edge, all)`` of a ``CocoDataset``'s scored cones of ``classes``; ``scored`` tells
+    a scored annotation (default: the dataset's stored flags)."""
     names = {c["id"]: c["name"] for c in ds.data["categories"]}
     wanted = set(classes)
     sizes = {im["id"]: (im["width"], im["height"]) for im in ds.images}
-    near = total = 0
-    for a in ds.data["annotations"]:
-        if names.get(a["category_id"]) not in wanted or a.get("iscrowd") or a.get("ignore"):
-            continue
-        w, h = sizes[a["image_id"]]
-        near += int(edge_radius(np.array(a["bbox"]), w, h)[0] > radius)
-        total += 1
-    return near, total
+    anns = [a for a in ds.data["annotations"] if names.get(a["category_id"]) in wanted and scored(a)]
+    if not anns:
+        return 0, 0
+    wh = np.array([sizes[a["image_id"]] for a in anns], dtype=np.float64)
+    r = edge_radius(np.array([a["bbox"] for a in anns]), wh[:, 0], wh[:, 1])
+    return int((r > radius).sum()), len(anns)
