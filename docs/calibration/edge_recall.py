@@ -1,13 +1,19 @@
-"""Which cones low light takes first: recall near the frame's edge and in its centre, per set.
+"""Which cones low light takes first: recall by where a cone is in the frame and how far, per set.
 
 For every ``--set NAME=DIR`` the shipped detector scores the set clean and at each calibrated
 low-light preset (weather seed ``--seed``: the frames of the transfer check's cells of that seed),
 and the blue and yellow cones' recall at the detector's operating score (pycocotools' matching at IoU
-0.5, as in every recall the project reports) is split by where the cone's box centre is: beyond
+0.5, as in every recall the project reports) is split by where the cone's box is: cut by the frame
+(a side within ``CUT_PX`` of the frame's border), else by whether its centre lies beyond
 ``EDGE_RADIUS`` (:mod:`weather_gym.datasets.frame_position`) of the frame's half-diagonal ellipse
-("edge") or inside it ("centre"). The split rides on ``score_dataset``'s recall by range, with each
-cone's range replaced by its region.
-Writes ``OUT/edge_recall.csv`` and ``OUT/edge_recall.md``.
+("edge") or inside it ("centre"), and by the cone's distance (``RANGE_EDGES_M``). The split rides on
+``score_dataset``'s recall by range, with each cone's range replaced by its category.
+
+The composition check asks how much of the sets' spread is *where their cones are*: each set's
+recall if every category had the recall of all sets pooled, against its actual recall.
+
+Writes ``OUT/edge_recall.csv`` (centre / edge, the cut cones counted by their centre),
+``OUT/edge_recall_split.csv`` (every category) and ``OUT/edge_recall.md`` (both, and the check).
 
     python docs/calibration/edge_recall.py --set b_shape=scratch/calib/held240_b_shape --out /tmp/edge
 """
@@ -31,12 +37,16 @@ from weather_gym.weather.presets import load_presets
 from weather_gym.weather.tables import effect_from_table
 
 BLUE_YELLOW = [CONE_CLASSES.index("blue"), CONE_CLASSES.index("yellow")]
-REGIONS = (0.0, 0.5, 1.5)  # "range" 0: centre, 1: edge
+RANGE_EDGES_M = (6.0, 12.0)
+CUT_PX = 1.0
+CATEGORIES = ("centre < 6 m", "centre 6-12 m", "centre > 12 m", "edge < 6 m", "edge 6-12 m", "edge > 12 m",
+              "cut by the frame, centre", "cut by the frame, edge")
+BINS = tuple(np.arange(len(CATEGORIES) + 1) - 0.5)  # "range" i: category i
 
 
-class _ByRegion:
-    """A ``CocoDataset`` whose blue and yellow cones carry their region (0 centre, 1 edge) as their
-    range; the other classes are out of every bin (range -1)."""
+class _ByCategory:
+    """A ``CocoDataset`` whose blue and yellow cones carry their category's index as their range; the
+    other classes are out of every bin (range -1)."""
 
     def __init__(self, ds) -> None:
         self._ds = ds
@@ -50,9 +60,34 @@ class _ByRegion:
     def gt(self, i: int) -> dict[str, np.ndarray]:
         g = dict(self._ds.gt(i))
         rec = self._ds.record(i)
-        region = (edge_radius(xyxy_to_xywh(g["boxes"]), rec["width"], rec["height"]) > EDGE_RADIUS).astype(np.float32)
-        g["ranges"] = np.where(np.isin(g["classes"], BLUE_YELLOW), region, -1.0).astype(np.float32)
+        w, h = rec["width"], rec["height"]
+        b = np.asarray(g["boxes"], np.float64).reshape(-1, 4)
+        edge = edge_radius(xyxy_to_xywh(b), w, h) > EDGE_RADIUS
+        cut = (b[:, 0] <= CUT_PX) | (b[:, 1] <= CUT_PX) | (b[:, 2] >= w - CUT_PX) | (b[:, 3] >= h - CUT_PX)
+        far = np.digitize(np.asarray(g["ranges"], np.float64), RANGE_EDGES_M)
+        cat = np.where(cut, 6 + edge, 3 * edge + far)
+        g["ranges"] = np.where(np.isin(g["classes"], BLUE_YELLOW), cat, -1).astype(np.float32)
         return g
+
+
+def _found(recall: float, n: int) -> int:
+    return 0 if n == 0 else round(recall * n)
+
+
+def _composition_lines(rows: list[dict], labels: list[str]) -> list[str]:
+    """Each set's recall against the recall its composition gives with the pooled per-category recall."""
+    lines = ["| condition | " + " | ".join(r["set"] for r in rows) + " | spread | r |",
+             "|---|" + "---|" * len(rows) + "---|---|"]
+    n = np.array([[r[f"cones {c}"] for c in CATEGORIES] for r in rows], np.float64)
+    for label in labels:
+        found = np.array([[r[f"{label} found {c}"] for c in CATEGORIES] for r in rows], np.float64)
+        pooled = found.sum(0) / np.maximum(n.sum(0), 1)
+        actual, expected = found.sum(1) / n.sum(1), (n * pooled).sum(1) / n.sum(1)
+        r = float(np.corrcoef(actual, expected)[0, 1])
+        for name, v, corr in (("actual", actual, ""), ("from composition", expected, f"{r:.2f}")):
+            cells = " | ".join(f"{x:.3f}" for x in v)
+            lines.append(f"| {label}: {name} | {cells} | {np.ptp(v):.3f} | {corr} |")
+    return lines
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -71,31 +106,51 @@ def main(argv: list[str] | None = None) -> None:
     conditions = [("clear", None)] + [(f"low_light@{sev}", e["effects"][0])
                                       for sev, e in sorted(data["presets"]["low_light"].items())
                                       if e.get("calibrated") and sev in (1, 2)]
+    labels = [c for c, _ in conditions]
     det = load_detector(None)
-    rows = []
+    coarse, fine = [], []
     for name, path in tqdm(sets.items(), desc="sets", unit="set"):
-        ds = _ByRegion(load_coco(path))
+        ds = _ByCategory(load_coco(path))
         row = {"set": name}
         for label, table in conditions:
             effect = None if table is None else effect_from_table(table)
-            r = score_dataset(ds, det, effect, seed=args.seed, range_bins=REGIONS)
-            (centre, n_centre), (edge, n_edge) = r.recall_by_range.values()
-            row.update({f"{label} centre": centre, f"{label} edge": edge, "cones centre": n_centre,
-                        "cones edge": n_edge})
-        rows.append(row)
+            r = score_dataset(ds, det, effect, seed=args.seed, range_bins=BINS)
+            for c, (rec, n) in zip(CATEGORIES, r.recall_by_range.values(), strict=True):
+                row[f"{label} found {c}"], row[f"cones {c}"] = _found(rec, n), n
+        fine.append(row)
+        regions = {"centre": [c for c in CATEGORIES if c.startswith("centre") or c.endswith(", centre")],
+                   "edge": [c for c in CATEGORIES if c.startswith("edge") or c.endswith(", edge")]}
+        out = {"set": name}
+        for label in labels:
+            for region, cats in regions.items():
+                n = sum(row[f"cones {c}"] for c in cats)
+                out[f"{label} {region}"] = sum(row[f"{label} found {c}"] for c in cats) / n if n else float("nan")
+            if label == "clear":
+                out.update({f"cones {region}": sum(row[f"cones {c}"] for c in cats) for region, cats in regions.items()})
+        coarse.append(out)
     args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / "edge_recall.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    labels = [c for c, _ in conditions]
+    for fname, rows in (("edge_recall.csv", coarse), ("edge_recall_split.csv", fine)):
+        with open(args.out / fname, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
     lines = [f"Blue and yellow cones found at the detector's operating score (IoU 0.5), weather seed {args.seed}; "
              f"edge: box centre beyond {EDGE_RADIUS} of the frame's half-diagonal ellipse.", "",
              "| set | cones: centre / edge | " + " | ".join(f"{c}: centre / edge" for c in labels) + " |",
              "|---|---|" + "---|" * len(labels)]
-    for r in rows:
+    for r in coarse:
         cells = " | ".join(f"{r[f'{c} centre']:.3f} / {r[f'{c} edge']:.3f}" for c in labels)
         lines.append(f"| {r['set']} | {r['cones centre']} / {r['cones edge']} | {cells} |")
+    lines += ["", f"By distance and whether the frame cuts the box (a side within {CUT_PX:g} px of the border): "
+              "found / cones.", "",
+              "| set | condition | " + " | ".join(CATEGORIES) + " |", "|---|---|" + "---|" * len(CATEGORIES)]
+    for r in fine:
+        for label in labels:
+            cells = " | ".join(f"{r[f'{label} found {c}']} / {r[f'cones {c}']}" for c in CATEGORIES)
+            lines.append(f"| {r['set']} | {label} | {cells} |")
+    lines += ["", "Composition check: each set's recall, and the recall it would have if every category above had "
+              "the recall of all sets pooled (r: their correlation over the sets).", ""]
+    lines += _composition_lines(fine, labels)
     (args.out / "edge_recall.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
