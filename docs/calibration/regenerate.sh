@@ -46,12 +46,14 @@ for t in "${HELD[@]}"; do
     "$SETS/held_${t//:/}_710" "$SETS/held_${t//:/}_711" --out "$SETS/held240_${t//:/}"
   HELD240+=(--set "$t=$SETS/held240_${t//:/}")
 done
-# the first 80-frame set of each held-out track again with the camera model's vignetting off (same poses
-# and looks; the vignetting check at the end)
-NOVIG=()
+# the first 80-frame set of each held-out track again with the camera model's vignetting off, and again
+# with its barrel distortion off (same poses and looks; the vignetting and distortion checks at the end)
+NOVIG=(); NODIST=()
 for t in "${HELD[@]}"; do
   render "$SETS/held_novig_${t//:/}" --track "$t" --frames 80 --seed 707 --camera-model "$OUT/no_vignetting.toml"
   NOVIG+=(--set "$t=$SETS/held_novig_${t//:/}")
+  render "$SETS/held_nodist_${t//:/}" --track "$t" --frames 80 --seed 707 --camera-model "$OUT/no_distortion.toml"
+  NODIST+=(--set "$t=$SETS/held_nodist_${t//:/}")
 done
 render "$SETS/held_realistic" --track peanut --track random:82 --frames 80 --seed 708 --scene realistic
 render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --seed 709 --scene realistic
@@ -90,9 +92,11 @@ python docs/calibration/transfer.py "${TRANSFER[@]}" --seeds 2 --workers "$WORKE
 # the spread of 80-frame sets of one track: the two more samples of each held-out track, then all three merged
 python docs/calibration/transfer.py "${RESAMPLES[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/resamples"
 python docs/calibration/transfer.py "${HELD240[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/held240"
-# the same first sets without vignetting; then where in the frame each set's cones are against its relative
-# mAP, over the held-out and resampled sets (docs/calibration.md, "Why low light spreads over tracks")
+# the same first sets without vignetting and without distortion; then where in the frame each set's cones
+# are against its relative mAP, over the held-out and resampled sets (docs/calibration.md, "Why low light
+# spreads over tracks")
 python docs/calibration/transfer.py "${NOVIG[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/no_vignetting"
+python docs/calibration/transfer.py "${NODIST[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/no_distortion"
 PLACE=(--transfer "$OUT/transfer" "${TRANSFER[@]}" --transfer "$OUT/transfer/resamples" "${RESAMPLES[@]}"
        --transfer "$OUT/transfer/held240" "${HELD240[@]}")
 python docs/calibration/placement.py "${PLACE[@]}" --reference "calibration pool=$POOL" --out "$OUT/transfer/placement"
