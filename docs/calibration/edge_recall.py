@@ -12,7 +12,7 @@ and the blue and yellow cones' recall at the detector's operating score (pycocot
 The composition check asks how much of the sets' spread is *where their cones are*: each set's
 recall if every category had the recall of all sets pooled, against its actual recall.
 
-Writes ``OUT/edge_recall.csv`` (centre / edge, the cut cones counted by their centre),
+Writes ``OUT/edge_recall.csv`` (centre / edge, each cut cone counted where its box centre is),
 ``OUT/edge_recall_split.csv`` (every category) and ``OUT/edge_recall.md`` (both, and the check).
 
     python docs/calibration/edge_recall.py --set b_shape=scratch/calib/held240_b_shape --out /tmp/edge
@@ -42,6 +42,8 @@ CUT_PX = 1.0
 CATEGORIES = ("centre < 6 m", "centre 6-12 m", "centre > 12 m", "edge < 6 m", "edge 6-12 m", "edge > 12 m",
               "cut by the frame, centre", "cut by the frame, edge")
 BINS = tuple(np.arange(len(CATEGORIES) + 1) - 0.5)  # "range" i: category i
+REGIONS = {region: [c for c in CATEGORIES if c.startswith(region) or c.endswith(f", {region}")]
+           for region in ("centre", "edge")}
 
 
 class _ByCategory:
@@ -118,15 +120,13 @@ def main(argv: list[str] | None = None) -> None:
             for c, (rec, n) in zip(CATEGORIES, r.recall_by_range.values(), strict=True):
                 row[f"{label} found {c}"], row[f"cones {c}"] = _found(rec, n), n
         fine.append(row)
-        regions = {"centre": [c for c in CATEGORIES if c.startswith("centre") or c.endswith(", centre")],
-                   "edge": [c for c in CATEGORIES if c.startswith("edge") or c.endswith(", edge")]}
         out = {"set": name}
         for label in labels:
-            for region, cats in regions.items():
+            for region, cats in REGIONS.items():
                 n = sum(row[f"cones {c}"] for c in cats)
                 out[f"{label} {region}"] = sum(row[f"{label} found {c}"] for c in cats) / n if n else float("nan")
             if label == "clear":
-                out.update({f"cones {region}": sum(row[f"cones {c}"] for c in cats) for region, cats in regions.items()})
+                out.update({f"cones {region}": sum(row[f"cones {c}"] for c in cats) for region, cats in REGIONS.items()})
         coarse.append(out)
     args.out.mkdir(parents=True, exist_ok=True)
     for fname, rows in (("edge_recall.csv", coarse), ("edge_recall_split.csv", fine)):
