@@ -61,7 +61,7 @@ def _on_grass(img: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         m = max(2, int(0.5 * (y1 - y0)))
         a0, a1, b0, b1 = int(max(0, x0 - m)), int(min(w, x1 + m)), int(max(0, y0)), int(min(h, y1 + m))
         keep = np.ones((b1 - b0, a1 - a0), bool)
-        keep[int(y0) - b0:int(y1) - b0, int(x0) - a0:int(x1) - a0] = False  # not the cone's own box
+        keep[max(0, int(y0) - b0):max(0, int(y1) - b0), max(0, int(x0) - a0):max(0, int(x1) - a0)] = False  # not the box
         px = img[b0:b1, a0:a1][keep].astype(np.float64)
         if len(px):
             r, g, b = px.mean(0)
