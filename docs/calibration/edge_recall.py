@@ -51,6 +51,8 @@ GREEN_MARGIN = 10.0
 BINS = tuple(np.arange(2 * len(CATEGORIES) + 1) - 0.5)  # "range" 2 i + g: category i, surroundings g
 REGIONS = {region: [c for c in CATEGORIES if c.startswith(region) or c.endswith(f", {region}")]
            for region in ("centre", "edge")}
+FULL = [(c, s) for c in CATEGORIES for s in SURROUNDINGS]  # in the order of BINS
+UNCUT = {region: [c for c in cats if not c.startswith("cut")] for region, cats in REGIONS.items()}
 
 
 def _on_grass(img: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -75,6 +77,7 @@ class _ByCategory:
 
     def __init__(self, ds) -> None:
         self._ds = ds
+        self._ranges: dict[int, np.ndarray] = {}  # per frame: the categories, the same for every condition
 
     def __getattr__(self, name):
         return getattr(self._ds, name)
@@ -84,19 +87,17 @@ class _ByCategory:
 
     def gt(self, i: int) -> dict[str, np.ndarray]:
         g = dict(self._ds.gt(i))
-        rec = self._ds.record(i)
-        w, h = rec["width"], rec["height"]
-        b = np.asarray(g["boxes"], np.float64).reshape(-1, 4)
-        edge = edge_radius(xyxy_to_xywh(b), w, h) > EDGE_RADIUS
-        cut = (b[:, 0] <= CUT_PX) | (b[:, 1] <= CUT_PX) | (b[:, 2] >= w - CUT_PX) | (b[:, 3] >= h - CUT_PX)
-        far = np.digitize(np.asarray(g["ranges"], np.float64), RANGE_EDGES_M)
-        cat = 2 * np.where(cut, 6 + edge, 3 * edge + far) + _on_grass(self._ds.image(i), b)
-        g["ranges"] = np.where(np.isin(g["classes"], BLUE_YELLOW), cat, -1).astype(np.float32)
+        if i not in self._ranges:
+            rec = self._ds.record(i)
+            w, h = rec["width"], rec["height"]
+            b = np.asarray(g["boxes"], np.float64).reshape(-1, 4)
+            edge = edge_radius(xyxy_to_xywh(b), w, h) > EDGE_RADIUS
+            cut = (b[:, 0] <= CUT_PX) | (b[:, 1] <= CUT_PX) | (b[:, 2] >= w - CUT_PX) | (b[:, 3] >= h - CUT_PX)
+            far = np.digitize(np.asarray(g["ranges"], np.float64), RANGE_EDGES_M)
+            cat = 2 * np.where(cut, 6 + edge, 3 * edge + far) + _on_grass(self._ds.image(i), b)
+            self._ranges[i] = np.where(np.isin(g["classes"], BLUE_YELLOW), cat, -1).astype(np.float32)
+        g["ranges"] = self._ranges[i]
         return g
-
-
-FULL = [(c, s) for c in CATEGORIES for s in SURROUNDINGS]  # in the order of BINS
-UNCUT = {region: [c for c in cats if not c.startswith("cut")] for region, cats in REGIONS.items()}
 
 
 def _found(recall: float, n: int) -> int:
@@ -107,8 +108,12 @@ def _sum(row: dict, prefix: str, pairs) -> int:
     return sum(row[f"{prefix} {c}, {s}"] for c, s in pairs)
 
 
-def _by_category(c: str) -> list[tuple[str, str]]:
+def _pairs(c: str) -> list[tuple[str, str]]:
+    """Category ``c`` on every surroundings."""
     return [(c, s) for s in SURROUNDINGS]
+
+
+REGION_PAIRS = {region: [p for c in cats for p in _pairs(c)] for region, cats in REGIONS.items()}
 
 
 def _composition_lines(rows: list[dict], labels: list[str], groups: list[list[tuple[str, str]]]) -> list[str]:
@@ -158,13 +163,11 @@ def main(argv: list[str] | None = None) -> None:
         fine.append(row)
         out = {"set": name}
         for label in labels:
-            for region, cats in REGIONS.items():
-                pairs = [p for c in cats for p in _by_category(c)]
+            for region, pairs in REGION_PAIRS.items():
                 n = _sum(row, "cones", pairs)
                 out[f"{label} {region}"] = _sum(row, f"{label} found", pairs) / n if n else float("nan")
             if label == "clear":
-                out.update({f"cones {region}": _sum(row, "cones", [p for c in cats for p in _by_category(c)])
-                            for region, cats in REGIONS.items()})
+                out.update({f"cones {region}": _sum(row, "cones", pairs) for region, pairs in REGION_PAIRS.items()})
         coarse.append(out)
     args.out.mkdir(parents=True, exist_ok=True)
     for fname, rows in (("edge_recall.csv", coarse), ("edge_recall_split.csv", fine)):
@@ -184,7 +187,7 @@ def main(argv: list[str] | None = None) -> None:
               "| set | condition | " + " | ".join(CATEGORIES) + " |", "|---|---|" + "---|" * len(CATEGORIES)]
     for r in fine:
         for label in labels:
-            cells = " | ".join(f"{_sum(r, f'{label} found', _by_category(c))} / {_sum(r, 'cones', _by_category(c))}"
+            cells = " | ".join(f"{_sum(r, f'{label} found', _pairs(c))} / {_sum(r, 'cones', _pairs(c))}"
                                for c in CATEGORIES)
             lines.append(f"| {r['set']} | {label} | {cells} |")
     heads = [f"{region}, {s}" for region in UNCUT for s in SURROUNDINGS]
@@ -200,7 +203,7 @@ def main(argv: list[str] | None = None) -> None:
             lines.append(f"| {r['set']} | {label} | {cells} |")
     lines += ["", "Composition check: each set's recall, and the recall it would have if every category of place "
               "and distance had the recall of all sets pooled (r: their correlation over the sets).", ""]
-    lines += _composition_lines(fine, labels, [_by_category(c) for c in CATEGORIES])
+    lines += _composition_lines(fine, labels, [_pairs(c) for c in CATEGORIES])
     lines += ["", "The same with the surroundings too (every category of place and distance, on asphalt and on "
               "grass).", ""]
     lines += _composition_lines(fine, labels, [[p] for p in FULL])

@@ -5,8 +5,9 @@ script puts each set's relative mAP (from ``transfer.py`` outputs) next to two p
 the share of its blue and yellow cones that the camera sees near the frame's edge
 (:mod:`weather_gym.datasets.frame_position`: box centre beyond 0.8 of the frame's half-diagonal
 ellipse, the corners and the far left and right; `weather-gym dataset info` prints it too), and the
-mean absolute yaw rate of the car over the set's frames (the turns' motion blur). It writes ``OUT/placement.csv`` (one row per set), ``OUT/placement.md`` (per preset: the correlation of
-relative mAP with each property over the sets, and the least-squares slope) and ``OUT/placement.png``.
+mean absolute yaw rate of the car over the set's frames (the turns' motion blur). It writes
+``OUT/placement.csv`` (one row per set), ``OUT/placement.md`` (per preset: the correlation of relative
+mAP with each property over the sets, and the least-squares slope) and ``OUT/placement.png``.
 
 Each ``--transfer DIR`` (a ``transfer.py`` output folder) is followed by the ``--set NAME=DIR`` it was
 run with; only rendered sets (records with a ``track``) are used, so real frames are left out.
