@@ -14,7 +14,8 @@ def test_bench_sim_naive_prints_the_baseline_and_the_default_env(monkeypatch, ca
     rows = [line for line in out.splitlines() if line.startswith("| 96x54")]
     assert any("naive TinyRenderer frame (baseline)" in r for r in rows)
     assert any("default camera env step, renderer" in r for r in rows)
-    if "renderer egl" in out:  # where EGL loads, the TinyRenderer fallback gets its own row
+    if "renderer egl" in out:  # where EGL loads, the TinyRenderer fallback and the step without the shadow map get rows
         assert any("default camera env step, renderer tiny (no EGL)" in r for r in rows)
+        assert any("camera env step, shadows=False (EGL without its shadow map)" in r for r in rows)
     assert "speed-up vs naive frame" in out
 

@@ -47,7 +47,8 @@ def register(targets) -> None:
                    help="only the default camera env step (make_env() defaults: physics, render, camera model, "
                         "segmentation ground truth) against a naive TinyRenderer frame of a bare PyBullet scene "
                         "(ground + 80 cone-sized cylinders) at 672x376 and 336x188, the rows taking turns call by "
-                        "call; also the env with renderer='tiny' (what runs where EGL does not load)")
+                        "call; also the env with shadows=False (EGL without its shadow map) and with "
+                        "renderer='tiny' (what runs where EGL does not load)")
     p.add_argument("--worlds", action="store_true",
                    help="only the world comparison: plain (baseline) vs realistic scene with EGL at 672x376, "
                         "with and without the segmentation pass, the cast shadows' cost (off; a low sun), "
@@ -195,6 +196,9 @@ def _naive(args: argparse.Namespace, track) -> int:
             drivers = {"naive": frame}
             drivers["default"] = _Driver(envs["default"], actions)
             default_renderer = drivers["default"].info["renderer"]
+            if default_renderer == "egl":  # the same env without the EGL plugin's shadow-map pass
+                envs["no_shadow_map"] = make_env(track=args.track, camera=cam, sim=SimConfig(shadows=False))
+                drivers["no_shadow_map"] = _Driver(envs["no_shadow_map"], actions)
             if default_renderer != "tiny":
                 envs["tiny"] = make_env(track=args.track, camera=cam, sim=SimConfig(renderer="tiny"))
                 drivers["tiny"] = _Driver(envs["tiny"], actions)
@@ -207,6 +211,9 @@ def _naive(args: argparse.Namespace, track) -> int:
         rows.append([f"{w}x{h}", "naive TinyRenderer frame (baseline)", ms["naive"], 1.0])
         rows.append([f"{w}x{h}", f"default camera env step, renderer {default_renderer}{detail}", ms["default"],
                      ms["naive"] / ms["default"]])
+        if "no_shadow_map" in ms:
+            rows.append([f"{w}x{h}", "camera env step, shadows=False (EGL without its shadow map)",
+                         ms["no_shadow_map"], ms["naive"] / ms["no_shadow_map"]])
         if "tiny" in ms:
             rows.append([f"{w}x{h}", "default camera env step, renderer tiny (no EGL)", ms["tiny"],
                          ms["naive"] / ms["tiny"]])

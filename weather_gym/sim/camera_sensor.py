@@ -13,6 +13,7 @@ Example (needs PyBullet; see ``World.render``):
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 
@@ -23,6 +24,7 @@ from scipy import ndimage
 
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
+from weather_gym.sim import egl_shadow_map
 from weather_gym.sim.look import Look
 from weather_gym.sim.renderer import quiet_if_egl
 from weather_gym.sim.visibility import empty_ground_truth, visible_cones
@@ -56,11 +58,16 @@ def empty_gt() -> ConeArrays:
 class CameraSensor:
     """Renders what a camera mounted on the car sees; holds the per-episode sky and mount jitter."""
 
-    def __init__(self, config: CameraConfig, client: int, renderer: int, shadows: bool = False) -> None:
+    def __init__(self, config: CameraConfig, client: int, renderer: int, shadows: bool | None = None) -> None:
         self.config = config
         self.client = client
         self.renderer = renderer
-        self.shadows = shadows
+        self.shadows = shadows  # None: the renderer's own (EGL: its shadow map; TinyRenderer: none)
+        # EGL draws its shadow map unless switched off around each frame (weather_gym.sim.egl_shadow_map)
+        self._without_shadow_map = renderer == p.ER_BULLET_HARDWARE_OPENGL and shadows is False
+        if self._without_shadow_map and (reason := egl_shadow_map.unavailable_reason()) is not None:
+            raise RuntimeError(f"SimConfig.shadows=False cannot be honoured with the EGL renderer here: {reason}; "
+                               "leave shadows unset (the plugin's shadow map) or use renderer='tiny'")
         c = config
         if c.centred:
             self._proj = p.computeProjectionMatrixFOV(c.vfov_deg, c.width / c.height, c.near, c.far)
@@ -114,14 +121,15 @@ class CameraSensor:
         fwd = np.array([math.cos(heading) * math.cos(pitch), math.sin(heading) * math.cos(pitch), -math.sin(pitch)])
         view = p.computeViewMatrix(eye.tolist(), (eye + fwd).tolist(), [0, 0, 1])
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
-        with quiet_if_egl(self.renderer):
+        no_shadow_map = egl_shadow_map.shadow_map_off() if self._without_shadow_map else contextlib.nullcontext()
+        with quiet_if_egl(self.renderer), no_shadow_map:
             _, _, rgba, zbuf, seg = p.getCameraImage(
                 c.width,
                 c.height,
                 view,
                 self._proj,
                 renderer=self.renderer,
-                shadow=int(self.shadows),
+                shadow=int(bool(self.shadows)),
                 flags=flags,
                 physicsClientId=self.client,
                 **light,

@@ -51,7 +51,13 @@ class SimConfig:
             (no camera rendering at all: physics only; ground truth from geometry).
         gui: open the PyBullet GUI (needs a display) instead of DIRECT mode.
         cone_mass: kg per small cone (big cones weigh 1.5x).
-        shadows: cast shadows (PyBullet's shadow map; see ``weather-gym bench sim`` for the cost).
+        shadows: PyBullet's shadow map. None (the default): the renderer's own way, which the shipped
+            calibration, presets and detector are made with: PyBullet's EGL plugin draws its shadow map
+            on every frame, TinyRenderer none. True: shadows with either renderer (TinyRenderer's cost
+            about twice the frame). False: none with either; with EGL the frame is about 15 ms faster
+            (the shadow-map pass; ``weather-gym bench sim --naive``) and its cones lose the plugin's
+            shading, so the calibration's numbers do not hold for it as they stand
+            (:mod:`weather_gym.sim.egl_shadow_map`).
         scene: ``"plain"`` (default) or ``"realistic"`` (see ``SCENES``).
         cast_shadows: the realistic scene's cones cast shadows away from the sun, drawn into each
             frame after rendering (:mod:`weather_gym.sim.cast_shadows`); the plain scene has none.
@@ -62,7 +68,7 @@ class SimConfig:
     renderer: str = "auto"
     gui: bool = False
     cone_mass: float = 0.6
-    shadows: bool = False
+    shadows: bool | None = None
     gravity: float = 9.81
     scene: str = "plain"
     cast_shadows: bool = True
@@ -71,8 +77,8 @@ class SimConfig:
         _check_finite_positive(self, ("physics_hz", "control_hz", "cone_mass", "gravity"))
         if self.scene not in SCENES:
             raise InputError(f"SimConfig.scene must be one of {SCENES}, got {self.scene!r}")
-        if not isinstance(self.shadows, bool):
-            raise InputError(f"SimConfig.shadows must be true or false, got {self.shadows!r}")
+        if self.shadows is not None and not isinstance(self.shadows, bool):
+            raise InputError(f"SimConfig.shadows must be true, false or unset (None), got {self.shadows!r}")
         if not isinstance(self.cast_shadows, bool):
             raise InputError(f"SimConfig.cast_shadows must be true or false, got {self.cast_shadows!r}")
         if self.renderer not in RENDERERS:

@@ -1,0 +1,84 @@
+"""Frames from PyBullet's EGL plugin without its shadow map (``SimConfig(shadows=False)``).
+
+The plugin draws a 4096x4096 shadow map before every frame and shades the scene by it, whatever
+``getCameraImage(shadow=0)`` asks: that argument reaches TinyRenderer only. On Mesa's llvmpipe the
+pass costs about 15 ms a frame whatever the image size (``weather-gym bench sim --naive``). The
+plugin offers no call to skip it; its switch is a global of the plugin's renderer (``useShadowMap``
+in bullet3's ``GLInstancingRenderer``), found here from the plugin's symbol table.
+:func:`shadow_map_off` clears it around one frame and sets it back, so every other frame of the
+process is drawn as the plugin draws it.
+
+Example:
+    >>> from weather_gym.sim.egl_shadow_map import unavailable_reason
+    >>> unavailable_reason() is None or isinstance(unavailable_reason(), str)
+    True
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import sys
+from collections.abc import Iterator
+
+from weather_gym.sim.elf_symbols import elf_symbol, load_address
+
+_SYMBOL = "useShadowMap"
+_flag: ctypes.c_uint8 | None = None
+_reason: str | None = None
+
+
+def _plugin_path() -> str | None:
+    from weather_gym.sim.renderer import _egl_plugin_path  # the renderer module imports this one
+
+    return _egl_plugin_path()
+
+
+def _find_flag() -> ctypes.c_uint8 | str:
+    """The loaded plugin's flag, or a sentence saying why it cannot be had."""
+    if not sys.platform.startswith("linux") or sys.maxsize < 2**32:
+        return "the switch is found in 64-bit Linux builds only"
+    path = _plugin_path()
+    base = load_address(path) if path else None
+    if base is None:
+        return "PyBullet's EGL plugin is not loaded in this process"
+    symbol = elf_symbol(path, _SYMBOL)
+    if symbol is None:
+        return f"{path} has no symbol table entry {_SYMBOL!r} (a stripped or other build of the plugin)"
+    value, size = symbol
+    flag = ctypes.c_uint8.from_address(base + value)
+    if size != 1 or flag.value != 1:
+        return f"{_SYMBOL} in {path} is not the set one-byte flag it should be (size {size}, value {flag.value})"
+    return flag
+
+
+def unavailable_reason() -> str | None:
+    """None when the shadow map can be switched off in this process (the EGL plugin is loaded and
+    its switch was found), else why not. Looked up once, at the first call after the plugin loaded."""
+    global _flag, _reason
+    if _flag is None and _reason is None:
+        found = _find_flag()
+        if isinstance(found, str):
+            if "not loaded" in found:
+                return found  # not cached: the plugin may load later
+            _reason = found
+        else:
+            _flag = found
+    return _reason
+
+
+@contextlib.contextmanager
+def shadow_map_off() -> Iterator[None]:
+    """EGL frames rendered inside have no shadow map; the plugin's own setting is put back after.
+
+    Raises RuntimeError when the switch cannot be had (:func:`unavailable_reason`).
+    """
+    reason = unavailable_reason()
+    if reason is not None:
+        raise RuntimeError(f"cannot render EGL frames without PyBullet's shadow map: {reason}")
+    assert _flag is not None
+    _flag.value = 0
+    try:
+        yield
+    finally:
+        _flag.value = 1
