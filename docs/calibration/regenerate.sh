@@ -46,14 +46,17 @@ for t in "${HELD[@]}"; do
     "$SETS/held_${t//:/}_710" "$SETS/held_${t//:/}_711" --out "$SETS/held240_${t//:/}"
   HELD240+=(--set "$t=$SETS/held240_${t//:/}")
 done
-# the first 80-frame set of each held-out track again with the camera model's vignetting off, and again
-# with its barrel distortion off (same poses and looks; the vignetting and distortion checks at the end)
-NOVIG=(); NODIST=()
+# the first 80-frame set of each held-out track again with the camera model's vignetting off, again
+# with its barrel distortion off, and again without the EGL plugin's shadow map (same poses and looks;
+# the vignetting, distortion and shadow-map checks at the end)
+NOVIG=(); NODIST=(); NOSHADOW=()
 for t in "${HELD[@]}"; do
   render "$SETS/held_novig_${t//:/}" --track "$t" --frames 80 --seed 707 --camera-model "$OUT/no_vignetting.toml"
   NOVIG+=(--set "$t=$SETS/held_novig_${t//:/}")
   render "$SETS/held_nodist_${t//:/}" --track "$t" --frames 80 --seed 707 --camera-model "$OUT/no_distortion.toml"
   NODIST+=(--set "$t=$SETS/held_nodist_${t//:/}")
+  render "$SETS/held_noshadow_${t//:/}" --track "$t" --frames 80 --seed 707 --shadows off
+  NOSHADOW+=(--set "$t=$SETS/held_noshadow_${t//:/}")
 done
 render "$SETS/held_realistic" --track peanut --track random:82 --frames 80 --seed 708 --scene realistic
 render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --seed 709 --scene realistic
@@ -97,6 +100,8 @@ python docs/calibration/transfer.py "${HELD240[@]}" --seeds 2 --workers "$WORKER
 # spreads over tracks")
 python docs/calibration/transfer.py "${NOVIG[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/no_vignetting"
 python docs/calibration/transfer.py "${NODIST[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/no_distortion"
+# the same first sets without the shadow map (SimConfig.shadows=False): what that option does to the presets
+python docs/calibration/transfer.py "${NOSHADOW[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/no_shadow_map"
 PLACE=(--transfer "$OUT/transfer" "${TRANSFER[@]}" --transfer "$OUT/transfer/resamples" "${RESAMPLES[@]}"
        --transfer "$OUT/transfer/held240" "${HELD240[@]}")
 python docs/calibration/placement.py "${PLACE[@]}" --reference "calibration pool=$POOL" --out "$OUT/transfer/placement"

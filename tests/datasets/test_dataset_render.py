@@ -133,6 +133,30 @@ def test_frames_go_through_the_default_camera_model_unless_told_otherwise(tmp_pa
     assert np.array_equal(view["image"], ideal.image(0))
 
 
+def test_a_set_without_the_shadow_map_says_so_and_re_renders_its_frames(tmp_path):
+    """``--shadows off``: the same views and labels, EGL frames without PyBullet's shadow map; the set
+    records it (so its id differs from the default set's) and its views re-render byte for byte."""
+    from weather_gym._io import file_id
+    from weather_gym.cli import main
+
+    kw = dict(tracks=["oval"], frames=2, seed=5, frames_per_episode=2, progress=False)
+    render_dataset(tmp_path / "default", **kw)
+    assert main(["dataset", "render", "--track", "oval", "--frames", "2", "--seed", "5", "--frames-per-episode",
+                 "2", "--shadows", "off", "--quiet", "--out", str(tmp_path / "off")]) == 0
+    default, off = load_coco(tmp_path / "default"), load_coco(tmp_path / "off")
+    assert "shadows" not in default.info and "shadows" not in default.record(0)  # default sets as before
+    assert off.info["shadows"] is False and off.record(0)["shadows"] is False
+    assert off.record(0)["pose"] == default.record(0)["pose"]
+    assert [a["bbox"] for a in off.data["annotations"]] == [a["bbox"] for a in default.data["annotations"]]
+    assert file_id(tmp_path / "off" / "annotations.json") != file_id(tmp_path / "default" / "annotations.json")
+    view = off.render_view(0)
+    renderer = off._renderer and next(iter(off._renderer._envs.values())).unwrapped.renderer
+    off.close()
+    assert np.array_equal(view["image"], off.image(0))
+    # EGL draws its shadow map unless told not to; TinyRenderer draws none either way
+    assert np.array_equal(default.image(0), off.image(0)) == (renderer != "egl")
+
+
 def test_jpeg_quality_stores_the_same_frames_as_jpeg_with_the_same_labels(rendered, tmp_path):
     import cv2
 

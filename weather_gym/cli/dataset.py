@@ -82,6 +82,10 @@ def register(sub) -> None:
     r.add_argument("--jpeg-quality", type=int, default=None, metavar="Q",
                    help="store the frames as JPEG of quality Q (1-100) instead of PNG: 4-7x smaller, e.g. to move "
                         "a training set to a GPU machine (default: PNG, lossless)")
+    r.add_argument("--shadows", choices=("on", "off"), default=None,
+                   help="PyBullet's shadow map (SimConfig.shadows): off renders EGL frames without it (faster; "
+                        "the objects lose their shaded sides, and the presets are calibrated with it), on gives "
+                        "TinyRenderer shadows too; default: the renderer's own way")
     r.add_argument("--resume", action="store_true", help="continue an interrupted render in --out")
     r.add_argument("--overwrite", action="store_true", help="replace an existing dataset in --out")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -179,7 +183,8 @@ def _render(args) -> int:
     path = render_dataset(args.out, tracks=args.track, frames=args.frames, seed=args.seed, randomize=args.randomize,
                           camera=cam, every=args.every, frames_per_episode=args.frames_per_episode,
                           progress=not args.quiet, overwrite=args.overwrite, resume=args.resume, scene=scene,
-                          ranges=ranges, start_window=window, camera_model=model, jpeg_quality=args.jpeg_quality)
+                          ranges=ranges, start_window=window, camera_model=model, jpeg_quality=args.jpeg_quality,
+                          shadows=None if args.shadows is None else args.shadows == "on")
     print(f"wrote {path}")
     return 0
 

@@ -61,9 +61,9 @@ def episode_plan(tracks: Sequence[str], frames: int, frames_per_episode: int) ->
     return plan
 
 
-def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "plain"):
+def _make_env(track: str, camera: CameraConfig, max_steps: int, scene: str = "plain", shadows: bool | None = None):
     return make_env(track=track, camera=camera, laps=0, terminate_off_track=True, max_episode_steps=max_steps,
-                    episode_statistics=False, sim=SimConfig(scene=scene))
+                    episode_statistics=False, sim=SimConfig(scene=scene, shadows=shadows))
 
 
 def _start_end(track) -> float:
@@ -147,6 +147,7 @@ def render_dataset(
     start_window: tuple[float, float] | None = None,
     camera_model: CameraModel | None = None,
     jpeg_quality: int | None = None,
+    shadows: bool | None = None,
 ) -> Path:
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
@@ -169,10 +170,14 @@ def render_dataset(
         start_window: ``(low, high)`` metres of arc length around the start line (negative: before it) to
             draw start points from instead of the whole track, e.g. ``(-35, -3)`` for frames approaching
             the start line and its big orange cones (None: uniform over the track).
+        shadows: ``SimConfig.shadows`` (None: the renderer's own way, as the calibration's sets; False: EGL
+            frames without PyBullet's shadow map). Recorded in the set (and so in its id) when given.
     """
 
 
     ranges, camera_model = _checked_settings(seed, scene, ranges, every, camera_model)
+    if shadows is not None and not isinstance(shadows, bool):
+        raise InputError(f"shadows must be True, False or None, got {shadows!r}")
     realistic = scene == "realistic"
     camera = camera or CameraConfig()
     plan = episode_plan(list(tracks), int(frames), int(frames_per_episode))
@@ -181,7 +186,8 @@ def render_dataset(
     info = {"tracks": list(tracks), "frames": int(frames), "seed": int(seed), "randomize": bool(randomize),
             "every": int(every), "frames_per_episode": int(frames_per_episode), "scene": scene,
             **({"randomize_ranges": ranges.to_dict()} if randomize and realistic else {}),
-            **({"start_window": [float(v) for v in start_window]} if start_window is not None else {})}
+            **({"start_window": [float(v) for v in start_window]} if start_window is not None else {}),
+            **({"shadows": shadows} if shadows is not None else {})}
     # a resumed render must be asked for exactly what the interrupted one was (seed included)
     identity = {**info, "camera": camera.to_dict(), "camera_model": camera_model.to_dict(),
                 "jpeg_quality": jpeg_quality, "lateral_max": float(lateral_max)}
@@ -208,7 +214,8 @@ def render_dataset(
             if env_track != (track_spec, ep_camera):
                 if env is not None:
                     env.close()
-                env = _make_env(track_spec, ep_camera, max_steps=every * frames_per_episode * 4 + 50, scene=scene)
+                env = _make_env(track_spec, ep_camera, max_steps=every * frames_per_episode * 4 + 50, scene=scene,
+                                shadows=shadows)
                 env_track = (track_spec, ep_camera)
                 check_start_window(env.unwrapped.track, start_window)
             pose = _start_pose(env.unwrapped.track, rng, lateral_max, start_window)
@@ -230,6 +237,7 @@ def render_dataset(
                             "camera": ep_camera.to_dict(),
                             "look": look.to_dict(),
                             "scene": scene,
+                            **({"shadows": shadows} if shadows is not None else {}),
                             "camera_model": model.to_dict(),
                             "seed": int(ep_seed),
                             "episode": ep,
@@ -295,10 +303,11 @@ class ViewRenderer:
                 raise InputError(f"image record {record.get('id')!r} has no {key!r}: it cannot be re-rendered")
         camera = CameraConfig(**record["camera"])
         scene = str(record.get("scene", "plain"))  # records before the "scene" key are of the plain world
-        key = (record["track"], tuple(sorted(record["camera"].items())), scene)
+        shadows = record.get("shadows")  # only sets rendered with SimConfig.shadows given have the key
+        key = (record["track"], tuple(sorted(record["camera"].items())), scene, shadows)
         env = self._envs.get(key)
         if env is None:
-            env = self._envs[key] = _make_env(record["track"], camera, max_steps=10, scene=scene)
+            env = self._envs[key] = _make_env(record["track"], camera, max_steps=10, scene=scene, shadows=shadows)
         options = {"look": record["look"], "start_pose": record["pose"], "start_speed": float(record.get("speed", 0.0))}
         # records before the "camera_model" key were rendered without one (the ideal camera)
         options["camera_model"] = record.get("camera_model", CameraModel.ideal())
