@@ -22,26 +22,17 @@ import sys
 from collections.abc import Iterator
 
 from weather_gym.sim.elf_symbols import elf_symbol, load_address
+from weather_gym.sim.renderer import _egl_plugin_path
 
 _SYMBOL = "useShadowMap"
 _flag: ctypes.c_uint8 | None = None
 _reason: str | None = None
+_pinned: ctypes.CDLL | None = None  # our own reference to the plugin: it stays where the flag was found
 
 
-def _plugin_path() -> str | None:
-    from weather_gym.sim.renderer import _egl_plugin_path  # the renderer module imports this one
-
-    return _egl_plugin_path()
-
-
-def _find_flag() -> ctypes.c_uint8 | str:
-    """The loaded plugin's flag, or a sentence saying why it cannot be had."""
-    if not sys.platform.startswith("linux") or sys.maxsize < 2**32:
-        return "the switch is found in 64-bit Linux builds only"
-    path = _plugin_path()
-    base = load_address(path) if path else None
-    if base is None:
-        return "PyBullet's EGL plugin is not loaded in this process"
+def _find_flag(path: str, base: int) -> ctypes.c_uint8 | str:
+    """The flag of the plugin loaded at ``base`` from ``path``, or a sentence saying why it cannot be had."""
+    global _pinned
     symbol = elf_symbol(path, _SYMBOL)
     if symbol is None:
         return f"{path} has no symbol table entry {_SYMBOL!r} (a stripped or other build of the plugin)"
@@ -49,6 +40,7 @@ def _find_flag() -> ctypes.c_uint8 | str:
     flag = ctypes.c_uint8.from_address(base + value)
     if size != 1 or flag.value != 1:
         return f"{_SYMBOL} in {path} is not the set one-byte flag it should be (size {size}, value {flag.value})"
+    _pinned = ctypes.CDLL(path)  # already loaded: the same object, one more reference
     return flag
 
 
@@ -56,14 +48,20 @@ def unavailable_reason() -> str | None:
     """None when the shadow map can be switched off in this process (the EGL plugin is loaded and
     its switch was found), else why not. Looked up once, at the first call after the plugin loaded."""
     global _flag, _reason
-    if _flag is None and _reason is None:
-        found = _find_flag()
-        if isinstance(found, str):
-            if "not loaded" in found:
-                return found  # not cached: the plugin may load later
-            _reason = found
-        else:
-            _flag = found
+    if _flag is not None or _reason is not None:
+        return _reason
+    if not sys.platform.startswith("linux") or sys.maxsize < 2**32:
+        _reason = "the switch is found in 64-bit Linux builds only"
+        return _reason
+    path = _egl_plugin_path()
+    base = load_address(path) if path else None
+    if base is None:
+        return "PyBullet's EGL plugin is not loaded in this process"  # not kept: it may load later
+    found = _find_flag(path, base)
+    if isinstance(found, str):
+        _reason = found
+    else:
+        _flag = found
     return _reason
 
 
