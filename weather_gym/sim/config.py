@@ -51,7 +51,8 @@ class SimConfig:
             (no camera rendering at all: physics only; ground truth from geometry).
         gui: open the PyBullet GUI (needs a display) instead of DIRECT mode.
         cone_mass: kg per small cone (big cones weigh 1.5x).
-        shadows: PyBullet's shadow map. None (the default): the renderer's own way, which the shipped
+        shadows: PyBullet's shadow map in the camera's frames (the chase view for humans draws the
+            renderer's own way). None (the default): the renderer's own way, which the shipped
             calibration, presets and detector are made with: PyBullet's EGL plugin draws its shadow map
             on every frame, TinyRenderer none. True: shadows with either renderer (TinyRenderer's cost
             about twice the frame). False: none with either; with EGL the frame is about 15 ms faster
