@@ -26,6 +26,7 @@ from weather_gym.camera_config import CameraConfig
 from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.errors import InputError
 from weather_gym.pipeline import make_env
+from weather_gym.sim import egl_shadow_map
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim.baseline import NAIVE_CYLINDERS, naive_scene
 from weather_gym.sim.config import SimConfig
@@ -196,9 +197,12 @@ def _naive(args: argparse.Namespace, track) -> int:
             drivers = {"naive": frame}
             drivers["default"] = _Driver(envs["default"], actions)
             default_renderer = drivers["default"].info["renderer"]
-            if default_renderer == "egl":  # the same env without the EGL plugin's shadow-map pass
+            no_switch = egl_shadow_map.unavailable_reason() if default_renderer == "egl" else "no EGL"
+            if no_switch is None:  # the same env without the EGL plugin's shadow-map pass
                 envs["no_shadow_map"] = make_env(track=args.track, camera=cam, sim=SimConfig(shadows=False))
                 drivers["no_shadow_map"] = _Driver(envs["no_shadow_map"], actions)
+            elif default_renderer == "egl" and (w, h) == NAIVE_SIZES[0]:
+                print(f"(no shadows=False row: {no_switch})")
             if default_renderer != "tiny":
                 envs["tiny"] = make_env(track=args.track, camera=cam, sim=SimConfig(renderer="tiny"))
                 drivers["tiny"] = _Driver(envs["tiny"], actions)
