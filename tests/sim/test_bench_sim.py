@@ -22,7 +22,6 @@ def test_bench_sim_naive_prints_the_baseline_and_the_default_env(monkeypatch, ca
     assert "speed-up vs naive frame" in out
 
 
-
 def test_bench_sim_naive_says_why_the_shadow_map_row_is_missing(monkeypatch, capsys):
     monkeypatch.setattr(bench_sim, "NAIVE_SIZES", ((96, 54),))
     monkeypatch.setattr(egl_shadow_map, "unavailable_reason", lambda: "a stripped build of the plugin")

@@ -197,12 +197,13 @@ def _naive(args: argparse.Namespace, track) -> int:
             drivers = {"naive": frame}
             drivers["default"] = _Driver(envs["default"], actions)
             default_renderer = drivers["default"].info["renderer"]
-            no_switch = egl_shadow_map.unavailable_reason() if default_renderer == "egl" else "no EGL"
-            if no_switch is None:  # the same env without the EGL plugin's shadow-map pass
-                envs["no_shadow_map"] = make_env(track=args.track, camera=cam, sim=SimConfig(shadows=False))
-                drivers["no_shadow_map"] = _Driver(envs["no_shadow_map"], actions)
-            elif default_renderer == "egl" and (w, h) == NAIVE_SIZES[0]:
-                print(f"(no shadows=False row: {no_switch})")
+            if default_renderer == "egl":  # the same env without the EGL plugin's shadow-map pass
+                no_switch = egl_shadow_map.unavailable_reason()
+                if no_switch is None:
+                    envs["no_shadow_map"] = make_env(track=args.track, camera=cam, sim=SimConfig(shadows=False))
+                    drivers["no_shadow_map"] = _Driver(envs["no_shadow_map"], actions)
+                elif (w, h) == NAIVE_SIZES[0]:
+                    print(f"(no shadows=False row: {no_switch})")
             if default_renderer != "tiny":
                 envs["tiny"] = make_env(track=args.track, camera=cam, sim=SimConfig(renderer="tiny"))
                 drivers["tiny"] = _Driver(envs["tiny"], actions)
