@@ -118,8 +118,10 @@ def test_gui_without_display_is_a_clear_error(monkeypatch):
 
 
 def _renderer_in_forked_child(queue):
+    import faulthandler
     import warnings
 
+    faulthandler.dump_traceback_later(50)  # should it hang: where, in the test's captured output
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         w = World(load_track("acceleration"), camera=CameraConfig(width=32, height=18))

@@ -162,7 +162,7 @@ def _per_drop_opencv(img, x, y, r, theta, *, hfov_deg=90.0, look_up=0.3, defocus
     for rad, t, cx, cy in zip(np.maximum(np.rint(r), 1).astype(int).tolist(),
                               np.minimum(_THETA_BIN * np.rint(np.asarray(theta) / _THETA_BIN), 90.0).tolist(),
                               np.rint(x).astype(int).tolist(), np.rint(y).astype(int).tolist(), strict=True):
-        pad, mxy, mf, gain, add, keep = _drop_maps(rad, t, fx, look_up, edge, rim, highlight, round(sx, 6), round(sy, 6))
+        pad, mxy, mf, gain, add, keep, _ = _drop_maps(rad, t, fx, look_up, edge, rim, highlight, round(sx, 6), round(sy, 6))
         half, n = rad + pad, rad + pad + 1
         x0, y0, x1, y1 = max(cx - half, 0), max(cy - half, 0), min(cx + half + 1, w), min(cy + half + 1, h)
         if x0 >= x1 or y0 >= y1:
@@ -184,10 +184,12 @@ def _per_drop_opencv(img, x, y, r, theta, *, hfov_deg=90.0, look_up=0.3, defocus
     (120, 90, 30, {"contact_deg": 90.0, "defocus": 0.0, "blur": 0.0}),
     (100, 160, 12, {"drop_radius": 0.2, "contact_deg": 20.0, "defocus": 0.05, "blur": 0.1, "highlight": 1.0}),
     (9, 13, 5, {}),
+    (188, 336, 40, {"hfov_deg": 20.0, "look_up": 1.0, "drop_radius": 0.25}),  # samples far outside the frame
 ])
 def test_drops_computed_together_equal_opencv_drop_by_drop(scene, h, w, count, kw):
-    """All drops' contents made in one remap, multiply and add equal each drop's own calls:
-    overlapping drops, drops over the border, every option, a tiny frame, a strided input."""
+    """All drops' contents made in one remap (from a copy padded out to where they sample), multiply
+    and add equal each drop's own calls: overlapping drops, drops over the border, samples further
+    out than the pad, every option, a tiny frame, a strided input."""
     img = cv2.resize(scene[0], (w, h), interpolation=cv2.INTER_AREA)
     geo = {key: kw.pop(key) for key in ("drop_radius", "contact_deg") if key in kw}
     x, y, r, th, _ = drop_layout(h, w, np.random.default_rng(h), count, geo.get("drop_radius", 0.055),

@@ -176,6 +176,11 @@ def _libc_fflush() -> None:
         pass
 
 
+def egl_used() -> bool:
+    """Whether a client of this process has rendered with EGL (its frames, not TinyRenderer's)."""
+    return _egl_used
+
+
 def renderer_detail() -> str:
     """What the EGL clients of this process render with (the OpenGL renderer string), or ""."""
     return _egl_detail

@@ -20,7 +20,8 @@ radius, its contact angle (10 degree bins) and the frame geometry; they are comp
 (:func:`_drop_maps`, cached). The contents of all drops of a frame, each at half its box's size
 (the content is blurred anyway), are made together: one ``cv2.remap``, one shade multiply and one
 highlight add over all their pixels (OpenCV computes every pixel on its own, so this is byte for
-byte each drop's own calls). Each drop then costs a scale-up and one blend into its box.
+byte each drop's own calls), sampled from the small copy padded with its edge pixels out to where
+the drops reach (:func:`_pad_to_reach`). Each drop then costs a scale-up and one blend into its box.
 
 Example:
     >>> import numpy as np
@@ -93,7 +94,7 @@ def _drop_maps(r: int, theta_deg: float, fx: float, look_up: float, edge: float,
     mapped there (OpenCV's fixed-point pair: integer offsets and interpolation indices), the
     drop's shading (transmission and rim, RGB uint8 with 255 = 1) times the drop's opacity and
     its highlight (RGB uint8); at full size the frame's remaining weight ``1 - alpha`` (RGB uint8,
-    255 = 1); all read-only.
+    255 = 1); all read-only; and the reach of the integer offsets, ``(x min, x max, y min, y max)``.
     """
     pad = int(math.ceil(2.0 * edge)) + 1
     c = np.arange(-(r + pad), r + pad + 1, dtype=np.float64)
@@ -128,7 +129,8 @@ def _drop_maps(r: int, theta_deg: float, fx: float, look_up: float, edge: float,
            rgb(half(add)).reshape(-1, 3), rgb((1.0 - alpha) * 255.0)]
     for a in out:
         a.setflags(write=False)
-    return (pad, *out)
+    reach = (int(mxy[..., 0].min()), int(mxy[..., 0].max()), int(mxy[..., 1].min()), int(mxy[..., 1].max()))
+    return (pad, *out, reach)
 
 
 def _small_copy(img: np.ndarray, blur_px: float) -> tuple[np.ndarray, float, float]:
@@ -141,6 +143,25 @@ def _small_copy(img: np.ndarray, blur_px: float) -> tuple[np.ndarray, float, flo
     if sigma > 0.3:
         small = cv2.GaussianBlur(small, (0, 0), sigma)
     return small, sx, sy
+
+
+def _pad_to_reach(small: np.ndarray, shx: np.ndarray, shy: np.ndarray, reach: np.ndarray
+                  ) -> tuple[np.ndarray, tuple[int, int]]:
+    """``small`` with its edge pixels repeated out to where the drops sample (at most its own size
+    on each side); the pad's left and top widths.
+
+    Identical samples, faster: OpenCV's ``remap`` with ``BORDER_REPLICATE`` clamps a sample
+    outside the image to its edge, as the repeated pixels do, but takes a slow path for every
+    sample that needs the clamp. No pad where the shifted coordinates could leave int16.
+    """
+    hs, ws = small.shape[:2]
+    lo_x, hi_x = int((shx + reach[:, 0]).min()), int((shx + reach[:, 1]).max())
+    lo_y, hi_y = int((shy + reach[:, 2]).min()), int((shy + reach[:, 3]).max())
+    left, right = min(max(-lo_x, 0), ws), min(max(hi_x + 2 - ws, 0), ws)
+    top, bottom = min(max(-lo_y, 0), hs), min(max(hi_y + 2 - hs, 0), hs)
+    if not (left or right or top or bottom) or max(hi_x + left, hi_y + top, -lo_x, -lo_y) > 32000:
+        return small, (0, 0)
+    return cv2.copyMakeBorder(small, top, bottom, left, right, cv2.BORDER_REPLICATE), (left, top)
 
 
 def render_lens_drops(img: np.ndarray, x, y, r, theta, out: np.ndarray | None = None, *,
@@ -187,8 +208,9 @@ def render_lens_drops(img: np.ndarray, x, y, r, theta, out: np.ndarray | None = 
         ((2,), np.int16), ((), np.uint16), ((3,), np.uint8), ((3,), np.uint8)))
     for j, dst in ((1, xy), (2, frac), (3, gain), (4, add)):
         np.concatenate([m[j] for m in maps], out=dst[:total])
-    # the drops' centres in the copy fit int16 (its sides are at most MAX_IMAGE_SIDE / SAMPLE_SCALE)
-    shift = np.repeat(np.stack([shx, shy], axis=1).astype(np.int16), count, axis=0)
+    small, (left, top) = _pad_to_reach(small, shx, shy, np.array([m[6] for m in maps]))
+    # the drops' centres in the (padded) copy fit int16 (see _pad_to_reach)
+    shift = np.repeat(np.stack([shx + left, shy + top], axis=1).astype(np.int16), count, axis=0)
     cv2.add(xy[:total], shift, dst=xy[:total])  # each drop's map moved to its centre (saturating, as per drop)
     src = cv2.remap(small, xy.reshape(rows, _ATLAS_W, 2), frac.reshape(rows, _ATLAS_W), cv2.INTER_LINEAR,
                     borderMode=cv2.BORDER_REPLICATE)
