@@ -106,3 +106,8 @@ PLACE=(--transfer "$OUT/transfer" "${TRANSFER[@]}" --transfer "$OUT/transfer/res
        --transfer "$OUT/transfer/held240" "${HELD240[@]}")
 python docs/calibration/placement.py "${PLACE[@]}" --reference "calibration pool=$POOL" --out "$OUT/transfer/placement"
 python docs/calibration/edge_recall.py "${HELD240[@]}" --out "$OUT/transfer/placement"   # which cones go first
+# is the low-light spread over tracks the work of one ISP stage? the night camera with stages off, each
+# matched to the study's low-light targets on the held-out tracks' first sets (the realistic world reported)
+ISP=(); for t in "${HELD[@]}"; do ISP+=(--set "$t=$SETS/held_${t//:/}"); done
+python docs/calibration/isp_stages.py "${ISP[@]}" --extra "realistic (peanut, random:82)=$SETS/held_realistic" \
+  --extra "realistic (hairpin, random:85)=$SETS/held_realistic2" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/isp_stages"
