@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> None:
                      desc="isp stages")
     by: dict[tuple[str, str, float], list[float]] = {}
     for cell, r in zip(cells, rows, strict=True):
-        # keyed by the parameters: labels hold only their values ("dim_0.0_night" twice)
+        # keyed by the parameters (the spec), which the label names
         by.setdefault((cell.dataset, cell.spec, float(cell.k)), []).append(float(r[metric]))
 
     table = []

@@ -91,6 +91,10 @@ def test_parse_effect():
     e = parse_effect("dim:mode=physical")
     assert (e.label, e.name, e.params) == ("dim_physical", "dim", {"mode": "physical"})
     assert parse_effect("dim:mode=faithful") == parse_effect("dim")  # defaults are dropped: one curve
+    # a choice is named by its value, any other parameter with its name: different effects, different curves
+    assert parse_effect("dim:mode=physical,stops=10").label == "dim_physical_stops=10.0"
+    assert {parse_effect("dim:mode=night,chroma_noise=0").label, parse_effect("dim:mode=night,desaturate=0").label} == {
+        "dim_night_chroma_noise=0.0", "dim_night_desaturate=0.0"}
     assert parse_effect("droplets").table(0.4) == {"name": "droplets", "k": 0.4, "mode": "faithful"}
     with pytest.raises(ValueError, match="valid names: .*droplets"):
         parse_effect("snow")

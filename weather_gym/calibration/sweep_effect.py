@@ -41,8 +41,9 @@ def _value(text: str) -> Any:
 class SweepEffect:
     """An effect to sweep: its registry ``name`` and fixed non-``k`` ``params`` (canonical: defaults dropped).
 
-    ``label`` names its curve: the name, then the values of the non-default parameters
-    (``dim`` + ``mode="physical"`` -> ``dim_physical``).
+    ``label`` names its curve: the name, then the non-default parameters, a choice by its value and
+    any other as ``param=value`` (``dim`` + ``mode="physical"`` -> ``dim_physical``; + ``stops=10``
+    -> ``dim_physical_stops=10.0``), so two effects with different parameters never share a label.
     """
 
     name: str
@@ -50,8 +51,10 @@ class SweepEffect:
 
     @property
     def label(self) -> str:
-        vals = [str(v) for _, v in sorted(self.params.items())]
-        return "_".join([self.name, *vals]).replace(" ", "")
+        choices = getattr(EFFECTS.get(self.name), "CHOICES", {}) if self.name in EFFECTS.names() else {}
+        items = sorted(self.params.items(), key=lambda kv: (kv[0] not in choices, kv[0]))
+        parts = [str(v) if p in choices else f"{p}={v}" for p, v in items]
+        return "_".join([self.name, *parts]).replace(" ", "")
 
     @property
     def spec(self) -> str:
