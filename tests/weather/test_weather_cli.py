@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from weather_gym.cli import main
-from weather_gym.weather import make
+from weather_gym.weather import make, parse_weather
 from weather_gym.weather.sample import sample_frame
 
 
@@ -122,11 +122,13 @@ def test_degrade_errors(tmp_path, frame, capsys, argv, message):
 
 def test_bench_weather_runs_and_prints_the_table(tmp_path, capsys):
     out = tmp_path / "bench.md"
+    heaviest = [(p, parse_weather(p)) for p in ("droplets@4", "low_light@4")]  # rows of the heaviest presets
     assert main(["bench", "weather", "--sizes", "96x64", "--repeats", "2", "--warmup", "0", "--batch", "2",
                  "--effects", "droplets,dim,noise", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     for row in ("frame copy (np.copyto)", "study droplets", "study dim: Pillow", "droplets (k=0.55)",
-                "dim physical", "noise (k=0.5)", "speed-up vs study"):
+                "dim physical", "noise (k=0.5)", "speed-up vs study",
+                *(f"{p} ({e.mode} k={e.k})" for p, e in heaviest)):
         assert row in text
     assert out.read_text().strip() == text.strip()
     assert main(["bench", "weather", "--sizes", "64x48", "--repeats", "2", "--warmup", "0", "--batch", "0",

@@ -5,7 +5,8 @@ input), 672x376 (its camera) and 1280x720:
 
 * every registered effect (droplets at the study's k = 0.55, dim at 0.78, the others at 0.5) and
   the persistent-droplet, refractive-droplet (also at k = 1, its heaviest), physical-dim
-  and night-dim variants, one frame per call, through the public call;
+  and night-dim variants, and the heaviest shipped presets of each (``droplets@4``,
+  ``low_light@4``), one frame per call, through the public call;
 * at 672x376, ``--batch`` different frames as a loop of single calls that keeps its outputs (as a
   caller that needs every frame does) and as one batched call, per frame;
 * in the same run the study's recipe (:mod:`weather_gym.weather.reference`: the Albumentations-era
@@ -44,7 +45,7 @@ from weather_gym._output_args import add_overwrite_arg
 from weather_gym.bench._timing import interleaved_ms, machine_line, markdown_table
 from weather_gym.errors import InputError
 from weather_gym.limits import parse_sizes
-from weather_gym.weather import EFFECTS, make
+from weather_gym.weather import EFFECTS, make, parse_weather
 from weather_gym.weather.reference import study_dim, study_droplets
 from weather_gym.weather.sample import sample_frame
 
@@ -81,11 +82,15 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
             cases.append((f"droplets persistent (k={k})", make(name, k=k, persistent=True)))
             for rk in (k, 1.0):
                 cases.append((f"droplets refractive (k={rk})", make(name, k=rk, mode="refractive")))
+            heavy = parse_weather("droplets@4")  # the heaviest shipped preset
+            cases.append((f"droplets@4 ({heavy.mode} k={heavy.k})", heavy))
             cases.append((f"droplets refractive persistent (k={k})",
                           make(name, k=k, mode="refractive", persistent=True)))
         if name == "dim":
             cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
             cases.append((f"dim night (k={k})", make(name, k=k, mode="night")))
+            heavy = parse_weather("low_light@4")
+            cases.append((f"low_light@4 ({heavy.mode} k={heavy.k})", heavy))
     return cases
 
 
