@@ -22,7 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym.calibration.sweep import KEY_FIELDS, SweepEffect, make_sweep_cells, run_sweep_cell
+from weather_gym.calibration.sweep import (
+    KEY_FIELDS,
+    SweepEffect,
+    make_sweep_cells,
+    metric_by_cell,
+    run_sweep_cell,
+)
 from weather_gym.evaluation.runner import run_cells
 from weather_gym.weather.presets import load_presets
 
@@ -77,19 +83,16 @@ def main(argv: list[str] | None = None) -> None:
             cells += make_sweep_cells([eff], PHYSICAL_KS if eff.params["mode"] == "physical" else NIGHT_KS, seeds, path)
     rows = run_cells(cells, run_sweep_cell, out / "cells.csv", key_fields=KEY_FIELDS, workers=args.workers,
                      desc="isp stages")
-    by: dict[tuple[str, str, float], list[float]] = {}
-    for cell, r in zip(cells, rows, strict=True):
-        # keyed by the parameters (the spec), which the label names
-        by.setdefault((cell.dataset, cell.spec, float(cell.k)), []).append(float(r[metric]))
+    by = metric_by_cell(cells, rows, metric)
 
     table = []
     for v, eff in effects.items():
         curves = {}
         for name, path in both.items():
             ds = str(Path(path).resolve())
-            clean = float(np.mean(by[(ds, eff.spec, 0.0)]))
-            curves[name] = {k: float(np.mean(m)) / clean for (d, spec, k), m in by.items()
-                            if d == ds and spec == eff.spec and k > 0}
+            clean = float(np.mean(by[(ds, eff.label, 0.0)]))
+            curves[name] = {k: float(np.mean(m)) / clean for (d, label, k), m in by.items()
+                            if d == ds and label == eff.label and k > 0}
         for sev, target in targets:
             k = matched(curves, list(sets), target)
             row = {"variant": v, "severity": sev, "target": target, "k": k}

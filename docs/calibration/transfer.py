@@ -22,7 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym.calibration.sweep import KEY_FIELDS, SweepEffect, make_sweep_cells, run_sweep_cell
+from weather_gym.calibration.sweep import (
+    KEY_FIELDS,
+    SweepEffect,
+    make_sweep_cells,
+    metric_by_cell,
+    run_sweep_cell,
+)
 from weather_gym.evaluation.runner import run_cells
 from weather_gym.weather.presets import load_presets
 
@@ -72,9 +78,7 @@ def main(argv: list[str] | None = None) -> None:
             cells += make_sweep_cells([eff], sorted(ks - {0.0}), seeds, path)
     rows = run_cells(cells, run_sweep_cell, out / "cells.csv", key_fields=KEY_FIELDS, workers=args.workers,
                      desc="transfer")
-    by: dict[tuple[str, str, float], list[float]] = {}
-    for cell, r in zip(cells, rows, strict=True):
-        by.setdefault((cell.dataset, cell.effect, float(cell.k)), []).append(float(r[metric]))
+    by = metric_by_cell(cells, rows, metric)
 
     table = []
     for p in presets:

@@ -41,7 +41,13 @@ from weather_gym._io import atomic_write, check_output
 from weather_gym._toml import toml_document
 from weather_gym.calibration.curve import Curve, invert
 from weather_gym.calibration.measured import MeasuredLevel, levels_by_condition
-from weather_gym.calibration.sweep import KEY_FIELDS, SweepEffect, make_sweep_cells, run_sweep_cell
+from weather_gym.calibration.sweep import (
+    KEY_FIELDS,
+    SweepEffect,
+    make_sweep_cells,
+    metric_by_cell,
+    run_sweep_cell,
+)
 from weather_gym.errors import InputError
 from weather_gym.evaluation.runner import run_cells
 from weather_gym.weather.presets import CONDITIONS, SEVERITIES, canonical_condition, load_presets
@@ -203,9 +209,7 @@ def remeasure(calibs: Sequence[PresetCalibration], curves: Mapping[str, Curve], 
     if failed:
         raise RuntimeError(f"{len(failed)} re-measurement cell(s) failed, e.g. {failed[0]['error']} "
                            f"(see {results_path}; run again to retry)")
-    by: dict[tuple[str, float], list[float]] = {}
-    for r in rows:
-        by.setdefault((r["effect"], float(r["k"])), []).append(float(r[metric]))
+    by = {(label, k): v for (_, label, k), v in metric_by_cell(cells, rows, metric).items()}  # one dataset
     for c in calibs:
         vals = np.array(by[(c.curve, c.k)])
         clean = float(np.mean(by[(c.curve, 0.0)]))

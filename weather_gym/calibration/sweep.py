@@ -56,6 +56,7 @@ __all__ = [
     "SweepEffect",
     "file_id",
     "make_sweep_cells",
+    "metric_by_cell",
     "parse_effect",
     "parse_k_range",
     "parse_seeds",
@@ -197,6 +198,22 @@ def make_sweep_cells(effects: Sequence[SweepEffect], ks: Sequence[float], seeds:
     return [SweepCell(effect=e.label, spec=e.spec, k=float(k), seed=int(s), dataset_id=dsid, model_id=mid,
                       name=e.name, dataset=str(ds_path.resolve()), model=spec)
             for e in effects for k in ks for s in seeds]
+
+
+def metric_by_cell(cells: Sequence[SweepCell], rows: Sequence[dict[str, Any]],
+                   metric: str) -> dict[tuple[str, str, float], list[float]]:
+    """``metric`` of the run ``cells`` (``rows`` in the same order, as the runner returns them), one value
+    per seed, grouped by (dataset path, effect label, k).
+
+    Example:
+        >>> cells = [SweepCell("dim", "{}", 0.5, s, "d", "m", dataset="/sets/a") for s in (0, 1)]
+        >>> metric_by_cell(cells, [{"map50": 0.8}, {"map50": 0.6}], "map50")
+        {('/sets/a', 'dim', 0.5): [0.8, 0.6]}
+    """
+    by: dict[tuple[str, str, float], list[float]] = {}
+    for cell, row in zip(cells, rows, strict=True):
+        by.setdefault((cell.dataset, cell.effect, float(cell.k)), []).append(float(row[metric]))
+    return by
 
 
 def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequence[int],

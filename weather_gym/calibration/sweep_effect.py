@@ -51,7 +51,7 @@ class SweepEffect:
 
     @property
     def label(self) -> str:
-        choices = getattr(EFFECTS.get(self.name), "CHOICES", {}) if self.name in EFFECTS.names() else {}
+        choices = getattr(EFFECTS.get(self.name), "CHOICES", {}) if self.name in EFFECTS else {}
         items = sorted(self.params.items(), key=lambda kv: (kv[0] not in choices, kv[0]))
         parts = [str(v) if p in choices else f"{p}={v}" for p, v in items]
         return "_".join([self.name, *parts]).replace(" ", "")
