@@ -65,6 +65,9 @@ render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --s
 # too, for the physical alternative); the shipped modes on the pool, the night camera finer where it falls
 weather-gym sweep --weather droplets,dim,dim:k:mode=physical,droplets:k:mode=refractive \
   --k-grid 0:1:0.1 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+# the study's dim is a cliff (near 1 up to k 0.85, gone by 0.95): finer, to show its shape
+weather-gym sweep --weather dim --k-grid 0:1:0.05 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" \
+  --overwrite --no-progress
 weather-gym sweep --weather droplets:k:mode=refractive --k-grid 0:1:0.1 --seeds 2 \
   --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
 weather-gym sweep --weather dim:k:mode=night \
