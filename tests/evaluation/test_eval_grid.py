@@ -36,10 +36,10 @@ def test_other_presets_file_changes_the_cells(tmp_path):
     from weather_gym.weather.presets import DEFAULT_PRESETS
 
     (shipped,) = preset_spec("low_light", 4)
-    line = f'effects = [{{ name = "dim", k = {shipped["k"]}'
+    line = f'{{ name = "dim", k = {shipped["k"]}'  # low_light@4's effect, however the writer lays out arrays
     assert DEFAULT_PRESETS.read_text().count(line) == 1
     custom = tmp_path / "presets.toml"
-    custom.write_text(DEFAULT_PRESETS.read_text().replace(line, 'effects = [{ name = "dim", k = 0.5'))
+    custom.write_text(DEFAULT_PRESETS.read_text().replace(line, '{ name = "dim", k = 0.5'))
     base = EvalConfig(effects=("dim",), severities=(4,), seeds=(0,))
     a = make_cells(base)[0]
     b = make_cells(EvalConfig(effects=("dim",), severities=(4,), seeds=(0,), presets=str(custom)))[0]
