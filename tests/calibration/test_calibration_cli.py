@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 
 import cv2
@@ -103,9 +104,11 @@ def test_sweep_then_calibrate_on_a_rendered_set(capsys, tmp_path, calib_set_8):
     assert m["droplets", 1.0, 0] < m["droplets", 0.0, 0]
     assert m["droplets", 1.0, 0] != m["droplets", 1.0, 1]  # each seed is another droplet realisation
     assert (out / "curves.png").stat().st_size > 10_000 and (out / "curves_recall.png").exists()
-    before = (out / "curves.csv").read_text()
-    rc, _, _ = _run(capsys, *argv)  # resumed: nothing runs again, the file is unchanged
-    assert rc == 0 and (out / "curves.csv").read_text() == before
+    before = (out / "curves.csv").read_text(), (out / "sweep.json").read_text()
+    meta = json.loads(before[1])["curves"]
+    assert meta["droplets"]["cells_s"] == round(sum(float(r["elapsed_s"]) for r in rows if r["effect"] == "droplets"), 1)
+    rc, _, _ = _run(capsys, *argv)  # resumed: nothing runs again, the files are unchanged
+    assert rc == 0 and ((out / "curves.csv").read_text(), (out / "sweep.json").read_text()) == before
 
     table = tmp_path / "table.csv"
     table.write_text(STUDY_TABLE)

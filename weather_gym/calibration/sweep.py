@@ -31,7 +31,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from dataclasses import replace as _replace
@@ -231,21 +230,21 @@ def run_sweep(effects: Sequence[SweepEffect], ks: Sequence[float], seeds: Sequen
     check_results_path(out / CURVE_FILE)
     derived = [out / META_FILE] + ([out / "curves.png", out / "curves_recall.png"] if plot else [])
     replace = derived_outputs_replaceable(out / CURVE_FILE, derived, overwrite=overwrite)
-    t0 = time.perf_counter()
     rows = run_cells(cells, run_sweep_cell, out / CURVE_FILE, key_fields=KEY_FIELDS, workers=workers,
                      backend=backend, progress=progress, retry_failed=retry_failed, ray_address=ray_address,
                      desc="sweep")
-    wall = time.perf_counter() - t0
-    _write_meta(out, cells, effects, ks, seeds, dataset, model, wall, command, replace)
+    _write_meta(out, cells, effects, ks, seeds, dataset, model, rows, command, replace)
     if plot:
         curves = load_curves(out / CURVE_FILE, dataset_id=cells[0].dataset_id, model_id=cells[0].model_id)
         plot_curves(curves, out / "curves.png", recall_out=out / "curves_recall.png", overwrite=replace)
     return rows
 
 
-def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, model, wall: float,
+def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, model, rows: list[dict],
                 command: str | None, overwrite: bool) -> None:
-    """Merge this run's description into ``out/sweep.json`` (per curve label)."""
+    """Merge this run's description into ``out/sweep.json`` (per curve label), with the seconds its
+    cells took to run (``cells_s``, summed over cells, whichever run ran them: a resumed sweep writes
+    the same file)."""
     path = out / META_FILE
     meta: dict[str, Any] = {}
     if path.is_file():
@@ -254,6 +253,9 @@ def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, 
         except json.JSONDecodeError:
             meta = {}
     c0 = cells[0]
+    cells_s: dict[str, float] = {}
+    for row in rows:
+        cells_s[row["effect"]] = cells_s.get(row["effect"], 0.0) + float(row["elapsed_s"])
 
     info = load_coco(dataset).data.get("info", {})
     meta.setdefault("curves", {})
@@ -262,6 +264,6 @@ def _write_meta(out: Path, cells: list[SweepCell], effects, ks, seeds, dataset, 
             "effect": e.name, "params": e.params, "ks": list(ks), "seeds": list(seeds),
             "dataset": str(dataset), "dataset_id": c0.dataset_id, "dataset_info": info,
             "model": str(model) if model is not None else "weather_gym/perception/models/cone_detector.onnx",
-            "model_id": c0.model_id, "command": command, "wall_s_of_run": round(wall, 1),
+            "model_id": c0.model_id, "command": command, "cells_s": round(cells_s.get(e.label, 0.0), 1),
         }
     atomic_write_json(path, meta, indent=2, sort_keys=True, overwrite=overwrite)
