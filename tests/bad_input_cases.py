@@ -126,6 +126,7 @@ def build_world(root: Path) -> World:
     w["scen_env5.toml"].write_text('id = "WeatherGym/Bad-v0"\nenv = 5\n')
     w["scen_sev9.toml"].write_text('id = "WeatherGym/Bad-v0"\n[weather]\ncondition = "low_light"\nseverity = 9\n')
     w["scen_track_out.toml"].write_text('id = "WeatherGym/Bad-v0"\n[env]\ntrack = "../victim.csv"\n')
+    w["scen_rev_track_out.toml"].write_text('id = "WeatherGym/Bad-v0"\n[env]\ntrack = "reverse:../victim.csv"\n')
     w["measured_bad.csv"].write_text("condition,severity,map\nideal,0,0.8\ndroplets,two,0.6\n")
     w["afile"].write_text("a file, not a folder\n")
     for name in ("exists.png", "exists.csv", "exists.json", "exists.mp4", "exists.toml", "exists.md"):
@@ -499,6 +500,8 @@ CASES: list[Case] = [
         "weather_gym.envs.scenario", fromlist=["load_scenario"]).load_scenario(w["scen_sev9.toml"])),
     Case("py-scenario-track-outside", "track", call=lambda w: __import__(
         "weather_gym.envs.scenario", fromlist=["load_scenario"]).load_scenario(w["scen_track_out.toml"])),
+    Case("py-scenario-reversed-track-outside", "track", call=lambda w: __import__(
+        "weather_gym.envs.scenario", fromlist=["load_scenario"]).load_scenario(w["scen_rev_track_out.toml"])),
     Case("py-depth-quantile-above-1", "depth_quantile", call=lambda w: __import__(
         "weather_gym.perception.ranging", fromlist=["detections_to_cones"]).detections_to_cones(
             {"boxes": np.zeros((1, 4)), "scores": np.ones(1), "classes": np.zeros(1, int)},

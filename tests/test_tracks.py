@@ -20,7 +20,7 @@ from weather_gym.tracks import (
 
 BLUE, YELLOW, ORANGE, BIG = range(4)
 SHIPPED_TRACKDRIVE = ["b_shape", "fsds_training", "hairpin", "jellybean", "peanut", "small_track"]
-ALL = [*tr.SHIPPED, "oval", "random:7"]
+ALL = [*tr.SHIPPED, "oval", "random:7", "reverse:small_track", "reverse:random:7"]
 
 
 def _angle(a: float) -> float:
@@ -252,6 +252,42 @@ def test_load_track_spec_errors(tmp_path):
         load_track("peanut", event="skidpad")
     t = load_track("peanut")
     assert load_track(t) is t and load_track("peanut") is t  # shipped tracks are cached (immutable)
+
+
+@pytest.mark.parametrize("name", [*SHIPPED_TRACKDRIVE, "oval", "random:7"])
+def test_reverse_drives_the_same_loop_the_other_way(name):
+    t, r = load_track(name), load_track(f"reverse:{name}")
+    assert r.name == f"reverse:{t.name}" and r.source == f"reversed:{t.source}" and r.event == "trackdrive"
+    assert r.cones_xy.tobytes() == t.cones_xy.tobytes()
+    swapped = t.cone_classes.copy()
+    swapped[t.cone_classes == BLUE], swapped[t.cone_classes == YELLOW] = YELLOW, BLUE
+    assert r.cone_classes.tobytes() == swapped.tobytes()
+    assert r.length == pytest.approx(t.length, rel=0.01)
+    # the same start line; the centerline runs the other way; the start pose as far before the line
+    assert r.point_at(0.0)[:2] == pytest.approx(t.point_at(0.0)[:2], abs=0.3)
+    s = np.linspace(0.0, t.length, 40, endpoint=False)
+    _, _, h = t.point_at(s)
+    hr = r.project(*t.point_at(s)[:2]).heading
+    assert np.cos(hr - h).max() < -0.9
+    before = t.length - t.project(*t.start_pose[:2]).s
+    assert r.length - r.project(*r.start_pose[:2]).s == pytest.approx(before, abs=0.3)
+    twice = tr.reverse_track(r)
+    assert twice.cone_classes.tobytes() == t.cone_classes.tobytes()
+    assert t.project(*twice.start_pose[:2]).s == pytest.approx(t.project(*t.start_pose[:2]).s, abs=0.3)
+
+
+def test_reverse_spec_errors():
+    for open_track in ("acceleration", "skidpad"):
+        with pytest.raises(ValueError, match=f"'{open_track}' is an open .* only a closed loop"):
+            load_track(f"reverse:{open_track}")
+    with pytest.raises(ValueError, match="needs a track spec after it"):
+        load_track("reverse:")
+    with pytest.raises(ValueError, match="unknown track 'nope'"):
+        load_track("reverse:nope")
+    with pytest.raises(ValueError, match="not 'skidpad'"):
+        load_track("reverse:peanut", event="skidpad")
+    assert not tr.is_track_file("reverse:my/track.csv")
+    assert load_track("reverse:random", seed=3).source == "reversed:generated:random(seed=3)"
 
 
 def test_car_start_against_the_driving_direction(tmp_path):

@@ -46,8 +46,8 @@ from weather_gym.registry import Registry
 
 __all__ = [
     "CONE_CLASSES", "CSV_HEADER", "DUPLICATE_TOL_M", "EVENTS", "MAX_CONES", "MAX_COORDINATE_M", "MAX_TRACK_FILE_BYTES",
-    "MIN_RADIUS_M", "TRACKS", "Projection", "StartPose", "Track", "generate_random_track", "is_track_file",
-    "load_track", "oval", "read_cone_csv", "track_from_csv",
+    "MIN_RADIUS_M", "REVERSE_PREFIX", "TRACKS", "Projection", "StartPose", "Track", "generate_random_track",
+    "is_track_file", "load_track", "oval", "read_cone_csv", "reverse_track", "track_file_part", "track_from_csv",
 ]
 
 
@@ -133,6 +133,43 @@ def _random_track(seed: int, length: float | None, width: float | None, spacing:
                  **layout.ring_layout(line, width_m, spacing, MIN_RADIUS_M, start_pair))
 
 
+# ---------------------------------------------------------------------------------------------- reversed
+
+REVERSE_PREFIX = "reverse:"
+"""A track spec ``"reverse:SPEC"`` is the closed track ``SPEC`` driven the other way round."""
+
+
+def reverse_track(track: Track) -> Track:
+    """The closed ``track`` driven the other way round: the same cones, blue and yellow swapped (blue
+    stays on the driver's left), the same start line; the start pose as far before the line, in the
+    new direction, as the original's is before it. As a track spec: ``"reverse:SPEC"`` (any closed
+    track spec: ``"reverse:peanut"``, ``"reverse:random:7"``, ``"reverse:my_track.csv"``).
+
+    Example:
+        >>> t = load_track("small_track"); r = reverse_track(t)
+        >>> r.name, r.closed, abs(r.length - t.length) < 0.5 * t.length / len(t.centerline)
+        ('reverse:small_track', True, True)
+        >>> bool((r.cone_classes[t.cone_classes == 0] == 1).all())   # the blue cones are yellow now
+        True
+    """
+    if not track.closed:
+        raise InputError(f"track {track.name!r} is an open {track.event} track: only a closed loop can be "
+                         "driven the other way round ('reverse:...')")
+    swap = np.array([layout.YELLOW, layout.BLUE, *range(2, len(CONE_CLASSES))], dtype=np.int64)
+    classes = swap[track.cone_classes]
+    behind = (track.start_line_s - float(track.project(*track.start_pose[:2]).s)) % track.length
+    x, y, _ = track.point_at(track.start_line_s + behind)
+    where = f"track 'reverse:{track.name}'"
+    fields = layout.layout_from_cones(np.asarray(track.cones_xy), classes, (x, y, None), where)
+    return Track(name=f"{REVERSE_PREFIX}{track.name}", cones_xy=track.cones_xy, cone_classes=classes,
+                 source=f"reversed:{track.source}", **fields)
+
+
+@functools.lru_cache(maxsize=32)
+def _reversed(spec: str) -> Track:
+    return reverse_track(load_track(spec))
+
+
 # ---------------------------------------------------------------------------------------------- registry
 
 TRACKS: Registry = Registry("track")
@@ -173,9 +210,28 @@ def is_track_file(spec: str | os.PathLike) -> bool:
     if isinstance(spec, os.PathLike):
         return True
     name = spec.strip()
-    if name == "random" or name.startswith("random:") or name in TRACKS:
+    if name == "random" or name.startswith(("random:", REVERSE_PREFIX)) or name in TRACKS:
         return False
     return name.lower().endswith(".csv") or "/" in name or os.sep in name or Path(name).is_file()
+
+
+def track_file_part(spec) -> tuple[str, str] | None:
+    """The cone CSV a string track spec reads, split off its ``reverse:`` prefixes: ``(prefix, path)``, or
+    None when the spec reads no file (a registered name, ``random:SEED``). Where a spec's file is confined
+    (a dataset, a scenario), the path is resolved and the prefix put back.
+
+    Example:
+        >>> track_file_part("reverse:my/track.csv"), track_file_part("reverse:peanut"), track_file_part("a.csv")
+        (('reverse:', 'my/track.csv'), None, ('', 'a.csv'))
+    """
+    if not isinstance(spec, str):
+        return None
+    inner = spec.strip()
+    while inner.startswith(REVERSE_PREFIX):
+        inner = inner[len(REVERSE_PREFIX):].strip()
+    if not inner or not is_track_file(inner):
+        return None
+    return spec.strip()[:len(spec.strip()) - len(inner)], inner
 
 
 RANDOM_TRACK_ARGS = ("length", "width", "spacing", "start_pair")
@@ -198,12 +254,15 @@ def _random_args(spec: str, args: list[str]) -> dict[str, float]:
 
 def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, event: str | None = None) -> Track:
     """A track from a registered name, ``"random:SEED"`` (or ``"random"`` with ``seed=``), a CSV path,
-    or a :class:`Track` (returned as is). ``seed`` only matters for ``"random"``; ``"random:SEED"``
-    keeps its own seed. ``event`` applies to CSV files (see :func:`track_from_csv`).
+    ``"reverse:SPEC"`` (:func:`reverse_track`) or a :class:`Track` (returned as is). ``seed`` only
+    matters for ``"random"``; ``"random:SEED"`` keeps its own seed. ``event`` applies to CSV files
+    (see :func:`track_from_csv`).
 
     Example:
         >>> load_track("random:7").source
         'generated:random(seed=7)'
+        >>> load_track("reverse:random:7").source
+        'reversed:generated:random(seed=7)'
     """
     if isinstance(spec, Track):
         return spec
@@ -212,6 +271,13 @@ def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, even
     if not isinstance(spec, str):
         raise InputError(f"track spec must be a track name, 'random:SEED', a CSV path or a Track; got {spec!r}")
     name = spec.strip()
+    if name.startswith(REVERSE_PREFIX):
+        if event not in (None, "trackdrive"):
+            raise InputError(f"track {spec!r} is a trackdrive track (a closed loop driven the other way), not {event!r}")
+        inner = name[len(REVERSE_PREFIX):].strip()
+        if not inner:
+            raise InputError(f"track {spec!r}: 'reverse:' needs a track spec after it, e.g. 'reverse:peanut'")
+        return _reversed(inner) if seed is None else reverse_track(load_track(inner, seed=seed))
     if name == "random" or name.startswith("random:"):
         kwargs: dict[str, float] = {}
         if ":" in name:
@@ -232,4 +298,4 @@ def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, even
     if is_track_file(name):
         return track_from_csv(name, event=event)
     raise InputError(f"unknown track {name!r}; valid names: {', '.join(TRACKS.names())}, "
-                     "'random:SEED', or a path to a cone CSV file")
+                     "'random:SEED', 'reverse:SPEC', or a path to a cone CSV file")

@@ -97,6 +97,34 @@ def test_a_csv_track_travels_with_the_dataset(tmp_path):
     assert view["image"].shape == (36, 64, 3)
 
 
+def test_a_reversed_csv_track_travels_with_the_dataset_and_its_merge(tmp_path):
+    """``reverse:PATH.csv``: the CSV is copied as above and the records keep the prefix (the frames are
+    of the track driven the other way round); a merge copies it again and keeps the prefix."""
+    from weather_gym.camera_config import CameraConfig
+    from weather_gym.datasets.merge import merge_coco
+    from weather_gym.tracks import load_track
+
+    csv = tmp_path / "elsewhere" / "my_oval.csv"
+    csv.parent.mkdir()
+    load_track("oval").to_csv(csv)
+    root = tmp_path / "ds"
+    render_dataset(root, tracks=[f"reverse:{csv}"], frames=2, frames_per_episode=2,
+                   camera=CameraConfig(width=64, height=36), progress=False)
+    ds = load_coco(root)
+    assert ds.record(0)["track"] == "reverse:tracks/my_oval.csv"
+    assert ds.track_spec(0) == f"reverse:{(root / 'tracks' / 'my_oval.csv').resolve()}"
+    assert load_track(ds.track_spec(0)).cone_classes.tobytes() == load_track(f"reverse:{csv}").cone_classes.tobytes()
+    ds.close()
+    other = tmp_path / "other"
+    render_dataset(other, tracks=["oval"], frames=2, frames_per_episode=2, camera=CameraConfig(width=64, height=36),
+                   progress=False)
+    merged = tmp_path / "merged"
+    merge_coco([root, other], merged)
+    m = load_coco(merged)
+    assert m.record(0)["track"] == "reverse:tracks/s0_my_oval.csv" and load_track(m.track_spec(0)).name == "reverse:s0_my_oval"
+    m.close()
+
+
 def test_start_window_renders_the_approach_to_the_start_line(tmp_path):
     # a user who needs more frames of the start line's big orange cones (rare in a uniform render)
     # asks for start points just before it; the window is recorded with the dataset

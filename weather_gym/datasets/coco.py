@@ -60,7 +60,7 @@ from weather_gym.datasets.coco_writer import CocoWriter
 from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.limits import check_image_size
 from weather_gym.perception.labels import xywh_to_xyxy
-from weather_gym.tracks import is_track_file
+from weather_gym.tracks import track_file_part
 
 __all__ = ["ANNOTATIONS", "DEPTH_SCALE", "JOURNAL", "CocoDataset", "CocoWriter", "load_coco", "read_image",
            "read_depth_png", "record_path", "write_depth_png"]
@@ -110,11 +110,13 @@ class CocoDataset:
 
     def track_spec(self, i: int) -> str | None:
         """The track of frame ``i`` as :func:`weather_gym.tracks.load_track` takes it: a registered name,
-        ``random:SEED``, or the (confined, resolved) path of a cone CSV inside the dataset folder."""
+        ``random:SEED``, or the (confined, resolved) path of a cone CSV inside the dataset folder (after its
+        ``reverse:`` prefix, if any)."""
         track = self.images[i].get("track")
-        if track is None:
-            return None
-        return str(record_path(self.root, self.images[i], "track")) if is_track_file(track) else track
+        part = track_file_part(track)
+        if part is None:
+            return track
+        return part[0] + str(record_path(self.root, {**self.images[i], "track": part[1]}, "track"))
 
     def image(self, i: int) -> np.ndarray:
         """RGB uint8 frame ``i`` (read-only when ``cache_images`` keeps decoded frames in memory)."""
@@ -279,8 +281,9 @@ def _check_image(path: Path, root: Path, im: Any, ids: set, check_files: bool) -
     f = record_path(root, im, "file_name")
     if im.get("depth_file") is not None:
         record_path(root, im, "depth_file")
-    if isinstance(im.get("track"), str) and is_track_file(im["track"]):
-        record_path(root, im, "track")
+    part = track_file_part(im.get("track"))
+    if part is not None:
+        record_path(root, {**im, "track": part[1]}, "track")
     if im.get("ignore_mask") is not None:
         record_path(root, im, "ignore_mask")
     if check_files:

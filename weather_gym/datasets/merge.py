@@ -47,7 +47,7 @@ from weather_gym.datasets import masks as _masks
 from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
 from weather_gym.errors import InputError, OutputPathError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
-from weather_gym.tracks import is_track_file
+from weather_gym.tracks import track_file_part
 
 __all__ = ["merge_coco"]
 
@@ -119,8 +119,10 @@ def merge_coco(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
                     if rec.get(key) is not None:
                         new[key] = _copy(record_path(src, rec, key), out, f"{Path(rec[key]).parent}/{prefix}"
                                                                           f"{Path(rec[key]).name}")
-                if isinstance(rec.get("track"), str) and is_track_file(rec["track"]):
-                    new["track"] = _copy(record_path(src, rec, "track"), out, f"tracks/{prefix}{Path(rec['track']).name}")
+                part = track_file_part(rec.get("track"))
+                if part is not None:
+                    new["track"] = part[0] + _copy(record_path(src, {**rec, "track": part[1]}, "track"), out,
+                                                   f"tracks/{prefix}{Path(part[1]).name}")
                 own, rel = rec.get("ignore_mask"), None
                 if own is not None and wide is not None:  # both: one per-frame mask, their union
                     rel = f"masks/{prefix}{rec['id']}_ignore.png"

@@ -38,7 +38,7 @@ from weather_gym.pipeline import make_env
 from weather_gym.sim.config import SCENES, SimConfig
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, sample_look
 from weather_gym.sim.randomize import RandomizeRanges, sample_realistic
-from weather_gym.tracks import is_track_file, load_track
+from weather_gym.tracks import load_track, track_file_part
 
 __all__ = ["render_dataset", "ViewRenderer", "episode_plan"]
 
@@ -152,8 +152,8 @@ def render_dataset(
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
     Args:
-        tracks: track specs (registered names, ``"random:SEED"`` or cone CSV paths; a CSV is copied into
-            ``out/tracks/`` and the records name that copy).
+        tracks: track specs (registered names, ``"random:SEED"``, ``"reverse:SPEC"`` or cone CSV paths; a
+            CSV is copied into ``out/tracks/`` and the records name that copy).
         randomize: draw a random appearance per episode: in the plain scene a random ``Look``
             (``weather_gym.sim.look.sample_look``), in the realistic one a ``Look``, a camera model and a
             field of view from ``ranges`` (``weather_gym.sim.randomize.sample_realistic``); otherwise
@@ -276,18 +276,20 @@ def _record_tracks(out: Path, tracks: list[str]) -> dict[str, str]:
     recorded: dict[str, str] = {}
     used: set[str] = set()
     for spec in dict.fromkeys(tracks):
-        if not is_track_file(spec):
+        part = track_file_part(spec)
+        if part is None:
             recorded[spec] = spec
             continue
+        prefix, file = part
         load_track(spec)  # a bad file fails here, before anything is rendered
-        stem, n = Path(spec).stem, 1
+        stem, n = Path(file).stem, 1
         name = f"tracks/{stem}.csv"
         while name in used:
             n += 1
             name = f"tracks/{stem}_{n}.csv"
         used.add(name)
-        atomic_write(out / name, Path(spec).read_bytes(), overwrite=True)  # the dataset's own copy
-        recorded[spec] = name
+        atomic_write(out / name, Path(file).read_bytes(), overwrite=True)  # the dataset's own copy
+        recorded[spec] = prefix + name
     return recorded
 
 

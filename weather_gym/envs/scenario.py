@@ -41,7 +41,7 @@ from weather_gym.envs.config import EnvConfig, RewardConfig
 from weather_gym.errors import FileFormatError, InputError
 from weather_gym.paths import data_dir
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
-from weather_gym.tracks import is_track_file
+from weather_gym.tracks import track_file_part
 from weather_gym.weather import parse_weather
 
 SECTIONS: dict[str, type] = {
@@ -172,10 +172,11 @@ def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) ->
     folder and must stay inside it (``weather_gym._io.resolve_inside``); names are kept as they are."""
 
     value = table.get(key)
-    if not isinstance(value, str) or (key == "track" and not is_track_file(value)):
+    prefix, file = ("", value) if key != "track" else (track_file_part(value) or ("", None))
+    if not isinstance(file, str):
         return table
     where = f"{path} [{section}] {key}"
-    return {**table, key: str(resolve_inside(path.parent, value, what=where))}
+    return {**table, key: prefix + str(resolve_inside(path.parent, file, what=where))}
 
 
 def _confine_detector(path: Path, table: dict[str, Any]) -> dict[str, Any]:
