@@ -20,7 +20,7 @@ from weather_gym.tracks import (
 
 BLUE, YELLOW, ORANGE, BIG = range(4)
 SHIPPED_TRACKDRIVE = ["b_shape", "fsds_training", "hairpin", "jellybean", "peanut", "small_track"]
-ALL = [*tr.SHIPPED, "oval", "random:7", "reverse:small_track", "reverse:random:7"]
+ALL = [*tr.SHIPPED, "oval", "random:7", "reverse:small_track", "reverse:random:7", "mirror:peanut", "mirror:random:7"]
 
 
 def _angle(a: float) -> float:
@@ -276,17 +276,33 @@ def test_reverse_drives_the_same_loop_the_other_way(name):
     assert t.project(*twice.start_pose[:2]).s == pytest.approx(t.project(*t.start_pose[:2]).s, abs=0.3)
 
 
+@pytest.mark.parametrize("name", [*SHIPPED_TRACKDRIVE, "oval", "random:7"])
+def test_mirror_reflects_the_loop_and_keeps_blue_on_the_left(name):
+    t, m = load_track(name), load_track(f"mirror:{name}")
+    assert m.name == f"mirror:{t.name}" and m.source == f"mirrored:{t.source}" and m.event == "trackdrive"
+    assert m.cones_xy.tobytes() == (t.cones_xy * [1.0, -1.0]).tobytes()
+    assert ((m.cone_classes == BLUE) == (t.cone_classes == YELLOW)).all()
+    assert m.length == pytest.approx(t.length, rel=0.01)
+    assert m.start_pose == pytest.approx((t.start_pose[0], -t.start_pose[1], -t.start_pose[2]), abs=1e-9)
+    assert m.curvature.sum() == pytest.approx(-t.curvature.sum(), rel=0.05)  # every left turn a right one
+    assert tr.mirror_track(m).cones_xy.tobytes() == t.cones_xy.tobytes()
+
+
 def test_reverse_spec_errors():
     for open_track in ("acceleration", "skidpad"):
         with pytest.raises(ValueError, match=f"'{open_track}' is an open .* only a closed loop"):
             load_track(f"reverse:{open_track}")
+        with pytest.raises(ValueError, match=f"'{open_track}' is an open .* only a closed loop can be mirrored"):
+            load_track(f"mirror:{open_track}")
     with pytest.raises(ValueError, match="needs a track spec after it"):
         load_track("reverse:")
     with pytest.raises(ValueError, match="unknown track 'nope'"):
         load_track("reverse:nope")
     with pytest.raises(ValueError, match="not 'skidpad'"):
         load_track("reverse:peanut", event="skidpad")
-    assert not tr.is_track_file("reverse:my/track.csv")
+    assert not tr.is_track_file("reverse:my/track.csv") and not tr.is_track_file("mirror:my/track.csv")
+    assert tr.track_file_part("mirror:reverse:my/track.csv") == ("mirror:reverse:", "my/track.csv")
+    assert load_track("mirror:reverse:peanut").name == "mirror:reverse:peanut"
     assert load_track("reverse:random", seed=3).source == "reversed:generated:random(seed=3)"
 
 

@@ -46,8 +46,9 @@ from weather_gym.registry import Registry
 
 __all__ = [
     "CONE_CLASSES", "CSV_HEADER", "DUPLICATE_TOL_M", "EVENTS", "MAX_CONES", "MAX_COORDINATE_M", "MAX_TRACK_FILE_BYTES",
-    "MIN_RADIUS_M", "REVERSE_PREFIX", "TRACKS", "Projection", "StartPose", "Track", "generate_random_track",
-    "is_track_file", "load_track", "oval", "read_cone_csv", "reverse_track", "track_file_part", "track_from_csv",
+    "MIN_RADIUS_M", "MIRROR_PREFIX", "REVERSE_PREFIX", "TRACKS", "Projection", "StartPose", "Track",
+    "generate_random_track", "is_track_file", "load_track", "mirror_track", "oval", "read_cone_csv", "reverse_track",
+    "track_file_part", "track_from_csv",
 ]
 
 
@@ -133,10 +134,19 @@ def _random_track(seed: int, length: float | None, width: float | None, spacing:
                  **layout.ring_layout(line, width_m, spacing, MIN_RADIUS_M, start_pair))
 
 
-# ---------------------------------------------------------------------------------------------- reversed
+# ---------------------------------------------------------------------------------------------- reversed, mirrored
 
 REVERSE_PREFIX = "reverse:"
 """A track spec ``"reverse:SPEC"`` is the closed track ``SPEC`` driven the other way round."""
+MIRROR_PREFIX = "mirror:"
+"""A track spec ``"mirror:SPEC"`` is the closed track ``SPEC`` reflected across its x axis."""
+_SWAP_BLUE_YELLOW = np.array([layout.YELLOW, layout.BLUE, *range(2, len(CONE_CLASSES))], dtype=np.int64)
+
+
+def _closed_only(track: Track, prefix: str, what: str) -> None:
+    if not track.closed:
+        raise InputError(f"track {track.name!r} is an open {track.event} track: only a closed loop can be "
+                         f"{what} ('{prefix}...')")
 
 
 def reverse_track(track: Track) -> Track:
@@ -152,22 +162,42 @@ def reverse_track(track: Track) -> Track:
         >>> bool((r.cone_classes[t.cone_classes == 0] == 1).all())   # the blue cones are yellow now
         True
     """
-    if not track.closed:
-        raise InputError(f"track {track.name!r} is an open {track.event} track: only a closed loop can be "
-                         "driven the other way round ('reverse:...')")
-    swap = np.array([layout.YELLOW, layout.BLUE, *range(2, len(CONE_CLASSES))], dtype=np.int64)
-    classes = swap[track.cone_classes]
+    _closed_only(track, REVERSE_PREFIX, "driven the other way round")
+    classes = _SWAP_BLUE_YELLOW[track.cone_classes]
     behind = (track.start_line_s - float(track.project(*track.start_pose[:2]).s)) % track.length
     x, y, _ = track.point_at(track.start_line_s + behind)
-    where = f"track 'reverse:{track.name}'"
+    where = f"track '{REVERSE_PREFIX}{track.name}'"
     fields = layout.layout_from_cones(np.asarray(track.cones_xy), classes, (x, y, None), where)
     return Track(name=f"{REVERSE_PREFIX}{track.name}", cones_xy=track.cones_xy, cone_classes=classes,
                  source=f"reversed:{track.source}", **fields)
 
 
+def mirror_track(track: Track) -> Track:
+    """The closed ``track`` reflected across its x axis, driven the same way: every left turn a right
+    turn, blue and yellow swapped (blue stays on the driver's left), the start pose reflected. A layout
+    nobody drove, for testing a driver's turns both ways. As a track spec: ``"mirror:SPEC"``.
+
+    Example:
+        >>> t = load_track("hairpin"); m = mirror_track(t)
+        >>> m.name, round(m.length, 1) == round(t.length, 1), float(m.cones_xy[0, 1]) == -float(t.cones_xy[0, 1])
+        ('mirror:hairpin', True, True)
+    """
+    _closed_only(track, MIRROR_PREFIX, "mirrored")
+    xy = np.asarray(track.cones_xy) * np.array([1.0, -1.0])
+    x, y, yaw = track.start_pose
+    where = f"track '{MIRROR_PREFIX}{track.name}'"
+    classes = _SWAP_BLUE_YELLOW[track.cone_classes]
+    fields = layout.layout_from_cones(xy, classes, (x, -y, -yaw), where)
+    return Track(name=f"{MIRROR_PREFIX}{track.name}", cones_xy=xy, cone_classes=classes,
+                 source=f"mirrored:{track.source}", **fields)
+
+
+_TRANSFORMS = {REVERSE_PREFIX: reverse_track, MIRROR_PREFIX: mirror_track}
+
+
 @functools.lru_cache(maxsize=32)
-def _reversed(spec: str) -> Track:
-    return reverse_track(load_track(spec))
+def _transformed(prefix: str, spec: str) -> Track:
+    return _TRANSFORMS[prefix](load_track(spec))
 
 
 # ---------------------------------------------------------------------------------------------- registry
@@ -210,28 +240,28 @@ def is_track_file(spec: str | os.PathLike) -> bool:
     if isinstance(spec, os.PathLike):
         return True
     name = spec.strip()
-    if name == "random" or name.startswith(("random:", REVERSE_PREFIX)) or name in TRACKS:
+    if name == "random" or name.startswith(("random:", *_TRANSFORMS)) or name in TRACKS:
         return False
     return name.lower().endswith(".csv") or "/" in name or os.sep in name or Path(name).is_file()
 
 
 def track_file_part(spec) -> tuple[str, str] | None:
-    """The cone CSV a string track spec reads, split off its ``reverse:`` prefixes: ``(prefix, path)``, or
-    None when the spec reads no file (a registered name, ``random:SEED``). Where a spec's file is confined
-    (a dataset, a scenario), the path is resolved and the prefix put back.
+    """The cone CSV a string track spec reads, split off its ``reverse:`` / ``mirror:`` prefixes:
+    ``(prefixes, path)``, or None when the spec reads no file (a registered name, ``random:SEED``). Where
+    a spec's file is confined (a dataset, a scenario), the path is resolved and the prefixes put back.
 
     Example:
-        >>> track_file_part("reverse:my/track.csv"), track_file_part("reverse:peanut"), track_file_part("a.csv")
+        >>> track_file_part("reverse:my/track.csv"), track_file_part("mirror:peanut"), track_file_part("a.csv")
         (('reverse:', 'my/track.csv'), None, ('', 'a.csv'))
     """
     if not isinstance(spec, str):
         return None
-    inner = spec.strip()
-    while inner.startswith(REVERSE_PREFIX):
-        inner = inner[len(REVERSE_PREFIX):].strip()
+    whole = inner = spec.strip()
+    while inner.startswith(tuple(_TRANSFORMS)):
+        inner = inner.split(":", 1)[1].strip()
     if not inner or not is_track_file(inner):
         return None
-    return spec.strip()[:len(spec.strip()) - len(inner)], inner
+    return whole[:len(whole) - len(inner)], inner
 
 
 RANDOM_TRACK_ARGS = ("length", "width", "spacing", "start_pair")
@@ -254,9 +284,9 @@ def _random_args(spec: str, args: list[str]) -> dict[str, float]:
 
 def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, event: str | None = None) -> Track:
     """A track from a registered name, ``"random:SEED"`` (or ``"random"`` with ``seed=``), a CSV path,
-    ``"reverse:SPEC"`` (:func:`reverse_track`) or a :class:`Track` (returned as is). ``seed`` only
-    matters for ``"random"``; ``"random:SEED"`` keeps its own seed. ``event`` applies to CSV files
-    (see :func:`track_from_csv`).
+    ``"reverse:SPEC"`` (:func:`reverse_track`), ``"mirror:SPEC"`` (:func:`mirror_track`) or a :class:`Track`
+    (returned as is). ``seed`` only matters for ``"random"``; ``"random:SEED"`` keeps its own seed.
+    ``event`` applies to CSV files (see :func:`track_from_csv`).
 
     Example:
         >>> load_track("random:7").source
@@ -271,13 +301,14 @@ def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, even
     if not isinstance(spec, str):
         raise InputError(f"track spec must be a track name, 'random:SEED', a CSV path or a Track; got {spec!r}")
     name = spec.strip()
-    if name.startswith(REVERSE_PREFIX):
-        if event not in (None, "trackdrive"):
-            raise InputError(f"track {spec!r} is a trackdrive track (a closed loop driven the other way), not {event!r}")
-        inner = name[len(REVERSE_PREFIX):].strip()
-        if not inner:
-            raise InputError(f"track {spec!r}: 'reverse:' needs a track spec after it, e.g. 'reverse:peanut'")
-        return _reversed(inner) if seed is None else reverse_track(load_track(inner, seed=seed))
+    for prefix, transform in _TRANSFORMS.items():
+        if name.startswith(prefix):
+            if event not in (None, "trackdrive"):
+                raise InputError(f"track {spec!r} is a trackdrive track (a closed loop), not {event!r}")
+            inner = name[len(prefix):].strip()
+            if not inner:
+                raise InputError(f"track {spec!r}: '{prefix}' needs a track spec after it, e.g. '{prefix}peanut'")
+            return _transformed(prefix, inner) if seed is None else transform(load_track(inner, seed=seed))
     if name == "random" or name.startswith("random:"):
         kwargs: dict[str, float] = {}
         if ":" in name:
@@ -298,4 +329,4 @@ def load_track(spec: str | os.PathLike | Track, *, seed: int | None = None, even
     if is_track_file(name):
         return track_from_csv(name, event=event)
     raise InputError(f"unknown track {name!r}; valid names: {', '.join(TRACKS.names())}, "
-                     "'random:SEED', 'reverse:SPEC', or a path to a cone CSV file")
+                     "'random:SEED', 'reverse:SPEC', 'mirror:SPEC', or a path to a cone CSV file")
