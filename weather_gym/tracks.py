@@ -134,7 +134,7 @@ def _random_track(seed: int, length: float | None, width: float | None, spacing:
                  **layout.ring_layout(line, width_m, spacing, MIN_RADIUS_M, start_pair))
 
 
-# ---------------------------------------------------------------------------------------------- reversed, mirrored
+# ------------------------------------------------------------------------------------ reversed, mirrored
 
 REVERSE_PREFIX = "reverse:"
 """A track spec ``"reverse:SPEC"`` is the closed track ``SPEC`` driven the other way round."""
@@ -187,7 +187,7 @@ def mirror_track(track: Track) -> Track:
     x, y, yaw = track.start_pose
     where = f"track '{MIRROR_PREFIX}{track.name}'"
     classes = _SWAP_BLUE_YELLOW[track.cone_classes]
-    fields = layout.layout_from_cones(xy, classes, (x, -y, -yaw), where)
+    fields = layout.layout_from_cones(xy, classes, (x, 0.0 - y, 0.0 - yaw), where)  # 0.0 - v: no -0.0
     return Track(name=f"{MIRROR_PREFIX}{track.name}", cones_xy=xy, cone_classes=classes,
                  source=f"mirrored:{track.source}", **fields)
 

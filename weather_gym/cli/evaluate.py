@@ -80,7 +80,8 @@ def register(sub) -> None:
     seeds = g.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=3, help="number of seeds: 0..N-1")
     seeds.add_argument("--seed-list", default=None, help="explicit seeds, comma-separated (instead of --seeds)")
-    g.add_argument("--tracks", default="small_track", help="track names / 'random:SEED' / 'reverse:SPEC' / 'mirror:SPEC' / cone CSV paths, comma-separated")
+    g.add_argument("--tracks", default="small_track",
+                   help="track names / 'random:SEED' / 'reverse:SPEC' / 'mirror:SPEC' / cone CSV paths, comma-separated")
     e = p.add_argument_group("episode")
     e.add_argument("--env-id", default="WeatherGym/ConeTrack-v0", help="Gymnasium id of the scenario")
     e.add_argument("--perception", default=DEFAULT_PERCEPTION, choices=tuple(PERCEPTION_MODES),

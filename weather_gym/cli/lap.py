@@ -92,8 +92,8 @@ def register(sub) -> None:
                     "agent) and report lap times, cones hit, off-track events and cross-track error; "
                     "optionally record a video or a PNG strip.",
         epilog=_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--track", help="track name, 'random:SEED', 'reverse:SPEC', 'mirror:SPEC' or a cone CSV (default: the scenario's track); "
-                                   "see `weather-gym tracks list`")
+    p.add_argument("--track", help="track name, 'random:SEED', 'reverse:SPEC', 'mirror:SPEC' or a cone CSV "
+                                   "(default: the scenario's track); see `weather-gym tracks list`")
     p.add_argument("--env", default="WeatherGym/ConeTrack-v0", help="Gymnasium env id (default %(default)s)")
     p.add_argument("--agent", default="gt_pure_pursuit",
                    help=f"registered agent: {', '.join(AGENTS)} (default gt_pure_pursuit)")

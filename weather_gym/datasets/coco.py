@@ -111,7 +111,7 @@ class CocoDataset:
     def track_spec(self, i: int) -> str | None:
         """The track of frame ``i`` as :func:`weather_gym.tracks.load_track` takes it: a registered name,
         ``random:SEED``, or the (confined, resolved) path of a cone CSV inside the dataset folder (after its
-        ``reverse:`` prefix, if any)."""
+        ``reverse:`` / ``mirror:`` prefixes, if any)."""
         track = self.images[i].get("track")
         part = track_file_part(track)
         if part is None:

@@ -152,8 +152,8 @@ def render_dataset(
     """Render ``frames`` frames over ``tracks`` into the COCO folder ``out``; returns annotations.json.
 
     Args:
-        tracks: track specs (registered names, ``"random:SEED"``, ``"reverse:SPEC"``, ``"mirror:SPEC"`` or cone CSV
-            paths; a CSV is copied into ``out/tracks/`` and the records name that copy).
+        tracks: track specs (registered names, ``"random:SEED"``, ``"reverse:SPEC"``, ``"mirror:SPEC"`` or
+            cone CSV paths; a CSV is copied into ``out/tracks/`` and the records name that copy).
         randomize: draw a random appearance per episode: in the plain scene a random ``Look``
             (``weather_gym.sim.look.sample_look``), in the realistic one a ``Look``, a camera model and a
             field of view from ``ranges`` (``weather_gym.sim.randomize.sample_realistic``); otherwise

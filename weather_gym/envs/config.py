@@ -51,8 +51,8 @@ class EnvConfig:
     """Everything a ``ConeTrackEnv`` is built from.
 
     Attributes:
-        track: registered track name, ``"random:SEED"``, ``"reverse:SPEC"`` (driven the other way round), ``"mirror:SPEC"``
-            (reflected) or a path to a cone CSV file.
+        track: registered track name, ``"random:SEED"``, ``"reverse:SPEC"`` (driven the other way round),
+            ``"mirror:SPEC"`` (reflected) or a path to a cone CSV file.
         track_seed: seed for generated tracks when ``track`` is ``"random"``.
         laps: the episode terminates after this many laps (or when an open event is finished);
             0 = never terminate on laps.

@@ -172,7 +172,9 @@ def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) ->
     folder and must stay inside it (``weather_gym._io.resolve_inside``); names are kept as they are."""
 
     value = table.get(key)
-    prefix, file = ("", value) if key != "track" else (track_file_part(value) or ("", None))
+    prefix, file = "", value
+    if key == "track":  # a track spec names a file only sometimes, after its reverse: / mirror: prefixes
+        prefix, file = track_file_part(value) or ("", None)
     if not isinstance(file, str):
         return table
     where = f"{path} [{section}] {key}"

@@ -131,7 +131,8 @@ class EvalConfig:
         effects: weather conditions or their effect names (``droplets``, ``dim``/``low_light``).
         severities: preset severities (0-4).
         seeds: episode seeds (``reset(seed=...)``: weather realisation, odometry noise, ...).
-        tracks: track names, ``random:SEED``, ``reverse:SPEC``, ``mirror:SPEC`` or cone CSV paths (anything ``gymnasium.make(track=...)`` takes).
+        tracks: track names, ``random:SEED``, ``reverse:SPEC``, ``mirror:SPEC`` or cone CSV paths (anything
+            ``gymnasium.make(track=...)`` takes).
         env_id: a Gymnasium id registered by weather-gym (a scenario).
         perception: a mode of ``weather_gym.perception_modes.PERCEPTION_MODES`` (default: the
             ONNX detector); a mode that takes no weather runs at severity 0 only.
