@@ -63,7 +63,18 @@ from weather_gym.perception.labels import xywh_to_xyxy
 from weather_gym.tracks import track_file_part
 
 __all__ = ["ANNOTATIONS", "DEPTH_SCALE", "JOURNAL", "CocoDataset", "CocoWriter", "load_coco", "read_image",
-           "read_depth_png", "record_path", "write_depth_png"]
+           "read_depth_png", "record_path", "record_track_file", "write_depth_png"]
+
+
+def record_track_file(root: str | os.PathLike, record: dict) -> tuple[str, str, Path] | None:
+    """The cone CSV an image record's ``track`` names: ``(prefixes, path as written, path resolved inside
+    the dataset folder root)``, checked like every file of a record (:func:`record_path`); the prefixes
+    are the spec's ``reverse:`` / ``mirror:``. None when the track is a name (``peanut``, ``random:SEED``)
+    or absent."""
+    part = track_file_part(record.get("track"))
+    if part is None:
+        return None
+    return part[0], part[1], record_path(root, {**record, "track": part[1]}, "track")
 
 
 class CocoDataset:
@@ -113,10 +124,8 @@ class CocoDataset:
         ``random:SEED``, or the (confined, resolved) path of a cone CSV inside the dataset folder (after its
         ``reverse:`` / ``mirror:`` prefixes, if any)."""
         track = self.images[i].get("track")
-        part = track_file_part(track)
-        if part is None:
-            return track
-        return part[0] + str(record_path(self.root, {**self.images[i], "track": part[1]}, "track"))
+        part = record_track_file(self.root, self.images[i])
+        return track if part is None else part[0] + str(part[2])
 
     def image(self, i: int) -> np.ndarray:
         """RGB uint8 frame ``i`` (read-only when ``cache_images`` keeps decoded frames in memory)."""
@@ -281,9 +290,7 @@ def _check_image(path: Path, root: Path, im: Any, ids: set, check_files: bool) -
     f = record_path(root, im, "file_name")
     if im.get("depth_file") is not None:
         record_path(root, im, "depth_file")
-    part = track_file_part(im.get("track"))
-    if part is not None:
-        record_path(root, {**im, "track": part[1]}, "track")
+    record_track_file(root, im)
     if im.get("ignore_mask") is not None:
         record_path(root, im, "ignore_mask")
     if check_files:

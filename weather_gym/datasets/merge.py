@@ -44,10 +44,9 @@ from weather_gym._io import (
     resolve_inside,
 )
 from weather_gym.datasets import masks as _masks
-from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path
+from weather_gym.datasets.coco import ANNOTATIONS, load_coco, record_path, record_track_file
 from weather_gym.errors import InputError, OutputPathError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
-from weather_gym.tracks import track_file_part
 
 __all__ = ["merge_coco"]
 
@@ -119,10 +118,9 @@ def merge_coco(sources: Sequence[str | os.PathLike], out: str | os.PathLike, *,
                     if rec.get(key) is not None:
                         new[key] = _copy(record_path(src, rec, key), out, f"{Path(rec[key]).parent}/{prefix}"
                                                                           f"{Path(rec[key]).name}")
-                part = track_file_part(rec.get("track"))
+                part = record_track_file(src, rec)
                 if part is not None:
-                    new["track"] = part[0] + _copy(record_path(src, {**rec, "track": part[1]}, "track"), out,
-                                                   f"tracks/{prefix}{Path(part[1]).name}")
+                    new["track"] = part[0] + _copy(part[2], out, f"tracks/{prefix}{Path(part[1]).name}")
                 own, rel = rec.get("ignore_mask"), None
                 if own is not None and wide is not None:  # both: one per-frame mask, their union
                     rel = f"masks/{prefix}{rec['id']}_ignore.png"
