@@ -22,6 +22,7 @@ import os
 import sys
 from pathlib import Path
 
+from weather_gym.agents.sb3 import model_sidecar
 from weather_gym.cli import run_command
 from weather_gym.errors import FileFormatError, MissingInputError
 from weather_gym.evaluation.evaluate import EvalConfig, evaluate
@@ -31,9 +32,9 @@ from weather_gym.evaluation.report import report_replaceable, write_report
 def find_sidecar(model: Path) -> Path:
     """The JSON that records the env ``model`` was trained on: beside it, else the run folder's ``model.json``
     (``best/`` and ``checkpoints/`` sit one folder below the run)."""
-    for candidate in (model.with_suffix(".json"), model.parent / "model.json", model.parent.parent / "model.json"):
-        if candidate.is_file():
-            return candidate
+    sidecar = model_sidecar(model)
+    if sidecar is not None:
+        return sidecar
     raise MissingInputError(f"{model.with_suffix('.json')} not found (nor a model.json in its run folder): it "
                             "records the env the model was trained on (weather-gym train writes it)")
 

@@ -16,6 +16,19 @@ def test_the_shipped_policy_is_small_and_documented():
     meta = json.loads(PPO_CONES_MODEL.with_suffix(".json").read_text())
     assert meta["perception"] == "surrogate" and meta["track"] not in meta["train_tracks"]  # held out
     assert meta["pretrain"]["expert"] == "gt_pure_pursuit" and meta["command"].startswith("weather-gym train")
+    assert "--cone-memory" in meta["command"] and isinstance(meta["cone_memory"], dict)
+
+
+def test_ppo_cones_reads_the_cone_list_through_the_memory_it_was_trained_with():
+    pytest.importorskip("stable_baselines3")
+    from weather_gym.agents import AGENTS
+    from weather_gym.agents.cone_memory import ConeMemoryConfig
+    from weather_gym.camera_config import CameraConfig
+
+    meta = json.loads(PPO_CONES_MODEL.with_suffix(".json").read_text())
+    agent = AGENTS.get("ppo_cones")(None, CameraConfig())
+    expected = ConeMemoryConfig.from_dict(meta["cone_memory"])
+    assert agent.memory.config == expected and agent.memory.mount_x == CameraConfig().mount_x
 
 
 def test_ppo_cones_drives_from_a_cone_list():
@@ -56,11 +69,13 @@ def test_ppo_cones_leaves_the_start_line_and_laps_a_held_out_track():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("name", "weather"), [("hairpin", "droplets@3"), ("peanut", "droplets@1")])
+@pytest.mark.parametrize(("name", "weather"), [("hairpin", "droplets@3"), ("peanut", "droplets@1"),
+                                               ("peanut", "droplets@3"), ("peanut", "low_light@1")])
 def test_ppo_cones_laps_the_mirror_image_of_a_training_track(name, weather):
-    """Tight turns the other way: the previous driver (trained on eight tracks one way round) left the
-    mirrored hairpin at a third of the lap and hit 6 cones on the mirrored peanut. (The mirrored peanut
-    stays hard in heavier weather: docs/rl.md.)"""
+    """Tight turns the other way: a driver trained on eight tracks one way round left the mirrored
+    hairpin at a third of the lap and hit 6 cones on the mirrored peanut; one that read only the
+    frame's cones (no cone memory) hit up to 3 cones there at droplets S3 and left it at low light S1,
+    where the cone list is thinnest (CHANGELOG.md)."""
     pytest.importorskip("stable_baselines3")
     from weather_gym.agents import AGENTS, run_episode
     from weather_gym.pipeline import make_env

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -40,6 +42,32 @@ def test_sb3_model_and_saved_zip_drive_through_the_protocol(tmp_path):
     model.save(tmp_path / "policy")
     loaded = AGENTS.get("sb3")(None, None, path=str(tmp_path / "policy"), algo="PPO")
     assert np.array_equal(loaded.act(obs), a)  # deterministic: same weights, same action
+
+
+def test_a_saved_model_drives_with_the_cone_memory_its_sidecar_records(tmp_path):
+    sb3 = pytest.importorskip("stable_baselines3")
+    env = ConeListEnv()
+    sb3.PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, seed=0, device="cpu").save(tmp_path / "m")
+    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip").memory is None  # no sidecar: none
+    (tmp_path / "m.json").write_text(json.dumps({"env_id": "x", "cone_memory": {"max_age": 7}}))
+    agent = AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
+    assert agent.memory.config.max_age == 7
+    obs, _ = env.reset(seed=0)
+    agent.reset(seed=0)
+    assert agent.act(obs).shape == (2,)
+    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_memory=False).memory is None
+    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_memory=True).memory.config.max_age == 30
+    (tmp_path / "m.json").write_text("{")
+    with pytest.raises(ValueError, match=r"m\.json"):
+        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
+    (tmp_path / "m.json").write_text(json.dumps({"cone_memory": {"max_agee": 7}}))
+    with pytest.raises(ValueError, match=r"m\.json: cone_memory: unknown .*max_agee"):
+        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
+    (tmp_path / "m.json").write_text(json.dumps({"cone_memory": "yes"}))
+    with pytest.raises(ValueError, match=r"m\.json: cone_memory: .*table"):
+        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
+    with pytest.raises(ValueError, match="cone_memory must be"):
+        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_memory="yes")
 
 
 def test_sb3_adapter_errors(tmp_path):

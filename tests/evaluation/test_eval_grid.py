@@ -16,6 +16,7 @@ from weather_gym.evaluation.evaluate import (
     make_cells,
     map_precision_recall,
     run_cell,
+    stack_id,
 )
 from weather_gym.weather.presets import preset_spec
 
@@ -68,6 +69,12 @@ def test_stack_names_the_world_and_the_model_files(tmp_path):
         == sur.stack  # the same file's bytes, wherever it lies
     assert make_cells(EvalConfig(**{**base, "agents": ("gt_pure_pursuit", "ppo_cones")}))[0].stack \
         != make_cells(EvalConfig(**{**base, "agents": ("ppo_cones",)}))[0].stack  # the policy file counts
+    policy = tmp_path / "policy.zip"
+    policy.write_bytes(b"weights")
+    sb3 = {**base, "agents": ("sb3",), "agent_kwargs": {"path": str(policy)}}
+    without = stack_id(EvalConfig(**sb3), "sb3")
+    policy.with_suffix(".json").write_text('{"cone_memory": false}')
+    assert stack_id(EvalConfig(**sb3), "sb3") != without  # and the JSON the agent reads its settings from
 
 
 @pytest.mark.parametrize(

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from weather_gym.agents import AGENTS
+from weather_gym.agents.cone_memory import ConeMemoryConfig
 from weather_gym.cli import main
 from weather_gym.rl import HYPERPARAMS
 from weather_gym.rl.train import DEFAULT_HYPERPARAMS_KEY, load_hyperparams
@@ -75,7 +77,7 @@ def test_tiny_run_ctrl_c_resume_and_every_saved_model_evaluates(tmp_path, monkey
     out = tmp_path / "run"
     args = ["train", "--out", str(out), "--n-envs", "1", "--tracks", "hairpin", "--n-steps", "64",
             "--batch-size", "64", "--n-epochs", "1", "--max-steps", "60", "--eval-freq", "64",
-            "--eval-episodes", "1", "--checkpoint-freq", "64"]
+            "--eval-episodes", "1", "--checkpoint-freq", "64", "--cone-memory"]
     updates = {"n": 0}
     real_train = PPO.train
 
@@ -90,6 +92,7 @@ def test_tiny_run_ctrl_c_resume_and_every_saved_model_evaluates(tmp_path, monkey
     monkeypatch.setattr(PPO, "train", real_train)
     meta = json.loads((out / "model.json").read_text())
     assert meta["timesteps"] == 192 and meta["env_id"] == "WeatherGym/ConeTrack-v0"
+    assert meta["cone_memory"] == ConeMemoryConfig().to_dict()  # the tuning it trained with, for the driver
     assert (out / "model.zip").is_file() and (out / "learning_curve.png").stat().st_size > 0
     run = json.loads((out / "run.json").read_text())
     assert run["segments"][0]["interrupted"] is True and run["segments"][0]["to_steps"] == 192
@@ -112,6 +115,7 @@ def test_tiny_run_ctrl_c_resume_and_every_saved_model_evaluates(tmp_path, monkey
         assert config.env_id == "WeatherGym/ConeTrack-v0" and config.tracks == ("small_track",)
         rows = evaluate(config, tmp_path / f"eval{i}", backend="serial", progress=False)
         assert [r["status"] for r in rows] == ["ok"]
+        assert AGENTS.get("sb3")(None, None, path=model).memory.config == ConeMemoryConfig()  # drives as trained
     (checkpoints[0].with_suffix(".json")).unlink()  # no sidecar: the run folder's model.json is found
     assert evaluate_policy.find_sidecar(checkpoints[0]) == out / "model.json"
 

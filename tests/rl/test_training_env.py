@@ -42,3 +42,36 @@ def test_lean_info_records_its_arguments_and_refuses_bad_keys():
         env.close()
     with pytest.raises(InputError, match="keys"):
         LeanInfo(env, keys="lap")
+
+
+def test_remembered_cones_is_the_cone_memory_an_agent_applies_and_passes_the_checker():
+    from gymnasium.utils.env_checker import check_env
+
+    from weather_gym.agents.cone_memory import ConeMemory, ConeMemoryConfig
+    from weather_gym.rl.training_env import RememberedCones
+
+    args = ("WeatherGym/ConeTrack-v0", "peanut", "surrogate", {}, 90, {})
+    plain = _run(make_training_env(*args, surrogate_weather="droplets@3"), steps=90)
+    remembered = _run(make_training_env(*args, surrogate_weather="droplets@3", cone_memory={"max_age": 20}),
+                      steps=90)
+    memory = ConeMemory(ConeMemoryConfig(max_age=20))
+    added = 0
+    for (o1, *_), (o2, *_) in zip(plain, remembered, strict=True):  # the same episode: only the list differs
+        expected = memory(o1)
+        assert all(expected[k].tobytes() == o2[k].tobytes() for k in o2)
+        added += int(o2["mask"].sum() - o1["mask"].sum())
+    assert added > 0  # a drive of 3 s at droplets S3 misses cones the memory still holds
+    again = _run(make_training_env(*args, surrogate_weather="droplets@3", cone_memory={"max_age": 20}), steps=90)
+    assert all(a[0][k].tobytes() == b[0][k].tobytes() for a, b in zip(remembered, again, strict=True) for k in a[0])
+
+    env = make_training_env(*args, cone_memory={}, random_start=False)
+    try:
+        wrapper = env
+        while not isinstance(wrapper, RememberedCones):
+            wrapper = wrapper.env
+        assert wrapper._saved_kwargs == {"config": ConeMemoryConfig()}  # gym.make(env.spec) rebuilds it
+        check_env(env)  # resets forget: the same seed gives the same observations
+    finally:
+        env.close()
+    with pytest.raises(InputError, match="max_ages"):
+        make_training_env(*args, cone_memory={"max_ages": 3})

@@ -23,22 +23,53 @@ A stand-in model (anything with ``predict``) shows the contract without loading 
 from __future__ import annotations
 
 import importlib
+import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from weather_gym.agents._checks import check_action
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.agents.cone_memory import ConeMemory, ConeMemoryConfig
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import Track
 
-__all__ = ["SB3Agent", "SB3_ALGOS"]
+__all__ = ["SB3Agent", "SB3_ALGOS", "model_sidecar"]
 
 SB3_ALGOS = ("A2C", "DDPG", "PPO", "SAC", "TD3")
 """stable-baselines3 algorithms with continuous (Box) actions."""
+
+
+def model_sidecar(model: str | Path) -> Path | None:
+    """The JSON ``weather-gym train`` wrote for a saved model: beside it (``model.json``,
+    ``ppo_<N>_steps.json``, ``best_model.json``), else the run folder's ``model.json`` one or two folders
+    up (``best/`` and ``checkpoints/`` sit in the run folder); None when there is none."""
+    model = Path(model)
+    for candidate in (model.with_suffix(".json"), model.parent / "model.json", model.parent.parent / "model.json"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _recorded_memory(model: Path) -> bool | ConeMemoryConfig:
+    """The cone memory a saved model was trained with, from its sidecar (False without one)."""
+    sidecar = model_sidecar(model)
+    if sidecar is None:
+        return False
+    try:
+        meta = json.loads(sidecar.read_text())
+    except (OSError, ValueError) as exc:
+        raise FileFormatError(f"{sidecar}: the model's JSON sidecar could not be read ({exc})") from None
+    recorded = meta.get("cone_memory", False) if isinstance(meta, dict) else False
+    if isinstance(recorded, bool):
+        return recorded
+    try:
+        return ConeMemoryConfig.from_dict(recorded)
+    except InputError as exc:
+        raise FileFormatError(f"{sidecar}: cone_memory: {exc}") from None
 
 
 class SB3Agent:
@@ -49,10 +80,15 @@ class SB3Agent:
         model: a model with ``predict(obs, deterministic=True)``; or
         path: a file saved by ``model.save(...)``, loaded with ``algo`` (one of ``SB3_ALGOS``).
         device: torch device for loading (default ``"cpu"``).
+        cone_memory: pass the cone list through a :class:`~weather_gym.agents.cone_memory.ConeMemory`
+            first (``True`` for the default tuning, or a ``ConeMemoryConfig`` or its dict), as for a
+            policy trained with ``weather-gym train --cone-memory``; ``None`` (default): as the saved
+            model's JSON sidecar (:func:`model_sidecar`) records under ``"cone_memory"``, none without one.
     """
 
     def __init__(self, track: Track | None = None, camera: CameraConfig | None = None, *, model: Any = None,
-                 path: str | Path | None = None, algo: str = "PPO", device: str = "cpu") -> None:
+                 path: str | Path | None = None, algo: str = "PPO", device: str = "cpu",
+                 cone_memory: bool | dict | ConeMemoryConfig | None = None) -> None:
         if (model is None) == (path is None):
             raise InputError("sb3 agent: give exactly one of model= (a stable-baselines3 model) or path= (a saved .zip)")
         if model is None:
@@ -65,13 +101,27 @@ class SB3Agent:
                 raise InputError(f"sb3 agent: unknown algo {algo!r}; expected one of {', '.join(SB3_ALGOS)}")
             cls = getattr(importlib.import_module("stable_baselines3"), algo)
             model = cls.load(str(p), device=device)
+            if cone_memory is None:
+                cone_memory = _recorded_memory(p)
         if not callable(getattr(model, "predict", None)):
             raise InputError(f"sb3 agent: model {type(model).__name__} has no predict(obs, deterministic=...) method")
         self.model = model
+        cone_memory = False if cone_memory is None else cone_memory
+        if not isinstance(cone_memory, (bool, dict, ConeMemoryConfig)):
+            raise InputError(f"sb3 agent: cone_memory must be true, false, a ConeMemoryConfig or its fields, "
+                             f"got {cone_memory!r}")
+        self.memory = None
+        if cone_memory is not False:
+            config = ConeMemoryConfig.from_dict(cone_memory) if isinstance(cone_memory, dict) else cone_memory
+            self.memory = ConeMemory(config if isinstance(config, ConeMemoryConfig) else None, camera=camera)
 
     def reset(self, seed: int | None = None, info: dict | None = None) -> None:
         self._state = None  # recurrent policies keep a hidden state between steps
+        if self.memory is not None:
+            self.memory.reset()
 
     def act(self, obs: Any, info: dict | None = None) -> np.ndarray:
+        if self.memory is not None:
+            obs = self.memory(obs)
         action, self._state = self.model.predict(obs, state=getattr(self, "_state", None), deterministic=True)
         return check_action(np.asarray(action, dtype=np.float32).reshape(-1), "sb3 model")

@@ -42,6 +42,7 @@ import gymnasium as gym
 
 from weather_gym._io import file_id
 from weather_gym.agents import AGENTS, agent_observes, make_agent, run_episode
+from weather_gym.agents.sb3 import model_sidecar
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.errors import InputError
@@ -201,7 +202,8 @@ def stack_id(config: EvalConfig, agent: str, *, env_config: EnvConfig | None = N
     """12 hex digits of what ``agent``'s cells of ``config`` depend on beyond their other key fields:
     the scenario as resolved (its TOML with the code's defaults and ``env_kwargs``: world, camera
     model, car...), the detector's model file and options (perception ``detector``), the surrogate's
-    model file (``surrogate``) and the agent's policy file (``ppo_cones``, ``sb3``'s ``path``).
+    model file (``surrogate``) and the agent's policy file (``ppo_cones``, ``sb3``'s ``path``) with its
+    JSON sidecar.
 
     So a results file resumed after the detector, a default or a scenario changed runs its cells
     again instead of mixing old rows in. Changes of the code itself are not seen: after one, use a
@@ -218,6 +220,9 @@ def stack_id(config: EvalConfig, agent: str, *, env_config: EnvConfig | None = N
     policy = dict(config.agent_kwargs).get("path") if agent == "sb3" else PPO_CONES_MODEL if agent == "ppo_cones" else None
     if isinstance(policy, (str, Path)) and Path(policy).is_file():
         parts["policy"] = file_id(policy)
+        sidecar = model_sidecar(policy)  # the agent reads its settings (the cone memory) from there
+        if sidecar is not None:
+            parts["policy_sidecar"] = file_id(sidecar)
     return hashlib.sha256(_json(parts).encode()).hexdigest()[:12]
 
 

@@ -135,7 +135,8 @@ def model_metadata(settings: dict[str, Any], hp: dict[str, Any], seed: int, eval
             "perception": settings["perception"], "train_noise": settings["noise"],
             "env_kwargs": settings["env_kwargs"], "train_weather": settings["weather"],
             "train_max_steps": settings["max_steps"], "policy": hp["policy"],
-            "features": "weather_gym.agents.sb3_features.ConeListExtractor"}
+            "features": "weather_gym.agents.sb3_features.ConeListExtractor",
+            "cone_memory": settings.get("cone_memory", False)}
 
 
 RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png", "checkpoints", "best",

@@ -57,6 +57,7 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym._io import atomic_path, atomic_write_json
+from weather_gym.agents.cone_memory import ConeMemoryConfig
 from weather_gym.errors import InputError, OutputExistsError
 from weather_gym.limits import check_seed, parse_size
 from weather_gym.perception_modes import CONES, modes_where, perception_mode
@@ -163,6 +164,9 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     p.add_argument("--init", type=Path, default=None,
                    help="start from this saved PPO model (e.g. weather_gym/agents/models/ppo_cones.zip): fine-tuning")
     p.add_argument("--torch-threads", type=int, default=1, help="torch threads (1: the envs share the cores)")
+    p.add_argument("--cone-memory", action="store_true",
+                   help="the policy reads the cone list with the confirmed cones seen in the last second added "
+                        "(RememberedCones; model.json records its settings, and the sb3 agent drives with the same)")
     g = p.add_argument_group("warm start (behaviour cloning with DAgger before PPO; weather_gym.rl.pretrain)")
     g.add_argument("--pretrain", default=None, metavar="EXPERT",
                    help="a registered agent that labels the training envs' observations, e.g. gt_pure_pursuit "
@@ -218,6 +222,8 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
         out["surrogate_weathers"] = sw
     if args.init is not None:
         out["init"] = str(args.init)
+    if getattr(args, "cone_memory", False):
+        out["cone_memory"] = ConeMemoryConfig().to_dict()  # the tuning, so a resume or a driver uses the same
     if getattr(args, "pretrain", None) is not None:
         out["pretrain"] = dataclasses.asdict(_pretrain_config(args))
     return out
@@ -286,7 +292,8 @@ def train(args: argparse.Namespace) -> int:
     sw = s.get("surrogate_weathers") or ["clear"]
     make = [lambda i=i, lean_info=True: make_training_env(
         s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"], s["max_steps"], s["env_kwargs"],
-        s["weather"], surrogate_weather=sw[i % len(sw)], lean_info=lean_info) for i in range(n_envs)]
+        s["weather"], surrogate_weather=sw[i % len(sw)], lean_info=lean_info,
+        cone_memory=s.get("cone_memory")) for i in range(n_envs)]
     make[0]().close()  # a bad setting fails here, in this process, with its message
     kind = vec_kind(args.vec, s["perception"], n_envs)
     vec = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
@@ -295,7 +302,7 @@ def train(args: argparse.Namespace) -> int:
         vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
     eval_env = VecMonitor(DummyVecEnv([lambda: make_training_env(
         s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
-        random_start=False, surrogate_weather=sw[0], lean_info=True)]))
+        random_start=False, surrogate_weather=sw[0], lean_info=True, cone_memory=s.get("cone_memory"))]))
     if normalize is not False:
         eval_env = VecNormalize(eval_env, **{**normalize, "norm_reward": False, "training": False})
     segment = f"steps{_checkpoint_steps(ckpt):09d}"

@@ -17,6 +17,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from weather_gym.agents.cone_memory import ConeMemory, ConeMemoryConfig
 from weather_gym.errors import InputError
 from weather_gym.perception_modes import PerceptionMode, perception_mode
 from weather_gym.pipeline import make_env
@@ -25,7 +26,7 @@ from weather_gym.wrappers import GroundTruthConeWrapper, WeatherRandomizer
 _SPAWN_KEY = (0x57A27,)  # the start-point draw, apart from the env's own streams for the same seed
 
 
-class RandomStart(gym.Wrapper):
+class RandomStart(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Start an episode at a random arc length of the track (from the reset seed); ``info["start_s"]``.
 
     A share ``line_share`` of the episodes starts at the start line from rest instead: a policy trained
@@ -35,7 +36,8 @@ class RandomStart(gym.Wrapper):
     def __init__(self, env: gym.Env, line_share: float = 0.25) -> None:
         if not 0.0 <= float(line_share) <= 1.0:
             raise InputError(f"RandomStart: line_share={line_share!r} must be in [0, 1]")
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, line_share=line_share)
+        gym.Wrapper.__init__(self, env)
         self.line_share = float(line_share)
         self._rng: np.random.Generator | None = None
 
@@ -51,8 +53,12 @@ class RandomStart(gym.Wrapper):
         return obs, {**info, "start_s": options.get("start_s", 0.0)}
 
 
-class LapSuccess(gym.Wrapper):
+class LapSuccess(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """``info["is_success"]`` at the end of an episode: the requested laps were driven (for EvalCallback)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.Wrapper.__init__(self, env)
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
@@ -60,6 +66,37 @@ class LapSuccess(gym.Wrapper):
             info = {**info, "is_success": bool(info.get("lap", 0) >= max(1, self.env.unwrapped.config.laps)
                                                or info.get("finished", False))}
         return obs, reward, terminated, truncated, info
+
+
+class RememberedCones(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
+    """The cone list with the confirmed cones seen in the last second added
+    (:class:`~weather_gym.agents.cone_memory.ConeMemory`, reset with the episode): what a policy
+    trained with ``--cone-memory`` reads, and what ``SB3Agent(cone_memory=True)`` gives it when driving.
+
+    Example:
+        >>> plain = make_training_env("WeatherGym/ConeTrack-v0", "small_track", "gt_cones", {}, 50, {},
+        ...                           random_start=False)
+        >>> env = RememberedCones(make_training_env("WeatherGym/ConeTrack-v0", "small_track", "gt_cones", {}, 50, {},
+        ...                                         random_start=False))
+        >>> (obs, _), (seen, _) = env.reset(seed=0), plain.reset(seed=0)
+        >>> for _ in range(45):             # 1.5 s from the line: some cones have left the camera's view
+        ...     obs, seen = env.step([0.0, 0.5])[0], plain.step([0.0, 0.5])[0]
+        >>> int(seen["mask"].sum()), int(obs["mask"].sum())
+        (22, 24)
+        >>> env.close()
+    """
+
+    def __init__(self, env: gym.Env, config: ConeMemoryConfig | None = None) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, config=config)
+        gym.ObservationWrapper.__init__(self, env)
+        self.memory = ConeMemory(config, camera=env.unwrapped.config.camera)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self.memory.reset()
+        return super().reset(seed=seed, options=options)
+
+    def observation(self, observation: dict) -> dict:
+        return self.memory(observation)
 
 
 INFO_KEYS = ("is_success", "end_reason", "lap", "cones_hit", "off_track_events")
@@ -102,9 +139,11 @@ class LeanInfo(gym.Wrapper, gym.utils.RecordConstructorArgs):
 def make_training_env(env_id: str, track: str, perception: str, noise: dict[str, Any], max_steps: int,
                       env_kwargs: dict[str, Any], weather: dict[str, Any] | None = None,
                       random_start: bool = True, surrogate_weather: str = "clear",
-                      lean_info: bool = False) -> gym.Env:
+                      lean_info: bool = False, cone_memory: dict[str, Any] | None = None) -> gym.Env:
     """One env of the run (module level, so vector-env workers can build it); ``lean_info``: wrapped
-    in :class:`LeanInfo` (PPO's vector envs; the DAgger teacher's envs keep the whole info)."""
+    in :class:`LeanInfo` (PPO's vector envs; the DAgger teacher's envs keep the whole info);
+    ``cone_memory`` (``ConeMemoryConfig`` fields, ``{}`` for the defaults): the cone list through
+    :class:`RememberedCones`."""
     mode = perception_mode(perception)
     pk = dict(noise) if takes_oracle_noise(mode) else {}
     env = make_env(env_id, track=track, perception=perception, perception_kwargs=pk or None,
@@ -112,6 +151,8 @@ def make_training_env(env_id: str, track: str, perception: str, noise: dict[str,
                    weather=_start_weather(mode, surrogate_weather), **dict(env_kwargs))
     if weather and mode.renders_frames:
         env = WeatherRandomizer(env, **weather)
+    if cone_memory is not None:
+        env = RememberedCones(env, ConeMemoryConfig.from_dict(cone_memory))
     if random_start:
         env = RandomStart(env)
     env = LapSuccess(env)
