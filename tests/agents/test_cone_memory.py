@@ -100,6 +100,13 @@ def test_a_remembered_cone_next_to_a_detection_is_that_cone_not_a_second_one(dup
     assert out["mask"].sum() == listed
 
 
+def test_detections_beyond_the_detection_range_are_left_out():
+    far = obs_of([(5.0, 2.0, 0), (40.0, 2.0, 1), (60.0, -2.0, 1)])
+    cut = ConeMemory(ConeMemoryConfig(detection_range=30.0))(far)
+    assert unpack_cones(cut["cones"], cut["mask"])["classes"].tolist() == [0]
+    assert ConeMemory()(far)["mask"].sum() == 3  # no cut by default
+
+
 def test_the_camera_sets_the_mount_for_range_and_bearing():
     camera = CameraConfig(mount_x=1.0)
     memory = ConeMemory(camera=camera)
@@ -125,3 +132,6 @@ def test_the_config_round_trips_through_json_and_bad_values_are_named():
         ConeMemoryConfig(max_behind=-1.0)
     with pytest.raises(ValueError, match="table"):
         ConeMemoryConfig.from_dict([1, 2])
+    with pytest.raises(ValueError, match="detection_range"):
+        ConeMemoryConfig(detection_range=0.0)
+    assert ConeMemoryConfig.from_dict({"detection_range": None}).detection_range is None

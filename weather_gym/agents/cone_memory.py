@@ -3,16 +3,17 @@
 A memoryless driver reads only this frame's cones. In a tight turn, in low light or behind a drop on
 the lens, that list is thin: the cones beside the car have left the field of view and the far ones
 are missed. ``ConeMemory`` keeps a :class:`~weather_gym.agents.mapper.ConeMapper` running on the
-cone lists and the car's odometry, and hands on this frame's detections as they are plus every
-*confirmed* mapped cone that nothing was detected at this frame, seen within the last ``max_age``
-steps and not farther than ``max_behind`` metres behind the car, moved into the car frame by the
-odometry. A single false detection never becomes a remembered cone (the mapper confirms a cone after
-``min_hits`` sightings). The observation keeps its space: the same ``(N, 14)`` rows sorted by range
+cone lists and the car's odometry, and hands on this frame's detections as they are (those within
+``detection_range``) plus every *confirmed* mapped cone that nothing was detected at this frame, seen
+within the last ``max_age`` steps and not farther than ``max_behind`` metres behind the car, moved
+into the car frame by the odometry. A single false detection never becomes a remembered cone (the
+mapper confirms a cone after ``min_hits`` sightings). The observation keeps its space: the same ``(N, 14)`` rows sorted by range
 and the mask; a remembered row has its class, range, bearing (from the camera), the colour vote's
 share as its score, car-frame position, and no box (zeros).
 
 The shipped ``ppo_cones`` driver reads its cone list through a ``ConeMemory`` in training and in
-driving (``weather-gym train --cone-memory``; ``SB3Agent(cone_memory=True)``).
+driving (``weather-gym train --cone-memory``; the ``sb3`` agent applies the memory a saved model's
+JSON records).
 
 Example:
     >>> import numpy as np
@@ -39,7 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from weather_gym.agents._checks import check_fields
-from weather_gym.agents.mapper import ConeMapper, MapperConfig
+from weather_gym.agents.mapper import ConeMap, ConeMapper, MapperConfig
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD
@@ -60,6 +61,10 @@ class ConeMemoryConfig:
         max_range: cones farther than this (m) from the car are left out.
         duplicate_dist: a remembered cone this close (m) to one of this frame's detections is taken
             to be that cone and left out.
+        detection_range: this frame's detections farther than this (m, from the camera) are left out
+            (None, the default: none are). The shipped driver, cloned on the surrogate's lists (which
+            thin out near 30 m), drives with 30: geometric ground truth (``gt_cones``) lists every
+            cone in view, to 70 m.
         mapper: the mapper's tuning (``hfov_deg`` and ``mount_x`` follow the camera when one is given).
     """
 
@@ -67,6 +72,7 @@ class ConeMemoryConfig:
     max_behind: float = 0.0
     max_range: float = 20.0
     duplicate_dist: float = 1.0
+    detection_range: float | None = None
     mapper: MapperConfig = MapperConfig()
 
     def __post_init__(self) -> None:
@@ -74,6 +80,10 @@ class ConeMemoryConfig:
                      integers=("max_age",))
         if self.max_age < 1:
             raise InputError(f"ConeMemoryConfig: max_age must be an integer >= 1 (steps), got {self.max_age!r}")
+        if self.detection_range is not None and not (isinstance(self.detection_range, (int, float))
+                                                     and self.detection_range > 0):
+            raise InputError(f"ConeMemoryConfig: detection_range must be a distance > 0 (m) or None, "
+                             f"got {self.detection_range!r}")
         if not isinstance(self.mapper, MapperConfig):
             raise InputError(f"ConeMemoryConfig: mapper must be a MapperConfig, got {type(self.mapper).__name__}")
 
@@ -127,33 +137,41 @@ class ConeMemory:
         cone_map = self.mapper.update_from_obs(obs)
         cones = np.asarray(obs["cones"], dtype=np.float32)
         mask = np.asarray(obs["mask"]).astype(bool)
-        keep = cone_map.confirmed & (cone_map.age >= 1) & (cone_map.age <= cfg.max_age)
-        if not keep.any():
-            return {**obs}
-        x, y, yaw = (float(v) for v in np.asarray(obs["state"], dtype=np.float64).reshape(-1)[2:5])
-        c, s = np.cos(yaw), np.sin(yaw)
-        d = cone_map.xy[keep] - (x, y)
-        xb, yb = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
-        near = (xb >= -cfg.max_behind) & (np.hypot(xb, yb) <= cfg.max_range)
-        now = cones[mask][:, [FIELD["x_body"], FIELD["y_body"]]]
-        if near.any() and len(now):
-            dist, _ = cKDTree(now).query(np.c_[xb, yb], k=1)
-            near &= dist > cfg.duplicate_dist
-        if not near.any():
-            return {**obs}
-        xb, yb = xb[near], yb[near]
-        prob = cone_map.class_prob[keep][near]
-        rows = np.zeros((len(xb), cones.shape[1]), np.float32)
-        rows[np.arange(len(xb)), prob.argmax(axis=1)] = 1.0
-        cx = xb - self.mount_x
-        rows[:, FIELD["range"]] = np.hypot(cx, yb)
-        rows[:, FIELD["bearing"]] = np.arctan2(yb, cx)
-        rows[:, FIELD["score"]] = prob.max(axis=1)
-        rows[:, FIELD["x_body"]], rows[:, FIELD["y_body"]] = xb, yb
-        merged = np.concatenate([cones[mask], rows])
+        if cfg.detection_range is not None:
+            mask &= cones[:, FIELD["range"]] <= cfg.detection_range
+        now = cones[mask]
+        merged = np.concatenate([now, self._remembered(cone_map, obs["state"], now)])
         order = np.argsort(merged[:, FIELD["range"]], kind="stable")[:cones.shape[0]]
         out = np.zeros_like(cones)
         out[:len(order)] = merged[order]
         out_mask = np.zeros(cones.shape[0], np.int8)
         out_mask[:len(order)] = 1
         return {**obs, "cones": out, "mask": out_mask}
+
+    def _remembered(self, cone_map: ConeMap, state: np.ndarray, now: np.ndarray) -> np.ndarray:
+        """Cone-list rows of the confirmed cones to add (see the module doc); ``now``: this frame's rows."""
+        cfg = self.config
+        rows = np.zeros((0, now.shape[1]), np.float32)
+        keep = cone_map.confirmed & (cone_map.age >= 1) & (cone_map.age <= cfg.max_age)
+        if not keep.any():
+            return rows
+        x, y, yaw = (float(v) for v in np.asarray(state, dtype=np.float64).reshape(-1)[2:5])
+        c, s = np.cos(yaw), np.sin(yaw)
+        d = cone_map.xy[keep] - (x, y)
+        xb, yb = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
+        near = (xb >= -cfg.max_behind) & (np.hypot(xb, yb) <= cfg.max_range)
+        if near.any() and len(now):
+            dist, _ = cKDTree(now[:, [FIELD["x_body"], FIELD["y_body"]]]).query(np.c_[xb, yb], k=1)
+            near &= dist > cfg.duplicate_dist
+        if not near.any():
+            return rows
+        xb, yb = xb[near], yb[near]
+        prob = cone_map.class_prob[keep][near]
+        rows = np.zeros((len(xb), now.shape[1]), np.float32)
+        rows[np.arange(len(xb)), prob.argmax(axis=1)] = 1.0
+        cx = xb - self.mount_x
+        rows[:, FIELD["range"]] = np.hypot(cx, yb)
+        rows[:, FIELD["bearing"]] = np.arctan2(yb, cx)
+        rows[:, FIELD["score"]] = prob.max(axis=1)
+        rows[:, FIELD["x_body"]], rows[:, FIELD["y_body"]] = xb, yb
+        return rows
