@@ -7,9 +7,9 @@ cone lists and the car's odometry, and hands on this frame's detections as they 
 ``detection_range``) plus every *confirmed* mapped cone that nothing was detected at this frame, seen
 within the last ``max_age`` steps and not farther than ``max_behind`` metres behind the car, moved
 into the car frame by the odometry. A single false detection never becomes a remembered cone (the
-mapper confirms a cone after ``min_hits`` sightings). The observation keeps its space: the same ``(N, 14)`` rows sorted by range
-and the mask; a remembered row has its class, range, bearing (from the camera), the colour vote's
-share as its score, car-frame position, and no box (zeros).
+mapper confirms a cone after ``min_hits`` sightings). The observation keeps its space: the same
+``(N, 14)`` rows sorted by range and the mask; a remembered row has its class, range, bearing (from
+the camera), the colour vote's share as its score, car-frame position, and no box (zeros).
 
 The shipped ``ppo_cones`` driver reads its cone list through a ``ConeMemory`` in training and in
 driving (``weather-gym train --cone-memory``; the ``sb3`` agent applies the memory a saved model's
@@ -41,13 +41,10 @@ from scipy.spatial import cKDTree
 
 from weather_gym.agents._checks import check_fields
 from weather_gym.agents.mapper import ConeMap, ConeMapper, MapperConfig
-from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import FIELD
 
 __all__ = ["ConeMemory", "ConeMemoryConfig"]
-
-_N_CLASSES = len(CONE_CLASSES)
 
 
 @dataclass(frozen=True)

@@ -71,7 +71,8 @@ class LapSuccess(gym.Wrapper, gym.utils.RecordConstructorArgs):
 class RememberedCones(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """The cone list with the confirmed cones seen in the last second added
     (:class:`~weather_gym.agents.cone_memory.ConeMemory`, reset with the episode): what a policy
-    trained with ``--cone-memory`` reads, and what ``SB3Agent(cone_memory=True)`` gives it when driving.
+    trained with ``--cone-memory`` reads, and what the ``sb3`` agent gives it when driving (from the
+    settings the model's JSON records).
 
     Example:
         >>> plain = make_training_env("WeatherGym/ConeTrack-v0", "small_track", "gt_cones", {}, 50, {},
