@@ -73,14 +73,9 @@ class ConeMemoryConfig:
     mapper: MapperConfig = MapperConfig()
 
     def __post_init__(self) -> None:
-        check_fields(self, positive=("max_range", "duplicate_dist"), non_negative=("max_behind",),
+        optional = ("detection_range",) if self.detection_range is not None else ()
+        check_fields(self, positive=("max_range", "duplicate_dist", *optional), non_negative=("max_behind",),
                      integers=("max_age",))
-        if self.max_age < 1:
-            raise InputError(f"ConeMemoryConfig: max_age must be an integer >= 1 (steps), got {self.max_age!r}")
-        if self.detection_range is not None and not (isinstance(self.detection_range, (int, float))
-                                                     and self.detection_range > 0):
-            raise InputError(f"ConeMemoryConfig: detection_range must be a distance > 0 (m) or None, "
-                             f"got {self.detection_range!r}")
         if not isinstance(self.mapper, MapperConfig):
             raise InputError(f"ConeMemoryConfig: mapper must be a MapperConfig, got {type(self.mapper).__name__}")
 
@@ -91,20 +86,15 @@ class ConeMemoryConfig:
     @classmethod
     def from_dict(cls, d: dict) -> ConeMemoryConfig:
         """From :meth:`to_dict`'s dict, or a part of it (the rest default); unknown keys are an error."""
-        if not isinstance(d, dict):
-            raise InputError(f"cone_memory must be a table of ConeMemoryConfig fields, got {d!r}")
-        d = dict(d)
-        for name, kind in (("cone_memory", cls), ("cone_memory.mapper", MapperConfig)):
-            table = d if kind is cls else d.get("mapper", {})
+        mapper = d.get("mapper", {}) if isinstance(d, dict) else None
+        for name, table, kind in (("cone_memory", d, cls), ("cone_memory.mapper", mapper, MapperConfig)):
             if not isinstance(table, dict):
                 raise InputError(f"{name} must be a table of {kind.__name__} fields, got {table!r}")
-            unknown = sorted(set(table) - {f.name for f in dataclasses.fields(kind)})
+            valid = sorted(f.name for f in dataclasses.fields(kind))
+            unknown = sorted(set(table) - set(valid))
             if unknown:
-                raise InputError(f"unknown {name} key(s) {unknown}; valid keys: "
-                                 f"{sorted(f.name for f in dataclasses.fields(kind))}")
-        if "mapper" in d:
-            d["mapper"] = MapperConfig(**d["mapper"])
-        return cls(**d)
+                raise InputError(f"unknown {name} key(s) {unknown}; valid keys: {valid}")
+        return cls(**{**d, "mapper": MapperConfig(**mapper)}) if "mapper" in d else cls(**d)
 
 
 class ConeMemory:
