@@ -33,7 +33,7 @@ from dataclasses import asdict, dataclass, fields, replace
 import cv2
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 
 __all__ = ["CameraModel", "CameraPipeline"]
 
@@ -133,10 +133,7 @@ class CameraModel:
             return d
         if not isinstance(d, dict):
             raise InputError(f"camera_model must be a table of CameraModel fields, got {d!r}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise InputError(f"unknown camera_model key(s) {unknown}; valid keys: {sorted(known)}")
+        check_known(d, {f.name for f in fields(cls)}, what="camera_model")
         d = dict(d)
         if "white_balance" in d and isinstance(d["white_balance"], list):
             d["white_balance"] = tuple(d["white_balance"])

@@ -20,6 +20,9 @@ built-in exception a caller would expect (``ValueError``, ``FileNotFoundError``,
     ├── StateError (RuntimeError)              an object used in the wrong state (step after close)
     └── MissingDependencyError (ImportError)   an optional extra is not installed
 
+:func:`check_known` is the one check behind every "unknown key" error: a table, a dict of options or
+keyword arguments that holds a name its reader does not know.
+
 Example:
     >>> from weather_gym.errors import InputError, WeatherGymError
     >>> try:
@@ -27,9 +30,15 @@ Example:
     ... except ValueError as exc:          # still a ValueError for existing callers
     ...     isinstance(exc, WeatherGymError)
     True
+    >>> check_known({"k": 1, "radius": 3}, ("k", "sigma"), what="blur", kind="parameter")
+    Traceback (most recent call last):
+    ...
+    weather_gym.errors.InputError: blur: unknown parameter(s) ['radius']; valid parameters: ['k', 'sigma']
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterable
 
 __all__ = [
     "WeatherGymError",
@@ -42,6 +51,7 @@ __all__ = [
     "OutputPathError",
     "StateError",
     "MissingDependencyError",
+    "check_known",
 ]
 
 
@@ -83,3 +93,17 @@ class StateError(WeatherGymError, RuntimeError):
 
 class MissingDependencyError(WeatherGymError, ImportError):
     """An optional extra is needed (the message says which ``pip install`` brings it)."""
+
+
+def check_known(given: Iterable[str], valid: Iterable[str], *, what: str, kind: str = "key",
+                error: type[InputError] = InputError, hint: str = "") -> None:
+    """Raise ``error`` when ``given`` (names, or a dict's keys) holds any name that is not in ``valid``.
+
+    The message names the unknown ones (sorted) and the valid ones (in their order; a set sorted):
+    ``WHAT: unknown KIND(s) [...]; valid KINDs: [...]HINT``.
+    """
+    names = list(valid)
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        shown = sorted(names) if isinstance(valid, (set, frozenset)) else names
+        raise error(f"{what}: unknown {kind}(s) {unknown}; valid {kind}s: {shown}{hint}")

@@ -124,7 +124,7 @@ def test_the_config_round_trips_through_json_and_bad_values_are_named():
     assert ConeMemoryConfig.from_dict({}) == ConeMemoryConfig()
     with pytest.raises(ValueError, match="max_ages"):
         ConeMemoryConfig.from_dict({"max_ages": 3})
-    with pytest.raises(ValueError, match=r"cone_memory\.mapper key.*min_hit"):
+    with pytest.raises(ValueError, match=r"cone_memory\.mapper: unknown key\(s\) \['min_hit'\]; valid keys: .*'min_hits'"):
         ConeMemoryConfig.from_dict({"mapper": {"min_hit": 3}})
     with pytest.raises(ValueError, match="max_age"):
         ConeMemoryConfig(max_age=0)

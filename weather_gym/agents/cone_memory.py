@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from weather_gym.agents._checks import check_fields
 from weather_gym.agents.mapper import ConeMap, ConeMapper, MapperConfig
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.perception.cones import FIELD
 
 __all__ = ["ConeMemory", "ConeMemoryConfig"]
@@ -90,10 +90,7 @@ class ConeMemoryConfig:
         for name, table, kind in (("cone_memory", d, cls), ("cone_memory.mapper", mapper, MapperConfig)):
             if not isinstance(table, dict):
                 raise InputError(f"{name} must be a table of {kind.__name__} fields, got {table!r}")
-            valid = sorted(f.name for f in dataclasses.fields(kind))
-            unknown = sorted(set(table) - set(valid))
-            if unknown:
-                raise InputError(f"unknown {name} key(s) {unknown}; valid keys: {valid}")
+            check_known(table, {f.name for f in dataclasses.fields(kind)}, what=name)
         return cls(**{**d, "mapper": MapperConfig(**mapper)}) if "mapper" in d else cls(**d)
 
 

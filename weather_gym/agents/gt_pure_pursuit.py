@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 
 if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera_config import CameraConfig
@@ -41,10 +41,7 @@ on a wet surface (mu 0.6: a rear-driven car has only ~2.8 m/s^2 of traction, hen
 
 def config_with(base: PurePursuitConfig | None, overrides: dict[str, Any], who: str) -> PurePursuitConfig:
     """``base`` (or the default config) with ``overrides`` applied; unknown names raise ValueError."""
-    names = {f.name for f in dataclasses.fields(PurePursuitConfig)}
-    unknown = sorted(set(overrides) - names)
-    if unknown:
-        raise InputError(f"{who}: unknown option(s) {', '.join(unknown)}; valid: {', '.join(sorted(names))}")
+    check_known(overrides, {f.name for f in dataclasses.fields(PurePursuitConfig)}, what=who, kind="option")
     return dataclasses.replace(base or PurePursuitConfig(), **overrides)
 
 

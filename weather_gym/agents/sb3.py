@@ -69,7 +69,7 @@ def _recorded_memory(model: Path) -> bool | ConeMemoryConfig:
     try:
         return ConeMemoryConfig.from_dict(recorded)
     except InputError as exc:
-        raise FileFormatError(f"{sidecar}: cone_memory: {exc}") from None
+        raise FileFormatError(f"{sidecar}: {exc}") from None  # the message names cone_memory
 
 
 class SB3Agent:

@@ -48,7 +48,7 @@ from gymnasium import spaces
 from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
-from weather_gym.errors import InputError, LimitError, StateError
+from weather_gym.errors import InputError, LimitError, StateError, check_known
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look, sample_look
 from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
@@ -148,11 +148,9 @@ class ConeTrackEnv(gym.Env):
             raise InputError(f"reset options must be a dict (keys {list(RESET_OPTIONS)}), got {options!r}")
         super().reset(seed=seed)
         options = dict(options or {})
-        unknown = set(options) - set(RESET_OPTIONS)
-        if unknown:
-            raise InputError(f"unknown reset option(s) {sorted(unknown)}; valid options: {list(RESET_OPTIONS)}, and "
-                             f"{WRAPPER_RESET_OPTIONS[0]!r} on a stack with weather (a WeatherWrapper or "
-                             "SurrogatePerceptionWrapper: weather given, or perception 'detector' / 'surrogate')")
+        check_known(options, RESET_OPTIONS, what="reset", kind="option",
+                    hint=f", and {WRAPPER_RESET_OPTIONS[0]!r} on a stack with weather (a WeatherWrapper or "
+                         "SurrogatePerceptionWrapper: weather given, or perception 'detector' / 'surrogate')")
         self._episode_started = False  # until this reset has succeeded
         rng = self.np_random
         look = self._resolve_look(options.get("look"), rng)

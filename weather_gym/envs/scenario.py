@@ -38,7 +38,7 @@ from weather_gym._toml import read_toml
 from weather_gym.camera_config import CameraConfig
 from weather_gym.camera_isp import CameraModel
 from weather_gym.envs.config import EnvConfig, RewardConfig
-from weather_gym.errors import FileFormatError, InputError
+from weather_gym.errors import FileFormatError, InputError, check_known
 from weather_gym.paths import data_dir
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 from weather_gym.tracks import track_file_part
@@ -97,12 +97,6 @@ def scenario_files() -> list[Path]:
     return sorted(data_dir("envs").glob("*.toml"))
 
 
-def _check_keys(where: str, got: dict, valid: tuple[str, ...] | set[str]) -> None:
-    unknown = sorted(set(got) - set(valid))
-    if unknown:
-        raise InputError(f"{where}: unknown key(s) {unknown}; valid keys: {sorted(valid)}")
-
-
 def load_scenario(path: str | Path) -> Scenario:
     """Parse and validate a scenario TOML file; errors name the file and the key."""
     path = Path(path)
@@ -110,7 +104,7 @@ def load_scenario(path: str | Path) -> Scenario:
     if "detector" in data:
         raise FileFormatError(f"{path}: the [detector] table is now [perception] with mode = \"detector\" "
                               "(and the DetectorWrapper keyword arguments)")
-    _check_keys(str(path), data, TOP_KEYS)
+    check_known(data, TOP_KEYS, what=str(path))
     env_id = data.get("id")
     if not isinstance(env_id, str) or "/" not in env_id or not env_id.rsplit("-v", 1)[-1].isdigit():
         raise FileFormatError(f"{path}: 'id' must be a Gymnasium id like 'WeatherGym/Name-v0', got {env_id!r}")
@@ -118,7 +112,7 @@ def load_scenario(path: str | Path) -> Scenario:
     if not isinstance(env, dict):
         raise FileFormatError(f"{path}: [env] must be a table of EnvConfig fields, got {env!r}")
     env = dict(env)
-    _check_keys(f"{path} [env]", env, (*ENV_KEYS, "max_episode_steps", "max_episode_s"))
+    check_known(env, (*ENV_KEYS, "max_episode_steps", "max_episode_s"), what=f"{path} [env]")
     max_steps, max_s = _pop_time_limit(path, env)
     env = _confine_paths(path, env, "env", "track")
     sections = {}
@@ -126,13 +120,13 @@ def load_scenario(path: str | Path) -> Scenario:
         sec = data.get(name, {})
         if not isinstance(sec, dict):
             raise FileFormatError(f"{path}: [{name}] must be a table")
-        _check_keys(f"{path} [{name}]", sec, {f.name for f in fields(cls)})
+        check_known(sec, {f.name for f in fields(cls)}, what=f"{path} [{name}]")
         sections[name] = sec
     weather = data.get("weather")
     if weather is not None:
         if not isinstance(weather, dict):
             raise FileFormatError(f"{path}: [weather] must be a table (spec = ..., or condition and severity)")
-        _check_keys(f"{path} [weather]", weather, ("spec", "condition", "severity"))
+        check_known(weather, ("spec", "condition", "severity"), what=f"{path} [weather]")
         _check_weather(path, weather)
     perception = data.get("perception")
     if perception is not None:
@@ -226,7 +220,7 @@ def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
             raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {type(override).__name__}")
         return override
     if isinstance(override, dict):
-        _check_keys(f"override {name}", override, {f.name for f in fields(cls)})
+        check_known(override, {f.name for f in fields(cls)}, what=f"override {name}")
         merged = {**base, **override}
         return cls.from_dict(merged) if cls is CameraModel else cls(**merged)
     raise InputError(f"{name} must be a {cls.__name__} or a dict of its fields, got {override!r}")
@@ -235,7 +229,7 @@ def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
 def build_config(scenario: Scenario, overrides: dict[str, Any] | None = None) -> EnvConfig:
     """The ``EnvConfig`` of a scenario with keyword overrides (``gym.make`` kwargs) applied."""
     overrides = dict(overrides or {})
-    _check_keys(f"overrides for {scenario.env_id}", overrides, (*ENV_KEYS, *SECTIONS))
+    check_known(overrides, (*ENV_KEYS, *SECTIONS), what=f"overrides for {scenario.env_id}")
     kwargs: dict[str, Any] = dict(scenario.env)
     for key in ENV_KEYS:
         if key in overrides:

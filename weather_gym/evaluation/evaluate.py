@@ -45,7 +45,7 @@ from weather_gym.agents import AGENTS, agent_observes, make_agent, run_episode
 from weather_gym.agents.sb3 import model_sidecar
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.scenario import build_config, load_scenario
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.evaluation.metrics import (
     MAP_MATCH_RADIUS_M,
     METRICS,
@@ -321,10 +321,8 @@ def _check_perception_kwargs(perception: str, kwargs: dict[str, Any]) -> None:
     if wrapper is GroundTruthConeWrapper:  # OracleNoise fields as keywords
         noise = {k: v for k, v in kwargs.items() if k in {f.name for f in fields(OracleNoise)}}
         allowed |= {f.name for f in fields(OracleNoise)}
-    unknown = sorted(set(kwargs) - allowed)
-    if unknown:
-        raise InputError(f"--perception-kwargs: {', '.join(map(repr, unknown))} is not an argument of "
-                         f"{wrapper.__name__} (perception {perception!r}); valid: {', '.join(sorted(allowed))}")
+    check_known(kwargs, allowed, what=f"--perception-kwargs: {wrapper.__name__} (perception {perception!r})",
+                kind="argument")
     if noise:
         try:
             OracleNoise(**noise)

@@ -49,7 +49,7 @@ from typing import Any, ClassVar
 import cv2
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.registry import Registry
 from weather_gym.weather.base import KnobEffect
 
@@ -222,9 +222,7 @@ class BlurKernel(MeasuredEffect):
 def make_measured(name: str, **params: Any) -> MeasuredEffect:
     """Build the measured effect ``name`` (errors list the valid names and say what is expected)."""
     cls = MEASURED.get(name)
-    unknown = sorted(set(params) - {f.name for f in dataclasses.fields(cls)})
-    if unknown:
-        raise InputError(f"{name}: unknown parameter(s) {unknown}; expected k and {', '.join(cls.CURVES)}")
+    check_known(params, [f.name for f in dataclasses.fields(cls)], what=name, kind="parameter")
     return cls(**params)
 
 

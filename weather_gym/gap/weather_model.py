@@ -45,7 +45,7 @@ import numpy as np
 
 from weather_gym._io import atomic_write
 from weather_gym._toml import toml_document
-from weather_gym.errors import FileFormatError, MissingInputError
+from weather_gym.errors import FileFormatError, MissingInputError, check_known
 from weather_gym.gap.measured import MEASURED, PARTNERS, make_measured
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
@@ -68,9 +68,8 @@ def read_model(path: str | os.PathLike) -> list[KnobEffect]:
             data = tomllib.load(f)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:  # a TOML file is UTF-8 text
         raise FileFormatError(f"model file {path} is not valid TOML: {exc}") from None
-    unknown = sorted(set(data) - {"effects"})
-    if unknown:
-        raise FileFormatError(f"model file {path}: unknown top-level key(s) {unknown}; expected only [[effects]] tables")
+    check_known(data, ("effects",), what=f"model file {path}", kind="top-level key", error=FileFormatError,
+                hint=" (an array of [[effects]] tables)")
     tables = data.get("effects", [])
     if not isinstance(tables, list) or not all(isinstance(t, Mapping) for t in tables):
         raise FileFormatError(f"model file {path}: 'effects' must be an array of tables ([[effects]] with name and k)")

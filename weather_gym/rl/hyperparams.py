@@ -16,7 +16,7 @@ import inspect
 from pathlib import Path
 from typing import Any
 
-from weather_gym.errors import FileFormatError, InputError, MissingDependencyError
+from weather_gym.errors import FileFormatError, InputError, MissingDependencyError, check_known
 
 _RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "policy_kwargs")
 """Keys of a hyper-parameter section that are not PPO keywords."""
@@ -74,9 +74,7 @@ def load_hyperparams(path: str | Path, key: str) -> dict[str, Any]:
     sec = dict(data[key])
     where = f"{path} [{key}]"
     valid_ppo = set(inspect.signature(PPO.__init__).parameters) - {"self", "policy", "env", "_init_setup_model"}
-    unknown = sorted(set(sec) - set(_RUN_KEYS) - valid_ppo)
-    if unknown:
-        raise FileFormatError(f"{where}: unknown key(s) {unknown}; valid: {sorted(set(_RUN_KEYS) | valid_ppo)}")
+    check_known(sec, set(_RUN_KEYS) | valid_ppo, what=where, error=FileFormatError)
     normalize = _literal(sec.pop("normalize", False), f"{where} normalize")
     if normalize is True:
         normalize = {}

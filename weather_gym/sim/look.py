@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.sim.ego import EGO_VARIANTS
 from weather_gym.sim.scenery import CLUTTER_LAYOUTS
 
@@ -77,10 +77,7 @@ class Look:
     @classmethod
     def from_dict(cls, d: dict) -> Look:
         """Build from a dict (e.g. JSON); unknown keys are an error naming them."""
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise InputError(f"unknown look keys {sorted(unknown)}; valid keys: {sorted(known)}")
+        check_known(d, {f.name for f in fields(cls)}, what="look")
         conv = {}
         for k, v in d.items():
             if k == "cone_shade":

@@ -27,7 +27,7 @@ import numpy as np
 from weather_gym._toml import read_toml
 from weather_gym.camera_config import CameraConfig
 from weather_gym.camera_isp import CameraModel
-from weather_gym.errors import FileFormatError, InputError
+from weather_gym.errors import FileFormatError, InputError, check_known
 from weather_gym.sim.ego import EGO_VARIANTS
 from weather_gym.sim.look import Look
 from weather_gym.sim.scenery import CLUTTER_LAYOUTS
@@ -105,10 +105,7 @@ class RandomizeRanges:
 
     def override(self, values: dict) -> RandomizeRanges:
         """A copy with ``values`` replaced: ``{key: (lo, hi) | "lo,hi" | p}``; unknown keys name the valid ones."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise InputError(f"unknown randomize key(s) {unknown}; valid keys: {sorted(known)}")
+        check_known(values, {f.name for f in fields(self)}, what="randomize")
         conv = {}
         for k, v in values.items():
             if isinstance(v, str):

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Any, TypeVar
 
-from weather_gym.errors import InputError
+from weather_gym.errors import check_known
 from weather_gym.registry import Registry
 from weather_gym.weather.base import KnobEffect
 
@@ -39,9 +39,5 @@ def register_effect(cls: E) -> E:
 def make(name: str, k: float = 0.0, **params: Any) -> KnobEffect:
     """Build the effect ``name`` with severity ``k`` and optional physical parameters."""
     cls = EFFECTS.get(name)
-    valid = [p for p in cls.param_names() if p != "k"]
-    unknown = sorted(set(params) - set(valid))
-    if unknown:
-        raise InputError(f"{name}: unknown parameter(s) {', '.join(map(repr, unknown))}; "
-                         f"valid parameters: k, {', '.join(valid)}")
+    check_known(params, cls.param_names(), what=name, kind="parameter")
     return cls(k=k, **params)

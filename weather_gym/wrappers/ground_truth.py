@@ -38,7 +38,7 @@ from gymnasium import spaces
 
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_CLASSES, cone_height
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
 
 __all__ = ["GroundTruthConeWrapper", "OracleNoise", "oracle_cones"]
@@ -150,11 +150,8 @@ class GroundTruthConeWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.Wrapper.__init__(self, env)
         if noise is not None and noise_fields:
             raise InputError("GroundTruthConeWrapper: pass either noise=OracleNoise(...) or its fields, not both")
-        try:
-            self.noise = noise or OracleNoise(**noise_fields)
-        except TypeError:
-            valid = ", ".join(OracleNoise.__dataclass_fields__)
-            raise InputError(f"GroundTruthConeWrapper: unknown option(s) {sorted(noise_fields)}; valid: {valid}") from None
+        check_known(noise_fields, list(OracleNoise.__dataclass_fields__), what="GroundTruthConeWrapper", kind="option")
+        self.noise = noise or OracleNoise(**noise_fields)
         if not (isinstance(max_cones, int) and max_cones >= 1):
             raise InputError(f"GroundTruthConeWrapper: max_cones must be an integer >= 1, got {max_cones!r}")
         inner = env.observation_space

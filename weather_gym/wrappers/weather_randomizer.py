@@ -36,7 +36,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.weather import make
 from weather_gym.weather.base import CheckedArgs, keyword_args
 from weather_gym.weather.presets import canonical_condition, preset_spec
@@ -170,11 +170,8 @@ class WeatherRandomizer(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.utils.RecordConstructorArgs.__init__(self, config=config, **fields)
         if config is not None and fields:
             raise InputError("WeatherRandomizer: pass either config=RandomWeather(...) or its fields, not both")
-        try:
-            self.config = config or RandomWeather(**fields)
-        except TypeError:
-            valid = ", ".join(RandomWeather.__dataclass_fields__)
-            raise InputError(f"WeatherRandomizer: unknown option(s) {sorted(fields)}; valid: {valid}") from None
+        check_known(fields, list(RandomWeather.__dataclass_fields__), what="WeatherRandomizer", kind="option")
+        self.config = config or RandomWeather(**fields)
         try:
             env.get_wrapper_attr("set_weather")
         except AttributeError:
