@@ -39,7 +39,7 @@ from typing import Any
 import gymnasium as gym
 
 from weather_gym.envs.cone_track import ConeTrackEnv
-from weather_gym.envs.registration import scenario_of
+from weather_gym.envs.registration import check_env_id, scenario_of
 from weather_gym.envs.scenario import Scenario, build_config, episode_steps, load_scenario
 from weather_gym.errors import InputError, LimitError, StateError
 from weather_gym.perception_modes import PERCEPTION_MODES, default_mode, detector_mode, perception_mode
@@ -161,9 +161,7 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
         env_kwargs: ``EnvConfig`` overrides (``track``, ``laps``, ``camera``, ``sim``, ...).
     """
 
-    if env_id not in gym.registry:
-        ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
-        raise InputError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(ours)}")
+    check_env_id(env_id)
     kwargs: dict[str, Any] = dict(env_kwargs)
     for key, value in (("perception", perception), ("weather", weather), ("severity", severity),
                        ("detector", detector), ("perception_kwargs", perception_kwargs),

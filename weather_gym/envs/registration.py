@@ -42,6 +42,13 @@ def register_envs() -> list[str]:
     return ids
 
 
+def check_env_id(env_id: str) -> None:
+    """Refuse an id Gymnasium does not have registered, listing weather-gym's own ids."""
+    if env_id not in gym.registry:
+        ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
+        raise InputError(f"unknown env id {env_id!r}; weather-gym ids: {', '.join(ours)}")
+
+
 def scenario_of(env_id: str) -> Scenario:
     """The scenario registered as ``env_id``."""
     register_envs()

@@ -44,6 +44,7 @@ from weather_gym._io import file_id
 from weather_gym.agents import AGENTS, agent_observes, make_agent, run_episode
 from weather_gym.agents.sb3 import model_sidecar
 from weather_gym.envs.config import EnvConfig
+from weather_gym.envs.registration import check_env_id
 from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.errors import InputError, check_known
 from weather_gym.evaluation.metrics import (
@@ -256,9 +257,7 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     severities = _check_names("severities", config.severities)
     seeds = tuple(_check_int("a seed", s, 0) for s in _check_names("seeds", config.seeds))
     mode = perception_mode(config.perception)
-    if config.env_id not in gym.registry:
-        ours = sorted(k for k in gym.registry if k.startswith("WeatherGym/"))
-        raise InputError(f"unknown env id {config.env_id!r}; weather-gym ids: {', '.join(ours)}")
+    check_env_id(config.env_id)
     laps = _check_int("laps", config.laps, 1)
     max_steps = _check_int("max_steps", config.max_steps, 1)
     agent_kwargs = _jsonable("agent_kwargs", config.agent_kwargs)
