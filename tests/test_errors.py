@@ -50,7 +50,9 @@ def test_constructor_options_name_only_the_unknown_ones():
     """A wrapper given dataclass fields as keywords names the one that is wrong, not every one it got."""
     import gymnasium as gym
 
-    from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper
+    from weather_gym.wrappers import GroundTruthConeWrapper, WeatherRandomizer
 
     with pytest.raises(InputError, match=r"unknown option\(s\) \['miss_prob_x'\]; valid options: \[.*'miss_prob'"):
         GroundTruthConeWrapper(gym.make("CartPole-v1"), miss_prob=0.1, miss_prob_x=0.2)
+    with pytest.raises(InputError, match=r"WeatherRandomizer: unknown option\(s\) \['severity'\]; valid options: \['presets'"):
+        WeatherRandomizer(gym.make("CartPole-v1"), presets=("droplets",), severity=(1, 2))
