@@ -110,10 +110,11 @@ class SB3Agent:
         if not isinstance(cone_memory, (bool, dict, ConeMemoryConfig)):
             raise InputError(f"sb3 agent: cone_memory must be true, false, a ConeMemoryConfig or its fields, "
                              f"got {cone_memory!r}")
-        self.memory = None
-        if cone_memory is not False:
-            config = ConeMemoryConfig.from_dict(cone_memory) if isinstance(cone_memory, dict) else cone_memory
-            self.memory = ConeMemory(config if isinstance(config, ConeMemoryConfig) else None, camera=camera)
+        if cone_memory is True:
+            cone_memory = ConeMemoryConfig()
+        elif isinstance(cone_memory, dict):
+            cone_memory = ConeMemoryConfig.from_dict(cone_memory)
+        self.memory = ConeMemory(cone_memory, camera=camera) if isinstance(cone_memory, ConeMemoryConfig) else None
 
     def reset(self, seed: int | None = None, info: dict | None = None) -> None:
         self._state = None  # recurrent policies keep a hidden state between steps
