@@ -6,8 +6,8 @@ switched off, next to the naive TinyRenderer frame of ``weather-gym bench sim --
 At 672x376 and 336x188, the rows taking turns call by call:
 
 - the naive TinyRenderer frame (the baseline);
-- the default camera env step (``make_env()``: physics, EGL frame with its segmentation pass, camera
-  model, ground truth);
+- the default camera env step (``make_env()``: physics, EGL frame with its segmentation pass and its
+  shadow map redrawn only where something moved, camera model, ground truth);
 - the same with the plugin's window clears confined to the image (a GL scissor around each clear of
   its 2560x2048 window; the frames keep their bytes, checked);
 - the same with ``SimConfig(shadows=False)``: without the plugin's 4096x4096 shadow-map pass (other
@@ -37,7 +37,7 @@ from weather_gym.pipeline import make_env
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim.baseline import naive_scene
 from weather_gym.sim.config import SimConfig
-from weather_gym.sim.elf_symbols import elf_symbol, load_address
+from weather_gym.sim.elf_symbols import SymbolUnavailable, loaded_symbol
 
 GL_SCISSOR_TEST = 0x0C11
 GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6
@@ -48,19 +48,16 @@ class ScissoredClears:
     of the window (not of the shadow map's framebuffer) to the ``(w, h)`` image in its corner."""
 
     def __init__(self) -> None:
-        path = _renderer._egl_plugin_path()
-        base = load_address(path) if path else None
-        if base is None:
-            raise SystemExit("the EGL plugin is not loaded in this process (EGL did not load here)")
-        slot = elf_symbol(path, "glad_glClear")
-        if slot is None:
-            raise SystemExit(f"{path} has no symbol table entry glad_glClear (a stripped build)")
+        try:
+            path, slot, _ = loaded_symbol(_renderer._egl_plugin_path(), "glad_glClear", "PyBullet's EGL plugin")
+        except SymbolUnavailable as exc:
+            raise SystemExit(str(exc)) from None
         egl = ctypes.CDLL("libEGL.so.1")
         egl.eglGetProcAddress.restype = ctypes.c_void_p
         egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
         address = {n: egl.eglGetProcAddress(n.encode())
                    for n in ("glClear", "glEnable", "glDisable", "glScissor", "glGetIntegerv")}
-        self._slot = ctypes.c_uint64.from_address(base + slot[0])
+        self._slot = ctypes.c_uint64.from_address(slot)
         if self._slot.value != address["glClear"]:
             raise SystemExit(f"glad_glClear in {path} does not hold the driver's glClear")
         one_enum = ctypes.CFUNCTYPE(None, ctypes.c_uint)
@@ -70,7 +67,8 @@ class ScissoredClears:
         self._get = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))(address["glGetIntegerv"])
         self.size: tuple[int, int] | None = None
         self._hook = one_enum(self._scissored_clear)  # kept alive as long as the table points at it
-        self._slot.value = ctypes.cast(self._hook, ctypes.c_void_p).value
+        self._driver, self._address = address["glClear"], ctypes.cast(self._hook, ctypes.c_void_p).value
+        self._slot.value = self._address
 
     def _scissored_clear(self, mask: int) -> None:
         if self.size is not None:
@@ -87,6 +85,8 @@ class ScissoredClears:
     def around(self, fn, size: tuple[int, int]):
         """``fn`` with the clears confined while it runs."""
         def run():
+            if self._slot.value == self._driver:  # the plugin reloads its table for every new EGL context
+                self._slot.value = self._address
             self.size = size
             try:
                 return fn()

@@ -5,7 +5,8 @@ from __future__ import annotations
 import pybullet
 import pytest
 
-from weather_gym.sim.elf_symbols import elf_symbol, load_address
+from weather_gym.sim import renderer
+from weather_gym.sim.elf_symbols import SymbolUnavailable, elf_symbol, load_address, loaded_symbol
 from weather_gym.sim.renderer import _egl_plugin_path
 
 
@@ -35,3 +36,29 @@ def test_load_address_finds_loaded_objects_only(tmp_path):
     missing = tmp_path / "never_loaded.so"
     missing.write_bytes(b"")
     assert load_address(missing) is None
+
+
+def test_loaded_symbol_says_why_a_symbol_cannot_be_had(tmp_path):
+    missing = tmp_path / "never_loaded.so"
+    missing.write_bytes(b"")
+    for path in (None, str(missing)):
+        with pytest.raises(SymbolUnavailable, match="the test object is not loaded in this process") as info:
+            loaded_symbol(path, "glad_glViewport", "the test object")
+        assert not info.value.lasting  # it may load later
+    with pytest.raises(SymbolUnavailable, match=r"has no symbol table entry 'noSuchSymbolAnywhere' \(a stripped or "
+                                                r"other build of pybullet\)") as info:
+        loaded_symbol(pybullet.__file__, "noSuchSymbolAnywhere", "pybullet")
+    assert info.value.lasting
+
+
+def test_loaded_symbol_gives_where_the_egl_plugin_keeps_its_gl_table():
+    client = renderer.connect()  # loads the plugin where EGL works
+    try:
+        path = _egl_plugin_path()
+        if client.renderer != "egl" or elf_symbol(path, "glad_glViewport") is None:
+            pytest.skip("no EGL plugin with a symbol table here")
+        found, address, size = loaded_symbol(path, "glad_glViewport", "PyBullet's EGL plugin")
+        assert found == path and size == 8  # a function pointer
+        assert address == load_address(path) + elf_symbol(path, "glad_glViewport")[0]
+    finally:
+        renderer.release(client)

@@ -25,6 +25,7 @@ from scipy import ndimage
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.sim import egl_shadow_map
+from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse
 from weather_gym.sim.look import Look
 from weather_gym.sim.renderer import quiet_if_egl
 from weather_gym.sim.visibility import empty_ground_truth, visible_cones
@@ -68,6 +69,9 @@ class CameraSensor:
         if self._without_shadow_map and (reason := egl_shadow_map.unavailable_reason()) is not None:
             raise RuntimeError(f"SimConfig.shadows=False cannot be honoured with the EGL renderer here: {reason}; "
                                "leave shadows unset (the plugin's shadow map) or use renderer='tiny'")
+        # EGL frames with the plugin's shadow map redraw only the part of it that changed (same bytes)
+        with_map = renderer == p.ER_BULLET_HARDWARE_OPENGL and shadows is not False
+        self.shadow_reuse = ShadowMapReuse(client) if with_map else None
         c = config
         if c.centred:
             self._proj = p.computeProjectionMatrixFOV(c.vfov_deg, c.width / c.height, c.near, c.far)
@@ -84,6 +88,8 @@ class CameraSensor:
         """Per-episode appearance: mount jitter and the sky panorama (rows = elevation)."""
         self.look = look
         self._pano = panorama
+        if self.shadow_reuse is not None:  # the world changed shapes or colours with the look
+            self.shadow_reuse.invalidate()
         c = self.config
         pitch = math.radians(c.pitch_deg + look.camera_pitch_offset_deg)
         v = np.arange(c.height) + 0.5
@@ -121,8 +127,13 @@ class CameraSensor:
         fwd = np.array([math.cos(heading) * math.cos(pitch), math.sin(heading) * math.cos(pitch), -math.sin(pitch)])
         view = p.computeViewMatrix(eye.tolist(), (eye + fwd).tolist(), [0, 0, 1])
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
-        no_shadow_map = egl_shadow_map.shadow_map_off() if self._without_shadow_map else contextlib.nullcontext()
-        with quiet_if_egl(self.renderer), no_shadow_map:
+        if self._without_shadow_map:
+            shadow_map = egl_shadow_map.shadow_map_off()
+        elif self.shadow_reuse is not None and "lightDirection" in light:
+            shadow_map = self.shadow_reuse.frame(light["lightDirection"])
+        else:
+            shadow_map = contextlib.nullcontext()
+        with quiet_if_egl(self.renderer), shadow_map:
             _, _, rgba, zbuf, seg = p.getCameraImage(
                 c.width,
                 c.height,

@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import sys
 from collections.abc import Iterator
 
-from weather_gym.sim.elf_symbols import elf_symbol, load_address
+from weather_gym.sim.elf_symbols import SymbolUnavailable, loaded_symbol
 from weather_gym.sim.renderer import _egl_plugin_path
 
 _SYMBOL = "useShadowMap"
@@ -30,14 +29,10 @@ _reason: str | None = None
 _pinned: ctypes.CDLL | None = None  # our own reference to the plugin: it stays where the flag was found
 
 
-def _find_flag(path: str, base: int) -> ctypes.c_uint8 | str:
-    """The flag of the plugin loaded at ``base`` from ``path``, or a sentence saying why it cannot be had."""
+def _find_flag(path: str, address: int, size: int) -> ctypes.c_uint8 | str:
+    """The flag at ``address`` of the plugin loaded from ``path``, or a sentence saying why it is not it."""
     global _pinned
-    symbol = elf_symbol(path, _SYMBOL)
-    if symbol is None:
-        return f"{path} has no symbol table entry {_SYMBOL!r} (a stripped or other build of the plugin)"
-    value, size = symbol
-    flag = ctypes.c_uint8.from_address(base + value)
+    flag = ctypes.c_uint8.from_address(address)
     if size != 1 or flag.value != 1:
         return f"{_SYMBOL} in {path} is not the set one-byte flag it should be (size {size}, value {flag.value})"
     _pinned = ctypes.CDLL(path)  # already loaded: the same object, one more reference
@@ -50,14 +45,12 @@ def unavailable_reason() -> str | None:
     global _flag, _reason
     if _flag is not None or _reason is not None:
         return _reason
-    if not sys.platform.startswith("linux") or sys.maxsize < 2**32:
-        _reason = "the switch is found in 64-bit Linux builds only"
-        return _reason
-    path = _egl_plugin_path()
-    base = load_address(path) if path else None
-    if base is None:
-        return "PyBullet's EGL plugin is not loaded in this process"  # not kept: it may load later
-    found = _find_flag(path, base)
+    try:
+        found = _find_flag(*loaded_symbol(_egl_plugin_path(), _SYMBOL, "PyBullet's EGL plugin"))
+    except SymbolUnavailable as exc:
+        if exc.lasting:
+            _reason = str(exc)
+        return str(exc)
     if isinstance(found, str):
         _reason = found
     else:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import struct
+import sys
 
 _SHT_SYMTAB = 2
 
@@ -56,3 +57,27 @@ def load_address(path: str | os.PathLike) -> int | None:
     except OSError:
         return None
     return None
+
+
+class SymbolUnavailable(LookupError):
+    """Why a symbol of a loaded shared object cannot be had; ``lasting`` when asking again in this
+    process will not help (a stripped build), False when it may (the object is not loaded yet)."""
+
+    def __init__(self, reason: str, *, lasting: bool) -> None:
+        super().__init__(reason)
+        self.lasting = lasting
+
+
+def loaded_symbol(path: str | None, name: str, what: str) -> tuple[str, int, int]:
+    """``(path, address, size)`` of ``name`` in the shared object at ``path`` as loaded in this process
+    (``what`` names the object in messages). Raises :class:`SymbolUnavailable` saying why not."""
+    if not sys.platform.startswith("linux") or sys.maxsize < 2**32:
+        raise SymbolUnavailable(f"{name} of {what} is found in 64-bit Linux builds only", lasting=True)
+    base = load_address(path) if path else None
+    if path is None or base is None:
+        raise SymbolUnavailable(f"{what} is not loaded in this process", lasting=False)
+    symbol = elf_symbol(path, name)
+    if symbol is None:
+        raise SymbolUnavailable(f"{path} has no symbol table entry {name!r} (a stripped or other build of {what})",
+                                lasting=True)
+    return path, base + symbol[0], symbol[1]

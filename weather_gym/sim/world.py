@@ -41,6 +41,7 @@ from weather_gym.sim.camera_sensor import CameraSensor
 from weather_gym.sim.car import Car
 from weather_gym.sim.cast_shadows import ShadowCaster
 from weather_gym.sim.config import CarConfig, SimConfig
+from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
 from weather_gym.sim.meshes import box_obj, cone_dimensions, cone_obj
@@ -90,6 +91,8 @@ class World(WorldViews):
             self.renderer_name = self._lease.renderer
             self._build()
             self.camera = CameraSensor(self.camera_config, self._client, renderer_flag(self.renderer_name), self.sim.shadows)
+            if self.camera.shadow_reuse is not None:
+                self._declare_mesh_sizes(self.camera.shadow_reuse)
             self._look: Look | None = None  # the look set ...
             self._applied_look: Look | None = None  # ... and the one the scene shows (see set_look)
             self._warmed_up = False  # the first frame of a renderer's life differs (see render())
@@ -203,6 +206,17 @@ class World(WorldViews):
         self._cone_lut = np.full(1, -1, dtype=np.int32)
         self._grow_lut()
         self._cone_xy = xy.copy()
+
+    def _declare_mesh_sizes(self, reuse: ShadowMapReuse) -> None:
+        """How far the meshes of the bodies that move reach from their centre of mass (the shadow map
+        is redrawn only around what moved; PyBullet does not report a mesh's size)."""
+        for i, b in enumerate(self._cone_bodies):
+            name = CONE_CLASSES[self.cone_classes[i]]
+            reuse.declare(b, math.hypot(CONE_BASE_M[name], CONE_HEIGHT_M[name]))
+        for i, b in enumerate(self._shadow_bodies):
+            reuse.declare(b, 0.75 * CONE_BASE_M[CONE_CLASSES[self.cone_classes[i]]] + 0.01)
+        cfg = self.car_config
+        reuse.declare(self._car_visual, math.hypot(cfg.length, cfg.width, 0.35))
 
     def _grow_lut(self) -> None:
         """Body id -> cone index lookup (-1 for ground, car, anything else), sized to every body id."""

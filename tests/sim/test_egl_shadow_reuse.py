@@ -1,0 +1,115 @@
+"""EGL frames that keep the shadow map of the frame before and redraw only where something moved
+(``weather_gym.sim.egl_shadow_reuse``): the frames must keep the bytes of frames whose whole map is
+redrawn, through knocked cones, new looks, chase-view frames in between and several worlds at once."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from weather_gym.errors import InputError
+from weather_gym.sim import egl_shadow_reuse
+from weather_gym.sim.config import SimConfig
+from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse, light_basis, texel_rect
+from weather_gym.sim.look import sample_look
+from weather_gym.sim.randomize import sample_realistic
+from weather_gym.sim.world import World
+from weather_gym.tracks import load_track
+
+SIZE = (4096, 4096)
+
+
+@pytest.mark.parametrize("light", [(0.32, 0.23, 0.92), (-0.5, 0.55, 0.67), (0.9, 0.1, 0.3), (0.0, 0.0, 1.0)])
+def test_the_map_axes_are_orthonormal_and_across_the_light(light):
+    x, y = light_basis(light)
+    n = np.asarray(light) / np.linalg.norm(light)
+    assert np.allclose([x @ x, y @ y, x @ y, x @ n, y @ n], [1, 1, 0, 0, 0])
+
+
+def test_texel_rect_covers_each_sphere_and_nothing_off_the_map():
+    light = (0.0, 0.0, 1.0)  # straight down: the map's axes are -x and -y (bullet3's light frame)
+    assert [list(v) for v in light_basis(light)] == [[-1, 0, 0], [0, -1, 0]]
+    assert texel_rect([], light, SIZE) == (0, 0, 0, 0)
+    # 1 m around the origin: 204.8 texels a metre, plus 2 texels of margin, around the centre
+    assert texel_rect([(0.0, 0.0, 0.0, 1.0)], light, SIZE) == (1841, 1841, 414, 414)
+    assert texel_rect([(30.0, 0.0, 0.0, 1.0)], light, SIZE) == (0, 0, 0, 0)  # 30 m out: off the map
+    assert texel_rect([(-9.9, 9.9, 0.0, 1.0)], light, SIZE) == (3868, 0, 228, 228)  # at a corner: clipped
+    two = texel_rect([(0.0, 0.0, 0.0, 0.5), (-5.0, 5.0, 0.0, 0.5)], light, SIZE)
+    for one in (texel_rect([(0.0, 0.0, 0.0, 0.5)], light, SIZE), texel_rect([(-5.0, 5.0, 0.0, 0.5)], light, SIZE)):
+        assert two[0] <= one[0] and two[1] <= one[1]
+        assert two[0] + two[2] >= one[0] + one[2] and two[1] + two[3] >= one[1] + one[3]
+
+
+@pytest.mark.parametrize("radius", [-1.0, float("nan"), float("inf")])
+def test_declared_sizes_are_checked(radius):
+    with pytest.raises(InputError, match="radius must be a finite distance >= 0"):
+        ShadowMapReuse(0).declare(3, radius)
+
+
+def test_the_environment_variable_switches_it_off(monkeypatch):
+    monkeypatch.setattr(egl_shadow_reuse, "_hook", None)
+    monkeypatch.setattr(egl_shadow_reuse, "_reason", None)
+    monkeypatch.setenv("WEATHER_GYM_SHADOW_MAP_REUSE", "0")
+    assert egl_shadow_reuse.unavailable_reason() == "WEATHER_GYM_SHADOW_MAP_REUSE=0"
+
+
+def _worlds(track, scene):
+    reused, whole = World(track, sim=SimConfig(scene=scene)), World(track, sim=SimConfig(scene=scene))
+    if reused.renderer_name != "egl":
+        reused.close(), whole.close()
+        pytest.skip("EGL does not load here")
+    reason = egl_shadow_reuse.unavailable_reason() if reused.camera.shadow_reuse is not None else "switched off"
+    if reason is not None:
+        reused.close(), whole.close()
+        pytest.skip(f"no shadow-map reuse here: {reason}")
+    whole.camera.shadow_reuse = None  # the plugin's own way: the whole map every frame
+    return reused, whole
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("track_name, scene", [("hairpin", "plain"), ("small_track", "realistic")])
+def test_frames_keep_their_bytes_through_knocked_cones_new_looks_and_chase_views(track_name, scene):
+    track = load_track(track_name)
+    reused, whole = _worlds(track, scene)
+    rng = np.random.default_rng(1)
+    try:
+        frames = knocked = 0
+        for episode in range(2):
+            look = sample_realistic(rng).look if scene == "realistic" else sample_look(rng)
+            for w in (reused, whole):
+                w.set_look(look)
+                w.reset(track.start_pose)
+            for i in range(110):
+                for w in (reused, whole):  # weaving across the cone lines: cones fall and roll
+                    w.step(0.9 * np.sin(i / 6.0), 0.7)
+                if i % 40 == 39:  # a chase-view frame draws the map its own way in between
+                    reused.render_chase(), whole.render_chase()
+                a, b = reused.render(), whole.render()
+                assert np.array_equal(a.rgb, b.rgb), f"episode {episode}, step {i}"
+                frames += 1
+            knocked += len(reused._dynamic_cones)
+        assert knocked >= 2  # the test saw cones move
+        assert reused.camera.shadow_reuse.redrawn_whole < frames / 4  # and most frames kept most of the map
+    finally:
+        reused.close(), whole.close()
+
+
+@pytest.mark.slow
+def test_worlds_rendered_in_turns_keep_their_own_maps():
+    tracks = [load_track("small_track"), load_track("hairpin")]
+    pairs = [_worlds(t, "plain") for t in tracks]
+    try:
+        for w_pair, t in zip(pairs, tracks, strict=True):
+            for w in w_pair:
+                w.reset(t.start_pose)
+        for i in range(60):
+            for reused, whole in pairs:
+                for w in (reused, whole):
+                    w.step(0.3 * np.sin(i / 8.0), 0.6)
+            got = [reused.render().rgb for reused, _ in pairs]  # the reusing worlds one after another
+            for (_, whole), rgb in zip(pairs, got, strict=True):
+                assert np.array_equal(rgb, whole.render().rgb), f"step {i}"
+    finally:
+        for w_pair in pairs:
+            for w in w_pair:
+                w.close()

@@ -1,0 +1,302 @@
+"""EGL frames that redraw only the part of PyBullet's shadow map that changed since the last frame.
+
+PyBullet's EGL plugin draws a 4096x4096 shadow map before every frame (bullet3's
+``GLInstancingRenderer``): a depth image of the scene seen from the light, over a fixed square of
+the world (``SHADOW_MAP_HALF_SIZE_M`` either side of the origin, projected along the light). What it
+holds depends only on the light's direction and on where the scene's shapes are, not on the camera.
+Between two frames of a drive almost nothing moves: the car's body, now and then a knocked cone.
+So a frame can keep the map of the frame before and redraw (clear and draw, with a GL scissor) only
+the texels over which something moved: the frames keep their bytes, and the pass that cost most of
+the default frame shrinks to a few texels (``weather-gym bench sim --naive``).
+
+How it is done: the plugin's ``glViewport`` entry (in its GL pointer table, found from its symbol
+table like :mod:`weather_gym.sim.egl_shadow_map` finds its switch, and checked to hold the driver's
+``glViewport`` first) is pointed at one that, when the shadow map's framebuffer is bound and a frame
+of :meth:`ShadowMapReuse.frame` is being drawn, sets the scissor to that frame's changed texels.
+A shadow map drawn any other way (a chase-view frame, a user's own ``getCameraImage``) is drawn as
+the plugin draws it, and the next frame redraws the whole map.
+
+What counts as moved: any body whose base pose changed since the last frame drawn this way (the
+world's bodies have no links), bounded by a sphere around its visual shapes (the world declares the
+size of its meshes: :meth:`ShadowMapReuse.declare`); the whole map is redrawn after a change of
+light direction, of the set of bodies, of the look (:meth:`ShadowMapReuse.invalidate`), or when a
+moved body's bounds cannot be had (a plane, an undeclared mesh whose OBJ file cannot be read, a body
+with links). ``WEATHER_GYM_SHADOW_MAP_REUSE=0`` switches it off.
+
+Example:
+    >>> from weather_gym.sim.egl_shadow_reuse import texel_rect
+    >>> texel_rect([(0.0, 0.0, 0.0, 0.5)], (0.0, 0.0, 1.0), size=(4096, 4096))
+    (1943, 1943, 210, 210)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import math
+import os
+import threading
+from collections.abc import Iterator, Sequence
+from functools import lru_cache
+
+import numpy as np
+import pybullet as p
+
+from weather_gym.errors import InputError
+from weather_gym.sim.elf_symbols import SymbolUnavailable, loaded_symbol
+from weather_gym.sim.renderer import _egl_plugin_path
+
+SHADOW_MAP_HALF_SIZE_M = 10.0  # bullet3 GLInstancingRenderer's m_shadowMapWorldSize
+MARGIN_M = 0.05  # added to every body's bounding radius
+MARGIN_TEXELS = 2  # added around every changed rectangle
+_GL_SCISSOR_TEST = 0x0C11
+_GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6
+_ENV = "WEATHER_GYM_SHADOW_MAP_REUSE"
+
+
+def light_basis(light_direction: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The shadow map's x and y axes in the world (unit vectors across the light), as bullet3 builds
+    them: ``b3PlaneSpace1`` of the light direction gives (p, q); the light's look-at matrix then has
+    x = -q and y = p."""
+    n = np.asarray(light_direction, dtype=np.float64)
+    n = n / np.linalg.norm(n)
+    if abs(n[2]) > math.sqrt(0.5):
+        a = n[1] * n[1] + n[2] * n[2]
+        k = 1.0 / math.sqrt(a)
+        pv = np.array([0.0, -n[2] * k, n[1] * k])
+        qv = np.array([a * k, -n[0] * pv[2], n[0] * pv[1]])
+    else:
+        a = n[0] * n[0] + n[1] * n[1]
+        k = 1.0 / math.sqrt(a)
+        pv = np.array([-n[1] * k, n[0] * k, 0.0])
+        qv = np.array([-n[2] * pv[1], n[2] * pv[0], a * k])
+    return -qv, pv
+
+
+def texel_rect(spheres: Sequence[tuple[float, float, float, float]], light_direction: Sequence[float],
+               size: tuple[int, int]) -> tuple[int, int, int, int]:
+    """The scissor ``(x, y, width, height)`` (GL window coordinates of the map) covering every sphere
+    ``(x, y, z, radius)`` in metres, seen along the light; ``(0, 0, 0, 0)`` when none falls on the map."""
+    if not spheres:
+        return 0, 0, 0, 0
+    sx, sy = light_basis(light_direction)
+    s = np.asarray(spheres, dtype=np.float64)
+    scale = np.array(size, dtype=np.float64) / (2.0 * SHADOW_MAP_HALF_SIZE_M)  # texels per metre
+    centre = np.stack([s[:, :3] @ sx, s[:, :3] @ sy], axis=1) * scale + np.array(size) / 2.0
+    reach = s[:, 3:4] * scale + MARGIN_TEXELS
+    lo = np.floor((centre - reach).min(axis=0)).astype(np.int64)
+    hi = np.ceil((centre + reach).max(axis=0)).astype(np.int64)
+    lo = np.maximum(lo, 0)
+    hi = np.minimum(hi, np.array(size))
+    if (hi <= lo).any():
+        return 0, 0, 0, 0
+    return int(lo[0]), int(lo[1]), int(hi[0] - lo[0]), int(hi[1] - lo[1])
+
+
+@lru_cache(maxsize=64)
+def _obj_radius(path: str) -> float | None:
+    """The largest distance of an OBJ file's vertices from its origin, or None when unreadable."""
+    if not path.lower().endswith(".obj"):
+        return None
+    try:
+        with open(path) as f:
+            verts = [line.split()[1:4] for line in f if line.startswith("v ")]
+        return float(np.sqrt((np.asarray(verts, dtype=np.float64) ** 2).sum(axis=1).max())) if verts else 0.0
+    except (OSError, ValueError):
+        return None
+
+
+def _body_bounds(body: int, client: int) -> list[tuple[np.ndarray, float]] | None:
+    """Spheres ``(centre relative to the body's centre of mass, radius)`` around each visual shape of
+    ``body``, in the body's frame; None when they cannot be had (links, a plane, a non-OBJ mesh)."""
+    if p.getNumJoints(body, physicsClientId=client) > 0:
+        return None
+    inertial = np.asarray(p.getDynamicsInfo(body, -1, physicsClientId=client)[3], dtype=np.float64)
+    bounds = []
+    for shape in p.getVisualShapeData(body, physicsClientId=client):
+        kind, dims, path, pos = shape[2], shape[3], shape[4], shape[5]
+        if kind == p.GEOM_MESH:
+            r = _obj_radius(path.decode() if isinstance(path, bytes) else str(path))
+            if r is None:
+                return None
+            r *= max(abs(float(d)) for d in dims)
+        elif kind == p.GEOM_SPHERE:
+            r = float(dims[0])
+        elif kind == p.GEOM_BOX:
+            r = float(np.linalg.norm(dims))  # whether the dimensions are half or full extents
+        elif kind in (p.GEOM_CYLINDER, p.GEOM_CAPSULE):
+            r = float(dims[0]) + float(dims[1])
+        else:
+            return None
+        bounds.append((np.asarray(pos, dtype=np.float64) - inertial, r + MARGIN_M))
+    return bounds
+
+
+class _ViewportHook:
+    """The plugin's ``glViewport``, pointed at one that scissors the shadow-map pass to ``rect``."""
+
+    def __init__(self, path: str, slot: int, size: int) -> None:
+        egl = ctypes.CDLL("libEGL.so.1")
+        egl.eglGetProcAddress.restype = ctypes.c_void_p
+        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        egl.eglGetCurrentContext.restype = ctypes.c_void_p
+        self.current_context = egl.eglGetCurrentContext
+        address = {n: egl.eglGetProcAddress(n.encode())
+                   for n in ("glViewport", "glEnable", "glDisable", "glScissor", "glGetIntegerv")}
+        self._slot = ctypes.c_uint64.from_address(slot)
+        if size != 8 or not address["glViewport"] or self._slot.value != address["glViewport"]:
+            raise LookupError(f"glad_glViewport in {path} does not hold the driver's glViewport")
+        four = ctypes.CFUNCTYPE(None, *[ctypes.c_int] * 4)
+        one = ctypes.CFUNCTYPE(None, ctypes.c_uint)
+        self._viewport, self._scissor = four(address["glViewport"]), four(address["glScissor"])
+        self._enable, self._disable = one(address["glEnable"]), one(address["glDisable"])
+        self._get = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))(address["glGetIntegerv"])
+        self._pinned = ctypes.CDLL(path)  # the plugin stays where the slot was found
+        self.frames = threading.local()  # .plan: the frame this thread is drawing (a ShadowMapReuse)
+        self.unplanned: dict[int, int] = {}  # EGL context -> shadow maps drawn whole outside a planned frame
+        self._scissored = False
+        self._driver = address["glViewport"]
+        self._hook = four(self._hooked)  # kept alive as long as the table points at it
+        self._address = ctypes.cast(self._hook, ctypes.c_void_p).value
+        self.generation = 0  # times the table was pointed at the hook
+        self.ensure()
+
+    def ensure(self) -> bool:
+        """Point the table at the hook again where the plugin reloaded it (it does for every new EGL
+        context); False when it holds something else than the driver's or the hook's function."""
+        if self._slot.value == self._address:
+            return True
+        if self._slot.value != self._driver:
+            return False
+        self._slot.value = self._address
+        self.generation += 1  # shadow maps drawn meanwhile were not seen: every map is redrawn whole
+        return True
+
+    def _hooked(self, x: int, y: int, w: int, h: int) -> None:
+        self._viewport(x, y, w, h)
+        bound = ctypes.c_int(0)
+        self._get(_GL_DRAW_FRAMEBUFFER_BINDING, ctypes.byref(bound))
+        if bound.value != 0:  # the shadow map's framebuffer (the frame itself is drawn to the window's)
+            plan = getattr(self.frames, "plan", None)
+            rect = plan.rect_for((w, h)) if plan is not None else None
+            if rect is None:
+                if plan is None:
+                    context = self.current_context() or 0
+                    self.unplanned[context] = self.unplanned.get(context, 0) + 1
+                return
+            self._enable(_GL_SCISSOR_TEST)
+            self._scissor(*rect)
+            self._scissored = True
+        elif self._scissored:
+            self._disable(_GL_SCISSOR_TEST)
+            self._scissored = False
+
+
+_hook: _ViewportHook | None = None
+_reason: str | None = None
+
+
+def unavailable_reason() -> str | None:
+    """None when shadow maps can be reused in this process (the EGL plugin is loaded and its
+    ``glViewport`` entry was found), else why not. Looked up once, after the plugin loaded."""
+    global _hook, _reason
+    if _hook is not None or _reason is not None:
+        return _reason
+    if os.environ.get(_ENV, "1") == "0":
+        return f"{_ENV}=0"
+    try:
+        _hook = _ViewportHook(*loaded_symbol(_egl_plugin_path(), "glad_glViewport", "PyBullet's EGL plugin"))
+    except SymbolUnavailable as exc:
+        if exc.lasting:
+            _reason = str(exc)
+        return str(exc)
+    except (LookupError, OSError) as exc:
+        _reason = str(exc)
+    return _reason
+
+
+class ShadowMapReuse:
+    """Per physics client: which texels of its shadow map each frame must redraw.
+
+    ``with reuse.frame(light_direction): p.getCameraImage(...)`` draws one EGL frame whose shadow map
+    is redrawn only where a body moved since the last such frame of this client.
+    """
+
+    def __init__(self, client: int) -> None:
+        self.client = client
+        self._bodies: tuple[int, ...] = ()
+        self._bounds: dict[int, list[tuple[np.ndarray, float]] | None] = {}
+        self._declared: dict[int, list[tuple[np.ndarray, float]]] = {}
+        self._poses: dict[int, tuple] = {}
+        self._light: tuple[float, ...] | None = None
+        self._whole_left = 0  # frames still to be drawn with the whole map
+        self._context = 0
+        self._seen = (-1, -1)  # the hook's generation and this context's unplanned maps, at the last frame
+        self._spheres: list[tuple[float, float, float, float]] | None = None  # what moved; None: the whole map
+        self.redrawn_whole = 0  # frames whose map was drawn whole (first, after a change, unbounded motion)
+
+    def declare(self, body: int, radius: float) -> None:
+        """Every visual shape of ``body`` lies within ``radius`` metres of its centre of mass (for
+        meshes, whose size PyBullet does not report: undeclared, a moving mesh redraws the whole map)."""
+        if not (math.isfinite(radius) and radius >= 0):
+            raise InputError(f"radius must be a finite distance >= 0, got {radius!r}")
+        self._declared[body] = [(np.zeros(3), float(radius) + MARGIN_M)]
+        self._bounds.pop(body, None)
+
+    def invalidate(self) -> None:
+        """The next frame redraws the whole map (after a change the poses do not show: a look, a shape)."""
+        self._light = None
+
+    def rect_for(self, size: tuple[int, int]) -> tuple[int, int, int, int] | None:
+        """The scissor of the frame being drawn on a map of ``size`` texels; None for the whole map."""
+        if self._spheres is None:
+            return None
+        return texel_rect(self._spheres, self._light, size)
+
+    def _plan(self, light: tuple[float, ...]) -> None:
+        c = self.client
+        bodies = tuple(p.getBodyUniqueId(i, physicsClientId=c) for i in range(p.getNumBodies(physicsClientId=c)))
+        poses = {b: p.getBasePositionAndOrientation(b, physicsClientId=c) for b in bodies}
+        assert _hook is not None
+        self._context = _hook.current_context() or 0
+        seen = (_hook.generation, _hook.unplanned.get(self._context, 0))
+        changed = light != self._light or bodies != self._bodies or seen != self._seen
+        # after a change the plugin's next map can still miss shapes (a renderer's first frame does:
+        # see World.render), so the map is drawn whole twice before parts of it are kept
+        self._whole_left = 2 if changed else max(self._whole_left - 1, 0)
+        whole = self._whole_left > 0
+        if bodies != self._bodies:
+            self._bounds = {}
+        spheres: list[tuple[float, float, float, float]] | None = []
+        if not whole:
+            for b, pose in poses.items():
+                if pose == self._poses[b]:
+                    continue
+                if b not in self._bounds:
+                    self._bounds[b] = self._declared.get(b) or _body_bounds(b, c)
+                bounds = self._bounds[b]
+                if bounds is None:
+                    spheres = None
+                    break
+                for pos, orn in (self._poses[b], pose):
+                    rot = np.asarray(p.getMatrixFromQuaternion(orn), dtype=np.float64).reshape(3, 3)
+                    spheres.extend((*(np.asarray(pos) + rot @ centre), r) for centre, r in bounds)
+        if whole or spheres is None:
+            self.redrawn_whole += 1
+            spheres = None
+        self._spheres, self._light, self._bodies, self._poses = spheres, light, bodies, poses
+
+    @contextlib.contextmanager
+    def frame(self, light_direction: Sequence[float]) -> Iterator[None]:
+        """Draw the frame(s) inside with this client's shadow map redrawn only where needed."""
+        if unavailable_reason() is not None or _hook is None or not _hook.ensure():
+            self.invalidate()  # drawn whole, as the plugin draws it
+            yield
+            return
+        self._plan(tuple(float(v) for v in light_direction))
+        _hook.frames.plan = self
+        try:
+            yield
+        finally:
+            _hook.frames.plan = None
+            self._seen = (_hook.generation, _hook.unplanned.get(self._context, 0))
