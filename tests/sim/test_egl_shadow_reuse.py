@@ -1,10 +1,12 @@
 """EGL frames that keep the shadow map of the frame before and redraw only where something moved
-(``weather_gym.sim.egl_shadow_reuse``): the frames must keep the bytes of frames whose whole map is
-redrawn, through knocked cones, new looks, chase-view frames in between and several worlds at once."""
+(``weather_gym.sim.egl_shadow_reuse``): the frames (the camera's and the chase view's) must keep the
+bytes of frames whose whole map is redrawn, through knocked cones, new looks, chase views in between
+and several worlds at once; a map drawn outside the plan (a frame of your own) makes the next one whole."""
 
 from __future__ import annotations
 
 import numpy as np
+import pybullet as p
 import pytest
 
 from weather_gym.errors import InputError
@@ -82,8 +84,8 @@ def test_frames_keep_their_bytes_through_knocked_cones_new_looks_and_chase_views
             for i in range(110):
                 for w in (reused, whole):  # weaving across the cone lines: cones fall and roll
                     w.step(0.9 * np.sin(i / 6.0), 0.7)
-                if i % 40 == 39:  # a chase-view frame draws the map its own way in between
-                    reused.render_chase(), whole.render_chase()
+                if i % 40 == 39:  # a chase-view frame in between (the car's visual body moves in and out)
+                    assert np.array_equal(reused.render_chase(), whole.render_chase()), f"chase, step {i}"
                 a, b = reused.render(), whole.render()
                 assert np.array_equal(a.rgb, b.rgb), f"episode {episode}, step {i}"
                 frames += 1
@@ -113,3 +115,27 @@ def test_worlds_rendered_in_turns_keep_their_own_maps():
         for w_pair in pairs:
             for w in w_pair:
                 w.close()
+
+
+def test_a_frame_of_your_own_on_the_worlds_client_makes_the_next_map_whole():
+    track = load_track("hairpin")
+    reused, whole = _worlds(track, "plain")
+    try:
+        for w in (reused, whole):
+            w.reset(track.start_pose)
+        for _ in range(4):
+            for w in (reused, whole):
+                w.step(0.0, 0.5)
+            assert np.array_equal(reused.render().rgb, whole.render().rgb)
+        redrawn = reused.camera.shadow_reuse.redrawn_whole
+        # your own frame, lit from elsewhere: the plugin draws the whole map for that light
+        reused._activate()  # its EGL context current, as in a process with one world
+        light = {**reused._light, "lightDirection": [-0.5, 0.55, 0.67]}
+        view = p.computeViewMatrix([0, 0, 5], [5, 0, 0], [0, 0, 1])
+        p.getCameraImage(64, 64, view, p.computeProjectionMatrixFOV(60, 1, 0.1, 50),
+                         renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=reused._client, **light)
+        for _ in range(3):
+            assert np.array_equal(reused.render().rgb, whole.render().rgb)
+        assert reused.camera.shadow_reuse.redrawn_whole == redrawn + 2  # the next two frames drew it whole
+    finally:
+        reused.close(), whole.close()

@@ -16,6 +16,7 @@ Example (geometry only: nothing is rendered):
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import cv2
@@ -110,7 +111,9 @@ class WorldViews:
         p.resetBasePositionAndOrientation(self._car_visual, body, q, physicsClientId=c)
         try:
             flag = renderer_flag(self.renderer_name)  # "none" renders the chase view with TinyRenderer
-            with quiet_if_egl(flag):
+            reuse = getattr(self.camera, "shadow_reuse", None)  # EGL: redraw the shadow map where things moved
+            shadow_map = reuse.frame(self._light["lightDirection"]) if reuse is not None else contextlib.nullcontext()
+            with quiet_if_egl(flag), shadow_map:
                 _, _, rgba, _, seg = p.getCameraImage(width, height, view, proj, renderer=flag, physicsClientId=c,
                                                       **self._light)[:5]
         finally:
