@@ -5,6 +5,8 @@ and several worlds at once; a map drawn outside the plan (a frame of your own) m
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pybullet as p
 import pytest
@@ -137,5 +139,44 @@ def test_a_frame_of_your_own_on_the_worlds_client_makes_the_next_map_whole():
         for _ in range(3):
             assert np.array_equal(reused.render().rgb, whole.render().rgb)
         assert reused.camera.shadow_reuse.redrawn_whole == redrawn + 2  # the next two frames drew it whole
+    finally:
+        reused.close(), whole.close()
+
+
+def test_ctrl_c_in_the_middle_of_a_frame_is_raised_not_dropped(monkeypatch):
+    # A signal's handler can run inside the GL callback; ctypes would print its exception and go on.
+    track = load_track("hairpin")
+    reused, whole = _worlds(track, "plain")
+    try:
+        for w in (reused, whole):
+            w.reset(track.start_pose)
+            w.render()
+        real = ShadowMapReuse.rect_for
+        calls = []
+
+        def interrupted(self, size):
+            calls.append(size)
+            if len(calls) == 1:
+                raise KeyboardInterrupt
+            return real(self, size)
+
+        monkeypatch.setattr(ShadowMapReuse, "rect_for", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            reused.render()
+        for _ in range(3):  # the env goes on as before: the next maps are drawn whole
+            assert np.array_equal(reused.render().rgb, whole.render().rgb)
+        # in a frame of your own, the exception comes out of PyBullet's call in your thread
+        hook = egl_shadow_reuse._hook
+        monkeypatch.setattr(hook, "current_context", lambda: (_ for _ in ()).throw(KeyboardInterrupt()))
+        reused._activate()
+        view = p.computeViewMatrix([0, 0, 5], [5, 0, 0], [0, 0, 1])
+        with pytest.raises(KeyboardInterrupt):
+            p.getCameraImage(32, 32, view, p.computeProjectionMatrixFOV(60, 1, 0.1, 50),
+                             renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=reused._client)
+            for _ in range(100):  # raised as soon as the call has returned
+                time.sleep(0.01)
+        monkeypatch.undo()
+        for _ in range(3):  # and the env's frames are still right
+            assert np.array_equal(reused.render().rgb, whole.render().rgb)
     finally:
         reused.close(), whole.close()

@@ -35,7 +35,9 @@ import contextlib
 import ctypes
 import math
 import os
+import sys
 import threading
+import time
 from collections.abc import Iterator, Sequence
 from functools import lru_cache
 
@@ -158,12 +160,17 @@ class _ViewportHook:
         self._driver = address["glViewport"]
         self._hook = four(self._hooked)  # kept alive as long as the table points at it
         self._address = ctypes.cast(self._hook, ctypes.c_void_p).value
-        self.generation = 0  # times the table was pointed at the hook
+        self.generation = 0  # times every map had to be drawn whole again (table reloaded, interrupted)
+        self._on_unraisable = self._unraisable
+        self._previous_unraisable = sys.unraisablehook
         self.ensure()
 
     def ensure(self) -> bool:
         """Point the table at the hook again where the plugin reloaded it (it does for every new EGL
-        context); False when it holds something else than the driver's or the hook's function."""
+        context), and ``sys.unraisablehook`` at :meth:`_unraisable` where it was replaced; False when the
+        table holds something else than the driver's or the hook's function."""
+        if sys.unraisablehook is not self._on_unraisable:  # chained to whatever is there now
+            self._previous_unraisable, sys.unraisablehook = sys.unraisablehook, self._on_unraisable
         if self._slot.value == self._address:
             return True
         if self._slot.value != self._driver:
@@ -173,6 +180,29 @@ class _ViewportHook:
         return True
 
     def _hooked(self, x: int, y: int, w: int, h: int) -> None:
+        self._steer(x, y, w, h)
+
+    def _unraisable(self, args) -> None:
+        """``sys.unraisablehook``: an exception that left :meth:`_hooked` (a signal's, such as Ctrl-C or
+        SIGTERM, whose handler ran in the callback) would be printed and dropped by ctypes. It is raised
+        once PyBullet returns instead, and every map is drawn whole again (the GL calls of this
+        callback may not have run)."""
+        if args.object != self._hooked:
+            self._previous_unraisable(args)
+            return
+        self.generation += 1
+        self._disable(_GL_SCISSOR_TEST)  # whatever this callback had done: no scissor from here on
+        self._scissored = False
+        if getattr(self.frames, "plan", None) is not None:  # raised by ShadowMapReuse.frame
+            self.frames.interrupted = getattr(self.frames, "interrupted", None) or args.exc_value
+            return
+        # A frame drawn outside the env: no more Python in this PyBullet call (the table points at the
+        # driver's function until the env's next frame), and the exception is raised in this thread
+        # by a helper, which can take the GIL only once the call has returned to Python.
+        self._slot.value = self._driver
+        threading.Thread(target=_raise_later, args=(threading.get_ident(), args.exc_type), daemon=True).start()
+
+    def _steer(self, x: int, y: int, w: int, h: int) -> None:
         self._viewport(x, y, w, h)
         bound = ctypes.c_int(0)
         self._get(_GL_DRAW_FRAMEBUFFER_BINDING, ctypes.byref(bound))
@@ -190,6 +220,12 @@ class _ViewportHook:
         elif self._scissored:
             self._disable(_GL_SCISSOR_TEST)
             self._scissored = False
+
+
+def _raise_later(thread: int, exc_type: type[BaseException]) -> None:
+    """Raise ``exc_type`` in ``thread`` at its next Python instruction (after a moment: not in the hook)."""
+    time.sleep(0.001)
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread), ctypes.py_object(exc_type))
 
 
 _hook: _ViewportHook | None = None
@@ -294,9 +330,12 @@ class ShadowMapReuse:
             yield
             return
         self._plan(tuple(float(v) for v in light_direction))
-        _hook.frames.plan = self
+        _hook.frames.plan, _hook.frames.interrupted = self, None
         try:
             yield
         finally:
             _hook.frames.plan = None
             self._seen = (_hook.generation, _hook.unplanned.get(self._context, 0))
+        interrupted, _hook.frames.interrupted = _hook.frames.interrupted, None
+        if interrupted is not None:
+            raise interrupted
