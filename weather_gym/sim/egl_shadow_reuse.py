@@ -12,9 +12,11 @@ the default frame shrinks to a few texels (``weather-gym bench sim --naive``).
 How it is done: the plugin's ``glViewport`` entry (in its GL pointer table, found from its symbol
 table like :mod:`weather_gym.sim.egl_shadow_map` finds its switch, and checked to hold the driver's
 ``glViewport`` first) is pointed at one that, when the shadow map's framebuffer is bound and a frame
-of :meth:`ShadowMapReuse.frame` is being drawn, sets the scissor to that frame's changed texels.
-A shadow map drawn any other way (a chase-view frame, a user's own ``getCameraImage``) is drawn as
-the plugin draws it, and the next frame redraws the whole map.
+of :meth:`ShadowMapReuse.frame` is being drawn (the camera's frames and the chase view's), sets the
+scissor to that frame's changed texels. A shadow map drawn any other way (a ``getCameraImage`` of
+your own on the same client) is drawn as the plugin draws it, and the next frame redraws the whole
+map. A signal's exception (Ctrl-C, SIGTERM) raised while the hook runs, which ctypes would print and
+drop, is raised once PyBullet's call returns (:meth:`_ViewportHook._unraisable`).
 
 What counts as moved: any body whose base pose changed since the last frame drawn this way (the
 world's bodies have no links), bounded by a sphere around its visual shapes (the world declares the
