@@ -6,6 +6,7 @@ and several worlds at once; a map drawn outside the plan (a frame of your own) m
 from __future__ import annotations
 
 import time
+import types
 
 import numpy as np
 import pybullet as p
@@ -178,5 +179,23 @@ def test_ctrl_c_in_the_middle_of_a_frame_is_raised_not_dropped(monkeypatch):
         monkeypatch.undo()
         for _ in range(3):  # and the env's frames are still right
             assert np.array_equal(reused.render().rgb, whole.render().rgb)
+    finally:
+        reused.close(), whole.close()
+
+
+def test_the_unraisable_hook_knows_its_callback_in_either_form():
+    track = load_track("hairpin")
+    reused, whole = _worlds(track, "plain")
+    try:
+        reused.render()
+        hook = egl_shadow_reuse._hook
+        ours = types.SimpleNamespace(object=hook._hooked, err_msg=None)  # Python 3.11-3.12
+        named = types.SimpleNamespace(object=None, err_msg=f"Exception ignored on calling ctypes callback function "
+                                                           f"{hook._hooked!r}")  # later versions
+        assert hook._from_hook(ours) and hook._from_hook(named)
+        for other in (types.SimpleNamespace(object=np.zeros(3), err_msg=None),
+                      types.SimpleNamespace(object=None, err_msg="Exception ignored in: <generator>"),
+                      types.SimpleNamespace(object=reused.render, err_msg=None)):
+            assert not hook._from_hook(other)
     finally:
         reused.close(), whole.close()

@@ -40,6 +40,7 @@ import os
 import sys
 import threading
 import time
+import types
 from collections.abc import Iterator, Sequence
 from functools import lru_cache
 
@@ -189,7 +190,7 @@ class _ViewportHook:
         SIGTERM, whose handler ran in the callback) would be printed and dropped by ctypes. It is raised
         once PyBullet returns instead, and every map is drawn whole again (the GL calls of this
         callback may not have run)."""
-        if args.object != self._hooked:
+        if not self._from_hook(args):
             self._previous_unraisable(args)
             return
         self.generation += 1
@@ -203,6 +204,14 @@ class _ViewportHook:
         # by a helper, which can take the GIL only once the call has returned to Python.
         self._slot.value = self._driver
         threading.Thread(target=_raise_later, args=(threading.get_ident(), args.exc_type), daemon=True).start()
+
+    def _from_hook(self, args) -> bool:
+        """Whether an unraisable exception left :meth:`_hooked` (Python 3.11-3.12 pass the callback as
+        ``object``; later versions only name it in ``err_msg``)."""
+        obj = args.object
+        if isinstance(obj, types.MethodType):
+            return obj.__func__ is _ViewportHook._hooked and obj.__self__ is self
+        return obj is None and repr(self._hooked) in (getattr(args, "err_msg", None) or "")
 
     def _steer(self, x: int, y: int, w: int, h: int) -> None:
         self._viewport(x, y, w, h)
