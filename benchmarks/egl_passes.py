@@ -14,16 +14,14 @@ At 672x376 and 336x188, the rows taking turns call by call:
   frames: how much they change is printed).
 
 The clears row is a diagnostic, not something the env does: the plugin offers no switch for it, so
-this script points the ``glClear`` entry of the plugin's GL pointer table (glad's, found in its
-symbol table by ``weather_gym.sim.elf_symbols``, and checked to hold the driver's ``glClear`` before
-it is written) at a scissoring one. Linux, 64-bit, with the EGL plugin loading; otherwise it says
-why and exits.
+this script points the ``glClear`` entry of the plugin's GL pointer table
+(``weather_gym.sim.egl_gl_table.GLTableEntry``) at a scissoring one. Linux, 64-bit, with the EGL
+plugin loading; otherwise it says why and exits.
 """
 
 from __future__ import annotations
 
 import argparse
-import ctypes
 import os
 import sys
 from functools import partial
@@ -37,10 +35,15 @@ from weather_gym.pipeline import make_env
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim.baseline import naive_scene
 from weather_gym.sim.config import SimConfig
-from weather_gym.sim.elf_symbols import SymbolUnavailable, loaded_symbol
-
-GL_SCISSOR_TEST = 0x0C11
-GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6
+from weather_gym.sim.egl_gl_table import (
+    FOUR_INTS,
+    GL_SCISSOR_TEST,
+    ONE_ENUM,
+    GLTableEntry,
+    draw_framebuffer,
+    gl_function,
+)
+from weather_gym.sim.elf_symbols import SymbolUnavailable
 
 
 class ScissoredClears:
@@ -48,45 +51,28 @@ class ScissoredClears:
     of the window (not of the shadow map's framebuffer) to the ``(w, h)`` image in its corner."""
 
     def __init__(self) -> None:
-        try:
-            path, slot, _ = loaded_symbol(_renderer._egl_plugin_path(), "glad_glClear", "PyBullet's EGL plugin")
-        except SymbolUnavailable as exc:
-            raise SystemExit(str(exc)) from None
-        egl = ctypes.CDLL("libEGL.so.1")
-        egl.eglGetProcAddress.restype = ctypes.c_void_p
-        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-        address = {n: egl.eglGetProcAddress(n.encode())
-                   for n in ("glClear", "glEnable", "glDisable", "glScissor", "glGetIntegerv")}
-        self._slot = ctypes.c_uint64.from_address(slot)
-        if self._slot.value != address["glClear"]:
-            raise SystemExit(f"glad_glClear in {path} does not hold the driver's glClear")
-        one_enum = ctypes.CFUNCTYPE(None, ctypes.c_uint)
-        self._clear = one_enum(address["glClear"])
-        self._enable, self._disable = one_enum(address["glEnable"]), one_enum(address["glDisable"])
-        self._scissor = ctypes.CFUNCTYPE(None, *[ctypes.c_int] * 4)(address["glScissor"])
-        self._get = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))(address["glGetIntegerv"])
+        self._clear = gl_function("glClear", ONE_ENUM)
+        self._enable, self._disable = gl_function("glEnable", ONE_ENUM), gl_function("glDisable", ONE_ENUM)
+        self._scissor = gl_function("glScissor", FOUR_INTS)
         self.size: tuple[int, int] | None = None
-        self._hook = one_enum(self._scissored_clear)  # kept alive as long as the table points at it
-        self._driver, self._address = address["glClear"], ctypes.cast(self._hook, ctypes.c_void_p).value
-        self._slot.value = self._address
+        try:
+            self._entry = GLTableEntry("glClear", ONE_ENUM(self._scissored_clear))
+        except (SymbolUnavailable, LookupError) as exc:
+            raise SystemExit(str(exc)) from None
 
     def _scissored_clear(self, mask: int) -> None:
-        if self.size is not None:
-            bound = ctypes.c_int(-1)
-            self._get(GL_DRAW_FRAMEBUFFER_BINDING, ctypes.byref(bound))
-            if bound.value == 0:  # the window, not the shadow map's framebuffer
-                self._enable(GL_SCISSOR_TEST)
-                self._scissor(0, 0, *self.size)
-                self._clear(mask)
-                self._disable(GL_SCISSOR_TEST)
-                return
+        if self.size is not None and draw_framebuffer() == 0:  # the window, not the shadow map's framebuffer
+            self._enable(GL_SCISSOR_TEST)
+            self._scissor(0, 0, *self.size)
+            self._clear(mask)
+            self._disable(GL_SCISSOR_TEST)
+            return
         self._clear(mask)
 
     def around(self, fn, size: tuple[int, int]):
         """``fn`` with the clears confined while it runs."""
         def run():
-            if self._slot.value == self._driver:  # the plugin reloads its table for every new EGL context
-                self._slot.value = self._address
+            self._entry.ensure()  # the plugin reloads its table for every new EGL context
             self.size = size
             try:
                 return fn()

@@ -70,7 +70,7 @@ class CameraSensor:
             raise RuntimeError(f"SimConfig.shadows=False cannot be honoured with the EGL renderer here: {reason}; "
                                "leave shadows unset (the plugin's shadow map) or use renderer='tiny'")
         # EGL frames with the plugin's shadow map redraw only the part of it that changed (same bytes)
-        with_map = renderer == p.ER_BULLET_HARDWARE_OPENGL and shadows is not False
+        with_map = renderer == p.ER_BULLET_HARDWARE_OPENGL and not self._without_shadow_map
         self.shadow_reuse = ShadowMapReuse(client) if with_map else None
         c = config
         if c.centred:

@@ -9,9 +9,8 @@ So a frame can keep the map of the frame before and redraw (clear and draw, with
 the texels over which something moved: the frames keep their bytes, and the pass that cost most of
 the default frame shrinks to a few texels (``weather-gym bench sim --naive``).
 
-How it is done: the plugin's ``glViewport`` entry (in its GL pointer table, found from its symbol
-table like :mod:`weather_gym.sim.egl_shadow_map` finds its switch, and checked to hold the driver's
-``glViewport`` first) is pointed at one that, when the shadow map's framebuffer is bound and a frame
+How it is done: the plugin's ``glViewport`` entry (in its GL pointer table:
+:class:`~weather_gym.sim.egl_gl_table.GLTableEntry`) is pointed at one that, when the shadow map's framebuffer is bound and a frame
 of :meth:`ShadowMapReuse.frame` is being drawn (the camera's frames and the chase view's), sets the
 scissor to that frame's changed texels. A shadow map drawn any other way (a ``getCameraImage`` of
 your own on the same client) is drawn as the plugin draws it, and the next frame redraws the whole
@@ -48,14 +47,20 @@ import numpy as np
 import pybullet as p
 
 from weather_gym.errors import InputError
-from weather_gym.sim.elf_symbols import SymbolUnavailable, loaded_symbol
-from weather_gym.sim.renderer import _egl_plugin_path
+from weather_gym.sim import renderer as _renderer
+from weather_gym.sim.egl_gl_table import (
+    FOUR_INTS,
+    GL_SCISSOR_TEST,
+    ONE_ENUM,
+    GLTableEntry,
+    draw_framebuffer,
+    gl_function,
+)
+from weather_gym.sim.elf_symbols import SymbolUnavailable
 
 SHADOW_MAP_HALF_SIZE_M = 10.0  # bullet3 GLInstancingRenderer's m_shadowMapWorldSize
 MARGIN_M = 0.05  # added to every body's bounding radius
 MARGIN_TEXELS = 2  # added around every changed rectangle
-_GL_SCISSOR_TEST = 0x0C11
-_GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6
 _ENV = "WEATHER_GYM_SHADOW_MAP_REUSE"
 
 
@@ -140,33 +145,29 @@ def _body_bounds(body: int, client: int) -> list[tuple[np.ndarray, float]] | Non
 class _ViewportHook:
     """The plugin's ``glViewport``, pointed at one that scissors the shadow-map pass to ``rect``."""
 
-    def __init__(self, path: str, slot: int, size: int) -> None:
-        egl = ctypes.CDLL("libEGL.so.1")
-        egl.eglGetProcAddress.restype = ctypes.c_void_p
-        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-        egl.eglGetCurrentContext.restype = ctypes.c_void_p
-        self.current_context = egl.eglGetCurrentContext
-        address = {n: egl.eglGetProcAddress(n.encode())
-                   for n in ("glViewport", "glEnable", "glDisable", "glScissor", "glGetIntegerv")}
-        self._slot = ctypes.c_uint64.from_address(slot)
-        if size != 8 or not address["glViewport"] or self._slot.value != address["glViewport"]:
-            raise LookupError(f"glad_glViewport in {path} does not hold the driver's glViewport")
-        four = ctypes.CFUNCTYPE(None, *[ctypes.c_int] * 4)
-        one = ctypes.CFUNCTYPE(None, ctypes.c_uint)
-        self._viewport, self._scissor = four(address["glViewport"]), four(address["glScissor"])
-        self._enable, self._disable = one(address["glEnable"]), one(address["glDisable"])
-        self._get = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))(address["glGetIntegerv"])
-        self._pinned = ctypes.CDLL(path)  # the plugin stays where the slot was found
+    def __init__(self) -> None:
+        self._viewport = gl_function("glViewport", FOUR_INTS)
+        self._scissor = gl_function("glScissor", FOUR_INTS)
+        self._enable, self._disable = gl_function("glEnable", ONE_ENUM), gl_function("glDisable", ONE_ENUM)
         self.frames = threading.local()  # .plan: the frame this thread is drawing (a ShadowMapReuse)
         self.unplanned: dict[int, int] = {}  # EGL context -> shadow maps drawn whole outside a planned frame
         self._scissored = False
-        self._driver = address["glViewport"]
-        self._hook = four(self._hooked)  # kept alive as long as the table points at it
-        self._address = ctypes.cast(self._hook, ctypes.c_void_p).value
-        self.generation = 0  # times every map had to be drawn whole again (table reloaded, interrupted)
+        self._interruptions = 0
         self._on_unraisable = self._unraisable
         self._previous_unraisable = sys.unraisablehook
+        self._entry = GLTableEntry("glViewport", FOUR_INTS(self._hooked))
         self.ensure()
+
+    @property
+    def generation(self) -> int:
+        """Times every map had to be drawn whole again (the table reloaded, a frame interrupted)."""
+        return self._entry.repointed + self._interruptions
+
+    @staticmethod
+    def current_context() -> int:
+        """The current EGL context (0: none)."""
+        handles = _renderer._egl_lib.current() if _renderer._egl_lib is not None else None
+        return handles[2] if handles else 0
 
     def ensure(self) -> bool:
         """Point the table at the hook again where the plugin reloaded it (it does for every new EGL
@@ -174,13 +175,7 @@ class _ViewportHook:
         table holds something else than the driver's or the hook's function."""
         if sys.unraisablehook is not self._on_unraisable:  # chained to whatever is there now
             self._previous_unraisable, sys.unraisablehook = sys.unraisablehook, self._on_unraisable
-        if self._slot.value == self._address:
-            return True
-        if self._slot.value != self._driver:
-            return False
-        self._slot.value = self._address
-        self.generation += 1  # shadow maps drawn meanwhile were not seen: every map is redrawn whole
-        return True
+        return self._entry.ensure()
 
     def _hooked(self, x: int, y: int, w: int, h: int) -> None:
         self._steer(x, y, w, h)
@@ -193,8 +188,8 @@ class _ViewportHook:
         if not self._from_hook(args):
             self._previous_unraisable(args)
             return
-        self.generation += 1
-        self._disable(_GL_SCISSOR_TEST)  # whatever this callback had done: no scissor from here on
+        self._interruptions += 1
+        self._disable(GL_SCISSOR_TEST)  # whatever this callback had done: no scissor from here on
         self._scissored = False
         if getattr(self.frames, "plan", None) is not None:  # raised by ShadowMapReuse.frame
             self.frames.interrupted = getattr(self.frames, "interrupted", None) or args.exc_value
@@ -202,7 +197,7 @@ class _ViewportHook:
         # A frame drawn outside the env: no more Python in this PyBullet call (the table points at the
         # driver's function until the env's next frame), and the exception is raised in this thread
         # by a helper, which can take the GIL only once the call has returned to Python.
-        self._slot.value = self._driver
+        self._entry.release()
         threading.Thread(target=_raise_later, args=(threading.get_ident(), args.exc_type), daemon=True).start()
 
     def _from_hook(self, args) -> bool:
@@ -215,21 +210,19 @@ class _ViewportHook:
 
     def _steer(self, x: int, y: int, w: int, h: int) -> None:
         self._viewport(x, y, w, h)
-        bound = ctypes.c_int(0)
-        self._get(_GL_DRAW_FRAMEBUFFER_BINDING, ctypes.byref(bound))
-        if bound.value != 0:  # the shadow map's framebuffer (the frame itself is drawn to the window's)
+        if draw_framebuffer() != 0:  # the shadow map's framebuffer (the frame itself is drawn to the window's)
             plan = getattr(self.frames, "plan", None)
             rect = plan.rect_for((w, h)) if plan is not None else None
             if rect is None:
                 if plan is None:
-                    context = self.current_context() or 0
+                    context = self.current_context()
                     self.unplanned[context] = self.unplanned.get(context, 0) + 1
                 return
-            self._enable(_GL_SCISSOR_TEST)
+            self._enable(GL_SCISSOR_TEST)
             self._scissor(*rect)
             self._scissored = True
         elif self._scissored:
-            self._disable(_GL_SCISSOR_TEST)
+            self._disable(GL_SCISSOR_TEST)
             self._scissored = False
 
 
@@ -252,7 +245,7 @@ def unavailable_reason() -> str | None:
     if os.environ.get(_ENV, "1") == "0":
         return f"{_ENV}=0"
     try:
-        _hook = _ViewportHook(*loaded_symbol(_egl_plugin_path(), "glad_glViewport", "PyBullet's EGL plugin"))
+        _hook = _ViewportHook()
     except SymbolUnavailable as exc:
         if exc.lasting:
             _reason = str(exc)
@@ -305,7 +298,7 @@ class ShadowMapReuse:
         bodies = tuple(p.getBodyUniqueId(i, physicsClientId=c) for i in range(p.getNumBodies(physicsClientId=c)))
         poses = {b: p.getBasePositionAndOrientation(b, physicsClientId=c) for b in bodies}
         assert _hook is not None
-        self._context = _hook.current_context() or 0
+        self._context = _hook.current_context()
         seen = (_hook.generation, _hook.unplanned.get(self._context, 0))
         changed = light != self._light or bodies != self._bodies or seen != self._seen
         # after a change the plugin's next map can still miss shapes (a renderer's first frame does:

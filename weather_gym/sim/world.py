@@ -51,6 +51,8 @@ from weather_gym.sim.scenery_textures import add_skyline, realistic_cone_texture
 from weather_gym.sim.textures import cone_texture, sky_panorama
 from weather_gym.sim.world_views import WorldViews
 
+CAR_BODY_HEIGHT_M = 0.35  # the car's body box (collision and chase-view visual)
+SHADOW_DISC_SCALE = 0.75  # a cone's contact shadow: a disc of this many base widths' radius
 GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
 REAR_OVERHANG_M = 0.45
 CONE_REACH_M = 0.35
@@ -176,7 +178,7 @@ class World(WorldViews):
         # physics step, and a separate visual-only body shown in the chase view, never to the car camera
         cfg = self.car_config
         self._car_body_dx = cfg.length / 2 - REAR_OVERHANG_M
-        body_h = 0.35
+        body_h = CAR_BODY_HEIGHT_M
         self._car_body_z = 0.15 + body_h / 2
         half = [cfg.length / 2, cfg.width / 2, body_h / 2]
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
@@ -191,7 +193,7 @@ class World(WorldViews):
         if self.realistic:  # soft contact shadows: translucent dark discs under the cones
             shadow_shapes = []
             for name in CONE_CLASSES:
-                obj = mesh_file(f"shadow_{name}", scenery.shadow_disc_obj(0.75 * CONE_BASE_M[name]))
+                obj = mesh_file(f"shadow_{name}", scenery.shadow_disc_obj(SHADOW_DISC_SCALE * CONE_BASE_M[name]))
                 shadow_shapes.append(p.createVisualShape(p.GEOM_MESH, fileName=str(obj), rgbaColor=[0, 0, 0, 0.3],
                                                          physicsClientId=c))
             for (x, y), cls in zip(xy, self.cone_classes):
@@ -214,9 +216,9 @@ class World(WorldViews):
             name = CONE_CLASSES[self.cone_classes[i]]
             reuse.declare(b, math.hypot(CONE_BASE_M[name], CONE_HEIGHT_M[name]))
         for i, b in enumerate(self._shadow_bodies):
-            reuse.declare(b, 0.75 * CONE_BASE_M[CONE_CLASSES[self.cone_classes[i]]] + 0.01)
+            reuse.declare(b, SHADOW_DISC_SCALE * CONE_BASE_M[CONE_CLASSES[self.cone_classes[i]]] + 0.01)
         cfg = self.car_config
-        reuse.declare(self._car_visual, math.hypot(cfg.length, cfg.width, 0.35))
+        reuse.declare(self._car_visual, math.hypot(cfg.length, cfg.width, CAR_BODY_HEIGHT_M))
 
     def _grow_lut(self) -> None:
         """Body id -> cone index lookup (-1 for ground, car, anything else), sized to every body id."""
