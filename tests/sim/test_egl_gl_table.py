@@ -26,6 +26,7 @@ def test_an_entry_is_pointed_again_after_a_release_and_refused_when_unknown(egl_
     if egl_shadow_reuse.unavailable_reason() is not None:
         pytest.skip(f"no GL table here: {egl_shadow_reuse.unavailable_reason()}")
     entry = egl_shadow_reuse._hook._entry  # the process's glViewport entry (one hook per entry)
+    assert entry.ensure()  # the fixture's new EGL context reloaded the table where the hook was made earlier
     before = entry.repointed
     assert entry.ensure() and entry.repointed == before  # pointed at ours already
     entry.release()  # as the plugin does when it reloads its table
