@@ -66,13 +66,14 @@ HEAVY: dict[str, set[str]] = {
     "onnx": {"perception_tools"},
     "ray": {"evaluation", "cli"},
     "stable_baselines3": {"agents", "rl"},
-    "numba": {"sim", "surrogate", "tracks"},
+    "numba": {"sim", "surrogate", "tracks", "weather"},
 }
 """Heavy package -> the layers that may import it. ``bench`` compares against a torch baseline;
 ``agents`` holds the SB3 feature extractor (a torch module); ``numba`` compiles the geometric ground
 truth (``sim.visibility``), the car's dynamics (``sim.car``), one point's centerline projection
-(``_track_kernel``, imported by ``Track`` on first use, so that loading a track does not load numba) and
-the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s crowding) and stays out of the
+(``_track_kernel``, imported by ``Track`` on first use, so that loading a track does not load numba), the
+refractive drops' blend (``weather._drop_blend``, imported with the first drop, so that loading the weather
+layer does not load numba) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s crowding) and stays out of the
 other layers (its import takes about a second, a compile seconds on a cold cache)."""
 
 NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather"}}

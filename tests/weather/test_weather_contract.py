@@ -221,14 +221,28 @@ def test_the_weather_layer_imports_only_numpy_opencv_and_the_stdlib():
     import weather_gym.weather as pkg
 
     allowed = {"numpy", "cv2", "weather_gym", "PIL", "__future__", "tomli"}
+    kernels = {"_drop_blend.py": {"numba"}}  # the refractive drops' compiled blend, loaded on first use
     for path in Path(pkg.__file__).parent.glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import | ast.ImportFrom):
                 names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
                 for name in names:
                     top = name.split(".")[0]
-                    assert top in allowed or top in sys.stdlib_module_names, f"{path.name} imports {name}"
+                    assert top in allowed | kernels.get(path.name, set()) or top in sys.stdlib_module_names, \
+                        f"{path.name} imports {name}"
                     if top == "weather_gym":
                         assert name.startswith(("weather_gym.weather", "weather_gym.registry", "weather_gym.errors",
                                                 "weather_gym.limits")), \
                             f"{path.name} imports {name} (the weather layer depends on nothing else)"
+
+
+def test_numba_loads_only_when_refractive_drops_are_drawn():
+    """The weather layer stays light to import: numba (about 1.3 s) comes with the first refractive frame."""
+    import subprocess
+
+    code = ("import sys, numpy as np; from weather_gym.weather import make; e = make('droplets', k=0.5, mode='refractive');"
+            "make('droplets', k=0.5)(np.zeros((40, 60, 3), np.uint8), rng=np.random.default_rng(0));"
+            "print('numba' in sys.modules, end=' '); e(np.zeros((40, 60, 3), np.uint8), rng=np.random.default_rng(0));"
+            "print('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "True"]

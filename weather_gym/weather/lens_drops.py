@@ -21,7 +21,9 @@ radius, its contact angle (10 degree bins) and the frame geometry; they are comp
 (the content is blurred anyway), are made together: one ``cv2.remap``, one shade multiply and one
 highlight add over all their pixels (OpenCV computes every pixel on its own, so this is byte for
 byte each drop's own calls), sampled from the small copy padded with its edge pixels out to where
-the drops reach (:func:`_pad_to_reach`). Each drop then costs a scale-up and one blend into its box.
+the drops reach (:func:`_pad_to_reach`). One compiled pass (:mod:`weather_gym.weather._drop_blend`,
+numba, loaded with the first drop) then scales each drop's content up to its box and blends it in,
+in order: byte for byte OpenCV's ``resize``, ``multiply`` and ``add`` of each drop.
 
 Example:
     >>> import numpy as np
@@ -216,17 +218,8 @@ def render_lens_drops(img: np.ndarray, x, y, r, theta, out: np.ndarray | None = 
                     borderMode=cv2.BORDER_REPLICATE)
     cv2.multiply(src, gain.reshape(rows, _ATLAS_W, 3), dst=src, scale=1.0 / 255.0)
     cv2.add(src, add.reshape(rows, _ATLAS_W, 3), dst=src)
-    content = src.reshape(-1, 3)
-    # then per drop, in order: scale its content up to its box and blend it in
-    start = 0
-    for m, hf, cx, cy, a0, b0, a1, b1 in zip(maps, half.tolist(), ix.tolist(), iy.tolist(), x0.tolist(), y0.tolist(),
-                                             x1.tolist(), y1.tolist(), strict=True):
-        n = hf + 1
-        side = 2 * hf + 1
-        big = cv2.resize(content[start:start + n * n].reshape(n, n, 3), (side, side), interpolation=cv2.INTER_LINEAR)
-        start += n * n
-        by, bx = b0 - cy + hf, a0 - cx + hf
-        roi = out[b0:b1, a0:a1]
-        cv2.multiply(roi, m[5][by:by + b1 - b0, bx:bx + a1 - a0], dst=roi, scale=1.0 / 255.0)
-        cv2.add(roi, big[by:by + b1 - b0, bx:bx + a1 - a0], dst=roi)
+    # then per drop, in order: its content scaled up to its box and blended in (compiled; numba loads here)
+    from weather_gym.weather._drop_blend import blend_drops
+
+    blend_drops(out, src.reshape(-1, 3)[:total], [m[5] for m in maps], half, ix, iy, x0, y0, x1, y1)
     return out
