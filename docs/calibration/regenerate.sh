@@ -114,3 +114,7 @@ python docs/calibration/edge_recall.py "${HELD240[@]}" --out "$OUT/transfer/plac
 ISP=(); for t in "${HELD[@]}"; do ISP+=(--set "$t=$SETS/held_${t//:/}"); done
 python docs/calibration/isp_stages.py "${ISP[@]}" --extra "realistic (peanut, random:82)=$SETS/held_realistic" \
   --extra "realistic (hairpin, random:85)=$SETS/held_realistic2" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/isp_stages"
+# is it the car's motion blur (the longer exposure smears by each frame's speed and yaw rate)? the low-light
+# presets on the same sets scored as recorded and with the car standing still
+python docs/calibration/still_camera.py "${ISP[@]}" --set "realistic (peanut, random:82)=$SETS/held_realistic" \
+  --set "realistic (hairpin, random:85)=$SETS/held_realistic2" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/still_camera"
