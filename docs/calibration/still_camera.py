@@ -15,13 +15,13 @@ tables, with the spread over the sets and how many land within 0.05 of the study
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from transfer import _preset_effect, parse_set_args  # docs/calibration/transfer.py, beside this script
 
 from weather_gym.calibration.sweep import (
     KEY_FIELDS,
@@ -35,7 +35,6 @@ from weather_gym.calibration.sweep import (
 from weather_gym.evaluation.runner import run_cells
 from weather_gym.perception.scoring import score_dataset
 from weather_gym.weather import make
-from weather_gym.weather.presets import load_presets
 
 TOLERANCE = 0.05
 #: Marks the still variant of an effect in its (key) spec; taken out before the effect is made.
@@ -67,26 +66,14 @@ def still_or_recorded_cell(cell: SweepCell) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--set", action="append", required=True, metavar="NAME=DIR")
-    ap.add_argument("--presets", default=None, help="presets TOML (default: the shipped one)")
-    ap.add_argument("--seeds", type=int, default=2)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--out", required=True)
-    args = ap.parse_args(argv)
-
-    sets = dict(s.split("=", 1) for s in args.set)
-    data = load_presets(args.presets)
-    metric = str(data.get("metric", "map50")).split()[0]
+    args, sets, data, metric = parse_set_args(argv, __doc__.split("\n\n")[0])
     presets = []
     for sev, entry in sorted(data["presets"].get("low_light", {}).items()):
-        effects = entry.get("effects") or []
-        if entry.get("calibrated") and len(effects) == 1:
-            table = dict(effects[0])
-            name, k = table.pop("name"), float(table.pop("k"))
-            presets.append((sev, float(entry["measured_relative"]), name, table, k))
+        got = _preset_effect({**entry, "condition": "low_light", "severity": sev}) if entry.get("calibrated") else None
+        if got is not None:
+            presets.append((sev, float(entry["measured_relative"]), got[0].name, got[0].params, got[1]))
     if not presets:
-        raise SystemExit("no calibrated one-effect low-light presets in the presets file")
+        raise SystemExit("no calibrated low-light presets in the presets file")
     seeds = list(range(args.seeds))
     variants = {"as recorded": False, "car standing still": True}
     cells = []

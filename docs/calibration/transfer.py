@@ -47,18 +47,21 @@ def _preset_effect(entry: dict) -> tuple[SweepEffect, float] | None:
     return SweepEffect(name, table), k
 
 
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def parse_set_args(argv: list[str] | None, description: str) -> tuple[argparse.Namespace, dict[str, str], dict, str]:
+    """The arguments of a script that scores presets on ``--set NAME=DIR`` sets: ``(args, sets, presets file, metric)``."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--set", action="append", required=True, metavar="NAME=DIR")
     ap.add_argument("--presets", default=None, help="presets TOML (default: the shipped one)")
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", required=True)
     args = ap.parse_args(argv)
-
-    sets = dict(s.split("=", 1) for s in args.set)
     data = load_presets(args.presets)
-    metric = str(data.get("metric", "map50")).split()[0]
+    return args, dict(s.split("=", 1) for s in args.set), data, str(data.get("metric", "map50")).split()[0]
+
+
+def main(argv: list[str] | None = None) -> None:
+    args, sets, data, metric = parse_set_args(argv, __doc__.split("\n\n")[0])
     presets = [{"condition": cond, "severity": sev, **entry}
                for cond, rows in data["presets"].items()
                for sev, entry in rows.items() if entry.get("calibrated") and sev > 0]
