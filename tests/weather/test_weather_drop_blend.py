@@ -91,3 +91,10 @@ def test_tables_are_read_only_and_cover_every_n():
     assert (xa[1:].sum(axis=2)[:, :1] == 2048).all() and (ya[2:, :3].sum(axis=2) == 2048).all()
     with pytest.raises(ValueError):
         xo[3, 0] = 1
+
+
+def test_no_drops_leave_the_frame_as_it_is():
+    frame = np.random.default_rng(3).integers(0, 256, (20, 30, 3), dtype=np.uint8)
+    out = frame.copy()
+    blend_drops(out, np.zeros((0, 3), np.uint8), [], np.zeros(0, np.int64), *(np.zeros(0, np.int64),) * 6)
+    np.testing.assert_array_equal(out, frame)

@@ -78,6 +78,8 @@ def blend_drops(out: np.ndarray, content: np.ndarray, keeps: list[np.ndarray], h
     RGB uint8, 255 = 1).
     """
     n = np.asarray(half, np.int64) + 1
+    if n.size == 0:
+        return
     cstart = np.zeros(len(n), np.int64)
     np.cumsum((n * n)[:-1], out=cstart[1:])
     wstart = np.zeros(len(n), np.int64)
@@ -93,7 +95,7 @@ def blend_drops(out: np.ndarray, content: np.ndarray, keeps: list[np.ndarray], h
 
 
 @numba.njit(nogil=True, inline="always")
-def _blend_row(orow, h0, h1, b0, b1, keep):  # pragma: no cover - compiled
+def _blend_row(orow, h0, h1, b0, b1, keep):
     """One output row of a drop: OpenCV's vertical resize pass, then multiply by keep / 255 and add."""
     b0, b1 = np.int32(b0), np.int32(b1)
     s2, s4, s8, s16 = np.int32(2), np.int32(4), np.int32(8), np.int32(16)
@@ -102,13 +104,17 @@ def _blend_row(orow, h0, h1, b0, b1, keep):  # pragma: no cover - compiled
         v = np.int32(np.int32(np.int32(np.int32(np.int32(h0[k] >> s4) * b0) >> s16)
                               + np.int32(np.int32(np.int32(h1[k] >> s4) * b1) >> s16) + s2) >> s2)
         v = min(max(v, zero), c255)
-        p = np.int32(np.int32(orow[k]) * np.int32(keep[k]) + c127)  # round(o * keep / 255) = (p + 1 + p >> 8) >> 8
+        p = np.int32(np.int32(orow[k]) * np.int32(keep[k]) + c127)  # round(o * keep / 255) = (p + 1 + (p >> 8)) >> 8
         o = np.int32(np.int32(np.int32(p + one + np.int32(p >> s8)) >> s8) + v)
         orow[k] = min(o, c255)
 
 
 @numba.njit(cache=True, nogil=True)
-def _blend(out2, content, keep, nn, cstart, wstart, cx, cy, x0, y0, x1, y1, xo, xa, yo, ya):  # pragma: no cover
+def _blend(out2, content, keep, nn, cstart, wstart, cx, cy, x0, y0, x1, y1, xo, xa, yo, ya):
+    """:func:`blend_drops` on flat arrays: ``out2`` the frame as rows of bytes, ``content`` and ``keep`` the
+    drops' bytes one after another from ``cstart`` (pixels) and ``wstart`` (bytes), the tables of
+    :func:`resize_tables`. Indices are unsigned or slices, so that numba leaves out its negative-index
+    checks and the loops vectorise."""
     nmax = xo.shape[0] - 1
     hbuf = np.empty(nmax * (2 * nmax - 1) * 3, np.int32)
     i0, i1 = np.empty((2 * nmax - 1) * 3, np.uint32), np.empty((2 * nmax - 1) * 3, np.uint32)
