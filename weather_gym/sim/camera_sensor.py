@@ -13,7 +13,6 @@ Example (needs PyBullet; see ``World.render``):
 
 from __future__ import annotations
 
-import contextlib
 import math
 from dataclasses import dataclass
 
@@ -25,7 +24,7 @@ from scipy import ndimage
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.sim import egl_shadow_map
-from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse
+from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse, planned_frame
 from weather_gym.sim.look import Look
 from weather_gym.sim.renderer import quiet_if_egl
 from weather_gym.sim.visibility import empty_ground_truth, visible_cones
@@ -127,12 +126,8 @@ class CameraSensor:
         fwd = np.array([math.cos(heading) * math.cos(pitch), math.sin(heading) * math.cos(pitch), -math.sin(pitch)])
         view = p.computeViewMatrix(eye.tolist(), (eye + fwd).tolist(), [0, 0, 1])
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
-        if self._without_shadow_map:
-            shadow_map = egl_shadow_map.shadow_map_off()
-        elif self.shadow_reuse is not None and "lightDirection" in light:
-            shadow_map = self.shadow_reuse.frame(light["lightDirection"])
-        else:
-            shadow_map = contextlib.nullcontext()
+        shadow_map = (egl_shadow_map.shadow_map_off() if self._without_shadow_map
+                      else planned_frame(self.shadow_reuse, light))
         with quiet_if_egl(self.renderer), shadow_map:
             _, _, rgba, zbuf, seg = p.getCameraImage(
                 c.width,

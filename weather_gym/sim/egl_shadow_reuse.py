@@ -40,8 +40,9 @@ import sys
 import threading
 import time
 import types
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import pybullet as p
@@ -177,9 +178,6 @@ class _ViewportHook:
             self._previous_unraisable, sys.unraisablehook = sys.unraisablehook, self._on_unraisable
         return self._entry.ensure()
 
-    def _hooked(self, x: int, y: int, w: int, h: int) -> None:
-        self._steer(x, y, w, h)
-
     def _unraisable(self, args) -> None:
         """``sys.unraisablehook``: an exception that left :meth:`_hooked` (a signal's, such as Ctrl-C or
         SIGTERM, whose handler ran in the callback) would be printed and dropped by ctypes. It is raised
@@ -208,7 +206,8 @@ class _ViewportHook:
             return obj.__func__ is _ViewportHook._hooked and obj.__self__ is self
         return obj is None and repr(self._hooked) in (getattr(args, "err_msg", None) or "")
 
-    def _steer(self, x: int, y: int, w: int, h: int) -> None:
+    def _hooked(self, x: int, y: int, w: int, h: int) -> None:
+        """The plugin's ``glViewport``: the driver's, then the scissor of a planned shadow-map pass."""
         self._viewport(x, y, w, h)
         if draw_framebuffer() != 0:  # the shadow map's framebuffer (the frame itself is drawn to the window's)
             plan = getattr(self.frames, "plan", None)
@@ -253,6 +252,14 @@ def unavailable_reason() -> str | None:
     except (LookupError, OSError) as exc:
         _reason = str(exc)
     return _reason
+
+
+def planned_frame(reuse: ShadowMapReuse | None, light: Mapping[str, Any]) -> contextlib.AbstractContextManager:
+    """``reuse.frame`` for the light direction of ``light`` (``getCameraImage``'s light arguments), or a
+    plain frame (the plugin draws its whole map) where there is no reuse or no light direction."""
+    if reuse is None or "lightDirection" not in light:
+        return contextlib.nullcontext()
+    return reuse.frame(light["lightDirection"])
 
 
 class ShadowMapReuse:

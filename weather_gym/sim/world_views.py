@@ -16,7 +16,6 @@ Example (geometry only: nothing is rendered):
 
 from __future__ import annotations
 
-import contextlib
 import math
 
 import cv2
@@ -25,6 +24,7 @@ import pybullet as p
 
 from weather_gym.sim.camera_sensor import CameraFrame
 from weather_gym.sim.cast_shadows import shadow_strength
+from weather_gym.sim.egl_shadow_reuse import planned_frame
 from weather_gym.sim.ego import EGO_DEPTH_M, clip_ground_truth, composite, ego_overlay
 from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
 
@@ -111,9 +111,8 @@ class WorldViews:
         p.resetBasePositionAndOrientation(self._car_visual, body, q, physicsClientId=c)
         try:
             flag = renderer_flag(self.renderer_name)  # "none" renders the chase view with TinyRenderer
-            reuse = getattr(self.camera, "shadow_reuse", None)  # EGL: redraw the shadow map where things moved
-            shadow_map = reuse.frame(self._light["lightDirection"]) if reuse is not None else contextlib.nullcontext()
-            with quiet_if_egl(flag), shadow_map:
+            # EGL: the shadow map redrawn only where things moved
+            with quiet_if_egl(flag), planned_frame(getattr(self.camera, "shadow_reuse", None), self._light):
                 _, _, rgba, _, seg = p.getCameraImage(width, height, view, proj, renderer=flag, physicsClientId=c,
                                                       **self._light)[:5]
         finally:
