@@ -27,13 +27,12 @@ from weather_gym.calibration.sweep import (
     KEY_FIELDS,
     SweepCell,
     SweepEffect,
-    _dataset_and_detector,
     make_sweep_cells,
     metric_by_cell,
     run_sweep_cell,
+    score_cell,
 )
 from weather_gym.evaluation.runner import run_cells
-from weather_gym.perception.scoring import score_dataset
 from weather_gym.weather import make
 
 TOLERANCE = 0.05
@@ -59,10 +58,7 @@ def still_or_recorded_cell(cell: SweepCell) -> dict[str, Any]:
     spec = json.loads(cell.spec)
     if not spec.pop(STILL, False):
         return run_sweep_cell(cell)
-    ds, det = _dataset_and_detector(cell.dataset, cell.model)
-    r = score_dataset(ds, det, _Still(make(cell.name, k=float(cell.k), **spec)), seed=int(cell.seed))
-    return {"map50": r.map50, "map": r.map, "map50_blue_yellow": r.map50_blue_yellow, "recall": r.recall,
-            "n_images": r.n_images, "n_gt": r.n_gt, "n_detections": r.n_detections}
+    return score_cell(cell, _Still(make(cell.name, k=float(cell.k), **spec)))
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -61,6 +61,7 @@ __all__ = [
     "parse_seeds",
     "run_sweep",
     "run_sweep_cell",
+    "score_cell",
 ]
 
 CURVE_FILE = "curves.csv"
@@ -163,8 +164,13 @@ def _metric_name(label: str) -> str:
 def run_sweep_cell(cell: SweepCell) -> dict[str, Any]:
     """Score the detector on the evaluation set under ``cell``'s effect at ``cell.k`` (the cell function)."""
 
+    return score_cell(cell, make(cell.name, k=float(cell.k), **json.loads(cell.spec)))
+
+
+def score_cell(cell: SweepCell, effect: Any) -> dict[str, Any]:
+    """The metrics row of ``cell``'s evaluation set and detector scored under ``effect`` (any effect
+    :func:`~weather_gym.perception.scoring.score_dataset` takes) with ``cell.seed``."""
     ds, det = _dataset_and_detector(cell.dataset, cell.model)
-    effect = make(cell.name, k=float(cell.k), **json.loads(cell.spec))
     r = score_dataset(ds, det, effect, seed=int(cell.seed))
     row: dict[str, Any] = {"map50": r.map50, "map": r.map, "map50_blue_yellow": r.map50_blue_yellow}
     row.update({f"ap50_{c}": v for c, v in r.ap50_per_class.items()})
