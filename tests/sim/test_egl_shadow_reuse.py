@@ -5,6 +5,7 @@ and several worlds at once; a map drawn outside the plan (a frame of your own) m
 
 from __future__ import annotations
 
+import threading
 import time
 import types
 
@@ -178,6 +179,39 @@ def test_ctrl_c_in_the_middle_of_a_frame_is_raised_not_dropped(monkeypatch):
                 time.sleep(0.01)
         monkeypatch.undo()
         for _ in range(3):  # and the env's frames are still right
+            assert np.array_equal(reused.render().rgb, whole.render().rgb)
+    finally:
+        reused.close(), whole.close()
+
+
+def test_ctrl_c_in_your_own_frame_is_raised_however_slowly_this_thread_leaves_the_hook(monkeypatch):
+    # On a loaded machine the thread that started the helper can be slow to come back from
+    # Thread.start() inside the hook; the exception must still come out of PyBullet's call, not be
+    # raised (and dropped) inside the hook.
+    track = load_track("hairpin")
+    reused, whole = _worlds(track, "plain")
+    try:
+        for w in (reused, whole):
+            w.reset(track.start_pose)
+            w.render()
+        start = threading.Thread.start
+
+        def slow_start(self):
+            start(self)
+            time.sleep(0.05)  # the GIL released for 50 ms while still in the hook
+
+        hook = egl_shadow_reuse._hook
+        monkeypatch.setattr(threading.Thread, "start", slow_start)
+        monkeypatch.setattr(hook, "current_context", lambda: (_ for _ in ()).throw(KeyboardInterrupt()))
+        reused._activate()
+        view = p.computeViewMatrix([0, 0, 5], [5, 0, 0], [0, 0, 1])
+        with pytest.raises(KeyboardInterrupt):
+            p.getCameraImage(32, 32, view, p.computeProjectionMatrixFOV(60, 1, 0.1, 50),
+                             renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=reused._client)
+            for _ in range(100):  # raised as soon as the call has returned
+                time.sleep(0.01)
+        monkeypatch.undo()
+        for _ in range(3):
             assert np.array_equal(reused.render().rgb, whole.render().rgb)
     finally:
         reused.close(), whole.close()

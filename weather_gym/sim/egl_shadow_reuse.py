@@ -194,9 +194,12 @@ class _ViewportHook:
             return
         # A frame drawn outside the env: no more Python in this PyBullet call (the table points at the
         # driver's function until the env's next frame), and the exception is raised in this thread
-        # by a helper, which can take the GIL only once the call has returned to Python.
+        # by a helper once this hook has returned (starting the helper waits for it: an exception
+        # raised then would be lost in this hook, whatever the helper slept first).
         self._entry.release()
-        threading.Thread(target=_raise_later, args=(threading.get_ident(), args.exc_type), daemon=True).start()
+        left = types.SimpleNamespace(hook=False)
+        threading.Thread(target=_raise_later, args=(threading.get_ident(), args.exc_type, left), daemon=True).start()
+        left.hook = True  # the last statement: no Python runs in this thread between it and PyBullet's return
 
     def _from_hook(self, args) -> bool:
         """Whether an unraisable exception left :meth:`_hooked` (Python 3.11-3.12 pass the callback as
@@ -225,9 +228,12 @@ class _ViewportHook:
             self._scissored = False
 
 
-def _raise_later(thread: int, exc_type: type[BaseException]) -> None:
-    """Raise ``exc_type`` in ``thread`` at its next Python instruction (after a moment: not in the hook)."""
-    time.sleep(0.001)
+def _raise_later(thread: int, exc_type: type[BaseException], left: types.SimpleNamespace) -> None:
+    """Raise ``exc_type`` in ``thread`` at its next Python instruction once ``left.hook`` is set (the
+    hook's last statement, a plain attribute store: ``thread`` checks for an asynchronous exception
+    neither there nor before the PyBullet call it was in returns to Python)."""
+    while not left.hook:
+        time.sleep(0.0005)
     ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread), ctypes.py_object(exc_type))
 
 
