@@ -72,8 +72,9 @@ HEAVY: dict[str, set[str]] = {
 ``agents`` holds the SB3 feature extractor (a torch module); ``numba`` compiles the geometric ground
 truth (``sim.visibility``), the car's dynamics (``sim.car``), one point's centerline projection
 (``_track_kernel``, imported by ``Track`` on first use, so that loading a track does not load numba), the
-refractive drops' blend (``weather._drop_blend``, imported with the first drop, so that loading the weather
-layer does not load numba) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s crowding) and stays out of the
+refractive drops' blend, the sensor noise's pass and the motion smear's blend (``weather._drop_blend``,
+``weather._noise_pass``, ``weather._near_blend``, each imported with the first frame that needs it, so that
+loading the weather layer does not load numba) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s crowding) and stays out of the
 other layers (its import takes about a second, a compile seconds on a cold cache)."""
 
 NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather"}}

@@ -221,7 +221,8 @@ def test_the_weather_layer_imports_only_numpy_opencv_and_the_stdlib():
     import weather_gym.weather as pkg
 
     allowed = {"numpy", "cv2", "weather_gym", "PIL", "__future__", "tomli"}
-    kernels = {"_drop_blend.py": {"numba"}}  # the refractive drops' compiled blend, loaded on first use
+    kernels = {name: {"numba"} for name in ("_drop_blend.py", "_noise_pass.py", "_near_blend.py")}  # compiled
+    # passes, each loaded with the first frame that needs it
     for path in Path(pkg.__file__).parent.glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import | ast.ImportFrom):
@@ -236,12 +237,17 @@ def test_the_weather_layer_imports_only_numpy_opencv_and_the_stdlib():
                             f"{path.name} imports {name} (the weather layer depends on nothing else)"
 
 
-def test_numba_loads_only_when_refractive_drops_are_drawn():
-    """The weather layer stays light to import: numba (about 1.3 s) comes with the first refractive frame."""
+@pytest.mark.parametrize("light, compiled", [("droplets:0.5", "droplets:0.5:mode=refractive"),
+                                             ("dim:0.5", "dim:0.5:mode=night"), ("dim:0.5", "noise:0.5"),
+                                             ("fog:0.5", "motion_blur:0.5")])
+def test_numba_loads_only_when_a_compiled_pass_draws_a_frame(light, compiled):
+    """The weather layer stays light to import: numba (about 1.3 s) comes with the first frame of an effect
+    that has a compiled pass (the refractive drops' blend, the sensor noise, the motion smear's blend), not
+    with building one."""
     import subprocess
 
-    code = ("import sys, numpy as np; from weather_gym.weather import make; e = make('droplets', k=0.5, mode='refractive');"
-            "make('droplets', k=0.5)(np.zeros((40, 60, 3), np.uint8), rng=np.random.default_rng(0));"
+    code = (f"import sys, numpy as np; from weather_gym.weather import parse_weather; e = parse_weather({compiled!r});"
+            f"parse_weather({light!r})(np.zeros((40, 60, 3), np.uint8), rng=np.random.default_rng(0));"
             "print('numba' in sys.modules, end=' '); e(np.zeros((40, 60, 3), np.uint8), rng=np.random.default_rng(0));"
             "print('numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

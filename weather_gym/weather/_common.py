@@ -79,9 +79,10 @@ def gauss_lut() -> np.ndarray:
 # every process, like :func:`gauss_lut`) through a window the generator places anew every frame
 # (random offset and random row pitch). Within a frame the values are independent; across frames
 # every value gets a fresh sign, so the noise of two frames is uncorrelated at every shift, and
-# a pixel's magnitude comes from an unrelated place of the table. Only uint8 OpenCV passes:
-# sigma look-up, multiply, subtract, masked add: about 10x cheaper than ``standard_normal`` per
-# value, 1.8x cheaper than a random byte per value through a quantile table.
+# a pixel's magnitude comes from an unrelated place of the table. The arithmetic is that of uint8
+# OpenCV passes (sigma look-up, multiply, subtract, masked add), done as one compiled pass with one
+# table look-up per value (:mod:`~weather_gym.weather._noise_pass`), far cheaper than
+# ``standard_normal`` per value.
 
 _BANK_SEED = 20220607
 _BANK_CHUNK = 1 << 20
@@ -130,17 +131,28 @@ def _bank_plan(rows: int, cols: int) -> tuple[int, int, int]:
 
 
 @lru_cache(maxsize=64)
-def _noise_tables(mean_bytes: bytes | None, sigma_bytes: bytes) -> tuple[np.ndarray, bool, float]:
-    """``(table, with_mean, scale)``: sigma in units ``u`` (uint8) or, with a mean, a uint16 table
-    whose two bytes are the mean and that sigma (one look-up gives both); the multiply scale."""
+def noise_table(mean_bytes: bytes | None, sigma_bytes: bytes) -> np.ndarray:
+    """The noisy value for every sign, value and magnitude: uint8, ``table[sign << 16 | v << 8 | m]``.
+
+    ``mean[v] - a`` (sign 0) or ``mean[v] + a`` (sign 1), saturated to 0-255, with
+    ``a = min(round(float32(float32(s) * u[v]) * m), 255)`` (rounding half to even): ``u`` the sigma
+    table in units of 1/255 of its largest value (at most 4000), ``m`` a magnitude of
+    :func:`noise_bank` in 1/64, ``s`` the two scales together; ``mean_bytes`` None means the
+    identity. This is ``cv2.multiply(u[v], m, scale=s)`` then a saturating subtract or add, the
+    arithmetic the noise had as OpenCV passes.
+    """
     sigma = np.minimum(np.frombuffer(sigma_bytes, np.float32).astype(np.float64), 4000.0)
     top = float(sigma.max())
     unit = top / 255.0 if top > 0 else 1.0
-    table = np.clip(np.rint(sigma / unit), 0, 255).astype(np.uint8)
-    if mean_bytes is not None:
-        mean8 = np.clip(np.rint(np.frombuffer(mean_bytes, np.float32)), 0, 255).astype(np.uint8)
-        table = np.stack([mean8, table], axis=1).view(np.uint16).ravel()  # bytes: mean, sigma
-    return readonly(table), mean_bytes is not None, unit * _half_normal_u8()[1]
+    units = np.clip(np.rint(sigma / unit), 0, 255).astype(np.float32)
+    if mean_bytes is None:
+        mean = np.arange(256, dtype=np.int16)
+    else:
+        mean = np.clip(np.rint(np.frombuffer(mean_bytes, np.float32)), 0, 255).astype(np.int16)
+    scale = np.float32(unit * _half_normal_u8()[1])
+    a = np.minimum(np.rint((scale * units)[:, None] * np.arange(256, dtype=np.float32)), 255).astype(np.int16)
+    table = np.stack([mean[:, None] - a, mean[:, None] + a])
+    return readonly(np.clip(table, 0, 255).astype(np.uint8).ravel())
 
 
 def _noise_words(shape: tuple[int, ...]) -> tuple[int, int]:
@@ -161,43 +173,31 @@ def add_sensor_noise(img: np.ndarray, mean_lut: np.ndarray | None, sigma_lut: np
                      raw: np.ndarray | np.random.Generator, out: np.ndarray | None = None) -> np.ndarray:
     """``mean_lut[I] + round(sigma_lut[I] * z)``, clipped to 0-255, ``z`` standard normal per value.
 
-    ``mean_lut`` None means the identity. ``img`` is a C-contiguous uint8 ``H x W x 3`` frame or an
+    ``mean_lut`` None means the identity. ``img`` is a uint8 ``H x W x 3`` frame or an
     ``N x H x W x 3`` batch (the same noise as frame-by-frame calls); the result goes to ``out``
-    (C-contiguous, new when None). ``z`` is a fresh random sign times a magnitude from :func:`noise_bank` (see
+    (new when None). ``z`` is a fresh random sign times a magnitude from :func:`noise_bank` (see
     the comment above), 256 equiprobable levels as :func:`gauss_lut`; sigma is resolved to 1/255
     of its largest value in the table. ``raw``: the random words, :func:`sensor_noise_draw` (or a
     generator to draw them from).
     """
     if isinstance(raw, np.random.Generator):
         raw = sensor_noise_draw(raw, img.shape)
-    table, with_mean, scale = _noise_tables(None if mean_lut is None else np.asarray(mean_lut, np.float32).tobytes(),
-                                            np.asarray(sigma_lut, np.float32).tobytes())
-    frames = img.reshape(-1, *img.shape[-3:])
+    from weather_gym.weather._noise_pass import noise_pass  # numba loads with the first noisy frame
+
+    table = noise_table(None if mean_lut is None else np.asarray(mean_lut, np.float32).tobytes(),
+                        np.asarray(sigma_lut, np.float32).tobytes())
     if out is None:
         out = np.empty_like(img)
-    outs = out.reshape(frames.shape)
-    n_frames, rows = frames.shape[:2]
-    cols = frames.shape[2] * frames.shape[3]
-    n = rows * cols
+    target = out if out.flags.c_contiguous else np.empty_like(img)
+    frames = img.reshape(-1, img.shape[-3], img.shape[-2] * img.shape[-1])
+    n_frames, rows, cols = frames.shape
     size, offsets, pitches = _bank_plan(rows, cols)
-    bank = noise_bank(size)
-    raw = np.asarray(raw).reshape(n_frames, -1)
+    raw = np.ascontiguousarray(np.asarray(raw).reshape(n_frames, -1))
     picks = raw[:, :2].tolist()
-    for i in range(n_frames):
-        signs = np.unpackbits(raw[i, 2:].view(np.uint8), count=n).reshape(rows, cols)
-        f = frames[i].reshape(rows, cols)
-        o = outs[i].reshape(rows, cols)
-        start = picks[i][0] % offsets
-        pitch = cols + picks[i][1] % pitches
-        z = np.lib.stride_tricks.as_strided(bank[start:], shape=(rows, cols), strides=(pitch, 1), writeable=False)
-        if with_mean:
-            base, sig = cv2.split(cv2.LUT(f, table).view(np.uint8).reshape(rows, cols, 2))
-        else:
-            base, sig = f, cv2.LUT(f, table)
-        a = cv2.multiply(sig, z, scale=scale)  # |noise|, whole code values
-        into(cv2.subtract(base, a, dst=o), o)
-        into(cv2.add(base, a, dst=o, mask=signs), o)
-    return out
+    noise_pass(frames, target.reshape(frames.shape), table, noise_bank(size),
+               np.array([p[0] % offsets for p in picks], np.int64),
+               np.array([cols + p[1] % pitches for p in picks], np.int64), raw[:, 2:].view(np.uint8))
+    return into(target, out)
 
 
 def into(res: np.ndarray, out: np.ndarray) -> np.ndarray:

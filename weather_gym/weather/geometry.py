@@ -69,13 +69,6 @@ def _zoom_blur(img: np.ndarray, scale: float) -> np.ndarray:
     return cv2.resize(acc, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def _near_weights(depth: np.ndarray, near_m: float, lo: float) -> tuple[np.ndarray, np.ndarray]:
-    """uint8 3-channel ``255 min(near / Z, 1)`` and its complement ``255 - that`` (``lo``: min depth)."""
-    z = depth if lo >= 1e-3 else cv2.max(depth, 1e-3)
-    w1 = cv2.convertScaleAbs(np.divide(np.float32(255.0 * near_m), z))  # saturates: min(near / Z, 1)
-    return cv2.cvtColor(w1, cv2.COLOR_GRAY2RGB), cv2.cvtColor(cv2.bitwise_not(w1), cv2.COLOR_GRAY2RGB)
-
-
 def _hbox(img: np.ndarray, n: int, out: np.ndarray) -> np.ndarray:
     """Horizontal box of ``n`` px into ``out`` (``cv2.blur``, border replicated; its generic path is
     3x slower than its 3- and 5-tap ones, so 2 taps are an average of two shifted views)."""
@@ -86,19 +79,21 @@ def _hbox(img: np.ndarray, n: int, out: np.ndarray) -> np.ndarray:
     return into(cv2.blur(img, (n, 1), dst=out, borderType=cv2.BORDER_REPLICATE), out)
 
 
-_WEIGHT_CACHE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+_WEIGHT_CACHE: dict[tuple, np.ndarray] = {}
 
 
-def _fallback_weights(key: tuple, who: str) -> tuple[np.ndarray, np.ndarray]:
-    wts = _WEIGHT_CACHE.get(key)
-    if wts is None:
+def _fallback_weight(key: tuple, who: str) -> np.ndarray:
+    """The nearness weights of the flat-ground scene of ``key`` (cached)."""
+    from weather_gym.weather._near_blend import near_weight
+
+    wt = _WEIGHT_CACHE.get(key)
+    if wt is None:
         h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m = key
-        z = scene_depth(None, h, w, fx, camera_height_m, horizon_frac, far_m, who)
-        wts = tuple(readonly(a) for a in _near_weights(z, near_depth_m, float(z.min())))
-        wts = _WEIGHT_CACHE.setdefault(key, wts)
+        wt = readonly(near_weight(scene_depth(None, h, w, fx, camera_height_m, horizon_frac, far_m, who), near_depth_m))
+        wt = _WEIGHT_CACHE.setdefault(key, wt)
         if len(_WEIGHT_CACHE) > 16:
             _WEIGHT_CACHE.pop(next(iter(_WEIGHT_CACHE)), None)
-    return wts
+    return wt
 
 
 MAX_SMEAR_WIDTHS = 4
@@ -128,16 +123,19 @@ def motion_smear(img: np.ndarray, depth: np.ndarray | None, state: dict[str, flo
                          "widths are supported")
     n = int(round(length)) if length >= 1.5 else 0
     src = img
-    if zoom:
-        if depth is None:
-            w3, inv3 = _fallback_weights((h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m), who)
-        else:
-            w3, inv3 = _near_weights(depth, near_depth_m, depth_min(depth, who))
-        # img + (zoom blur - img) * w / 255, as two products and a sum
+    if zoom:  # img + (zoom blur - img) * w / 255, w from the nearness (compiled; numba loads here)
+        from weather_gym.weather._near_blend import near_blend
+
+        if depth is not None:
+            depth_min(depth, who)  # finite metres >= 0
         blurred = _zoom_blur(img, scale)
-        cv2.multiply(blurred, w3, dst=blurred, scale=1 / 255)
         dst = out if out is not None and not n else np.empty_like(img)
-        src = into(cv2.add(cv2.multiply(img, inv3, scale=1 / 255), blurred, dst=dst), dst)
+        if depth is None:
+            weight = _fallback_weight((h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m), who)
+            near_blend(img, blurred, weight, None, dst)
+        else:
+            near_blend(img, blurred, depth, near_depth_m, dst)
+        src = dst
     if n:
         dst = out if out is not None else np.empty_like(img)
         src = _hbox(src, n, dst)
