@@ -118,3 +118,13 @@ python docs/calibration/isp_stages.py "${ISP[@]}" --extra "realistic (peanut, ra
 # presets on the same sets scored as recorded and with the car standing still
 python docs/calibration/still_camera.py "${ISP[@]}" --set "realistic (peanut, random:82)=$SETS/held_realistic" \
   --set "realistic (hairpin, random:85)=$SETS/held_realistic2" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/still_camera"
+# would bigger colour blotches (damage more per cone, like the drops) transfer better? matched on the eight
+# tracks' 240-frame sets, then on the calibration pool as the presets are (the second run reuses the cells)
+BLOTCHES=(--variant 'night (shipped)={"mode": "night"}'
+          --variant '32 px blotches, 1.5x={"mode": "night", "chroma_cell_px": 32, "chroma_noise": 24}')
+REALISTIC=(--extra "realistic (peanut, random:82)=$SETS/held_realistic" --extra "realistic (hairpin, random:85)=$SETS/held_realistic2")
+python docs/calibration/isp_stages.py "${HELD240[@]}" "${REALISTIC[@]}" "${BLOTCHES[@]}" --seeds 2 --workers "$WORKERS" \
+  --stem night_blotches --out "$OUT/transfer/night_blotches"
+python docs/calibration/isp_stages.py "${HELD240[@]}" "${REALISTIC[@]}" --extra "calibration pool=$POOL" \
+  --match "calibration pool" "${BLOTCHES[@]}" --seeds 2 --workers "$WORKERS" --stem night_blotches_pool \
+  --out "$OUT/transfer/night_blotches"
