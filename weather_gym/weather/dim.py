@@ -270,7 +270,7 @@ class Dim(EgoMotion):
             into(cv2.LUT(f, black_level_lut(black), dst=f), f)
         if desat > 0:  # chroma suppression: towards the pixel's grey (Rec. 601 luma)
             grey = cv2.cvtColor(cv2.cvtColor(out, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
-            into(cv2.addWeighted(out, 1.0 - desat, grey, desat, 0.0), out)
+            into(cv2.addWeighted(out, 1.0 - desat, grey, desat, 0.0, dst=out), out)  # in place
 
     # -- sampling and rendering ------------------------------------------------------------------
     def _sample_frame(self, rng, shape, episode):
