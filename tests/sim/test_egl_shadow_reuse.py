@@ -168,20 +168,26 @@ def test_ctrl_c_in_the_middle_of_a_frame_is_raised_not_dropped(monkeypatch):
         for _ in range(3):  # the env goes on as before: the next maps are drawn whole
             assert np.array_equal(reused.render().rgb, whole.render().rgb)
         # in a frame of your own, the exception comes out of PyBullet's call in your thread
-        hook = egl_shadow_reuse._hook
-        monkeypatch.setattr(hook, "current_context", lambda: (_ for _ in ()).throw(KeyboardInterrupt()))
-        reused._activate()
-        view = p.computeViewMatrix([0, 0, 5], [5, 0, 0], [0, 0, 1])
-        with pytest.raises(KeyboardInterrupt):
-            p.getCameraImage(32, 32, view, p.computeProjectionMatrixFOV(60, 1, 0.1, 50),
-                             renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=reused._client)
-            for _ in range(100):  # raised as soon as the call has returned
-                time.sleep(0.01)
-        monkeypatch.undo()
-        for _ in range(3):  # and the env's frames are still right
-            assert np.array_equal(reused.render().rgb, whole.render().rgb)
+        _ctrl_c_in_your_own_frame(reused, whole, monkeypatch)
     finally:
         reused.close(), whole.close()
+
+
+def _ctrl_c_in_your_own_frame(reused, whole, monkeypatch):
+    """A Ctrl-C whose handler runs in the GL callback of a ``getCameraImage`` of your own (not the env's)
+    comes out of that call in your thread; then (the patches undone) the env's frames are still right."""
+    hook = egl_shadow_reuse._hook
+    monkeypatch.setattr(hook, "current_context", lambda: (_ for _ in ()).throw(KeyboardInterrupt()))
+    reused._activate()
+    view = p.computeViewMatrix([0, 0, 5], [5, 0, 0], [0, 0, 1])
+    with pytest.raises(KeyboardInterrupt):
+        p.getCameraImage(32, 32, view, p.computeProjectionMatrixFOV(60, 1, 0.1, 50),
+                         renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=reused._client)
+        for _ in range(100):  # raised as soon as the call has returned
+            time.sleep(0.01)
+    monkeypatch.undo()
+    for _ in range(3):
+        assert np.array_equal(reused.render().rgb, whole.render().rgb)
 
 
 def test_ctrl_c_in_your_own_frame_is_raised_however_slowly_this_thread_leaves_the_hook(monkeypatch):
@@ -200,19 +206,8 @@ def test_ctrl_c_in_your_own_frame_is_raised_however_slowly_this_thread_leaves_th
             start(self)
             time.sleep(0.05)  # the GIL released for 50 ms while still in the hook
 
-        hook = egl_shadow_reuse._hook
         monkeypatch.setattr(threading.Thread, "start", slow_start)
-        monkeypatch.setattr(hook, "current_context", lambda: (_ for _ in ()).throw(KeyboardInterrupt()))
-        reused._activate()
-        view = p.computeViewMatrix([0, 0, 5], [5, 0, 0], [0, 0, 1])
-        with pytest.raises(KeyboardInterrupt):
-            p.getCameraImage(32, 32, view, p.computeProjectionMatrixFOV(60, 1, 0.1, 50),
-                             renderer=p.ER_BULLET_HARDWARE_OPENGL, physicsClientId=reused._client)
-            for _ in range(100):  # raised as soon as the call has returned
-                time.sleep(0.01)
-        monkeypatch.undo()
-        for _ in range(3):
-            assert np.array_equal(reused.render().rgb, whole.render().rgb)
+        _ctrl_c_in_your_own_frame(reused, whole, monkeypatch)
     finally:
         reused.close(), whole.close()
 

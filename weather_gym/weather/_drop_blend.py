@@ -31,6 +31,8 @@ from functools import lru_cache
 import numba
 import numpy as np
 
+from weather_gym.weather._common import into
+
 __all__ = ["blend_drops", "resize_tables"]
 
 #: OpenCV's fixed-point scale of its bilinear resize weights (INTER_RESIZE_COEF_SCALE).
@@ -90,8 +92,7 @@ def blend_drops(out: np.ndarray, content: np.ndarray, keeps: list[np.ndarray], h
     _blend(target.reshape(target.shape[0], -1), np.ascontiguousarray(content).reshape(-1), np.concatenate(
         [k.reshape(-1) for k in keeps]), n, cstart, wstart, *(np.asarray(a, np.int64) for a in (cx, cy, x0, y0, x1, y1)),
         *tables)
-    if target is not out:
-        np.copyto(out, target)
+    into(target, out)
 
 
 @numba.njit(nogil=True, inline="always")

@@ -30,6 +30,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from weather_gym.weather._common import into
+
 __all__ = ["near_blend", "near_weight"]
 
 #: Depths nearer than this (metres) count as this near (``cv2.max(depth, 1e-3)``).
@@ -57,8 +59,7 @@ def near_blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, near_m: f
     else:
         _blend(*rows, np.ascontiguousarray(near, np.float32), np.float32(255.0 * near_m), True,
                target.reshape(h, w * 3))
-    if target is not out:
-        np.copyto(out, target)
+    into(target, out)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
