@@ -60,6 +60,15 @@ for t in "${HELD[@]}"; do
 done
 render "$SETS/held_realistic" --track peanut --track random:82 --frames 80 --seed 708 --scene realistic
 render "$SETS/held_realistic2" --track hairpin --track random:85 --frames 80 --seed 709 --scene realistic
+# a blind check: sets first rendered after the presets and the night camera were fixed (nothing was tuned on
+# them): three more generated tracks, the skidpad (cones all round the frame), the realistic world on two more tracks
+BLIND=()
+for t in random:90 random:91 random:92 skidpad; do
+  render "$SETS/blind_${t//:/}" --track "$t" --frames 80 --seed 707
+  BLIND+=(--set "$t=$SETS/blind_${t//:/}")
+done
+render "$SETS/blind_realistic" --track jellybean --track small_track --frames 80 --seed 713 --scene realistic
+BLIND+=(--set "realistic (jellybean, small_track)=$SETS/blind_realistic")
 
 # the study's faithful effects and the physical dim on the four-track set, on a 0.1 grid (refractive drops
 # too, for the physical alternative); the shipped modes on the pool, the night camera finer where it falls
@@ -98,6 +107,7 @@ python docs/calibration/transfer.py "${TRANSFER[@]}" --seeds 2 --workers "$WORKE
 # the spread of 80-frame sets of one track: the two more samples of each held-out track, then all three merged
 python docs/calibration/transfer.py "${RESAMPLES[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/resamples"
 python docs/calibration/transfer.py "${HELD240[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/held240"
+python docs/calibration/transfer.py "${BLIND[@]}" --seeds 2 --workers "$WORKERS" --out "$OUT/transfer/blind"
 # the same first sets without vignetting and without distortion; then where in the frame each set's cones
 # are against its relative mAP, over the held-out and resampled sets (docs/calibration.md, "Why low light
 # spreads over tracks")
