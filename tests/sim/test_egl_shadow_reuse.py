@@ -145,32 +145,39 @@ def test_a_frame_of_your_own_on_the_worlds_client_makes_the_next_map_whole():
         reused.close(), whole.close()
 
 
-def test_ctrl_c_in_the_middle_of_a_frame_is_raised_not_dropped(monkeypatch):
-    # A signal's handler can run inside the GL callback; ctypes would print its exception and go on.
+@pytest.fixture
+def hairpin_worlds():
+    """The two worlds of ``_worlds`` on ``hairpin`` (plain), at the start with one frame drawn; closed after."""
     track = load_track("hairpin")
     reused, whole = _worlds(track, "plain")
     try:
         for w in (reused, whole):
             w.reset(track.start_pose)
             w.render()
-        real = ShadowMapReuse.rect_for
-        calls = []
-
-        def interrupted(self, size):
-            calls.append(size)
-            if len(calls) == 1:
-                raise KeyboardInterrupt
-            return real(self, size)
-
-        monkeypatch.setattr(ShadowMapReuse, "rect_for", interrupted)
-        with pytest.raises(KeyboardInterrupt):
-            reused.render()
-        for _ in range(3):  # the env goes on as before: the next maps are drawn whole
-            assert np.array_equal(reused.render().rgb, whole.render().rgb)
-        # in a frame of your own, the exception comes out of PyBullet's call in your thread
-        _ctrl_c_in_your_own_frame(reused, whole, monkeypatch)
+        yield reused, whole
     finally:
         reused.close(), whole.close()
+
+
+def test_ctrl_c_in_the_middle_of_a_frame_is_raised_not_dropped(hairpin_worlds, monkeypatch):
+    # A signal's handler can run inside the GL callback; ctypes would print its exception and go on.
+    reused, whole = hairpin_worlds
+    real = ShadowMapReuse.rect_for
+    calls = []
+
+    def interrupted(self, size):
+        calls.append(size)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return real(self, size)
+
+    monkeypatch.setattr(ShadowMapReuse, "rect_for", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        reused.render()
+    for _ in range(3):  # the env goes on as before: the next maps are drawn whole
+        assert np.array_equal(reused.render().rgb, whole.render().rgb)
+    # in a frame of your own, the exception comes out of PyBullet's call in your thread
+    _ctrl_c_in_your_own_frame(reused, whole, monkeypatch)
 
 
 def _ctrl_c_in_your_own_frame(reused, whole, monkeypatch):
@@ -190,41 +197,28 @@ def _ctrl_c_in_your_own_frame(reused, whole, monkeypatch):
         assert np.array_equal(reused.render().rgb, whole.render().rgb)
 
 
-def test_ctrl_c_in_your_own_frame_is_raised_however_slowly_this_thread_leaves_the_hook(monkeypatch):
+def test_ctrl_c_in_your_own_frame_is_raised_however_slowly_this_thread_leaves_the_hook(hairpin_worlds, monkeypatch):
     # On a loaded machine the thread that started the helper can be slow to come back from
     # Thread.start() inside the hook; the exception must still come out of PyBullet's call, not be
     # raised (and dropped) inside the hook.
-    track = load_track("hairpin")
-    reused, whole = _worlds(track, "plain")
-    try:
-        for w in (reused, whole):
-            w.reset(track.start_pose)
-            w.render()
-        start = threading.Thread.start
+    start = threading.Thread.start
 
-        def slow_start(self):
-            start(self)
-            time.sleep(0.05)  # the GIL released for 50 ms while still in the hook
+    def slow_start(self):
+        start(self)
+        time.sleep(0.05)  # the GIL released for 50 ms while still in the hook
 
-        monkeypatch.setattr(threading.Thread, "start", slow_start)
-        _ctrl_c_in_your_own_frame(reused, whole, monkeypatch)
-    finally:
-        reused.close(), whole.close()
+    monkeypatch.setattr(threading.Thread, "start", slow_start)
+    _ctrl_c_in_your_own_frame(*hairpin_worlds, monkeypatch)
 
 
-def test_the_unraisable_hook_knows_its_callback_in_either_form():
-    track = load_track("hairpin")
-    reused, whole = _worlds(track, "plain")
-    try:
-        reused.render()
-        hook = egl_shadow_reuse._hook
-        ours = types.SimpleNamespace(object=hook._hooked, err_msg=None)  # Python 3.11-3.12
-        named = types.SimpleNamespace(object=None, err_msg=f"Exception ignored on calling ctypes callback function "
-                                                           f"{hook._hooked!r}")  # later versions
-        assert hook._from_hook(ours) and hook._from_hook(named)
-        for other in (types.SimpleNamespace(object=np.zeros(3), err_msg=None),
-                      types.SimpleNamespace(object=None, err_msg="Exception ignored in: <generator>"),
-                      types.SimpleNamespace(object=reused.render, err_msg=None)):
-            assert not hook._from_hook(other)
-    finally:
-        reused.close(), whole.close()
+def test_the_unraisable_hook_knows_its_callback_in_either_form(hairpin_worlds):
+    reused, _ = hairpin_worlds
+    hook = egl_shadow_reuse._hook
+    ours = types.SimpleNamespace(object=hook._hooked, err_msg=None)  # Python 3.11-3.12
+    named = types.SimpleNamespace(object=None, err_msg=f"Exception ignored on calling ctypes callback function "
+                                                       f"{hook._hooked!r}")  # later versions
+    assert hook._from_hook(ours) and hook._from_hook(named)
+    for other in (types.SimpleNamespace(object=np.zeros(3), err_msg=None),
+                  types.SimpleNamespace(object=None, err_msg="Exception ignored in: <generator>"),
+                  types.SimpleNamespace(object=reused.render, err_msg=None)):
+        assert not hook._from_hook(other)
