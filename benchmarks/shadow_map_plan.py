@@ -14,9 +14,9 @@ import sys
 import time
 
 import numpy as np
-import pybullet as p
 
 from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.config import SimConfig
 from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse
 from weather_gym.sim.world import World

@@ -15,10 +15,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-import pybullet as p
-
 from weather_gym.camera_config import CameraConfig
 from weather_gym.sim import renderer as _renderer
+from weather_gym.sim.bullet import pybullet as p
 
 NAIVE_CYLINDERS = 80
 """Cylinders in the naive scene (small_track has 77 cones)."""

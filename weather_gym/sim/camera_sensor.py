@@ -18,12 +18,12 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import pybullet as p
 from scipy import ndimage
 
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.sim import egl_shadow_map
+from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse, planned_frame
 from weather_gym.sim.look import Look
 from weather_gym.sim.renderer import quiet_if_egl

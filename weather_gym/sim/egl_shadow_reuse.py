@@ -45,10 +45,10 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-import pybullet as p
 
 from weather_gym.errors import InputError
 from weather_gym.sim import renderer as _renderer
+from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.egl_gl_table import (
     FOUR_INTS,
     GL_SCISSOR_TEST,

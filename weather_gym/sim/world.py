@@ -31,12 +31,12 @@ import os
 import sys
 
 import numpy as np
-import pybullet as p
 
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim import scenery
+from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.camera_sensor import CameraSensor
 from weather_gym.sim.car import Car
 from weather_gym.sim.cast_shadows import ShadowCaster

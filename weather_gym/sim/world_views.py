@@ -20,8 +20,8 @@ import math
 
 import cv2
 import numpy as np
-import pybullet as p
 
+from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.camera_sensor import CameraFrame
 from weather_gym.sim.cast_shadows import shadow_strength
 from weather_gym.sim.egl_shadow_reuse import planned_frame
