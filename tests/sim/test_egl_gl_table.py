@@ -20,7 +20,10 @@ def egl_client():
     renderer.release(client)
 
 
-def test_an_entry_is_pointed_again_after_a_release_and_refused_when_unknown(egl_client):
+def test_an_entry_is_pointed_again_after_a_release_and_refused_when_unknown(egl_client, monkeypatch):
+    monkeypatch.setattr(egl_shadow_reuse, "_hook", None)
+    monkeypatch.setattr(egl_shadow_reuse, "_reason", None)
+    monkeypatch.setenv("WEATHER_GYM_SHADOW_MAP_REUSE", "1")  # the hook on its glViewport entry
     with pytest.raises(SymbolUnavailable, match="no symbol table entry 'glad_glNoSuchFunction'"):
         GLTableEntry("glNoSuchFunction", ONE_ENUM(lambda mask: None))
     if egl_shadow_reuse.unavailable_reason() is not None:
@@ -31,3 +34,4 @@ def test_an_entry_is_pointed_again_after_a_release_and_refused_when_unknown(egl_
     assert entry.ensure() and entry.repointed == before  # pointed at ours already
     entry.release()  # as the plugin does when it reloads its table
     assert entry.ensure() and entry.repointed == before + 1
+    entry.release()  # the table given back: the default frames of later tests patch nothing

@@ -22,7 +22,17 @@ world's bodies have no links), bounded by a sphere around its visual shapes (the
 size of its meshes: :meth:`ShadowMapReuse.declare`); the whole map is redrawn after a change of
 light direction, of the set of bodies, of the look (:meth:`ShadowMapReuse.invalidate`), or when a
 moved body's bounds cannot be had (a plane, an undeclared mesh whose OBJ file cannot be read, a body
-with links). ``WEATHER_GYM_SHADOW_MAP_REUSE=0`` switches it off.
+with links).
+
+**Off by default; an explicit opt-in that checks itself.** This writes into PyBullet's plugin (one
+entry of its GL pointer table), so the default frames do not use it: ``WEATHER_GYM_SHADOW_MAP_REUSE=1``
+switches it on for a process. On first use it verifies itself (:func:`_probe`): only on a PyBullet
+build it was checked on (``VERIFIED_BUILDS``), and only where a probe scene's frame drawn with a kept
+map equals, byte for byte, the same frame with the whole map redrawn; otherwise it stays off and
+:func:`unavailable_reason` says why. ``sys.unraisablehook`` is replaced only while one of its frames
+is in flight (restored after). A Ctrl-C or SIGTERM whose handler runs in the hook during a
+``getCameraImage`` of your own on a reusing client is printed and lost by ctypes: do not switch it
+on where you draw frames of your own on the env's physics client and need such signals.
 
 Example:
     >>> from weather_gym.sim.egl_shadow_reuse import texel_rect
@@ -33,15 +43,14 @@ Example:
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import math
 import os
 import sys
 import threading
-import time
 import types
 from collections.abc import Iterator, Mapping, Sequence
 from functools import lru_cache
+from importlib.metadata import version
 from typing import Any
 
 import numpy as np
@@ -63,6 +72,8 @@ SHADOW_MAP_HALF_SIZE_M = 10.0  # bullet3 GLInstancingRenderer's m_shadowMapWorld
 MARGIN_M = 0.05  # added to every body's bounding radius
 MARGIN_TEXELS = 2  # added around every changed rectangle
 _ENV = "WEATHER_GYM_SHADOW_MAP_REUSE"
+VERIFIED_BUILDS = ("3.2.7",)
+"""PyBullet versions whose plugin's shadow-map size and light basis this module was checked against."""
 
 
 def light_basis(light_direction: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
@@ -155,7 +166,7 @@ class _ViewportHook:
         self._scissored = False
         self._interruptions = 0
         self._on_unraisable = self._unraisable
-        self._previous_unraisable = sys.unraisablehook
+        self._previous_unraisable: Any = sys.unraisablehook
         self._entry = GLTableEntry("glViewport", FOUR_INTS(self._hooked))
         self.ensure()
 
@@ -172,34 +183,34 @@ class _ViewportHook:
 
     def ensure(self) -> bool:
         """Point the table at the hook again where the plugin reloaded it (it does for every new EGL
-        context), and ``sys.unraisablehook`` at :meth:`_unraisable` where it was replaced; False when the
-        table holds something else than the driver's or the hook's function."""
-        if sys.unraisablehook is not self._on_unraisable:  # chained to whatever is there now
-            self._previous_unraisable, sys.unraisablehook = sys.unraisablehook, self._on_unraisable
+        context); False when the table holds something else than the driver's or the hook's function."""
         return self._entry.ensure()
+
+    @contextlib.contextmanager
+    def catching_signals(self) -> Iterator[None]:
+        """``sys.unraisablehook`` at :meth:`_unraisable` while one planned frame is drawn, chained to
+        whatever was there and put back after (unless something replaced it in the meantime)."""
+        previous = sys.unraisablehook
+        self._previous_unraisable, sys.unraisablehook = previous, self._on_unraisable
+        try:
+            yield
+        finally:
+            if sys.unraisablehook is self._on_unraisable:
+                sys.unraisablehook = previous
 
     def _unraisable(self, args) -> None:
         """``sys.unraisablehook``: an exception that left :meth:`_hooked` (a signal's, such as Ctrl-C or
         SIGTERM, whose handler ran in the callback) would be printed and dropped by ctypes. It is raised
-        once PyBullet returns instead, and every map is drawn whole again (the GL calls of this
-        callback may not have run)."""
+        once PyBullet returns instead (by :meth:`ShadowMapReuse.frame`), and every map is drawn whole
+        again (the GL calls of this callback may not have run). Installed only while a planned frame
+        is in flight (:meth:`catching_signals`)."""
         if not self._from_hook(args):
             self._previous_unraisable(args)
             return
         self._interruptions += 1
         self._disable(GL_SCISSOR_TEST)  # whatever this callback had done: no scissor from here on
         self._scissored = False
-        if getattr(self.frames, "plan", None) is not None:  # raised by ShadowMapReuse.frame
-            self.frames.interrupted = getattr(self.frames, "interrupted", None) or args.exc_value
-            return
-        # A frame drawn outside the env: no more Python in this PyBullet call (the table points at the
-        # driver's function until the env's next frame), and the exception is raised in this thread
-        # by a helper once this hook has returned (starting the helper waits for it: an exception
-        # raised then would be lost in this hook, whatever the helper slept first).
-        self._entry.release()
-        left = types.SimpleNamespace(hook=False)
-        threading.Thread(target=_raise_later, args=(threading.get_ident(), args.exc_type, left), daemon=True).start()
-        left.hook = True  # the last statement: no Python runs in this thread between it and PyBullet's return
+        self.frames.interrupted = getattr(self.frames, "interrupted", None) or args.exc_value
 
     def _from_hook(self, args) -> bool:
         """Whether an unraisable exception left :meth:`_hooked` (Python 3.11-3.12 pass the callback as
@@ -228,36 +239,86 @@ class _ViewportHook:
             self._scissored = False
 
 
-def _raise_later(thread: int, exc_type: type[BaseException], left: types.SimpleNamespace) -> None:
-    """Raise ``exc_type`` in ``thread`` at its next Python instruction once ``left.hook`` is set (the
-    hook's last statement, a plain attribute store: ``thread`` checks for an asynchronous exception
-    neither there nor before the PyBullet call it was in returns to Python)."""
-    while not left.hook:
-        time.sleep(0.0005)
-    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread), ctypes.py_object(exc_type))
-
-
 _hook: _ViewportHook | None = None
 _reason: str | None = None
 
 
 def unavailable_reason() -> str | None:
-    """None when shadow maps can be reused in this process (the EGL plugin is loaded and its
-    ``glViewport`` entry was found), else why not. Looked up once, after the plugin loaded."""
+    """None when shadow maps are reused in this process (switched on with
+    ``WEATHER_GYM_SHADOW_MAP_REUSE=1``, the EGL plugin loaded, its ``glViewport`` entry found and the
+    probe passed), else why not. Looked up once, after the plugin loaded."""
     global _hook, _reason
     if _hook is not None or _reason is not None:
         return _reason
-    if os.environ.get(_ENV, "1") == "0":
-        return f"{_ENV}=0"
+    switch = os.environ.get(_ENV, "0")
+    if switch not in ("0", "1", ""):
+        raise InputError(f"{_ENV} must be 1 (reuse shadow maps) or 0 (the default: off), got {switch!r}")
+    if switch != "1":
+        return f"off (the default; {_ENV}=1 switches it on)"
+    if (build := version("pybullet")) not in VERIFIED_BUILDS:
+        _reason = f"PyBullet {build} is not a build this was verified on ({', '.join(VERIFIED_BUILDS)})"
+        return _reason
     try:
-        _hook = _ViewportHook()
+        hook = _ViewportHook()
     except SymbolUnavailable as exc:
         if exc.lasting:
             _reason = str(exc)
         return str(exc)
     except (LookupError, OSError) as exc:
         _reason = str(exc)
+        return _reason
+    _hook = hook
+    if (mismatch := _probe()) is not None:
+        hook._entry.release()
+        _hook, _reason = None, f"switched off: {mismatch}"
     return _reason
+
+
+PROBE_LIGHT = (0.45, -0.3, 0.84)
+
+
+def _probe() -> str | None:
+    """Draw a probe scene's frame with a kept map and with the whole map redrawn: None when the two
+    are the same bytes, else what differed. A box moves between the frames, so a scissor on the
+    wrong texels (another map size or light basis) leaves its old shadow behind and shows."""
+    previous = getattr(_renderer._state, "current", None)
+    client = _renderer.connect(renderer="egl")
+    try:
+        _renderer.activate(client)
+        c = client.id
+        ground = p.createVisualShape(p.GEOM_BOX, halfExtents=[8.0, 8.0, 0.01], physicsClientId=c)
+        p.createMultiBody(0, -1, ground, [0.0, 0.0, -0.01], physicsClientId=c)
+        box = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.6], physicsClientId=c)
+        bodies = [p.createMultiBody(0, -1, box, [x, y, 0.6], physicsClientId=c)
+                  for x, y in ((-2.5, 1.5), (-4.5, 3.0), (-1.5, 4.0))]
+        # the boxes stand on the far side of the plane through the origin across the light: the
+        # plugin's light frustum clips what is nearer the light (see the module's description)
+        view = p.computeViewMatrix([-2.5, -2.0, 6.0], [-2.5, 2.0, 0.0], [0, 0, 1])
+        proj = p.computeProjectionMatrixFOV(70, 1.0, 0.1, 30)
+        reuse = ShadowMapReuse(c)
+        for body in bodies:
+            reuse.declare(body, 0.7)
+
+        def frame() -> np.ndarray:
+            with _renderer.quiet_c_output(), reuse.frame(PROBE_LIGHT):
+                rgb = p.getCameraImage(128, 128, view, proj, renderer=p.ER_BULLET_HARDWARE_OPENGL,
+                                       lightDirection=list(PROBE_LIGHT), physicsClientId=c)[2]
+            return np.asarray(rgb, dtype=np.uint8)
+
+        for _ in range(3):
+            frame()  # the whole map twice, then kept
+        p.resetBasePositionAndOrientation(bodies[0], [-3.3, 2.2, 0.6], [0, 0, 0, 1], physicsClientId=c)
+        kept = frame()
+        if reuse.redrawn_whole != 2:
+            return "the probe's frame was not drawn with a kept map"
+        reuse.invalidate()
+        whole = frame()
+        if not np.array_equal(kept, whole):
+            return f"a probe frame differs from the whole-map frame in {int((kept != whole).sum())} values"
+        return None
+    finally:
+        _renderer.release(client)
+        _renderer.activate(previous)
 
 
 def planned_frame(reuse: ShadowMapReuse | None, light: Mapping[str, Any]) -> contextlib.AbstractContextManager:
@@ -349,7 +410,8 @@ class ShadowMapReuse:
         self._plan(tuple(float(v) for v in light_direction))
         _hook.frames.plan, _hook.frames.interrupted = self, None
         try:
-            yield
+            with _hook.catching_signals():
+                yield
         finally:
             _hook.frames.plan = None
             self._seen = (_hook.generation, _hook.unplanned.get(self._context, 0))
