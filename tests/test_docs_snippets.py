@@ -69,6 +69,36 @@ def test_every_extending_recipe_runs(index, tmp_path):
     assert done.returncode == 0, f"docs/extending.md python block {index}:\n{done.stderr[-2000:]}"
 
 
+HELP_AFTER_RECIPES = """
+import sys
+from weather_gym.cli import build_parser, main
+
+commands = [name for action in build_parser()._subparsers._group_actions for name in action.choices]
+failed = []
+for command in commands:
+    try:
+        main([command, "--help"])
+    except SystemExit as exc:
+        if exc.code != 0:
+            failed.append(f"{command}: exit {exc.code}")
+    except Exception as exc:
+        failed.append(f"{command}: {type(exc).__name__}: {exc}")
+print("commands", len(commands), file=sys.stderr)
+assert not failed, failed
+"""
+
+
+@pytest.mark.slow
+def test_every_command_help_works_after_the_recipes_registered_their_entries(tmp_path):
+    # the recipes' entries (a mode described with "5 %", a metric, an agent, an effect) reach the
+    # help texts of the commands that list their registry: argparse formats those with %
+    script = tmp_path / "recipes_then_help.py"
+    script.write_text("\n\n".join(_python_blocks(RECIPES)) + HELP_AFTER_RECIPES, encoding="utf-8")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert int(re.search(r"commands (\d+)", done.stderr).group(1)) >= 10
+
+
 def test_every_relative_link_in_the_docs_resolves():
     pages = [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted((ROOT / "docs").rglob("*.md"))]
     broken = []

@@ -30,6 +30,7 @@ from pathlib import Path
 from weather_gym._io import declare_inputs
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._help import literal
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.evaluation.evaluate import DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
@@ -85,8 +86,8 @@ def register(sub) -> None:
     e = p.add_argument_group("episode")
     e.add_argument("--env-id", default="WeatherGym/ConeTrack-v0", help="Gymnasium id of the scenario")
     e.add_argument("--perception", default=DEFAULT_PERCEPTION, choices=tuple(PERCEPTION_MODES),
-                   help="what the agent sees: " + "; ".join(f"{m.name}: {m.describe()}"
-                                                             for m in PERCEPTION_MODES.values()))
+                   help="what the agent sees: " + literal("; ".join(f"{m.name}: {m.describe()}"
+                                                                     for m in PERCEPTION_MODES.values())))
     e.add_argument("--laps", type=int, default=1, help="laps per episode")
     e.add_argument("--max-steps", type=int, default=3000, help="step limit per episode (30 steps = 1 s)")
     e.add_argument("--agent-kwargs", default=None, help="JSON object of agent factory arguments")

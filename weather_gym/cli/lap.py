@@ -30,6 +30,7 @@ from tqdm import tqdm
 
 from weather_gym.agents import AGENTS, agent_observes, run_episode
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._help import literal
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
@@ -96,7 +97,7 @@ def register(sub) -> None:
                                    "(default: the scenario's track); see `weather-gym tracks list`")
     p.add_argument("--env", default="WeatherGym/ConeTrack-v0", help="Gymnasium env id (default %(default)s)")
     p.add_argument("--agent", default="gt_pure_pursuit",
-                   help=f"registered agent: {', '.join(AGENTS)} (default gt_pure_pursuit)")
+                   help=f"registered agent: {literal(', '.join(AGENTS))} (default gt_pure_pursuit)")
     p.add_argument("--agent-arg", action="append", default=[], metavar="KEY=VALUE",
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
