@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 from gymnasium.utils.passive_env_checker import env_render_passive_checker
 
 from tests.conftest import SMALL_CAMERA, drive_gt
+from weather_gym.agents import AGENTS
 from weather_gym.envs import STATE_FIELDS, ConeTrackEnv, EnvConfig
 
 
@@ -140,6 +141,26 @@ def test_episode_truncates_at_the_time_limit(make_env):
     env.reset(seed=0)
     out = [env.step(np.array([0.0, 0.0], np.float32)) for _ in range(5)]
     assert [o[3] for o in out] == [False] * 4 + [True]
+    assert out[-1][4]["is_success"] is False  # truncated before a lap: SB3 reads a failure
+
+
+def test_is_success_is_in_every_info_and_true_once_the_laps_are_driven(make_env):
+    from stable_baselines3.common.monitor import Monitor
+
+    env = Monitor(make_env(track="hairpin", max_episode_steps=2000), info_keywords=("is_success",))
+    obs, info = env.reset(seed=0)
+    u = env.unwrapped
+    agent = AGENTS.get("gt_pure_pursuit")(u.track, u.config.camera)
+    agent.reset(seed=0, info=info)
+    flags = []
+    while True:
+        obs, _, terminated, truncated, info = env.step(agent.act(obs, info))
+        flags.append(info["is_success"])
+        if terminated or truncated:
+            break
+    assert terminated and info["end_reason"] == "laps"
+    assert flags[-1] is True and not any(flags[:-1])
+    assert info["episode"]["is_success"] is True  # what Monitor logs (and EvalCallback counts)
 
 
 def test_leaving_the_track_terminates_and_is_counted(make_env):

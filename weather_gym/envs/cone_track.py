@@ -405,6 +405,8 @@ class ConeTrackEnv(gym.Env):
             "time": float(self._time),
             "step": int(self._step),
             "finished": bool(self._finished),
+            # SB3's Monitor and EvalCallback read it at an episode's end (also when TimeLimit truncates)
+            "is_success": bool(len(self._lap_times) >= max(1, self.config.laps) or self._finished),
             "camera": self.config.camera,
             "track": self.track.name,
             "renderer": world.renderer_name,
