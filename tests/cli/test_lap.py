@@ -174,3 +174,13 @@ def test_help_lists_every_registered_agent(capsys):
         main(["lap", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "ppo_cones" in text and all(name in text for name in AGENTS)
+
+
+def test_json_gives_the_result_machine_readable(capsys):
+    import json
+
+    assert main(["lap", "--track", "hairpin", "--perception", "gt_cones", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)  # stdout holds the one JSON object, nothing else
+    assert result["track"] == "hairpin" and result["completed"] is True and result["end"] == "laps"
+    assert len(result["lap_times_s"]) == 1 and result["metrics"]["cones_hit"] == 0
+    assert result["metrics"]["det_map50"] is None  # not measured (no detector): null, not NaN

@@ -19,6 +19,7 @@ A command line above, parsed (nothing runs):
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
@@ -114,6 +115,8 @@ def register(sub) -> None:
     p.add_argument("--strip", type=Path, metavar="PATH.png", help="write a PNG strip of frames")
     p.add_argument("--strip-frames", type=int, default=8, help="frames in the strip (default %(default)s)")
     p.add_argument("--overwrite", action="store_true", help="replace existing --video / --strip files")
+    p.add_argument("--json", action="store_true",
+                   help="print the result as one JSON object (the summary's numbers, machine-readable) instead of text")
     p.set_defaults(func=_run)
 
 
@@ -159,8 +162,31 @@ def _run(args) -> int:
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
         overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile,
     )
-    print(format_result(result))
+    print(result_json(result) if args.json else format_result(result))
     return 0 if result["completed"] else 1
+
+
+def result_json(result: dict[str, Any]) -> str:
+    """The lap's result as one JSON object: numbers as JSON numbers, a metric that could not be
+    measured (None, NaN) as null.
+
+    Example:
+        >>> result_json({"lap_times_s": [np.float64(20.77)], "metrics": {"map50": float("nan")}})
+        '{"lap_times_s": [20.77], "metrics": {"map50": null}}'
+    """
+
+    def plain(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {str(k): plain(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple, np.ndarray)):
+            return [plain(v) for v in value]
+        if isinstance(value, (np.integer, np.bool_)):
+            return value.item()
+        if isinstance(value, (float, np.floating)):
+            return float(value) if math.isfinite(value) else None
+        return value
+
+    return json.dumps(plain(result))
 
 
 def default_max_steps(env_id: str, track: str | None, laps: int) -> int:
