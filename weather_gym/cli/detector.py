@@ -6,6 +6,7 @@ Examples:
     weather-gym detector eval data/val --weather droplets:0.55 --seed 0
     weather-gym detector eval data/val --weather low_light@2
     weather-gym detector predict frame.png --out annotated.png --weather dim:0.78
+    weather-gym detector predict frame.png --json detections.json   # COCO results, as pycocotools' loadRes reads them
     weather-gym detector sweep data/val --weather droplets,dim --k-grid 0,0.55,0.78 --plot docs/img/detections_map_vs_k.png
     weather-gym detector figure data/val --index 40 --out docs/img/detections.png
 
@@ -38,7 +39,7 @@ from weather_gym.perception.plots import (
     plot_map_vs_k,
     sweep_map_vs_k,
 )
-from weather_gym.perception.scoring import score_dataset
+from weather_gym.perception.scoring import coco_results, score_dataset
 from weather_gym.weather.option import OPEN_K_GRAMMAR, add_weather_arg, weather_from_arg
 from weather_gym.weather.spec import parse_open_k
 
@@ -117,9 +118,13 @@ def register(sub) -> None:
     add_overwrite_arg(e, help="replace an existing --json")
     e.set_defaults(func=_eval)
 
-    pr = cmds.add_parser("predict", help="detect cones in one image and draw them")
+    pr = cmds.add_parser("predict", help="detect cones in one image: draw them, write them as COCO results, or both")
     pr.add_argument("image", type=Path)
-    pr.add_argument("--out", type=Path, required=True, help="annotated PNG to write")
+    pr.add_argument("--out", type=Path, default=None, help="annotated PNG to write")
+    pr.add_argument("--json", type=Path, default=None, metavar="PATH.json",
+                    help="the detections in COCO's results format (image_id, category_id = class index + 1, "
+                         "bbox [x, y, w, h] in pixels, score), as pycocotools' loadRes reads them")
+    pr.add_argument("--image-id", type=int, default=1, help="image_id written in --json (default %(default)s)")
     add_detector_args(pr, legacy_model=True)
     add_weather_arg(pr, help="weather applied to the image first (default: none)")
     pr.add_argument("--seed", type=seed_arg, default=0)
@@ -240,7 +245,15 @@ def _check_not_empty(ds) -> None:
 
 def _predict(args) -> int:
     declare_inputs(args.image)
-    check_output(args.out, overwrite=args.overwrite, suffixes=(".png", ".jpg", ".jpeg"), what="--out")
+    if args.out is None and args.json is None:
+        raise InputError("detector predict writes --out (an annotated picture), --json (COCO results) or both; "
+                         "give at least one")
+    if args.out is not None:
+        check_output(args.out, overwrite=args.overwrite, suffixes=(".png", ".jpg", ".jpeg"), what="--out")
+    if args.json is not None:
+        check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
+        if args.out is not None and args.json.resolve() == args.out.resolve():
+            raise InputError("--out and --json must be different files")
     if args.threshold is not None and not 0 <= args.threshold <= 1:
         raise InputError(f"--threshold must be a score in [0, 1], got {args.threshold}")
     image = read_image(args.image)
@@ -252,8 +265,15 @@ def _predict(args) -> int:
         args.detector_threshold = args.threshold
     det = detector_from_args(args)
     d = det(image)
-    write_image(args.out, draw_detections(image, d), overwrite=args.overwrite)
-    print(f"{len(d)} cones -> {args.out}")
+    written = []
+    if args.out is not None:
+        write_image(args.out, draw_detections(image, d), overwrite=args.overwrite)
+        written.append(str(args.out))
+    if args.json is not None:
+        results = coco_results(d.to_dict(), args.image_id)
+        atomic_write_json(args.json, results, indent=1, overwrite=args.overwrite)
+        written.append(str(args.json))
+    print(f"{len(d)} cones -> {', '.join(written)}")
     return 0
 
 

@@ -180,13 +180,29 @@ def coco_lists(frames: Sequence[Any], detections: Sequence[Any], *,
                 for other in range(len(CONE_CLASSES)):
                     if other != int(c):
                         gt_anns.append({**ann, "id": len(gt_anns) + 1, "category_id": other + 1, "copy": True})
-        db = np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4)
-        keep = ~inside_mask(mask, db)
-        for b, sc, c in zip(xyxy_to_xywh(db[keep]), np.asarray(d["scores"]).reshape(-1)[keep],
-                            np.asarray(d["classes"]).reshape(-1)[keep], strict=True):
-            dt_anns.append({"id": len(dt_anns) + 1, "image_id": i, "category_id": int(c) + 1, "bbox": b.tolist(),
-                            "area": float(b[2] * b[3]), "score": float(sc), "iscrowd": 0})
+        keep = ~inside_mask(mask, np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4))
+        for r in coco_results(d, i, keep=keep):
+            w, h = r["bbox"][2:]
+            dt_anns.append({"id": len(dt_anns) + 1, **r, "area": float(w * h), "iscrowd": 0})
     return images, gt_anns, dt_anns
+
+
+def coco_results(detections: Any, image_id: int, *, keep: np.ndarray | None = None) -> list[dict]:
+    """One frame's detections (``boxes`` xyxy pixels, ``scores``, ``classes``) in COCO's results format:
+    ``{"image_id", "category_id" (class index + 1), "bbox" [x, y, w, h], "score"}`` per detection
+    (``keep``: a boolean mask of the detections to write).
+
+    Example:
+        >>> coco_results({"boxes": [[10, 20, 30, 60]], "scores": [0.9], "classes": [1]}, 7)
+        [{'image_id': 7, 'category_id': 2, 'bbox': [10.0, 20.0, 20.0, 40.0], 'score': 0.9}]
+    """
+    d = detections
+    boxes = np.asarray(d["boxes"], dtype=np.float64).reshape(-1, 4)
+    scores, classes = np.asarray(d["scores"]).reshape(-1), np.asarray(d["classes"]).reshape(-1)
+    if keep is not None:
+        boxes, scores, classes = boxes[keep], scores[keep], classes[keep]
+    return [{"image_id": int(image_id), "category_id": int(c) + 1, "bbox": b.tolist(), "score": float(sc)}
+            for b, sc, c in zip(xyxy_to_xywh(boxes), scores, classes, strict=True)]
 
 
 def coco_eval(images: list[dict], gt_anns: list[dict], dt_anns: list[dict], *,
