@@ -10,6 +10,11 @@
 * ``ppo_cones`` - the shipped PPO driver (``examples/train_ppo.py``, ``docs/rl.md``): reads the
   cone list like ``mapper_pure_pursuit``; needs stable-baselines3 (``pip install -e ".[rl]"``).
 
+An agent of your own needs no registration: ``"my_pkg.drivers:MyAgent"`` (a module path, a colon
+and the name of a factory ``(track, camera, **kwargs) -> Agent`` in it, for example the agent's
+class) works wherever a registered name does (``--agent`` of ``weather-gym lap`` and ``evaluate``,
+:func:`make_agent`); its module is imported then, and only then.
+
 Callers always pass the step's ``info``; perception-driven agents never read ground truth from it.
 Each factory declares the observation keys its agent reads (:func:`agent_observes`: ``cones``,
 ``mask``, ``state`` for the cone-list drivers, none for ``gt_pure_pursuit``, unknown for ``sb3``),
@@ -32,6 +37,7 @@ Example:
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
@@ -42,6 +48,7 @@ from weather_gym.agents.episode_driver import EpisodeResult, run_episode
 from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
 from weather_gym.agents.sb3 import SB3Agent
 from weather_gym.agents.stack import MapperPurePursuit
+from weather_gym.errors import InputError
 from weather_gym.paths import PPO_CONES_MODEL
 from weather_gym.registry import Registry
 
@@ -49,7 +56,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera_config import CameraConfig
     from weather_gym.tracks import Track
 
-__all__ = ["Agent", "AGENTS", "EpisodeResult", "agent_observes", "check_action", "make_agent", "observes",
+__all__ = ["Agent", "AGENTS", "EpisodeResult", "agent_factory", "agent_observes", "check_action", "make_agent", "observes",
            "run_episode"]
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -70,9 +77,34 @@ class Agent(Protocol):
 AGENTS: Registry = Registry("agent")
 
 
+def agent_factory(name: str) -> Callable[..., Agent]:
+    """The factory ``(track, camera, **kwargs) -> Agent`` of a registered agent ``name``, or of
+    ``"module.path:attribute"`` (an agent of your own, imported now); InputError naming what is wrong."""
+    if not isinstance(name, str) or ":" not in name:
+        return AGENTS.get(name)  # ValueError lists the valid names
+    module, _, attribute = name.partition(":")
+    if not module or not attribute or not all(p.isidentifier() for p in (*module.split("."), *attribute.split("."))):
+        raise InputError(f"agent {name!r}: expected a registered name ({', '.join(AGENTS.names())}) or "
+                         "'module.path:Factory' (a module you can import, a colon, a factory in it)")
+    try:
+        obj: Any = importlib.import_module(module)
+    except ImportError as exc:
+        raise InputError(f"agent {name!r}: cannot import module {module!r} ({exc}); is it on PYTHONPATH "
+                         "(the current folder is, for `python -m`)?") from None
+    for part in attribute.split("."):
+        if not hasattr(obj, part):
+            raise InputError(f"agent {name!r}: module {module!r} has no {attribute!r}")
+        obj = getattr(obj, part)
+    if not callable(obj):
+        raise InputError(f"agent {name!r}: {attribute!r} is a {type(obj).__name__}, not a factory "
+                         "(track, camera, **kwargs) -> agent")
+    return obj
+
+
 def make_agent(name: str, track: Track, camera: CameraConfig, **kwargs: Any) -> Agent:
-    """Build the registered agent ``name`` (``ValueError`` lists the valid names)."""
-    return AGENTS.get(name)(track, camera, **kwargs)
+    """Build the agent ``name``: a registered one (``ValueError`` lists the valid names) or
+    ``"module.path:Factory"`` (:func:`agent_factory`)."""
+    return agent_factory(name)(track, camera, **kwargs)
 
 
 def observes(keys: Iterable[str] | None) -> Callable[[F], F]:
@@ -86,8 +118,10 @@ def observes(keys: Iterable[str] | None) -> Callable[[F], F]:
 
 
 def agent_observes(name: str) -> frozenset[str] | None:
-    """The observation keys registered agent ``name`` reads (None: not declared, e.g. a loaded policy)."""
-    return getattr(AGENTS.get(name), "observes", None)
+    """The observation keys agent ``name`` reads (None: not declared, e.g. a loaded policy or an agent of
+    your own without :func:`observes`)."""
+    observed = getattr(agent_factory(name), "observes", None)
+    return None if observed is None else frozenset(observed)
 
 
 @AGENTS.register("gt_pure_pursuit")

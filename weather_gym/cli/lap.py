@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym.agents import AGENTS, agent_observes, run_episode
+from weather_gym.agents import AGENTS, agent_factory, agent_observes, run_episode
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
 from weather_gym.cli._seed_arg import seed_arg
@@ -98,7 +98,8 @@ def register(sub) -> None:
                                    "(default: the scenario's track); see `weather-gym tracks list`")
     p.add_argument("--env", default="WeatherGym/ConeTrack-v0", help="Gymnasium env id (default %(default)s)")
     p.add_argument("--agent", default="gt_pure_pursuit",
-                   help=f"registered agent: {literal(', '.join(AGENTS))} (default gt_pure_pursuit)")
+                   help=f"registered agent ({literal(', '.join(AGENTS))}) or an agent of your own as "
+                        "'module.path:Factory' (default gt_pure_pursuit)")
     p.add_argument("--agent-arg", action="append", default=[], metavar="KEY=VALUE",
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
@@ -220,7 +221,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     and the episode from :func:`weather_gym.agents.run_episode`.
     """
 
-    factory = AGENTS.get(agent)
+    factory = agent_factory(agent)
     observes = agent_observes(agent)
     mode = auto_mode(observes) if perception == AUTO else perception_mode(perception)
     check_agent_observes(agent, observes, mode)

@@ -41,7 +41,7 @@ from typing import Any
 import gymnasium as gym
 
 from weather_gym._io import file_id
-from weather_gym.agents import AGENTS, agent_observes, make_agent, run_episode
+from weather_gym.agents import agent_factory, agent_observes, make_agent, run_episode
 from weather_gym.agents.sb3 import model_sidecar
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.registration import check_env_id
@@ -129,7 +129,8 @@ class EvalConfig:
     """The evaluation grid and the settings shared by its cells.
 
     Attributes:
-        agents: names in ``weather_gym.agents.AGENTS``.
+        agents: names in ``weather_gym.agents.AGENTS``, or agents of your own as ``"module.path:Factory"``
+            (importable by the workers too: installed, or on ``PYTHONPATH``).
         effects: weather conditions or their effect names (``droplets``, ``dim``/``low_light``).
         severities: preset severities (0-4).
         seeds: episode seeds (``reset(seed=...)``: weather realisation, odometry noise, ...).
@@ -242,7 +243,7 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
 
     agents = _check_names("agents", config.agents)
     for a in agents:
-        AGENTS.get(a)  # ValueError lists the valid names
+        agent_factory(a)  # ValueError lists the valid names; 'module:Factory' is imported
     tracks = _check_names("tracks", config.tracks)
 
     for t in tracks:
