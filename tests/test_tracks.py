@@ -367,3 +367,18 @@ def test_one_point_projection_gives_the_floats_of_the_array_path(name):
             one = t.project(float(x[k]), float(y[k]), s_hint=hint)
             arr = t.project(np.array([x[k]]), np.array([y[k]]), s_hint=hint)
             assert (one.s, one.lateral, one.heading, one.index) == (arr.s[0], arr.lateral[0], arr.heading[0], arr.index[0])
+
+
+def test_a_csv_track_is_shown_by_its_name_not_this_machines_path(tmp_path, monkeypatch):
+    from weather_gym.paths import data_dir
+    from weather_gym.tracks import source_label, track_label
+
+    csv = tmp_path / "deep" / "test_day.csv"
+    csv.parent.mkdir()
+    csv.write_text((data_dir("tracks") / "eufs" / "peanut.csv").read_text())
+    assert track_label(str(csv)) == "test_day" and track_label(f"mirror:{csv}") == "mirror:test_day"
+    assert track_label("random:7") == "random:7" and track_label("hairpin") == "hairpin"
+    monkeypatch.chdir(tmp_path)  # far from the checkout: shipped files still show as tracks/...
+    assert source_label(load_track("peanut").source) == "tracks/eufs/peanut.csv"
+    assert source_label(str(csv)) == "test_day.csv"
+    assert source_label(load_track("oval").source).startswith("generated:oval(")

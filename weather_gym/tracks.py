@@ -48,7 +48,7 @@ __all__ = [
     "CONE_CLASSES", "CSV_HEADER", "DUPLICATE_TOL_M", "EVENTS", "MAX_CONES", "MAX_COORDINATE_M", "MAX_TRACK_FILE_BYTES",
     "MIN_RADIUS_M", "MIRROR_PREFIX", "REVERSE_PREFIX", "TRACKS", "Projection", "StartPose", "Track",
     "generate_random_track", "is_track_file", "load_track", "mirror_track", "oval", "read_cone_csv", "reverse_track",
-    "track_file_part", "track_from_csv",
+    "source_label", "track_file_part", "track_from_csv", "track_label",
 ]
 
 
@@ -262,6 +262,31 @@ def track_file_part(spec) -> tuple[str, str] | None:
     if not inner or not is_track_file(inner):
         return None
     return whole[:len(whole) - len(inner)], inner
+
+
+def track_label(spec: str | os.PathLike) -> str:
+    """How a track spec is shown to people (lap printouts, report titles): the spec itself, but a
+    cone CSV by its file name without the folder (a path is this machine's business).
+
+    Example:
+        >>> track_label("/home/me/tracks/test_day.csv"), track_label("reverse:data/b.csv"), track_label("random:7")
+        ('test_day', 'reverse:b', 'random:7')
+    """
+    part = track_file_part(os.fspath(spec))
+    if part is None:
+        return os.fspath(spec)
+    prefixes, path = part
+    return prefixes + Path(path).stem
+
+
+def source_label(source: str) -> str:
+    """A track's ``source`` as shown by ``weather-gym tracks list``: a shipped CSV relative to the shipped
+    ``tracks`` folder (``tracks/eufs/peanut.csv``, wherever the package is installed), another file by
+    its name, a generated track's recipe as it is."""
+    try:
+        return str(Path("tracks") / Path(source).resolve().relative_to(data_dir("tracks").resolve()))
+    except (ValueError, OSError):
+        return Path(source).name if is_track_file(source) else source
 
 
 RANDOM_TRACK_ARGS = ("length", "width", "spacing", "start_pair")

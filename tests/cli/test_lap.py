@@ -184,3 +184,13 @@ def test_json_gives_the_result_machine_readable(capsys):
     assert result["track"] == "hairpin" and result["completed"] is True and result["end"] == "laps"
     assert len(result["lap_times_s"]) == 1 and result["metrics"]["cones_hit"] == 0
     assert result["metrics"]["det_map50"] is None  # not measured (no detector): null, not NaN
+
+
+def test_a_csv_track_is_printed_by_its_name(tmp_path, capsys):
+    from weather_gym.paths import data_dir
+
+    csv = tmp_path / "my_test_day.csv"
+    csv.write_text((data_dir("tracks") / "eufs" / "Hairpin_02_03_2023.csv").read_text())
+    assert main(["lap", "--track", str(csv), "--perception", "gt_cones"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("track my_test_day (trackdrive") and str(tmp_path) not in first

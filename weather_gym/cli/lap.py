@@ -47,7 +47,7 @@ from weather_gym.perception_modes import (
     perception_mode,
 )
 from weather_gym.pipeline import make_env
-from weather_gym.tracks import load_track
+from weather_gym.tracks import load_track, track_label
 from weather_gym.viz.overlay import TopDownView, compose_frame, cone_list_boxes, draw_boxes
 from weather_gym.viz.video import FrameSampler, VideoWriter, check_output_path, save_strip
 from weather_gym.weather import parse_weather
@@ -279,7 +279,8 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     finally:
         env.close()
     result = {
-        "env": env_id, "track": track or trk.name, "event": trk.event, "track_length_m": float(trk.length), "agent": agent,
+        "env": env_id, "track": trk.name if track is None else track_label(track), "track_spec": track or trk.name,
+        "event": trk.event, "track_length_m": float(trk.length), "agent": agent,
         "perception": mode.name, "weather": state["weather"], "seed": seed, "laps_requested": laps,
         "lap_times_s": list(res.lap_times_s), "completed": res.completed, "end": res.end_reason,
         "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,

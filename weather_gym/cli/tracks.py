@@ -26,7 +26,7 @@ from weather_gym._io import check_output
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.errors import InputError
 from weather_gym.track_plot import plot_track
-from weather_gym.tracks import TRACKS, load_track
+from weather_gym.tracks import TRACKS, load_track, source_label
 
 ALL_SEED = 7
 """Seed of the random track drawn by ``show --all``."""
@@ -63,15 +63,8 @@ def _list(args) -> int:
     for name in TRACKS.names():
         t = load_track(name, seed=args.seed)
         shown = f"random:{args.seed}" if name == "random" else name
-        print(f"{shown:<16}{len(t.cones_xy):>7}{t.length:>10.1f}  {t.event:<13}{_short(t.source)}")
+        print(f"{shown:<16}{len(t.cones_xy):>7}{t.length:>10.1f}  {t.event:<13}{source_label(t.source)}")
     return 0
-
-
-def _short(source: str) -> str:
-    try:
-        return str(Path(source).resolve().relative_to(Path.cwd()))
-    except ValueError:
-        return source
 
 
 def _show(args) -> int:
