@@ -41,11 +41,18 @@ from weather_gym._io import atomic_write_json, write_image
 from weather_gym._lock import exclusive_folder
 from weather_gym.camera_config import CameraConfig
 from weather_gym.datasets.coco import ANNOTATIONS
-from weather_gym.datasets.importers import PARTIAL, _check_resume, _clear_but_marker, _condition, _out_state, parse_intrinsics
+from weather_gym.datasets.importers import (
+    PARTIAL,
+    _check_resume,
+    _clear_but_marker,
+    _condition,
+    _out_state,
+    parse_intrinsics,
+)
 from weather_gym.errors import FileFormatError, MissingInputError, OutputPathError
 from weather_gym.perception.labels import CATEGORIES, SmallRule
 from weather_gym.ros.bags import open_bag
-from weather_gym.ros.camera import Window, camera_frames, intrinsics_of
+from weather_gym.ros.camera import ALL_FRAMES, Window, camera_frames, intrinsics_of
 from weather_gym.ros.messages import CONE_ARRAY
 
 __all__ = ["NO_LABELS", "import_rosbag"]
@@ -65,7 +72,7 @@ def _bag_id(bag: Path) -> str:
 
 
 def import_rosbag(bag: str | os.PathLike, out: str | os.PathLike, *, topic: str | None = None,
-                  window: Window = Window(), camera_info: str | None = None, condition: str | None = None,
+                  window: Window = ALL_FRAMES, camera_info: str | None = None, condition: str | None = None,
                   severity: int | None = None, intrinsics: Any = None, detector: Any = None,
                   overwrite: bool = False, resume: bool = False, progress: bool = False) -> dict[str, Any]:
     """Import the camera ``topic`` of ``bag`` into the COCO folder ``out``; returns a summary dict.

@@ -19,7 +19,7 @@ from weather_gym.errors import InputError
 from weather_gym.ros.bags import Bag
 from weather_gym.ros.messages import CAMERA_INFO, image_to_rgb, msgtype_name, stamp_of
 
-__all__ = ["BagFrame", "Window", "camera_frames", "intrinsics_of"]
+__all__ = ["ALL_FRAMES", "BagFrame", "Window", "camera_frames", "intrinsics_of"]
 
 
 @dataclass(frozen=True)
@@ -43,8 +43,8 @@ class Window:
 
     def bounds(self, bag_start_ns: int) -> tuple[int | None, int | None]:
         """The window in bag receive time (ns): ``start`` inclusive, ``stop`` exclusive."""
-        f = (lambda s: None if s is None else bag_start_ns + round(s * 1e9))
-        return f(self.start_s), f(self.end_s)
+        return tuple(None if s is None else bag_start_ns + round(s * 1e9)  # type: ignore[return-value]
+                     for s in (self.start_s, self.end_s))
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,11 @@ def intrinsics_of(info: Any) -> dict[str, float] | None:
     return {"fx": k[0], "fy": k[4], "cx": k[2], "cy": k[5]}
 
 
-def camera_frames(bag: Bag, topic: str, window: Window = Window(), *,
+ALL_FRAMES = Window()
+"""Every frame of the topic."""
+
+
+def camera_frames(bag: Bag, topic: str, window: Window = ALL_FRAMES, *,
                   info_topic: str | None = None) -> Iterator[BagFrame]:
     """The frames of the image ``topic`` in ``window`` (see :class:`Window`), decoded in time order."""
     t = bag.image_topic(topic)
