@@ -34,8 +34,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
-import tempfile
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,9 +41,9 @@ from typing import Any
 
 from tqdm import tqdm
 
-from weather_gym._io import check_not_input
-from weather_gym.errors import InputError, MissingInputError, OutputExistsError, OutputPathError
+from weather_gym.errors import InputError, MissingInputError
 from weather_gym.ros._deps import require, rosbag1, rosbag2
+from weather_gym.ros.bag_output import bag_output, check_bag_output
 from weather_gym.ros.bags import Bag, bag_kind, open_bag
 from weather_gym.ros.camera import intrinsics_of
 from weather_gym.ros.messages import (
@@ -86,18 +84,7 @@ def _check_paths(src: Path, out: Path, kind: str, overwrite: bool) -> None:
     rs, ro = Path(os.path.realpath(src)), Path(os.path.realpath(out))
     if rs == ro or rs in ro.parents or ro in rs.parents:
         raise InputError(f"{out}: the output bag must not be the input bag, nor inside it or around it")
-    check_not_input(out, what="OUT_BAG")
-    if kind == "rosbag1" and out.suffix.lower() != ".bag":
-        raise OutputPathError(f"OUT_BAG {out}: the input is a ROS 1 bag, so the output is one too: give a .bag file")
-    if kind == "rosbag2" and out.suffix.lower() in (".bag", ".mcap", ".db3"):
-        raise OutputPathError(f"OUT_BAG {out}: a rosbag2 bag is a folder (metadata.yaml and its storage file); give "
-                              "a folder name without .bag/.mcap/.db3")
-    if out.exists() or out.is_symlink():
-        if not overwrite:
-            raise OutputExistsError(f"OUT_BAG {out} already exists; pass --overwrite to replace it")
-        if bag_kind(out) != kind or out.is_symlink():
-            raise OutputPathError(f"OUT_BAG {out} exists and is not a {kind} bag: it is not replaced; choose "
-                                  "another path")
+    check_bag_output(out, kind, overwrite)
 
 
 def degrade_bag(src: str | os.PathLike, out: str | os.PathLike, *, weather: Any, topic: str | None = None,
@@ -121,21 +108,8 @@ def degrade_bag(src: str | os.PathLike, out: str | os.PathLike, *, weather: Any,
         odom = _odometry_topic(bag, odometry)
         res = BagDegradeResult(str(out), t.name, odometry=odom, camera_info=bag.camera_info_topic(t.name),
                                kind=bag.kind, storage=bag.storage)
-        try:
-            parent_ok = out.parent.exists() or out.parent.mkdir(parents=True) is None
-        except OSError as exc:
-            raise OutputPathError(f"cannot make the folder of {out}: {exc.strerror or exc}") from None
-        assert parent_ok
-        try:
-            tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-        except OSError as exc:
-            raise OutputPathError(f"cannot write {out}: {exc.strerror or exc}") from None
-        try:
-            inner = tmp / out.name
+        with bag_output(out, kind=bag.kind, overwrite=overwrite) as inner:
             _write(bag, inner, res, weather.start(seed), jpeg_quality, progress)
-            _commit(inner, out, tmp)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
     return res
 
 
@@ -152,19 +126,6 @@ def _odometry_topic(bag: Bag, odometry: str | None) -> str | None:
         raise InputError(f"--odometry {odometry}: not a nav_msgs/Odometry topic of {bag.path} "
                          f"(odometry topics: {', '.join(odoms) or 'none'})")
     return odometry
-
-
-def _commit(inner: Path, out: Path, tmp: Path) -> None:
-    """Move the finished bag into place; an old bag at ``out`` (overwrite, checked before) goes last."""
-    old = tmp / ".replaced"
-    if out.exists() or out.is_symlink():
-        os.rename(out, old)
-    try:
-        os.rename(inner, out)
-    except OSError as exc:
-        if old.exists():
-            os.rename(old, out)
-        raise OutputPathError(f"cannot write {out}: {exc.strerror or exc}") from None
 
 
 def _open_writer(bag: Bag, inner: Path) -> Any:
