@@ -8,6 +8,7 @@ Examples:
     weather-gym lap --agent sb3 --agent-arg path=runs/ppo.zip --perception detector
     weather-gym lap --agent mapper_pure_pursuit --perception gt_cones     # nothing rendered: fast
     weather-gym lap --agent mapper_pure_pursuit --perception surrogate --weather droplets@3
+    weather-gym lap --track hairpin --agent mapper_pure_pursuit --perception detector --weather droplets@3 --bag lap_bag
 
 A command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
@@ -29,6 +30,7 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym.agents import AGENTS, agent_observes, run_episode
+from weather_gym.agents.mapper import MapperConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.envs.registration import scenario_of
@@ -45,6 +47,8 @@ from weather_gym.perception_modes import (
     perception_mode,
 )
 from weather_gym.pipeline import make_env
+from weather_gym.ros.bag_output import check_bag_output
+from weather_gym.ros.episode_bag import BAG_IMAGES, ConeNoise, EpisodeBag
 from weather_gym.tracks import load_track
 from weather_gym.viz.overlay import TopDownView, compose_frame, cone_list_boxes, draw_boxes
 from weather_gym.viz.video import FrameSampler, VideoWriter, check_output_path, save_strip
@@ -112,7 +116,13 @@ def register(sub) -> None:
     p.add_argument("--video", type=Path, metavar="PATH.mp4", help="write an MP4 of the run")
     p.add_argument("--strip", type=Path, metavar="PATH.png", help="write a PNG strip of frames")
     p.add_argument("--strip-frames", type=int, default=8, help="frames in the strip (default %(default)s)")
-    p.add_argument("--overwrite", action="store_true", help="replace existing --video / --strip files")
+    p.add_argument("--bag", type=Path, metavar="FOLDER",
+                   help="write an MCAP rosbag2 of the run: camera (clear and weathered), CameraInfo, detected and "
+                        "true cones (eufs_msgs/ConeArrayWithCovariance), odometry, TF (docs/ros.md)")
+    p.add_argument("--bag-images", choices=BAG_IMAGES, default="jpeg",
+                   help="camera frames in --bag: jpeg (CompressedImage, quality 90) or raw (Image rgb8, the exact "
+                        "pixels, about ten times larger); default %(default)s")
+    p.add_argument("--overwrite", action="store_true", help="replace existing --video / --strip files / --bag")
     p.set_defaults(func=_run)
 
 
@@ -156,7 +166,8 @@ def _run(args) -> int:
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
-        overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile,
+        overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile, bag=args.bag,
+        bag_images=args.bag_images,
     )
     print(format_result(result))
     return 0 if result["completed"] else 1
@@ -182,12 +193,15 @@ def _perception_kwargs(mode: PerceptionMode, recording: bool, depth_quantile: fl
     return kwargs
 
 
-def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = None, agent: str = "gt_pure_pursuit",
+def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = None, agent: str = "gt_pure_pursuit",  # noqa: C901
              agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = AUTO,
              detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
-             overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None) -> dict[str, Any]:
+             overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None,
+             bag: Path | None = None, bag_images: str = "jpeg") -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
+
+    ``bag``: also write the run as an MCAP rosbag2 folder (:class:`~weather_gym.ros.episode_bag.EpisodeBag`).
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
     and the episode from :func:`weather_gym.agents.run_episode`.
@@ -198,6 +212,10 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     mode = auto_mode(observes) if perception == AUTO else perception_mode(perception)
     check_agent_observes(agent, observes, mode)
     recording = video is not None or strip is not None
+    if bag is not None:
+        check_bag_output(bag, "rosbag2", overwrite, what="--bag")
+        if bag_images not in BAG_IMAGES:
+            raise InputError(f"--bag-images must be one of {', '.join(BAG_IMAGES)}, got {bag_images!r}")
     if recording and not mode.can_record_video:
         alike = (modes_where(can_record_video=True, observation=mode.observation)
                  or modes_where(can_record_video=True))
@@ -210,10 +228,12 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         env_kwargs["track"] = track
     if weather is not None:
         parse_weather(weather)  # a bad spec fails here, with the parser's message
-    perception_kwargs = _perception_kwargs(mode, recording, depth_quantile)
+    perception_kwargs = _perception_kwargs(mode, recording or (bag is not None and mode.can_record_video),
+                                           depth_quantile)
     env = make_env(env_id, perception=mode.name, weather=weather, detector=detector if mode.runs_detector else None,
                    perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, **env_kwargs)
     recorder = None
+    episode_bag: EpisodeBag | None = None
     try:
         base = env.unwrapped
         trk, camera = base.track, base.config.camera
@@ -224,29 +244,37 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         state: dict[str, Any] = {}
 
         def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
-            nonlocal recorder
+            nonlocal recorder, episode_bag
             if step == 0:
                 state["weather"] = weather or _describe_weather(info.get("weather"))
                 state["weathered"] = "weather" in info
                 if recording:
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
                                          state["weather"])
+                if bag is not None:
+                    episode_bag = _open_bag(bag, base, trk, state["weathered"], bag_images, overwrite)
             scoring(step, obs, info, done)
             if recorder is not None:
                 recorder.add(obs, info, laps)
+            if episode_bag is not None:
+                _bag_step(episode_bag, base, obs, info)
             if step and step % 30 == 0:
                 bar.update(info, laps)
 
         try:
             res = run_episode(env, driver, seed=seed, on_step=on_step, agent_name=agent)
-        except BaseException:
+        except BaseException as exc:
             if recorder is not None:
                 recorder.abort()  # an interrupted run leaves no half-written video or strip
+            if episode_bag is not None:
+                episode_bag.__exit__(type(exc), exc, None)  # nor a bag
             raise
         finally:
             bar.close()
         if recorder is not None:
             recorder.close()
+        if episode_bag is not None:
+            episode_bag.__exit__(None, None, None)
         renderer = base.renderer
     finally:
         env.close()
@@ -266,7 +294,28 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         result["video_frames"] = recorder.video.frames if recorder is not None and recorder.video is not None else 0
         result["video_codec"] = recorder.video.codec if recorder is not None and recorder.video is not None else None
         result["strip"] = str(strip) if strip is not None else None
+    if episode_bag is not None:
+        result["bag"] = str(bag)
+        result["bag_topics"] = dict(sorted(episode_bag.counts.items()))
     return result
+
+
+def _open_bag(bag: Path, base: Any, trk: Any, weathered: bool, images: str, overwrite: bool) -> EpisodeBag:
+    """The episode's bag, opened (the mapper's range/bearing noise gives the cones' covariance)."""
+    m = MapperConfig()
+    return EpisodeBag(bag, camera=base.config.camera, cones_xy=trk.cones_xy, cone_classes=trk.cone_classes,
+                      weathered=weathered, images=images, noise=ConeNoise(m.range_std, m.range_std_rel, m.bearing_std),
+                      overwrite=overwrite).__enter__()
+
+
+def _bag_step(episode_bag: EpisodeBag, base: Any, obs: Any, info: dict) -> None:
+    """One step into the bag: clear frame from the env, the observation's (weathered) image and cones."""
+    d = obs if isinstance(obs, dict) else {"image": obs}
+    state = d.get("state")
+    odom = None if state is None else np.asarray(state, np.float64)[2:5]
+    episode_bag.add(float(info["time"]), clear=base.clear_image, weathered=d.get("image"), cones=d.get("cones"),
+                    mask=d.get("mask"), pose=info["pose"], speed=float(info["speed"]),
+                    yaw_rate=float(info["yaw_rate"]), odom=odom)
 
 
 class _LapProgress:
@@ -324,6 +373,8 @@ def format_result(r: dict[str, Any]) -> str:
         lines.append(f"video: {r['video']} ({r['video_frames']} frames, {codec})")
     if r.get("strip"):
         lines.append(f"strip: {r['strip']}")
+    if r.get("bag"):
+        lines.append(f"bag: {r['bag']} (MCAP rosbag2): " + ", ".join(f"{t} {n}" for t, n in r["bag_topics"].items()))
     return "\n".join(lines)
 
 
