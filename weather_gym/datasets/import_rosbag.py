@@ -123,9 +123,6 @@ def _import(b: Any, src: Path, out: Path, state: str, *, topic: str | None, wind
     ident = {"format": "rosbag", "source": str(src), **settings, "source_files": _bag_id(src)}
     if state == "resume":
         _check_resume(out, ident)
-    atomic_write_json(out / PARTIAL, {"identity": ident}, overwrite=state != "new")
-    if state == "replace":
-        _clear_but_marker(out)
     images: list[dict[str, Any]] = []
     sizes: Counter = Counter()
     encodings: Counter = Counter()
@@ -134,6 +131,10 @@ def _import(b: Any, src: Path, out: Path, state: str, *, topic: str | None, wind
     for fr in tqdm(camera_frames(b, t.name, window, info_topic=info_topic), total=total, desc="import",
                    unit="frame", disable=not progress):
         i = len(images)
+        if i == 0:  # the marker goes in with the first frame: a bag without frames in the window leaves nothing
+            atomic_write_json(out / PARTIAL, {"identity": ident}, overwrite=state != "new")
+            if state == "replace":
+                _clear_but_marker(out)
         h, w = fr.rgb.shape[:2]
         name = f"{i:06d}.png"
         dest = out / "images" / name
