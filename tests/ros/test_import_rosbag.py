@@ -90,3 +90,14 @@ def test_cli_import(tmp_path, capsys):
     assert "imported 2 frames (96x64) of /cam/image_raw/compressed" in out and "labels: none" in out
     assert main(["dataset", "import", "yolo", str(bag), "--out", str(tmp_path / "x"), "--topic", "/cam"]) == 2
     assert "go with the rosbag format" in capsys.readouterr().err
+
+
+def test_without_rosbags_the_error_names_the_pip_command(tmp_path, monkeypatch):
+    from weather_gym.errors import MissingDependencyError
+    from weather_gym.ros import _deps
+
+    monkeypatch.setattr(_deps, "AnyReader", None)
+    bag = ros2_bag(tmp_path / "run", n=1)
+    with pytest.raises(MissingDependencyError, match=r"pip install 'weather-gym\[ros\]'"):
+        import_rosbag(bag, tmp_path / "ds")
+    assert not (tmp_path / "ds").exists()
