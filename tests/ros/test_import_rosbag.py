@@ -58,13 +58,41 @@ def test_ros1_bag_imports(tmp_path):
     assert np.array_equal(load_coco(tmp_path / "ds").image(2), frame(2, 80, 48))
 
 
-def test_truncated_bag_is_a_typed_error_and_nothing_is_written(tmp_path):
-    bag = ros2_bag(tmp_path / "run", n=3)
-    mcap = next(bag.glob("*.mcap"))
-    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+@pytest.mark.parametrize("kind", ["mcap", "sqlite3", "ros1"])
+def test_truncated_bag_is_a_typed_error_and_nothing_is_written(tmp_path, kind):
+    if kind == "ros1":
+        bag = file = ros1_bag(tmp_path / "run.bag", n=3)
+    else:
+        bag = ros2_bag(tmp_path / "run", storage=kind, n=3)
+        file = next(p for p in bag.iterdir() if p.suffix in (".mcap", ".db3"))
+    file.write_bytes(file.read_bytes()[: file.stat().st_size // 2])
     with pytest.raises(FileFormatError, match="damaged, truncated"):
         import_rosbag(bag, tmp_path / "ds")
     assert not (tmp_path / "ds").exists()
+
+
+def test_an_interrupted_import_resumes(tmp_path, monkeypatch):
+    from weather_gym.datasets import import_rosbag as mod
+
+    bag = ros2_bag(tmp_path / "run", n=5)
+    real, calls = mod.write_image, []
+
+    def flaky(path, image, **kw):
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        calls.append(path)
+        return real(path, image, **kw)
+
+    monkeypatch.setattr(mod, "write_image", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        import_rosbag(bag, tmp_path / "ds")
+    monkeypatch.setattr(mod, "write_image", real)
+    with pytest.raises(OutputExistsError, match="interrupted import"):
+        import_rosbag(bag, tmp_path / "ds")
+    with pytest.raises(InputError, match="other settings"):
+        import_rosbag(bag, tmp_path / "ds", window=Window(every=2), resume=True)
+    r = import_rosbag(bag, tmp_path / "ds", resume=True)
+    assert (r["frames"], r["resumed"]) == (5, 3) and len(load_coco(tmp_path / "ds")) == 5
 
 
 def test_topic_checks_and_an_existing_dataset(tmp_path):
