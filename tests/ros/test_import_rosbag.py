@@ -124,7 +124,7 @@ def test_without_rosbags_the_error_names_the_pip_command(tmp_path, monkeypatch):
     from weather_gym.errors import MissingDependencyError
     from weather_gym.ros import _deps
 
-    monkeypatch.setattr(_deps, "AnyReader", None)
+    monkeypatch.setattr(_deps, "_LIB", False)
     bag = ros2_bag(tmp_path / "run", n=1)
     with pytest.raises(MissingDependencyError, match=r"pip install 'weather-gym\[ros\]'"):
         import_rosbag(bag, tmp_path / "ds")

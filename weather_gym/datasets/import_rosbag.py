@@ -49,7 +49,7 @@ from weather_gym.datasets.importers import (
     _out_state,
     parse_intrinsics,
 )
-from weather_gym.errors import FileFormatError, MissingInputError, OutputPathError
+from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
 from weather_gym.perception.labels import CATEGORIES, SmallRule
 from weather_gym.ros.bags import open_bag
 from weather_gym.ros.camera import ALL_FRAMES, Window, camera_frames, intrinsics_of
@@ -85,7 +85,7 @@ def import_rosbag(bag: str | os.PathLike, out: str | os.PathLike, *, topic: str 
     given, out = Path(bag), Path(out)
     window.check()
     if resume and overwrite:
-        raise FileFormatError("--resume continues an interrupted import, --overwrite starts again: pass one of them")
+        raise InputError("--resume continues an interrupted import, --overwrite starts again: pass one of them")
     if not given.exists():
         raise MissingInputError(f"bag {given} not found")
     src = Path(os.path.realpath(given))

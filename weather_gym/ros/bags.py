@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
-from weather_gym.ros._deps import AnyReader, AnyReaderError, require, rosbag1, rosbag2
+from weather_gym.ros._deps import lib
 from weather_gym.ros.messages import CAMERA_INFO, IMAGE_TYPES, msgtype_name, typestore
 
 __all__ = ["BAG_SUFFIXES", "Bag", "bag_kind", "open_bag"]
@@ -49,7 +49,8 @@ def bag_kind(path: str | os.PathLike) -> str | None:
 
 def _read_errors() -> tuple[type[BaseException], ...]:
     """What the bag libraries raise for a damaged bag (beside their own error classes)."""
-    return (AnyReaderError, rosbag1.ReaderError, rosbag2.ReaderError, sqlite3.Error, struct.error, EOFError, ValueError, KeyError, IndexError,
+    rb = lib()
+    return (rb.AnyReaderError, rb.rosbag1.ReaderError, rb.rosbag2.ReaderError, sqlite3.Error, struct.error, EOFError, ValueError, KeyError, IndexError,
             AssertionError, UnicodeDecodeError, OverflowError)
 
 
@@ -168,7 +169,7 @@ class _Opened:
         self.bag: Bag | None = None
 
     def __enter__(self) -> Bag:
-        require(f"reading the bag {self.path}")
+        rb = lib(f"reading the bag {self.path}")
         p = self.path
         if not p.exists():
             raise MissingInputError(f"bag {p} not found")
@@ -176,7 +177,7 @@ class _Opened:
         if kind is None:
             raise InputError(f"{p}: not a ROS bag; expected a rosbag2 folder (with metadata.yaml), a .mcap or .db3 "
                              "rosbag2 file, or a ROS 1 .bag file")
-        reader = AnyReader([p], default_typestore=typestore())
+        reader = rb.AnyReader([p], default_typestore=typestore())
         try:
             reader.open()
         except (*_read_errors(), OSError) as exc:

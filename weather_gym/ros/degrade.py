@@ -24,10 +24,10 @@ Example:
     >>> import tempfile
     >>> from weather_gym.weather import parse_weather
     >>> d = tempfile.mkdtemp()
-    >>> degrade_bag(d + "/in.mcap", d + "/in.mcap", weather=parse_weather("droplets@2"))
+    >>> degrade_bag(d + "/in.mcap", d + "/out", weather=parse_weather("droplets@2"))
     Traceback (most recent call last):
     ...
-    weather_gym.errors.InputError: ...: the output bag must not be the input bag, nor inside it or around it
+    weather_gym.errors.MissingInputError: bag .../in.mcap not found
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from typing import Any
 from tqdm import tqdm
 
 from weather_gym.errors import InputError, MissingInputError
-from weather_gym.ros._deps import require, rosbag1, rosbag2
+from weather_gym.ros._deps import lib
 from weather_gym.ros.bag_output import bag_output, check_bag_output
 from weather_gym.ros.bags import Bag, bag_kind, open_bag
 from weather_gym.ros.camera import intrinsics_of
@@ -98,11 +98,14 @@ def degrade_bag(src: str | os.PathLike, out: str | os.PathLike, *, weather: Any,
     src, out = Path(src), Path(out)
     if not 1 <= int(jpeg_quality) <= 100:
         raise InputError(f"--jpeg-quality must be 1-100, got {jpeg_quality}")
-    kind = bag_kind(src) if src.exists() else None
-    _check_paths(src, out, kind or "rosbag2", overwrite)
     if not src.exists():
         raise MissingInputError(f"bag {src} not found")
-    require(f"weathering the bag {src}")
+    kind = bag_kind(src)
+    if kind is None:
+        raise InputError(f"{src}: not a ROS bag; expected a rosbag2 folder (with metadata.yaml), a .mcap or .db3 "
+                         "rosbag2 file, or a ROS 1 .bag file")
+    _check_paths(src, out, kind, overwrite)
+    lib(f"weathering the bag {src}")
     with open_bag(src) as bag:
         t = bag.image_topic(topic)
         odom = _odometry_topic(bag, odometry)
@@ -129,11 +132,12 @@ def _odometry_topic(bag: Bag, odometry: str | None) -> str | None:
 
 
 def _open_writer(bag: Bag, inner: Path) -> Any:
+    rb = lib()
     if bag.kind == "rosbag1":
-        w = rosbag1.Writer(inner)
+        w = rb.rosbag1.Writer(inner)
     else:
-        plugin = rosbag2.StoragePlugin.MCAP if bag.storage == "mcap" else rosbag2.StoragePlugin.SQLITE3
-        w = rosbag2.Writer(inner, version=ROSBAG2_VERSION, storage_plugin=plugin)
+        plugin = rb.rosbag2.StoragePlugin.MCAP if bag.storage == "mcap" else rb.rosbag2.StoragePlugin.SQLITE3
+        w = rb.rosbag2.Writer(inner, version=ROSBAG2_VERSION, storage_plugin=plugin)
     w.open()
     return w
 

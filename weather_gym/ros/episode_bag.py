@@ -52,7 +52,7 @@ import numpy as np
 from weather_gym.camera_config import CameraConfig
 from weather_gym.errors import InputError, OutputPathError
 from weather_gym.perception.cones import FIELD
-from weather_gym.ros._deps import latched_qos, require, rosbag2
+from weather_gym.ros._deps import latched_qos, lib
 from weather_gym.ros.bag_output import bag_output, check_bag_output
 from weather_gym.ros.messages import CONE_ARRAY, CONE_FIELDS, header, rgb_to_image, typestore
 
@@ -100,7 +100,7 @@ class EpisodeBag:
     def __init__(self, out: str | Path, *, camera: CameraConfig, cones_xy: np.ndarray, cone_classes: np.ndarray,
                  weathered: bool = False, images: str = "jpeg", noise: ConeNoise = ConeNoise(),
                  overwrite: bool = False) -> None:
-        require("weather-gym lap --bag")
+        lib("weather-gym lap --bag")
         if images not in BAG_IMAGES:
             raise InputError(f"--bag-images must be one of {', '.join(BAG_IMAGES)}, got {images!r}")
         self.out, self.camera, self.weathered, self.images, self.noise = Path(out), camera, weathered, images, noise
@@ -119,6 +119,7 @@ class EpisodeBag:
         self._ctx = bag_output(self.out, kind="rosbag2", overwrite=self.overwrite)
         inner = self._ctx.__enter__()
         try:
+            rosbag2 = lib().rosbag2
             self._writer = rosbag2.Writer(inner, version=8, storage_plugin=rosbag2.StoragePlugin.MCAP)
             self._writer.open()
             suffix = "/compressed" if self.images == "jpeg" else ""

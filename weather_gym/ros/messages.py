@@ -29,7 +29,7 @@ import numpy as np
 
 from weather_gym.errors import FileFormatError
 from weather_gym.limits import check_image_size
-from weather_gym.ros._deps import Stores, get_types_from_msg, get_typestore, require
+from weather_gym.ros._deps import lib
 
 __all__ = ["COMPRESSED", "CONE_ARRAY", "CONE_FIELDS", "CONE_MSGS", "ENCODINGS", "IMAGE", "IMAGE_TYPES",
            "compressed", "header", "image_alpha", "image_to_rgb", "msgtype_name", "rgb_to_image", "stamp_of", "typestore"]
@@ -55,15 +55,15 @@ cv_bridge does. Other encodings (16-bit, Bayer, YUV) are refused with their name
 
 def typestore(distro: str = "humble") -> Any:
     """rosbags' typestore of ROS 2 ``distro`` (foxy, humble, jazzy...) with the cone messages registered."""
-    require("weather-gym's ROS bag support")
+    rb = lib()
     try:
-        store = get_typestore(Stores[f"ROS2_{distro.upper()}"])
+        store = rb.get_typestore(rb.Stores[f"ROS2_{distro.upper()}"])
     except KeyError:
         raise FileFormatError(f"unknown ROS 2 distribution {distro!r}; expected one of "
-                              f"{', '.join(s.name[5:].lower() for s in Stores if s.name.startswith('ROS2_'))}") from None
+                              f"{', '.join(s.name[5:].lower() for s in rb.Stores if s.name.startswith('ROS2_'))}") from None
     types: dict[str, Any] = {}
     for name, text in CONE_MSGS.items():
-        types.update(get_types_from_msg(text, name))
+        types.update(rb.get_types_from_msg(text, name))
     store.register(types)
     return store
 
