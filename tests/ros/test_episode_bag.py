@@ -106,3 +106,26 @@ def test_a_detector_lap_with_a_bag(tmp_path, capsys):
                 imgs.setdefault(c.topic, []).append(r.deserialize(raw, c.msgtype).data)
     assert len(imgs["/camera/image_raw"]) == len(imgs["/camera/image_weathered"]) == 7
     assert not np.array_equal(imgs["/camera/image_raw"][3], imgs["/camera/image_weathered"][3])
+
+
+def test_the_cone_covariance_is_the_mappers_noise_model():
+    from weather_gym.agents.mapper import MapperConfig
+
+    m = MapperConfig()
+    assert ConeNoise() == ConeNoise(m.range_std, m.range_std_rel, m.bearing_std)
+
+
+def test_an_evaluation_cell_writes_its_bag_and_the_same_metrics(tmp_path):
+    import math
+
+    from weather_gym.evaluation.evaluate import EvalConfig, bag_name, make_cells, run_cell
+
+    cell, = make_cells(EvalConfig(effects=("droplets",), severities=(3,), seeds=(0,), tracks=("hairpin",),
+                                  env_id="WeatherGym/ConeTrackSmall-v0", max_steps=5))
+    plain, bagged = run_cell(cell), run_cell(cell, bag_dir=str(tmp_path), bag_images="raw")
+    same = {k: (a == b or (isinstance(a, float) and math.isnan(a) and math.isnan(b)))
+            for k, (a, b) in ((k, (plain[k], bagged[k])) for k in plain) if not k.endswith("latency_ms")}  # wall clock
+    assert all(same.values()), same  # keeping the frame for the bag changes nothing the agent does
+    with AnyReader([tmp_path / bag_name(cell)]) as r:
+        counts = {c.topic: c.msgcount for c in r.connections}
+    assert counts["/camera/image_weathered"] == counts["/perception/cones"] == counts["/odom"] == 6

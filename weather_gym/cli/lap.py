@@ -252,12 +252,15 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
                                          state["weather"])
                 if bag is not None:
-                    episode_bag = _open_bag(bag, base, trk, state["weathered"], bag_images, overwrite)
+                    m = MapperConfig()  # the cones' covariance: the mapper's range/bearing noise model
+                    episode_bag = EpisodeBag.for_env(bag, base, weathered=state["weathered"], images=bag_images,
+                                                     noise=ConeNoise(m.range_std, m.range_std_rel, m.bearing_std),
+                                                     overwrite=overwrite)
             scoring(step, obs, info, done)
             if recorder is not None:
                 recorder.add(obs, info, laps)
             if episode_bag is not None:
-                _bag_step(episode_bag, base, obs, info)
+                episode_bag.add_step(base, obs, info)
             if step and step % 30 == 0:
                 bar.update(info, laps)
 
@@ -298,24 +301,6 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         result["bag"] = str(bag)
         result["bag_topics"] = dict(sorted(episode_bag.counts.items()))
     return result
-
-
-def _open_bag(bag: Path, base: Any, trk: Any, weathered: bool, images: str, overwrite: bool) -> EpisodeBag:
-    """The episode's bag, opened (the mapper's range/bearing noise gives the cones' covariance)."""
-    m = MapperConfig()
-    return EpisodeBag(bag, camera=base.config.camera, cones_xy=trk.cones_xy, cone_classes=trk.cone_classes,
-                      weathered=weathered, images=images, noise=ConeNoise(m.range_std, m.range_std_rel, m.bearing_std),
-                      overwrite=overwrite).__enter__()
-
-
-def _bag_step(episode_bag: EpisodeBag, base: Any, obs: Any, info: dict) -> None:
-    """One step into the bag: clear frame from the env, the observation's (weathered) image and cones."""
-    d = obs if isinstance(obs, dict) else {"image": obs}
-    state = d.get("state")
-    odom = None if state is None else np.asarray(state, np.float64)[2:5]
-    episode_bag.add(float(info["time"]), clear=base.clear_image, weathered=d.get("image"), cones=d.get("cones"),
-                    mask=d.get("mask"), pose=info["pose"], speed=float(info["speed"]),
-                    yaw_rate=float(info["yaw_rate"]), odom=odom)
 
 
 class _LapProgress:

@@ -114,6 +114,26 @@ class EpisodeBag:
         self._writer: Any = None
         self._conns: dict[str, Any] = {}
 
+    @classmethod
+    def for_env(cls, out: str | Path, env: Any, *, weathered: bool, images: str = "jpeg",
+                noise: ConeNoise = ConeNoise(), overwrite: bool = False) -> EpisodeBag:
+        """The bag of an episode of ``env`` (a ``ConeTrackEnv``, e.g. ``wrapped.unwrapped``: its camera and
+        track's cones), opened: feed it with :meth:`add_step` and close it with ``__exit__``."""
+        trk = env.track
+        return cls(out, camera=env.config.camera, cones_xy=trk.cones_xy, cone_classes=trk.cone_classes,
+                   weathered=weathered, images=images, noise=noise, overwrite=overwrite).__enter__()
+
+    def add_step(self, env: Any, obs: Any, info: dict) -> None:
+        """One env step (or the reset): the clear frame from ``env.clear_image``, the observation's
+        (weathered) ``image`` and cone list, the pose, speed and yaw rate of ``info``, the odometry of the
+        observation's ``state`` (speed, yaw rate, odom x, y, yaw)."""
+        d = obs if isinstance(obs, dict) else {"image": obs}
+        state = d.get("state")
+        odom = None if state is None else np.asarray(state, np.float64)[2:5]
+        self.add(float(info["time"]), clear=env.clear_image, weathered=d.get("image"), cones=d.get("cones"),
+                 mask=d.get("mask"), pose=info["pose"], speed=float(info["speed"]), yaw_rate=float(info["yaw_rate"]),
+                 odom=odom)
+
     # -------------------------------------------------------------------------------------- lifecycle
     def __enter__(self) -> EpisodeBag:
         self._ctx = bag_output(self.out, kind="rosbag2", overwrite=self.overwrite)
