@@ -133,3 +133,21 @@ def test_outputs_are_checked(tmp_path):
     before = _read(tmp_path / "out")[0]
     degrade_bag(src, tmp_path / "out", weather=parse_weather("droplets@3"), seed=1, overwrite=True)
     assert _read(tmp_path / "out")[0] != before
+
+
+@pytest.mark.parametrize("mode", ["MESSAGE", "FILE"])
+def test_a_zstd_compressed_bag_is_read(tmp_path, monkeypatch, mode):
+    from rosbags import rosbag2
+    from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+
+    plain_open = rosbag2.Writer.open
+
+    def compressed_open(self):
+        self.set_compression(CompressionMode[mode], CompressionFormat.ZSTD)
+        return plain_open(self)
+
+    monkeypatch.setattr(rosbag2.Writer, "open", compressed_open)
+    src = ros2_bag(tmp_path / "in", storage="mcap", n=2)
+    monkeypatch.setattr(rosbag2.Writer, "open", plain_open)
+    res = degrade_bag(src, tmp_path / "out", weather=parse_weather("droplets@3"))
+    assert res.frames == 2 and _read(src)[0]["/note"] == _read(tmp_path / "out")[0]["/note"]
