@@ -50,8 +50,8 @@ def bag_kind(path: str | os.PathLike) -> str | None:
 def _read_errors() -> tuple[type[BaseException], ...]:
     """What the bag libraries raise for a damaged bag (beside their own error classes)."""
     rb = lib()
-    return (rb.AnyReaderError, rb.rosbag1.ReaderError, rb.rosbag2.ReaderError, sqlite3.Error, struct.error, EOFError, ValueError, KeyError, IndexError,
-            AssertionError, UnicodeDecodeError, OverflowError)
+    return (rb.AnyReaderError, rb.rosbag1.ReaderError, rb.rosbag2.ReaderError, sqlite3.Error, struct.error,
+            EOFError, ValueError, KeyError, IndexError, AssertionError, UnicodeDecodeError, OverflowError)
 
 
 @dataclass(frozen=True)
@@ -82,10 +82,9 @@ class Bag:
         """``sqlite3`` or ``mcap`` for a rosbag2 bag, ``rosbag1`` for a ROS 1 bag."""
         if self.kind == "rosbag1":
             return "rosbag1"
-        r = self.reader.readers[0]
-        st = getattr(r, "storage", r)
-        name = type(getattr(st, "storages", [st])[0] if getattr(st, "storages", None) else st).__name__.lower()
-        return "mcap" if "mcap" in name else "sqlite3"
+        st = self.reader.readers[0].storage  # a bag folder's reader, or the storage file's own
+        st = (getattr(st, "storages", None) or [st])[0]
+        return "mcap" if "mcap" in type(st).__name__.lower() else "sqlite3"
 
     @property
     def start_ns(self) -> int:
