@@ -129,3 +129,12 @@ def test_an_evaluation_cell_writes_its_bag_and_the_same_metrics(tmp_path):
     with AnyReader([tmp_path / bag_name(cell)]) as r:
         counts = {c.topic: c.msgcount for c in r.connections}
     assert counts["/camera/image_weathered"] == counts["/perception/cones"] == counts["/odom"] == 6
+
+
+def test_same_episode_same_bytes(tmp_path):
+    for d in ("a", "b"):
+        (tmp_path / d).mkdir()
+        _episode(tmp_path / d / "lap", steps=2, images="jpeg")
+    files = [sorted((tmp_path / d / "lap").iterdir()) for d in ("a", "b")]
+    assert [p.name for p in files[0]] == ["lap.mcap", "metadata.yaml"]
+    assert [p.read_bytes() for p in files[0]] == [p.read_bytes() for p in files[1]]
