@@ -48,7 +48,8 @@ ALLOWED: dict[str, set[str]] = {
     "wrappers": {"weather", "perception", "camera", "surrogate"},
     "pipeline": {"envs", "weather", "wrappers", "perception", "surrogate", "root"},
     "agents": {"tracks", "camera", "perception", "wrappers"},
-    "datasets": {"envs", "sim", "tracks", "camera", "weather", "perception", "pipeline", "agents"},
+    "ros": {"camera", "weather", "perception"},
+    "datasets": {"envs", "sim", "tracks", "camera", "weather", "perception", "pipeline", "agents", "ros"},
     "perception_tools": {"perception", "datasets", "camera", "weather"},
     "viz": {"perception", "camera", "tracks"},
 }

@@ -34,6 +34,7 @@ from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.cone_spec import CONE_CLASSES
 from weather_gym.datasets.coco import load_coco
 from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_share
+from weather_gym.datasets.import_rosbag import import_rosbag
 from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS, import_dataset
 from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
 from weather_gym.datasets.merge import merge_coco
@@ -42,6 +43,7 @@ from weather_gym.errors import InputError
 from weather_gym.perception.ignore import inside_mask
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
 from weather_gym.perception.scoring import small_rule
+from weather_gym.ros.camera import Window
 from weather_gym.sim.randomize import RandomizeRanges
 
 
@@ -96,14 +98,15 @@ def register(sub) -> None:
     i.set_defaults(func=_info)
 
 
-    im = cmds.add_parser("import", help="import labelled frames (KITTI, YOLO txt, COCO, Supervisely/FSOCO) into a "
-                                        "COCO folder",
+    im = cmds.add_parser("import", help="import labelled frames (KITTI, YOLO txt, COCO, Supervisely/FSOCO) or a ROS "
+                                        "bag's camera topic into a COCO folder",
                          description="Read a folder of frames and labels, validate it, copy the frames into "
                                      "OUT/images/ and write OUT/annotations.json (nothing outside --out is written; "
                                      "nothing is read through a link that leads out of SRC). See docs/real_data.md.")
-    im.add_argument("format", choices=FORMATS, help="label format of SRC")
+    im.add_argument("format", choices=(*FORMATS, "rosbag"), help="label format of SRC, or rosbag (docs/ros.md)")
     im.add_argument("src", type=Path, help="source folder (images/ + labels/; YOLO also images with their .txt beside "
-                                           "them; a COCO JSON beside the images; a Supervisely project with meta.json)")
+                                           "them; a COCO JSON beside the images; a Supervisely project with meta.json); "
+                                           "rosbag: a rosbag2 folder, .mcap or .db3 file, or a ROS 1 .bag")
     im.add_argument("--out", type=Path, required=True, help="new dataset folder (never overwritten without --overwrite)")
     im.add_argument("--classes", default=None, metavar="SRC=TARGET,...",
                     help="class map, TARGET in blue, yellow, orange, big_orange, ignore (ignore regions); '*=ignore' "
@@ -119,6 +122,16 @@ def register(sub) -> None:
                     help="KITTI: leave 3D-only cones out entirely instead of projecting them into ignore regions")
     im.add_argument("--location-frame", default="auto", choices=("auto", "camera", "vehicle", "none"),
                     help="KITTI: frame of the 3D locations used for cone range (default: recognised from the boxes)")
+    ros = im.add_argument_group("rosbag (frames are imported without labels: docs/ros.md)")
+    ros.add_argument("--topic", default=None, help="the camera topic, sensor_msgs/Image or CompressedImage (default: "
+                                                   "the bag's only image topic)")
+    ros.add_argument("--camera-info", default=None, metavar="TOPIC",
+                     help="the CameraInfo topic giving the intrinsics (default: the one beside --topic, e.g. "
+                          "/cam/camera_info for /cam/image_raw; '' for none)")
+    ros.add_argument("--every", type=int, default=1, help="keep every Nth frame (default %(default)s)")
+    ros.add_argument("--start", type=float, default=None, metavar="S",
+                     help="first frame at S seconds after the bag's first message (default: the start)")
+    ros.add_argument("--end", type=float, default=None, metavar="S", help="frames before S seconds (default: the end)")
     add_overwrite_arg(im, help="replace an existing dataset, or an interrupted import, in --out")
     im.add_argument("--resume", action="store_true",
                     help="continue an interrupted import in --out (same SRC and settings, else refused)")
@@ -263,6 +276,12 @@ def _info(args) -> int:
 def _import(args) -> int:
     declare_inputs(args.src, args.mask, args.annotations)  # the source is read: the dataset goes elsewhere
     det = detector_from_args(args, required=False)
+    ros_flags = [f for f, v in (("--topic", args.topic), ("--camera-info", args.camera_info), ("--start", args.start),
+                                ("--end", args.end), ("--every", args.every != 1 or None)) if v is not None]
+    if args.format == "rosbag":
+        return _import_rosbag(args, det)
+    if ros_flags:
+        raise InputError(f"{', '.join(ros_flags)} go with the rosbag format, not {args.format}")
     r = import_dataset(args.format, args.src, args.out, classes=args.classes, condition=args.condition,
                        severity=args.severity, intrinsics=args.intrinsics, detector=det, mask=args.mask,
                        annotations=args.annotations, location_frame=args.location_frame, overwrite=args.overwrite,
@@ -288,6 +307,33 @@ def _import(args) -> int:
         more = f" and {len(orphans) - 5} more" if len(orphans) > 5 else ""
         print(f"warning: {len(orphans)} label file(s) without an image were left out (listed in annotations.json "
               f"info.labels_without_image): {', '.join(orphans[:5])}{more}", file=sys.stderr)
+    return 0
+
+
+def _import_rosbag(args, det) -> int:
+    other = [f for f, v in (("--classes", args.classes), ("--mask", args.mask), ("--annotations", args.annotations),
+                            ("--no-project-3d", args.no_project_3d or None),
+                            ("--location-frame", None if args.location_frame == "auto" else 1)) if v is not None]
+    if other:
+        raise InputError(f"{', '.join(other)} do not apply to a ROS bag (its frames are imported without labels)")
+    r = import_rosbag(args.src, args.out, topic=args.topic, window=Window(args.start, args.end, args.every),
+                      camera_info=args.camera_info, condition=args.condition, severity=args.severity,
+                      intrinsics=args.intrinsics, detector=det, overwrite=args.overwrite, resume=args.resume,
+                      progress=not args.quiet)
+    size = "x".join(map(str, r["size"])) if r["size"] else "sizes " + ", ".join(f"{s} ({n})" for s, n in r["sizes"].items())
+    span = (r["last_stamp_ns"] - r["first_stamp_ns"]) / 1e9
+    print(f"imported {r['frames']} frames ({size}) of {r['topic']} ({r['msgtype']}; "
+          f"{', '.join(f'{e} {n}' for e, n in r['encodings'].items())}) from a {r['kind']} bag ({r['storage']}) "
+          f"into {r['out']}")
+    if r["resumed"] is not None:
+        print(f"resumed: {r['resumed']} frames were already written")
+    print(f"header stamps {r['first_stamp_ns']} .. {r['last_stamp_ns']} ns ({span:.3f} s), kept per frame in "
+          "annotations.json (stamp_ns, bag_time_ns)")
+    print(f"intrinsics: {r['intrinsics']}" + (f" ({r['camera_info']})" if r["intrinsics"] == "camera_info" else ""))
+    print("labels: none (cone topics are not projected into boxes; docs/ros.md)"
+          + (f"; cone topics in the bag: {', '.join(r['cone_topics'])}" if r["cone_topics"] else ""))
+    if r["condition"] is not None:
+        print(f"condition: {r['condition']} (severity {r['severity']})")
     return 0
 
 

@@ -7,6 +7,7 @@ Examples:
     weather-gym degrade images/ images_dusk/ --weather low_light@3 --seed 1
     weather-gym degrade lap.mp4 lap_wet.mp4 --weather droplets:0.55:persistent=true
     weather-gym degrade dataset/images out/images --weather fog:0.5 --depth dataset/depth
+    weather-gym degrade run_0412/ run_0412_wet/ --topic /zed/left/image_raw --weather droplets@3
 
 * INPUT: an image (.png .jpg .jpeg .bmp .tif .tiff .webp), a folder (its images, recursively) or a
   video (.mp4 .avi .mov .mkv .m4v .webm). Output names mirror the input names (a folder's tree is
@@ -19,6 +20,10 @@ Examples:
   result does not depend on the order or on resuming); a video is one episode from ``--seed``.
 * ``--depth``: metric depth as uint16 PNG in millimetres (the dataset layout), a file for an
   image or a folder mirroring the input folder (same relative names, .png).
+* A ROS bag (a rosbag2 folder with metadata.yaml, a .mcap or .db3 file, a ROS 1 .bag) becomes a bag of
+  the same kind with the camera ``--topic`` weathered frame by frame (one episode: persistent drops
+  stay), motion effects fed from its nav_msgs/Odometry, every other topic copied byte for byte with its
+  timestamps and QoS; written to a temporary folder and moved into place when complete (docs/ros.md).
 
 A command line parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
@@ -42,6 +47,8 @@ from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.datasets.coco import read_image
 from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
 from weather_gym.limits import check_image_size
+from weather_gym.ros.bags import bag_kind
+from weather_gym.ros.degrade import degrade_bag
 from weather_gym.viz.video import VideoWriter, check_free_space
 from weather_gym.weather.option import add_weather_arg, weather_from_arg
 
@@ -59,6 +66,13 @@ def register(sub) -> None:
     p.add_argument("--seed", type=seed_arg, default=0, help="random seed (default %(default)s)")
     p.add_argument("--depth", type=Path, help="depth PNG (uint16 mm) or folder of them mirroring INPUT")
     add_overwrite_arg(p)
+    ros = p.add_argument_group("ROS bags (docs/ros.md)")
+    ros.add_argument("--topic", default=None, help="the camera topic to weather (default: the bag's only image topic)")
+    ros.add_argument("--odometry", default=None, metavar="TOPIC",
+                     help="nav_msgs/Odometry topic giving speed and yaw rate to the motion effects (default: the "
+                          "bag's only one, if any; '' for none)")
+    ros.add_argument("--jpeg-quality", type=int, default=95, metavar="Q",
+                     help="JPEG quality of re-encoded CompressedImage frames (default %(default)s)")
     p.add_argument("--skip-unreadable", action="store_true",
                    help="in a folder, skip images that cannot be read (listed at the end) instead of stopping")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -213,6 +227,22 @@ def _video(weather, src: Path, dst: Path, args) -> int:
     return 0
 
 
+def _bag(weather, args) -> int:
+    if args.depth is not None:
+        raise InputError("--depth is not supported for ROS bags")
+    r = degrade_bag(args.input, args.output, weather=weather, topic=args.topic, odometry=args.odometry,
+                    seed=args.seed, jpeg_quality=args.jpeg_quality, overwrite=args.overwrite, progress=not args.quiet)
+    span = "" if r.first_ns is None else f", {(r.last_ns - r.first_ns) / 1e9:.3f} s"
+    print(f"wrote {r.out} ({r.kind}, {r.storage}): {r.frames} frame(s) of {r.topic} weathered{span}; "
+          f"{sum(r.copied.values())} other message(s) copied unchanged"
+          + (f" ({', '.join(f'{t} {n}' for t, n in sorted(r.copied.items()))})" if r.copied else ""))
+    print(f"motion effects: speed and yaw rate from {r.odometry}" if r.odometry else
+          "motion effects: no odometry topic, their documented defaults")
+    for t, why in r.left_out.items():
+        print(f"left out {t}: {why}")
+    return 0
+
+
 def _run(args) -> int:
     if args.weather is None:
         raise InputError("give the weather with --weather SPEC (e.g. droplets:0.55, low_light@2 or "
@@ -222,6 +252,12 @@ def _run(args) -> int:
     declare_inputs(src, args.depth)
     if not src.exists():
         raise MissingInputError(f"{src}: no such file or folder")
+    if bag_kind(src) is not None:
+        return _bag(weather, args)
+    ros_flags = [f for f, v in (("--topic", args.topic), ("--odometry", args.odometry)) if v is not None]
+    if ros_flags:
+        raise InputError(f"{', '.join(ros_flags)} go with a ROS bag; {src} is not one (a rosbag2 folder with "
+                         "metadata.yaml, a .mcap, .db3 or .bag file)")
     if src.is_dir():
         if args.depth is not None and not args.depth.is_dir():
             raise InputError(f"--depth {args.depth}: must be a folder when INPUT is a folder")

@@ -33,10 +33,11 @@ from weather_gym.cli._detector_args import add_detector_args, detector_spec_from
 from weather_gym.cli._help import literal
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
-from weather_gym.evaluation.evaluate import DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
+from weather_gym.evaluation.evaluate import BAGS, DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
 from weather_gym.evaluation.report import report_replaceable, write_report
 from weather_gym.evaluation.runner import check_results_path
 from weather_gym.perception_modes import PERCEPTION_MODES, modes_where, perception_mode
+from weather_gym.ros.episode_bag import BAG_IMAGES
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -100,6 +101,10 @@ def register(sub) -> None:
     r.add_argument("--out", type=Path, required=True, help="output folder (results.csv, report.md, plots/)")
     add_overwrite_arg(r, help="replace a report.md or plots/ in --out that no earlier run of this grid wrote "
                               "(results.csv is always resumed, never replaced)")
+    r.add_argument("--bags", action="store_true",
+                   help="also write each episode this run drives as an MCAP rosbag2 into OUT/bags/ (docs/ros.md)")
+    r.add_argument("--bag-images", choices=BAG_IMAGES, default="jpeg",
+                   help="camera frames in the bags: jpeg (CompressedImage) or raw (Image rgb8); default %(default)s")
     add_runner_args(r)
     p.set_defaults(func=_run)
 
@@ -154,11 +159,17 @@ def _run(args) -> int:
     replace = report_replaceable(args.out, overwrite=args.overwrite)  # someone else's report: refused now
     started = time.perf_counter()
     rows = evaluate(config, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address,
-                    progress=not args.no_progress, retry_failed=not args.skip_failed)
+                    progress=not args.no_progress, retry_failed=not args.skip_failed, bags=args.bags,
+                    bag_images=args.bag_images)
     write_report(rows, args.out, config=config, wall_s=time.perf_counter() - started, command=command,
                  overwrite=replace)
     failed = [r for r in rows if r["status"] != "ok"]
     print(f"{len(rows) - len(failed)} ok, {len(failed)} failed; report: {args.out / 'report.md'}")
+    if args.bags:
+        bags = args.out / BAGS
+        n = sum(1 for p in bags.iterdir() if not p.name.startswith(".")) if bags.is_dir() else 0
+        print(f"bags: {bags} ({n} episode bag(s), MCAP rosbag2; cells resumed from results.csv were not driven "
+              "again and write none)")
     for r in failed[:5]:
         print(f"  failed: {r['agent']} {r['track']} {r['effect']}@{r['severity']} seed {r['seed']}: {r['error']}",
               file=sys.stderr)

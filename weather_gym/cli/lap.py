@@ -8,6 +8,7 @@ Examples:
     weather-gym lap --agent sb3 --agent-arg path=runs/ppo.zip --perception detector
     weather-gym lap --agent mapper_pure_pursuit --perception gt_cones     # nothing rendered: fast
     weather-gym lap --agent mapper_pure_pursuit --perception surrogate --weather droplets@3
+    weather-gym lap --track hairpin --agent mapper_pure_pursuit --perception detector --weather droplets@3 --bag lap_bag
 
 A command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
@@ -30,6 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym.agents import AGENTS, agent_factory, agent_observes, run_episode
+from weather_gym.agents.mapper import MapperConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
 from weather_gym.cli._seed_arg import seed_arg
@@ -47,6 +49,8 @@ from weather_gym.perception_modes import (
     perception_mode,
 )
 from weather_gym.pipeline import make_env
+from weather_gym.ros.bag_output import check_bag_output
+from weather_gym.ros.episode_bag import BAG_IMAGES, ConeNoise, EpisodeBag
 from weather_gym.tracks import load_track, track_label
 from weather_gym.viz.overlay import TopDownView, compose_frame, cone_list_boxes, draw_boxes
 from weather_gym.viz.video import FrameSampler, VideoWriter, check_output_path, save_strip
@@ -115,7 +119,13 @@ def register(sub) -> None:
     p.add_argument("--video", type=Path, metavar="PATH.mp4", help="write an MP4 of the run")
     p.add_argument("--strip", type=Path, metavar="PATH.png", help="write a PNG strip of frames")
     p.add_argument("--strip-frames", type=int, default=8, help="frames in the strip (default %(default)s)")
-    p.add_argument("--overwrite", action="store_true", help="replace existing --video / --strip files")
+    p.add_argument("--bag", type=Path, metavar="FOLDER",
+                   help="write an MCAP rosbag2 of the run: camera (clear and weathered), CameraInfo, detected and "
+                        "true cones (eufs_msgs/ConeArrayWithCovariance), odometry, TF (docs/ros.md)")
+    p.add_argument("--bag-images", choices=BAG_IMAGES, default="jpeg",
+                   help="camera frames in --bag: jpeg (CompressedImage, quality 90) or raw (Image rgb8, the exact "
+                        "pixels, about ten times larger); default %(default)s")
+    p.add_argument("--overwrite", action="store_true", help="replace existing --video / --strip files / --bag")
     p.add_argument("--json", action="store_true",
                    help="print the result as one JSON object (the summary's numbers, machine-readable) instead of text")
     p.set_defaults(func=_run)
@@ -161,7 +171,8 @@ def _run(args) -> int:
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
-        overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile,
+        overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile, bag=args.bag,
+        bag_images=args.bag_images,
     )
     print(result_json(result) if args.json else format_result(result))
     return 0 if result["completed"] else 1
@@ -210,12 +221,15 @@ def _perception_kwargs(mode: PerceptionMode, recording: bool, depth_quantile: fl
     return kwargs
 
 
-def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = None, agent: str = "gt_pure_pursuit",
+def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = None, agent: str = "gt_pure_pursuit",  # noqa: C901
              agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = AUTO,
              detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
-             overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None) -> dict[str, Any]:
+             overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None,
+             bag: Path | None = None, bag_images: str = "jpeg") -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
+
+    ``bag``: also write the run as an MCAP rosbag2 folder (:class:`~weather_gym.ros.episode_bag.EpisodeBag`).
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
     and the episode from :func:`weather_gym.agents.run_episode`.
@@ -226,6 +240,10 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     mode = auto_mode(observes) if perception == AUTO else perception_mode(perception)
     check_agent_observes(agent, observes, mode)
     recording = video is not None or strip is not None
+    if bag is not None:
+        check_bag_output(bag, "rosbag2", overwrite, what="--bag")
+        if bag_images not in BAG_IMAGES:
+            raise InputError(f"--bag-images must be one of {', '.join(BAG_IMAGES)}, got {bag_images!r}")
     if recording and not mode.can_record_video:
         alike = (modes_where(can_record_video=True, observation=mode.observation)
                  or modes_where(can_record_video=True))
@@ -238,10 +256,12 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         env_kwargs["track"] = track
     if weather is not None:
         parse_weather(weather)  # a bad spec fails here, with the parser's message
-    perception_kwargs = _perception_kwargs(mode, recording, depth_quantile)
+    perception_kwargs = _perception_kwargs(mode, recording or (bag is not None and mode.can_record_video),
+                                           depth_quantile)
     env = make_env(env_id, perception=mode.name, weather=weather, detector=detector if mode.runs_detector else None,
                    perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, **env_kwargs)
     recorder = None
+    episode_bag: EpisodeBag | None = None
     try:
         base = env.unwrapped
         trk, camera = base.track, base.config.camera
@@ -252,29 +272,40 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         state: dict[str, Any] = {}
 
         def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
-            nonlocal recorder
+            nonlocal recorder, episode_bag
             if step == 0:
                 state["weather"] = weather or _describe_weather(info.get("weather"))
                 state["weathered"] = "weather" in info
                 if recording:
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
                                          state["weather"])
+                if bag is not None:
+                    m = MapperConfig()  # the cones' covariance: the mapper's range/bearing noise model
+                    episode_bag = EpisodeBag.for_env(bag, base, weathered=state["weathered"], images=bag_images,
+                                                     noise=ConeNoise(m.range_std, m.range_std_rel, m.bearing_std),
+                                                     overwrite=overwrite)
             scoring(step, obs, info, done)
             if recorder is not None:
                 recorder.add(obs, info, laps)
+            if episode_bag is not None:
+                episode_bag.add_step(base, obs, info)
             if step and step % 30 == 0:
                 bar.update(info, laps)
 
         try:
             res = run_episode(env, driver, seed=seed, on_step=on_step, agent_name=agent)
-        except BaseException:
+        except BaseException as exc:
             if recorder is not None:
                 recorder.abort()  # an interrupted run leaves no half-written video or strip
+            if episode_bag is not None:
+                episode_bag.__exit__(type(exc), exc, None)  # nor a bag
             raise
         finally:
             bar.close()
         if recorder is not None:
             recorder.close()
+        if episode_bag is not None:
+            episode_bag.__exit__(None, None, None)
         renderer = base.renderer
     finally:
         env.close()
@@ -295,6 +326,9 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         result["video_frames"] = recorder.video.frames if recorder is not None and recorder.video is not None else 0
         result["video_codec"] = recorder.video.codec if recorder is not None and recorder.video is not None else None
         result["strip"] = str(strip) if strip is not None else None
+    if episode_bag is not None:
+        result["bag"] = str(bag)
+        result["bag_topics"] = dict(sorted(episode_bag.counts.items()))
     return result
 
 
@@ -353,6 +387,8 @@ def format_result(r: dict[str, Any]) -> str:
         lines.append(f"video: {r['video']} ({r['video_frames']} frames, {codec})")
     if r.get("strip"):
         lines.append(f"strip: {r['strip']}")
+    if r.get("bag"):
+        lines.append(f"bag: {r['bag']} (MCAP rosbag2): " + ", ".join(f"{t} {n}" for t, n in r["bag_topics"].items()))
     return "\n".join(lines)
 
 

@@ -137,6 +137,13 @@ class ConeTrackEnv(gym.Env):
         return self._pipeline
 
     @property
+    def clear_image(self) -> np.ndarray | None:
+        """A copy of the camera frame of the last reset/step as the env rendered it, before any wrapper's
+        weather (None without camera images or before the first reset): the clear frame of an episode
+        recording (``weather-gym lap --bag``)."""
+        return None if self._image is None or not self.config.camera_images else self._image.copy()
+
+    @property
     def renderer(self) -> str:
         """The renderer in use: "egl", "tiny" or "none" (``camera_images=False``)."""
         return self.world.renderer_name

@@ -33,8 +33,10 @@ import hashlib
 import inspect
 import json
 import numbers
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +44,7 @@ import gymnasium as gym
 
 from weather_gym._io import file_id
 from weather_gym.agents import agent_factory, agent_observes, make_agent, run_episode
+from weather_gym.agents.mapper import MapperConfig
 from weather_gym.agents.sb3 import model_sidecar
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.registration import check_env_id
@@ -65,6 +68,7 @@ from weather_gym.perception_modes import (
     perception_mode,
 )
 from weather_gym.pipeline import make_env
+from weather_gym.ros.episode_bag import BAG_IMAGES, ConeNoise, EpisodeBag
 from weather_gym.tracks import load_track
 from weather_gym.weather.presets import canonical_condition, preset_spec
 from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise
@@ -343,22 +347,62 @@ def _check_agent_kwargs(name: str, track: Any, camera: Any, kwargs: dict[str, An
 
 
 # ------------------------------------------------------------------------------------------ the cell
-def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
-    """Drive one episode of ``cell`` and return the metrics in :data:`METRICS` (NaN/None where not defined)."""
+BAGS = "bags"
+"""The folder under the results folder that ``evaluate(..., bags=True)`` writes one MCAP bag per cell into."""
+
+
+def bag_name(cell: EvalCell) -> str:
+    """The folder name of a cell's bag: agent, effect and severity, track, seed and a hash of every field."""
+    key = hashlib.sha1(json.dumps(asdict(cell), sort_keys=True).encode()).hexdigest()[:8]
+    track = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(cell.track).stem if cell.track.endswith(".csv") else cell.track)
+    return f"{cell.agent}-{cell.effect}{cell.severity}-{track}-seed{cell.seed}-{key}"
+
+
+def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
+             bag_images: str = "jpeg") -> dict[str, Any]:
+    """Drive one episode of ``cell`` and return the metrics in :data:`METRICS` (NaN/None where not defined).
+
+    ``bag_dir``: also write the episode as an MCAP rosbag2 into ``bag_dir/``:func:`bag_name`
+    (:class:`~weather_gym.ros.episode_bag.EpisodeBag`; a bag of the same cell from an earlier try is replaced).
+    """
 
     if isinstance(cell, Mapping):
         cell = EvalCell(**cell)
     mode = perception_mode(cell.perception)
+    pkw = json.loads(cell.perception_kwargs)
+    if bag_dir is not None and mode.can_record_video:
+        pkw = {**pkw, **mode.record_kwargs}  # keep the camera frame in the observation for the bag
     env = make_env(cell.env_id, track=cell.track, laps=cell.laps, max_episode_steps=cell.max_steps,
                    weather=json.loads(cell.weather), perception=mode.name,
-                   perception_kwargs=json.loads(cell.perception_kwargs), **json.loads(cell.env_kwargs))
+                   perception_kwargs=pkw, **json.loads(cell.env_kwargs))
+    bag: EpisodeBag | None = None
     try:
         base = env.unwrapped
         track, camera = base.track, base.config.camera
         agent = make_agent(cell.agent, track, camera, **json.loads(cell.agent_kwargs))
         # every frame the agent acts on (the reset frame included, the final one not)
         scoring = DetectorScoring(mode)
-        res = run_episode(env, agent, seed=cell.seed, on_step=scoring, agent_name=cell.agent)
+
+        def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
+            nonlocal bag
+            scoring(step, obs, info, done)
+            if bag_dir is None:
+                return
+            if step == 0:
+                m = MapperConfig()  # the cones' covariance: the mapper's range/bearing noise model
+                bag = EpisodeBag.for_env(Path(bag_dir) / bag_name(cell), base, weathered="weather" in info,
+                                         images=bag_images, overwrite=True,
+                                         noise=ConeNoise(m.range_std, m.range_std_rel, m.bearing_std))
+            bag.add_step(base, obs, info)
+
+        try:
+            res = run_episode(env, agent, seed=cell.seed, on_step=on_step, agent_name=cell.agent)
+        except BaseException as exc:
+            if bag is not None:
+                bag.__exit__(type(exc), exc, None)  # no half-written bag
+            raise
+        if bag is not None:
+            bag.__exit__(None, None, None)
         return episode_metrics(Episode(res, agent, track, mode, scoring.scores()))
     finally:
         env.close()
@@ -366,15 +410,21 @@ def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
 
 # ----------------------------------------------------------------------------------------- the grid
 def evaluate(config: EvalConfig, out_dir: str | Path, *, workers: int | None = None, backend: str = "process",
-             ray_address: str | None = None, progress: bool = True, retry_failed: bool = True) -> list[dict[str, Any]]:
+             ray_address: str | None = None, progress: bool = True, retry_failed: bool = True,
+             bags: bool = False, bag_images: str = "jpeg") -> list[dict[str, Any]]:
     """Run the grid of ``config`` into ``out_dir/results.csv`` (resuming) and return this grid's rows
     (see :data:`METRICS`). The report is its caller's to write
     (:func:`weather_gym.evaluation.report.write_report`; ``weather-gym evaluate`` does).
+    ``bags``: every cell this run drives also writes its episode as an MCAP bag into ``out_dir/bags/``
+    (cells resumed from ``results.csv`` are not driven again, so they get none).
     """
 
     cells = make_cells(config)
     results = check_results_path(Path(out_dir) / "results.csv")
-    return run_cells(cells, run_cell, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
+    if bag_images not in BAG_IMAGES:
+        raise InputError(f"--bag-images must be one of {', '.join(BAG_IMAGES)}, got {bag_images!r}")
+    cell_fn = partial(run_cell, bag_dir=str(Path(out_dir) / BAGS), bag_images=bag_images) if bags else run_cell
+    return run_cells(cells, cell_fn, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
                      ray_address=ray_address, progress=progress, retry_failed=retry_failed, desc="evaluate")
 
 
