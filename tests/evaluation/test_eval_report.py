@@ -71,3 +71,29 @@ def test_plot_has_one_line_per_effect(tmp_path):
         plt.Figure.savefig = real_savefig
     assert captured["labels"] == ["droplets", "dim"]
     assert captured["ys"][1] == pytest.approx([1.01, 0.81, 0.61, 0.41, 0.21])
+
+
+def test_a_baseline_agent_gives_ratios_cell_by_cell(tmp_path):
+    rows = []
+    for agent, time_s, hits in (("mapper_pure_pursuit", 20.0, 0), ("ppo_cones", 22.0, 1)):
+        for sev in (0, 2):
+            for seed in (0, 1):
+                rows.append({"agent": agent, "track": "small_track", "effect": "dim", "severity": sev, "seed": seed,
+                             "status": "ok", "completed": 1, "lap_time_s": time_s + (sev if agent == "ppo_cones" else 0),
+                             "cones_hit": hits, "weather": "[]", "progress": 1.0})
+    rows.append({**rows[-1], "seed": 2})  # no baseline cell of that seed: not compared
+    text = write_report(rows, tmp_path, baseline="mapper_pure_pursuit").read_text()
+    flat = " ".join(text.split())
+    assert "## Against the baseline agent `mapper_pure_pursuit`" in text
+    assert "| ppo_cones | small_track | dim | 0 | 2 | 1.100 ± 0.000 | 1.000 ± 0.000 | 2/2 |" in flat
+    assert "| ppo_cones | small_track | dim | 2 | 2 | 1.200 ± 0.000 |" in flat
+    assert (tmp_path / "plots" / "lap_time_ratio.png").read_bytes()[:4] == b"\x89PNG"
+    assert "Against the baseline" not in write_report(rows, tmp_path / "plain").read_text()
+
+
+def test_evaluate_refuses_a_baseline_outside_the_grid(tmp_path, capsys):
+    from weather_gym.cli import main
+
+    assert main(["evaluate", "--agent", "gt_pure_pursuit", "--baseline", "mapper_pure_pursuit",
+                 "--perception", "oracle", "--out", str(tmp_path / "e")]) == 2
+    assert "--baseline 'mapper_pure_pursuit' must be one of the agents of --agent" in capsys.readouterr().err

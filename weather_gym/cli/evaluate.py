@@ -77,6 +77,9 @@ def register(sub) -> None:
     g = p.add_argument_group("grid")
     g.add_argument("--agent", "--agents", dest="agents", default="mapper_pure_pursuit",
                    help="agent name(s), comma-separated (weather_gym.agents.AGENTS)")
+    g.add_argument("--baseline", default=None, metavar="AGENT",
+                   help="an agent of --agent the others are compared against in the report, cell by cell "
+                        "(lap time ratio, cones hit difference; a table and plots/lap_time_ratio.png)")
     g.add_argument("--effects", default="droplets,dim", help="weather conditions / effect names, comma-separated")
     g.add_argument("--severities", default="0,1,2,3,4", help="preset severities (0-4), comma-separated")
     seeds = g.add_mutually_exclusive_group()
@@ -152,6 +155,9 @@ def _run(args) -> int:
     if args.presets is not None and not args.presets.is_file():
         raise MissingInputError(f"--presets: {args.presets} not found")
     config = build_config(args)
+    if args.baseline is not None and args.baseline not in config.agents:
+        raise InputError(f"--baseline {args.baseline!r} must be one of the agents of --agent "
+                         f"({', '.join(config.agents)}): its cells are what the others are compared with")
     cells = make_cells(config)  # every name and number checked before anything runs
     check_results_path(args.out / "results.csv")
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "evaluate" in sys.argv[1:2] else None
@@ -162,7 +168,7 @@ def _run(args) -> int:
                     progress=not args.no_progress, retry_failed=not args.skip_failed, bags=args.bags,
                     bag_images=args.bag_images)
     write_report(rows, args.out, config=config, wall_s=time.perf_counter() - started, command=command,
-                 overwrite=replace)
+                 baseline=args.baseline, overwrite=replace)
     failed = [r for r in rows if r["status"] != "ok"]
     print(f"{len(rows) - len(failed)} ok, {len(failed)} failed; report: {args.out / 'report.md'}")
     if args.bags:

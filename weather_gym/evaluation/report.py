@@ -174,14 +174,70 @@ def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> l
     return lines + markdown_table(["effect", "severity", "weather (preset effect list)", "k"], table)
 
 
+PAIR_KEYS = ("track", "effect", "severity", "seed")
+"""What two cells share to be compared against each other: the same track, weather and seed."""
+
+
+def baseline_rows(rows: Sequence[Mapping[str, Any]], baseline: str) -> list[dict[str, Any]]:
+    """Each other agent's cell beside the ``baseline`` agent's cell of the same track, weather and seed:
+    ``lap_time_ratio`` (its lap time over the baseline's, where both completed the lap), ``cones_hit_diff``
+    and ``both_completed``; cells without a baseline cell are left out.
+
+    Example:
+        >>> cell = lambda agent, t, hits: {"agent": agent, "track": "a", "effect": "dim", "severity": 1,
+        ...                                "seed": 0, "status": "ok", "completed": 1, "lap_time_s": t, "cones_hit": hits}
+        >>> [(r["agent"], r["lap_time_ratio"], r["cones_hit_diff"]) for r in baseline_rows(
+        ...     [cell("ppo", 22.0, 1), cell("mapper", 20.0, 0)], "mapper")]
+        [('ppo', 1.1, 1.0)]
+    """
+    base = {tuple(_hashable(r.get(k)) for k in PAIR_KEYS): r for r in rows
+            if r.get("agent") == baseline and r.get("status") == "ok"}
+    out = []
+    for r in rows:
+        b = base.get(tuple(_hashable(r.get(k)) for k in PAIR_KEYS))
+        if r.get("agent") == baseline or r.get("status") != "ok" or b is None:
+            continue
+        both = bool(_num(r.get("completed")) == 1 and _num(b.get("completed")) == 1)
+        t, tb = _num(r.get("lap_time_s")), _num(b.get("lap_time_s"))
+        out.append({**{k: r.get(k) for k in ("agent", *PAIR_KEYS)}, "status": "ok", "both_completed": int(both),
+                    "lap_time_ratio": t / tb if both and tb > 0 else math.nan,
+                    "cones_hit_diff": _num(r.get("cones_hit")) - _num(b.get("cones_hit"))})
+    return out
+
+
+def _baseline_section(rows: Sequence[Mapping[str, Any]], baseline: str, group_by: Sequence[str], plots: Path,
+                      overwrite: bool) -> list[str]:
+    paired = baseline_rows(rows, baseline)
+    md = [f"## Against the baseline agent `{baseline}`", ""]
+    if not paired:
+        return md + [f"No cell of another agent has a `{baseline}` cell of the same track, weather and seed.", ""]
+    md += [f"Each agent's cells beside `{baseline}`'s of the same track, weather and seed: its lap time over "
+           f"`{baseline}`'s (where both completed the lap; below 1 is faster), and cones hit minus `{baseline}`'s.", ""]
+    keys = [g for g in group_by if g != "seed"]
+    agg = aggregate(paired, keys, ("lap_time_ratio", "cones_hit_diff", "both_completed"))
+    md += markdown_table([*keys, "pairs", "lap time ratio", "cones hit difference", "both completed"],
+                         [[*(a[k] for k in keys), a["n"], _fmt(a["lap_time_ratio_mean"], a["lap_time_ratio_std"],
+                                                               a["lap_time_ratio_count"]),
+                           _fmt(a["cones_hit_diff_mean"], a["cones_hit_diff_std"], a["cones_hit_diff_count"]),
+                           f"{int(round(a['both_completed_mean'] * a['n']))}/{a['n']}"] for a in agg])
+    md.append("")
+    if _has_values(paired, "lap_time_ratio"):
+        p = plot_metric(paired, "lap_time_ratio", plots / "lap_time_ratio.png", overwrite=overwrite,
+                        title=f"lap time over {baseline}'s vs severity\nline: mean over seeds, band: min..max, dots: seeds")
+        md += [f"![lap time ratio](plots/{p.name})", ""]
+    return md
+
+
 def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, config: Any = None,
                  wall_s: float | None = None, command: str | None = None,
                  group_by: Sequence[str] = ("agent", "track", "effect", "severity"),
                  table_metrics: Sequence[str] | None = None, plot_metrics: Sequence[str] | None = None,
-                 overwrite: bool = False) -> Path:
+                 baseline: str | None = None, overwrite: bool = False) -> Path:
     """Write ``out_dir/report.md`` and ``out_dir/plots/*.png`` from evaluation rows; return the report path.
 
     ``table_metrics`` / ``plot_metrics``: default the registry's (``Metric.table`` / ``Metric.plot``).
+    ``baseline``: an agent of the grid the others are compared against, cell by cell
+    (:func:`baseline_rows`: lap time ratio, cones hit difference; a table and a plot).
     Existing files are replaced only with ``overwrite`` (see :func:`report_paths`)."""
     table_metrics = registry.table_metrics() if table_metrics is None else table_metrics
     plot_metrics = registry.plot_metrics() if plot_metrics is None else plot_metrics
@@ -221,6 +277,9 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
         for p in written:
             md += [f"![{p.stem}](plots/{p.name})", ""]
 
+    if baseline is not None:
+        md += _baseline_section(rows, baseline, group_by, plots, overwrite)
+
     md += ["## Severity table", ""]
     md += _severity_table(rows, getattr(config, "presets", None))
     md.append("")
@@ -238,7 +297,7 @@ def report_paths(out_dir: str | Path, plot_metrics: Sequence[str] | None = None)
     """The files :func:`write_report` may write in ``out_dir`` (report.md and one plot per metric)."""
     out = Path(out_dir)
     names = registry.plot_metrics() if plot_metrics is None else plot_metrics
-    return [out / "report.md", *(out / "plots" / f"{m}.png" for m in names)]
+    return [out / "report.md", *(out / "plots" / f"{m}.png" for m in names), out / "plots" / "lap_time_ratio.png"]
 
 
 def report_replaceable(out_dir: str | Path, *, overwrite: bool = False) -> bool:
