@@ -29,3 +29,25 @@ def test_bench_sim_naive_says_why_the_shadow_map_row_is_missing(monkeypatch, cap
     out = capsys.readouterr().out
     assert "shadows=False (EGL without its shadow map)" not in out
     assert ("(no shadows=False row: a stripped build of the plugin)" in out) == ("renderer egl" in out)
+
+
+def test_bench_sim_naive_times_the_opt_in_reuse_beside_the_default(monkeypatch, capsys):
+    from weather_gym.sim import egl_shadow_reuse
+
+    monkeypatch.setattr(bench_sim, "NAIVE_SIZES", ((96, 54),))
+    monkeypatch.setattr(egl_shadow_reuse, "_hook", None)
+    monkeypatch.setattr(egl_shadow_reuse, "_reason", None)
+    monkeypatch.delenv("WEATHER_GYM_SHADOW_MAP_REUSE", raising=False)
+    assert main(["bench", "sim", "--naive", "--repeats", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "WEATHER_GYM_SHADOW_MAP_REUSE=1 (same bytes)" not in out  # off by default: no row, and why
+    assert ("(no shadow-map reuse row: off (the default" in out) == ("renderer egl" in out)
+    monkeypatch.setenv("WEATHER_GYM_SHADOW_MAP_REUSE", "1")
+    try:
+        assert main(["bench", "sim", "--naive", "--repeats", "2"]) == 0
+    finally:
+        if egl_shadow_reuse._hook is not None:
+            egl_shadow_reuse._hook._entry.release()
+    out = capsys.readouterr().out
+    if "renderer egl" in out and egl_shadow_reuse.unavailable_reason() is None:
+        assert any("WEATHER_GYM_SHADOW_MAP_REUSE=1 (same bytes)" in line for line in out.splitlines())
