@@ -14,6 +14,7 @@ Example:
 from __future__ import annotations
 
 import csv
+import json
 import re
 import shutil
 from pathlib import Path
@@ -139,15 +140,37 @@ def model_metadata(settings: dict[str, Any], hp: dict[str, Any], seed: int, eval
             "cone_memory": settings.get("cone_memory", False)}
 
 
-RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png", "checkpoints", "best",
-             "logs")
-"""What a run writes in its folder (``--overwrite`` removes these, nothing else)."""
+RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png",
+             "checkpoints/ppo_*_steps.zip", "checkpoints/ppo_*_steps.json", "checkpoints/ppo_vecnormalize_*_steps.pkl",
+             "best/best_model.zip", "best/best_model.json", "logs/steps[0-9]*")
+"""What a run writes in its folder, as glob patterns (a ``logs/steps<N>`` folder is one segment's SB3 logs:
+``progress.csv``, TensorBoard events, ``evaluations.npz``). The one list ``--overwrite`` removes (then the
+folders ``checkpoints``, ``best`` and ``logs`` if that left them empty); nothing else in the folder is touched."""
+RUN_RECORD = "run.json"
+"""The file that makes a folder a run: ``--resume`` continues it, ``--overwrite`` replaces it."""
 
 
-def _remove_run(out: Path) -> None:
-    for name in RUN_FILES:
-        path = out / name
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)
-        elif path.exists() or path.is_symlink():
-            path.unlink()
+def holds_run(out: Path) -> bool:
+    """Whether ``out`` holds a weather-gym training run (its ``run.json`` has settings and segments)."""
+    try:
+        run = json.loads((out / RUN_RECORD).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(run, dict) and "settings" in run and isinstance(run.get("segments"), list)
+
+
+def _remove_run(out: Path) -> list[Path]:
+    """Remove what a run wrote in ``out`` (:data:`RUN_FILES`); the paths removed."""
+    gone = []
+    for pattern in RUN_FILES:
+        for path in sorted(out.glob(pattern)):
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+            gone.append(path)
+    for name in ("checkpoints", "best", "logs"):
+        folder = out / name
+        if folder.is_dir() and not folder.is_symlink() and not any(folder.iterdir()):
+            folder.rmdir()
+    return gone
