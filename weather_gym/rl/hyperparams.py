@@ -347,6 +347,8 @@ def _literal(text: Any, where: str) -> Any:
 
     try:
         return ev(ast.parse(text, mode="eval").body)
+    except InputError:
+        raise
     except (SyntaxError, ValueError, TypeError, RecursionError, MemoryError):
         raise InputError(f"{where}: not a Python literal: {text!r}") from None
 
