@@ -3,12 +3,16 @@ checkpoint, best), the newest checkpoint for ``--resume``, and the learning and 
 (PNG, read from the CSV logs SB3's logger writes).
 
 Example:
-    >>> import tempfile
+    >>> import tempfile, zipfile
     >>> folder = Path(tempfile.mkdtemp())
     >>> for n in (64, 256, 128):
-    ...     _ = (folder / f"ppo_{n}_steps.zip").write_bytes(b"")
+    ...     zipfile.ZipFile(folder / f"ppo_{n}_steps.zip", "w").close()
+    ...     _ = (folder / f"ppo_{n}_steps.json").write_text("{}")
     >>> latest_checkpoint(folder).name
     'ppo_256_steps.zip'
+    >>> _ = (folder / "ppo_256_steps.zip").write_bytes(b"PK cut short by a stop")
+    >>> latest_checkpoint(folder).name
+    'ppo_128_steps.zip'
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import csv
 import json
 import re
 import shutil
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -56,9 +61,15 @@ def _checkpoint_steps(path: Path | None) -> int:
 
 
 def latest_checkpoint(folder: Path) -> Path | None:
-    """The checkpoint with the most steps in ``folder`` (``ppo_<steps>_steps.zip``), or None."""
+    """The complete checkpoint with the most steps in ``folder`` (``ppo_<steps>_steps.zip``), or None.
+
+    Complete: a whole zip file with its ``.json`` beside it (written after the model and its
+    normalisation statistics), so one cut short by a stop (Ctrl-C, SIGTERM, kill -9) is passed over."""
     found = sorted(folder.glob("ppo_*_steps.zip"), key=_checkpoint_steps)
-    return found[-1] if found else None
+    for path in reversed(found):
+        if path.with_suffix(".json").is_file() and zipfile.is_zipfile(path):
+            return path
+    return None
 
 
 def plot_learning_curve(out: Path) -> Path | None:
