@@ -132,12 +132,15 @@ def test_bound_messages_say_the_range():
         Bound(float).check(float("inf"), "x")
 
 
-def test_subproc_starts_at_most_a_process_per_usable_core():
-    _check_n_envs(8, "dummy", cores=2)
-    _check_n_envs(8, "split", cores=2)
-    _check_n_envs(2, "subproc", cores=2)
-    with pytest.raises(LimitError, match=r"n_envs 8 with --vec subproc would start 8 processes on 2 usable core\(s\)"):
-        _check_n_envs(8, "subproc", cores=2)
+def test_subproc_starts_at_most_4_processes_per_core_as_make_vec_env():
+    from weather_gym.pipeline import MAX_SYNC_ENVS
+
+    assert MAX_N_ENVS == MAX_SYNC_ENVS
+    _check_n_envs(64, "dummy", cpus=2)
+    _check_n_envs(64, "split", cpus=2)
+    _check_n_envs(8, "subproc", cpus=2)
+    with pytest.raises(LimitError, match=r"n_envs 9 with --vec subproc would start 9 processes: at most 8 \(4 per CPU"):
+        _check_n_envs(9, "subproc", cpus=2)
     assert POLICIES[0] == "weather_gym.agents.sb3_features.ConeListPolicy"
 
 
@@ -156,12 +159,12 @@ def test_subproc_starts_at_most_a_process_per_usable_core():
     (["--max-steps", "0"], r"--max-steps must be an integer in \[1, 1000000\], got 0"),
     (["--eval-episodes", "0"], r"--eval-episodes must be an integer in \[1, 1000\]"),
     (["--torch-threads", "1000"], r"--torch-threads must be an integer in \[1, 256\]"),
-    (["--vec", "subproc", "--n-envs", "64"], r"n_envs 64 with --vec subproc would start 64 processes"),
+    (["--vec", "subproc", "--n-envs", "9"], r"n_envs 9 with --vec subproc would start 9 processes: at most 8"),
     (["--noise", "[1]"], r"--noise must be a JSON object of fields, got \[1\]"),
     (["--camera", "9999x10"], r"--camera 9999x10: each side must be at most 4096 pixels"),
 ])
 def test_every_option_is_checked_before_anything_is_written(tmp_path, capsys, monkeypatch, argv, expected):
-    monkeypatch.setattr("weather_gym.rl.train.usable_cores", lambda: 2)
+    monkeypatch.setattr("weather_gym.rl.train.os.cpu_count", lambda: 2)
     out = tmp_path / "run"
     assert main(["train", "--out", str(out), *argv]) == 2
     err = capsys.readouterr().err

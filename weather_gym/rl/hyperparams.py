@@ -32,13 +32,15 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym.errors import FileFormatError, InputError, LimitError, MissingDependencyError, check_known
+from weather_gym.pipeline import MAX_SYNC_ENVS
 
 __all__ = ["Bound", "Hyperparams", "LinearSchedule", "MAX_N_ENVS", "MAX_ROLLOUT", "MAX_TIMESTEPS", "NOT_IN_FILE",
            "POLICIES", "load_hyperparams", "ppo_arguments", "resolve_hyperparams"]
 
-MAX_N_ENVS = 64
-"""Most training envs of one run (each is a PyBullet world in memory; ``--vec subproc`` also a process each,
-and there at most one per usable core)."""
+MAX_N_ENVS = MAX_SYNC_ENVS
+"""Most training envs of one run, as :func:`weather_gym.pipeline.make_vec_env` builds in one process (each is
+a PyBullet world in memory); ``--vec subproc`` (a process each) allows at most 4 per CPU core, as its
+``"async"`` mode."""
 MAX_TIMESTEPS = 10**9
 """Most environment steps of one run (``n_timesteps``, ``--timesteps``)."""
 MAX_ROLLOUT = 2**20

@@ -216,12 +216,14 @@ def _check_args(args: argparse.Namespace) -> None:
         raise LimitError(f"--n-envs must be an integer in [1, {MAX_N_ENVS}], got {args.n_envs}")
 
 
-def _check_n_envs(n_envs: int, kind: str, cores: int) -> None:
-    """``--vec subproc`` starts a process per env: at most one per usable core (SB3's advice for
-    ``SubprocVecEnv``); ``dummy`` and ``split`` run them in one or two processes (bound: ``MAX_N_ENVS``)."""
-    if kind == "subproc" and n_envs > cores:
-        raise LimitError(f"n_envs {n_envs} with --vec subproc would start {n_envs} processes on {cores} usable "
-                         f"core(s): at most {cores}; use --vec dummy or split (envs in one or two processes) for more")
+def _check_n_envs(n_envs: int, kind: str, cpus: int | None = None) -> None:
+    """``--vec subproc`` starts a process per env: at most 4 per CPU core, as ``make_vec_env``'s
+    ``"async"`` mode; ``dummy`` and ``split`` run them in one or two processes (:data:`MAX_N_ENVS`)."""
+    most = 4 * (cpus or os.cpu_count() or 1)
+    if kind == "subproc" and n_envs > most:
+        raise LimitError(f"n_envs {n_envs} with --vec subproc would start {n_envs} processes: at most {most} "
+                         "(4 per CPU core, as make_vec_env's async mode); use --vec dummy or split (envs in one or "
+                         "two processes) for more")
 
 
 def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
@@ -338,7 +340,7 @@ def train(args: argparse.Namespace) -> int:
     hp = resolve_hyperparams(args)
     s = _settings(args, hp)
     kind = vec_kind(args.vec, s["perception"], hp["n_envs"])
-    _check_n_envs(hp["n_envs"], kind, usable_cores())
+    _check_n_envs(hp["n_envs"], kind)
     _policy(hp["policy"])
     out: Path = args.out
     if args.resume and not out.is_dir():
