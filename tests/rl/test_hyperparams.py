@@ -171,3 +171,38 @@ def test_every_option_is_checked_before_anything_is_written(tmp_path, capsys, mo
     assert "Traceback" not in err
     assert re.search(expected, err), err
     assert not out.exists()
+
+
+def test_rl_md_quotes_the_code():
+    """docs/rl.md's table of keys, its OracleNoise default and its PPO set-up come from the code."""
+    import json
+    from pathlib import Path
+
+    from weather_gym.rl import HYPERPARAMS
+    from weather_gym.rl.run_outputs import RUN_FILES
+    from weather_gym.rl.train import DEFAULT_NOISE, build_parser
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "rl.md").read_text()
+    rows = dict(re.findall(r"^\| `(\w+)` \| [^|]*\| (.+?) \|$", text, flags=re.M))
+    for f in dataclasses.fields(Hyperparams):
+        bound = f.metadata.get("bound")
+        if bound is not None and bound.kind is not dict:
+            assert rows.get(f.name) == bound.expected(), f.name
+            assert bound.option is None or f"| `{f.name}` | `{bound.option}` |" in text
+    assert set(rows) >= set(Hyperparams.keys())
+    quoted = re.search(r"`OracleNoise` \(`--noise`, default `(\{.*?\})`", text, flags=re.S).group(1)
+    assert json.loads(quoted.replace("\n", " ")) == DEFAULT_NOISE
+    hp = load_hyperparams(HYPERPARAMS, KEY)
+    setup = re.search(r"\* \*\*PPO\*\*: (\d+) envs x (\d+) steps per update, batch (\d+), (\d+) epochs, learning rate "
+                      r"(\S+), gamma (\S+),", text).groups()
+    assert [int(v) for v in setup[:4]] == [hp["n_envs"], hp["ppo"]["n_steps"], hp["ppo"]["batch_size"],
+                                           hp["ppo"]["n_epochs"]]
+    assert [float(v) for v in setup[4:]] == [hp["ppo"]["learning_rate"], hp["ppo"]["gamma"]]
+    assert f"`--log-std-init {hp['policy_kwargs']['log_std_init']}`" in text
+    d = build_parser().parse_args(["--out", "x"])
+    assert f"every {d.eval_freq:,} steps\n  ({d.eval_episodes} episodes" in text and f"lap or {d.max_steps} steps" in text
+    assert f"(default {d.pretrain_steps:,})" in text and f"rounds (default {d.dagger_rounds})" in text
+    assert f"(default {d.dagger_beta})" in text and f"default {d.pretrain_epochs})" in text
+    assert f"`--pretrain-log-std` (default {d.pretrain_log_std}" in text
+    for pattern in RUN_FILES:  # the list --overwrite removes, as the page names it
+        assert pattern.split("/")[-1].split("_*")[0].replace("[0-9]*", "<N>") in text, pattern

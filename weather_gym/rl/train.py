@@ -27,12 +27,15 @@ on) from the start line and logs the mean reward and lap completion (``eval/succ
 ``ppo_<N>_steps.json``, ``best/best_model.zip`` with ``best/best_model.json`` (every one of them
 evaluates with the same command as the final model), ``logs/<segment>/progress.csv`` and TensorBoard
 event files, ``learning_curve.png``, ``run.json`` (command, settings, segments, wall time).
-``--resume`` continues from the newest checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
-run in a non-empty folder (never without it). ``--pretrain EXPERT`` first clones a registered agent (e.g.
+``--resume`` continues from the newest complete checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
+run in a non-empty folder (never without it), removing only what a run writes (:data:`RUN_FILES`); a folder
+holding no run is refused. One run writes a folder at a time (an exclusive lock on ``--out``). ``--pretrain EXPERT`` first clones a registered agent (e.g.
 ``gt_pure_pursuit``) with DAgger on the same envs (:mod:`weather_gym.rl.pretrain`; ``--pretrain-steps``,
 ``--dagger-rounds``, ``--pretrain-epochs``, ``--pretrain-log-std``), then PPO continues for
-``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C** stops the run and still
-writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (exit status 130); ``--resume`` continues from the newest checkpoint.
+``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C or SIGTERM** stops the run and still
+writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (its segment marked interrupted, with
+the signal; exit status 130 or 143); ``--resume`` continues from the newest checkpoint. Every hyper-parameter
+and option is checked first against its declared range (:class:`~weather_gym.rl.hyperparams.Hyperparams`).
 
 Example:
     >>> args = build_parser().parse_args(["--out", "runs/x", "--n-envs", "2"])
@@ -141,8 +144,9 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     p.add_argument("--out", type=Path, required=True, help="run folder (see --resume, --overwrite)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint")
     p.add_argument("--overwrite", action="store_true",
-                   help="start a new run in a non-empty --out: its run files (model, checkpoints/, best/, logs/, "
-                        "run.json, learning curve) are removed first")
+                   help="start a new run in a --out that holds one: what that run wrote (model, checkpoints, best/, "
+                        "logs/steps*, run.json, curves) is removed first, nothing else; a folder holding no run is "
+                        "refused")
     p.add_argument("--hyperparams", type=Path, default=HYPERPARAMS,
                    help="hyper-parameter file in rl-zoo3's YAML format (default: the shipped ppo.yml)")
     p.add_argument("--hyperparams-key", default=DEFAULT_HYPERPARAMS_KEY, help="its section")
