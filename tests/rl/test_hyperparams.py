@@ -206,3 +206,14 @@ def test_rl_md_quotes_the_code():
     assert f"`--pretrain-log-std` (default {d.pretrain_log_std}" in text
     for pattern in RUN_FILES:  # the list --overwrite removes, as the page names it
         assert pattern.split("/")[-1].split("_*")[0].replace("[0-9]*", "<N>") in text, pattern
+
+
+def test_a_missing_or_huge_file_is_a_typed_error(tmp_path):
+    from weather_gym.errors import MissingInputError
+    from weather_gym.rl.hyperparams import MAX_FILE_BYTES
+
+    with pytest.raises(MissingInputError, match="hyper-parameter file .*nope.yml not found"):
+        load_hyperparams(tmp_path / "nope.yml", KEY)
+    big = _file(tmp_path, "# " + "x" * MAX_FILE_BYTES)
+    with pytest.raises(FileFormatError, match=rf"{big}: \d+ bytes; a hyper-parameter file has at most {MAX_FILE_BYTES}"):
+        load_hyperparams(big, KEY)

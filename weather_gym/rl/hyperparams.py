@@ -31,10 +31,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from weather_gym.errors import FileFormatError, InputError, LimitError, MissingDependencyError, check_known
+from weather_gym.errors import (
+    FileFormatError,
+    InputError,
+    LimitError,
+    MissingDependencyError,
+    MissingInputError,
+    check_known,
+)
 from weather_gym.pipeline import MAX_SYNC_ENVS
 
-__all__ = ["Bound", "Hyperparams", "LinearSchedule", "MAX_N_ENVS", "MAX_ROLLOUT", "MAX_TIMESTEPS", "NOT_IN_FILE",
+__all__ = ["Bound", "Hyperparams", "LinearSchedule", "MAX_FILE_BYTES", "MAX_N_ENVS", "MAX_ROLLOUT", "MAX_TIMESTEPS", "NOT_IN_FILE",
            "POLICIES", "load_hyperparams", "ppo_arguments", "resolve_hyperparams"]
 
 MAX_N_ENVS = MAX_SYNC_ENVS
@@ -45,6 +52,8 @@ MAX_TIMESTEPS = 10**9
 """Most environment steps of one run (``n_timesteps``, ``--timesteps``)."""
 MAX_ROLLOUT = 2**20
 """Most steps of one rollout, ``n_steps * n_envs`` (PPO keeps them all in memory)."""
+MAX_FILE_BYTES = 1_000_000
+"""Largest hyper-parameter file read (rl-zoo3's ppo.yml, every env id it tunes, is 16 kB)."""
 POLICIES = ("weather_gym.agents.sb3_features.ConeListPolicy", "MultiInputPolicy")
 """The policies a file may name: the cone list's (an rl-zoo3 import path, resolved from this list, never
 imported by name) and SB3's own for Dict observations."""
@@ -368,7 +377,10 @@ def _read(path: Path, key: str, overrides: dict[str, Any] | None = None,
     except ImportError:
         raise MissingDependencyError("reading a hyper-parameter file needs PyYAML (pip install pyyaml)") from None
     if not path.is_file():
-        raise InputError(f"hyper-parameter file {path} not found")
+        raise MissingInputError(f"hyper-parameter file {path} not found")
+    if path.stat().st_size > MAX_FILE_BYTES:
+        raise FileFormatError(f"{path}: {path.stat().st_size} bytes; a hyper-parameter file has at most "
+                              f"{MAX_FILE_BYTES} (a few keys per env id)")
     try:
         data = yaml.safe_load(path.read_bytes().decode("utf-8"))
     except UnicodeDecodeError as exc:

@@ -67,7 +67,6 @@ from weather_gym.limits import MAX_CAMERA_SIDE, check_seed, parse_size
 from weather_gym.perception_modes import CONES, modes_where, perception_mode
 from weather_gym.rl import HYPERPARAMS
 from weather_gym.rl.hyperparams import (
-    MAX_N_ENVS,
     POLICIES,
     Bound,
     load_hyperparams,
@@ -216,8 +215,6 @@ def _check_args(args: argparse.Namespace) -> None:
     for name, bound in RUN_OPTIONS.items():
         bound.check(getattr(args, name), bound.option)
     check_seed(args.seed, what="--seed")
-    if args.n_envs is not None and not 1 <= args.n_envs <= MAX_N_ENVS:  # before the file is read: its own message
-        raise LimitError(f"--n-envs must be an integer in [1, {MAX_N_ENVS}], got {args.n_envs}")
 
 
 def _check_n_envs(n_envs: int, kind: str, cpus: int | None = None) -> None:
