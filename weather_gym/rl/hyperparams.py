@@ -97,6 +97,8 @@ class Bound:
         """What a value must be, in words (the end of every error message)."""
         if self.kind is bool:
             text = "true or false"
+        elif self.kind is dict:
+            text = "a dict of keywords"
         elif self.choices:
             text = f"one of {list(self.choices)}"
         else:
@@ -155,8 +157,9 @@ def _num(x: float) -> str:
     return str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
-def _key(bound: Bound, default: Any = None) -> Any:
-    return field(default=default, metadata={"bound": bound})
+def _key(bound: Bound, default: Any = None, *, ppo: bool = True) -> Any:
+    """A declared key: its bound, its default, and whether it is a PPO keyword (else the run's: n_envs, ...)."""
+    return field(default=default, metadata={"bound": bound, "ppo": ppo})
 
 
 UNIT = {"lo": 0, "hi": 1}
@@ -187,11 +190,11 @@ class Hyperparams:
 (PPO's mini-batches; SB3 warns of a truncated one otherwise), e.g. 2, 4, 8, 16, 32, 64
     """
 
-    n_envs: int = _key(Bound(int, 1, MAX_N_ENVS, option="--n-envs"), 1)
-    n_timesteps: int | None = _key(Bound(int, 1, MAX_TIMESTEPS, null=True, option="--timesteps"))
-    policy: str = _key(Bound(str, choices=POLICIES), "MultiInputPolicy")
-    normalize: Any = _key(Bound(dict), False)  # true/false or VecNormalize keywords (NORMALIZE)
-    policy_kwargs: Any = _key(Bound(dict), None)  # POLICY_KWARGS and net_arch
+    n_envs: int = _key(Bound(int, 1, MAX_N_ENVS, option="--n-envs"), 1, ppo=False)
+    n_timesteps: int | None = _key(Bound(int, 1, MAX_TIMESTEPS, null=True, option="--timesteps"), ppo=False)
+    policy: str = _key(Bound(str, choices=POLICIES), "MultiInputPolicy", ppo=False)
+    normalize: Any = _key(Bound(dict), False, ppo=False)  # true/false or VecNormalize keywords (NORMALIZE)
+    policy_kwargs: Any = _key(Bound(dict), None, ppo=False)  # POLICY_KWARGS and net_arch
     # PPO's keywords
     learning_rate: float | str | None = _key(Bound(float, 0, 1, lo_open=True, schedule=True, option="--learning-rate"))
     n_steps: int | None = _key(Bound(int, 1, MAX_ROLLOUT, option="--n-steps"))
@@ -230,7 +233,8 @@ class Hyperparams:
 
     @classmethod
     def ppo_keys(cls) -> tuple[str, ...]:
-        return cls.keys()[5:]
+        """The keys that are PPO's keywords."""
+        return tuple(f.name for f in dataclasses.fields(cls) if f.metadata.get("ppo"))
 
     def _name(self, key: str) -> str:
         return self.source.get(key, key)
