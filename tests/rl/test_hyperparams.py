@@ -37,7 +37,7 @@ def _file(tmp_path, *lines: str):
 
 @pytest.mark.parametrize(("line", "error", "expected"), [
     ('n_steps: "many"', InputError, r"n_steps must be an integer in \[1, 1048576\], got 'many'"),
-    ("batch_size: 0", LimitError, r"batch_size must be an integer in \[2, 1048576\], got 0"),
+    ("batch_size: 0", LimitError, r"batch_size must be an integer in \[2, 1048576\] \(PPO normalises .*\), got 0"),
     ("learning_rate: -1", LimitError, r"learning_rate must be a number in \(0, 1\] or 'lin_<that>'.*, got -1"),
     ("learning_rate: lin_-3e-4", LimitError, r"learning_rate must be .*, got 'lin_-3e-4'"),
     ("learning_rate: lin_fast", InputError, r"learning_rate must be .*, got 'lin_fast'"),
@@ -145,7 +145,8 @@ def test_subproc_starts_at_most_4_processes_per_core_as_make_vec_env():
 
 
 @pytest.mark.parametrize(("argv", "expected"), [
-    (["--batch-size", "1"], r"--batch-size must be an integer in \[2, 1048576\], got 1"),
+    (["--batch-size", "1"], r"--batch-size must be an integer in \[2, 1048576\] \(PPO normalises the advantage "
+                            r"over each mini-batch\), got 1"),
     (["--batch-size", "100"], r"--batch-size \(100\) must divide the rollout n_steps \* n_envs = 256 \* 8 = 2048"),
     (["--n-envs", "100000"], rf"--n-envs must be an integer in \[1, {MAX_N_ENVS}\], got 100000"),
     (["--gamma", "5"], r"--gamma must be a number in \(0, 1\], got 5.0"),
@@ -161,6 +162,8 @@ def test_subproc_starts_at_most_4_processes_per_core_as_make_vec_env():
     (["--torch-threads", "1000"], r"--torch-threads must be an integer in \[1, 256\]"),
     (["--vec", "subproc", "--n-envs", "9"], r"n_envs 9 with --vec subproc would start 9 processes: at most 8"),
     (["--noise", "[1]"], r"--noise must be a JSON object of fields, got \[1\]"),
+    (["--init", "nosuch.zip"], r"--init nosuch.zip: no such model file"),
+    (["--init", __file__], r"--init .*test_hyperparams.py: not a saved SB3 model"),
     (["--camera", "9999x10"], r"--camera 9999x10: each side must be at most 4096 pixels"),
 ])
 def test_every_option_is_checked_before_anything_is_written(tmp_path, capsys, monkeypatch, argv, expected):

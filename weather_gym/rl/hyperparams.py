@@ -72,7 +72,7 @@ class Bound:
     ``kind`` int, float, bool or str; ``lo``/``hi`` the range (``None``: unbounded), open at an end with
     ``lo_open``/``hi_open``; ``choices`` for a str; ``null`` allows None; ``schedule`` allows rl-zoo3's
     ``"lin_<v>"`` (a linear schedule from ``v`` to 0, ``v`` in the range); ``option`` the command-line option
-    that sets it.
+    that sets it; ``why`` a reason the message gives.
 
     Example:
         >>> Bound(float, 0, 1, lo_open=True, schedule=True).check("lin_3e-4", "learning_rate")
@@ -92,6 +92,7 @@ class Bound:
     null: bool = False
     schedule: bool = False
     option: str | None = None
+    why: str = ""
 
     def expected(self) -> str:
         """What a value must be, in words (the end of every error message)."""
@@ -113,7 +114,7 @@ class Bound:
                 text = f"a finite {noun[2:].lstrip()}" if self.kind is float else noun
         if self.schedule:
             text += " or 'lin_<that>' (a linear schedule to 0)"
-        return text + (" or null" if self.null else "")
+        return text + (" or null" if self.null else "") + (f" ({self.why})" if self.why else "")
 
     def check(self, value: Any, name: str) -> Any:
         """``value`` checked (a whole float as an int for int settings), else :class:`InputError` (wrong
@@ -198,7 +199,8 @@ class Hyperparams:
     # PPO's keywords
     learning_rate: float | str | None = _key(Bound(float, 0, 1, lo_open=True, schedule=True, option="--learning-rate"))
     n_steps: int | None = _key(Bound(int, 1, MAX_ROLLOUT, option="--n-steps"))
-    batch_size: int | None = _key(Bound(int, 2, MAX_ROLLOUT, option="--batch-size"))
+    batch_size: int | None = _key(Bound(int, 2, MAX_ROLLOUT, option="--batch-size",
+                                        why="PPO normalises the advantage over each mini-batch"))
     n_epochs: int | None = _key(Bound(int, 1, 1000, option="--n-epochs"))
     gamma: float | None = _key(Bound(float, 0, 1, lo_open=True, option="--gamma"))
     gae_lambda: float | None = _key(Bound(float, **UNIT))

@@ -56,13 +56,21 @@ import signal
 import sys
 import time
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
 from weather_gym._io import _make_parent, atomic_path, atomic_write_json
 from weather_gym._lock import exclusive_folder
 from weather_gym.agents.cone_memory import ConeMemoryConfig
-from weather_gym.errors import FileFormatError, InputError, LimitError, OutputExistsError, Terminated
+from weather_gym.errors import (
+    FileFormatError,
+    InputError,
+    LimitError,
+    MissingInputError,
+    OutputExistsError,
+    Terminated,
+)
 from weather_gym.limits import MAX_CAMERA_SIDE, check_seed, parse_size
 from weather_gym.perception_modes import CONES, modes_where, perception_mode
 from weather_gym.rl import HYPERPARAMS
@@ -260,6 +268,10 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
     if sw:
         out["surrogate_weathers"] = sw
     if args.init is not None:
+        if not Path(args.init).is_file():
+            raise MissingInputError(f"--init {args.init}: no such model file")
+        if not zipfile.is_zipfile(args.init):
+            raise FileFormatError(f"--init {args.init}: not a saved SB3 model (a .zip written by model.save)")
         out["init"] = str(args.init)
     if getattr(args, "cone_memory", False):
         out["cone_memory"] = ConeMemoryConfig().to_dict()  # the tuning, so a resume or a driver uses the same
