@@ -211,7 +211,7 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
 
 
 def usable_cores() -> int:
-    """The cores this process may run on (its affinity), as ``vec_kind`` and ``--vec subproc``'s bound count them."""
+    """The cores this process may run on (its affinity): ``vec_kind`` splits the envs only with two or more."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
@@ -227,7 +227,8 @@ def _check_args(args: argparse.Namespace) -> None:
 
 def _check_n_envs(n_envs: int, kind: str, cpus: int | None = None) -> None:
     """``--vec subproc`` starts a process per env: at most 4 per CPU core, as ``make_vec_env``'s
-    ``"async"`` mode; ``dummy`` and ``split`` run them in one or two processes (:data:`MAX_N_ENVS`)."""
+    ``"async"`` mode; ``dummy`` and ``split`` run them in one or two processes (at most
+    :data:`weather_gym.rl.hyperparams.MAX_N_ENVS`, checked with the hyper-parameters)."""
     most = 4 * (cpus or os.cpu_count() or 1)
     if kind == "subproc" and n_envs > most:
         raise LimitError(f"n_envs {n_envs} with --vec subproc would start {n_envs} processes: at most {most} "
