@@ -28,14 +28,15 @@ on) from the start line and logs the mean reward and lap completion (``eval/succ
 evaluates with the same command as the final model), ``logs/<segment>/progress.csv`` and TensorBoard
 event files, ``learning_curve.png``, ``run.json`` (command, settings, segments, wall time).
 ``--resume`` continues from the newest complete checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
-run in a non-empty folder (never without it), removing only what a run writes (:data:`RUN_FILES`); a folder
-holding no run is refused. One run writes a folder at a time (an exclusive lock on ``--out``). ``--pretrain EXPERT`` first clones a registered agent (e.g.
+run in a non-empty folder (never without it), removing only the files a run writes (``RUN_FILES``); a
+folder holding no run is refused. One run writes a folder at a time (a lock on ``--out``).
+``--pretrain EXPERT`` first clones a registered agent (e.g.
 ``gt_pure_pursuit``) with DAgger on the same envs (:mod:`weather_gym.rl.pretrain`; ``--pretrain-steps``,
 ``--dagger-rounds``, ``--pretrain-epochs``, ``--pretrain-log-std``), then PPO continues for
 ``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C or SIGTERM** stops the run and still
 writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (its segment marked interrupted, with
 the signal; exit status 130 or 143); ``--resume`` continues from the newest checkpoint. Every hyper-parameter
-and option is checked first against its declared range (:class:`~weather_gym.rl.hyperparams.Hyperparams`).
+and option is checked first against its declared range (``weather_gym.rl.hyperparams.Hyperparams``).
 
 Example:
     >>> args = build_parser().parse_args(["--out", "runs/x", "--n-envs", "2"])
