@@ -102,7 +102,8 @@ def test_overwrite_removes_only_what_a_run_wrote(tmp_path):
     written = ["model.zip", "model.json", "run.json", "learning_curve.png", "checkpoints/ppo_64_steps.zip",
                "checkpoints/ppo_64_steps.json", "checkpoints/ppo_vecnormalize_64_steps.pkl", "best/best_model.zip",
                "best/best_model.json", "logs/steps000000000/progress.csv", "logs/steps000000064/evaluations.npz"]
-    mine = ["notes.txt", "checkpoints/keep.zip", "logs/tb/events", "best/README", "model.zip.bak"]
+    written += [".model.zip.x1y2.tmp.zip", "checkpoints/.ppo_64_steps.zip.ab12.tmp.zip"]  # cut short by kill -9
+    mine = ["notes.txt", "checkpoints/keep.zip", "logs/tb/events", "best/README", "model.zip.bak", ".hidden"]
     for name in written + mine:
         (out / name).parent.mkdir(parents=True, exist_ok=True)
         (out / name).write_text("{}")

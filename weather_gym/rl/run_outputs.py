@@ -30,29 +30,38 @@ import numpy as np
 from matplotlib import pyplot as plt
 
 from weather_gym._figures import save_figure
-from weather_gym._io import atomic_write_json
+from weather_gym._io import atomic_path, atomic_write_json
 
 
 def _metadata_callbacks(meta, checkpoints: Path, checkpoint_freq: int, best: Path):
-    """SB3's ``CheckpointCallback`` writing ``ppo_<N>_steps.json`` beside each checkpoint, and the
-    callback that writes ``best/best_model.json`` whenever ``EvalCallback`` saves a new best model."""
+    """SB3's ``CheckpointCallback`` writing each checkpoint atomically, then ``ppo_<N>_steps.json`` beside it
+    (so a checkpoint with its ``.json`` is complete), and the callback ``EvalCallback`` calls on a new best
+    model, which writes ``best/best_model.zip`` and ``best/best_model.json`` the same way (give
+    ``EvalCallback`` no ``best_model_save_path``). A stop or a crash mid-write leaves the previous files."""
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     class CheckpointWithMetadata(CheckpointCallback):
         def _on_step(self) -> bool:
-            go_on = super()._on_step()
             if self.n_calls % self.save_freq == 0:
                 zip_path = Path(self._checkpoint_path(extension="zip"))
+                with atomic_path(zip_path, overwrite=True) as tmp:
+                    self.model.save(str(tmp))
+                stats = self.model.get_vec_normalize_env()
+                if self.save_vecnormalize and stats is not None:
+                    with atomic_path(self._checkpoint_path("vecnormalize_", extension="pkl"), overwrite=True) as tmp:
+                        stats.save(str(tmp))
                 atomic_write_json(zip_path.with_suffix(".json"), meta(self.num_timesteps), indent=2, overwrite=True)
-            return go_on
+            return True
 
-    class BestMetadata(BaseCallback):
+    class BestModel(BaseCallback):
         def _on_step(self) -> bool:
+            with atomic_path(best / "best_model.zip", overwrite=True) as tmp:
+                self.model.save(str(tmp))
             atomic_write_json(best / "best_model.json", meta(self.num_timesteps), indent=2, overwrite=True)
             return True
 
     return (CheckpointWithMetadata(checkpoint_freq, str(checkpoints), name_prefix="ppo", save_vecnormalize=True),
-            BestMetadata())
+            BestModel())
 
 
 def _checkpoint_steps(path: Path | None) -> int:
@@ -173,7 +182,9 @@ def holds_run(out: Path) -> bool:
 def _remove_run(out: Path) -> list[Path]:
     """Remove what a run wrote in ``out`` (:data:`RUN_FILES`); the paths removed."""
     gone = []
-    for pattern in RUN_FILES:
+    temporary = [f"{folder}/.{name}.*.tmp*".lstrip("/") for folder, _, name in (p.rpartition("/") for p in RUN_FILES)
+                 if not name.startswith("steps")]  # a write cut short by kill -9 (weather_gym._io's names)
+    for pattern in (*RUN_FILES, *temporary):
         for path in sorted(out.glob(pattern)):
             if path.is_dir() and not path.is_symlink():
                 shutil.rmtree(path)

@@ -420,7 +420,7 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
             progress,
             checkpoint_cb,
             EvalCallback(eval_env, n_eval_episodes=args.eval_episodes, eval_freq=max(args.eval_freq // n_envs, 1),
-                         best_model_save_path=str(out / "best"), log_path=str(out / "logs" / segment),
+                         best_model_save_path=None, log_path=str(out / "logs" / segment),  # best_cb saves it
                          deterministic=True, verbose=0, callback_on_new_best=best_cb),
         ])
         start_steps = model.num_timesteps
