@@ -41,8 +41,8 @@ from weather_gym.errors import (
 )
 from weather_gym.pipeline import MAX_SYNC_ENVS
 
-__all__ = ["Bound", "Hyperparams", "LinearSchedule", "MAX_FILE_BYTES", "MAX_N_ENVS", "MAX_ROLLOUT", "MAX_TIMESTEPS", "NOT_IN_FILE",
-           "POLICIES", "load_hyperparams", "ppo_arguments", "resolve_hyperparams"]
+__all__ = ["Bound", "Hyperparams", "LinearSchedule", "MAX_FILE_BYTES", "MAX_N_ENVS", "MAX_ROLLOUT", "MAX_TIMESTEPS",
+           "NOT_IN_FILE", "POLICIES", "load_hyperparams", "ppo_arguments", "resolve_hyperparams"]
 
 MAX_N_ENVS = MAX_SYNC_ENVS
 """Most training envs of one run, as :func:`weather_gym.pipeline.make_vec_env` builds in one process (each is
