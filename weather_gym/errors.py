@@ -52,6 +52,7 @@ __all__ = [
     "StateError",
     "MissingDependencyError",
     "check_known",
+    "Terminated",
 ]
 
 
@@ -93,6 +94,11 @@ class StateError(WeatherGymError, RuntimeError):
 
 class MissingDependencyError(WeatherGymError, ImportError):
     """An optional extra is needed (the message says which ``pip install`` brings it)."""
+
+
+class Terminated(BaseException):
+    """Raised in the main thread on SIGTERM while a command runs (``weather_gym.cli.run_command``), so that
+    cleanup runs and a long run saves what it has, as after Ctrl-C; not an error (exit status 143)."""
 
 
 def check_known(given: Iterable[str], valid: Iterable[str], *, what: str, kind: str = "key",

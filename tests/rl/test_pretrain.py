@@ -80,4 +80,4 @@ def test_bad_pretraining_options_are_refused(tmp_path, capsys, extra, message):
 
 def test_timesteps_zero_needs_pretraining(tmp_path, capsys):
     assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "0"]) == 2
-    assert "--timesteps must be >= 1 (0 only with --pretrain)" in capsys.readouterr().err
+    assert "--timesteps must be an integer >= 1 (0 only with --pretrain), got 0" in capsys.readouterr().err

@@ -50,7 +50,7 @@ def test_the_shipped_file_is_rl_zoo3_format_and_builds_ppo():
     ("X:\n  n_envs: 2\n", r"no section 'WeatherGym/ConeTrackCones-v0' \(sections: \['X'\]\)"),
     ("WeatherGym/ConeTrackCones-v0:\n  n_stepz: 2\n", r"unknown key\(s\) \['n_stepz'\]"),
     ("WeatherGym/ConeTrackCones-v0:\n  policy_kwargs: \"dict(activation_fn=nn.ReLU)\"\n", "only literals and dict"),
-    ("WeatherGym/ConeTrackCones-v0:\n  n_envs: 0\n", "n_envs must be an integer >= 1"),
+    ("WeatherGym/ConeTrackCones-v0:\n  n_envs: 0\n", r"n_envs must be an integer in \[1, 64\], got 0"),
 ])
 def test_bad_hyperparameter_files_are_refused(tmp_path, text, message):
     path = tmp_path / "hp.yml"

@@ -34,6 +34,7 @@ import traceback
 import weather_gym.cli as pkg
 from weather_gym import __version__
 from weather_gym.errors import InputError, WeatherGymError
+from weather_gym.errors import Terminated as _Terminated
 
 BUG_REPORT = ("this is a bug in weather-gym, not a problem with your input: please report it with the command "
               "you ran and the traceback above")
@@ -87,10 +88,6 @@ def run_command(func, *args, **kwargs) -> int:
             traceback.print_exc()
             print(f"weather-gym {__version__}: {BUG_REPORT}", file=sys.stderr)
             return INTERNAL_ERROR
-
-
-class _Terminated(BaseException):
-    """Raised in the main thread on SIGTERM so that cleanup (temporary files, workers) runs."""
 
 
 @contextlib.contextmanager

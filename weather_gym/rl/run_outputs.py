@@ -3,19 +3,25 @@ checkpoint, best), the newest checkpoint for ``--resume``, and the learning and 
 (PNG, read from the CSV logs SB3's logger writes).
 
 Example:
-    >>> import tempfile
+    >>> import tempfile, zipfile
     >>> folder = Path(tempfile.mkdtemp())
     >>> for n in (64, 256, 128):
-    ...     _ = (folder / f"ppo_{n}_steps.zip").write_bytes(b"")
+    ...     zipfile.ZipFile(folder / f"ppo_{n}_steps.zip", "w").close()
+    ...     _ = (folder / f"ppo_{n}_steps.json").write_text("{}")
     >>> latest_checkpoint(folder).name
     'ppo_256_steps.zip'
+    >>> _ = (folder / "ppo_256_steps.zip").write_bytes(b"PK cut short by a stop")
+    >>> latest_checkpoint(folder).name
+    'ppo_128_steps.zip'
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import re
 import shutil
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -24,29 +30,38 @@ import numpy as np
 from matplotlib import pyplot as plt
 
 from weather_gym._figures import save_figure
-from weather_gym._io import atomic_write_json
+from weather_gym._io import atomic_path, atomic_write_json
 
 
 def _metadata_callbacks(meta, checkpoints: Path, checkpoint_freq: int, best: Path):
-    """SB3's ``CheckpointCallback`` writing ``ppo_<N>_steps.json`` beside each checkpoint, and the
-    callback that writes ``best/best_model.json`` whenever ``EvalCallback`` saves a new best model."""
+    """SB3's ``CheckpointCallback`` writing each checkpoint atomically, then ``ppo_<N>_steps.json`` beside it
+    (so a checkpoint with its ``.json`` is complete), and the callback ``EvalCallback`` calls on a new best
+    model, which writes ``best/best_model.zip`` and ``best/best_model.json`` the same way (give
+    ``EvalCallback`` no ``best_model_save_path``). A stop or a crash mid-write leaves the previous files."""
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     class CheckpointWithMetadata(CheckpointCallback):
         def _on_step(self) -> bool:
-            go_on = super()._on_step()
             if self.n_calls % self.save_freq == 0:
                 zip_path = Path(self._checkpoint_path(extension="zip"))
+                with atomic_path(zip_path, overwrite=True) as tmp:
+                    self.model.save(str(tmp))
+                stats = self.model.get_vec_normalize_env()
+                if self.save_vecnormalize and stats is not None:
+                    with atomic_path(self._checkpoint_path("vecnormalize_", extension="pkl"), overwrite=True) as tmp:
+                        stats.save(str(tmp))
                 atomic_write_json(zip_path.with_suffix(".json"), meta(self.num_timesteps), indent=2, overwrite=True)
-            return go_on
+            return True
 
-    class BestMetadata(BaseCallback):
+    class BestModel(BaseCallback):
         def _on_step(self) -> bool:
+            with atomic_path(best / "best_model.zip", overwrite=True) as tmp:
+                self.model.save(str(tmp))
             atomic_write_json(best / "best_model.json", meta(self.num_timesteps), indent=2, overwrite=True)
             return True
 
     return (CheckpointWithMetadata(checkpoint_freq, str(checkpoints), name_prefix="ppo", save_vecnormalize=True),
-            BestMetadata())
+            BestModel())
 
 
 def _checkpoint_steps(path: Path | None) -> int:
@@ -55,9 +70,15 @@ def _checkpoint_steps(path: Path | None) -> int:
 
 
 def latest_checkpoint(folder: Path) -> Path | None:
-    """The checkpoint with the most steps in ``folder`` (``ppo_<steps>_steps.zip``), or None."""
+    """The complete checkpoint with the most steps in ``folder`` (``ppo_<steps>_steps.zip``), or None.
+
+    Complete: a whole zip file with its ``.json`` beside it (written after the model and its
+    normalisation statistics), so one cut short by a stop (Ctrl-C, SIGTERM, kill -9) is passed over."""
     found = sorted(folder.glob("ppo_*_steps.zip"), key=_checkpoint_steps)
-    return found[-1] if found else None
+    for path in reversed(found):
+        if path.with_suffix(".json").is_file() and zipfile.is_zipfile(path):
+            return path
+    return None
 
 
 def plot_learning_curve(out: Path) -> Path | None:
@@ -139,15 +160,39 @@ def model_metadata(settings: dict[str, Any], hp: dict[str, Any], seed: int, eval
             "cone_memory": settings.get("cone_memory", False)}
 
 
-RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png", "checkpoints", "best",
-             "logs")
-"""What a run writes in its folder (``--overwrite`` removes these, nothing else)."""
+RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png",
+             "checkpoints/ppo_*_steps.zip", "checkpoints/ppo_*_steps.json", "checkpoints/ppo_vecnormalize_*_steps.pkl",
+             "best/best_model.zip", "best/best_model.json", "logs/steps[0-9]*")
+"""What a run writes in its folder, as glob patterns (a ``logs/steps<N>`` folder is one segment's SB3 logs:
+``progress.csv``, TensorBoard events, ``evaluations.npz``). The one list ``--overwrite`` removes (then the
+folders ``checkpoints``, ``best`` and ``logs`` if that left them empty); nothing else in the folder is touched."""
+RUN_RECORD = "run.json"
+"""The file that makes a folder a run: ``--resume`` continues it, ``--overwrite`` replaces it."""
 
 
-def _remove_run(out: Path) -> None:
-    for name in RUN_FILES:
-        path = out / name
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)
-        elif path.exists() or path.is_symlink():
-            path.unlink()
+def holds_run(out: Path) -> bool:
+    """Whether ``out`` holds a weather-gym training run (its ``run.json`` has settings and segments)."""
+    try:
+        run = json.loads((out / RUN_RECORD).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(run, dict) and "settings" in run and isinstance(run.get("segments"), list)
+
+
+def _remove_run(out: Path) -> list[Path]:
+    """Remove what a run wrote in ``out`` (:data:`RUN_FILES`); the paths removed."""
+    gone = []
+    temporary = [f"{folder}/.{name}.*.tmp*".lstrip("/") for folder, _, name in (p.rpartition("/") for p in RUN_FILES)
+                 if not name.startswith("steps")]  # a write cut short by kill -9 (weather_gym._io's names)
+    for pattern in (*RUN_FILES, *temporary):
+        for path in sorted(out.glob(pattern)):
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+            gone.append(path)
+    for name in ("checkpoints", "best", "logs"):
+        folder = out / name
+        if folder.is_dir() and not folder.is_symlink() and not any(folder.iterdir()):
+            folder.rmdir()
+    return gone

@@ -45,7 +45,8 @@ def split_point(num_envs: int) -> int:
 
 def _worker(conn: Any, env_fns: CloudpickleWrapper) -> None:
     """The worker's loop: a ``DummyVecEnv`` of its envs, driven by ``(command, data)`` messages."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's to handle
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's to handle,
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # and a stop sent to the whole group (systemd, kill -TERM -PGID)
     venv = None
     while True:
         try:
@@ -261,6 +262,6 @@ class SplitVecEnv(VecEnv):
                 pass
         self._process.join(CLOSE_TIMEOUT_S)
         if self._process.is_alive():
-            self._process.terminate()
+            self._process.kill()  # it ignores SIGTERM (see _worker)
             self._process.join()
         self._conn.close()

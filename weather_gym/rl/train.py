@@ -27,12 +27,16 @@ on) from the start line and logs the mean reward and lap completion (``eval/succ
 ``ppo_<N>_steps.json``, ``best/best_model.zip`` with ``best/best_model.json`` (every one of them
 evaluates with the same command as the final model), ``logs/<segment>/progress.csv`` and TensorBoard
 event files, ``learning_curve.png``, ``run.json`` (command, settings, segments, wall time).
-``--resume`` continues from the newest checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
-run in a non-empty folder (never without it). ``--pretrain EXPERT`` first clones a registered agent (e.g.
+``--resume`` continues from the newest complete checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
+run in a non-empty folder (never without it), removing only the files a run writes (``RUN_FILES``); a
+folder holding no run is refused. One run writes a folder at a time (a lock on ``--out``).
+``--pretrain EXPERT`` first clones a registered agent (e.g.
 ``gt_pure_pursuit``) with DAgger on the same envs (:mod:`weather_gym.rl.pretrain`; ``--pretrain-steps``,
 ``--dagger-rounds``, ``--pretrain-epochs``, ``--pretrain-log-std``), then PPO continues for
-``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C** stops the run and still
-writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (exit status 130); ``--resume`` continues from the newest checkpoint.
+``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C or SIGTERM** stops the run and still
+writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (its segment marked interrupted, with
+the signal; exit status 130 or 143); ``--resume`` continues from the newest checkpoint. Every hyper-parameter
+and option is checked first against its declared range (``weather_gym.rl.hyperparams.Hyperparams``).
 
 Example:
     >>> args = build_parser().parse_args(["--out", "runs/x", "--n-envs", "2"])
@@ -46,29 +50,46 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib
 import json
 import os
 import shlex
+import signal
 import sys
 import time
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
-from weather_gym._io import atomic_path, atomic_write_json
+from weather_gym._io import _make_parent, atomic_path, atomic_write_json
+from weather_gym._lock import exclusive_folder
 from weather_gym.agents.cone_memory import ConeMemoryConfig
-from weather_gym.errors import InputError, OutputExistsError
-from weather_gym.limits import check_seed, parse_size
+from weather_gym.errors import (
+    FileFormatError,
+    InputError,
+    LimitError,
+    MissingInputError,
+    OutputExistsError,
+    Terminated,
+)
+from weather_gym.limits import MAX_CAMERA_SIDE, check_seed, parse_size
 from weather_gym.perception_modes import CONES, modes_where, perception_mode
 from weather_gym.rl import HYPERPARAMS
-from weather_gym.rl.hyperparams import load_hyperparams, resolve_hyperparams
+from weather_gym.rl.hyperparams import (
+    POLICIES,
+    Bound,
+    load_hyperparams,
+    ppo_arguments,
+    resolve_hyperparams,
+)
 from weather_gym.rl.pretrain import PretrainConfig, pretrain
 from weather_gym.rl.run_outputs import (
     RUN_FILES,
+    RUN_RECORD,
     _checkpoint_steps,
     _metadata_callbacks,
     _remove_run,
+    holds_run,
     latest_checkpoint,
     model_metadata,
     plot_learning_curve,
@@ -92,6 +113,14 @@ EVAL_MAX_STEPS = 1800
 """Step limit of a held-out evaluation episode (60 s: a lap of small_track takes about 20 s)."""
 INTERRUPTED = 130
 """Exit status after Ctrl-C (the model so far is saved)."""
+TERMINATED = 143
+"""Exit status after SIGTERM (the model so far is saved, as after Ctrl-C)."""
+RUN_OPTIONS = {"max_steps": Bound(int, 1, 1_000_000, option="--max-steps"),
+               "eval_freq": Bound(int, 1, 10**9, option="--eval-freq"),
+               "eval_episodes": Bound(int, 1, 1000, option="--eval-episodes"),
+               "checkpoint_freq": Bound(int, 1, 10**9, option="--checkpoint-freq"),
+               "torch_threads": Bound(int, 1, 256, option="--torch-threads")}
+"""The declared bounds of ``weather-gym train``'s own options (the hyper-parameters': :class:`Hyperparams`)."""
 VEC_KINDS = ("auto", "split", "dummy", "subproc")
 """``--vec``: how the training envs are vectorised (see :func:`vec_kind`)."""
 
@@ -111,7 +140,7 @@ def vec_kind(vec: str, perception: str, n_envs: int, cores: int | None = None) -
     if vec != "auto":
         return vec
     if cores is None:
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        cores = usable_cores()
     render_free = not perception_mode(perception).renders_frames
     return "split" if render_free and n_envs >= 2 and cores >= 2 else "dummy"
 
@@ -123,8 +152,9 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     p.add_argument("--out", type=Path, required=True, help="run folder (see --resume, --overwrite)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint")
     p.add_argument("--overwrite", action="store_true",
-                   help="start a new run in a non-empty --out: its run files (model, checkpoints/, best/, logs/, "
-                        "run.json, learning curve) are removed first")
+                   help="start a new run in a --out that holds one: what that run wrote (model, checkpoints, best/, "
+                        "logs/steps*, run.json, curves) is removed first, nothing else; a folder holding no run is "
+                        "refused")
     p.add_argument("--hyperparams", type=Path, default=HYPERPARAMS,
                    help="hyper-parameter file in rl-zoo3's YAML format (default: the shipped ppo.yml)")
     p.add_argument("--hyperparams-key", default=DEFAULT_HYPERPARAMS_KEY, help="its section")
@@ -181,28 +211,47 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     return p
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity): ``vec_kind`` splits the envs only with two or more."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def _check_args(args: argparse.Namespace) -> None:
+    """The options that are no hyper-parameter, against their declared bounds (:data:`RUN_OPTIONS`)."""
     least = 0 if getattr(args, "pretrain", None) is not None else 1  # 0: the cloned policy is the model
     if args.timesteps is not None and args.timesteps < least:
-        raise InputError(f"--timesteps must be >= 1 (0 only with --pretrain), got {args.timesteps}")
-    for name in ("n_envs", "max_steps", "n_steps", "batch_size", "n_epochs", "eval_freq",
-                 "eval_episodes", "checkpoint_freq", "torch_threads"):
-        v = getattr(args, name)
-        if v is not None and v < 1:
-            raise InputError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
+        raise LimitError(f"--timesteps must be an integer >= 1 (0 only with --pretrain), got {args.timesteps}")
+    for name, bound in RUN_OPTIONS.items():
+        bound.check(getattr(args, name), bound.option)
     check_seed(args.seed, what="--seed")
+
+
+def _check_n_envs(n_envs: int, kind: str, cpus: int | None = None) -> None:
+    """``--vec subproc`` starts a process per env: at most 4 per CPU core, as ``make_vec_env``'s
+    ``"async"`` mode; ``dummy`` and ``split`` run them in one or two processes (at most
+    :data:`weather_gym.rl.hyperparams.MAX_N_ENVS`, checked with the hyper-parameters)."""
+    most = 4 * (cpus or os.cpu_count() or 1)
+    if kind == "subproc" and n_envs > most:
+        raise LimitError(f"n_envs {n_envs} with --vec subproc would start {n_envs} processes: at most {most} "
+                         "(4 per CPU core, as make_vec_env's async mode); use --vec dummy or split (envs in one or "
+                         "two processes) for more")
 
 
 def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
     env_kwargs: dict[str, Any] = {}
     if args.camera:
         w, h = parse_size(args.camera, what="--camera", example="336x188")
+        if max(w, h) > MAX_CAMERA_SIDE:
+            raise LimitError(f"--camera {args.camera}: each side must be at most {MAX_CAMERA_SIDE} pixels")
         env_kwargs["camera"] = {"width": w, "height": h}
     try:
         noise = json.loads(args.noise)
         weather = json.loads(args.weather) if args.weather else None
     except json.JSONDecodeError as exc:
         raise InputError(f"--noise / --weather must be JSON objects: {exc}") from None
+    for opt, value in (("--noise", noise), ("--weather", weather)):
+        if value is not None and not isinstance(value, dict):
+            raise InputError(f"{opt} must be a JSON object of fields, got {value!r}")
     tracks = [t.strip() for t in args.tracks.split(",") if t.strip()]
     if not tracks:
         raise InputError("--tracks is empty")
@@ -221,6 +270,10 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
     if sw:
         out["surrogate_weathers"] = sw
     if args.init is not None:
+        if not Path(args.init).is_file():
+            raise MissingInputError(f"--init {args.init}: no such model file")
+        if not zipfile.is_zipfile(args.init):
+            raise FileFormatError(f"--init {args.init}: not a saved SB3 model (a .zip written by model.save)")
         out["init"] = str(args.init)
     if getattr(args, "cone_memory", False):
         out["cone_memory"] = ConeMemoryConfig().to_dict()  # the tuning, so a resume or a driver uses the same
@@ -242,98 +295,116 @@ def _close(env: Any) -> None:
 
 
 def _start_run(args: argparse.Namespace, s: dict[str, Any]) -> tuple[Path | None, dict[str, Any]]:
-    """(checkpoint to resume from or None, run record) for ``--out``: the run to continue (``--resume``,
-    with the same settings ``s``), or a new one in an empty folder (emptied first with ``--overwrite``)."""
+    """(checkpoint to resume from or None, run record) for ``--out`` (held locked by the caller): the run to
+    continue (``--resume``, with the same settings ``s``), or a new one in an empty folder; with
+    ``--overwrite`` a folder holding a run loses what that run wrote (:data:`RUN_FILES`), nothing else."""
     out: Path = args.out
     checkpoints = out / "checkpoints"
-    run_file = out / "run.json"
-    if args.resume and args.overwrite:
-        raise InputError("--resume continues the run in --out and --overwrite replaces it: give one")
+    run_file = out / RUN_RECORD
     if args.resume:
         ckpt = latest_checkpoint(checkpoints)
         if ckpt is None or not run_file.is_file():
             raise InputError(f"--resume: no checkpoint in {checkpoints} (or no {run_file}); start a new run instead")
-        run = json.loads(run_file.read_text())
+        try:
+            run = json.loads(run_file.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise FileFormatError(f"--resume: {run_file} is not a run record ({exc})") from None
+        if not holds_run(out):
+            raise FileFormatError(f"--resume: {run_file} is not a run record (no settings and segments)")
         if run["settings"] != json.loads(json.dumps(s)):
             raise InputError(f"--resume with other settings than the run in {out}: {run['settings']} vs {s}")
         return ckpt, run
-    if out.exists() and any(out.iterdir()):
+    if any(out.iterdir()):
         if not args.overwrite:
             raise OutputExistsError(f"{out} exists and is not empty; pass --resume to continue that run, "
                                     "--overwrite to start a new one there, or give another --out")
+        if not holds_run(out):
+            raise OutputExistsError(f"--overwrite: {out} holds no training run (no {RUN_RECORD} of one), so nothing "
+                                    "in it is replaced; give an empty or new --out")
         _remove_run(out)
     return None, {"settings": s, "segments": []}
 
 
-def train(args: argparse.Namespace) -> int:
-    """Run (or resume) the training of ``args``; 0 when done, :data:`INTERRUPTED` after Ctrl-C."""
-    import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CallbackList, EvalCallback, ProgressBarCallback
-    from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+def _policy(name: str) -> Any:
+    """The policy class or SB3 name of ``policy`` (one of :data:`POLICIES`; nothing else is imported)."""
+    if name == POLICIES[0]:
+        from weather_gym.agents.sb3_features import ConeListPolicy
 
-    from weather_gym.rl.split_vec_env import SplitVecEnv
+        return ConeListPolicy
+    if name in POLICIES:
+        return name
+    raise InputError(f"policy must be one of {list(POLICIES)}, got {name!r}")
+
+
+def _ignore_further_sigterm() -> None:
+    """After the first stop the run saves; a SIGTERM then must not cut the save (``_train`` restores the handler)."""
+    try:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        pass
+
+
+def train(args: argparse.Namespace) -> int:
+    """Run (or resume) the training of ``args``; 0 when done, :data:`INTERRUPTED` after Ctrl-C,
+    :data:`TERMINATED` after SIGTERM (through ``weather_gym.cli.run_command``; the model so far saved)."""
+    import torch
 
     _check_args(args)
-    torch.set_num_threads(args.torch_threads)
+    if args.resume and args.overwrite:
+        raise InputError("--resume continues the run in --out and --overwrite replaces it: give one")
     hp = resolve_hyperparams(args)
-    out: Path = args.out
     s = _settings(args, hp)
+    kind = vec_kind(args.vec, s["perception"], hp["n_envs"])
+    _check_n_envs(hp["n_envs"], kind)
+    _policy(hp["policy"])
+    out: Path = args.out
+    if args.resume and not out.is_dir():
+        raise InputError(f"--resume: {out} is no run folder; start a new run instead")
+    torch.set_num_threads(args.torch_threads)
+    tracks, sw = s["tracks"], s.get("surrogate_weathers") or ["clear"]
+    make = [lambda i=i, lean_info=True: make_training_env(
+        s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"], s["max_steps"], s["env_kwargs"],
+        s["weather"], surrogate_weather=sw[i % len(sw)], lean_info=lean_info,
+        cone_memory=s.get("cone_memory")) for i in range(hp["n_envs"])]
+    make[0]().close()  # a bad setting fails here, in this process, with its message, before --out is touched
+    _make_parent(out / RUN_RECORD)
+    with exclusive_folder(out, busy=f"another weather-gym train is writing {out} (it holds the folder's lock); "
+                                    "wait for it to end, or give another --out"):
+        return _train(args, hp, s, make, kind)
+
+
+def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make: list, kind: str) -> int:
+    """The run in the locked ``--out``."""
+    from stable_baselines3.common.callbacks import CallbackList, EvalCallback, ProgressBarCallback
+    from stable_baselines3.common.logger import configure
+
+    out: Path = args.out
     checkpoints = out / "checkpoints"
-    run_file = out / "run.json"
+    run_file = out / RUN_RECORD
     ckpt, run = _start_run(args, s)
+    atomic_write_json(run_file, run, indent=2, overwrite=True)  # the folder holds a run from now on (kill -9 too)
 
     def meta(steps: int) -> dict[str, Any]:
         return model_metadata(s, hp, args.seed, args.eval_track, steps, run.get("pretrain"))
 
     n_envs, total = hp["n_envs"], hp["n_timesteps"]
-    tracks = s["tracks"]
-    sw = s.get("surrogate_weathers") or ["clear"]
-    make = [lambda i=i, lean_info=True: make_training_env(
-        s["env_id"], tracks[i % len(tracks)], s["perception"], s["noise"], s["max_steps"], s["env_kwargs"],
-        s["weather"], surrogate_weather=sw[i % len(sw)], lean_info=lean_info,
-        cone_memory=s.get("cone_memory")) for i in range(n_envs)]
-    make[0]().close()  # a bad setting fails here, in this process, with its message
-    kind = vec_kind(args.vec, s["perception"], n_envs)
-    vec = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
-    normalize = hp["normalize"]
-    if normalize is not False:  # rl-zoo3's `normalize`: VecNormalize keywords; its state is saved with each checkpoint
-        vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
-    eval_env = VecMonitor(DummyVecEnv([lambda: make_training_env(
-        s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
-        random_start=False, surrogate_weather=sw[0], lean_info=True, cone_memory=s.get("cone_memory"))]))
-    if normalize is not False:
-        eval_env = VecNormalize(eval_env, **{**normalize, "norm_reward": False, "training": False})
-    segment = f"steps{_checkpoint_steps(ckpt):09d}"
-    logger = configure(str(out / "logs" / segment), ["csv", "tensorboard"])
     started = time.time()
     model = None
     start_steps = 0
-    interrupted = False
+    stopped: str | None = None  # the signal that stopped the run: "SIGINT" (Ctrl-C) or "SIGTERM"
+    vec = eval_env = logger = None
+    sigterm = signal.getsignal(signal.SIGTERM)
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        if ckpt is None and args.init is not None:
-            vec.seed(args.seed)
-            model = PPO.load(str(args.init), env=vec, device="cpu")
-            model.num_timesteps = 0
-        elif ckpt is None:
-            vec.seed(args.seed)
-            model = PPO(hp["policy"] if "." not in hp["policy"] else _class(hp["policy"]), vec, seed=args.seed,
-                        device="cpu", verbose=0, policy_kwargs=dict(hp["policy_kwargs"]), **hp["ppo"])
-        else:
-            print(f"resuming from {ckpt}")
-            stats = ckpt.with_name(ckpt.name.replace("ppo_", "ppo_vecnormalize_").replace(".zip", ".pkl"))
-            if normalize is not False and stats.is_file():
-                vec = VecNormalize.load(str(stats), vec.venv)
-            model = PPO.load(str(ckpt), env=vec, device="cpu")
-            vec.seed(args.seed + model.num_timesteps)
+        vec, eval_env = _vec_envs(args, hp, s, make, kind)
+        segment = f"steps{_checkpoint_steps(ckpt):09d}"
+        logger = configure(str(out / "logs" / segment), ["csv", "tensorboard"])
+        model, vec = _model(args, hp, ckpt, vec)
         if ckpt is None and "pretrain" in s:
             teach = [m(lean_info=False) for m in make]  # the same envs with the whole info (the expert's)
             try:
                 run["pretrain"] = pretrain(model.policy, teach, _pretrain_config(args), args.seed)
-            except KeyboardInterrupt:
-                interrupted = True
+            except (KeyboardInterrupt, Terminated) as exc:
+                stopped = _stop(exc)
                 print("interrupted while pretraining: saving the policy so far", file=sys.stderr)
             finally:
                 for env in teach:
@@ -349,48 +420,99 @@ def train(args: argparse.Namespace) -> int:
             progress,
             checkpoint_cb,
             EvalCallback(eval_env, n_eval_episodes=args.eval_episodes, eval_freq=max(args.eval_freq // n_envs, 1),
-                         best_model_save_path=str(out / "best"), log_path=str(out / "logs" / segment),
+                         best_model_save_path=None, log_path=str(out / "logs" / segment),  # best_cb saves it
                          deterministic=True, verbose=0, callback_on_new_best=best_cb),
         ])
         start_steps = model.num_timesteps
         remaining = total - start_steps
-        if remaining > 0 and not interrupted:
+        if remaining > 0 and stopped is None:
             try:
                 model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=False)
-            except KeyboardInterrupt:
-                interrupted = True
+            except (KeyboardInterrupt, Terminated) as exc:
+                stopped = _stop(exc)
                 progress.on_training_end()  # close the bar (its live display) that learn() left open
-                print(f"interrupted after {model.num_timesteps} steps: saving the model so far", file=sys.stderr)
+                print(f"{'terminated (SIGTERM)' if stopped == 'SIGTERM' else 'interrupted'} after "
+                      f"{model.num_timesteps} steps: saving the model so far", file=sys.stderr)
         with atomic_path(out / "model.zip", overwrite=True) as tmp:  # this run's own file
             model.save(str(tmp))
         atomic_write_json(out / "model.json", meta(model.num_timesteps), indent=2, overwrite=True)
+    except (KeyboardInterrupt, Terminated) as exc:  # before a model to save: the segment still says so
+        stopped = _stop(exc)
+        raise
     finally:
-        logger.close()
-        _close(vec)
-        _close(eval_env)
+        for closing in (logger, vec, eval_env):
+            if closing is not None:
+                _close(closing)
         run["segments"].append({"from_steps": int(start_steps),
                                 "to_steps": int(model.num_timesteps) if model is not None else None,
-                                "wall_s": round(time.time() - started, 1), "interrupted": interrupted,
-                                "command": shlex.join([sys.executable, *sys.argv])})
+                                "wall_s": round(time.time() - started, 1), "interrupted": stopped is not None,
+                                "signal": stopped, "command": shlex.join([sys.executable, *sys.argv])})
         run["wall_s_total"] = round(sum(seg["wall_s"] for seg in run["segments"]), 1)
         if out.is_dir():
             atomic_write_json(run_file, run, indent=2, overwrite=True)
+        if stopped is not None and sigterm is not None:
+            try:
+                signal.signal(signal.SIGTERM, sigterm)
+            except ValueError:  # not the main thread
+                pass
     curve = plot_learning_curve(out)
     warm = plot_pretrain_curve(out, run.get("pretrain"))
     print(f"saved {out / 'model.zip'} after {model.num_timesteps} steps; {run['wall_s_total']:.0f} s of training "
           f"in {len(run['segments'])} segment(s); learning curve: {curve}" + (f"; warm start: {warm}" if warm else ""))
-    if interrupted:
+    if stopped is not None:
         print(f"stopped early: continue with the same command and --resume (from the newest checkpoint in "
               f"{checkpoints}), or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
-        return INTERRUPTED
+        return TERMINATED if stopped == "SIGTERM" else INTERRUPTED
     return 0
 
 
-def _class(path: str) -> type:
-    """The class at an import path (``module.Class``), as rl-zoo3 reads ``policy``."""
-    module, _, name = path.rpartition(".")
+def _vec_envs(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make: list, kind: str):
+    """The training envs (``--vec`` ``kind``) and the held-out evaluation env, normalised as the file says."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+
+    from weather_gym.rl.split_vec_env import SplitVecEnv
+
+    sw = s.get("surrogate_weathers") or ["clear"]
+    vec = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
+    normalize = hp["normalize"]
+    if normalize is not False:  # rl-zoo3's `normalize`: VecNormalize keywords; its state is saved with each checkpoint
+        vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
     try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError):
-        raise InputError(f"policy {path!r}: no such class (expected an import path like "
-                         "weather_gym.agents.sb3_features.ConeListPolicy, or MultiInputPolicy)") from None
+        eval_env = VecMonitor(DummyVecEnv([lambda: make_training_env(
+            s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
+            random_start=False, surrogate_weather=sw[0], lean_info=True, cone_memory=s.get("cone_memory"))]))
+        if normalize is not False:
+            eval_env = VecNormalize(eval_env, **{**normalize, "norm_reward": False, "training": False})
+    except BaseException:
+        _close(vec)
+        raise
+    return vec, eval_env
+
+
+def _model(args: argparse.Namespace, hp: dict[str, Any], ckpt: Path | None, vec: Any) -> tuple[Any, Any]:
+    """(PPO model, training env): new (from the file's policy and keywords, or ``--init``), or the checkpoint ``ckpt``."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if ckpt is None and args.init is not None:
+        vec.seed(args.seed)
+        model = PPO.load(str(args.init), env=vec, device="cpu")
+        model.num_timesteps = 0
+    elif ckpt is None:
+        vec.seed(args.seed)
+        model = PPO(_policy(hp["policy"]), vec, seed=args.seed, device="cpu", verbose=0,
+                    policy_kwargs=dict(hp["policy_kwargs"]), **ppo_arguments(hp))
+    else:
+        print(f"resuming from {ckpt}")
+        stats = ckpt.with_name(ckpt.name.replace("ppo_", "ppo_vecnormalize_").replace(".zip", ".pkl"))
+        if hp["normalize"] is not False and stats.is_file():
+            vec = VecNormalize.load(str(stats), vec.venv)
+        model = PPO.load(str(ckpt), env=vec, device="cpu")
+        vec.seed(args.seed + model.num_timesteps)
+    return model, vec
+
+
+def _stop(exc: BaseException) -> str:
+    """The signal behind ``exc`` (Ctrl-C or SIGTERM); further SIGTERMs are ignored while the run saves."""
+    _ignore_further_sigterm()
+    return "SIGTERM" if isinstance(exc, Terminated) else "SIGINT"
