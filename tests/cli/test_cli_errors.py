@@ -81,3 +81,16 @@ def test_every_writing_command_takes_overwrite():
             if writes and not any("--overwrite" in a.option_strings for a in q._actions):
                 missing.append(label)
     assert missing == []
+
+
+def test_a_closed_pipe_ends_the_command_quietly():
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "weather_gym.cli", "tracks", "list"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.readline()  # `| head -1`: the reader takes one line and goes away
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err
+    assert "Traceback" not in err and "bug" not in err

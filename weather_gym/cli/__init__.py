@@ -8,7 +8,8 @@ inside functions (the rule ``tests/test_architecture.py`` checks).
 Errors: a :class:`weather_gym.errors.WeatherGymError` (bad input, an output that exists, a path
 outside its folder, ...) is printed as ``error: MESSAGE`` with exit status 2; anything else is a
 bug and keeps its traceback, followed by a line asking to report it (exit status 70). Ctrl-C exits
-with 130, SIGTERM with 143, after cleaning up (no temporary file or worker process is left).
+with 130, SIGTERM with 143, after cleaning up (no temporary file or worker process is left); output
+into a pipe whose reader has gone (``| head``) ends the command quietly with 141, as SIGPIPE would.
 
 Example:
     >>> from weather_gym.cli import main
@@ -26,6 +27,7 @@ import argparse
 import contextlib
 import contextvars
 import importlib
+import os
 import pkgutil
 import signal
 import sys
@@ -78,6 +80,10 @@ def run_command(func, *args, **kwargs) -> int:
         except WeatherGymError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
+        except BrokenPipeError:  # the reader of the output went away (`weather-gym tracks list | head -1`)
+            with contextlib.suppress(OSError, ValueError):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit's flush
+            return 128 + signal.SIGPIPE
         except KeyboardInterrupt:
             print("interrupted", file=sys.stderr)
             return 130
