@@ -30,16 +30,12 @@ from __future__ import annotations
 
 import copy
 import numbers
+import tomllib
 from pathlib import Path
 from typing import Any
 
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.weather.tables import effect_from_table
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 __all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "SEVERITIES", "canonical_condition",
            "load_presets", "preset_entry", "preset_spec"]
@@ -143,9 +139,11 @@ def preset_entry(condition: str, severity: int, path: str | Path | None = None) 
     if cond not in table:
         raise InputError(f"presets file {path or DEFAULT_PRESETS} has no rows for condition {cond!r} "
                          f"(it has: {', '.join(table)})")
-    return table[cond][sev]
+    entry: dict[str, Any] = table[cond][sev]
+    return entry
 
 
 def preset_spec(condition: str, severity: int, path: str | Path | None = None) -> list[dict[str, Any]]:
     """The effect list (``[{"name": ..., "k": ..., ...}]``) of a condition and severity."""
-    return preset_entry(condition, severity, path)["effects"]
+    effects: list[dict[str, Any]] = preset_entry(condition, severity, path)["effects"]
+    return effects
