@@ -147,7 +147,7 @@ class _Cv2Video:
         self._frames = 0
         self._output = atomic_path(dst, overwrite=overwrite)
         tmp = self._tmp = self._output.__enter__()
-        fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
+        fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))  # type: ignore[attr-defined]  # not in cv2's stubs
         self.writer = cv2.VideoWriter(str(tmp), fourcc, fps, size)
         if not self.writer.isOpened():
             self.abort()
@@ -186,7 +186,7 @@ def _video(weather, src: Path, dst: Path, args) -> int:
         check_image_size((h, w, 3), what=f"video {src}")
         total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
         if dst.suffix.lower() == ".mp4":  # H.264 (PyAV), falling back to mp4v with a warning
-            writer = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
+            writer: VideoWriter | _Cv2Video = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
         else:
             writer = _Cv2Video(dst, fps, (w, h), args.overwrite)
         run = weather.start(args.seed)  # the video is one episode
