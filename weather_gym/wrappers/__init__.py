@@ -25,7 +25,6 @@ from typing import TYPE_CHECKING
 from weather_gym._lazy import lazy_exports
 
 if TYPE_CHECKING:  # the lazily exported names, for type checkers
-    from weather_gym.viz.record_video import RecordVideo  # noqa: F401
     from weather_gym.wrappers.detector import DetectorWrapper  # noqa: F401
     from weather_gym.wrappers.episode_statistics import EpisodeStatistics, latencies  # noqa: F401
     from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise  # noqa: F401
