@@ -36,7 +36,7 @@ def _literal(text: Any, where: str) -> Any:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args:
             return {kw.arg: ev(kw.value) for kw in node.keywords}
         if isinstance(node, ast.Dict):
-            return {ev(k): ev(v) for k, v in zip(node.keys, node.values)}
+            return {ev(k): ev(v) for k, v in zip(node.keys, node.values)}  # type: ignore[arg-type]  # a None key (**spread) fails in ev
         if isinstance(node, ast.List | ast.Tuple):
             vals = [ev(e) for e in node.elts]
             return vals if isinstance(node, ast.List) else tuple(vals)

@@ -271,7 +271,7 @@ def train(args: argparse.Namespace) -> int:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback, ProgressBarCallback
     from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
     from weather_gym.rl.split_vec_env import SplitVecEnv
 
@@ -296,11 +296,11 @@ def train(args: argparse.Namespace) -> int:
         cone_memory=s.get("cone_memory")) for i in range(n_envs)]
     make[0]().close()  # a bad setting fails here, in this process, with its message
     kind = vec_kind(args.vec, s["perception"], n_envs)
-    vec = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
+    vec: VecEnv = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
     normalize = hp["normalize"]
     if normalize is not False:  # rl-zoo3's `normalize`: VecNormalize keywords; its state is saved with each checkpoint
         vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
-    eval_env = VecMonitor(DummyVecEnv([lambda: make_training_env(
+    eval_env: VecEnv = VecMonitor(DummyVecEnv([lambda: make_training_env(
         s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
         random_start=False, surrogate_weather=sw[0], lean_info=True, cone_memory=s.get("cone_memory"))]))
     if normalize is not False:
@@ -325,7 +325,7 @@ def train(args: argparse.Namespace) -> int:
             print(f"resuming from {ckpt}")
             stats = ckpt.with_name(ckpt.name.replace("ppo_", "ppo_vecnormalize_").replace(".zip", ".pkl"))
             if normalize is not False and stats.is_file():
-                vec = VecNormalize.load(str(stats), vec.venv)
+                vec = VecNormalize.load(str(stats), vec.venv)  # type: ignore[attr-defined]  # a VecNormalize here
             model = PPO.load(str(ckpt), env=vec, device="cpu")
             vec.seed(args.seed + model.num_timesteps)
         if ckpt is None and "pretrain" in s:
