@@ -18,7 +18,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -149,7 +149,7 @@ class Track:
         h = self._unwrapped_heading
         nxt = np.minimum(idx + 1, len(h) - 1)
         out = h[idx] + np.minimum(np.maximum(t, 0.0), 1.0) * (h[nxt] - h[idx])  # = clip (faster)
-        return np.asarray(np.arctan2(np.sin(out), np.cos(out)))
+        return cast(np.ndarray, np.arctan2(np.sin(out), np.cos(out)))
 
     def point_at(self, s: float | np.ndarray) -> tuple:
         """``(x, y, heading)`` at arc length ``s``; closed tracks wrap, open ones extend their ends straight."""

@@ -15,6 +15,8 @@ Example:
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import shapely
 from scipy.interpolate import CubicSpline
@@ -88,7 +90,7 @@ def headings(points: np.ndarray, closed: bool) -> np.ndarray:
         d = np.roll(points, -1, axis=0) - np.roll(points, 1, axis=0)
     else:
         d = np.gradient(points, axis=0)
-    return np.asarray(np.arctan2(d[:, 1], d[:, 0]))
+    return cast(np.ndarray, np.arctan2(d[:, 1], d[:, 0]))
 
 
 def curvatures(points: np.ndarray, closed: bool) -> np.ndarray:

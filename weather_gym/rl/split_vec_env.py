@@ -130,7 +130,7 @@ class SplitVecEnv(VecEnv):
             context = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         ctx = mp.get_context(start_method(context, "SplitVecEnv"))
         self._conn, child = ctx.Pipe()
-        self._process = ctx.Process(  # type: ignore[attr-defined]  # every start method's context has ittarget=_worker, args=(child, CloudpickleWrapper(list(env_fns[local:]))),
+        self._process = ctx.Process(target=_worker, args=(child, CloudpickleWrapper(list(env_fns[local:]))),  # type: ignore[attr-defined]  # every start method's context has it
                                     daemon=True)
         self._process.start()
         child.close()

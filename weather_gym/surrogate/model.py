@@ -335,7 +335,7 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
         if not len(arrays[name]):
             raise FileFormatError(f"{where}: {prefix}/{name} has no rows")
     named = {n: arrays.get(n) for n in Point.ARRAYS}
-    return Point(**named, rho=float(rho),  # type: ignore[arg-type]  # required arrays checked above fp_mean=float(fp_mean), fp_var=float(fp_var),
+    return Point(**named, rho=float(rho), fp_mean=float(fp_mean), fp_var=float(fp_var),  # type: ignore[arg-type]  # arrays checked above
                  stats=dict(stats) if isinstance(stats, dict) else {})
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import cast
 
 import cv2
 import numpy as np
@@ -75,7 +76,7 @@ class TopDownView:
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         u = (p[:, 0] - self.origin[0]) * self.scale
         v = (self.origin[1] - p[:, 1]) * self.scale
-        return np.asarray(np.round(np.c_[u, v]).astype(np.int32))
+        return cast(np.ndarray, np.round(np.c_[u, v]).astype(np.int32))
 
     def draw(self, *, cones_xy: np.ndarray | None = None, classes: np.ndarray | None = None,
              faint_xy: np.ndarray | None = None, path: np.ndarray | None = None,

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import cv2
 import numpy as np
@@ -42,7 +42,7 @@ def s_curve(v: np.ndarray, contrast: float) -> np.ndarray:
         s = v * v * (3.0 - 2.0 * v)
     else:
         s = 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * v, -1.0, 1.0)) / 3.0)
-    return np.asarray((1.0 - a) * v + a * s)
+    return cast(np.ndarray, (1.0 - a) * v + a * s)
 
 
 @lru_cache(maxsize=256)

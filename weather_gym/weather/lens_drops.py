@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from functools import lru_cache
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -128,7 +128,7 @@ def _drop_maps(r: int, theta_deg: float, fx: float, look_up: float, edge: float,
         return cv2.resize(np.asarray(a, np.float32), (n, n), interpolation=cv2.INTER_AREA)
 
     def rgb(a: np.ndarray) -> np.ndarray:
-        return np.asarray(cv2.cvtColor(np.rint(np.clip(a, 0, 255)).astype(np.uint8), cv2.COLOR_GRAY2RGB))
+        return cast(np.ndarray, cv2.cvtColor(np.rint(np.clip(a, 0, 255)).astype(np.uint8), cv2.COLOR_GRAY2RGB))
 
     mxy, mf = cv2.convertMaps(half(offx / sx), half(offy / sy), cv2.CV_16SC2)
     out = [mxy.reshape(-1, 2), mf.reshape(-1), rgb(half(alpha * shade * 255.0)).reshape(-1, 3),

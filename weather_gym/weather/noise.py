@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -61,11 +61,11 @@ def noise_sigma_lut(gain: float, full_well_e: float, read_noise_e: float, base_g
 
 
 def _phi(z: np.ndarray) -> np.ndarray:
-    return np.asarray(np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi))
+    return cast(np.ndarray, np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi))
 
 
 def _cdf(z: np.ndarray) -> np.ndarray:
-    return np.asarray(0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0))))
+    return cast(np.ndarray, 0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0))))
 
 
 @lru_cache(maxsize=64)
