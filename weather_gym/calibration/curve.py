@@ -223,7 +223,7 @@ def _read_rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
 
 def _float(path: Path, lineno: int, col: str, text: str | None) -> float:
     try:
-        return float(text)  # type: ignore[arg-type]
+        return float(text)  # type: ignore[arg-type]  # None (a short row): TypeError, caught below
     except (TypeError, ValueError):
         raise InputError(f"{path}, row {lineno}: column {col!r} must be a number, got {text!r}") from None
 

@@ -307,7 +307,7 @@ class ConeDetector:
         input size (:meth:`input_size_for`) run as one batch; the output is ``(N, C+4, h, w)`` when all
         do, else a list of each frame's ``(C+4, h, w)``."""
         sizes = [self.input_size_for(im.shape[1], im.shape[0]) for im in images]
-        outs: list[np.ndarray] = [None] * len(images)  # type: ignore[list-item]
+        outs: list[np.ndarray] = [None] * len(images)  # type: ignore[list-item]  # every slot is filled below
         lbs: list = [None] * len(images)
         for size in dict.fromkeys(sizes):
             idx = [i for i, s in enumerate(sizes) if s == size]

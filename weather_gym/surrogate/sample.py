@@ -171,7 +171,7 @@ class _Tables:
 
     def __init__(self, p: Point) -> None:
         hats = [hat_terms(w) for w in (p.coef, p.coef_loose, p.coef_part)]  # type: ignore[arg-type]  # a sampled point has all three
-        self.w0 = np.array([w[0] for w in (p.coef, p.coef_loose, p.coef_part)], np.float64)  # type: ignore[index]
+        self.w0 = np.array([w[0] for w in (p.coef, p.coef_loose, p.coef_part)], np.float64)  # type: ignore[index]  # all three set
         # per feature: its knots (padded to the longest), and the hat values of each kind at them
         # (Point.probability_of's terms; the three kinds share the knots)
         knots = [hats[0][0][f][0] for f in range(5)]

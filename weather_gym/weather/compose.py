@@ -41,7 +41,7 @@ class Compose(Effect):
         return self._effects
 
     @property
-    def stateful(self) -> bool:  # type: ignore[override]
+    def stateful(self) -> bool:  # type: ignore[override]  # a ClassVar in Effect; here it depends on the effects
         return any(e.stateful for e in self.effects)
 
     def start(self, seed: SeedLike = None) -> ComposeRun:
