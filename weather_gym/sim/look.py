@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import Any
 
 import numpy as np
 
@@ -78,7 +79,7 @@ class Look:
     def from_dict(cls, d: dict) -> Look:
         """Build from a dict (e.g. JSON); unknown keys are an error naming them."""
         check_known(d, {f.name for f in fields(cls)}, what="look")
-        conv = {}
+        conv: dict[str, Any] = {}
         for k, v in d.items():
             if k == "cone_shade":
                 conv[k] = tuple(tuple(float(c) for c in rgb) for rgb in v)
@@ -136,7 +137,7 @@ def sample_look(rng: np.random.Generator) -> Look:
         ambient=float(rng.uniform(0.45, 0.75)),
         diffuse=float(rng.uniform(0.25, 0.6)),
         specular=float(rng.uniform(0.0, 0.15)),
-        asphalt_rgb=asphalt,  # type: ignore[arg-type]  # an RGB triple from GROUND_STYLES
+        asphalt_rgb=asphalt,
         grass_rgb=grass,
         kerb_rgb=(210.0, 210.0, 205.0),
         ground_seed=int(rng.integers(0, 2)),
