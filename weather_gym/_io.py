@@ -376,7 +376,7 @@ def open_append(path: str | os.PathLike) -> IO[str]:
 
 
 def atomic_write(path: str | os.PathLike, data: str | bytes, *, overwrite: bool = False,
-                 check: Callable[[Path], None] | None = None) -> Path:
+                 check: Callable[[Path], object] | None = None) -> Path:
     """Write ``data`` (text as UTF-8, or bytes) to ``path`` safely (see the module docstring).
 
     ``check(tmp_path)`` may validate the written file first; if it raises, ``path`` is left as it

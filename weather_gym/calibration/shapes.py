@@ -74,7 +74,7 @@ def _round(params: dict[str, float]) -> dict[str, float]:
     return {k: float(np.round(v, 6)) for k, v in params.items()}
 
 
-def fit_shapes(k: Sequence[float], y: Sequence[float]) -> dict[str, ShapeFit]:
+def fit_shapes(k: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray) -> dict[str, ShapeFit]:
     """Least-squares fits of :data:`SHAPES` to the points ``(k, y)``; see the module doc."""
 
     k = np.asarray(k, dtype=np.float64)

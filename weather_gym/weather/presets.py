@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import copy
 import numbers
+import os
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -111,7 +112,7 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
     return {**meta, "calibrated": bool(calibrated), "calibrated_conditions": calibrated, "presets": out}
 
 
-def load_presets(path: str | Path | None = None) -> dict[str, Any]:
+def load_presets(path: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """Read and validate a presets file (default: the shipped one).
 
     Returns ``{<top-level keys>, "presets": {condition: {severity: table}}, "calibrated_conditions":
