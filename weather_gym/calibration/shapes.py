@@ -29,6 +29,7 @@ import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy.optimize import curve_fit
@@ -80,7 +81,7 @@ def fit_shapes(k: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray)
     k = np.asarray(k, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     ok = np.isfinite(k) & np.isfinite(y)
-    k, y = k[ok], y[ok]
+    k, y = cast(np.ndarray, k[ok]), cast(np.ndarray, y[ok])
     if len(k) < 3:
         raise InputError(f"a shape fit needs at least 3 points, got {len(k)}")
     out: dict[str, ShapeFit] = {}
