@@ -25,7 +25,7 @@ from bad_input_cases import CASES, Case, World, build_world  # noqa: E402
 try:
     from weather_gym.errors import WeatherGymError
 except ModuleNotFoundError:  # an old checkout (the "before" count of docs/reliability.md)
-    WeatherGymError = (ValueError, OSError)  # type: ignore[assignment,misc]
+    WeatherGymError = (ValueError, OSError)  # type: ignore[assignment,misc]  # the stand-in on an old checkout
 
 CASE_TIMEOUT_S = 60
 """A case that runs longer has not refused its input up front (a hang counts as a failure)."""

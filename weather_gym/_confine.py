@@ -92,7 +92,7 @@ HIDDEN_DIRS = frozenset({"__MACOSX"})
 """Folders an archive tool adds (macOS resource forks): skipped with the hidden (``.name``) entries."""
 
 
-def walk_files(folder: str | os.PathLike, root: str | os.PathLike, *, hidden: bool = False) -> list[Path]:
+def walk_files(folder: str | os.PathLike[str], root: str | os.PathLike[str], *, hidden: bool = False) -> list[Path]:
     """Every file under ``folder`` (itself inside ``root``), as paths under ``folder``, sorted. Linked
     sub-folders are followed once when they stay inside ``root``; one that leads out is refused.
     Hidden files and folders (``.name``, ``__MACOSX``) are skipped unless ``hidden``."""

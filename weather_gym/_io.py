@@ -57,7 +57,7 @@ import numpy as np
 try:
     import fcntl
 except ModuleNotFoundError:  # pragma: no cover - Windows: no advisory locks
-    fcntl = None
+    fcntl = None  # type: ignore[assignment]  # no such module on Windows; users check for None
 
 from weather_gym._inputs import check_not_input, declare_inputs, resolve_inside
 from weather_gym._lock import exclusive_folder
@@ -346,7 +346,7 @@ def atomic_file(path: str | os.PathLike, mode: str = "w", *, overwrite: bool = F
     if mode not in ("w", "wb"):
         raise InputError(f"atomic_file mode must be 'w' or 'wb', got {mode!r}")
     with atomic_path(path, overwrite=overwrite) as tmp:
-        kwargs = {} if "b" in mode else {"encoding": encoding, "newline": newline}
+        kwargs: dict[str, Any] = {} if "b" in mode else {"encoding": encoding, "newline": newline}
         with open(tmp, mode, **kwargs) as f:
             yield f
             f.flush()
@@ -376,7 +376,7 @@ def open_append(path: str | os.PathLike) -> IO[str]:
 
 
 def atomic_write(path: str | os.PathLike, data: str | bytes, *, overwrite: bool = False,
-                 check: Callable[[Path], None] | None = None) -> Path:
+                 check: Callable[[Path], object] | None = None) -> Path:
     """Write ``data`` (text as UTF-8, or bytes) to ``path`` safely (see the module docstring).
 
     ``check(tmp_path)`` may validate the written file first; if it raises, ``path`` is left as it
@@ -421,7 +421,7 @@ def write_image(path: str | os.PathLike, image: Any, *, overwrite: bool = False,
         ok, buf = cv2.imencode(p.suffix or ".", arr, list(params))
     except cv2.error:
         ok, buf = False, None
-    if not ok:
+    if not ok or buf is None:
         raise OutputPathError(f"cannot write image {p}: OpenCV cannot encode a {arr.dtype} {arr.shape} image "
                               f"as {p.suffix or '(no suffix)'}; use .png or .jpg")
     return atomic_write(p, buf.tobytes(), overwrite=overwrite)

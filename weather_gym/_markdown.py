@@ -20,5 +20,5 @@ __all__ = ["markdown_table"]
 def markdown_table(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> list[str]:
     """``rows`` under ``header`` as the lines of a Markdown table; each cell printed as ``str(cell)``
     (no number parsing, so a formatted number stays as formatted)."""
-    return tabulate([[str(c) for c in r] for r in rows], headers=[str(h) for h in header], tablefmt="github",
-                    disable_numparse=True).splitlines()
+    return str(tabulate([[str(c) for c in r] for r in rows], headers=[str(h) for h in header], tablefmt="github",
+                    disable_numparse=True)).splitlines()

@@ -16,18 +16,21 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
+from typing import Any
 
 
 class _DeprecatedForce(argparse.Action):
-    def __init__(self, option_strings, dest, **kwargs) -> None:
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
         super().__init__(option_strings, dest, nargs=0, **kwargs)
 
-    def __call__(self, parser, namespace, values, option_string=None) -> None:
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
         print(f"warning: {option_string} is deprecated; use --overwrite", file=sys.stderr)
         setattr(namespace, self.dest, True)
 
 
-def add_overwrite_arg(p, help: str = "replace existing output files (an input is never written to)") -> None:
+def add_overwrite_arg(p: argparse.ArgumentParser | argparse._ArgumentGroup, help: str = "replace existing output files (an input is never written to)") -> None:
     """Add ``--overwrite`` (and the hidden, deprecated ``--force``) to the parser or group ``p``."""
     p.add_argument("--overwrite", action="store_true", default=False, help=help)
     p.add_argument("--force", dest="overwrite", action=_DeprecatedForce, help=argparse.SUPPRESS)

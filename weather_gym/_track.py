@@ -18,7 +18,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 
@@ -46,11 +46,11 @@ class Projection(NamedTuple):
     s: float | np.ndarray
     lateral: float | np.ndarray
     heading: float | np.ndarray
-    index: int | np.ndarray
+    index: int | np.ndarray  # type: ignore[assignment]  # the field shadows tuple.index on purpose (public name)
 
 
-def _frozen(a, dtype, shape_tail: tuple[int, ...], what: str) -> np.ndarray:
-    arr = np.array(a, dtype=dtype, copy=True)
+def _frozen(a: object, dtype: type, shape_tail: tuple[int, ...], what: str) -> np.ndarray:
+    arr: np.ndarray = np.array(a, dtype=dtype, copy=True)
     if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
         raise InputError(f"Track.{what} must have shape (N, {', '.join(map(str, shape_tail))}); got {arr.shape}")
     arr.flags.writeable = False
@@ -134,7 +134,7 @@ class Track:
         return out
 
     @functools.cached_property
-    def _segs(self):
+    def _segs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         a, d = geo.segments(self.centerline, self.closed)
         seg_len = np.hypot(d[:, 0], d[:, 1])
         h0 = np.arctan2(d[:, 1], d[:, 0])
@@ -149,7 +149,7 @@ class Track:
         h = self._unwrapped_heading
         nxt = np.minimum(idx + 1, len(h) - 1)
         out = h[idx] + np.minimum(np.maximum(t, 0.0), 1.0) * (h[nxt] - h[idx])  # = clip (faster)
-        return np.arctan2(np.sin(out), np.cos(out))
+        return cast(np.ndarray, np.arctan2(np.sin(out), np.cos(out)))
 
     def point_at(self, s: float | np.ndarray) -> tuple:
         """``(x, y, heading)`` at arc length ``s``; closed tracks wrap, open ones extend their ends straight."""
@@ -166,7 +166,7 @@ class Track:
             return float(x), float(y), float(h)
         return x, y, h
 
-    def project(self, x, y, s_hint: float | None = None, window: float = 15.0) -> Projection:
+    def project(self, x: float | np.ndarray, y: float | np.ndarray, s_hint: float | None = None, window: float = 15.0) -> Projection:
         """Nearest centerline point to ``(x, y)`` (scalars or arrays of one shape).
 
         With ``s_hint`` only the centerline within ``±window`` metres of arc length around it is
@@ -245,7 +245,7 @@ class Track:
         out = np.interp(q, xp, left), np.interp(q, xp, right)
         return (float(out[0]), float(out[1])) if q.ndim == 0 else out
 
-    def boundary_distance(self, x, y, s_hint: float | None = None, window: float = 15.0) -> tuple:
+    def boundary_distance(self, x: float | np.ndarray, y: float | np.ndarray, s_hint: float | None = None, window: float = 15.0) -> tuple:
         """Distance from ``(x, y)`` to the left and right boundary lines, positive while inside."""
         p = self.project(x, y, s_hint=s_hint, window=window)
         left, right = self.half_widths_at(p.s)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -29,7 +30,7 @@ MAX_COORDINATE_M = 100_000.0
 """Cone positions lie within this distance of the origin (100 km)."""
 
 
-def _fail(path, line_no: int | None, msg: str):
+def _fail(path: str | os.PathLike[str], line_no: int | None, msg: str) -> NoReturn:
     where = f"{path}: line {line_no}: " if line_no is not None else f"{path}: "
     raise FileFormatError(where + msg)
 

@@ -15,6 +15,8 @@ Example:
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import shapely
 from scipy.interpolate import CubicSpline
@@ -71,7 +73,7 @@ def smooth(points: np.ndarray, closed: bool, sigma_m: float, step: float = STEP_
     pts = resample(points, closed, step)
     mode = "wrap" if closed else "nearest"
 
-    def gauss(p):
+    def gauss(p: np.ndarray) -> np.ndarray:
         return np.column_stack([gaussian_filter1d(p[:, i], sigma_m / step, mode=mode) for i in range(2)])
 
     out = gauss(pts)
@@ -88,7 +90,7 @@ def headings(points: np.ndarray, closed: bool) -> np.ndarray:
         d = np.roll(points, -1, axis=0) - np.roll(points, 1, axis=0)
     else:
         d = np.gradient(points, axis=0)
-    return np.arctan2(d[:, 1], d[:, 0])
+    return cast(np.ndarray, np.arctan2(d[:, 1], d[:, 0]))
 
 
 def curvatures(points: np.ndarray, closed: bool) -> np.ndarray:
@@ -98,7 +100,7 @@ def curvatures(points: np.ndarray, closed: bool) -> np.ndarray:
     a, b, c = points - p0, p2 - points, p2 - p0
     cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
     denom = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1) * np.linalg.norm(c, axis=1)
-    k = np.divide(2.0 * cross, denom, out=np.zeros(len(points)), where=denom > 1e-12)
+    k: np.ndarray = np.divide(2.0 * cross, denom, out=np.zeros(len(points)), where=denom > 1e-12)
     if not closed and len(k) > 2:
         k[0], k[-1] = k[1], k[-2]
     return k
@@ -200,7 +202,7 @@ def mixed_edge_chain(points: np.ndarray, side: np.ndarray) -> tuple[np.ndarray, 
     return mids, best_closed
 
 
-def _component(key, links):
+def _component(key: tuple[int, int], links: dict[tuple[int, int], list[tuple[int, int]]]) -> set[tuple[int, int]]:
     stack, comp = [key], {key}
     while stack:
         for nxt in links[stack.pop()]:
@@ -210,7 +212,7 @@ def _component(key, links):
     return comp
 
 
-def _walk(start, links):
+def _walk(start: tuple[int, int], links: dict[tuple[int, int], list[tuple[int, int]]]) -> list[tuple[int, int]]:
     order, prev, cur = [start], None, start
     while True:
         nxt = [e for e in links[cur] if e != prev and e != start]

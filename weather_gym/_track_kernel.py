@@ -21,8 +21,10 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def project_point(x, y, ax, ay, dx, dy, half, len2, seg_len, s_a, h, closed, length, use_hint, s_hint,
-                   window):  # pragma: no cover (compiled)
+def project_point(x: float, y: float, ax: np.ndarray, ay: np.ndarray, dx: np.ndarray, dy: np.ndarray,
+                   half: np.ndarray, len2: np.ndarray, seg_len: np.ndarray, s_a: np.ndarray, h: np.ndarray,
+                   closed: bool, length: float, use_hint: bool, s_hint: float,
+                   window: float) -> tuple[float, float, float, float, int]:  # pragma: no cover (compiled)
     """:meth:`weather_gym._track.Track.project` of one point, operation for operation as the array path computes it:
     ``(s, lateral, sin and cos of the heading, segment index)``."""
     n = ax.shape[0]

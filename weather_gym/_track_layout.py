@@ -49,7 +49,7 @@ SKIDPAD_STOP_M = 3.0  # the skidpad run ends this far (rear axle) before the con
 SMOOTH_SIGMA_M = 2.0
 
 
-def _orient_blue_left(line, xy, cls, closed):
+def _orient_blue_left(line: np.ndarray, xy: np.ndarray, cls: np.ndarray, closed: bool) -> np.ndarray:
     lat, _ = signed_lateral(xy[cls == BLUE], line, closed)
     return line[::-1].copy() if np.median(lat) < 0 else line
 
@@ -61,7 +61,7 @@ def _groups_along(s: np.ndarray, gap: float) -> list[np.ndarray]:
     return [order[g] for g in np.split(order, cuts)] if len(s) else []
 
 
-def layout_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> dict:
+def layout_from_cones(xy: np.ndarray, cls: np.ndarray, start: tuple | None, where: str) -> dict:
     """Centerline, widths, start/finish of a trackdrive loop or an open (acceleration) lane."""
     side = np.where(cls == BLUE, 1.0, np.where(cls == YELLOW, -1.0, 0.0))
     bnd = side != 0
@@ -83,6 +83,7 @@ def layout_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> dic
     _, s_cone = signed_lateral(xy, line, closed)
     start_xy = None if start is None else np.asarray(start[:2], dtype=float)
     big = np.nonzero(cls == BIG_ORANGE)[0]
+    finish_s: float | None
     if closed:
         if len(big):
             groups = _groups_along(s_cone[big], gap=10.0)
@@ -135,7 +136,8 @@ def layout_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> dic
                 start_pose=_start_pose(line, closed, start, start_line_s, where))
 
 
-def _start_pose(line, closed, start, start_line_s, where):
+def _start_pose(line: np.ndarray, closed: bool, start: tuple | None, start_line_s: float,
+                where: str) -> tuple[float, float, float]:
     s, length = cumulative_length(line, closed)
     h = np.unwrap(headings(line, closed))
     if start is None:
@@ -144,8 +146,8 @@ def _start_pose(line, closed, start, start_line_s, where):
         y = np.interp(q, s, line[:, 1])
         yaw = float(np.interp(q, s, h))
         return (float(x), float(y), float(np.arctan2(np.sin(yaw), np.cos(yaw))))
-    _, q = signed_lateral(np.asarray(start[:2], dtype=float)[None], line, closed)
-    along = float(np.interp(q[0] % length if closed else q[0], s, h))
+    _, qs = signed_lateral(np.asarray(start[:2], dtype=float)[None], line, closed)
+    along = float(np.interp(qs[0] % length if closed else qs[0], s, h))
     yaw = along if start[2] is None else float(start[2])
     if np.cos(yaw - along) < 0:
         raise InputError(f"{where}: car_start faces against the driving direction "
@@ -153,7 +155,7 @@ def _start_pose(line, closed, start, start_line_s, where):
     return (float(start[0]), float(start[1]), float(np.arctan2(np.sin(yaw), np.cos(yaw))))
 
 
-def skidpad_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> dict:
+def skidpad_from_cones(xy: np.ndarray, cls: np.ndarray, start: tuple | None, where: str) -> dict:
     """The FS skidpad sequence: entry, 2 laps right circle, 2 laps left circle, exit."""
     big = xy[cls == BIG_ORANGE]
     if len(big) < 2 or start is None:
@@ -193,7 +195,7 @@ def skidpad_from_cones(xy: np.ndarray, cls: np.ndarray, start, where: str) -> di
     circle_len_r, circle_len_l = 4 * np.pi * r_r, 4 * np.pi * r_l
     seg = np.searchsorted([entry_len, entry_len + circle_len_r, entry_len + circle_len_r + circle_len_l], s)
 
-    def lane_hw(sel, sign):
+    def lane_hw(sel: np.ndarray, sign: int) -> float:
         v = sign * lat[sel & (sign * lat > 0)]
         return float(np.median(v)) if len(v) else 1.5
 

@@ -274,6 +274,7 @@ class CameraPipeline:
             if self._bank is None:
                 self.reseed(rng)
             bank = self._bank
+            assert bank is not None  # reseed() made it
             oy, ox = (int(v) for v in rng.integers(0, 64, 2))
             n = bank[oy:oy + self.height, ox:ox + self.width]
             noise = np.multiply(cv2.LUT(img, self._sigma8), n, dtype=np.int16)  # sigma*8 * z*32
@@ -286,7 +287,7 @@ class CameraPipeline:
             ok, buf = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR), params)
             if not ok:
                 raise RuntimeError("JPEG encoding failed")
-            img = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+            img = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)  # type: ignore[arg-type]  # just encoded: never None
         elif m.chroma_subsampling:
             y, cr, cb = cv2.split(cv2.cvtColor(img, cv2.COLOR_RGB2YCrCb))
             half, full = (max(1, self.width // 2), max(1, self.height // 2)), (self.width, self.height)

@@ -97,7 +97,7 @@ class ConeArrays(Mapping):
         """The cones ``rows`` (an index or boolean array)."""
         return ConeArrays({k: v[rows] for k, v in self._arrays.items()})
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type[ConeArrays], tuple[dict[str, np.ndarray]]]:
         return (ConeArrays, (self.to_dict(),))
 
     def __repr__(self) -> str:

@@ -34,6 +34,7 @@ import warnings
 from collections.abc import Mapping
 from functools import partial
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import gymnasium as gym
@@ -240,7 +241,7 @@ def unguarded_main_call() -> str | None:
     path = getattr(main, "__file__", None)
     if main is None or not path:
         return None  # interactive / python -c: workers do not import a script
-    frame = sys._getframe(1)
+    frame: FrameType | None = sys._getframe(1)
     while frame is not None and not (frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"):
         frame = frame.f_back
     if frame is None:

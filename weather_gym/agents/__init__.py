@@ -111,7 +111,7 @@ def observes(keys: Iterable[str] | None) -> Callable[[F], F]:
     """Declare on an agent factory the observation keys its agent reads (None: not known in advance)."""
 
     def mark(factory: F) -> F:
-        factory.observes = None if keys is None else frozenset(keys)  # type: ignore[attr-defined]
+        factory.observes = None if keys is None else frozenset(keys)  # type: ignore[attr-defined]  # a mark on the function, read by agent_observes
         return factory
 
     return mark

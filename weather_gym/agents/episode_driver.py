@@ -25,7 +25,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -101,7 +101,7 @@ def run_episode(env: gym.Env, agent: Any, *, seed: int | None = None, options: d
                          "weather_gym.make_env(..., max_episode_steps=N) has one)")
     stats = _find(env, EpisodeStatistics)
     driven = env if stats is not None else EpisodeStatistics(env)
-    stats = stats or driven
+    stats = stats or cast(EpisodeStatistics, driven)  # None: driven is a new EpisodeStatistics
     who = f"agent {agent_name!r}" if agent_name else "agent"
     base = env.unwrapped
     track = getattr(base, "track", None)
@@ -127,7 +127,7 @@ def run_episode(env: gym.Env, agent: Any, *, seed: int | None = None, options: d
         if done:
             break
     wall = time.perf_counter() - wall0
-    ep = info.get(stats.info_key) or stats.last_episode
+    ep: dict[str, Any] = info.get(stats.info_key) or stats.last_episode  # type: ignore[assignment]  # the episode ended: its summary is set
     length = float(getattr(track, "length", math.nan))
     progress_m = float(ep["progress_m"])
     progress = progress_m / (length * laps_requested) if length > 0 else math.nan

@@ -221,7 +221,7 @@ class CenterlinePlanner:
         """Midpoints of the left-right Delaunay edges of track width, their half lengths, and the links
         between two such edges of one triangle (consecutive gates along the corridor)."""
         cfg = self.config
-        none = np.zeros((0, 2)), np.zeros(0), [[] for _ in range(0)]
+        none: tuple[np.ndarray, np.ndarray, list[list[int]]] = np.zeros((0, 2)), np.zeros(0), [[] for _ in range(0)]
         if not ((side == 1).any() and (side == -1).any()):
             return none
         tri = None
@@ -240,11 +240,11 @@ class CenterlinePlanner:
         length = np.hypot(*(body[edges[:, 0]] - body[edges[:, 1]]).T)
         good = (side[edges[:, 0]] != side[edges[:, 1]]) & (length >= cfg.min_width) & (length <= cfg.max_width)
         edges, length = edges[good], length[good]
-        index = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
+        index: dict[tuple[int, ...], int] = {(int(a), int(b)): k for k, (a, b) in enumerate(edges)}
         links: list[list[int]] = [[] for _ in range(len(edges))]
         for tri_v in simplices:
-            ids = [index.get(tuple(sorted((int(tri_v[i]), int(tri_v[(i + 1) % 3]))))) for i in range(3)]
-            ids = [k for k in ids if k is not None]
+            found = [index.get(tuple(sorted((int(tri_v[i]), int(tri_v[(i + 1) % 3]))))) for i in range(3)]
+            ids = [k for k in found if k is not None]
             if len(ids) == 2:
                 links[ids[0]].append(ids[1])
                 links[ids[1]].append(ids[0])

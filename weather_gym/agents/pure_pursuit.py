@@ -236,6 +236,7 @@ class PurePursuit:
     # ---- geometry --------------------------------------------------------------------------------
     def _project(self, x: float, y: float) -> int:
         p = self.path
+        assert p is not None  # set_path() came first
         m = len(p)
         step = self.config.resample_step
         if self._index is None:
@@ -252,6 +253,7 @@ class PurePursuit:
     def _point_ahead(self, index: int, distance: float) -> np.ndarray:
         """The path point ``distance`` metres after ``index`` (extended straight past an open end)."""
         p, step = self.path, self.config.resample_step
+        assert p is not None  # set_path() came first
         n = distance / step
         i0 = int(math.floor(n))
         frac = n - i0
@@ -293,7 +295,7 @@ class PurePursuit:
 
         n_prev = int(round(v * cfg.preview_time / cfg.resample_step))
         k = (i + n_prev) % len(p) if self.closed else min(i + n_prev, len(p) - 1)
-        v_ref = float(self.profile[k])
+        v_ref = float(self.profile[k])  # type: ignore[index]  # set with the path
         if not self.closed and i >= len(p) - 1:
             v_ref = min(v_ref, cfg.v_end)
         a_cmd = min(max(cfg.speed_gain * (v_ref - v), -cfg.a_brake), cfg.a_accel)

@@ -92,7 +92,7 @@ class SB3Agent:
         if (model is None) == (path is None):
             raise InputError("sb3 agent: give exactly one of model= (a stable-baselines3 model) or path= (a saved .zip)")
         if model is None:
-            p = Path(path)
+            p = Path(path)  # type: ignore[arg-type]  # given: exactly one of model and path is
             if not p.exists() and p.with_suffix(".zip").exists():
                 p = p.with_suffix(".zip")
             if not p.is_file():

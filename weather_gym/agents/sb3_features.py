@@ -49,7 +49,7 @@ class ConeListExtractor(BaseFeaturesExtractor):
             if key not in observation_space.spaces:
                 raise InputError(f"ConeListExtractor needs a Dict observation with {key!r} (a cone list), "
                                  f"got keys {list(observation_space.spaces)}")
-        n = observation_space["cones"].shape[0]
+        n = observation_space["cones"].shape[0]  # type: ignore[index]  # a Box: it has a shape
         if not (isinstance(max_cones, int) and 1 <= max_cones <= n):
             raise InputError(f"ConeListExtractor: max_cones must be an integer in [1, {n}], got {max_cones!r}")
         super().__init__(observation_space, features_dim=max_cones * _PER_CONE + 2)

@@ -101,7 +101,7 @@ def skidpad_cones(junction: Sequence[float] = (0.0, 0.0), heading: float = math.
 class SkidpadPlanner:
     """Fits the figure eight to mapped cones; ``plan`` returns the whole path (map frame)."""
 
-    def __init__(self, start_pose: Sequence[float], config: SkidpadConfig | None = None) -> None:
+    def __init__(self, start_pose: Sequence[float] | np.ndarray, config: SkidpadConfig | None = None) -> None:
         self.config = config or SkidpadConfig()
         x, y, yaw = (float(v) for v in start_pose)
         self.start = np.array([x, y])
@@ -132,7 +132,7 @@ class SkidpadPlanner:
             d = np.hypot(*(xy[:, None, :] - self.centres[None, :, :]).transpose(2, 0, 1))
             right_side, left_side = d[:, 0] < d[:, 1], d[:, 1] <= d[:, 0]
             guesses = (self.centres[0], self.centres[1])
-        fits = [None, None]
+        fits: list[np.ndarray | None] = [None, None]
         for _ in range(3):  # fit, give each cone to the circle whose ring it fits best, refit
             for k, (side, inner, guess) in enumerate(((right_side, YELLOW, guesses[0]), (left_side, BLUE, guesses[1]))):
                 radii = np.where(cls[side] == inner, cfg.inner_radius, cfg.outer_radius)

@@ -12,7 +12,7 @@ import os
 import platform
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from weather_gym._markdown import markdown_table as table_lines
 
@@ -69,7 +69,7 @@ def machine_line() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, {platform.system()}"
 
 
-def markdown_table(header: list[str], rows: list[list[object]]) -> str:
+def markdown_table(header: list[str], rows: Sequence[Sequence[object]]) -> str:
     """``rows`` under ``header`` as a Markdown table (tabulate), floats to 3 decimals."""
     def fmt(v: object) -> str:
         return f"{v:.3f}" if isinstance(v, float) else str(v)

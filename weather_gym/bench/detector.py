@@ -158,7 +158,7 @@ def yolov3_tiny_onnx(path: str | os.PathLike, width: int = 608, height: int = 35
     path = Path(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        torch.onnx.export(Tiny().eval(), torch.zeros(1, 3, height, width), str(path), opset_version=17, dynamo=False,
+        torch.onnx.export(Tiny().eval(), torch.zeros(1, 3, height, width), str(path), opset_version=17, dynamo=False,  # type: ignore[arg-type]  # one input tensor: torch takes it
                           input_names=["images"])
     return path
 
@@ -182,9 +182,9 @@ def run_benchmark(model=None, repeats: int = 100, batch: int = 8, baseline: bool
     x = np.zeros((1, 3, h, w), np.float32)
     rows = []
     for threads, det in ((1, det1), (2, det2)):
-        rows.append([f"ConeNet {w}x{h}: detect() on a 672x376 frame", threads, median_ms(lambda d=det: d(frame), repeats)])
+        rows.append([f"ConeNet {w}x{h}: detect() on a 672x376 frame", threads, median_ms(lambda d=det: d(frame), repeats)])  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
         rows.append([f"ConeNet {w}x{h}: session.run only", threads,
-                     median_ms(lambda d=det: d.session.run(None, {d.input_name: x}), repeats)])
+                     median_ms(lambda d=det: d.session.run(None, {d.input_name: x}), repeats)])  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
     frames = [frame] * batch
     batch_ms = median_ms(lambda: det2.detect_batch(frames), max(10, repeats // batch))
     rows.append([f"ConeNet {w}x{h}: detect_batch({batch}), per frame", 2, batch_ms / batch])
@@ -197,7 +197,7 @@ def run_benchmark(model=None, repeats: int = 100, batch: int = 8, baseline: bool
                 for threads in (1, 2):
                     s = _session(p, threads)
                     rows.append(["baseline: YOLOv3-tiny layout 608x352 (study), session.run", threads,
-                                 median_ms(lambda s=s: s.run(None, {"images": xb}), max(10, repeats // 4))])
+                                 median_ms(lambda s=s: s.run(None, {"images": xb}), max(10, repeats // 4))])  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
                 base = True
         except ImportError:
             base = False
@@ -216,11 +216,11 @@ def run_benchmark(model=None, repeats: int = 100, batch: int = 8, baseline: bool
 
 
 def _time_step(det1, det2, steps: int) -> dict[str, Any]:
-    settings = {"track": "small_track", "laps": 0, "max_episode_steps": 10**6, "episode_statistics": False}
+    settings: dict[str, Any] = {"track": "small_track", "laps": 0, "max_episode_steps": 10**6, "episode_statistics": False}
     env = make_env(**settings)
-    cfg = env.unwrapped.config
+    cfg = env.unwrapped.config  # type: ignore[attr-defined]  # a ConeTrackEnv
     eff = make("droplets", k=0.55)
-    agent = AGENTS.get("gt_pure_pursuit")(env.unwrapped.track, cfg.camera)
+    agent = AGENTS.get("gt_pure_pursuit")(env.unwrapped.track, cfg.camera)  # type: ignore[attr-defined]  # a ConeTrackEnv
     t_env, t_w, t_d = [], [], []
     try:
         obs, info = env.reset(seed=0)

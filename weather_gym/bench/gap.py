@@ -101,6 +101,7 @@ def _run(args) -> int:
                 t, report = time_run(clear, adverse, root / f"out_{cw}_{r}", cw)
                 times.append(t)
                 print(f"{label}: {t:.1f} s ({', '.join(report['missing_effects']) or 'nothing'} named)")
+            assert report is not None  # one run at least (--repeats >= 1)
             size = "x".join(str(v) for v in report["frames"]["size"])
             tm = report["timings"]
             rows.append([label, size, f"{statistics.median(times):.1f}", f"{statistics.median(times) / 60:.2f}",

@@ -79,7 +79,7 @@ def compare_ground_truth(track_name: str, camera: CameraConfig, steps: int = 900
     track = load_track(track_name)
     world = World(track, camera=camera, sim=SimConfig(scene=scene))
     try:
-        world.reset(tuple(track.start_pose))
+        world.reset(tuple(track.start_pose))  # type: ignore[arg-type]  # (x, y, yaw)
         agent = AGENTS.get("gt_pure_pursuit")(track, camera)
         agent.reset(info={"pose": world.car.pose, "speed": 0.0})
         s: dict[str, Any] = {"rendered": 0, "geometric": 0, "both": 0, "big": 0, "big_missed": 0,
@@ -90,6 +90,7 @@ def compare_ground_truth(track_name: str, camera: CameraConfig, steps: int = 900
             if step % every:
                 continue
             r, g = world.render().gt, world.ground_truth()
+            assert r is not None  # render() segments by default
             ri = {int(c): i for i, c in enumerate(r["cone_ids"])}
             gi = {int(c): i for i, c in enumerate(g["cone_ids"])}
             s["rendered"] += len(ri)
@@ -121,7 +122,7 @@ def steps_per_s(perception: str, camera: CameraConfig, block: int, repeats: int)
     env = make_env(perception=perception, camera=camera, laps=0, max_episode_steps=10**9, episode_statistics=False)
     try:
         u = env.unwrapped
-        agent = AGENTS.get("gt_pure_pursuit")(u.track, camera)
+        agent = AGENTS.get("gt_pure_pursuit")(u.track, camera)  # type: ignore[attr-defined]  # a ConeTrackEnv
         obs, info = env.reset(seed=0)
         agent.reset(info=info)
         actions = []

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -78,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 world.reset(track.start_pose)
                 if physics_ms is None:
-                    physics_ms = median_ms(lambda w=world: w.step(0.0, 0.2), repeats=args.repeats)
+                    physics_ms = median_ms(lambda w=world: w.step(0.0, 0.2), repeats=args.repeats)  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
                     world.reset(track.start_pose)
                 frame_ms = median_ms(world.render, repeats=args.repeats)
             finally:
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 env.reset(seed=0)
                 action = np.array([0.0, 0.1], np.float32)
-                step_ms = median_ms(lambda e=env, a=action: e.step(a), repeats=args.repeats)
+                step_ms = median_ms(lambda e=env, a=action: e.step(a), repeats=args.repeats)  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
             finally:
                 env.close()
             rows.append([renderer, f"{w}x{h}", frame_ms, 1000.0 / frame_ms, step_ms, 1000.0 / step_ms,
@@ -128,8 +129,8 @@ def _worlds(args: argparse.Namespace, track) -> int:
             x, y, h = track.point_at(10.0)
             world.reset((float(x), float(y), float(h)))
             seg = median_ms(world.render, repeats=args.repeats)
-            noseg = median_ms(lambda w=world: w.render(segmentation=False), repeats=args.repeats)
-            geo = median_ms(lambda w=world: (w.render(segmentation=False), w.ground_truth()), repeats=args.repeats)
+            noseg = median_ms(lambda w=world: w.render(segmentation=False), repeats=args.repeats)  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
+            geo = median_ms(lambda w=world: (w.render(segmentation=False), w.ground_truth()), repeats=args.repeats)  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
             if name == "realistic, no ego car":  # the camera model's input
                 rgb = world.render(segmentation=False).rgb
         finally:
@@ -141,7 +142,7 @@ def _worlds(args: argparse.Namespace, track) -> int:
     for label, model in (("camera model: realistic preset (JPEG 90)", CameraModel.realistic()),
                          ("camera model: realistic preset, no JPEG", replace(CameraModel.realistic(), jpeg_quality=0))):
         pipe = CameraPipeline(model, cam.width, cam.height, fx=cam.fx)
-        cm.append([label, median_ms(lambda p=pipe: p.apply(rgb, rng), repeats=max(args.repeats, 50))])
+        cm.append([label, median_ms(lambda p=pipe: p.apply(rgb, rng), repeats=max(args.repeats, 50))])  # type: ignore[misc]  # a lambda with a default argument: mypy cannot infer it
     print(f"Machine: {machine_line()}; load average {os.getloadavg()[0]:.2f} at the end")
     print(f"Track: {args.track}; renderer {renderer}; 672x376; median of {args.repeats} calls after warm-up")
     print(markdown_table(["world", "frame + segmentation GT ms", "frame only ms", "frame + geometric GT ms"], rows))
@@ -154,7 +155,7 @@ def _driving_actions(track_name: str, n: int) -> list[np.ndarray]:
     car's motion does not depend on the camera), so the timed env drives the track and sees cones."""
     env = make_env(track=track_name, camera_images=False, ground_truth="geometry", episode_statistics=False)
     try:
-        agent = make_agent("gt_pure_pursuit", env.unwrapped.track, env.unwrapped.config.camera)
+        agent = make_agent("gt_pure_pursuit", env.unwrapped.track, env.unwrapped.config.camera)  # type: ignore[attr-defined]  # a ConeTrackEnv
         _, info = env.reset(seed=0)
         agent.reset(seed=0, info=info)
         actions = []
@@ -195,11 +196,11 @@ def _naive(args: argparse.Namespace, track) -> int:
         frame, close = naive_scene(cam)
         envs = {"default": make_env(track=args.track, camera=cam)}
         try:
-            drivers = {"naive": frame}
+            drivers: dict[str, Callable[[], object]] = {"naive": frame}
             drivers["default"] = _Driver(envs["default"], actions)
-            default_renderer = drivers["default"].info["renderer"]
+            default_renderer = drivers["default"].info["renderer"]  # type: ignore[attr-defined]  # a _Driver
             if default_renderer == "egl":
-                envs["default"].unwrapped.world.camera.shadow_reuse = None  # the default: the whole map
+                envs["default"].unwrapped.world.camera.shadow_reuse = None  # type: ignore[attr-defined]  # the default: the whole map
                 if (reason := egl_shadow_reuse.unavailable_reason()) is None:  # WEATHER_GYM_SHADOW_MAP_REUSE=1
                     envs["reuse"] = make_env(track=args.track, camera=cam)
                     drivers["reuse"] = _Driver(envs["reuse"], actions)

@@ -65,7 +65,7 @@ class _TimedLap:
                             episode_statistics=False)
         try:
             u = self.env.unwrapped
-            agent = make_agent("gt_pure_pursuit", u.track, u.config.camera)
+            agent = make_agent("gt_pure_pursuit", u.track, u.config.camera)  # type: ignore[attr-defined]  # a ConeTrackEnv
             obs, info = self.env.reset(seed=0)
             agent.reset(seed=0, info=info)
             self.actions = []

@@ -83,14 +83,14 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
             for rk in (k, 1.0):
                 cases.append((f"droplets refractive (k={rk})", make(name, k=rk, mode="refractive")))
             heavy = parse_weather("droplets@4")  # the heaviest shipped preset
-            cases.append((f"droplets@4 ({heavy.mode} k={heavy.k})", heavy))
+            cases.append((f"droplets@4 ({heavy.mode} k={heavy.k})", heavy))  # type: ignore[arg-type, attr-defined]  # a KnobEffect (droplets)
             cases.append((f"droplets refractive persistent (k={k})",
                           make(name, k=k, mode="refractive", persistent=True)))
         if name == "dim":
             cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
             cases.append((f"dim night (k={k})", make(name, k=k, mode="night")))
             heavy = parse_weather("low_light@4")
-            cases.append((f"low_light@4 ({heavy.mode} k={heavy.k})", heavy))
+            cases.append((f"low_light@4 ({heavy.mode} k={heavy.k})", heavy))  # type: ignore[arg-type, attr-defined]  # a KnobEffect (dim)
     return cases
 
 

@@ -290,7 +290,7 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
     done = {(c.condition, c.severity): c for c in calibs}
     base_tables = load_presets(base)["presets"]
     lines = [header.rstrip("\n")]
-    used = {}
+    used: dict[str, tuple[str, dict[str, Any]]] = {}
     for c in calibs:
         if c.severity > 0 and c.effects:
             used.setdefault(c.condition, (c.curve, {k: v for k, v in c.effects[0].items() if k != "k"}))

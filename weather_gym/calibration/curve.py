@@ -122,7 +122,7 @@ class Inversion:
     monotonised: bool = False
 
 
-def monotone_decreasing(y: Sequence[float]) -> np.ndarray:
+def monotone_decreasing(y: Sequence[float] | np.ndarray) -> np.ndarray:
     """The closest non-increasing sequence in least squares (pool adjacent violators).
 
     Example:
@@ -154,7 +154,8 @@ def _crossing(ks: np.ndarray, y: np.ndarray, target: float) -> float | None:
     return float(ks[-1])  # pragma: no cover - unreachable for a non-increasing y
 
 
-def invert(ks: Sequence[float], mean: Sequence[float], target: float, sd: Sequence[float] | None = None,
+def invert(ks: Sequence[float] | np.ndarray, mean: Sequence[float] | np.ndarray, target: float,
+           sd: Sequence[float] | np.ndarray | None = None,
            what: str = "the metric") -> Inversion:
     """Read the k at which the (monotonised) mean curve meets ``target``; interval from ``mean -/+ sd``."""
     ks = np.asarray(ks, dtype=np.float64)
@@ -223,7 +224,7 @@ def _read_rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
 
 def _float(path: Path, lineno: int, col: str, text: str | None) -> float:
     try:
-        return float(text)  # type: ignore[arg-type]
+        return float(text)  # type: ignore[arg-type]  # None (a short row): TypeError, caught below
     except (TypeError, ValueError):
         raise InputError(f"{path}, row {lineno}: column {col!r} must be a number, got {text!r}") from None
 

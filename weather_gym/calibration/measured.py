@@ -201,7 +201,7 @@ def measure_datasets(items: Sequence[tuple[str | None, int | None, Path]], model
         frames: list[tuple[dict, tuple[str, int]]] = []
         for i in range(len(ds)):
             if cond is not None:
-                key = (cond, int(sev))
+                key = (cond, int(sev))  # type: ignore[arg-type]  # given with cond
             else:
                 rec = ds.record(i)
                 where = f"{folder}: image {rec.get('file_name', i)}"

@@ -29,6 +29,7 @@ import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy.optimize import curve_fit
@@ -74,13 +75,13 @@ def _round(params: dict[str, float]) -> dict[str, float]:
     return {k: float(np.round(v, 6)) for k, v in params.items()}
 
 
-def fit_shapes(k: Sequence[float], y: Sequence[float]) -> dict[str, ShapeFit]:
+def fit_shapes(k: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray) -> dict[str, ShapeFit]:
     """Least-squares fits of :data:`SHAPES` to the points ``(k, y)``; see the module doc."""
 
     k = np.asarray(k, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     ok = np.isfinite(k) & np.isfinite(y)
-    k, y = k[ok], y[ok]
+    k, y = cast(np.ndarray, k[ok]), cast(np.ndarray, y[ok])
     if len(k) < 3:
         raise InputError(f"a shape fit needs at least 3 points, got {len(k)}")
     out: dict[str, ShapeFit] = {}

@@ -196,7 +196,7 @@ def _render(args) -> int:
     path = render_dataset(args.out, tracks=args.track, frames=args.frames, seed=args.seed, randomize=args.randomize,
                           camera=cam, every=args.every, frames_per_episode=args.frames_per_episode,
                           progress=not args.quiet, overwrite=args.overwrite, resume=args.resume, scene=scene,
-                          ranges=ranges, start_window=window, camera_model=model, jpeg_quality=args.jpeg_quality,
+                          ranges=ranges, start_window=window, camera_model=model, jpeg_quality=args.jpeg_quality,  # type: ignore[arg-type]  # window: 2 numbers, checked
                           shadows=None if args.shadows is None else args.shadows == "on")
     print(f"wrote {path}")
     return 0

@@ -161,7 +161,7 @@ class _Cv2Video:
         self._frames = 0
         self._output = atomic_path(dst, overwrite=overwrite)
         tmp = self._tmp = self._output.__enter__()
-        fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
+        fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))  # type: ignore[attr-defined]  # not in cv2's stubs
         self.writer = cv2.VideoWriter(str(tmp), fourcc, fps, size)
         if not self.writer.isOpened():
             self.abort()
@@ -200,7 +200,7 @@ def _video(weather, src: Path, dst: Path, args) -> int:
         check_image_size((h, w, 3), what=f"video {src}")
         total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
         if dst.suffix.lower() == ".mp4":  # H.264 (PyAV), falling back to mp4v with a warning
-            writer = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
+            writer: VideoWriter | _Cv2Video = VideoWriter(dst, fps=fps, overwrite=args.overwrite)
         else:
             writer = _Cv2Video(dst, fps, (w, h), args.overwrite)
         run = weather.start(args.seed)  # the video is one episode
@@ -232,7 +232,7 @@ def _bag(weather, args) -> int:
         raise InputError("--depth is not supported for ROS bags")
     r = degrade_bag(args.input, args.output, weather=weather, topic=args.topic, odometry=args.odometry,
                     seed=args.seed, jpeg_quality=args.jpeg_quality, overwrite=args.overwrite, progress=not args.quiet)
-    span = "" if r.first_ns is None else f", {(r.last_ns - r.first_ns) / 1e9:.3f} s"
+    span = "" if r.first_ns is None or r.last_ns is None else f", {(r.last_ns - r.first_ns) / 1e9:.3f} s"
     print(f"wrote {r.out} ({r.kind}, {r.storage}): {r.frames} frame(s) of {r.topic} weathered{span}; "
           f"{sum(r.copied.values())} other message(s) copied unchanged"
           + (f" ({', '.join(f'{t} {n}' for t, n in sorted(r.copied.items()))})" if r.copied else ""))

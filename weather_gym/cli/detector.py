@@ -188,7 +188,7 @@ def _train(args) -> int:
 
 def _parse_blocks(spec: str) -> tuple[int, int, int, int]:
     try:  # the count and signs are checked by TrainConfig
-        return tuple(int(v) for v in spec.split(","))  # type: ignore[return-value]
+        return tuple(int(v) for v in spec.split(","))  # type: ignore[return-value]  # TrainConfig checks there are four
     except ValueError:
         raise InputError(f"--blocks must be 4 comma-separated whole numbers (strides 4, 8, 16, 32), got {spec!r}") from None
 

@@ -25,7 +25,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from tqdm import tqdm
@@ -35,6 +35,7 @@ from weather_gym.agents.mapper import MapperConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
 from weather_gym.cli._seed_arg import seed_arg
+from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
 from weather_gym.errors import InputError
@@ -263,7 +264,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     recorder = None
     episode_bag: EpisodeBag | None = None
     try:
-        base = env.unwrapped
+        base = cast(ConeTrackEnv, env.unwrapped)
         trk, camera = base.track, base.config.camera
         hz = float(base.config.sim.control_hz)
         driver = factory(trk, camera, **(agent_kwargs or {}))
@@ -383,7 +384,7 @@ def format_result(r: dict[str, Any]) -> str:
         lines.append(f"map: {m['confirmed']} confirmed cones, mean position std {m['mean_position_std_m']:.3f} m, "
                      f"colour confidence {m['mean_class_confidence']:.2f}")
     if r.get("video"):
-        codec = {"h264": "H.264", "mp4v": "MPEG-4 Part 2"}.get(r.get("video_codec"), r.get("video_codec"))
+        codec = {"h264": "H.264", "mp4v": "MPEG-4 Part 2"}.get(r.get("video_codec"), r.get("video_codec"))  # type: ignore[arg-type]  # None: stays None
         lines.append(f"video: {r['video']} ({r['video_frames']} frames, {codec})")
     if r.get("strip"):
         lines.append(f"strip: {r['strip']}")

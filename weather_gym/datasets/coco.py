@@ -96,7 +96,7 @@ class CocoDataset:
         self._anns: dict[int, list[dict]] = {im["id"]: [] for im in self.images}
         for a in data["annotations"]:
             self._anns[a["image_id"]].append(a)
-        self._renderer = None
+        self._renderer: Any = None  # a ViewRenderer, made at the first re-rendered view
         self._masks: dict[str, np.ndarray] = {}
 
     def __len__(self) -> int:
@@ -188,7 +188,7 @@ class CocoDataset:
         """
         anns = self.annotations(i)
         boxes = xywh_to_xyxy(np.array([a["bbox"] for a in anns], dtype=np.float64).reshape(-1, 4))
-        out = {
+        out: dict[str, np.ndarray] = {
             "boxes": boxes.astype(np.float32),
             "classes": np.array([self._cat_to_class[a["category_id"]] for a in anns], dtype=np.int64),
             "iscrowd": np.array([int(a.get("iscrowd", 0)) for a in anns], dtype=np.int64),
@@ -334,7 +334,7 @@ def load_coco(root: str | os.PathLike, *, check_files: bool = True, cache_images
         _check_image(path, root, im, ids, check_files)
     for a in data["annotations"]:
         _check_annotation(path, a, ids, cat_ids)
-    info = data.get("info") if isinstance(data.get("info"), dict) else {}
+    info: dict[str, Any] = data.get("info") if isinstance(data.get("info"), dict) else {}  # type: ignore[assignment]  # a dict: checked
     if info.get("ignore_mask") is not None:
         mask_file = resolve_inside(root, info["ignore_mask"], what=f"{path}: info.ignore_mask")
         if check_files and not mask_file.is_file():

@@ -86,7 +86,7 @@ def read_mask(path: str | os.PathLike, size: tuple[int, int] | None = None) -> n
     if raw.ndim == 3:
         raw = cv2.cvtColor(raw[..., :3], cv2.COLOR_BGR2GRAY)
     if raw.dtype == np.uint16:
-        raw = (raw >> 8).astype(np.uint8)
+        raw = (raw >> 8).astype(np.uint8)  # type: ignore[operator]  # a uint16 image here
     if raw.dtype != np.uint8:
         raise FileFormatError(f"ignore mask {path} has pixel type {raw.dtype}; expected an 8-bit PNG (white = ignored)")
     mask = raw >= 128

@@ -30,7 +30,7 @@ def recognise_location_frame(frames: list[SourceFrame], requested: str) -> tuple
         raise InputError(f"location frame must be auto, camera, vehicle or none, got {requested!r}")
     if requested != "auto":
         return requested, f"{requested} (given)"
-    votes = Counter()
+    votes: Counter[str] = Counter()
     n = 0
     for fr in frames:
         w = fr.size[0]

@@ -58,6 +58,7 @@ def _read_kitti(src: Path) -> SourceRead:
     images = find_dir(src, _KITTI_DIRS["images"], "images")
     labels = find_dir(src, _KITTI_DIRS["labels"], "labels")
     calib = find_dir(src, _KITTI_DIRS["calib"], "calib", required=False)
+    assert images is not None and labels is not None  # required: find_dir raised otherwise
     res = SourceRead([], layout=f"{images.name}/ + {labels.name}/")
     for lab, fr in labelled_frames(images, labels, src, "KITTI", unmatched=res.unmatched):
         for n, line in enumerate(read_text(lab, root=src).splitlines(), 1):
@@ -73,9 +74,9 @@ def _read_kitti(src: Path) -> SourceRead:
             if x1 == y1 == x2 == y2 == 0.0:
                 res.stats["rows without a 2D box (3D only): left out"] += 1
                 if any(v[10:13]) and all(d > 0 for d in v[7:9]):  # (h, w, l), location: projected later
-                    fr.only3d.append((parts[0], tuple(v[7:10]), tuple(v[10:13]), where))
+                    fr.only3d.append((parts[0], (v[7], v[8], v[9]), (v[10], v[11], v[12]), where))
                 continue
-            loc = tuple(v[10:13]) if any(v[7:13]) else None
+            loc = (v[10], v[11], v[12]) if any(v[7:13]) else None
             size3d = (v[7], v[8]) if v[7] > 0 and v[8] > 0 else None
             fr.boxes.append(LabelBox(parts[0], check_box(x1, y1, x2, y2, where), where, location=loc, size3d=size3d))
         if calib is not None:
@@ -133,7 +134,8 @@ def _yaml_names(path: Path, src: Path) -> list[str]:
 
 
 def _yaml_names_plain(text: str) -> list[str] | None:
-    names, block = None, None
+    names = None
+    block: list[str] | None = None
     for line in text.splitlines():
         s = line.split("#", 1)[0].rstrip()
         if s.startswith("names:"):

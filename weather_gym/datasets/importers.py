@@ -106,7 +106,7 @@ def parse_intrinsics(spec: str | Sequence[float] | Mapping[str, float] | None) -
     if spec is None:
         return None
     if isinstance(spec, Mapping):
-        vals = [spec.get(k) for k in ("fx", "fy", "cx", "cy")]
+        vals: list[Any] = [spec.get(k) for k in ("fx", "fy", "cx", "cy")]
     elif isinstance(spec, str):
         vals = [v.strip() for v in spec.split(",")]
     else:
@@ -338,7 +338,8 @@ def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str],
     atomic_write_json(out / PARTIAL, {"identity": ident}, overwrite=state != "new")
     if state == "replace":
         _clear_but_marker(out)
-    images, anns = [], []
+    images: list[dict[str, Any]] = []
+    anns: list[dict[str, Any]] = []
     per_class: Counter = Counter()
     ignored: Counter = Counter()
     n_small = n_kept = 0

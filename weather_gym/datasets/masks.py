@@ -114,7 +114,7 @@ def propose_mask(frames: Sequence[np.ndarray], *, static_fraction: float = 0.45,
     if cols.size:
         top = np.argmax(keep[:, cols] > 0, axis=0)
         rows = np.arange(hh)[:, None]
-        keep[:, cols] |= (rows >= top[None, :]).astype(np.uint8)
+        keep[:, cols] |= (rows >= top[None, :]).astype(np.uint8)  # type: ignore[misc]  # a uint8 mask
     # fill holes: everything not reachable from the top border through unkept pixels
     free = (1 - keep).astype(np.uint8)
     flood = free.copy()

@@ -218,6 +218,7 @@ def render_dataset(
                                 shadows=shadows)
                 env_track = (track_spec, ep_camera)
                 check_start_window(env.unwrapped.track, start_window)
+            assert env is not None  # made for the first episode
             pose = _start_pose(env.unwrapped.track, rng, lateral_max, start_window)
             speed = float(rng.uniform(0.0, 6.0))
             obs, info = env.reset(seed=int(ep_seed), options={"look": look, "start_pose": pose, "start_speed": speed,
@@ -306,10 +307,10 @@ class ViewRenderer:
         camera = CameraConfig(**record["camera"])
         scene = str(record.get("scene", "plain"))  # records before the "scene" key are of the plain world
         shadows = record.get("shadows")  # only sets rendered with SimConfig.shadows given have the key
-        key = (record["track"], tuple(sorted(record["camera"].items())), scene, shadows)
-        env = self._envs.get(key)
+        env_key = (record["track"], tuple(sorted(record["camera"].items())), scene, shadows)
+        env = self._envs.get(env_key)
         if env is None:
-            env = self._envs[key] = _make_env(record["track"], camera, max_steps=10, scene=scene, shadows=shadows)
+            env = self._envs[env_key] = _make_env(record["track"], camera, max_steps=10, scene=scene, shadows=shadows)
         options = {"look": record["look"], "start_pose": record["pose"], "start_speed": float(record.get("speed", 0.0))}
         # records before the "camera_model" key were rendered without one (the ideal camera)
         options["camera_model"] = record.get("camera_model", CameraModel.ideal())

@@ -39,12 +39,13 @@ import warnings
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import Any
+from typing import Any, SupportsFloat, cast
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from weather_gym._track import Projection
 from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
@@ -107,7 +108,7 @@ class ConeTrackEnv(gym.Env):
         self._sim = sim
         self._world: World | None = None
         cam = config.camera
-        obs = {"state": spaces.Box(-np.inf, np.inf, (len(STATE_FIELDS),), np.float32)}
+        obs: dict[str, spaces.Space[Any]] = {"state": spaces.Box(-np.inf, np.inf, (len(STATE_FIELDS),), np.float32)}
         if config.camera_images:
             obs = {"image": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
                    "depth": spaces.Box(0.0, float(cam.far), (cam.height, cam.width), np.float32), **obs}
@@ -149,7 +150,8 @@ class ConeTrackEnv(gym.Env):
         return self.world.renderer_name
 
     # ------------------------------------------------------------------ reset
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Any, dict[str, Any]]:
         self._check_open()
         if options is not None and not isinstance(options, Mapping):
             raise InputError(f"reset options must be a dict (keys {list(RESET_OPTIONS)}), got {options!r}")
@@ -199,10 +201,10 @@ class ConeTrackEnv(gym.Env):
                              f"seeded reset), got {camera_frame!r}")
         self._set_pipeline(model, rng)
         if self._pipeline is not None:
-            self._pipeline.skip(self._pipeline_rng, int(camera_frame))
+            self._pipeline.skip(cast(np.random.Generator, self._pipeline_rng), int(camera_frame))  # set with the pipeline
         world = self.world
         world.set_look(look)
-        world.reset(pose, speed=speed)
+        world.reset(cast(tuple[float, float, float], pose), speed=speed)  # three numbers, checked above
 
         # odometry errors of this episode
         od = self.config.odometry
@@ -271,7 +273,7 @@ class ConeTrackEnv(gym.Env):
         raise InputError(f"reset option look must be a Look, a dict of Look fields or 'random', got {look!r}")
 
     # ------------------------------------------------------------------ step
-    def step(self, action):
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         self._check_open()
         if not self._episode_started:
             raise StateError("call reset() before step()")
@@ -285,7 +287,8 @@ class ConeTrackEnv(gym.Env):
             raise InputError(f"action must lie in [-1, 1] (the action space), got {a.tolist()}")
         steer, pedal = min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)  # only float rounding is clipped
 
-        touched = self._world.step(steer, pedal, self._friction)  # reset() made the world
+        assert self._world is not None  # reset() made the world
+        touched = self._world.step(steer, pedal, self._friction)
         new_hits = len(touched - self._cones_hit)
         self._cones_hit |= touched
         dt = self.config.sim.dt
@@ -293,7 +296,7 @@ class ConeTrackEnv(gym.Env):
         self._time += dt
 
         track = self.track
-        x, y, _ = self._world.car.pose  # type: ignore[union-attr]
+        x, y, _ = self._world.car.pose
         proj = track.project(x, y, s_hint=self._s)
         ds = float(proj.s) - self._s
         if track.closed:
@@ -351,6 +354,7 @@ class ConeTrackEnv(gym.Env):
         """Odometry as the car reports it: scaled, noisy wheel speed and biased, noisy gyro."""
         od = self.config.odometry
         rng = self.np_random
+        assert self._world is not None  # measured only in an episode
         car = self._world.car
         speed = car.state.vx * self._odo_scale + od.speed_noise_std * float(rng.standard_normal())
         yaw_rate = car.state.yaw_rate + self._gyro_bias + od.gyro_noise_std * float(rng.standard_normal())
@@ -376,7 +380,7 @@ class ConeTrackEnv(gym.Env):
             assert self._pipeline_rng is not None and self._image is not None
             self._image = pipe.apply(self._image, self._pipeline_rng)
             if pipe.model.distorts:  # the lens moves pixels: depth and boxes follow
-                self._depth = pipe.remap_nearest(self._depth, float(cfg.camera.far))
+                self._depth = pipe.remap_nearest(cast(np.ndarray, self._depth), float(cfg.camera.far))  # set with the image
         if pipe.model.distorts and self._gt is not None and self._gt.count:
             self._gt = ConeArrays({**self._gt, "boxes": pipe.distort_boxes(self._gt["boxes"])})
 
@@ -387,7 +391,7 @@ class ConeTrackEnv(gym.Env):
         assert self._image is not None and self._depth is not None
         return {"image": self._image.copy(), "depth": self._depth.copy(), "state": state}
 
-    def _info(self, proj, new_hits: int, end_reason: str | None) -> dict[str, Any]:
+    def _info(self, proj: Projection, new_hits: int, end_reason: str | None) -> dict[str, Any]:
         world = self.world
         car = world.car
         info: dict[str, Any] = {}
@@ -428,7 +432,7 @@ class ConeTrackEnv(gym.Env):
         """What ``render()`` returns in ``rgb_array`` mode: ``"chase"`` or ``"camera"`` (``EnvConfig.render_view``)."""
         return self.config.render_view
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         """``rgb_array``: the chase view, or the camera frame (``render_view="camera"``; a
         ``WeatherWrapper`` above returns it weathered); ``human``: None (the GUI window shows the scene)."""
         if self.render_mode == "rgb_array":

@@ -212,7 +212,7 @@ def _check_weather(path: Path, weather: dict[str, Any]) -> None:
         raise FileFormatError(f"{path}: [weather]: {exc}") from None
 
 
-def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str):
+def _merge_section(cls: type, base: dict[str, Any], override: Any, name: str) -> Any:
     if override is None:
         return cls.from_dict(base) if cls is CameraModel else cls(**base)
     if is_dataclass(override):

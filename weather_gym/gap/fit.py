@@ -352,8 +352,8 @@ def _fit_params(obj: _Objective, effect: KnobEffect, k_lo: float, k_hi: float, e
     scale = next((p for p in scale_params(effect.name) if p in live), None)
     if scale is not None and effect.k >= 0.98:
         lo, hi = type(effect).bounds_of(scale)
-        u, _ = _brent(lambda u: obj(_with(effect, k=1.0, **{scale: _from_unit(u, lo, hi)})), 0.0, 1.0, maxiter=10)
-        cand = _with(effect, k=1.0, **{scale: _from_unit(u, lo, hi)})
+        us, _ = _brent(lambda u: obj(_with(effect, k=1.0, **{scale: _from_unit(u, lo, hi)})), 0.0, 1.0, maxiter=10)
+        cand = _with(effect, k=1.0, **{scale: _from_unit(us, lo, hi)})
         if obj(cand) < g_k * (1.0 - PENALTY):
             effect, g_k, used = cand, obj(cand), [scale]
     extras = [p for p in live if p != scale]
@@ -372,13 +372,13 @@ def _fit_params(obj: _Objective, effect: KnobEffect, k_lo: float, k_hi: float, e
         u1 = u0.copy()
         u1[1:][on_bound] = np.where(u0[1:][on_bound] <= 1e-9, 0.25, 0.75)
         starts.append(u1)
-    best = None
+    best: tuple[np.ndarray, float] | None = None
     for start in starts:
         u = _least_squares(lambda u: obj.residuals(at(u)), start, max_nfev=extras_budget + 6 * len(extras))
         g = obj(at(u))
         if best is None or g < best[1]:
             best = (u, g)
-    u, g_x = best
+    u, g_x = best  # type: ignore[misc]  # starts is never empty
     moved = [p for p, a, b in zip(names[1:], u0[1:], u[1:]) if abs(a - b) > 0.02]
     if len(moved) < len(extras):  # extras that hardly moved keep their values
         u = np.array([x if p == "k" or p in moved else x0 for p, x, x0 in zip(names, u, u0)])
@@ -396,7 +396,7 @@ def fit(ev: Evaluator, model: Sequence[KnobEffect], screened: FitResult, *, extr
     lo = grid[i - 1] if i > 0 else 0.0
     hi = grid[i + 1] if i + 1 < len(grid) else 1.0
     obj = _Objective(ev, model, screened.position)
-    obj.memo[_key([screened.effect])] = screened.fit_gap
+    obj.memo[_key([screened.effect])] = screened.fit_gap  # type: ignore[assignment]  # a gap where residuals go: obj() reads it right, obj.residuals() would not (reported)
     n0 = ev.n_evals
     effect, g, extras = _fit_params(obj, screened.effect, lo, hi, ev, extras_budget)
     return FitResult(screened.candidate, effect, screened.position, g, 1 + len(extras), screened.curve,

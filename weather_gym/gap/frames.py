@@ -107,7 +107,7 @@ class GapData:
         return self.mode == "did"
 
     def _set(self, which: str) -> FrameSet:
-        return {"measured": self.measured, "sim": self.sim, "reference": self.reference}[which]
+        return {"measured": self.measured, "sim": self.sim, "reference": self.reference}[which]  # type: ignore[return-value]  # asked only for a set the mode has
 
     def signal_depths(self, which: str) -> list[np.ndarray | None]:
         """Depth maps the image signals use for ``which`` ("measured", "sim" or "reference").

@@ -241,9 +241,9 @@ def _tone(sim: Sequence[np.ndarray], meas: Sequence[np.ndarray], sim_masks, meas
     curves = {}
     x = np.linspace(0.0, 255.0, KNOTS)
     for c, key in enumerate("rgb"):
-        hs = sum(np.bincount(im[..., c][_keep(sim_masks, i, im.shape[:2])], minlength=256)
+        hs = sum(np.bincount(im[..., c][_keep(sim_masks, i, im.shape[:2])], minlength=256)  # type: ignore[union-attr]  # frames: never empty
                  for i, im in enumerate(sim)).astype(np.float64)
-        hm = sum(np.bincount(im[..., c][_keep(meas_masks, i, im.shape[:2])], minlength=256)
+        hm = sum(np.bincount(im[..., c][_keep(meas_masks, i, im.shape[:2])], minlength=256)  # type: ignore[union-attr]  # frames: never empty
                  for i, im in enumerate(meas)).astype(np.float64)
         cs = (np.cumsum(hs) - 0.5 * hs) / max(hs.sum(), 1.0)
         cm = (np.cumsum(hm) - 0.5 * hm) / max(hm.sum(), 1.0)
@@ -253,7 +253,7 @@ def _tone(sim: Sequence[np.ndarray], meas: Sequence[np.ndarray], sim_masks, meas
         lut = np.interp(np.arange(256.0), np.flatnonzero(ok), lut[ok]) if ok.any() else np.arange(256.0)
         knots = np.maximum.accumulate(np.clip(np.interp(x, np.arange(256.0), lut) / 255.0, 0.0, 1.0))
         curves[key] = knots
-    return ToneCurve(k=1.0, **curves)
+    return ToneCurve(k=1.0, **curves)  # type: ignore[arg-type]  # the checked constructor makes tuples of the arrays
 
 
 _IMMERKAER = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32) / 6.0
@@ -291,7 +291,7 @@ def _noise(sim, meas, sim_masks, meas_masks) -> NoiseLevel:
         s = np.sqrt(np.maximum(np.interp(np.arange(KNOTS), np.flatnonzero(ok), v[ok]), 0.0)) if ok.any() else (
             np.zeros(KNOTS))
         curves[key] = np.clip(s, 0.0, 128.0)
-    return NoiseLevel(k=1.0, **curves)
+    return NoiseLevel(k=1.0, **curves)  # type: ignore[arg-type]  # the checked constructor makes tuples of the arrays
 
 
 def _radial(sim, meas, sim_masks, meas_masks, paired: bool) -> RadialGain:
@@ -347,7 +347,7 @@ def _kernel(sim, meas, paired: bool, radius: int) -> BlurKernel:
         k[radius, radius] = 1.0
     k = np.round(k, 4)
     k[radius, radius] += 1.0 - k.sum()  # exactly 1 after rounding
-    return BlurKernel(k=1.0, kernel=np.clip(k, 0.0, 1.0).ravel())
+    return BlurKernel(k=1.0, kernel=np.clip(k, 0.0, 1.0).ravel())  # type: ignore[arg-type]  # made a tuple by the checked constructor
 
 
 def estimate(name: str, sim: Sequence[np.ndarray], meas: Sequence[np.ndarray], *,

@@ -83,8 +83,8 @@ def match_frames(gts: Sequence[dict], detections: Sequence[Any], *, score_thresh
     images, gt_anns, dt_anns = coco_lists(gts, detections, min_box_height=min_box_height)
     gt_info = {a["id"]: (a["image_id"], a["category_id"] - 1, a["range"], a["height"]) for a in gt_anns}
     dt_info = {a["id"]: (a["image_id"], a["category_id"] - 1, a["score"]) for a in dt_anns}
-    det = {k: [] for k in ("frame", "class", "score", "tp", "ignore")}
-    gtr = {k: [] for k in ("frame", "class", "range", "height", "match")}
+    det: dict[str, list[Any]] = {k: [] for k in ("frame", "class", "score", "tp", "ignore")}
+    gtr: dict[str, list[Any]] = {k: [] for k in ("frame", "class", "range", "height", "match")}
     if images:
         ev = coco_eval(images, gt_anns, dt_anns, iou_50_only=True, accumulate=False)
         for e in ev.evalImgs:
@@ -92,13 +92,13 @@ def match_frames(gts: Sequence[dict], detections: Sequence[Any], *, score_thresh
                 continue
             for did, m, ig in zip(e["dtIds"], e["dtMatches"][0], e["dtIgnore"][0]):
                 f, c, s = dt_info[did]
-                det["frame"].append(f), det["class"].append(c), det["score"].append(s)
-                det["tp"].append(bool(m > 0) and not bool(ig)), det["ignore"].append(bool(ig))
+                det["frame"].append(f), det["class"].append(c), det["score"].append(s)  # type: ignore[func-returns-value]  # appends, one line
+                det["tp"].append(bool(m > 0) and not bool(ig)), det["ignore"].append(bool(ig))  # type: ignore[func-returns-value]  # appends, one line
             for gid, m, ig in zip(e["gtIds"], e["gtMatches"][0], e["gtIgnore"]):
                 if ig:
                     continue
                 f, c, r, hgt = gt_info[gid]
-                gtr["frame"].append(f), gtr["class"].append(c), gtr["range"].append(r), gtr["height"].append(hgt)
+                gtr["frame"].append(f), gtr["class"].append(c), gtr["range"].append(r), gtr["height"].append(hgt)  # type: ignore[func-returns-value]  # appends, one line
                 gtr["match"].append(dt_info[int(m)][2] if m > 0 else -1.0)
     return FrameMatches(
         n_frames=len(images), score_threshold=float(score_threshold),

@@ -65,7 +65,7 @@ class GapSession(SearchSteps, ReportSteps):
         self.reference_signals = None
         if data.did:
             r = data.reference
-            self.reference_signals = signal_table(r.images, data.signal_depths("reference"),
+            self.reference_signals = signal_table(r.images, data.signal_depths("reference"),  # type: ignore[union-attr]  # DiD: a reference
                                                   data.signal_boxes("reference"), data.signal_masks("reference"))
         self.scale = signal_scale(self.measured_signals)
         self.weights = signal_weights()
@@ -88,7 +88,7 @@ class GapSession(SearchSteps, ReportSteps):
         d, s = self.data, self.data.sim
         depths, boxes, masks = d.signal_depths("sim"), d.signal_boxes("sim"), d.signal_masks("sim")
         meter = GapMeter(self.measured_signals[meas_idx], scale=self.scale, weights=self.weights, paired=d.paired,
-                         reference=None if ref_idx is None else self.reference_signals[ref_idx],
+                         reference=None if ref_idx is None else self.reference_signals[ref_idx],  # type: ignore[index]  # DiD
                          ref_paired=d.ref_paired)
         ev = Evaluator([s.images[i] for i in sim_idx], [s.depths[i] for i in sim_idx],
                        [s.states[i] for i in sim_idx], [s.ids[i] for i in sim_idx],
@@ -125,7 +125,7 @@ class GapSession(SearchSteps, ReportSteps):
         if which not in self._fixed_matches:
             d = self.data
             frames, idx = (d.measured, d.held) if which == "measured" else (d.reference, d.ref_held)
-            self._fixed_matches[which] = self._match([frames.images[i] for i in idx], [frames.gts[i] for i in idx])
+            self._fixed_matches[which] = self._match([frames.images[i] for i in idx], [frames.gts[i] for i in idx])  # type: ignore[union-attr]  # the set exists in this mode
         return self._fixed_matches[which]
 
     def _measured_perception(self):

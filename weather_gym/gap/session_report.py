@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from weather_gym.gap.compare import GapMeter, compare_signals, signal_scale
 from weather_gym.gap.config import BEYOND_RANGE, EFFECT_FAMILY, PERCEPTION_MIN_MAP, REPORT_VERSION, Comparison
@@ -24,10 +24,48 @@ from weather_gym.gap.perception import perception_stats
 from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS, signal_table
 from weather_gym.gap.weather_model import model_tables
 
+if TYPE_CHECKING:  # the host's attributes, for type checkers
+    import numpy as np
+
+    from weather_gym.gap.config import GapConfig
+    from weather_gym.gap.fit import Evaluator
+    from weather_gym.gap.simulate import GapData
+    from weather_gym.weather import KnobEffect
+
 
 class ReportSteps:
     """The report of a run; a part of :class:`~weather_gym.gap.session.GapSession` (it reads the
     session's steps, comparisons and log)."""
+
+    if TYPE_CHECKING:  # what GapSession provides
+        data: GapData
+        config: GapConfig
+        input_model: list[KnobEffect]
+        model: list[KnobEffect]
+        steps: list[dict[str, Any]]
+        refits: list[dict[str, Any]]
+        history: list[tuple[str, list[KnobEffect]]]
+        timings: dict[str, float]
+        log: list[str]
+        pruned: list[dict[str, Any]]
+        flagged: list[dict[str, Any]]
+        attempts: list[dict[str, Any]]
+        measured_signals: np.ndarray
+        reference_signals: np.ndarray | None
+        scale: np.ndarray
+        weights: np.ndarray
+        _fit_idx: tuple[np.ndarray, np.ndarray]
+        fit_ev: Evaluator
+        held_ev: Evaluator
+        _fixed_matches: dict[str, Any]
+
+        @property
+        def detector(self) -> Any: ...
+        def _say(self, msg: str) -> None: ...
+        def _match(self, images: Sequence[np.ndarray], gts: Sequence[dict]) -> Any: ...
+        def _fixed(self, which: str) -> Any: ...
+        def compare(self, model: Sequence[KnobEffect] | None = None, *, perception: bool | None = None
+                    ) -> Comparison: ...
 
     # ------------------------------------------------------------------ domain
     def domain(self) -> dict[str, Any] | None:
@@ -44,19 +82,19 @@ class ReportSteps:
             return None
         sim_masks = d.signal_masks("sim")
         sim_sig = signal_table(d.sim.images, d.signal_depths("sim"), d.signal_boxes("sim"), sim_masks)
-        meter = GapMeter(sig, scale=signal_scale(sig), weights=self.weights, paired=False)
+        meter = GapMeter(sig, scale=signal_scale(sig), weights=self.weights, paired=False)  # type: ignore[arg-type]  # this branch's signals exist
         rows = compare_signals(meter, sim_sig, b=cfg.bootstrap, seed=cfg.seed, alpha=cfg.alpha,
                                min_effect=cfg.min_effect)
         extra = []
         cl = compare_clutter([clutter(im, m) for im, m in zip(d.sim.images, sim_masks)],
-                             [clutter(im, m) for im, m in zip(base.images, d.signal_masks(which))],
+                             [clutter(im, m) for im, m in zip(base.images, d.signal_masks(which))],  # type: ignore[union-attr]  # this branch's frames exist
                              seed=cfg.seed, alpha=cfg.alpha)
         if cl is not None:
             extra.append(cl)
-        ego = ego_vehicle(base.images, base.masks) if base.real else None
+        ego = ego_vehicle(base.images, base.masks) if base.real else None  # type: ignore[union-attr]  # this branch's frames exist
         if ego is not None:
             extra.append(ego)
-        out = {"compared": f"clean simulator frames against the {label}", "differences": name_differences(rows, extra),
+        out: dict[str, Any] = {"compared": f"clean simulator frames against the {label}", "differences": name_differences(rows, extra),
                "rows": [r for r in rows if r["significant"]]}
         if cfg.perception:
             sim_gts = [d.sim.gts[i] for i in d.sim_held]
@@ -87,7 +125,7 @@ class ReportSteps:
         if d.did:
             value, what = p.get("map50_reference"), "the measured clear reference"
         elif d.mode == "same-camera":
-            value, what = self.compare([]).perception["map50_sim"], "the measured clear reference"
+            value, what = self.compare([]).perception["map50_sim"], "the measured clear reference"  # type: ignore[index]  # a same-camera comparison with perception
         else:
             value, what = p.get("map50_measured"), "the measured frames"
         if value is None or not math.isfinite(value) or value >= PERCEPTION_MIN_MAP:

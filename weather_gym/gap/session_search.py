@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
@@ -45,10 +45,48 @@ from weather_gym.gap.measured import KIND, MEASURED, MEASURED_PARAMS, PARTNERS, 
 from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS
 from weather_gym.gap.weather_model import describe, insert_position
 
+if TYPE_CHECKING:  # the host's attributes, for type checkers
+    import numpy as np
+
+    from weather_gym.gap.config import Comparison, GapConfig
+    from weather_gym.gap.fit import Evaluator
+    from weather_gym.gap.simulate import GapData
+    from weather_gym.weather import KnobEffect
+
 
 class SearchSteps:
     """Finding and adding missing effects; a part of :class:`~weather_gym.gap.session.GapSession`
     (the session holds the data, the evaluators and the model these steps read and change)."""
+
+    if TYPE_CHECKING:  # what GapSession provides
+        data: GapData
+        config: GapConfig
+        input_model: list[KnobEffect]
+        model: list[KnobEffect]
+        steps: list[dict[str, Any]]
+        refits: list[dict[str, Any]]
+        history: list[tuple[str, list[KnobEffect]]]
+        timings: dict[str, float]
+        log: list[str]
+        pruned: list[dict[str, Any]]
+        flagged: list[dict[str, Any]]
+        attempts: list[dict[str, Any]]
+        measured_signals: np.ndarray
+        reference_signals: np.ndarray | None
+        scale: np.ndarray
+        weights: np.ndarray
+        _fit_idx: tuple[np.ndarray, np.ndarray]
+        fit_ev: Evaluator
+        held_ev: Evaluator
+        _fixed_matches: dict[str, Any]
+
+        @property
+        def detector(self) -> Any: ...
+        def _say(self, msg: str) -> None: ...
+        def _match(self, images: Sequence[np.ndarray], gts: Sequence[dict]) -> Any: ...
+        def _fixed(self, which: str) -> Any: ...
+        def compare(self, model: Sequence[KnobEffect] | None = None, *, perception: bool | None = None
+                    ) -> Comparison: ...
 
     def diagnose(self, names: Sequence[str] | None = None) -> list[dict[str, Any]]:
         """Fit every candidate effect (k grid, then the best ``top`` fully); best first.
@@ -72,7 +110,7 @@ class SearchSteps:
             extra = next((r for r in useful if r.candidate.name in KIND_EFFECTS.get(kinds[0], ())), None)
             if extra is not None and extra not in chosen:
                 chosen.append(extra)
-        out = []
+        out: list[dict[str, Any]] = []
         for r in chosen:
             f = fit(self.fit_ev, self.model, r)
             model = self.model[:f.position] + [f.effect] + self.model[f.position:]
@@ -238,7 +276,7 @@ class SearchSteps:
             k, g = _brent(obj, 0.2, 1.0, maxiter=8)
             if obj(1.0) <= g:
                 k, g = 1.0, obj(1.0)
-            member = member.with_params(k=round(k, 3))
+            member = member.with_params(k=round(k, 3))  # type: ignore[assignment]  # with_params keeps the measured effect's class
             model = self.model[:pos] + [member] + self.model[pos:]
             held = self.held_ev.gap(model)
             closest = None if best is None else {"describe": describe(best["fit"].effect), "held_gap": best["held_gap"],
@@ -251,8 +289,8 @@ class SearchSteps:
                            "fit_gap": c["fit_gap"], "clipped": []}
             info = {"kind": kind, "closest_parametric": closest, "shape": shape_text(member),
                     "why": ("no parametric effect of this kind was among the best fits" if best is None else
-                            f"{closest['describe']} " + (f"is clipped by its range ({'; '.join(closest['clipped'])})"
-                                                         if closest["clipped"] else
+                            f"{closest['describe']} " + (f"is clipped by its range ({'; '.join(closest['clipped'])})"  # type: ignore[index]  # best is set: so is closest
+                                                         if closest["clipped"] else  # type: ignore[index]  # best is set: so is closest
                                                          f"leaves {best['held_gap']:.2f} of {g_held:.2f}"))}
             self._say(f"measured {kind} member {describe(member)}: held-out gap {g_held:.3f} -> {held:.3f} "
                       f"({info['why']})")

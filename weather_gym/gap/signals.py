@@ -205,7 +205,7 @@ def _noise(y: np.ndarray, yh: np.ndarray, valid: np.ndarray | None = None) -> tu
     smoothed image, so that the noise itself does not decide what is flat.
     """
     hh, ww = yh.shape
-    resp = cv2.absdiff(cv2.filter2D(y, cv2.CV_32F, _IMMERKAER, borderType=cv2.BORDER_REFLECT), 0.0)
+    resp = cv2.absdiff(cv2.filter2D(y, cv2.CV_32F, _IMMERKAER, borderType=cv2.BORDER_REFLECT), 0.0)  # type: ignore[call-overload]  # cv2's stubs lack the scalar operand
     resp = cv2.resize(resp[:2 * hh, :2 * ww], (ww, hh), interpolation=cv2.INTER_AREA)
     local = cv2.blur(yh, (3, 3))
     gx, gy = _grad(local)

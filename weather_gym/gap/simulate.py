@@ -230,19 +230,19 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
     notes: set[str] = set()
     measured_frames = load_frames(ds, max_width=compare_width, progress=progress, desc="load measured")
     if measured_frames.scale != 1.0:
-        w0, h0 = measured_frames.original_size
+        w0, h0 = measured_frames.original_size  # type: ignore[misc]  # load_frames sets it
         notes.add(f"measured frames scaled once from {w0}x{h0} to {measured_frames.size[0]}x{measured_frames.size[1]} "
                   "(the comparison size)")
     fit, held = split_indices(len(ds), held_out=held_out, seed=seed)
     meta: dict[str, Any] = {"measured": str(ds.root), "size": list(measured_frames.size)}
-    out = dict(mode=mode_name, mode_reason=why, measured=measured_frames, fit=fit, held=held)
+    out: dict[str, Any] = dict(mode=mode_name, mode_reason=why, measured=measured_frames, fit=fit, held=held)
     ref_frames = None
     if ref_ds is not None:
         ref_frames = load_frames(ref_ds, max_width=compare_width, progress=progress, desc="load reference")
         if ref_frames.size != measured_frames.size:
-            raise InputError(f"the clear reference {ref_ds.root} has {ref_frames.original_size[0]}x"
-                             f"{ref_frames.original_size[1]} frames but the measured {ds.root} has "
-                             f"{measured_frames.original_size[0]}x{measured_frames.original_size[1]}: a reference "
+            raise InputError(f"the clear reference {ref_ds.root} has {ref_frames.original_size[0]}x"  # type: ignore[index]  # load_frames sets it
+                             f"{ref_frames.original_size[1]} frames but the measured {ds.root} has "  # type: ignore[index]  # load_frames sets it
+                             f"{measured_frames.original_size[0]}x{measured_frames.original_size[1]}: a reference "  # type: ignore[index]  # load_frames sets it
                              "must come from the same camera at the same size")
         meta["reference"] = str(ref_ds.root)
         same, score = same_views(measured_frames, ref_frames)
@@ -255,15 +255,15 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         if same:
             sim_fit, sim_held = fit, held
         else:
-            sim_fit, sim_held = split_indices(len(ref_frames), held_out=held_out, seed=seed + 1)
+            sim_fit, sim_held = split_indices(len(ref_frames), held_out=held_out, seed=seed + 1)  # type: ignore[arg-type]  # same-camera: a reference
         out.update(sim=sim_frames_set, sim_fit=sim_fit, sim_held=sim_held, pairs=same,
                    mode_reason=f"{why}; {view_note}")
-        meta["sim"] = str(ref_ds.root)
+        meta["sim"] = str(ref_ds.root)  # type: ignore[union-attr]  # same-camera: a reference
     elif mode_name == "did":
-        ref_fit, ref_held = (fit, held) if same else split_indices(len(ref_frames), held_out=held_out, seed=seed + 2)
-        tr = _tracks_of(ref_ds if any(r.get("track") for r in ref_ds.images) else ds, tracks)
+        ref_fit, ref_held = (fit, held) if same else split_indices(len(ref_frames), held_out=held_out, seed=seed + 2)  # type: ignore[arg-type]  # DiD: a reference
+        tr = _tracks_of(ref_ds if any(r.get("track") for r in ref_ds.images) else ds, tracks)  # type: ignore[union-attr]  # DiD: a reference
         camera = _camera_of(ref_ds).scaled(*measured_frames.size)
-        n_sim = int(sim_frames or len(ref_ds))
+        n_sim = int(sim_frames or len(ref_ds))  # type: ignore[arg-type]  # DiD: a reference
         sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ref_ds),
                                     camera_model or _camera_model_of(ref_ds))
         sim_ds = load_coco(sim_root)
@@ -294,7 +294,7 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
                 "no clear reference of the same camera was given: a difference from the clean simulator may be "
                 "weather or the camera, lens, scene, exposure or car - the data cannot tell them apart. Give "
                 "--reference CLEAR_DIR (measured clear frames of the same camera) to name missing weather"))
-    if sim_frames_set.size != measured_frames.size:
-        raise InputError(f"simulated frames are {sim_frames_set.size}, measured {measured_frames.size}")
+    if sim_frames_set.size != measured_frames.size:  # type: ignore[union-attr]  # every mode sets it
+        raise InputError(f"simulated frames are {sim_frames_set.size}, measured {measured_frames.size}")  # type: ignore[union-attr]  # every mode sets it
     meta.setdefault("tracks", sorted({str(r.get("track")) for r in ds.images if r.get("track")}))
     return GapData(notes=sorted(notes), meta=meta, **out)

@@ -45,7 +45,7 @@ def _colour(rng: np.random.Generator) -> tuple[int, int, int]:
         c = base * rng.uniform(0.7, 1.25) + rng.normal(0, 12, 3)
     else:
         c = rng.uniform(0, 255, 3)
-    return tuple(int(v) for v in np.clip(c, 0, 255))
+    return tuple(int(v) for v in np.clip(c, 0, 255))  # type: ignore[return-value]  # three channels
 
 
 def _free(mask: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> bool:
@@ -138,7 +138,7 @@ def paste_distractors(image: np.ndarray, boxes: np.ndarray, rng: np.random.Gener
                        np.int32)
         band = np.zeros((h, w), np.uint8)
         cv2.fillPoly(band, [pts], 1)
-        band = band.astype(bool) & ~keep
+        band = band.astype(bool) & ~keep  # type: ignore[assignment]  # now a bool mask
         col = [(25, 25, 28), (235, 235, 235), (200, 30, 35)][int(rng.integers(3))]
         shade = np.clip(np.array(col, float) + rng.normal(0, 10, (h, w, 1)), 0, 255).astype(np.uint8)
         out[band] = shade[band]
@@ -182,5 +182,5 @@ def camera_look(image: np.ndarray, rng: np.random.Generator, *, strength: float 
     if rng.random() < 0.4 * s:
         ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 95))])
         if ok:
-            out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]
+            out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]  # type: ignore[index]  # just encoded: never None
     return np.ascontiguousarray(out)

@@ -134,20 +134,20 @@ class ConeNet(nn.Module):
         if stride == 2:  # one more pyramid level, from the stem; it starts as the identity (see below)
             self.lateral_fine = conv_bn(w[0], neck, 1)
             self.smooth_fine = dw_sep(neck, neck)
-            nn.init.zeros_(self.smooth_fine[1][1].weight)  # zero-init residual: starts as the stride-4 features
+            nn.init.zeros_(self.smooth_fine[1][1].weight)  # type: ignore[index]  # Sequentials; zero-init residual: starts as the stride-4 features
         self.head = dw_sep(neck, neck)
         self.out = nn.Conv2d(neck, num_classes + 4, 1)
-        nn.init.constant_(self.out.bias[:num_classes], float(torch.log(torch.tensor(HEAT_PRIOR / (1 - HEAT_PRIOR)))))
-        nn.init.zeros_(self.out.bias[num_classes:])
+        nn.init.constant_(self.out.bias[:num_classes], float(torch.log(torch.tensor(HEAT_PRIOR / (1 - HEAT_PRIOR)))))  # type: ignore[index]  # a Conv2d made with a bias
+        nn.init.zeros_(self.out.bias[num_classes:])  # type: ignore[index]  # a Conv2d made with a bias
         nn.init.normal_(self.out.weight, std=0.01)
         if self.hidden:
             self.head_hidden = dw_sep(neck, neck)
             self.out_hidden = nn.Conv2d(neck, num_classes + (4 if self.hidden_boxes else 0), 1)
-            nn.init.constant_(self.out_hidden.bias[:num_classes], float(self.out.bias[0].detach()))
+            nn.init.constant_(self.out_hidden.bias[:num_classes], float(self.out.bias[0].detach()))  # type: ignore[index]  # a Conv2d made with a bias
             nn.init.normal_(self.out_hidden.weight, std=0.01)
             if self.hidden_boxes:  # log size 0 (as the main head starts), offset in the middle of the cell
-                nn.init.zeros_(self.out_hidden.bias[num_classes:])
-                nn.init.constant_(self.out_hidden.bias[num_classes + 2 :], 0.5)
+                nn.init.zeros_(self.out_hidden.bias[num_classes:])  # type: ignore[index]  # a Conv2d made with a bias
+                nn.init.constant_(self.out_hidden.bias[num_classes + 2 :], 0.5)  # type: ignore[index]  # a Conv2d made with a bias
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Raw outputs ``(B, C+4, H/s, W/s)``: heat logits, log size, offset (pre-sigmoid); with ``hidden``,

@@ -76,7 +76,7 @@ class CallableDetector(DetectorBase):
         self.fn = fn
         self.score_threshold = float(score_threshold)
         self.input_size = input_size
-        self.name = name or getattr(fn, "__name__", type(fn).__name__)
+        self.name = name or getattr(fn, "__name__", type(fn).__name__)  # type: ignore[assignment]  # a str either way
 
     def detect_batch(self, images, score_threshold: float | None = None) -> list[Detections]:
         thr = self.score_threshold if score_threshold is None else float(score_threshold)
@@ -132,8 +132,8 @@ class DetectorSpec:
                                 input_size=self.input_size)
 
         layout = {"yolov8": "v8", "yolov5": "v5", "yolo": "auto"}[self.kind]
-        return YoloDetector(self.path, layout=layout, classes=self.classes, resize=self.resize or "letterbox",
-                            input_size=self.input_size, score_threshold=self.score_threshold, threads=threads)
+        return YoloDetector(self.path, layout=layout, classes=self.classes, resize=self.resize or "letterbox",  # type: ignore[arg-type]  # a YOLO spec has a path
+                            input_size=self.input_size, score_threshold=self.score_threshold, threads=threads)  # type: ignore[arg-type]  # and a (w, h) input or None
 
 
 def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classes: str | Mapping | None = None,
@@ -146,7 +146,7 @@ def parse_detector_spec(spec: str | os.PathLike | DetectorSpec | None, *, classe
 
         if isinstance(classes, Mapping):
             classes = ",".join(f"{k}={v}" for k, v in classes.items())
-        changes = {k: v for k, v in (("classes", classes), ("resize", resize), ("score_threshold", score_threshold))
+        changes: dict[str, Any] = {k: v for k, v in (("classes", classes), ("resize", resize), ("score_threshold", score_threshold))
                    if v is not None}
         if input_size is not None:
             changes["input_size"] = _input_option(spec.kind, input_size)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -158,7 +159,7 @@ def hidden_mask(boxes_xyxy: np.ndarray, ranges: np.ndarray | None = None, grow: 
     both = np.isfinite(r)[:, None] & np.isfinite(r)[None, :]
     nearer = np.where(both, r[:, None] < r[None, :], b[:, None, 3] > b[None, :, 3])  # [i, j]: i nearer than j
     np.fill_diagonal(touch, False)
-    return (touch & nearer).any(axis=0)
+    return cast(np.ndarray, (touch & nearer).any(axis=0))
 
 
 def xyxy_to_xywh(boxes: np.ndarray) -> np.ndarray:

@@ -254,8 +254,8 @@ class ConeDetector:
         if fixed is None and want is None:
             raise InputError(f"detector model {path} has a symbolic input size {shape} and no input_size in its "
                              f"metadata {path.with_suffix('.json')}; add it (the native input, e.g. [512, 288])")
-        self.native_size: tuple[int, int] = fixed or (int(want[0]), int(want[1]))
-        self.reference_camera: tuple[int, int] = tuple(int(v) for v in self.meta.get("reference_camera",
+        self.native_size: tuple[int, int] = fixed or (int(want[0]), int(want[1]))  # type: ignore[index]  # one is set: checked above
+        self.reference_camera: tuple[int, int] = tuple(int(v) for v in self.meta.get("reference_camera",  # type: ignore[assignment]  # a (w, h) pair
                                                                                       REFERENCE_CAMERA))
         self.input_multiple = int(self.meta.get("input_multiple", INPUT_MULTIPLE))
         m, of = (self.stride, "stride") if fixed else (self.input_multiple, "input_multiple")
@@ -307,7 +307,7 @@ class ConeDetector:
         input size (:meth:`input_size_for`) run as one batch; the output is ``(N, C+4, h, w)`` when all
         do, else a list of each frame's ``(C+4, h, w)``."""
         sizes = [self.input_size_for(im.shape[1], im.shape[0]) for im in images]
-        outs: list[np.ndarray] = [None] * len(images)  # type: ignore[list-item]
+        outs: list[np.ndarray] = [None] * len(images)  # type: ignore[list-item]  # every slot is filled below
         lbs: list = [None] * len(images)
         for size in dict.fromkeys(sizes):
             idx = [i for i, s in enumerate(sizes) if s == size]
@@ -338,7 +338,7 @@ class ConeDetector:
             return []
         out, lbs = self.raw(frames)
         thr = self.score_threshold if score_threshold is None else float(score_threshold)
-        decoded = decode(out, len(self.classes), self.stride, thr, self.max_detections, self.nms_iou)
+        decoded = decode(out, len(self.classes), self.stride, thr, self.max_detections, self.nms_iou)  # type: ignore[arg-type]  # a list of frames' outputs too
         result = []
         for (boxes, scores, classes), lb in zip(decoded, lbs, strict=True):
             b = lb.to_original(boxes).astype(np.float32)

@@ -150,7 +150,9 @@ def coco_lists(frames: Sequence[Any], detections: Sequence[Any], *,
 
     if len(frames) != len(detections):
         raise InputError(f"got {len(frames)} ground-truth frames but {len(detections)} detection lists")
-    images, gt_anns, dt_anns = [], [], []
+    images: list[dict[str, Any]] = []
+    gt_anns: list[dict[str, Any]] = []
+    dt_anns: list[dict[str, Any]] = []
     for i, (g, d) in enumerate(zip(frames, detections, strict=True)):
         g = _as_arrays(g, ("boxes", "classes"), f"ground truth of frame {i}")
         d = _as_arrays(d, ("boxes", "scores", "classes"), f"detections of frame {i}")

@@ -127,6 +127,8 @@ class YoloDetector(DetectorBase):
         threads: onnxruntime intra-op threads.
     """
 
+    input_size: tuple[int, int]  # always set by __init__
+
     def __init__(self, model: str | os.PathLike, *, layout: str = "auto", classes: str | Mapping | None = None,
                  resize: str = "letterbox", input_size: tuple[int, int] | None = None,
                  score_threshold: float | None = None, nms_iou: float = 0.6, max_detections: int = 300,
@@ -146,7 +148,7 @@ class YoloDetector(DetectorBase):
         opts.log_severity_level = 3
         try:
             self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
-        except (*_ort_errors(), OSError) as exc:
+        except (*_ort_errors(), OSError) as exc:  # type: ignore[misc]  # a tuple of exception types
             raise FileFormatError(f"detector model {path} could not be loaded by onnxruntime (corrupt or not an ONNX "
                              f"model): {exc}") from None
         self.path, self.resize, self.threads = path, resize, int(threads)
@@ -297,7 +299,7 @@ class YoloDetector(DetectorBase):
             if len(scores) > 1:
                 k = cv2.dnn.NMSBoxesBatched(np.c_[boxes[:, :2], xywh[:, 2:]].tolist(), scores.tolist(),
                                             cls.tolist(), 0.0, self.nms_iou)
-                k = np.asarray(k, np.int64).reshape(-1)
+                k = np.asarray(k, np.int64).reshape(-1)  # type: ignore[assignment]  # the kept indices as an array
                 boxes, scores, cls = boxes[k], scores[k], cls[k]
             return boxes, scores, cls
         if self._nms_form == "four":

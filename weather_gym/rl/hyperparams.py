@@ -163,7 +163,7 @@ def _key(bound: Bound, default: Any = None, *, ppo: bool = True) -> Any:
     return field(default=default, metadata={"bound": bound, "ppo": ppo})
 
 
-UNIT = {"lo": 0, "hi": 1}
+UNIT: dict[str, Any] = {"lo": 0, "hi": 1}
 POLICY_KWARGS = {"log_std_init": Bound(float, -10, 2, option="--log-std-init"), "ortho_init": Bound(bool),
                  "share_features_extractor": Bound(bool), "full_std": Bound(bool), "use_expln": Bound(bool),
                  "squash_output": Bound(bool)}
@@ -352,7 +352,7 @@ def _literal(text: Any, where: str) -> Any:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args:
             return {kw.arg: ev(kw.value) for kw in node.keywords}
         if isinstance(node, ast.Dict):
-            return {ev(k): ev(v) for k, v in zip(node.keys, node.values)}
+            return {ev(k): ev(v) for k, v in zip(node.keys, node.values)}  # type: ignore[arg-type]  # a None key (**spread) fails in ev
         if isinstance(node, ast.List | ast.Tuple):
             vals = [ev(e) for e in node.elts]
             return vals if isinstance(node, ast.List) else tuple(vals)

@@ -94,7 +94,7 @@ def policy_mean(policy: Any, obs: dict[str, np.ndarray]) -> Any:
     return policy.get_distribution(policy.obs_to_tensor(obs)[0]).distribution.mean
 
 
-def bc_loss(policy: Any, data: dict[str, np.ndarray]) -> float:
+def bc_loss(policy: Any, data: dict[str, Any]) -> float:
     """Mean squared error between ``policy``'s mean action and the expert's ``data["action"]``."""
     import torch
 
@@ -127,7 +127,7 @@ def collect(envs: list[gym.Env], experts: list[Any], policy: Any | None, steps: 
     n = len(envs)
     obs_rows: list[dict[str, np.ndarray]] = []
     labels: list[np.ndarray] = []
-    stats = {"episodes": 0, "laps": 0, "expert_steps": 0}
+    stats: dict[str, float] = {"episodes": 0, "laps": 0, "expert_steps": 0}
     cur_obs: list[Any] = []
     cur_info: list[dict] = []
     for env, expert in zip(envs, experts):
@@ -148,7 +148,7 @@ def collect(envs: list[gym.Env], experts: list[Any], policy: Any | None, steps: 
                 mean = policy_mean(policy, _stack(cur_obs[:active])).cpu().numpy()
             for i in np.flatnonzero(~use_expert):
                 driven[i] = np.clip(mean[i], -1.0, 1.0).astype(np.float32)
-        for i in range(active):
+        for i in range(active):  # type: ignore[assignment]  # i: numpy ints above, ints here
             obs_rows.append({k: np.array(v) for k, v in cur_obs[i].items()})  # never a reused buffer
             labels.append(np.clip(expert_actions[i], -1.0, 1.0))
             o, _, terminated, truncated, info = envs[i].step(driven[i])
@@ -210,7 +210,7 @@ def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int
     started = time.time()
     ss = np.random.SeedSequence(seed, spawn_key=_SEED_KEY)
     drive_rng, fit_rng = (np.random.default_rng(s) for s in ss.spawn(2))
-    experts = [make_agent(config.expert, env.unwrapped.track, env.unwrapped.config.camera) for env in envs]
+    experts = [make_agent(config.expert, env.unwrapped.track, env.unwrapped.config.camera) for env in envs]  # type: ignore[attr-defined]  # ConeTrackEnvs
     optimizer = torch.optim.Adam(_actor_parameters(policy), lr=config.learning_rate)
     parts: list[dict[str, Any]] = []
     rounds: list[dict[str, Any]] = []

@@ -141,7 +141,7 @@ def plot_pretrain_curve(out: Path, record: dict[str, Any] | None) -> Path | None
     ax2.set_ylim(-0.05, 1.05)
     ax2.legend(fontsize=8)
     ax2.grid(alpha=0.3)
-    fig.suptitle(f"warm start: behaviour cloning of {record.get('expert')} with DAgger ({out.name})")
+    fig.suptitle(f"warm start: behaviour cloning of {(record or {}).get('expert')} with DAgger ({out.name})")
     fig.tight_layout()
     return save_figure(fig, out / "pretrain_curve.png", overwrite=True, dpi=110)
 

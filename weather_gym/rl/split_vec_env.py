@@ -47,7 +47,7 @@ def _worker(conn: Any, env_fns: CloudpickleWrapper) -> None:
     """The worker's loop: a ``DummyVecEnv`` of its envs, driven by ``(command, data)`` messages."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's to handle,
     signal.signal(signal.SIGTERM, signal.SIG_IGN)  # and a stop sent to the whole group (systemd, kill -TERM -PGID)
-    venv = None
+    venv: DummyVecEnv = None  # type: ignore[assignment]  # the first command builds it
     while True:
         try:
             cmd, data = conn.recv()
@@ -66,7 +66,7 @@ def _worker(conn: Any, env_fns: CloudpickleWrapper) -> None:
             elif cmd == "get_attr":
                 result = venv.get_attr(data[0], data[1])
             elif cmd == "set_attr":
-                result = venv.set_attr(data[0], data[1], data[2])
+                result = venv.set_attr(data[0], data[1], data[2])  # type: ignore[func-returns-value]  # the reply: None
             elif cmd == "env_method":
                 result = venv.env_method(data[0], *data[1], indices=data[3], **data[2])
             elif cmd == "is_wrapped":
@@ -131,7 +131,7 @@ class SplitVecEnv(VecEnv):
             context = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         ctx = mp.get_context(start_method(context, "SplitVecEnv"))
         self._conn, child = ctx.Pipe()
-        self._process = ctx.Process(target=_worker, args=(child, CloudpickleWrapper(list(env_fns[local:]))),
+        self._process = ctx.Process(target=_worker, args=(child, CloudpickleWrapper(list(env_fns[local:]))),  # type: ignore[attr-defined]  # every start method's context has it
                                     daemon=True)
         self._process.start()
         child.close()
@@ -167,7 +167,7 @@ class SplitVecEnv(VecEnv):
             raise self._stopped() from exc
         self._pending -= 1
         if status == "error":
-            exc, tb = data
+            exc, tb = data  # type: ignore[misc]  # the worker's exception, not an except clause's
             if exc is None:
                 raise RuntimeError(f"SplitVecEnv: an env in the worker process failed:\n{tb}")
             exc.add_note(f"(raised in the SplitVecEnv worker process, {self._remote_envs}):\n{tb}")

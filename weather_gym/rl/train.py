@@ -222,7 +222,7 @@ def _check_args(args: argparse.Namespace) -> None:
     if args.timesteps is not None and args.timesteps < least:
         raise LimitError(f"--timesteps must be an integer >= 1 (0 only with --pretrain), got {args.timesteps}")
     for name, bound in RUN_OPTIONS.items():
-        bound.check(getattr(args, name), bound.option)
+        bound.check(getattr(args, name), bound.option or f"--{name.replace('_', '-')}")
     check_seed(args.seed, what="--seed")
 
 
@@ -468,17 +468,17 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
 
 def _vec_envs(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make: list, kind: str):
     """The training envs (``--vec`` ``kind``) and the held-out evaluation env, normalised as the file says."""
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
     from weather_gym.rl.split_vec_env import SplitVecEnv
 
     sw = s.get("surrogate_weathers") or ["clear"]
-    vec = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
+    vec: VecEnv = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
     normalize = hp["normalize"]
     if normalize is not False:  # rl-zoo3's `normalize`: VecNormalize keywords; its state is saved with each checkpoint
         vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
     try:
-        eval_env = VecMonitor(DummyVecEnv([lambda: make_training_env(
+        eval_env: VecEnv = VecMonitor(DummyVecEnv([lambda: make_training_env(
             s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
             random_start=False, surrogate_weather=sw[0], lean_info=True, cone_memory=s.get("cone_memory"))]))
         if normalize is not False:

@@ -45,7 +45,7 @@ class RandomStart(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=_SPAWN_KEY))
         options = dict(options or {})
-        track = self.env.unwrapped.track
+        track = self.env.unwrapped.track  # type: ignore[attr-defined]  # a ConeTrackEnv
         at_line = self._rng.uniform() < self.line_share
         if track.closed and not at_line and "start_s" not in options and "start_pose" not in options:
             options["start_s"] = float(self._rng.uniform(0.0, track.length))
@@ -90,7 +90,7 @@ class RememberedCones(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     def __init__(self, env: gym.Env, config: ConeMemoryConfig | None = None) -> None:
         gym.utils.RecordConstructorArgs.__init__(self, config=config)
         gym.ObservationWrapper.__init__(self, env)
-        self.memory = ConeMemory(config, camera=env.unwrapped.config.camera)
+        self.memory = ConeMemory(config, camera=env.unwrapped.config.camera)  # type: ignore[attr-defined]  # a ConeTrackEnv
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         self.memory.reset()

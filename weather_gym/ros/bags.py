@@ -47,7 +47,7 @@ def bag_kind(path: str | os.PathLike) -> str | None:
     return "rosbag1" if suffix == ".bag" else "rosbag2" if suffix in (".mcap", ".db3") else None
 
 
-def _read_errors() -> tuple[type[BaseException], ...]:
+def _read_errors() -> tuple[type[Exception], ...]:
     """What the bag libraries raise for a damaged bag (beside their own error classes)."""
     rb = lib()
     return (rb.AnyReaderError, rb.rosbag1.ReaderError, rb.rosbag2.ReaderError, sqlite3.Error, struct.error,
@@ -177,9 +177,10 @@ class _Opened:
             raise InputError(f"{p}: not a ROS bag; expected a rosbag2 folder (with metadata.yaml), a .mcap or .db3 "
                              "rosbag2 file, or a ROS 1 .bag file")
         reader = rb.AnyReader([p], default_typestore=typestore())
+        errors: tuple[type[Exception], ...] = (*_read_errors(), OSError)
         try:
             reader.open()
-        except (*_read_errors(), OSError) as exc:
+        except errors as exc:
             if isinstance(exc, PermissionError):
                 raise
             raise FileFormatError(f"{p}: not a readable {kind} bag: it is damaged, truncated or of an unknown "

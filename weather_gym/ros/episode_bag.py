@@ -215,7 +215,7 @@ class EpisodeBag:
                 translation=t["geometry_msgs/msg/Vector3"](x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
                 rotation=t["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])))
 
-    def _odometry(self, ns: int, frame: str, pose: Sequence[float], speed: float, yaw_rate: float) -> Any:
+    def _odometry(self, ns: int, frame: str, pose: Sequence[float] | np.ndarray, speed: float, yaw_rate: float) -> Any:
         t = self.store.types
         x, y, yaw = (float(v) for v in pose)
         q = _quat(yaw)
@@ -234,7 +234,7 @@ class EpisodeBag:
 
     def add(self, time_s: float, *, clear: np.ndarray | None = None, weathered: np.ndarray | None = None,
             cones: np.ndarray | None = None, mask: np.ndarray | None = None, pose: Sequence[float],
-            speed: float, yaw_rate: float, odom: Sequence[float] | None = None) -> None:
+            speed: float, yaw_rate: float, odom: Sequence[float] | np.ndarray | None = None) -> None:
         """One step at sim time ``time_s``: the clear and weathered frames, the cone list (``(N, 14)``
         rows of :data:`~weather_gym.perception.cones.CONE_FIELDS` with its ``mask``), the true ``pose``
         (x, y, yaw in the map), ``speed`` and ``yaw_rate``, and the car's odometry pose ``odom``."""

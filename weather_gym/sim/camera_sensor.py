@@ -177,7 +177,7 @@ class CameraSensor:
         cols %= self._pano.shape[1]
         # the image's columns first (the panorama is wider than the image), then its rows; a masked
         # copy in OpenCV (``rgb[:last]`` is a contiguous view, written in place)
-        sky = self._pano.take(cols, axis=1).take(self._sky_rows[:last], axis=0)
+        sky = self._pano.take(cols, axis=1).take(self._sky_rows[:last], axis=0)  # type: ignore[index]  # set with the panorama
         cv2.copyTo(sky, background[:last].view(np.uint8), rgb[:last])
 
     @staticmethod

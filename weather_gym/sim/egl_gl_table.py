@@ -67,7 +67,7 @@ class GLTableEntry:
             raise LookupError(f"glad_{name} in {path} does not hold the driver's {name}")
         self._pinned = ctypes.CDLL(path)  # the plugin stays where the entry was found
         self._function = function  # kept alive as long as the table points at it
-        self._address = ctypes.cast(function, ctypes.c_void_p).value
+        self._address: int = ctypes.cast(function, ctypes.c_void_p).value  # type: ignore[assignment]  # a live function: not NULL
         self.repointed = 0  # times the entry was found reloaded and pointed again
         self._slot.value = self._address
 

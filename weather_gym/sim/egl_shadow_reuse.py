@@ -365,7 +365,7 @@ class ShadowMapReuse:
         """The scissor of the frame being drawn on a map of ``size`` texels; None for the whole map."""
         if self._spheres is None:
             return None
-        return texel_rect(self._spheres, self._light, size)
+        return texel_rect(self._spheres, self._light, size)  # type: ignore[arg-type]  # set with the spheres
 
     def _plan(self, light: tuple[float, ...]) -> None:
         c = self.client
@@ -394,7 +394,7 @@ class ShadowMapReuse:
                     break
                 for pos, orn in (self._poses[b], pose):
                     rot = np.asarray(p.getMatrixFromQuaternion(orn), dtype=np.float64).reshape(3, 3)
-                    spheres.extend((*(np.asarray(pos) + rot @ centre), r) for centre, r in bounds)
+                    spheres.extend((*(np.asarray(pos) + rot @ centre), r) for centre, r in bounds)  # type: ignore[union-attr]  # a list until the break above
         if whole or spheres is None:
             self.redrawn_whole += 1
             spheres = None

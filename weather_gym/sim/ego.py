@@ -90,7 +90,7 @@ def ego_overlay(variant: int, width: int, height: int) -> EgoOverlay:
         cv2.ellipse(img, (int(xc), int(wt + ay)), (int(ww * 0.3), int(ay * 0.75)), 0, 200, 340,
                     (dark * 0.6).tolist(), max(1, s), cv2.LINE_AA)  # a tread groove
         # suspension arms from the nose to the wheel
-        for k in (0.25, 0.55):
+        for k in (0.25, 0.55):  # type: ignore[assignment]  # k: a fraction here
             y = wt + (h - wt) * k
             cv2.line(img, (int(cx + side * w * 0.12), int(y_top + (h - y_top) * (0.2 + k * 0.3))),
                      (int(xc - side * ww / 2), int(y)), (35, 35, 38), max(2, 2 * s), cv2.LINE_AA)
@@ -121,8 +121,8 @@ def ego_overlay(variant: int, width: int, height: int) -> EgoOverlay:
                     (18, 18, 20), int(sw * 0.12), cv2.LINE_AA)
         cv2.ellipse(cov, (int(cx), int(h + sw * 0.2)), (int(sw / 2), int(h + sw * 0.2 - st)), 0, 180, 360,
                     1.0, int(sw * 0.12), cv2.LINE_AA)
-        for k, col in enumerate(((200, 30, 30), (240, 240, 240), (40, 200, 60))):  # buttons
-            cv2.circle(img, (int(cx + (k - 1) * sw * 0.15), int(rim + 6 * s)), 3 * s, col, -1, cv2.LINE_AA)
+        for k, col in enumerate(((200, 30, 30), (240, 240, 240), (40, 200, 60))):  # type: ignore[assignment]  # buttons (col: an RGB tuple here)
+            cv2.circle(img, (int(cx + (k - 1) * sw * 0.15), int(rim + 6 * s)), 3 * s, col, -1, cv2.LINE_AA)  # type: ignore[call-overload]  # col: RGB
     img *= 1 + 0.03 * rng.standard_normal((h, w, 1)).astype(np.float32)
     rgb = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
     alpha = cv2.resize(cov, (W, H), interpolation=cv2.INTER_AREA)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import Any
 
 import numpy as np
 
@@ -78,7 +79,7 @@ class Look:
     def from_dict(cls, d: dict) -> Look:
         """Build from a dict (e.g. JSON); unknown keys are an error naming them."""
         check_known(d, {f.name for f in fields(cls)}, what="look")
-        conv = {}
+        conv: dict[str, Any] = {}
         for k, v in d.items():
             if k == "cone_shade":
                 conv[k] = tuple(tuple(float(c) for c in rgb) for rgb in v)
@@ -115,7 +116,7 @@ REALISTIC_LOOK = Look(
 
 
 def _jitter_rgb(rng: np.random.Generator, base: RGB, rel: float) -> RGB:
-    return tuple(float(np.clip(c * (1 + rng.uniform(-rel, rel)), 0, 255)) for c in base)  # type: ignore[return-value]
+    return tuple(float(np.clip(c * (1 + rng.uniform(-rel, rel)), 0, 255)) for c in base)  # type: ignore[return-value]  # three in, three out
 
 
 def sample_look(rng: np.random.Generator) -> Look:
@@ -131,12 +132,12 @@ def sample_look(rng: np.random.Generator) -> Look:
     sky_hor = _jitter_rgb(rng, (182.0, 200.0, 222.0), 0.1)
     shades = tuple(tuple(float(rng.uniform(0.8, 1.0)) for _ in range(3)) for _ in range(4))
     return Look(
-        light_direction=tuple(float(v) for v in light_dir),  # type: ignore[arg-type]
+        light_direction=tuple(float(v) for v in light_dir),  # type: ignore[arg-type]  # three floats
         light_color=light_color,
         ambient=float(rng.uniform(0.45, 0.75)),
         diffuse=float(rng.uniform(0.25, 0.6)),
         specular=float(rng.uniform(0.0, 0.15)),
-        asphalt_rgb=asphalt,  # type: ignore[arg-type]
+        asphalt_rgb=asphalt,
         grass_rgb=grass,
         kerb_rgb=(210.0, 210.0, 205.0),
         ground_seed=int(rng.integers(0, 2)),
@@ -144,7 +145,7 @@ def sample_look(rng: np.random.Generator) -> Look:
         sky_horizon_rgb=sky_hor,
         cloud_cover=float(rng.uniform(0.0, 0.8)),
         sky_seed=int(rng.integers(0, 2**31 - 1)),
-        cone_shade=shades,  # type: ignore[arg-type]
+        cone_shade=shades,  # type: ignore[arg-type]  # 4 x 3 floats
         camera_height_offset=float(rng.uniform(-0.05, 0.05)),
         camera_pitch_offset_deg=float(rng.uniform(-1.5, 1.5)),
         camera_yaw_offset_deg=float(rng.uniform(-1.0, 1.0)),

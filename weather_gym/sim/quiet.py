@@ -44,7 +44,7 @@ def quiet_c_output(capture: list[str] | None = None):
             os.close(fd)
         if sink is not None:
             sink.seek(0)
-            capture.append(sink.read().decode("utf-8", "replace"))
+            capture.append(sink.read().decode("utf-8", "replace"))  # type: ignore[union-attr]  # a sink only with a list
             sink.close()
         else:
             os.close(target)

@@ -157,7 +157,7 @@ def _disconnect(client: PhysicsClient) -> None:
     if client.egl is not None:
         if connected:
             # the plugin frees its OpenGL objects with whatever context is current: make it its own
-            _egl_lib.make_current(client.egl)
+            _egl_lib.make_current(client.egl)  # type: ignore[union-attr]  # loaded: the client has an EGL context
         _state.current = None  # and its closeWindow() unbinds it
         if client in _all_egl:
             _all_egl.remove(client)
@@ -237,7 +237,7 @@ def _load_egl(client: PhysicsClient, required: bool) -> None:
         with quiet_c_output(capture=text):
             plugin = p.loadPlugin(path, "_eglRendererPlugin", physicsClientId=client.id)
     if plugin >= 0 and _egl_renders(client.id, capture=text):
-        client.egl = _egl_lib.current()  # the context this client's plugin made (and drew the test frame with)
+        client.egl = _egl_lib.current()  # type: ignore[union-attr]  # loaded with the plugin; the context this client's plugin made (and drew the test frame with)
     if client.egl is not None:
         _state.current = client
         detail = next((line.split("=", 1)[1].strip() for line in "".join(text).splitlines()

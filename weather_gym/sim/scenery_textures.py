@@ -70,7 +70,7 @@ def realistic_cone_texture(cls: str, rows: int = 128, cols: int = 8) -> np.ndarr
             tex[r1 - 1] = 0.5 * (tex[r1 - 1] + np.array(BODY_RGB[cls]))
     v = 1.0 - (np.arange(rows) + 0.5) / rows
     dirt = np.clip((0.18 - v) / 0.18, 0, 1)[:, None, None] * 0.25  # scuffed, dusty base
-    tex = tex * (1 - dirt) + np.array([95.0, 90.0, 85.0]) * dirt
+    tex = tex * (1 - dirt) + np.array([95.0, 90.0, 85.0]) * dirt  # type: ignore[assignment]  # float64 from here on
     tex *= 1 + 0.03 * rng.standard_normal((rows, cols, 1)).astype(np.float32)
     return np.clip(tex, 0, 255).astype(np.uint8)
 
@@ -108,13 +108,13 @@ def asphalt_tile(rgb, seed: int, size: int = 1024, lines: bool = True) -> np.nda
         pts = np.cumsum(rng.normal(0, size / 40, (12, 2)), axis=0) + rng.uniform(0, size, 2)
         cv2.polylines(img, [pts.astype(np.int32)], False, (base * 0.45).tolist(), 2, cv2.LINE_AA)
     for _ in range(int(rng.integers(1, 4))):
-        x = float(rng.uniform(0.1, 0.9) * size)
+        x = float(rng.uniform(0.1, 0.9) * size)  # type: ignore[assignment]  # the name reused for a float
         amp, ph = float(rng.uniform(5, 60)), float(rng.uniform(0, 6.28))
         ys = np.arange(0, size + 1, 16, dtype=np.float32)
         xs = x + amp * np.sin(ys / size * 2 * np.pi + ph)
         mark = np.zeros((size, size), np.float32)
         cv2.polylines(mark, [np.stack([xs, ys], 1).astype(np.int32)], False, 1.0, int(rng.integers(12, 30)))
-        mark = cv2.GaussianBlur(mark, (0, 0), 6)
+        mark = cv2.GaussianBlur(mark, (0, 0), 6)  # type: ignore[assignment]  # cv2's stubs drop the float32 dtype
         img *= (1 - 0.25 * mark)[..., None]
     if lines:
         paint = np.array([228.0, 228.0, 222.0])
@@ -140,7 +140,7 @@ def runoff_tile(rgb, seed: int, size: int = 512) -> np.ndarray:
         for frac, gain in ((0.04, 1.5), (0.04, 0.6)):
             m = rng.random((size, size)) < frac
             img[m] *= gain
-        img = cv2.GaussianBlur(img, (3, 3), 0)
+        img = cv2.GaussianBlur(img, (3, 3), 0)  # type: ignore[assignment]  # cv2's stubs drop the float32 dtype
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
@@ -239,7 +239,7 @@ def clutter_atlas(seed: int = 0) -> np.ndarray:
     skins = [(225, 185, 160), (190, 140, 110), (140, 95, 70), (90, 60, 45)]
     for rc, s in zip(TILE_SKIN, skins):
         put(rc, np.full((t, t, 3), s, np.float32))
-    for rc, s in zip(TILE_SOLID, SOLID_COLOURS):
+    for rc, s in zip(TILE_SOLID, SOLID_COLOURS):  # type: ignore[assignment]  # s: float RGBs here
         put(rc, np.full((t, t, 3), s, np.float32) * (1 + 0.03 * rng.standard_normal((t, t, 1))))
     return np.clip(atlas, 0, 255).astype(np.uint8)
 

@@ -17,6 +17,7 @@ Example (geometry only: nothing is rendered):
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -28,9 +29,40 @@ from weather_gym.sim.egl_shadow_reuse import planned_frame
 from weather_gym.sim.ego import EGO_DEPTH_M, clip_ground_truth, composite, ego_overlay
 from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
 
+if TYPE_CHECKING:  # the host's attributes, for type checkers
+    from weather_gym.sim.camera_sensor import CameraSensor
+    from weather_gym.sim.car import Car
+    from weather_gym.sim.cast_shadows import ShadowCaster
+    from weather_gym.sim.look import Look
+
 
 class WorldViews:
     """The camera outputs of a :class:`~weather_gym.sim.world.World` (see the module doc)."""
+
+    if TYPE_CHECKING:  # what World provides
+        renderer_name: str
+        camera: CameraSensor
+        car: Car
+        cone_classes: np.ndarray
+        _client: int | None
+        _look: Look | None
+        _applied_look: Look | None
+        _warmed_up: bool
+        _light: dict[str, Any]
+        _caster: ShadowCaster | None
+        _cone_lut: np.ndarray
+        _cone_xy: np.ndarray
+        _cone_tilt: dict[int, tuple[np.ndarray, np.ndarray]]
+        _cone_plate: np.ndarray
+        _cone_height: np.ndarray
+        _car_body_dx: float
+        _car_body_z: float
+        _car_visual: int
+
+        @property
+        def look(self) -> Look: ...
+        def _activate(self) -> None: ...
+        def _apply_look(self) -> None: ...
 
     def render(self, segmentation: bool = True) -> CameraFrame:
         """The car camera's frame at the car's current pose; ``segmentation=False`` skips the
@@ -71,7 +103,7 @@ class WorldViews:
                 xy[i] = origin[:2]  # the base's centre, not the centre of mass
         eye, heading, pitch = self.camera.mount_pose(self.car.pose)
         assert self._caster is not None
-        self._caster.apply(frame.rgb, frame.depth, eye, heading, pitch, xy[standing],
+        self._caster.apply(frame.rgb, frame.depth, eye, heading, pitch, xy[standing],  # type: ignore[arg-type]  # both set: see render()
                            self._cone_plate[standing], self._cone_height[standing], self._light["lightDirection"],
                            shadow_strength(look.ambient, look.diffuse))
 

@@ -59,4 +59,4 @@ def box_factor(fit_camera: tuple[int, int], camera: tuple[int, int], *,
     """
     fit_input = fit_input or detector_input_size(*fit_camera)
     camera_input = camera_input or detector_input_size(*camera)
-    return input_scale(tuple(camera), tuple(camera_input)) / input_scale(tuple(fit_camera), tuple(fit_input))
+    return input_scale(tuple(camera), tuple(camera_input)) / input_scale(tuple(fit_camera), tuple(fit_input))  # type: ignore[arg-type]  # (w, h) pairs

@@ -66,7 +66,8 @@ def condition_of(weather: Any) -> tuple[str, float]:
 def split_nominal(weather: Any, conditions: Any) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """The spec's active effect tables split into (those a model with ``conditions`` covers, the others):
     the others are modelled as :data:`FALLBACK` (see the module doc)."""
-    kept, dropped = [], []
+    kept: list[dict[str, Any]] = []
+    dropped: list[dict[str, Any]] = []
     for t in _tables(weather):
         if float(t.get("k", 0.0)) <= 0.0:
             continue

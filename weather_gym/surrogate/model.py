@@ -270,7 +270,7 @@ def save_model(model: SurrogateModel, path: str | os.PathLike, *, overwrite: boo
             "err_range_edges": [float(x) for x in ERR_RANGE_EDGES[:-1]], "quantiles": len(QUANTILES)}
     arrays["meta"] = np.array(json.dumps(meta))
     with atomic_file(path, "wb", overwrite=overwrite, encoding=None) as f:
-        np.savez_compressed(f, **arrays)
+        np.savez_compressed(f, **arrays)  # type: ignore[arg-type]  # numpy's stubs: **kwds typed like allow_pickle
     return str(path)
 
 
@@ -335,7 +335,7 @@ def _load_point(data: dict[str, np.ndarray], prefix: str, where: str, stats: Any
         if not len(arrays[name]):
             raise FileFormatError(f"{where}: {prefix}/{name} has no rows")
     named = {n: arrays.get(n) for n in Point.ARRAYS}
-    return Point(**named, rho=float(rho), fp_mean=float(fp_mean), fp_var=float(fp_var),
+    return Point(**named, rho=float(rho), fp_mean=float(fp_mean), fp_var=float(fp_var),  # type: ignore[arg-type]  # arrays checked above
                  stats=dict(stats) if isinstance(stats, dict) else {})
 
 

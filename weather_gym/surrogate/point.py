@@ -183,6 +183,7 @@ class Point:
         """P(detected) (``kind`` "detected"), P(loose | not detected) ("loose") or P(a part detection)
         ("part") of each cone, from :meth:`features`."""
         w = {"detected": self.coef, "loose": self.coef_loose, "part": self.coef_part}[kind]
+        assert w is not None  # a point that models the kind has its coefficients
         name = f"_terms_{kind}"
         terms = self.__dict__.get(name)
         if terms is None:
@@ -220,6 +221,6 @@ def _mix(a: Point, b: Point, w: float) -> Point:
                 loose_box_d=near.loose_box_d, confusion_loose=conf_loose / conf_loose.sum(-1, keepdims=True),
                 confusion_crowded=conf_crowded / conf_crowded.sum(-1, keepdims=True),
                 coef_part=lerp(a.coef_part, b.coef_part),
-                part_rows=near.part_rows if len(near.part_rows) else far.part_rows)
+                part_rows=near.part_rows if len(near.part_rows) else far.part_rows)  # type: ignore[arg-type]  # both have part rows here
     out.stats = {"fp_weight_b": w, "fp_rows_a": float(len(a.fp_rows))}
     return out

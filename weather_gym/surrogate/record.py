@@ -18,10 +18,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
-from typing import Any
+from typing import Any, cast
 
 from weather_gym.agents import agent_observes, make_agent, run_episode
 from weather_gym.camera_config import CameraConfig
+from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.errors import InputError
 from weather_gym.perception.detector_spec import detector_id
 from weather_gym.perception_modes import check_agent_observes, detector_mode, modes_where, perception_mode
@@ -75,13 +76,13 @@ def record(*, tracks: Sequence[str], weathers: Sequence[Any], seeds: Sequence[in
     for track in tracks:
         for weather in weathers:
             # a rendering mode takes the geometric ground truth too, so both modes log the same truth
-            extra = {"ground_truth": "geometry"} if mode.renders_frames else {}
+            extra: dict[str, Any] = {"ground_truth": "geometry"} if mode.renders_frames else {}
             if mode.runs_detector:
                 extra["detector"] = detector
             env = make_env(perception=mode.name, weather=weather, track=track, max_episode_steps=steps,
                            perception_kwargs=perception_kwargs, **extra, **dict(env_kwargs or {}))
             try:
-                base = env.unwrapped
+                base = cast(ConeTrackEnv, env.unwrapped)
                 camera_cfg = base.config.camera
                 if mode.runs_detector:
                     det_input = _detector_input(env.get_wrapper_attr("detector"), camera_cfg)

@@ -170,8 +170,8 @@ class _Tables:
     the quantile rows in one flat table."""
 
     def __init__(self, p: Point) -> None:
-        hats = [hat_terms(w) for w in (p.coef, p.coef_loose, p.coef_part)]
-        self.w0 = np.array([w[0] for w in (p.coef, p.coef_loose, p.coef_part)], np.float64)
+        hats = [hat_terms(w) for w in (p.coef, p.coef_loose, p.coef_part)]  # type: ignore[arg-type]  # a sampled point has all three
+        self.w0 = np.array([w[0] for w in (p.coef, p.coef_loose, p.coef_part)], np.float64)  # type: ignore[index]  # all three set
         # per feature: its knots (padded to the longest), and the hat values of each kind at them
         # (Point.probability_of's terms; the three kinds share the knots)
         knots = [hats[0][0][f][0] for f in range(5)]
@@ -183,7 +183,7 @@ class _Tables:
             for kind, h in enumerate(hats):
                 self.vals[kind, f, :len(k)] = h[0][f][1]
         self.cls = np.ascontiguousarray([h[1] for h in hats], np.float64)
-        self.cum = np.cumsum(np.stack([p.confusion, p.confusion_crowded, p.confusion_loose]), axis=-1)
+        self.cum = np.cumsum(np.stack([p.confusion, p.confusion_crowded, p.confusion_loose]), axis=-1)  # type: ignore[list-item]  # all three set
         score_q = np.broadcast_to(p.score_q, p.range_err_q.shape)
         loose_score_q = np.broadcast_to(p.loose_score_q, p.range_err_q.shape)
         q = np.stack([np.stack([p.range_err_q, p.loose_range_err_q]), np.stack([p.bearing_err_q, p.loose_bearing_err_q]),

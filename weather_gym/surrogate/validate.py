@@ -155,8 +155,8 @@ def _bootstrap(log: SurrogateLog, rng: np.random.Generator) -> dict[str, tuple[f
         for k, v in cone_stats(log, cs, fs).items():
             draws[k].append(v)
     out = {}
-    for k, v in draws.items():
-        a = np.asarray(v, np.float64)
+    for k, vs in draws.items():
+        a = np.asarray(vs, np.float64)
         a = a[np.isfinite(a)]
         out[k] = (float(np.quantile(a, 0.025)), float(np.quantile(a, 0.975))) if len(a) else (math.nan, math.nan)
     return out

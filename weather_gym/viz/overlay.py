@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import cast
 
 import cv2
 import numpy as np
@@ -75,11 +76,11 @@ class TopDownView:
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         u = (p[:, 0] - self.origin[0]) * self.scale
         v = (self.origin[1] - p[:, 1]) * self.scale
-        return np.round(np.c_[u, v]).astype(np.int32)
+        return cast(np.ndarray, np.round(np.c_[u, v]).astype(np.int32))
 
     def draw(self, *, cones_xy: np.ndarray | None = None, classes: np.ndarray | None = None,
              faint_xy: np.ndarray | None = None, path: np.ndarray | None = None,
-             trajectory: np.ndarray | None = None, pose: Sequence[float] | None = None) -> np.ndarray:
+             trajectory: np.ndarray | None = None, pose: Sequence[float] | np.ndarray | None = None) -> np.ndarray:
         """RGB inset: faint reference cones, trajectory (white), cones by colour, path (green), car."""
         img = np.full((self.height, self.width, 3), 30, np.uint8)
         if faint_xy is not None and len(faint_xy):

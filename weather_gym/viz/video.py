@@ -87,13 +87,13 @@ class _AvStream:
         except BaseException:
             self.abandon()
             raise
-        container, self._container = self._container, None
+        container, self._container = self._container, None  # type: ignore[assignment]  # None once closed
         container.close()
 
     def abandon(self) -> None:
         """Give the file up after a failed write: no encoder flush and no second try at the trailer
         (FFmpeg's close after a write error on a full disk is where it crashed); errors are ignored."""
-        container, self._container = self._container, None
+        container, self._container = self._container, None  # type: ignore[assignment]  # None once given up
         if container is not None:
             with contextlib.suppress(Exception):
                 container.close()
@@ -105,7 +105,7 @@ class _Mp4vStream:
     codec = "mp4v"
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
-        self._writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+        self._writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)  # type: ignore[attr-defined]  # not in cv2's stubs
         if not self._writer.isOpened():
             raise OutputPathError(f"OpenCV could not open {path} for writing (mp4v codec)")
 
@@ -207,6 +207,7 @@ class VideoWriter:
         if self._stream is not None:
             stream, self._stream = self._stream, None
             output, self._output = self._output, None
+            assert output is not None  # opened with the stream
             try:
                 stream.close()
             except BaseException as exc:

@@ -91,12 +91,13 @@ def blend_drops(out: np.ndarray, content: np.ndarray, keeps: list[np.ndarray], h
     target = out if out.flags.c_contiguous else np.ascontiguousarray(out)
     _blend(target.reshape(target.shape[0], -1), np.ascontiguousarray(content).reshape(-1), np.concatenate(
         [k.reshape(-1) for k in keeps]), n, cstart, wstart, *(np.asarray(a, np.int64) for a in (cx, cy, x0, y0, x1, y1)),
-        *tables)
+        *tables)  # type: ignore[call-arg]  # mypy cannot count the arguments a generator unpacks to
     into(target, out)
 
 
 @numba.njit(nogil=True, inline="always")
-def _blend_row(orow, h0, h1, b0, b1, keep):
+def _blend_row(orow: np.ndarray, h0: np.ndarray, h1: np.ndarray, b0: int | np.int32, b1: int | np.int32,
+               keep: np.ndarray) -> None:
     """One output row of a drop: OpenCV's vertical resize pass, then multiply by keep / 255 and add."""
     b0, b1 = np.int32(b0), np.int32(b1)
     s2, s4, s8, s16 = np.int32(2), np.int32(4), np.int32(8), np.int32(16)
@@ -111,7 +112,9 @@ def _blend_row(orow, h0, h1, b0, b1, keep):
 
 
 @numba.njit(cache=True, nogil=True)
-def _blend(out2, content, keep, nn, cstart, wstart, cx, cy, x0, y0, x1, y1, xo, xa, yo, ya):
+def _blend(out2: np.ndarray, content: np.ndarray, keep: np.ndarray, nn: np.ndarray, cstart: np.ndarray,
+           wstart: np.ndarray, cx: np.ndarray, cy: np.ndarray, x0: np.ndarray, y0: np.ndarray, x1: np.ndarray,
+           y1: np.ndarray, xo: np.ndarray, xa: np.ndarray, yo: np.ndarray, ya: np.ndarray) -> None:
     """:func:`blend_drops` on flat arrays: ``out2`` the frame as rows of bytes, ``content`` and ``keep`` the
     drops' bytes one after another from ``cstart`` (pixels) and ``wstart`` (bytes), the tables of
     :func:`resize_tables`. Indices are unsigned or slices, so that numba leaves out its negative-index

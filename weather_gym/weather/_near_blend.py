@@ -53,7 +53,7 @@ def near_blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, near_m: f
     """
     target = out if out.flags.c_contiguous else np.empty_like(out)
     h, w = img.shape[:2]
-    rows = (np.ascontiguousarray(a).reshape(h, w * 3) for a in (img, blurred))
+    rows = (np.ascontiguousarray(img).reshape(h, w * 3), np.ascontiguousarray(blurred).reshape(h, w * 3))
     if near_m is None:
         _blend(*rows, np.ascontiguousarray(near, np.uint8), np.float32(0.0), False, target.reshape(h, w * 3))
     else:
@@ -63,7 +63,7 @@ def near_blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, near_m: f
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _weight(z, c):
+def _weight(z: np.float32, c: np.float32) -> np.int32:
     """``convertScaleAbs(c / max(Z, 1 mm))``: the float32 quotient, rounded half to even (adding and
     taking away 1.5 * 2 ** 23, exact below 2 ** 22: the quotient is capped at 256 first), saturated.
     (The OpenCV code raised Z to 1 mm only where the map had nearer values: the same result.)"""
@@ -74,14 +74,15 @@ def _weight(z, c):
 
 
 @numba.njit(cache=True, nogil=True)
-def _weights(depth, c, out):
+def _weights(depth: np.ndarray, c: np.float32, out: np.ndarray) -> None:
     for r in range(depth.shape[0]):
         for x in range(depth.shape[1]):
             out[r, x] = _weight(depth[r, x], c)
 
 
 @numba.njit(cache=True, nogil=True)
-def _blend(img, blurred, near, c, from_depth, out):
+def _blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, c: np.float32, from_depth: bool,
+           out: np.ndarray) -> None:
     """:func:`near_blend` on rows of bytes: each row's weights spread to its bytes, then one pass over
     them. Indices are unsigned or slices, so that numba leaves out its negative-index checks."""
     rows, cols = img.shape

@@ -45,7 +45,8 @@ def noise_pass(frames: np.ndarray, outs: np.ndarray, table: np.ndarray, bank: np
 
 
 @numba.njit(cache=True, nogil=True)
-def _noise(frames, outs, table, bank, starts, pitches, signs):
+def _noise(frames: np.ndarray, outs: np.ndarray, table: np.ndarray, bank: np.ndarray, starts: np.ndarray,
+           pitches: np.ndarray, signs: np.ndarray) -> None:
     """:func:`noise_pass`. Indices are unsigned or slices, so that numba leaves out its negative-index
     checks; rows of whole sign bytes go eight values per byte, with the byte's bit moved to bit 16."""
     n_frames, rows, cols = frames.shape

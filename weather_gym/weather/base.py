@@ -427,7 +427,8 @@ class KnobEffect(Effect, metaclass=CheckedArgs):
         return None
 
     # -- rendering ---------------------------------------------------------------------------
-    def _render(self, img, draw, depth, state, batched):
+    def _render(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: Any,
+                batched: bool) -> np.ndarray:
         if self.k == 0.0:
             return img.copy()
         if batched:
@@ -455,7 +456,7 @@ class KnobEffect(Effect, metaclass=CheckedArgs):
                      out: np.ndarray) -> None:
         """:meth:`_render_frame` written into ``out``; batches call this frame by frame, with no extra copy."""
         if isinstance(draw, _Fused):
-            self._apply_into(img, depth, state, draw.rng, out)
+            self._apply_into(img, depth, state, draw.rng, out)  # type: ignore[attr-defined]  # the fused hook, when defined
         else:
             np.copyto(out, self._render_frame(img, draw, depth, state))
 

@@ -19,7 +19,9 @@ Example:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
+
+import numpy as np
 
 from weather_gym.weather._common import smooth
 from weather_gym.weather.base import KnobEffect
@@ -39,5 +41,6 @@ class Blur(KnobEffect):
 
     PARAM_BOUNDS: ClassVar = {"max_radius_frac": (0.001, 0.05)}
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         smooth(img, 0.5 * self.k * self.max_radius_frac * img.shape[1], out, exact=True)

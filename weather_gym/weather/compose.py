@@ -14,7 +14,7 @@ Example:
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -41,7 +41,7 @@ class Compose(Effect):
         return self._effects
 
     @property
-    def stateful(self) -> bool:  # type: ignore[override]
+    def stateful(self) -> bool:  # type: ignore[override]  # a ClassVar in Effect; here it depends on the effects
         return any(e.stateful for e in self.effects)
 
     def start(self, seed: SeedLike = None) -> ComposeRun:
@@ -56,7 +56,8 @@ class Compose(Effect):
     def params(self) -> dict[str, Any]:
         return {"effects": [e.params() | {"name": e.name} for e in self.effects]}
 
-    def _render(self, img, draw, depth, state, batched):
+    def _render(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: Any,
+                batched: bool) -> np.ndarray:
         out = img
         for e, d in zip(self.effects, draw, strict=True):
             out = np.ascontiguousarray(e._render(out, d, depth, state, batched))
@@ -82,6 +83,7 @@ class ComposeRun(EffectRun):
     """One episode of a :class:`Compose`: a run per effect; a frame goes through them in order."""
 
     effect: Compose
+    runs: list[EffectRun]
 
     def restart(self, seed: SeedLike = None) -> None:
         ss = check_seed(seed, self.effect.name)
@@ -91,16 +93,17 @@ class ComposeRun(EffectRun):
 
     def adopt(self, other: EffectRun) -> None:
         super().adopt(other)
-        self.runs = other.runs
+        self.runs = cast(ComposeRun, other).runs
 
     @property
     def current(self) -> Compose:
         return Compose(r.current for r in self.runs)
 
-    def sample(self, shape, rng=None):
+    def sample(self, shape: tuple[int, ...], rng: np.random.Generator | None = None) -> Any:
         return tuple(r.sample(shape, rng) for r in self.runs)
 
-    def _produce(self, img, depth, state, rng, batched):
+    def _produce(self, img: np.ndarray, depth: np.ndarray | None, state: Any,
+                 rng: np.random.Generator | None, batched: bool) -> np.ndarray:
         out = img
         for r in self.runs:  # each effect samples right before it renders
             out = np.ascontiguousarray(r._produce(out, depth, state, rng, batched))

@@ -56,7 +56,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -158,8 +158,8 @@ def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.n
     grid = np.clip(np.rint(z + 128.0), 0, 255).astype(np.uint8)
     big = cv2.resize(grid, (w, h), interpolation=cv2.INTER_LINEAR)
     f, b = flat(img), flat(big)
-    into(cv2.add(f, cv2.subtract(b, 128), dst=f), f)  # saturating uint8 passes: + the positive part,
-    into(cv2.subtract(f, cv2.subtract(128, b), dst=f), f)  # - the negative part
+    into(cv2.add(f, cv2.subtract(b, 128), dst=f), f)  # type: ignore[call-overload]  # cv2's stubs lack the scalar operand; saturating uint8 passes: + the positive part,
+    into(cv2.subtract(f, cv2.subtract(128, b), dst=f), f)  # type: ignore[call-overload]  # scalar operand; - the negative part
 
 
 #: Code value at which ``chroma_noise`` is the colour noise's sigma (18 % grey).
@@ -230,7 +230,8 @@ class Dim(EgoMotion):
         return auto_exposure(2.0 ** (-self.k * self.stops), self.exposure_s, self.max_exposure_s,
                              self.max_gain)
 
-    def _physical(self, img, draw, depth, state, out) -> np.ndarray:
+    def _physical(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                  out: np.ndarray) -> np.ndarray:
         t, gain, residual = self.exposure()
         smeared = self.smear(img, depth, state, t - self.exposure_s)  # img itself when there is no blur
         mean, sigma = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)
@@ -253,7 +254,8 @@ class Dim(EgoMotion):
         return (self.denoise_px * math.sqrt((gain - 1.0) / 15.0), self.chroma_noise * stops,
                 min(self.black_level * stops, 0.5), min(self.desaturate * stops, 1.0))
 
-    def _night(self, img, draw, depth, state, out) -> None:
+    def _night(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+               out: np.ndarray) -> None:
         smeared = self._physical(img, draw, depth, state, out)
         sigma, chroma, black, desat = self.isp()
         if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
@@ -273,7 +275,7 @@ class Dim(EgoMotion):
             into(cv2.addWeighted(out, 1.0 - desat, grey, desat, 0.0, dst=out), out)  # in place
 
     # -- sampling and rendering ------------------------------------------------------------------
-    def _sample_frame(self, rng, shape, episode):
+    def _sample_frame(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any) -> Any:
         """``(sensor noise words, chroma bytes or None)``; nothing in the faithful mode."""
         if self.mode == "faithful":
             return None
@@ -282,7 +284,8 @@ class Dim(EgoMotion):
             return noise, chroma_draw(rng, shape, self.chroma_cell_px)
         return noise, None
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         if self.mode == "faithful":
             self._faithful(img, out)
         elif self.mode == "physical":
@@ -290,7 +293,8 @@ class Dim(EgoMotion):
         else:
             self._night(img, draw, depth, state, out)
 
-    def _render_batch(self, imgs, draws, depth, states):
+    def _render_batch(self, imgs: np.ndarray, draws: list[Any] | None, depth: np.ndarray | None,
+                      states: list[dict[str, float]]) -> np.ndarray:
         if self.mode == "faithful":
             return self._faithful(imgs, np.empty_like(imgs))
         return super()._render_batch(imgs, draws, depth, states)

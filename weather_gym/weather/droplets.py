@@ -46,9 +46,10 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -71,7 +72,8 @@ def _white_disc(r: int) -> np.ndarray:
     return disc
 
 
-def render_discs(img: np.ndarray, centres, radii, alpha: float, out: np.ndarray | None = None) -> np.ndarray:
+def render_discs(img: np.ndarray, centres: np.ndarray | Sequence[Sequence[int]],
+                 radii: np.ndarray | Sequence[int], alpha: float, out: np.ndarray | None = None) -> np.ndarray:
     """Blend white discs one after another, each only inside its bounding box (into ``out`` or new).
 
     ``centres``: ``(x, y)`` pairs, ``radii``: one int per disc (arrays or lists). Identical, pixel
@@ -92,7 +94,7 @@ def render_discs(img: np.ndarray, centres, radii, alpha: float, out: np.ndarray 
         centres = centres.tolist()
     if isinstance(radii, np.ndarray):
         radii = radii.tolist()
-    last_r, disc = -1, None
+    last_r, disc = -1, np.zeros((0, 0), np.uint8)  # replaced at the first disc
     for (cx, cy), r in zip(centres, radii, strict=True):
         x0, y0 = max(cx - r, 0), max(cy - r, 0)
         x1, y1 = min(cx + r + 1, w), min(cy + r + 1, h)
@@ -310,18 +312,19 @@ class Droplets(KnobEffect):
             d.x[i] = (a_i * d.x[i] + a_j * d.x[j]) / (a_i + a_j)
             d.y[i] = (a_i * d.y[i] + a_j * d.y[j]) / (a_i + a_j)
             d.r[i] = math.sqrt(a_i + a_j)
-            if d.theta is not None:  # the merged drop is shown when either was
+            if d.theta is not None and d.u is not None:  # the merged drop is shown when either was (u is set with theta)
                 d.u[i] = min(d.u[i], d.u[j])
             d.take(np.arange(n) != j)
 
     # -- sampling ----------------------------------------------------------------------------
-    def _sample_frame(self, rng, shape, episode):
+    def _sample_frame(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any) -> Any:
         """The frame's discs (:class:`DiscDraw`) or drops (:class:`LensDraw`); the persistent mode
         moves the episode's drops on (a fresh lens when there is no episode)."""
         h, w = shape[:2]
         if self.persistent:
             d = self._advance(shape, rng, episode if episode is not None else _Lens())
             if self.mode == "refractive":
+                assert d.theta is not None and d.u is not None  # the refractive mode draws both
                 return LensDraw(d.x.copy(), d.y.copy(), d.r.copy(), d.theta.copy(), d.u.copy())
             return DiscDraw(np.rint(np.stack([d.x, d.y], axis=1)).astype(np.int64), np.rint(d.r).astype(np.int64))
         if self.mode == "refractive":
@@ -330,7 +333,8 @@ class Droplets(KnobEffect):
         return DiscDraw(centres, [radius] * len(centres))
 
     # -- rendering ---------------------------------------------------------------------------
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         if isinstance(draw, LensDraw):  # refractive: drops with u < k shown, radii scaled by (1 + k) / 2
             show = draw.u < self.k
             render_lens_drops(img, draw.x[show], draw.y[show], draw.r[show] * (0.5 + 0.5 * self.k),

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar, cast
 
 import cv2
 import numpy as np
@@ -42,7 +42,7 @@ def s_curve(v: np.ndarray, contrast: float) -> np.ndarray:
         s = v * v * (3.0 - 2.0 * v)
     else:
         s = 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * v, -1.0, 1.0)) / 3.0)
-    return (1.0 - a) * v + a * s
+    return cast(np.ndarray, (1.0 - a) * v + a * s)
 
 
 @lru_cache(maxsize=256)
@@ -77,8 +77,10 @@ class Exposure(KnobEffect):
         return exposure_lut(sign * self.k * self.max_stops, self.k * self.gamma_error, self.k * self.flare,
                             self.k * self.contrast)
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         into(cv2.LUT(flat(img), self._lut(), dst=flat(out)), flat(out))
 
-    def _render_batch(self, imgs, draws, depth, states):
+    def _render_batch(self, imgs: np.ndarray, draws: list[Any] | None, depth: np.ndarray | None,
+                      states: list[dict[str, float]]) -> np.ndarray:
         return self._render_frame(imgs, None, None, {})  # one LUT pass

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -60,7 +60,8 @@ def _fog_weights(z: np.ndarray, ray: np.ndarray, beta: float) -> np.ndarray:
 def _fallback_terms(h: int, w: int, fx: float, beta: float, camera_height_m: float,
                     horizon_frac: float, far_m: float, gray: float) -> tuple[np.ndarray, np.ndarray]:
     z = ground_depth(h, w, fx, camera_height_m, horizon_frac, far_m)
-    return tuple(readonly(a) for a in blend_terms(_fog_weights(z, ray_factor(h, w, fx), beta), gray))
+    a, b = blend_terms(_fog_weights(z, ray_factor(h, w, fx), beta), gray)
+    return readonly(a), readonly(b)
 
 
 @register_effect
@@ -80,7 +81,8 @@ class Fog(CameraGeometry):
         """Extinction coefficient (1/m) at this k."""
         return self.k * KOSCHMIEDER / self.min_visibility_m
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         h, w = img.shape[:2]
         fx = focal_px(state, w, self.hfov_deg)
         gray = 255.0 * self.airlight

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -48,7 +48,7 @@ def flare_pattern(h: int, w: int, sx: float, sy: float, radius_frac: float, ghos
     y = np.arange(h, dtype=np.float32)[:, None] - py
     d2 = (x * x + y * y) / np.float32(r * r)
     pattern = np.exp(-d2) + 0.35 / (1.0 + d2 / 4.0)
-    canvas = np.zeros((h, w), np.float32)
+    canvas: np.ndarray = np.zeros((h, w), np.float32)
     cx, cy = (w - 1) / 2, (h - 1) / 2
     for i, t in enumerate(np.linspace(0.55, 1.0, ghosts) if ghosts else []):  # 1 = mirror point
         gx, gy = px + t * 2 * (cx - px), py + t * 2 * (cy - py)
@@ -72,7 +72,8 @@ def _flare_terms(h: int, w: int, sx: float, sy: float, radius_frac: float, ghost
                  k: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`blend_terms` of the flare alone (no bloom), cached."""
     w1 = _flare_weights(h, w, sx, sy, radius_frac, ghosts, veil, k)
-    return tuple(readonly(a) for a in blend_terms(w1, _WARM_WHITE))
+    a, b = blend_terms(w1, _WARM_WHITE)
+    return readonly(a), readonly(b)
 
 
 @register_effect
@@ -110,7 +111,8 @@ class Glare(KnobEffect):
         spread = cv2.convertScaleAbs(spread, alpha=self.k * self.bloom)
         return cv2.resize(spread, (w, h), interpolation=cv2.INTER_LINEAR)
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         h, w = img.shape[:2]
         flare = (h, w, self.source_x, self.source_y, self.radius_frac, self.ghosts, self.veil, self.k)
         if self.bloom > 0:

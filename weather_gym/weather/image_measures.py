@@ -29,7 +29,7 @@ def ssim(clean: np.ndarray, degraded: np.ndarray, sigma: float = 1.5) -> float:
     x, y = _gray(clean), _gray(degraded)
     c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
 
-    def blur(a):
+    def blur(a: np.ndarray) -> np.ndarray:
         return cv2.GaussianBlur(a, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
 
     mx, my = blur(x), blur(y)

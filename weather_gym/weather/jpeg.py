@@ -17,7 +17,7 @@ Example:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -54,12 +54,14 @@ class Jpeg(KnobEffect):
         ok, buf = cv2.imencode(".jpg", bgr, params)
         if not ok:  # pragma: no cover - libjpeg does not fail on valid uint8 images
             raise RuntimeError("jpeg: OpenCV could not encode the image")
-        return cv2.imdecode(buf, cv2.IMREAD_COLOR_RGB)
+        return cv2.imdecode(buf, cv2.IMREAD_COLOR_RGB)  # type: ignore[return-value]  # just encoded: never None
 
-    def _render_frame(self, img, draw, depth, state):
+    def _render_frame(self, img: np.ndarray, draw: Any, depth: np.ndarray | None,
+                      state: dict[str, float]) -> np.ndarray:
         return self._code(cv2.cvtColor(img, cv2.COLOR_RGB2BGR), self._params())
 
-    def _render_batch(self, imgs, draws, depth, states):
+    def _render_batch(self, imgs: np.ndarray, draws: list[Any] | None, depth: np.ndarray | None,
+                      states: list[dict[str, float]]) -> np.ndarray:
         params = self._params()
         out = np.empty_like(imgs)
         bgr = np.empty_like(imgs[0])  # one reused (cache-warm) buffer

@@ -37,10 +37,14 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
+from typing import Any, cast
 
 import cv2
 import numpy as np
+
+_FloatArray = np.ndarray | Sequence[float]
 
 __all__ = ["IOR_WATER", "drop_layout", "render_lens_drops"]
 
@@ -88,7 +92,7 @@ def _fresnel_out(alpha: np.ndarray, n: float) -> tuple[np.ndarray, np.ndarray]:
 
 @lru_cache(maxsize=1024)
 def _drop_maps(r: int, theta_deg: float, fx: float, look_up: float, edge: float, rim: float,
-               highlight: float, sx: float, sy: float) -> tuple[np.ndarray, ...]:
+               highlight: float, sx: float, sy: float) -> tuple[Any, ...]:
     """Cached per-drop arrays on the drop's padded box (side ``2 (r + pad) + 1``).
 
     Returns ``pad``; at half the box's size (``n = r + pad + 1``, flattened to ``n * n`` pixels
@@ -117,14 +121,14 @@ def _drop_maps(r: int, theta_deg: float, fx: float, look_up: float, edge: float,
     alpha, add = inside.astype(np.float32), (inside * spot * (255.0 * highlight)).astype(np.float32)
     shade = shade.astype(np.float32)
     if edge > 0.3:
-        alpha, shade, add = (cv2.GaussianBlur(a, (0, 0), edge) for a in (alpha, shade, add))
+        alpha, shade, add = (cv2.GaussianBlur(a, (0, 0), edge) for a in (alpha, shade, add))  # type: ignore[assignment]  # cv2's stubs drop the float32 dtype
     n = r + pad + 1  # the content is made at half size, then scaled up to the box
 
     def half(a: np.ndarray) -> np.ndarray:
         return cv2.resize(np.asarray(a, np.float32), (n, n), interpolation=cv2.INTER_AREA)
 
     def rgb(a: np.ndarray) -> np.ndarray:
-        return cv2.cvtColor(np.rint(np.clip(a, 0, 255)).astype(np.uint8), cv2.COLOR_GRAY2RGB)
+        return cast(np.ndarray, cv2.cvtColor(np.rint(np.clip(a, 0, 255)).astype(np.uint8), cv2.COLOR_GRAY2RGB))
 
     mxy, mf = cv2.convertMaps(half(offx / sx), half(offy / sy), cv2.CV_16SC2)
     out = [mxy.reshape(-1, 2), mf.reshape(-1), rgb(half(alpha * shade * 255.0)).reshape(-1, 3),
@@ -166,7 +170,8 @@ def _pad_to_reach(small: np.ndarray, shx: np.ndarray, shy: np.ndarray, reach: np
     return cv2.copyMakeBorder(small, top, bottom, left, right, cv2.BORDER_REPLICATE), (left, top)
 
 
-def render_lens_drops(img: np.ndarray, x, y, r, theta, out: np.ndarray | None = None, *,
+def render_lens_drops(img: np.ndarray, x: _FloatArray, y: _FloatArray, r: _FloatArray,
+                      theta: _FloatArray, out: np.ndarray | None = None, *,
                       hfov_deg: float = 90.0, look_up: float = 0.3, defocus: float = 0.006,
                       blur: float = 0.02, rim: float = 0.6, highlight: float = 0.5) -> np.ndarray:
     """Draw refracting drops (centres ``x, y``, radii ``r`` in px, contact angles ``theta`` in deg).

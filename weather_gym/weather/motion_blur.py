@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -62,7 +62,8 @@ class MotionBlur(EgoMotion):
     PARAM_BOUNDS: ClassVar = {"exposure_s": (0.001, 0.1), "near_depth_m": (0.5, 20.0),
                               "max_length_frac": (0.003, 0.15), "angle_deg": (-90.0, 90.0)}
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         if self.kind == "linear":
             kernel = line_kernel(round(self.k * self.max_length_frac * img.shape[1], 3), float(self.angle_deg))
             into(cv2.filter2D(img, -1, kernel, dst=out, borderType=cv2.BORDER_REFLECT), out)

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -61,11 +61,11 @@ def noise_sigma_lut(gain: float, full_well_e: float, read_noise_e: float, base_g
 
 
 def _phi(z: np.ndarray) -> np.ndarray:
-    return np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi)
+    return cast(np.ndarray, np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi))
 
 
 def _cdf(z: np.ndarray) -> np.ndarray:
-    return 0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0)))
+    return cast(np.ndarray, 0.5 * (1.0 + np.vectorize(math.erf)(z / math.sqrt(2.0))))
 
 
 @lru_cache(maxsize=64)
@@ -101,11 +101,12 @@ class Noise(KnobEffect):
     def _sigma(self) -> np.ndarray:
         return noise_sigma_lut(self.k * self.max_gain, self.full_well_e, self.read_noise_e)
 
-    def sample(self, rng, shape, episode=None):
+    def sample(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any = None) -> Any:
         """The random words of the frame's (or batch's) noise, :func:`sensor_noise_draw`; ``None`` at k = 0."""
         return None if self.k == 0.0 else sensor_noise_draw(rng, shape)
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         n = float(state.get("binning", 1.0) or 1.0)
         if n > 1.0:
             mean, sigma = binned_noise_luts(tuple(float(v) for v in self._sigma()), n)
@@ -113,7 +114,8 @@ class Noise(KnobEffect):
             return
         add_sensor_noise(img, None, self._sigma(), draw, out)
 
-    def _render_batch(self, imgs, draws, depth, states):
+    def _render_batch(self, imgs: np.ndarray, draws: Any, depth: np.ndarray | None,
+                      states: list[dict[str, float]]) -> np.ndarray:
         if any(float(s.get("binning", 1.0) or 1.0) > 1.0 for s in states):
             out = np.empty_like(imgs)
             for i in range(imgs.shape[0]):

@@ -30,16 +30,13 @@ from __future__ import annotations
 
 import copy
 import numbers
+import os
+import tomllib
 from pathlib import Path
 from typing import Any
 
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.weather.tables import effect_from_table
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 __all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "SEVERITIES", "canonical_condition",
            "load_presets", "preset_entry", "preset_spec"]
@@ -115,7 +112,7 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
     return {**meta, "calibrated": bool(calibrated), "calibrated_conditions": calibrated, "presets": out}
 
 
-def load_presets(path: str | Path | None = None) -> dict[str, Any]:
+def load_presets(path: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """Read and validate a presets file (default: the shipped one).
 
     Returns ``{<top-level keys>, "presets": {condition: {severity: table}}, "calibrated_conditions":
@@ -143,9 +140,11 @@ def preset_entry(condition: str, severity: int, path: str | Path | None = None) 
     if cond not in table:
         raise InputError(f"presets file {path or DEFAULT_PRESETS} has no rows for condition {cond!r} "
                          f"(it has: {', '.join(table)})")
-    return table[cond][sev]
+    entry: dict[str, Any] = table[cond][sev]
+    return entry
 
 
 def preset_spec(condition: str, severity: int, path: str | Path | None = None) -> list[dict[str, Any]]:
     """The effect list (``[{"name": ..., "k": ..., ...}]``) of a condition and severity."""
-    return preset_entry(condition, severity, path)["effects"]
+    effects: list[dict[str, Any]] = preset_entry(condition, severity, path)["effects"]
+    return effects

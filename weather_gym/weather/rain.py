@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -53,7 +53,7 @@ class Rain(KnobEffect):
     }
     PARAM_LIMITS: ClassVar = {"slant_deg": (-60.0, 60.0), "brightness": (0.0, 1.0), "thickness": (1, 10)}
 
-    def _sample_frame(self, rng, shape, episode):
+    def _sample_frame(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any) -> Any:
         """The frame's streaks: an ``(n, 2, 1, 2)`` int32 array of segment ends (pixels)."""
         h, w = shape[:2]
         n = int(rng.poisson(self.k * self.density * h * w / 1e4))
@@ -74,7 +74,8 @@ class Rain(KnobEffect):
             cv2.polylines(mask, list(segments), False, 255, self.thickness, cv2.LINE_AA)
         return mask
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         h, w = img.shape[:2]
         veil = self.k * self.haze
         w8 = cv2.convertScaleAbs(self.streak_mask(h, w, draw), alpha=self.streak_alpha * (1 - veil), beta=255 * veil)

@@ -45,7 +45,7 @@ def study_fog_positions(height: int, width: int, fog_coef: float,
     imshape = (height, width)
     hw = max(1, int(width // 3 * fog_coef))
 
-    haze_list = []
+    haze_list: list[tuple[int, int]] = []
     midx = width // 2 - 2 * hw
     midy = height // 2 - hw
     index = 1

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -49,7 +49,7 @@ class Ramp(Effect):
         if "k" in params:
             raise InputError("ramp: give k_start and k_end, not k")
         make(effect, k=float(k_start), **params)  # validates the effect name and its parameters
-        self._config = (effect, float(k_start), float(k_end), int(steps), tuple(sorted(params.items())))
+        self._config: tuple[str, float, float, int, tuple[tuple[str, Any], ...]] = (effect, float(k_start), float(k_end), int(steps), tuple(sorted(params.items())))
 
     effect = property(lambda self: self._config[0], doc="Name of the ramped effect.")
     k_start = property(lambda self: self._config[1], doc="k of the first frame.")
@@ -59,7 +59,7 @@ class Ramp(Effect):
 
     def k_at(self, step: int) -> float:
         """k after ``step`` frames of the episode."""
-        return self.k_start + (self.k_end - self.k_start) * min(step / self.steps, 1.0)
+        return float(self.k_start + (self.k_end - self.k_start) * min(step / self.steps, 1.0))
 
     def first(self) -> KnobEffect:
         """The effect at ``k_start``."""
@@ -71,11 +71,11 @@ class Ramp(Effect):
     @property
     def step(self) -> int:
         """Frames processed in the episode of the ramp's own run."""
-        return self._own_run.step
+        return cast(RampRun, self._own_run).step
 
     @property
     def k(self) -> float:
-        return self.current.k
+        return cast(KnobEffect, self.current).k
 
     def params(self) -> dict[str, Any]:
         return {"effect": self.effect, "k_start": self.k_start, "k_end": self.k_end, "steps": self.steps,
@@ -87,10 +87,11 @@ class Ramp(Effect):
         run = episode if episode is not None else self.start(None).episode
         return run.draw(shape, rng)
 
-    def _render(self, img, draw, depth, state, batched):
+    def _render(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: Any,
+                batched: bool) -> np.ndarray:
         if not batched:
             effect, d = draw
-            return effect._render(img, d, depth, state, False)
+            return effect._render(img, d, depth, state, False)  # type: ignore[no-any-return]  # draw: (KnobEffect, its draw)
         out = np.empty_like(img)
         for i, (effect, d) in enumerate(draw):  # each frame written straight into the batch
             if effect.k == 0.0:
@@ -138,6 +139,7 @@ class RampRun(EffectRun):
     """One episode of a :class:`Ramp`: the frame count and the run of the effect at the current k."""
 
     effect: Ramp
+    episode: _RampEpisode
 
     def restart(self, seed: SeedLike = None) -> None:
         self.rng = np.random.default_rng(check_seed(seed, self.effect.name))
@@ -152,5 +154,5 @@ class RampRun(EffectRun):
     def current(self) -> KnobEffect:
         return self.episode.effect
 
-    def sample(self, shape, rng=None):
+    def sample(self, shape: tuple[int, ...], rng: np.random.Generator | None = None) -> Any:
         return self.episode.draw(tuple(shape), rng)

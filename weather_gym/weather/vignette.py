@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -53,7 +53,8 @@ class Vignette(KnobEffect):
     PARAM_BOUNDS: ClassVar = {"exponent": (0.5, 8.0)}
     PARAM_LIMITS: ClassVar = {"center_x": (0.0, 1.0), "center_y": (0.0, 1.0)}
 
-    def _render_into(self, img, draw, depth, state, out):
+    def _render_into(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
+                     out: np.ndarray) -> None:
         h, w = img.shape[:2]
         g = _gain_map(h, w, self.k, self.exponent, self.center_x, self.center_y)
         into(cv2.multiply(img, g, dst=out, scale=1 / 255), out)

@@ -20,7 +20,17 @@ The lazily exported names:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from weather_gym._lazy import lazy_exports
+
+if TYPE_CHECKING:  # the lazily exported names, for type checkers
+    from weather_gym.wrappers.detector import DetectorWrapper  # noqa: F401
+    from weather_gym.wrappers.episode_statistics import EpisodeStatistics, latencies  # noqa: F401
+    from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise  # noqa: F401
+    from weather_gym.wrappers.surrogate import SurrogatePerceptionWrapper  # noqa: F401
+    from weather_gym.wrappers.weather import WeatherWrapper  # noqa: F401
+    from weather_gym.wrappers.weather_randomizer import RandomWeather, WeatherRandomizer  # noqa: F401
 
 # public name -> module that defines it
 _LAZY = {

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any
+from typing import Any, SupportsFloat, cast
 
 import gymnasium as gym
 import numpy as np
@@ -46,6 +46,7 @@ from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
 from weather_gym.perception.detector_spec import DetectorSpec, as_detector, load_detector
 from weather_gym.perception.ranging import (
     DEPTH_QUANTILE,
+    Undistort,
     check_depth_quantile,
     cones_to_observation,
     detections_to_cones,
@@ -138,11 +139,11 @@ class DetectorWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
                                      resize=detector_resize, input_size=detector_input, threads=threads)
         self.detector = as_detector(detector)
         self.image_key = image_key
-        self.depth_key = depth_key if (use_depth and self._is_dict and depth_key in space.spaces) else None
+        self.depth_key = depth_key if (use_depth and isinstance(space, spaces.Dict) and depth_key in space.spaces) else None
         self.max_cones = max_cones
         self.keep_image = keep_image
         out = dict(cone_list_space(max_cones).spaces)
-        if self._is_dict:
+        if isinstance(space, spaces.Dict):
             for k, v in space.spaces.items():
                 if k not in (image_key, depth_key) or (k == image_key and keep_image):
                     out[k] = v
@@ -168,12 +169,12 @@ class DetectorWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         self._last_detections = ConeArrays({**det.to_dict(), "ranges": cones["ranges"].astype(np.float32),
                                             "bearings": cones["bearings"].astype(np.float32)})
         out: dict[str, np.ndarray] = {"cones": packed, "mask": mask}
-        for k in self.observation_space.spaces:
+        for k in cast(spaces.Dict, self.observation_space).spaces:
             if k not in out:
                 out[k] = observation[k] if self._is_dict else image
         return out
 
-    def _undistort(self):
+    def _undistort(self) -> Undistort | None:
         """The lens's inverse when the env's camera model distorts (a calibrated camera: bearings and
         ranges are computed in the pinhole image), else None."""
         pipe = getattr(getattr(self.env, "unwrapped", None), "camera_pipeline", None)
@@ -186,10 +187,11 @@ class DetectorWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             info["detector_latency_ms"] = self._last_latency
         return info
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None
+              ) -> tuple[Any, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
         return self.observation(obs), self._add_info(info)
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         return self.observation(obs), reward, terminated, truncated, self._add_info(info)

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, SupportsFloat, cast
 
 import gymnasium as gym
 import numpy as np
@@ -90,11 +90,13 @@ class OracleNoise:
 
 
 def oracle_cones(gt: dict, camera: CameraConfig, noise: OracleNoise | None = None,
-                 rng: np.random.Generator | None = None, max_cones: int = DEFAULT_MAX_CONES):
+                 rng: np.random.Generator | None = None, max_cones: int = DEFAULT_MAX_CONES
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """``(cones, mask)`` from one frame's ground truth, degraded by ``noise`` with ``rng``."""
     noise = noise or OracleNoise()
     if not noise.is_perfect and rng is None:
         raise InputError("oracle_cones: a numpy Generator is needed when noise is enabled")
+    rng = cast(np.random.Generator, rng)  # None only with perfect noise, which draws nothing
     if gt is None:
         gt = {}
     n = len(gt.get("classes", ()))
@@ -180,13 +182,14 @@ class GroundTruthConeWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             out["image"] = obs["image"]
         return out
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None
+              ) -> tuple[Any, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
         if seed is not None or self._rng is None:
             # a child of the env's seeded generator: reproducible, and the env's own stream is untouched
             self._rng = self.env.unwrapped.np_random.spawn(1)[0]
         return self._convert(obs, info), info
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         return self._convert(obs, info), reward, terminated, truncated, info

@@ -50,7 +50,7 @@ import copy
 import os
 import time
 import warnings
-from typing import Any
+from typing import Any, SupportsFloat, cast
 
 import gymnasium as gym
 import numpy as np
@@ -200,7 +200,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if view is not None and view == self._view and self._last is not None:
             self._sampler.hold(gt, self._step)  # a still frame: the same detections (see the module doc)
         else:
-            self._last = ConeArrays.trusted(self._sampler(gt, self._rng, self._step))
+            self._last = ConeArrays.trusted(self._sampler(gt, cast(np.random.Generator, self._rng), self._step))  # reset() drew it
         self._view = view
         det = self._last
         cones, mask = pack_cones(classes=det["classes"], ranges=det["ranges"], bearings=det["bearings"],
@@ -218,7 +218,8 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             out_info["detector_latency_ms"] = self._latency
         return {"cones": cones, "mask": mask, "state": np.asarray(obs["state"], dtype=np.float32)}, out_info
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None
+              ) -> tuple[Any, dict[str, Any]]:
         options = dict(options or {})
         if "weather" in options:
             self.set_weather(options.pop("weather"))
@@ -230,7 +231,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._view = None
         return self._convert(obs, info)
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         obs, info = self._convert(obs, info)
         return obs, reward, terminated, truncated, info

@@ -53,7 +53,7 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -186,7 +186,8 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             self._run = self._weather.start(None)
         return self._run
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Any, dict[str, Any]]:
         options = dict(options or {})
         if "weather" in options:
             self._weather = parse_weather(options.pop("weather"))
@@ -195,7 +196,7 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         obs = self.observation(obs)
         return obs, self._info(info)
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         obs = self.observation(obs)
         return obs, reward, terminated, truncated, self._info(info)
@@ -228,7 +229,7 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
                                         state=self._state(observation), rng=self._rng)
             out = {**observation, self.image_key: image}
         else:
-            image = out = self._episode_run()(observation, rng=self._rng)
+            image = out = self._episode_run()(observation, rng=self._rng)  # type: ignore[assignment]  # out: an image here
         self._latency_ms = 1000.0 * (time.perf_counter() - t0)
         self._last_image = image
         return out

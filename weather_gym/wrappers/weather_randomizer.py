@@ -31,7 +31,7 @@ import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from functools import cached_property
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -190,7 +190,8 @@ class WeatherRandomizer(gym.Wrapper, gym.utils.RecordConstructorArgs):
         spec, self.draw = self.config.sample(self._rng)
         return spec
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[Any, dict[str, Any]]:
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=_SPAWN_KEY))
         options = dict(options or {})
@@ -203,7 +204,7 @@ class WeatherRandomizer(gym.Wrapper, gym.utils.RecordConstructorArgs):
         obs, info = self.env.reset(seed=seed, options=options)
         return obs, {**info, "weather_draw": self.draw}
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         if (self.config.schedule == "step" and self.draw != "explicit" and self._steps > 0
                 and self._steps % self.config.every == 0):
             self.env.get_wrapper_attr("set_weather")(self._next())

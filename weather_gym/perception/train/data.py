@@ -155,11 +155,11 @@ def build_targets(boxes: np.ndarray, classes: np.ndarray, ignore: np.ndarray, in
             x0, x1, y0, y1 = max(0, ix - r), min(ow, ix + r + 1), max(0, iy - r), min(oh, iy + r + 1)
             gx, gy = np.meshgrid(np.arange(x0, x1), np.arange(y0, y1))
             d = (gx + 0.5 - cx) ** 2 + (gy + 0.5 - cy) ** 2
-            near = d < hdist[y0:y1, x0:x1]
-            hdist[y0:y1, x0:x1][near] = d[near]
+            near = d < hdist[y0:y1, x0:x1]  # type: ignore[index]  # made with hreg
+            hdist[y0:y1, x0:x1][near] = d[near]  # type: ignore[index]  # made with hreg
             for ch, v in enumerate((size[k - 1, 0], size[k - 1, 1], cx - gx, cy - gy)):
                 hreg[ch, y0:y1, x0:x1][near] = np.broadcast_to(v, d.shape)[near]
-            hmask[y0:y1, x0:x1][near] = 1.0
+            hmask[y0:y1, x0:x1][near] = 1.0  # type: ignore[index]  # made with hreg
     if hreg is not None:
         return heat, ign, ind, size, off, mask, hreg, hmask
     return heat, ign, ind, size, off, mask

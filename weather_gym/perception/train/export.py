@@ -58,7 +58,7 @@ def export_onnx(net: ConeNet, path: str | os.PathLike, input_size: tuple[int, in
     buf = io.BytesIO()  # made in memory, then written by the safe writer: a full disk is an OutputPathError
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        torch.onnx.export(model, torch.zeros(1, 3, h, w), buf, input_names=["images"],
+        torch.onnx.export(model, torch.zeros(1, 3, h, w), buf, input_names=["images"],  # type: ignore[arg-type]  # one input tensor and a file object: torch takes both
                           output_names=["output"], dynamic_axes={"images": {0: "batch"}, "output": {0: "batch"}},
                           opset_version=17, dynamo=False)
     onnx.checker.check_model(onnx.load_from_string(buf.getvalue()))
@@ -139,7 +139,7 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:  # noqa
             raise FileFormatError(f"{path}: not a ConeNet export that a ConeNet with hidden-cone boxes can start from")
         with torch.no_grad():  # the heatmaps as they were; the boxes start from the prior (size 1 cell, mid-cell)
             net.out_hidden.weight[: net.num_classes] = heads.out_hidden.weight
-            net.out_hidden.bias[: net.num_classes] = heads.out_hidden.bias
+            net.out_hidden.bias[: net.num_classes] = heads.out_hidden.bias  # type: ignore[index, assignment]  # a Conv2d made with a biass
         return net
     if len(order) != len(onnx_convs) and net.stride == 2:
         coarse = load_onnx_weights(ConeNet(net.num_classes, stride=4), path)
@@ -148,10 +148,10 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:  # noqa
             raise FileFormatError(f"{path}: not a ConeNet export that a stride-2 ConeNet can start from")
         for m in [*net.lateral_fine.modules(), *net.smooth_fine.modules()]:  # the fresh level's batch norms:
             if isinstance(m, torch.nn.BatchNorm2d):  # identity, as the loaded ones
-                m.running_mean.zero_()
-                m.running_var.fill_(1.0 - m.eps)
+                m.running_mean.zero_()  # type: ignore[union-attr]  # a BatchNorm2d tracks its running stats
+                m.running_var.fill_(1.0 - m.eps)  # type: ignore[union-attr]  # a BatchNorm2d tracks its running stats
         with torch.no_grad():  # log(w / 4) -> log(w / 2)
-            net.out.bias[net.num_classes : net.num_classes + 2] += math.log(2.0)
+            net.out.bias[net.num_classes : net.num_classes + 2] += math.log(2.0)  # type: ignore[index]  # a Conv2d made with a bias
         return net
     if len(order) != len(onnx_convs):
         raise FileFormatError(f"{path}: {len(onnx_convs)} convolutions, but ConeNet has {len(order)}: not a ConeNet export")
@@ -171,8 +171,8 @@ def load_onnx_weights(net: ConeNet, path: str | os.PathLike) -> ConeNet:  # noqa
             conv.weight.copy_(torch.from_numpy(weight.copy()))
             bn = bn_after.get(conv)
             if bn is not None:
-                bn.running_mean.zero_()
-                bn.running_var.fill_(1.0 - bn.eps)
+                bn.running_mean.zero_()  # type: ignore[union-attr]  # a BatchNorm2d tracks its running stats
+                bn.running_var.fill_(1.0 - bn.eps)  # type: ignore[union-attr]  # a BatchNorm2d tracks its running stats
                 bn.weight.fill_(1.0)
                 bn.bias.copy_(torch.from_numpy(bias.copy()) if bias is not None else torch.zeros_like(bn.bias))
             elif conv.bias is not None and bias is not None:
@@ -212,6 +212,6 @@ def _grow(net: ConeNet, file_layout: dict[str, Any], path: Path) -> ConeNet:
     with torch.no_grad():
         for name, mod in net.named_modules():
             if name in added and isinstance(mod, DWBlock):
-                mod.pw[1].weight.zero_()
-                mod.pw[1].bias.zero_()
+                mod.pw[1].weight.zero_()  # type: ignore[operator]  # pw[1] is a BatchNorm2d
+                mod.pw[1].bias.zero_()  # type: ignore[operator]  # pw[1] is a BatchNorm2d
     return net

@@ -127,7 +127,7 @@ def _eval_map(net: ConeNet, val, cfg: TrainConfig, max_images: int = 200) -> flo
 
 def _same_run(ckpt: Path, state: dict, cfg: TrainConfig, data: list) -> None:
     """Refuse to resume ``ckpt`` with other settings or data (InputError naming what differs)."""
-    before = state.get("config") if isinstance(state.get("config"), dict) else {}
+    before: dict[str, Any] = state.get("config") if isinstance(state.get("config"), dict) else {}  # type: ignore[assignment]  # a dict: checked
     now = asdict(cfg)
     diff = [k for k in now if before.get(k) != now[k]] + [k for k in before if k not in now]
     if state.get("data") != [str(d) for d in data]:
@@ -197,7 +197,7 @@ def _train_locked(data: list, out: Path, cfg: TrainConfig, *, val, resume: bool,
     if cfg.init is not None:
         load_onnx_weights(net, cfg.init)
     device = _device(cfg.device)
-    net = net.to(device, memory_format=torch.channels_last)  # much faster convolutions on CPU
+    net = net.to(device, memory_format=torch.channels_last)  # type: ignore[call-overload]  # torch's stubs lack memory_format; much faster convolutions on CPU
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     steps_per_epoch = math.ceil(frames.epoch_size() / cfg.batch_size)
     total_steps = steps_per_epoch * cfg.epochs if cfg.max_steps is None else min(cfg.max_steps, steps_per_epoch * cfg.epochs)
