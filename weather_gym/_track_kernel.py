@@ -19,8 +19,10 @@ import math
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 
-@numba.njit(cache=True, nogil=True)
+
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def project_point(x, y, ax, ay, dx, dy, half, len2, seg_len, s_a, h, closed, length, use_hint, s_hint,
                    window):  # pragma: no cover (compiled)
     """:meth:`weather_gym._track.Track.project` of one point, operation for operation as the array path computes it:

@@ -12,7 +12,7 @@ byte, in one pass without Python between the drops:
 * ``cv2.add(roi, big, dst=roi)``, saturating.
 
 ``tests/weather/test_weather_lens_drops.py`` checks the result against those OpenCV calls drop by drop.
-numba compiles the kernel on first use (cached on disk afterwards).
+numba compiles the kernel on first use (cached on disk afterwards where a cache folder is writable: weather_gym._jit_cache).
 
 Example:
     >>> import numpy as np
@@ -31,6 +31,7 @@ from functools import lru_cache
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 from weather_gym.weather._common import into
 
 __all__ = ["blend_drops", "resize_tables"]
@@ -110,7 +111,7 @@ def _blend_row(orow, h0, h1, b0, b1, keep):
         orow[k] = min(o, c255)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _blend(out2, content, keep, nn, cstart, wstart, cx, cy, x0, y0, x1, y1, xo, xa, yo, ya):
     """:func:`blend_drops` on flat arrays: ``out2`` the frame as rows of bytes, ``content`` and ``keep`` the
     drops' bytes one after another from ``cstart`` (pixels) and ``wstart`` (bytes), the tables of
