@@ -29,6 +29,7 @@ import argparse
 import contextlib
 import contextvars
 import importlib
+import io
 import pkgutil
 import signal
 import sys
@@ -153,11 +154,31 @@ def _terminate_as_exit():
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def _names_print_as_given():
+    """While a command runs, a file name that is not UTF-8 (``'caf\\udce9.png'``) prints as its own bytes
+    on stdout and stderr (``surrogateescape``, as Python does under the C locale) instead of raising
+    ``UnicodeEncodeError`` under a UTF-8 locale; the streams' error handlers are restored afterwards."""
+    changed = []
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
+            with contextlib.suppress(Exception):
+                stream.reconfigure(errors="surrogateescape")
+                changed.append(stream)
+    try:
+        yield
+    finally:
+        for stream in changed:
+            with contextlib.suppress(Exception):
+                stream.reconfigure(errors="strict")
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(command_of(argv))
-    args = parser.parse_args(argv)
-    return run_command(args.func, args)
+    with _names_print_as_given():
+        parser = build_parser(command_of(argv))
+        args = parser.parse_args(argv)
+        return run_command(args.func, args)
 
 
 if __name__ == "__main__":  # pragma: no cover

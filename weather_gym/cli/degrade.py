@@ -29,6 +29,7 @@ A command line parsed (nothing runs):
 
 from __future__ import annotations
 
+import os
 import zlib
 from pathlib import Path
 
@@ -36,6 +37,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from weather_gym._image_files import opencv_name, read_image_file
 from weather_gym._io import atomic_path, check_output, declare_inputs, write_image
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import seed_arg
@@ -78,7 +80,7 @@ def _read_rgb(path: Path):
 
 
 def _read_depth(path: Path, shape):
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
+    raw = read_image_file(path, cv2.IMREAD_UNCHANGED) if path.is_file() else None
     if raw is None or raw.ndim != 2:
         raise FileFormatError(f"{path}: expected a single-channel uint16 depth PNG in millimetres")
     if raw.shape != tuple(shape[:2]):
@@ -89,7 +91,7 @@ def _read_depth(path: Path, shape):
 
 
 def _image_seed(seed: int, rel: Path):
-    return np.random.SeedSequence(seed, spawn_key=(zlib.crc32(rel.as_posix().encode()),))
+    return np.random.SeedSequence(seed, spawn_key=(zlib.crc32(os.fsencode(rel.as_posix())),))
 
 
 def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path, overwrite: bool) -> None:
@@ -148,7 +150,7 @@ class _Cv2Video:
         self._output = atomic_path(dst, overwrite=overwrite)
         tmp = self._tmp = self._output.__enter__()
         fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))
-        self.writer = cv2.VideoWriter(str(tmp), fourcc, fps, size)
+        self.writer = cv2.VideoWriter(opencv_name(tmp, what="OUTPUT video"), fourcc, fps, size)
         if not self.writer.isOpened():
             self.abort()
             raise OutputPathError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
@@ -159,7 +161,7 @@ class _Cv2Video:
 
     def close(self) -> None:
         self.writer.release()
-        cap = self._cv2.VideoCapture(str(self._tmp))  # OpenCV's writer drops failed writes without a word
+        cap = self._cv2.VideoCapture(opencv_name(self._tmp, what="OUTPUT video"))  # OpenCV's writer drops failed writes without a word
         try:
             n = int(cap.get(self._cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
         finally:
@@ -176,7 +178,8 @@ class _Cv2Video:
 
 
 def _video(weather, src: Path, dst: Path, args) -> int:
-    cap = cv2.VideoCapture(str(src))
+    opencv_name(dst, what="OUTPUT video")  # before anything is opened or written
+    cap = cv2.VideoCapture(opencv_name(src, what="video"))
     try:
         if not cap.isOpened():
             raise FileFormatError(f"{src}: OpenCV cannot open this video")

@@ -20,6 +20,7 @@ import cv2
 from PIL import Image
 
 from weather_gym._confine import confined_file, walk_files
+from weather_gym._image_files import read_image_file
 from weather_gym.errors import FileFormatError, LimitError, MissingInputError
 from weather_gym.limits import MAX_IMAGE_PIXELS, check_image_size
 
@@ -146,13 +147,13 @@ def image_size(fr: SourceFrame, src: Path) -> tuple[int, int]:
     if w is not None:
         check_image_size((h, w), what=str(where))
     if mode is None:  # Pillow could not tell the channels: OpenCV's undecorated decode does
-        raw = cv2.imread(str(fr.image), cv2.IMREAD_UNCHANGED)
+        raw = read_image_file(fr.image, cv2.IMREAD_UNCHANGED)
         channels = None if raw is None or raw.size == 0 else (1 if raw.ndim == 2 else raw.shape[2])
     else:
         channels = 1 if mode in _GREY_MODES else 3
     if channels is not None and channels not in (3, 4):
         raise FileFormatError(f"image file {where} has {channels} channel(s); expected colour (RGB) frames")
-    img = cv2.imread(str(fr.image), cv2.IMREAD_COLOR)  # as weather_gym.datasets.coco.read_image decodes it
+    img = read_image_file(fr.image, cv2.IMREAD_COLOR)  # as weather_gym.datasets.coco.read_image decodes it
     if img is None or img.size == 0:
         raise FileFormatError(f"image file {where} could not be decoded as an image")
     check_image_size(img.shape, what=str(where))
