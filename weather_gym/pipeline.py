@@ -38,6 +38,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from weather_gym.envs.checker import PassiveEnvCheckerSafeReset
 from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.registration import check_env_id, scenario_of
 from weather_gym.envs.scenario import Scenario, build_config, episode_steps, load_scenario
@@ -86,7 +87,8 @@ def _scenario_perception(sc: Scenario) -> tuple[str, Any, dict[str, Any]]:
 
 def make_scenario_env(scenario: str, render_mode: str | None = None, *, perception: str | None = None,
                       weather: Any = None, severity: int | None = None, detector: Any = None,
-                      perception_kwargs: Mapping[str, Any] | None = None, **overrides: Any) -> gym.Env:
+                      perception_kwargs: Mapping[str, Any] | None = None, env_checker: bool = False,
+                      **overrides: Any) -> gym.Env:
     """Entry point of the registered ids (``gym.make``): the scenario's env, weather and perception.
 
     Keywords: ``perception`` (a mode of :data:`PERCEPTION_MODES`; default: the scenario's, else
@@ -94,7 +96,9 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     ``perception_kwargs`` (see :func:`wrap_pipeline`; ``detector=True`` or a dict of
     ``DetectorWrapper`` keywords, the older form, mean ``perception="detector"`` with those keywords);
     the rest override the scenario's ``EnvConfig`` (``track=``, ``camera={"width": 336, "height":
-    188}``, ``laps=``...).
+    188}``, ``laps=``...). ``env_checker=True`` (what the registered ids pass) puts Gymnasium's passive
+    env checker around the result, in the version that survives a refused first reset
+    (:class:`~weather_gym.envs.checker.PassiveEnvCheckerSafeReset`).
     """
 
     sc = load_scenario(scenario)
@@ -116,8 +120,9 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     overrides = {**mode.env_overrides, **overrides}
     env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
     try:
-        return wrap_pipeline(env, weather=_weather_spec(sc, weather, severity), perception=perception,
-                             detector=detector, perception_kwargs=perception_kwargs)
+        env = wrap_pipeline(env, weather=_weather_spec(sc, weather, severity), perception=perception,
+                            detector=detector, perception_kwargs=perception_kwargs)
+        return PassiveEnvCheckerSafeReset(env) if env_checker else env
     except BaseException:
         env.close()
         raise
