@@ -113,6 +113,7 @@ def labelled_frames(images: Path, labels: Path, src: Path, fmt: str, *, unmatche
     stems = {p.relative_to(images).with_suffix("") for p in imgs}
     unmatched += [rel_path(p, src) for p in walk_files(labels, src)
                   if p.suffix == ".txt" and p.relative_to(labels).with_suffix("") not in stems]
+    check_one_image_per_label(imgs, [(labels / img.relative_to(images)).with_suffix(".txt") for img in imgs])
     for img in imgs:
         lab = (labels / img.relative_to(images)).with_suffix(".txt")
         if not lab.is_file():
@@ -121,6 +122,17 @@ def labelled_frames(images: Path, labels: Path, src: Path, fmt: str, *, unmatche
         fr = source_frame(img, rel_path(img, images), src)
         fr.label = lab
         yield lab, fr
+
+
+def check_one_image_per_label(images: Sequence[Path], labels: Sequence[Path]) -> None:
+    """Refuse two images that would take their boxes from one label file (``a.jpg`` and ``a.png`` beside
+    ``a.txt``): a label file describes one image, so one of them would get boxes that are not its own."""
+    seen: dict[Path, Path] = {}
+    for img, lab in zip(images, labels, strict=True):
+        if lab in seen:
+            raise FileFormatError(f"{seen[lab]} and {img} share the label file {lab}, which describes one image; "
+                                  "give each image its own label file (same name, .txt) or remove one")
+        seen[lab] = img
 
 
 _GREY_MODES = frozenset({"1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "F"})
