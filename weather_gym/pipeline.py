@@ -42,8 +42,14 @@ from weather_gym.envs.checker import PassiveEnvCheckerSafeReset
 from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.registration import check_env_id, scenario_of
 from weather_gym.envs.scenario import Scenario, build_config, episode_steps, load_scenario
-from weather_gym.errors import InputError, LimitError, StateError
-from weather_gym.perception_modes import PERCEPTION_MODES, default_mode, detector_mode, perception_mode
+from weather_gym.errors import FileFormatError, InputError, LimitError, StateError
+from weather_gym.perception_modes import (
+    PERCEPTION_MODES,
+    check_perception_kwargs,
+    default_mode,
+    detector_mode,
+    perception_mode,
+)
 from weather_gym.wrappers import EpisodeStatistics
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
@@ -79,9 +85,17 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str | None =
 
 
 def _scenario_perception(sc: Scenario) -> tuple[str, Any, dict[str, Any]]:
+    """The scenario's ``[perception]`` table as (mode, detector, wrapper keywords), checked against the
+    mode's wrapper: an unknown mode or keyword is a :class:`FileFormatError` naming the file."""
     table = dict(sc.perception or {})
     mode = table.pop("mode", default_mode().name)
     detector = table.pop("detector", None)
+    if sc.perception is not None:
+        try:
+            perception_mode(mode)
+        except InputError as exc:
+            raise FileFormatError(f"{sc.path} [perception] mode: {exc}") from None
+        check_perception_kwargs(mode, table, what=f"{sc.path} [perception]", error=FileFormatError)
     return mode, detector, table
 
 
