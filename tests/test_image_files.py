@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import weather_gym
-from weather_gym._image_files import opencv_name, read_image_file, shown
+from weather_gym._image_files import colour_conversions, opencv_name, read_image_file, shown
 from weather_gym.datasets.coco import load_coco, read_image
 from weather_gym.errors import InputError
 
@@ -132,3 +132,64 @@ def test_degrade_a_video_whose_name_is_not_utf8_is_a_typed_error_naming_it(tmp_p
     assert run.returncode == 2, run.stderr
     assert b"caf\\xe9.mp4" in run.stderr and b"not UTF-8" in run.stderr
     assert not (tmp_path / "out.mp4").exists()
+
+
+def _png(path: Path, img: np.ndarray) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(cv2.imencode(".png", img)[1].tobytes())
+    return path
+
+
+def test_colour_conversions_read_from_the_header(tmp_path):
+    rgb = np.full((8, 10, 3), 120, np.uint8)
+    assert colour_conversions(_png(tmp_path / "rgb.png", rgb)) == ()
+    assert colour_conversions(_png(tmp_path / "grey.png", rgb[..., 0])) == ("grey",)
+    assert colour_conversions(_png(tmp_path / "rgba.png", np.dstack([rgb, rgb[..., 0]]))) == ("alpha",)
+    assert colour_conversions(_png(tmp_path / "deep.png", rgb.astype(np.uint16) * 257)) == ("16-bit",)
+    deep_grey_alpha = np.dstack([rgb[..., :1], rgb[..., :1], rgb[..., :1], rgb[..., :1]]).astype(np.uint16)
+    assert colour_conversions(_png(tmp_path / "dga.png", deep_grey_alpha)) == ("alpha", "16-bit")
+    (tmp_path / "grey.jpg").write_bytes(cv2.imencode(".jpg", rgb[..., 0])[1].tobytes())
+    assert colour_conversions(tmp_path / "grey.jpg") == ("grey",)  # through Pillow
+    assert colour_conversions(tmp_path / "missing.png") == ()
+
+
+def test_degrade_says_what_it_converted(tmp_path, capsys):
+    from weather_gym.cli import main
+
+    rgb = np.full((40, 60, 3), 120, np.uint8)
+    src = tmp_path / "in"
+    _png(src / "rgba16.png", np.dstack([rgb, rgb[..., 0]]).astype(np.uint16) * 257)
+    _png(src / "grey.png", rgb[..., 0])
+    _png(src / "plain.png", rgb)
+    assert main(["degrade", str(src / "rgba16.png"), str(tmp_path / "one.png"), "--weather", "fog:0.3", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "note: " in err and "rgba16.png read as 8-bit RGB: alpha channel dropped (not composited), 16 bits" in err
+    out = read_image_file(tmp_path / "one.png", cv2.IMREAD_UNCHANGED)
+    assert out.dtype == np.uint8 and out.shape == (40, 60, 3)
+    assert main(["degrade", str(src), str(tmp_path / "out"), "--weather", "fog:0.3", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert ("note: 2 image(s) read as 8-bit RGB: grey copied into R, G and B in 1, alpha channel dropped "
+            "(not composited) in 1, 16 bits per channel reduced to 8 (the high byte) in 1") in err
+    assert main(["degrade", str(src / "plain.png"), str(tmp_path / "p.png"), "--weather", "fog:0.3", "--quiet"]) == 0
+    assert "note:" not in capsys.readouterr().err
+
+
+def test_dataset_import_says_which_frames_are_read_as_8bit_rgb(tmp_path, capsys):
+    from weather_gym.cli import main
+
+    rgb = np.full((120, 160, 3), 90, np.uint8)
+    src = tmp_path / "src"
+    _png(src / "images" / "a.png", np.dstack([rgb, rgb[..., 0]]))
+    _png(src / "images" / "b.png", rgb.astype(np.uint16) * 257)
+    _png(src / "images" / "c.png", rgb)
+    (src / "labels").mkdir()
+    for n in "abc":
+        (src / "labels" / f"{n}.txt").write_text("0 0.25 0.5 0.1 0.5\n")
+    (src / "classes.txt").write_text("blue_cone\n")
+    assert main(["dataset", "import", "yolo", str(src), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert ("note: 2 frame(s) that are not 8-bit colour (stored as they are) read as 8-bit RGB: alpha channel "
+            "dropped (not composited) in 1, 16 bits per channel reduced to 8 (the high byte) in 1") in err
+    ds = load_coco(tmp_path / "out")
+    assert ds.info["read_as_8bit_rgb"] == {"frames": 2, "alpha": 1, "16-bit": 1}
+    assert ds.image(1).dtype == np.uint8 and ds.image(1).shape == (120, 160, 3)

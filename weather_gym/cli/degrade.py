@@ -17,6 +17,9 @@ Examples:
   unreadable image in a folder stops the run, naming it, unless ``--skip-unreadable``.
 * Randomness: each image gets its own generator from ``--seed`` and its relative path (so the
   result does not depend on the order or on resuming); a video is one episode from ``--seed``.
+* Frames that are not 8-bit colour are read as 8-bit RGB, and a note on stderr says so: a grey frame
+  is copied into R, G and B, an alpha channel is dropped (not composited), 16 bits per channel become 8
+  (the high byte); the output is 8-bit RGB.
 * ``--depth``: metric depth as uint16 PNG in millimetres (the dataset layout), a file for an
   image or a folder mirroring the input folder (same relative names, .png).
 
@@ -30,14 +33,23 @@ A command line parsed (nothing runs):
 from __future__ import annotations
 
 import os
+import sys
 import zlib
+from collections import Counter
 from pathlib import Path
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym._image_files import opencv_name, read_image_file
+from weather_gym._image_files import (
+    CONVERSIONS,
+    colour_conversions,
+    conversion_note,
+    opencv_name,
+    read_image_file,
+    shown,
+)
 from weather_gym._io import atomic_path, check_output, declare_inputs, write_image
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import seed_arg
@@ -94,11 +106,14 @@ def _image_seed(seed: int, rel: Path):
     return np.random.SeedSequence(seed, spawn_key=(zlib.crc32(os.fsencode(rel.as_posix())),))
 
 
-def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path, overwrite: bool) -> None:
+def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path,
+               overwrite: bool) -> tuple[str, ...]:
+    """Degrade one image; returns the conversions reading it as 8-bit RGB made (``colour_conversions``)."""
     img = _read_rgb(src)
     check_image_size(img.shape, what=str(src))
     d = _read_depth(depth, img.shape) if depth is not None else None
     write_image(dst, weather.start(_image_seed(seed, rel))(img, depth=d), overwrite=overwrite)
+    return colour_conversions(src)
 
 
 def _folder(weather, args) -> int:
@@ -112,6 +127,8 @@ def _folder(weather, args) -> int:
         raise MissingInputError(f"{src_root}: no images ({', '.join(IMAGE_EXTS)}) found")
     done = skipped = 0
     unreadable: list[str] = []
+    converted: Counter = Counter()
+    n_converted = 0
     for src in tqdm(files, desc="degrade", unit="img", disable=args.quiet):
         rel = src.relative_to(src_root)
         dst = out_root / rel
@@ -124,7 +141,9 @@ def _folder(weather, args) -> int:
             if not depth.is_file():
                 raise MissingInputError(f"{depth}: no depth map for {src}")
         try:
-            _one_image(weather, src, dst, depth, args.seed, rel, args.overwrite)
+            conv = _one_image(weather, src, dst, depth, args.seed, rel, args.overwrite)
+            converted.update(conv)
+            n_converted += bool(conv)
         except FileFormatError as exc:
             if not args.skip_unreadable:
                 raise FileFormatError(f"{exc} (pass --skip-unreadable to skip such images; {done} written so far, "
@@ -133,6 +152,9 @@ def _folder(weather, args) -> int:
             continue
         done += 1
     print(f"wrote {done} image(s) to {out_root}" + (f", skipped {skipped} that already existed" if skipped else ""))
+    if converted:
+        print(conversion_note({k: converted[k] for k in CONVERSIONS}, f"{n_converted} image(s)")
+              + "; their outputs are 8-bit RGB", file=sys.stderr)
     if unreadable:
         shown = ", ".join(unreadable[:10]) + (f" and {len(unreadable) - 10} more" if len(unreadable) > 10 else "")
         print(f"skipped {len(unreadable)} unreadable image(s): {shown}")
@@ -242,6 +264,8 @@ def _run(args) -> int:
         if args.depth is not None:
             raise InputError("--depth is not supported for videos")
         return _video(weather, src, dst, args)
-    _one_image(weather, src, dst, args.depth, args.seed, Path(src.name), args.overwrite)
+    converted = _one_image(weather, src, dst, args.depth, args.seed, Path(src.name), args.overwrite)
     print(f"wrote {dst}")
+    if converted:
+        print(conversion_note(converted, shown(src)) + "; the output is 8-bit RGB", file=sys.stderr)
     return 0
