@@ -13,8 +13,8 @@ Every read of a user's image file in the package goes through :func:`read_image_
 
 **Frames that are not 8-bit colour.** The package works on 8-bit RGB frames, and OpenCV's colour
 decode (``cv2.IMREAD_COLOR``) converts every other frame to one: a grey frame is copied into R, G and B;
-an alpha channel is dropped (not composited onto a background); 16 bits per channel become 8 (the
-high byte). :func:`colour_conversions` says which of these reading a file makes (from its header), so
+an alpha channel is dropped (not composited onto a background); 16 bits per channel become 8 (a
+PNG's high byte, a TIFF scaled by 1/257). :func:`colour_conversions` says which of these reading a file makes (from its header), so
 that the commands that read a user's frames say so in a note (``degrade``, ``dataset import``) instead
 of flattening them without a word.
 
@@ -43,7 +43,7 @@ from weather_gym.errors import InputError
 __all__ = ["CONVERSIONS", "colour_conversions", "conversion_note", "read_image_file", "opencv_name", "shown"]
 
 CONVERSIONS = {"grey": "grey copied into R, G and B", "alpha": "alpha channel dropped (not composited)",
-               "16-bit": "16 bits per channel reduced to 8 (the high byte)"}
+               "16-bit": "16 bits per channel reduced to 8"}
 """What reading a frame as 8-bit RGB may change -> how (``cv2.IMREAD_COLOR``'s conversion)."""
 
 _PNG = b"\x89PNG\r\n\x1a\n"
@@ -117,7 +117,7 @@ def conversion_note(counts: dict[str, int] | tuple[str, ...], what: str) -> str:
 
     Example:
         >>> conversion_note(("alpha", "16-bit"), "a.png")
-        'note: a.png read as 8-bit RGB: alpha channel dropped (not composited), 16 bits per channel reduced to 8 (the high byte)'
+        'note: a.png read as 8-bit RGB: alpha channel dropped (not composited), 16 bits per channel reduced to 8'
         >>> conversion_note({"alpha": 2}, "3 images")
         'note: 3 images read as 8-bit RGB: alpha channel dropped (not composited) in 2'
     """

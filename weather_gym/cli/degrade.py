@@ -19,7 +19,7 @@ Examples:
   result does not depend on the order or on resuming); a video is one episode from ``--seed``.
 * Frames that are not 8-bit colour are read as 8-bit RGB, and a note on stderr says so: a grey frame
   is copied into R, G and B, an alpha channel is dropped (not composited), 16 bits per channel become 8
-  (the high byte); the output is 8-bit RGB.
+  (a PNG's high byte); the output is 8-bit RGB.
 * ``--depth``: metric depth as uint16 PNG in millimetres (the dataset layout), a file for an
   image or a folder mirroring the input folder (same relative names, .png).
 
