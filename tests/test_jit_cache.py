@@ -1,9 +1,10 @@
 """Installed anywhere: numba's disk cache only where a cache folder is writable (weather_gym._jit_cache).
 
 The end-to-end test runs a real ``weather-gym degrade`` (the refractive drops, the sensor noise and the
-motion smear: three compiled kernels) and imports every module that compiles one, with the package
-folder bind-mounted read-only, the root file system read-only and ``HOME=/nonexistent`` (in a private
-mount namespace: ``unshare --mount``, as root), and checks the frame is the one a normal run writes.
+motion smear: three compiled kernels), imports every module that compiles one and steps a
+``gym.make`` env in weather, with the package folder bind-mounted read-only, the root file system
+read-only (``TMPDIR`` the one writable folder) and ``HOME=/nonexistent`` (in a private mount namespace:
+``unshare --mount``, as root), and checks the frame is the one a normal run writes.
 """
 
 from __future__ import annotations
@@ -35,6 +36,18 @@ mount -o remount,bind,ro /
 cd "$OUT"
 "$PY" -m weather_gym.cli "$@"
 "$PY" -c "import importlib, sys; [importlib.import_module(m) for m in sys.argv[1].split(',')]; print('imported')" "$MODULES"
+"$PY" -c "$GYM"
+"""
+
+GYM = """
+import gymnasium as gym, weather_gym
+env = gym.make('WeatherGym/ConeTrackSmall-v0', camera={'width': 64, 'height': 36},
+               weather='droplets:0.6:mode=refractive,noise:0.4')
+env.reset(seed=0)
+for _ in range(3):
+    obs = env.step(env.action_space.sample())[0]
+env.close()
+print('stepped', obs['image'].shape)
 """
 
 
@@ -94,14 +107,15 @@ def test_runs_from_a_read_only_install_with_no_home(tmp_path):
     ro_out = tmp_path / "ro"
     ro_out.mkdir()
     shutil.copy(tmp_path / "in.png", ro_out / "in.png")
-    env = {"PATH": "/usr/bin:/bin", "HOME": "/nonexistent", "PYTHONDONTWRITEBYTECODE": "1",
+    env = {"PATH": "/usr/bin:/bin", "HOME": "/nonexistent", "PYTHONDONTWRITEBYTECODE": "1", "TMPDIR": str(ro_out),
+           "GYM": GYM,
            "PYTHONPATH": str(PACKAGE.parent), "OUT": str(ro_out), "PKG": str(PACKAGE), "PY": sys.executable,
            "MODULES": ",".join(JIT_MODULES)}
     run = subprocess.run(["unshare", "--mount", "sh", "-c", SCRIPT, "sh", *COMMAND], env=env, capture_output=True,
                          text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
-    assert "imported" in run.stdout
-    assert run.stderr.count("note: numba finds no writable cache folder") == 2, run.stderr  # one per process
+    assert "imported" in run.stdout and "stepped (36, 64, 3)" in run.stdout
+    assert run.stderr.count("note: numba finds no writable cache folder") == 3, run.stderr  # one per process
     assert not Path("/nonexistent").exists()
     normal = subprocess.run([sys.executable, "-m", "weather_gym.cli", *COMMAND], cwd=tmp_path, capture_output=True,
                             text=True, env={**os.environ, "PYTHONPATH": str(PACKAGE.parent)}, timeout=300)
