@@ -118,6 +118,27 @@ def test_scenario_perception_table_and_the_old_detector_table(tmp_path):
         load_scenario(path)
 
 
+@pytest.mark.parametrize(("table", "message"), [
+    ('mode = "detector"\nbogus_kw = 3', r"s.toml \[perception\]: DetectorWrapper \(perception 'detector'\): unknown "
+                                         r"argument\(s\) \['bogus_kw'\]"),
+    ('mode = "oracle"\nsigma_px = 1', r"s.toml \[perception\]: GroundTruthConeWrapper .* \['sigma_px'\]"),
+    ('mode = "oracle"\nmiss_prob = 2.0', r"s.toml \[perception\]: .*miss_prob"),
+    ('mode = "nope"', r"s.toml \[perception\] mode: unknown perception 'nope'"),
+    ('mode = "camera"\nx = 1', r"s.toml \[perception\]: \['x'\]: perception 'camera' takes no arguments"),
+])
+def test_a_scenarios_bad_perception_table_names_the_file_before_an_env_is_built(tmp_path, monkeypatch, table,
+                                                                                  message):
+    from weather_gym.errors import FileFormatError
+
+    path = tmp_path / "s.toml"
+    path.write_text(f'id = "WeatherGym/Mine-v0"\n[perception]\n{table}\n')
+    built = []
+    monkeypatch.setattr(weather_gym.pipeline, "ConeTrackEnv", lambda *a, **k: built.append(1))
+    with pytest.raises(FileFormatError, match=message):
+        weather_gym.pipeline.make_scenario_env(str(path))
+    assert built == []
+
+
 def test_make_vec_env_seeds_each_env_and_stacks_its_info():
     venv = make_vec_env(num_envs=2, vectorization_mode="sync", perception="gt_cones", max_episode_steps=30)
     try:

@@ -19,8 +19,10 @@ import math
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 
-@numba.njit(cache=True, nogil=True)
+
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def project_point(x: float, y: float, ax: np.ndarray, ay: np.ndarray, dx: np.ndarray, dy: np.ndarray,
                    half: np.ndarray, len2: np.ndarray, seg_len: np.ndarray, s_a: np.ndarray, h: np.ndarray,
                    closed: bool, length: float, use_hint: bool, s_hint: float,

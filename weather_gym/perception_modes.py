@@ -33,15 +33,16 @@ Example:
 
 from __future__ import annotations
 
+import inspect
 import json
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import gymnasium as gym
 
 from weather_gym._io import file_id
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.perception.detector_spec import detector_id
 from weather_gym.registry import add_unique
 from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
@@ -52,9 +53,11 @@ from weather_gym.wrappers import (
     SurrogatePerceptionWrapper,
     WeatherWrapper,
 )
+from weather_gym.wrappers.ground_truth import OracleNoise
 
 __all__ = ["CONES", "IMAGE", "PERCEPTION_MODES", "PerceptionMode", "auto_mode", "check_agent_observes",
-           "default_mode", "detector_mode", "modes_where", "perception_mode", "register_mode"]
+           "check_perception_kwargs", "default_mode", "detector_mode", "modes_where", "perception_mode",
+           "register_mode"]
 
 IMAGE = frozenset({"image", "depth", "state"})
 """The observation keys of a camera mode."""
@@ -168,6 +171,39 @@ def check_agent_observes(agent: str, observes: Iterable[str] | None, mode: str |
 
 
 # ------------------------------------------------------------------------------------ how modes wrap
+def check_perception_kwargs(perception: str | PerceptionMode, kwargs: Mapping[str, Any], *, what: str,
+                            error: type[InputError] = InputError) -> None:
+    """Refuse keywords the mode's perception wrapper does not take (``what`` names where they were written),
+    and bad oracle noise values, before anything is built.
+
+    Example:
+        >>> check_perception_kwargs("detector", {"bogus": 1}, what="scenario.toml [perception]")
+        Traceback (most recent call last):
+        ...
+        weather_gym.errors.InputError: scenario.toml [perception]: DetectorWrapper (perception 'detector'): unknown argument(s) ['bogus']; ...
+    """
+    mode = perception_mode(perception)
+    wrapper = mode.wrapper
+    if wrapper is None:
+        if kwargs:
+            raise error(f"{what}: {sorted(kwargs)}: perception {mode.name!r} takes no arguments")
+        return
+    params = inspect.signature(wrapper.__init__).parameters  # type: ignore[misc]  # the wrapper class's own constructor
+    allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
+    allowed -= {"self", "env", "weather"}
+    noise = {}
+    if wrapper is GroundTruthConeWrapper:  # OracleNoise fields as keywords
+        noise = {k: v for k, v in kwargs.items() if k in {f.name for f in fields(OracleNoise)}}
+        allowed |= {f.name for f in fields(OracleNoise)}
+    check_known(kwargs, allowed, what=f"{what}: {wrapper.__name__} (perception {mode.name!r})", kind="argument",
+                error=error)
+    if noise:
+        try:
+            OracleNoise(**noise)
+        except InputError as exc:
+            raise error(f"{what}: {exc}") from None
+
+
 def _has_images(env: gym.Env) -> bool:
     return isinstance(env.observation_space, gym.spaces.Dict) and "image" in env.observation_space.spaces
 

@@ -39,11 +39,18 @@ from typing import Any
 
 import gymnasium as gym
 
+from weather_gym.envs.checker import PassiveEnvCheckerSafeReset
 from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.registration import check_env_id, scenario_of
 from weather_gym.envs.scenario import Scenario, build_config, episode_steps, load_scenario
-from weather_gym.errors import InputError, LimitError, StateError
-from weather_gym.perception_modes import PERCEPTION_MODES, default_mode, detector_mode, perception_mode
+from weather_gym.errors import FileFormatError, InputError, LimitError, StateError
+from weather_gym.perception_modes import (
+    PERCEPTION_MODES,
+    check_perception_kwargs,
+    default_mode,
+    detector_mode,
+    perception_mode,
+)
 from weather_gym.wrappers import EpisodeStatistics
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
@@ -79,15 +86,24 @@ def wrap_pipeline(env: gym.Env, *, weather: Any = None, perception: str | None =
 
 
 def _scenario_perception(sc: Scenario) -> tuple[str, Any, dict[str, Any]]:
+    """The scenario's ``[perception]`` table as (mode, detector, wrapper keywords), checked against the
+    mode's wrapper: an unknown mode or keyword is a :class:`FileFormatError` naming the file."""
     table = dict(sc.perception or {})
     mode = table.pop("mode", default_mode().name)
     detector = table.pop("detector", None)
+    if sc.perception is not None:
+        try:
+            perception_mode(mode)
+        except InputError as exc:
+            raise FileFormatError(f"{sc.path} [perception] mode: {exc}") from None
+        check_perception_kwargs(mode, table, what=f"{sc.path} [perception]", error=FileFormatError)
     return mode, detector, table
 
 
 def make_scenario_env(scenario: str, render_mode: str | None = None, *, perception: str | None = None,
                       weather: Any = None, severity: int | None = None, detector: Any = None,
-                      perception_kwargs: Mapping[str, Any] | None = None, **overrides: Any) -> gym.Env:
+                      perception_kwargs: Mapping[str, Any] | None = None, env_checker: bool = False,
+                      **overrides: Any) -> gym.Env:
     """Entry point of the registered ids (``gym.make``): the scenario's env, weather and perception.
 
     Keywords: ``perception`` (a mode of :data:`PERCEPTION_MODES`; default: the scenario's, else
@@ -95,7 +111,9 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     ``perception_kwargs`` (see :func:`wrap_pipeline`; ``detector=True`` or a dict of
     ``DetectorWrapper`` keywords, the older form, mean ``perception="detector"`` with those keywords);
     the rest override the scenario's ``EnvConfig`` (``track=``, ``camera={"width": 336, "height":
-    188}``, ``laps=``...).
+    188}``, ``laps=``...). ``env_checker=True`` (what the registered ids pass) puts Gymnasium's passive
+    env checker around the result, in the version that survives a refused first reset
+    (:class:`~weather_gym.envs.checker.PassiveEnvCheckerSafeReset`).
     """
 
     sc = load_scenario(scenario)
@@ -117,8 +135,9 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     overrides = {**mode.env_overrides, **overrides}
     env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
     try:
-        return wrap_pipeline(env, weather=_weather_spec(sc, weather, severity), perception=perception,
-                             detector=detector, perception_kwargs=perception_kwargs)
+        env = wrap_pipeline(env, weather=_weather_spec(sc, weather, severity), perception=perception,
+                            detector=detector, perception_kwargs=perception_kwargs)
+        return PassiveEnvCheckerSafeReset(env) if env_checker else env
     except BaseException:
         env.close()
         raise

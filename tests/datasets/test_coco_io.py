@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from weather_gym.datasets.coco import CocoWriter, load_coco, read_depth_png, write_depth_png
+from weather_gym.errors import FileFormatError
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
 
 GT = {"boxes": np.array([[10, 20, 30, 60], [100, 100, 104, 105.]]), "classes": np.array([1, 3]),
@@ -154,3 +155,14 @@ def test_a_resume_with_other_settings_is_refused_naming_them(tmp_path):
     w.add(img, {"track": "t"}, GT)
     w.close()
     assert len(load_coco(tmp_path / "d")) == 2
+
+
+@pytest.mark.parametrize("cache", [False, True])
+def test_a_record_whose_size_disagrees_with_its_image_is_refused(tmp_path, cache):
+    root = _write(tmp_path / "d", n=1)
+    data = json.loads((root / "annotations.json").read_text())
+    data["images"][0]["width"] = 81  # the file is 80 wide
+    (root / "annotations.json").write_text(json.dumps(data))
+    ds = load_coco(root, cache_images=cache)
+    with pytest.raises(FileFormatError, match=r"annotations.json: image 0 is 81x50 .* its file .*000000.png is 80x50"):
+        ds.image(0)

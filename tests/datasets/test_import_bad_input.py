@@ -152,6 +152,10 @@ CASES = [
          r"class 'large_orange_cone' is not in the class map"),
     Case("darknet-missing-label", "yolo", _with(S.darknet, lambda s, p: (s / "a.txt").unlink()),
          r"a.jpg: its YOLO label file .*a.txt is missing \(in the darknet layout"),
+    Case("darknet-two-images-one-label", "yolo", _with(S.darknet, lambda s, p: S.image(s / "a.png")),
+         r"a.jpg and .*a.png share the label file .*a.txt, which describes one image"),
+    Case("yolo-two-images-one-label", "yolo", _yolo(lambda s, p: S.image(s / "images" / "f0.jpg")),
+         r"images/f0.jpg and .*images/f0.png share the label file .*labels/f0.txt"),
     Case("coco-size-disagrees", "coco", _with(S.coco, lambda s, p: (s / "instances.json").write_text(
         (s / "instances.json").read_text().replace('"width": 80', '"width": 81'))),
          r"f1.png is 80x60 but its labels state 81x60"),

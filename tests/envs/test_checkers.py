@@ -169,3 +169,36 @@ def test_a_detector_or_surrogate_model_object_rebuilds_from_the_spec():
         finally:
             env.close()
             rebuilt.close()
+
+
+@pytest.mark.parametrize(("kwargs", "bad"), [
+    ({}, {"bogus": 1}),
+    ({}, {"friction": -1}),
+    ({"weather": "droplets:0.3"}, {"weather": "droplets:0.5:k=0.7"}),
+])
+def test_a_refused_first_reset_leaves_the_env_usable_and_checked(kwargs, bad):
+    """Gymnasium's checker marks its reset check done before the reset runs; a refused first reset then
+    broke the first step after a valid reset (TypeError inside Gymnasium). The ids' checker does not."""
+    from weather_gym.envs.checker import PassiveEnvCheckerSafeReset
+    from weather_gym.errors import InputError
+
+    env = gym.make("WeatherGym/ConeTrackSmall-v0", camera=CAMERA, **kwargs)
+    try:
+        checker = env
+        while not isinstance(checker, gym.wrappers.PassiveEnvChecker):
+            checker = checker.env
+        assert isinstance(checker, PassiveEnvCheckerSafeReset)
+        with pytest.raises(InputError):
+            env.reset(seed=0, options=bad)
+        assert not checker.checked_reset  # the next reset is checked instead
+        obs, _ = env.reset(seed=0)
+        assert checker.checked_reset
+        for _ in range(2):
+            env.step(env.action_space.sample())
+        assert checker.checked_step
+        with pytest.raises(InputError):  # a refused later reset: usable too
+            env.reset(seed=1, options=bad)
+        env.reset(seed=1)
+        env.step(env.action_space.sample())
+    finally:
+        env.close()

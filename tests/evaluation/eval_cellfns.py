@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,6 +62,33 @@ def segfault(cell: Cell) -> dict:
 def hard_exit(cell: Cell) -> dict:
     if cell.severity == 1 and cell.seed == 0:
         os._exit(3)
+    return metrics(cell)
+
+
+STARTED = threading.Event()
+GATE = threading.Event()
+
+
+def gated(cell: Cell) -> dict:
+    """In this process (the serial backend): says it started, then waits for the test to open the gate."""
+    STARTED.set()
+    if not GATE.wait(120):
+        raise TimeoutError("the test never opened the gate")
+    return metrics(cell)
+
+
+def gated_after_first_severity(cell: Cell) -> dict:
+    """Cells of severity 0 run at once; the others wait (up to 2 minutes) for the file named by
+    EVAL_TEST_GATE, so that a run is still going however loaded the machine is when the test stops it.
+    A waiting process says so with a file ``GATE.waiting.PID``."""
+    if cell.severity > 0:
+        gate = Path(os.environ["EVAL_TEST_GATE"])
+        gate.with_name(f"{gate.name}.waiting.{os.getpid()}").touch()
+        deadline = time.monotonic() + 120
+        while not gate.exists():
+            if time.monotonic() > deadline:
+                raise TimeoutError("the test never opened the gate")
+            time.sleep(0.05)
     return metrics(cell)
 
 

@@ -116,7 +116,8 @@ def test_segfault_is_a_failed_cell_and_innocent_cells_survive(tmp_path):
     rows = run_cells(fns.grid(1), fns.segfault, path, backend="process", workers=2, progress=False)
     by_key = {(r["effect"], r["severity"], r["seed"]): r for r in rows}
     bad = by_key.pop(("droplets", 2, 0))
-    assert bad["status"] == "failed" and "SIGSEGV" in bad["error"]
+    assert bad["status"] == "failed", bad
+    _assert_worker_died(bad["error"], "SIGSEGV(-11)")
     assert all(r["status"] == "ok" for r in by_key.values()) and len(by_key) == 5
     expected = {k: fns.metrics(fns.Cell(*k))["score"] for k in by_key}
     assert {k: r["score"] for k, r in by_key.items()} == expected
@@ -125,7 +126,27 @@ def test_segfault_is_a_failed_cell_and_innocent_cells_survive(tmp_path):
 def test_process_exit_is_reported_with_its_code(tmp_path):
     cells = [fns.Cell("dim", 1, 0), fns.Cell("dim", 0, 0)]
     rows = run_cells(cells, fns.hard_exit, tmp_path / "results.csv", backend="process", workers=2, progress=False)
-    assert [r["status"] for r in rows] == ["failed", "ok"] and "EXIT(3)" in rows[0]["error"]
+    assert [r["status"] for r in rows] == ["failed", "ok"]
+    _assert_worker_died(rows[0]["error"], "EXIT(3)")
+
+
+def _assert_worker_died(error: str, code: str) -> None:
+    """What a dead worker's row is guaranteed to say: that the worker died, and its exit code when loky
+    knew it (it waits 0.25 s for the system to report the code; a loaded machine may be slower)."""
+    assert error.startswith("WorkerDied: the worker process running this cell ended"), error
+    assert code in error or error.endswith("(its exit code was not known yet)"), error
+
+
+def test_a_dead_workers_error_line_with_and_without_its_exit_code():
+    from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+    from weather_gym.evaluation.runner import _error_line
+
+    words = "A worker process managed by the executor was unexpectedly terminated.\nThe exit codes of the workers are "
+    assert _error_line(TerminatedWorkerError(words + "{SIGSEGV(-11)}\nDetailed")) == \
+        "WorkerDied: the worker process running this cell ended with SIGSEGV(-11)"
+    assert _error_line(TerminatedWorkerError(words + "{}\nDetailed")) == \
+        "WorkerDied: the worker process running this cell ended (its exit code was not known yet)"
 
 
 def test_bad_return_value_is_a_failed_cell(tmp_path):
@@ -201,20 +222,19 @@ def test_bad_arguments(tmp_path):
         run_cells([{"x": 1}], fns.metrics, blocker / "results.csv", backend="serial")
 
 
-def test_second_writer_is_refused(tmp_path, monkeypatch):
-    monkeypatch.setenv("EVAL_TEST_SLEEP", "0.2")
+def test_second_writer_is_refused(tmp_path):
     path = tmp_path / "results.csv"
-    first = threading.Thread(target=run_cells, args=(fns.grid(), fns.slow, path),
+    fns.STARTED.clear()
+    fns.GATE.clear()
+    first = threading.Thread(target=run_cells, args=(fns.grid(), fns.gated, path),
                              kwargs={"backend": "serial", "progress": False})
-    first.start()  # a concurrent run holds the results while it writes them
+    first.start()  # a concurrent run holds the results while it writes them: its cell waits for the gate
     try:
-        t0 = time.monotonic()
-        while not (path.exists() and path.read_text().count("\n") > 1):
-            assert time.monotonic() - t0 < 30, "the first run wrote no row"
-            time.sleep(0.01)
+        assert fns.STARTED.wait(60), "the first run started no cell"
         with pytest.raises(FileExistsError, match="another run is writing results in"):
             run_cells(fns.grid(), fns.metrics, path, backend="serial", progress=False)
     finally:
+        fns.GATE.set()
         first.join()
     rows = run_cells(fns.grid(), fns.logged, path, backend="serial", progress=False)  # released: resumes
     assert all(r["status"] == "ok" for r in rows)
@@ -228,7 +248,8 @@ _SCRIPT = textwrap.dedent(
     import eval_cellfns as fns
     from weather_gym.evaluation.runner import run_cells
     if __name__ == "__main__":
-        run_cells(fns.grid(4), fns.slow, sys.argv[1], backend=sys.argv[2], workers=2, progress=False)
+        run_cells(fns.grid(4), fns.gated_after_first_severity, sys.argv[1], backend=sys.argv[2], workers=2,
+                  progress=False)
     """
 )
 
@@ -236,17 +257,24 @@ _SCRIPT = textwrap.dedent(
 def _start(tmp_path: Path, path: Path, backend: str) -> subprocess.Popen:
     script = tmp_path / "run.py"
     script.write_text(_SCRIPT.format(here=str(HERE)))
-    return subprocess.Popen([sys.executable, str(script), str(path), backend], start_new_session=True)
+    env = {**os.environ, "EVAL_TEST_GATE": str(tmp_path / "gate-never-opened")}  # the run waits until stopped
+    return subprocess.Popen([sys.executable, str(script), str(path), backend], start_new_session=True, env=env)
 
 
-def _wait_rows(path: Path, n: int, proc: subprocess.Popen, timeout: float = 60) -> None:
+def _stored(path: Path) -> int:
+    """Rows in the results store (read once the run has ended: a run holds the store exclusively)."""
+    return len(read_results(path)) if path.with_name("results.sqlite").exists() else 0
+
+
+def _wait_gate(tmp_path: Path, waiting: int, proc: subprocess.Popen, timeout: float = 120) -> None:
+    """Until ``waiting`` processes wait at the gate (every cell of severity 0 has run by then)."""
     t0 = time.monotonic()
     while time.monotonic() - t0 < timeout:
-        if path.exists() and path.read_text().count("\n") > n:
+        if len(list(tmp_path.glob("gate-never-opened.waiting.*"))) >= waiting:
             return
         assert proc.poll() is None, "the run ended before it could be interrupted"
-        time.sleep(0.02)
-    raise AssertionError("no rows appeared")
+        time.sleep(0.05)
+    raise AssertionError("no cell reached the gate")
 
 
 @pytest.mark.parametrize(("backend", "sig"), [("serial", signal.SIGKILL), ("process", signal.SIGINT)])
@@ -254,14 +282,16 @@ def test_interrupted_run_resumes_to_the_same_result(tmp_path, backend, sig):
     path = tmp_path / "results.csv"
     proc = _start(tmp_path, path, backend)
     try:
-        _wait_rows(path, 3, proc)
+        _wait_gate(tmp_path, 1 if backend == "serial" else 2, proc)
         os.kill(proc.pid, sig)
-        proc.wait(timeout=30)
+        proc.wait(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
-    n_done = path.read_text().count("\n") - 1
-    assert 3 <= n_done < 24, "the run was not interrupted midway"
+    n_done = _stored(path)
+    if backend == "serial":  # each row is stored before the next cell starts: the 4 cells of severity 0
+        assert n_done == 4
+    assert n_done < 24, "the run was not interrupted midway"  # the other cells never ran
     rows = run_cells(fns.grid(4), fns.metrics, path, backend="serial", progress=False)
     assert len(rows) == 24 and all(r["status"] == "ok" for r in rows)
     reference = tmp_path / "reference.csv"

@@ -233,6 +233,8 @@ def test_a_net_that_is_not_a_deeper_copy_of_the_start_model_is_a_clear_error(tmp
     (dict(blocks=(1, 2, 2)), "blocks must be 4 whole numbers"),
     (dict(blocks=(1, 2, -1, 1)), "blocks must be 4 whole numbers"),
     (dict(stem_blocks=-1), "stem_blocks must be a whole number"),
+    (dict(blocks=(1, 2, 1000, 1)), r"blocks \(--blocks\) must be at most 8 per stride .* got 1,2,1000,1"),
+    (dict(stem_blocks=9), r"stem_blocks \(--stem-blocks\) must be at most 8, got 9"),
 ])
 def test_a_bad_net_layout_is_a_clear_error(kwargs, message):
     with pytest.raises(InputError, match=message):

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from weather_gym.errors import InputError
 from weather_gym.weather import (
     CONDITIONS,
     EFFECTS,
@@ -79,10 +80,23 @@ def test_presets_in_every_spelling():
     ([{"name": "dim", "k": float("nan")}], "parameter k=nan"),
     (3.5, "cannot read weather spec"),
     ({"name": "ramp", "k_end": 0.5}, "a ramp needs 'effect'"),
+    ("droplets:0.5:k=0.7", "'k' is reserved, not a parameter"),
+    ("droplets:0.5:name=dim", "'name' is reserved, not a parameter"),
+    ({"droplets": {"k": 0.5, "name": "dim"}}, "weather spec 'droplets': 'name' is reserved"),
+    ([{"name": "compose", "k": -1, "bogus": 1}], "unknown key(s) ['bogus', 'k']; valid keys: ['effects']"),
+    ([{"name": "compose", "effects": "dim:0.5"}], "'effects' must be a list of effect tables"),
 ])
 def test_errors_name_the_bad_part(spec, message):
-    with pytest.raises(ValueError, match=re.escape(message)):
+    with pytest.raises(InputError, match=re.escape(message)):
         parse_weather(spec)
+
+
+def test_reserved_names_are_typed_errors_in_every_entry_point():
+    from weather_gym.weather.spec import parse_open_k
+
+    with pytest.raises(InputError, match="'k' is reserved"):
+        parse_open_k("droplets:k:k=0.3")
+    assert parse_weather([{"name": "compose", "effects": [{"name": "dim", "k": 0.5}]}]) == Compose([make("dim", k=0.5)])
 
 
 _effect = st.builds(

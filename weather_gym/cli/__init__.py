@@ -2,8 +2,11 @@
 
 Every module in this package whose name does not start with ``_`` is one sub-command: it defines
 ``register(subparsers)`` which adds its parser and sets ``func`` (called with the parsed args,
-returns an exit code). Imports sit at module level; only heavy optional packages are imported
-inside functions (the rule ``tests/test_architecture.py`` checks).
+returns an exit code), and :data:`COMMANDS` holds its one-line summary. Imports sit at module level;
+only heavy optional packages are imported inside functions (the rule ``tests/test_architecture.py``
+checks). :func:`main` imports only the sub-command it runs (``weather-gym lap --help`` loads nothing
+of ``train`` or ``evaluate``; ``weather-gym --help`` loads no sub-command): a sub-command whose
+packages are missing or broken cannot stop another from running.
 
 Errors: a :class:`weather_gym.errors.WeatherGymError` (bad input, an output that exists, a path
 outside its folder, ...) is printed as ``error: MESSAGE`` with exit status 2; anything else is a
@@ -27,6 +30,7 @@ import argparse
 import contextlib
 import contextvars
 import importlib
+import io
 import os
 import pkgutil
 import signal
@@ -50,7 +54,34 @@ class CLIError(InputError):
     """A user error found by the command line itself: printed as ``error: ...`` with exit code 2."""
 
 
-def build_parser() -> argparse.ArgumentParser:
+COMMANDS: dict[str, str] = {
+    "bench": "run a speed benchmark and print its table",
+    "calibrate": "presets from sweep curves and measured mAP (read off k per severity)",
+    "dataset": "render or inspect COCO datasets of cone frames",
+    "degrade": "apply weather to an image, a folder of images or a video",
+    "detector": "train, score or run the ONNX cone detector",
+    "evaluate": "robustness evaluation: agents x effects x severities x seeds x tracks",
+    "gap": "find and fix the gap between simulated and measured frames",
+    "lap": "drive laps with an agent; print lap times, cones hit, off-track events, cross-track error",
+    "surrogate": "perception surrogate: log the full pipeline, fit, validate",
+    "sweep": "detector mAP vs an effect's k on a fixed rendered set (the study's Figures 3 and 5)",
+    "tracks": "list, plot or export cone tracks",
+    "train": "train a PPO driver on the cone list (logs, checkpoints, held-out eval, resume)",
+}
+"""Sub-command -> its one-line summary (the ``help=`` its module registers; ``tests/cli/test_cli_lazy.py``
+checks both agree and that every sub-command module is listed), so that the top-level help needs no
+sub-command's imports."""
+
+_ALL = object()
+
+
+def build_parser(command: str | None | object = _ALL) -> argparse.ArgumentParser:
+    """The ``weather-gym`` parser.
+
+    With no argument every sub-command's module is imported and registered. With ``command`` (a
+    name, or None for none) only that one is; the others are listed by name and summary, so their
+    modules are not imported.
+    """
     parser = argparse.ArgumentParser(
         prog="weather-gym",
         description="Repeatable bad weather for autonomous-racing perception: laps, weather effects, "
@@ -59,10 +90,23 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"weather-gym {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
-        if not info.name.startswith("_"):
-            importlib.import_module(f"weather_gym.cli.{info.name}").register(sub)
+    names = sorted(info.name for info in pkgutil.iter_modules(pkg.__path__) if not info.name.startswith("_"))
+    for name in names:
+        if command is _ALL or name == command:
+            importlib.import_module(f"weather_gym.cli.{name}").register(sub)
+        else:
+            sub.add_parser(name, help=COMMANDS.get(name, ""), add_help=False)
     return parser
+
+
+def command_of(argv: list[str]) -> str | None:
+    """The sub-command ``argv`` names (its first word that is not an option), or None."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word if word in COMMANDS else None
+    return None
 
 
 def run_command(func, *args, **kwargs) -> int:
@@ -113,10 +157,31 @@ def _terminate_as_exit():
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def _names_print_as_given():
+    """While a command runs, a file name that is not UTF-8 (``'caf\\udce9.png'``) prints as its own bytes
+    on stdout and stderr (``surrogateescape``, as Python does under the C locale) instead of raising
+    ``UnicodeEncodeError`` under a UTF-8 locale; the streams' error handlers are restored afterwards."""
+    changed = []
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
+            with contextlib.suppress(Exception):
+                stream.reconfigure(errors="surrogateescape")
+                changed.append(stream)
+    try:
+        yield
+    finally:
+        for stream in changed:
+            with contextlib.suppress(Exception):
+                stream.reconfigure(errors="strict")
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    return run_command(args.func, args)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    with _names_print_as_given():
+        parser = build_parser(command_of(argv))
+        args = parser.parse_args(argv)
+        return run_command(args.func, args)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -302,6 +302,8 @@ def _import(args) -> int:
     print(f"intrinsics: {r['intrinsics']}" + (f"; 3D locations: {r['location_frame']}" if args.format == "kitti" else ""))
     if r["condition"] is not None:
         print(f"condition: {r['condition']} (severity {r['severity']})")
+    if r["converted"]:
+        print(r["converted"], file=sys.stderr)
     orphans = r["labels_without_image"]
     if orphans:
         more = f" and {len(orphans) - 5} more" if len(orphans) > 5 else ""

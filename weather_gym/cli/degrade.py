@@ -18,6 +18,9 @@ Examples:
   unreadable image in a folder stops the run, naming it, unless ``--skip-unreadable``.
 * Randomness: each image gets its own generator from ``--seed`` and its relative path (so the
   result does not depend on the order or on resuming); a video is one episode from ``--seed``.
+* Frames that are not 8-bit colour are read as 8-bit RGB, and a note on stderr says so: a grey frame
+  is copied into R, G and B, an alpha channel is dropped (not composited), 16 bits per channel become 8
+  (a PNG's high byte); the output is 8-bit RGB.
 * ``--depth``: metric depth as uint16 PNG in millimetres (the dataset layout), a file for an
   image or a folder mirroring the input folder (same relative names, .png).
 * A ROS bag (a rosbag2 folder with metadata.yaml, a .mcap or .db3 file, a ROS 1 .bag) becomes a bag of
@@ -34,13 +37,24 @@ A command line parsed (nothing runs):
 
 from __future__ import annotations
 
+import os
+import sys
 import zlib
+from collections import Counter
 from pathlib import Path
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
+from weather_gym._image_files import (
+    CONVERSIONS,
+    colour_conversions,
+    conversion_note,
+    opencv_name,
+    read_image_file,
+    shown,
+)
 from weather_gym._io import atomic_path, check_output, declare_inputs, write_image
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._seed_arg import seed_arg
@@ -92,7 +106,7 @@ def _read_rgb(path: Path):
 
 
 def _read_depth(path: Path, shape):
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
+    raw = read_image_file(path, cv2.IMREAD_UNCHANGED) if path.is_file() else None
     if raw is None or raw.ndim != 2:
         raise FileFormatError(f"{path}: expected a single-channel uint16 depth PNG in millimetres")
     if raw.shape != tuple(shape[:2]):
@@ -103,14 +117,17 @@ def _read_depth(path: Path, shape):
 
 
 def _image_seed(seed: int, rel: Path):
-    return np.random.SeedSequence(seed, spawn_key=(zlib.crc32(rel.as_posix().encode()),))
+    return np.random.SeedSequence(seed, spawn_key=(zlib.crc32(os.fsencode(rel.as_posix())),))
 
 
-def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path, overwrite: bool) -> None:
+def _one_image(weather, src: Path, dst: Path, depth: Path | None, seed: int, rel: Path,
+               overwrite: bool) -> tuple[str, ...]:
+    """Degrade one image; returns the conversions reading it as 8-bit RGB made (``colour_conversions``)."""
     img = _read_rgb(src)
     check_image_size(img.shape, what=str(src))
     d = _read_depth(depth, img.shape) if depth is not None else None
     write_image(dst, weather.start(_image_seed(seed, rel))(img, depth=d), overwrite=overwrite)
+    return colour_conversions(src)
 
 
 def _folder(weather, args) -> int:
@@ -124,6 +141,8 @@ def _folder(weather, args) -> int:
         raise MissingInputError(f"{src_root}: no images ({', '.join(IMAGE_EXTS)}) found")
     done = skipped = 0
     unreadable: list[str] = []
+    converted: Counter = Counter()
+    n_converted = 0
     for src in tqdm(files, desc="degrade", unit="img", disable=args.quiet):
         rel = src.relative_to(src_root)
         dst = out_root / rel
@@ -136,7 +155,9 @@ def _folder(weather, args) -> int:
             if not depth.is_file():
                 raise MissingInputError(f"{depth}: no depth map for {src}")
         try:
-            _one_image(weather, src, dst, depth, args.seed, rel, args.overwrite)
+            conv = _one_image(weather, src, dst, depth, args.seed, rel, args.overwrite)
+            converted.update(conv)
+            n_converted += bool(conv)
         except FileFormatError as exc:
             if not args.skip_unreadable:
                 raise FileFormatError(f"{exc} (pass --skip-unreadable to skip such images; {done} written so far, "
@@ -145,6 +166,9 @@ def _folder(weather, args) -> int:
             continue
         done += 1
     print(f"wrote {done} image(s) to {out_root}" + (f", skipped {skipped} that already existed" if skipped else ""))
+    if converted:
+        print(conversion_note({k: converted[k] for k in CONVERSIONS}, f"{n_converted} image(s)")
+              + "; their outputs are 8-bit RGB", file=sys.stderr)
     if unreadable:
         shown = ", ".join(unreadable[:10]) + (f" and {len(unreadable) - 10} more" if len(unreadable) > 10 else "")
         print(f"skipped {len(unreadable)} unreadable image(s): {shown}")
@@ -162,7 +186,7 @@ class _Cv2Video:
         self._output = atomic_path(dst, overwrite=overwrite)
         tmp = self._tmp = self._output.__enter__()
         fourcc = cv2.VideoWriter_fourcc(*_FOURCC.get(dst.suffix.lower(), "mp4v"))  # type: ignore[attr-defined]  # not in cv2's stubs
-        self.writer = cv2.VideoWriter(str(tmp), fourcc, fps, size)
+        self.writer = cv2.VideoWriter(opencv_name(tmp, what="OUTPUT video"), fourcc, fps, size)
         if not self.writer.isOpened():
             self.abort()
             raise OutputPathError(f"{dst}: OpenCV cannot write a {dst.suffix} video here")
@@ -173,7 +197,7 @@ class _Cv2Video:
 
     def close(self) -> None:
         self.writer.release()
-        cap = self._cv2.VideoCapture(str(self._tmp))  # OpenCV's writer drops failed writes without a word
+        cap = self._cv2.VideoCapture(opencv_name(self._tmp, what="OUTPUT video"))  # OpenCV's writer drops failed writes without a word
         try:
             n = int(cap.get(self._cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
         finally:
@@ -190,7 +214,8 @@ class _Cv2Video:
 
 
 def _video(weather, src: Path, dst: Path, args) -> int:
-    cap = cv2.VideoCapture(str(src))
+    opencv_name(dst, what="OUTPUT video")  # before anything is opened or written
+    cap = cv2.VideoCapture(opencv_name(src, what="video"))
     try:
         if not cap.isOpened():
             raise FileFormatError(f"{src}: OpenCV cannot open this video")
@@ -275,6 +300,8 @@ def _run(args) -> int:
         if args.depth is not None:
             raise InputError("--depth is not supported for videos")
         return _video(weather, src, dst, args)
-    _one_image(weather, src, dst, args.depth, args.seed, Path(src.name), args.overwrite)
+    converted = _one_image(weather, src, dst, args.depth, args.seed, Path(src.name), args.overwrite)
     print(f"wrote {dst}")
+    if converted:
+        print(conversion_note(converted, shown(src)) + "; the output is 8-bit RGB", file=sys.stderr)
     return 0

@@ -128,14 +128,25 @@ class CocoDataset:
         return track if part is None else part[0] + str(part[2])
 
     def image(self, i: int) -> np.ndarray:
-        """RGB uint8 frame ``i`` (read-only when ``cache_images`` keeps decoded frames in memory)."""
+        """RGB uint8 frame ``i`` (read-only when ``cache_images`` keeps decoded frames in memory); a frame
+        whose size is not its record's ``width`` x ``height`` is a :class:`FileFormatError` (its boxes,
+        masks and camera are in the record's pixels)."""
         if not self.cache_images:
-            return read_image(self.image_path(i))
+            return self._read_checked(i)
         img = self._image_cache.get(i)
         if img is None:
-            img = read_image(self.image_path(i))
+            img = self._read_checked(i)
             img.setflags(write=False)
             self._image_cache[i] = img
+        return img
+
+    def _read_checked(self, i: int) -> np.ndarray:
+        rec, path = self.images[i], self.image_path(i)
+        img = read_image(path)
+        if img.shape[:2] != (rec["height"], rec["width"]):
+            raise FileFormatError(f"{self.annotations_path}: image {rec['id']} is {rec['width']}x{rec['height']} "
+                                  f"(width x height) but its file {path} is {img.shape[1]}x{img.shape[0]}; fix the "
+                                  "record or the file")
         return img
 
     def depth(self, i: int) -> np.ndarray | None:

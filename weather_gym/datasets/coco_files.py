@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from weather_gym._image_files import read_image_file
 from weather_gym._io import resolve_inside, write_image
 from weather_gym.errors import FileFormatError, MissingInputError
 
@@ -45,7 +46,7 @@ def _nonempty_file(path: str | os.PathLike, kind: str) -> Path:
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """Read an RGB uint8 image; clear errors for a missing, empty or undecodable file."""
     path = _nonempty_file(path, "image")
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    bgr = read_image_file(path, cv2.IMREAD_COLOR)
     if bgr is None or bgr.size == 0:
         raise FileFormatError(f"image file {path} could not be decoded as an image")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
@@ -61,7 +62,7 @@ def write_depth_png(path: str | os.PathLike, depth_m: np.ndarray, *, overwrite: 
 def read_depth_png(path: str | os.PathLike) -> np.ndarray:
     """Read a uint16 millimetre depth PNG as float32 metres."""
     path = _nonempty_file(path, "depth")
-    mm = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    mm = read_image_file(path, cv2.IMREAD_UNCHANGED)
     if mm is None or mm.ndim != 2 or mm.dtype != np.uint16:
         raise FileFormatError(f"depth file {path} is not a single-channel 16-bit PNG of millimetres")
     return mm.astype(np.float32) / np.float32(DEPTH_SCALE)
@@ -80,7 +81,7 @@ def read_mask(path: str | os.PathLike, size: tuple[int, int] | None = None) -> n
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"ignore mask {path} not found")
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    raw = read_image_file(path, cv2.IMREAD_UNCHANGED)
     if raw is None or raw.size == 0:
         raise FileFormatError(f"ignore mask {path} could not be decoded as an image (expected a PNG, white = ignored)")
     if raw.ndim == 3:

@@ -20,6 +20,7 @@ import cv2
 from PIL import Image
 
 from weather_gym._confine import confined_file, walk_files
+from weather_gym._image_files import read_image_file
 from weather_gym.errors import FileFormatError, LimitError, MissingInputError
 from weather_gym.limits import MAX_IMAGE_PIXELS, check_image_size
 
@@ -112,6 +113,7 @@ def labelled_frames(images: Path, labels: Path, src: Path, fmt: str, *, unmatche
     stems = {p.relative_to(images).with_suffix("") for p in imgs}
     unmatched += [rel_path(p, src) for p in walk_files(labels, src)
                   if p.suffix == ".txt" and p.relative_to(labels).with_suffix("") not in stems]
+    check_one_image_per_label(imgs, [(labels / img.relative_to(images)).with_suffix(".txt") for img in imgs])
     for img in imgs:
         lab = (labels / img.relative_to(images)).with_suffix(".txt")
         if not lab.is_file():
@@ -120,6 +122,17 @@ def labelled_frames(images: Path, labels: Path, src: Path, fmt: str, *, unmatche
         fr = source_frame(img, rel_path(img, images), src)
         fr.label = lab
         yield lab, fr
+
+
+def check_one_image_per_label(images: Sequence[Path], labels: Sequence[Path]) -> None:
+    """Refuse two images that would take their boxes from one label file (``a.jpg`` and ``a.png`` beside
+    ``a.txt``): a label file describes one image, so one of them would get boxes that are not its own."""
+    seen: dict[Path, Path] = {}
+    for img, lab in zip(images, labels, strict=True):
+        if lab in seen:
+            raise FileFormatError(f"{seen[lab]} and {img} share the label file {lab}, which describes one image; "
+                                  "give each image its own label file (same name, .txt) or remove one")
+        seen[lab] = img
 
 
 _GREY_MODES = frozenset({"1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "F"})
@@ -146,13 +159,13 @@ def image_size(fr: SourceFrame, src: Path) -> tuple[int, int]:
     if w is not None:
         check_image_size((h, w), what=str(where))
     if mode is None:  # Pillow could not tell the channels: OpenCV's undecorated decode does
-        raw = cv2.imread(str(fr.image), cv2.IMREAD_UNCHANGED)
+        raw = read_image_file(fr.image, cv2.IMREAD_UNCHANGED)
         channels = None if raw is None or raw.size == 0 else (1 if raw.ndim == 2 else raw.shape[2])
     else:
         channels = 1 if mode in _GREY_MODES else 3
     if channels is not None and channels not in (3, 4):
         raise FileFormatError(f"image file {where} has {channels} channel(s); expected colour (RGB) frames")
-    img = cv2.imread(str(fr.image), cv2.IMREAD_COLOR)  # as weather_gym.datasets.coco.read_image decodes it
+    img = read_image_file(fr.image, cv2.IMREAD_COLOR)  # as weather_gym.datasets.coco.read_image decodes it
     if img is None or img.size == 0:
         raise FileFormatError(f"image file {where} could not be decoded as an image")
     check_image_size(img.shape, what=str(where))

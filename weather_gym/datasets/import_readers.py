@@ -27,6 +27,7 @@ from weather_gym.datasets.import_frames import (
     SourceFrame,
     SourceRead,
     check_box,
+    check_one_image_per_label,
     find_dir,
     image_size,
     images_under,
@@ -200,6 +201,7 @@ def _read_yolo(src: Path) -> SourceRead:
         res.unmatched += [rel_path(p, src) for p in files if p.suffix == ".txt" and p.with_suffix("") not in stems
                           and p.name.lower() not in _NOT_LABELS]
         pairs = []
+        check_one_image_per_label(imgs, [img.with_suffix(".txt") for img in imgs])
         for img in imgs:
             lab = img.with_suffix(".txt")
             if not lab.is_file() and not lab.is_symlink():

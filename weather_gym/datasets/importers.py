@@ -70,6 +70,7 @@ from typing import Any
 from tqdm import tqdm
 
 from weather_gym._confine import read_bytes, read_text
+from weather_gym._image_files import CONVERSIONS, colour_conversions, conversion_note
 from weather_gym._io import atomic_write, atomic_write_json, file_id, resolve_inside
 from weather_gym._lock import exclusive_folder
 from weather_gym.camera_config import CameraConfig
@@ -282,9 +283,14 @@ def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str],
     frames, stats = read.frames, read.stats
     if not frames:
         raise FileFormatError(f"{src}: no frames to import")
+    converted: Counter = Counter()
+    n_converted = 0
     for fr in tqdm(frames, desc="check", unit="frame", disable=not progress):
         if fr.size == (0, 0):
             fr.size = image_size(fr, src)
+        conv = colour_conversions(fr.image)  # frames are stored as they are; readers decode them as 8-bit RGB
+        converted.update(conv)
+        n_converted += bool(conv)
         if fr.stated_size is not None and fr.stated_size != fr.size:
             raise FileFormatError(f"{src / fr.source_file} is {fr.size[0]}x{fr.size[1]} but its labels state "
                                   f"{fr.stated_size[0]}x{fr.stated_size[1]}")
@@ -400,6 +406,7 @@ def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str],
         "projected_3d": None if projected is None else projected["summary"],
         "location_frame": loc_why if fmt == "kitti" else None,
         "intrinsics": "given" if given_k else ("calibration files" if any(f.intrinsics for f in frames) else "unknown"),
+        "read_as_8bit_rgb": {"frames": n_converted, **{k: converted[k] for k in CONVERSIONS if converted[k]}},
     }
     if size is not None:
         info["min_box_height_px"] = rules[size].min_height_px
@@ -417,7 +424,10 @@ def _import(fmt: str, src: Path, out: Path, state: str, *, cmap: dict[str, str],
             "rows_left_out": dict(stats), "rule": rule_text, "location_frame": loc_why, "intrinsics": info["intrinsics"],
             "condition": cond, "severity": sev, "ignore_mask": info.get("ignore_mask"),
             "projected_3d": info["projected_3d"], "labels_without_image": read.unmatched, "layout": read.layout,
-            "resumed": n_kept if state == "resume" else None}
+            "resumed": n_kept if state == "resume" else None,
+            "converted": None if not n_converted else conversion_note(
+                {k: converted[k] for k in CONVERSIONS}, f"{n_converted} frame(s) that are not 8-bit colour (stored as "
+                "they are)")}
 
 
 def _clear_but_marker(out: Path) -> None:

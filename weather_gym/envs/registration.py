@@ -4,7 +4,11 @@ Each id's entry point is :func:`weather_gym.pipeline.make_scenario_env` (env -> 
 perception; see :mod:`weather_gym.pipeline` for its keywords) and its ``max_episode_steps`` the
 scenario's time limit at its control rate (``max_episode_s * control_hz``): Gymnasium's ``TimeLimit``
 owns truncation, so ``gym.make(id, max_episode_steps=N)`` runs up to N steps (``-1``: Gymnasium's
-"no limit"); ``weather_gym.make_env`` derives the steps from the env's own control rate. This module only stores the entry point's
+"no limit"); ``weather_gym.make_env`` derives the steps from the env's own control rate. Gymnasium's
+passive env checker is replaced by the entry point's ``env_checker=True`` (the same checks in the same
+place, except that a first ``reset`` that refuses an option leaves the env usable:
+:mod:`weather_gym.envs.checker`), so the spec says ``disable_env_checker=True``; ``gym.make(id,
+env_checker=False)`` runs without it. This module only stores the entry point's
 name, so the env layer imports nothing above it.
 
 Example:
@@ -36,8 +40,8 @@ def register_envs() -> list[str]:
             raise InputError(f"duplicate env id {sc.env_id!r} in {sc.path} and {_SCENARIOS[sc.env_id].path}")
         _SCENARIOS[sc.env_id] = sc
         if sc.env_id not in gym.registry:
-            gym.register(id=sc.env_id, entry_point=ENTRY_POINT, kwargs={"scenario": str(path)},
-                         max_episode_steps=sc.max_episode_steps)
+            gym.register(id=sc.env_id, entry_point=ENTRY_POINT, kwargs={"scenario": str(path), "env_checker": True},
+                         max_episode_steps=sc.max_episode_steps, disable_env_checker=True)
         ids.append(sc.env_id)
     return ids
 

@@ -30,7 +30,6 @@ Example:
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import numbers
 import re
@@ -50,7 +49,7 @@ from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.registration import check_env_id
 from weather_gym.envs.scenario import build_config, load_scenario
-from weather_gym.errors import InputError, check_known
+from weather_gym.errors import InputError
 from weather_gym.evaluation.metrics import (
     MAP_MATCH_RADIUS_M,
     METRICS,
@@ -65,6 +64,7 @@ from weather_gym.perception_modes import (
     PERCEPTION_MODES,
     PerceptionMode,
     check_agent_observes,
+    check_perception_kwargs,
     detector_mode,
     perception_mode,
 )
@@ -72,7 +72,6 @@ from weather_gym.pipeline import make_env
 from weather_gym.ros.episode_bag import BAG_IMAGES, ConeNoise, EpisodeBag
 from weather_gym.tracks import load_track
 from weather_gym.weather.presets import canonical_condition, preset_spec
-from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise
 
 __all__ = [
     "CELL_KEY_FIELDS",
@@ -314,25 +313,7 @@ def _check_weather_for_mode(mode: PerceptionMode, weather: Mapping[tuple[str, An
 
 def _check_perception_kwargs(perception: str, kwargs: dict[str, Any]) -> None:
     """Refuse keys the perception wrapper does not take, and bad oracle noise values, before any cell runs."""
-    wrapper = perception_mode(perception).wrapper
-    if wrapper is None:
-        if kwargs:
-            raise InputError(f"--perception-kwargs {sorted(kwargs)}: perception {perception!r} takes none")
-        return
-    params = inspect.signature(wrapper.__init__).parameters  # type: ignore[misc]  # the wrapper class's own constructor
-    allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
-    allowed -= {"self", "env", "weather"}
-    noise = {}
-    if wrapper is GroundTruthConeWrapper:  # OracleNoise fields as keywords
-        noise = {k: v for k, v in kwargs.items() if k in {f.name for f in fields(OracleNoise)}}
-        allowed |= {f.name for f in fields(OracleNoise)}
-    check_known(kwargs, allowed, what=f"--perception-kwargs: {wrapper.__name__} (perception {perception!r})",
-                kind="argument")
-    if noise:
-        try:
-            OracleNoise(**noise)
-        except InputError as exc:
-            raise InputError(f"--perception-kwargs: {exc}") from None
+    check_perception_kwargs(perception, kwargs, what="--perception-kwargs")
 
 
 def _check_agent_kwargs(name: str, track: Any, camera: Any, kwargs: dict[str, Any]) -> None:

@@ -79,6 +79,8 @@ def _error_line(exc: BaseException) -> str:
     worker (loky's ``TerminatedWorkerError``, a Ray error) as ``WorkerDied`` with its exit code or Ray's words."""
     text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))
     if codes := re.search(r"exit codes of the workers are \{([^}]*)\}", text):
+        if not codes[1].strip():  # loky waits 0.25 s for the system to report it: a loaded machine may not have
+            return "WorkerDied: the worker process running this cell ended (its exit code was not known yet)"
         return f"WorkerDied: the worker process running this cell ended with {codes[1]}"
     frames = traceback.extract_tb(exc.__traceback__)[-3:][::-1]
     where = " <- ".join(f"{Path(fr.filename).name}:{fr.lineno} in {fr.name}" for fr in frames)

@@ -62,6 +62,9 @@ OUT_CHANNELS = NUM_CLASSES + 4
 DEFAULT_WIDTHS = (16, 24, 48, 96, 128)  # channels at strides 2, 4, 8, 16, 32
 DEFAULT_BLOCKS = (1, 2, 2, 1)  # residual blocks at strides 4, 8, 16, 32
 DEFAULT_NECK = 32
+MAX_BLOCKS = 8
+"""The most residual blocks at one stride (``blocks``, ``stem_blocks``): 4x the default's deepest stage; an
+unbounded count built nets of gigabytes (``--blocks 1000,...``)."""
 HEAT_PRIOR = 0.01  # initial heatmap probability (focal-loss bias init, as in CenterNet/RetinaNet)
 
 
@@ -117,8 +120,10 @@ class ConeNet(nn.Module):
         self.hidden = bool(hidden)
         self.hidden_boxes = bool(hidden_boxes)
         w = widths
-        if len(widths) != 5 or len(blocks) != 4 or min(blocks) < 0 or stem_blocks < 0 or neck < 1:
-            raise InputError(f"ConeNet needs 5 widths, 4 block counts >= 0, stem_blocks >= 0 and neck >= 1; got "
+        if len(widths) != 5 or len(blocks) != 4 or min(blocks) < 0 or stem_blocks < 0 or neck < 1 \
+                or max(*blocks, stem_blocks) > MAX_BLOCKS:
+            raise InputError(f"ConeNet needs 5 widths, 4 block counts in 0..{MAX_BLOCKS}, stem_blocks in 0..{MAX_BLOCKS} "
+                             f"and neck >= 1; got "
                              f"widths={widths}, blocks={blocks}, stem_blocks={stem_blocks}, neck={neck}")
         self.widths, self.blocks = tuple(int(c) for c in widths), tuple(int(b) for b in blocks)
         self.neck, self.stem_blocks = int(neck), int(stem_blocks)

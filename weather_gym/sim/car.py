@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 from weather_gym.sim.config import CarConfig
 
 _LOW_SPEED = 1.0  # below this, the kinematic model takes over (dynamic slip angles are singular at v=0)
@@ -36,7 +37,7 @@ class CarState:
     steer: float = 0.0  # front wheel angle, rad
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=jit_cache(__file__), nogil=True, inline="always")
 def _fiala(alpha: float, c: float, fz: float, mu: float, two: float, three: float) -> float:  # pragma: no cover
     """Lateral tyre force (N) at slip angle ``alpha`` with cornering stiffness ``c``."""
     if mu <= 0 or fz <= 0:
@@ -54,7 +55,7 @@ _G, _LF, _LR, _M, _WB, _M_ACCEL, _M_BRAKE, _ROLL, _FZ_F, _FZ_R, _MAX_STEER, _STE
     _C_F, _C_R, _YAW_INERTIA, _MAX_SPEED, _TWO, _THREE = range(20)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _advance(st, k, n: int, dt: float, steer: float, pedal: float, mu: float) -> None:  # pragma: no cover (compiled)
     """``n`` steps of ``dt`` seconds of the state ``st`` = (x, y, yaw, vx, vy, yaw_rate, steer), in place."""
     g, lf, lr, m, wheelbase = k[_G], k[_LF], k[_LR], k[_M], k[_WB]

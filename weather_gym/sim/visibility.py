@@ -35,6 +35,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
@@ -87,7 +88,7 @@ def visible_cones(camera: CameraConfig, eye, heading: float, pitch: float, cone_
                                "bearings": bearings, "pixels": pixels})
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _visible(ex, ey, ez, heading, pitch, fx, fy, cx, cy, near, far, width, height, xy, cls,  # noqa: C901 (one compiled loop)
              tilt_idx, tilt_org, tilt_rot, shape):  # pragma: no cover (compiled; tested through visible_cones)
     """The kernel of :func:`visible_cones`: (ids, boxes, ranges, bearings, pixels) of the visible cones."""

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 from weather_gym.cone_spec import CONE_CLASSES
 
 RANGE_KNOTS = np.array([0.0, 4.0, 8.0, 12.0, 16.0, 22.0, 30.0, 45.0, 80.0])
@@ -57,7 +58,7 @@ def crowding(boxes: np.ndarray) -> np.ndarray:
     return _crowding(b)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _crowding(b):  # pragma: no cover (compiled; tested through crowding)
     """The kernel of :func:`crowding`: the IoU of log._iou_matrix(b, b), the same operations pair by
     pair (this runs every step of the surrogate env)."""

@@ -32,6 +32,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 from weather_gym.camera_config import CameraConfig
 from weather_gym.surrogate.log import _HEIGHTS
 from weather_gym.surrogate.model import CROWDED, ERR_RANGE_EDGES, QUANTILES, Point, crowding, hat_terms
@@ -217,7 +218,7 @@ class _Tables:
         return np.tanh(z, out=z)  # numpy's tanh (the compiled kernel's could differ in the last bit)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=jit_cache(__file__), nogil=True, inline="always")
 def _interp_at(x, knots, vals, j, nk):  # pragma: no cover (compiled)
     """np.interp(x, knots[:nk], vals[:nk]) with the knot bin ``j`` of ``x`` (-1 below the first knot, nk
     above the last): numpy's arithmetic and special cases (arr_interp in compiled_base.c)."""
@@ -236,7 +237,7 @@ def _interp_at(x, knots, vals, j, nk):  # pragma: no cover (compiled)
     return r
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _logits(r, b, h, v, c, has_crowd, cls, knots, n_knots, vals, w0, cls_off):  # pragma: no cover (compiled)
     """(3, n) half logits of the three kinds: 0.5 * (w0 + the five features' interpolated terms + the
     class offset), summed in :meth:`Point.probability_of`'s order (crowding 0's term when ``has_crowd``
@@ -277,7 +278,7 @@ def _logits(r, b, h, v, c, has_crowd, cls, knots, n_knots, vals, w0, cls_off):  
     return z
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=jit_cache(__file__), nogil=True, inline="always")
 def _range_bin(r):  # pragma: no cover (compiled)
     """The error bin of range ``r``: min(ERR_RANGE_EDGES.searchsorted(r, "right"), _NB) - 1, with numpy's
     indexing of -1 (the last bin) and its sorting of NaN after every edge."""
@@ -291,7 +292,7 @@ def _range_bin(r):  # pragma: no cover (compiled)
     return b + _NB if b < 0 else b
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _draw_cones(th, u, cls, ids, ranges, bearings, boxes, box_h, crowd, range_factor, last_step, last_det, step, rho,  # noqa: C901 (compiled)
                 cum, q, loose_box_d, part_rows):  # pragma: no cover (compiled; tested through FrameSampler)
     """The per-cone draws of one frame from the probabilities ``0.5 * (1.0 + th)`` (3, n: detected,

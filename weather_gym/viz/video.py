@@ -34,6 +34,7 @@ import av
 import cv2
 import numpy as np
 
+from weather_gym._image_files import opencv_name
 from weather_gym._io import atomic_path, check_output, write_failure, write_image
 from weather_gym.errors import InputError, MissingDependencyError, OutputPathError
 
@@ -63,7 +64,7 @@ class _AvStream:
     codec = "h264"
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
-        self._container = av.open(str(path), mode="w", format="mp4", options={"movflags": H264_OPTIONS["movflags"]})
+        self._container = av.open(opencv_name(path, what="video"), mode="w", format="mp4", options={"movflags": H264_OPTIONS["movflags"]})
         rate = Fraction(fps).limit_denominator(1001)
         self._stream = self._container.add_stream("libx264", rate=rate)
         # yuv420p needs even sizes: odd frames get one replicated edge row/column
@@ -105,7 +106,7 @@ class _Mp4vStream:
     codec = "mp4v"
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
-        self._writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)  # type: ignore[attr-defined]  # not in cv2's stubs
+        self._writer = cv2.VideoWriter(opencv_name(path, what="video"), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)  # type: ignore[attr-defined]  # not in cv2's stubs
         if not self._writer.isOpened():
             raise OutputPathError(f"OpenCV could not open {path} for writing (mp4v codec)")
 

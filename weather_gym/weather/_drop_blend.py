@@ -12,7 +12,7 @@ byte, in one pass without Python between the drops:
 * ``cv2.add(roi, big, dst=roi)``, saturating.
 
 ``tests/weather/test_weather_lens_drops.py`` checks the result against those OpenCV calls drop by drop.
-numba compiles the kernel on first use (cached on disk afterwards).
+numba compiles the kernel on first use (cached on disk afterwards where a cache folder is writable: weather_gym._jit_cache).
 
 Example:
     >>> import numpy as np
@@ -31,6 +31,7 @@ from functools import lru_cache
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 from weather_gym.weather._common import into
 
 __all__ = ["blend_drops", "resize_tables"]
@@ -111,7 +112,7 @@ def _blend_row(orow: np.ndarray, h0: np.ndarray, h1: np.ndarray, b0: int | np.in
         orow[k] = min(o, c255)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _blend(out2: np.ndarray, content: np.ndarray, keep: np.ndarray, nn: np.ndarray, cstart: np.ndarray,
            wstart: np.ndarray, cx: np.ndarray, cy: np.ndarray, x0: np.ndarray, y0: np.ndarray, x1: np.ndarray,
            y1: np.ndarray, xo: np.ndarray, xa: np.ndarray, yo: np.ndarray, ya: np.ndarray) -> None:

@@ -13,7 +13,7 @@ conversion to bytes, its complement, both spread to three channels, two multipli
 * ``cv2.add``: saturating.
 
 ``tests/weather/test_weather_near_blend.py`` checks it against those OpenCV calls. numba compiles the
-kernels on first use (cached on disk afterwards).
+kernels on first use (cached on disk afterwards where a cache folder is writable: weather_gym._jit_cache).
 
 Example:
     >>> import numpy as np
@@ -30,6 +30,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
 from weather_gym.weather._common import into
 
 __all__ = ["near_blend", "near_weight"]
@@ -62,7 +63,7 @@ def near_blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, near_m: f
     into(target, out)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=jit_cache(__file__), nogil=True, inline="always")
 def _weight(z: np.float32, c: np.float32) -> np.int32:
     """``convertScaleAbs(c / max(Z, 1 mm))``: the float32 quotient, rounded half to even (adding and
     taking away 1.5 * 2 ** 23, exact below 2 ** 22: the quotient is capped at 256 first), saturated.
@@ -73,14 +74,14 @@ def _weight(z: np.float32, c: np.float32) -> np.int32:
     return np.int32(min(q, np.float32(255.0)))
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _weights(depth: np.ndarray, c: np.float32, out: np.ndarray) -> None:
     for r in range(depth.shape[0]):
         for x in range(depth.shape[1]):
             out[r, x] = _weight(depth[r, x], c)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, c: np.float32, from_depth: bool,
            out: np.ndarray) -> None:
     """:func:`near_blend` on rows of bytes: each row's weights spread to its bytes, then one pass over

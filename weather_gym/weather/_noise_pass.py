@@ -8,7 +8,7 @@ so :func:`noise_pass` reads the frame once and writes the result once, where fiv
 (a look-up, a split, a multiply, a subtract and a masked add) each wrote a temporary frame.
 
 ``tests/weather/test_weather_noise_pass.py`` checks the result against those OpenCV passes. numba
-compiles the kernel on first use (cached on disk afterwards).
+compiles the kernel on first use (cached on disk afterwards where a cache folder is writable: weather_gym._jit_cache).
 
 Example:
     >>> import numpy as np
@@ -30,6 +30,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from weather_gym._jit_cache import jit_cache
+
 __all__ = ["noise_pass"]
 
 
@@ -44,7 +46,7 @@ def noise_pass(frames: np.ndarray, outs: np.ndarray, table: np.ndarray, bank: np
     _noise(frames, outs, table, bank, np.asarray(starts, np.int64), np.asarray(pitches, np.int64), signs)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True)
 def _noise(frames: np.ndarray, outs: np.ndarray, table: np.ndarray, bank: np.ndarray, starts: np.ndarray,
            pitches: np.ndarray, signs: np.ndarray) -> None:
     """:func:`noise_pass`. Indices are unsigned or slices, so that numba leaves out its negative-index

@@ -36,6 +36,10 @@ def register_effect(cls: E) -> E:
     return cls
 
 
+RESERVED = ("k", "name")
+"""Names a weather item uses itself (its severity and its effect), so no effect has a parameter by them."""
+
+
 def make(name: str, k: float = 0.0, **params: Any) -> KnobEffect:
     """Build the effect ``name`` with severity ``k`` and optional physical parameters."""
     cls = EFFECTS.get(name)

@@ -42,7 +42,7 @@ from weather_gym.errors import InputError
 from weather_gym.weather.base import Effect, EffectRun, KnobEffect
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.presets import preset_spec
-from weather_gym.weather.registry import make
+from weather_gym.weather.registry import RESERVED, make
 from weather_gym.weather.schedule import Ramp
 from weather_gym.weather.tables import effect_from_table
 
@@ -63,6 +63,9 @@ def _from_item(name: Any, value: Any) -> Effect:
     if isinstance(value, Mapping):
         if "k" not in value:
             raise InputError(f"weather spec {name!r}: parameters {dict(value)!r} need 'k'")
+        if "name" in value:
+            raise InputError(f"weather spec {name!r}: 'name' is reserved (the effect's own name, the key of "
+                             f"this table), not a parameter")
         return make(name, **value)
     raise InputError(f"weather spec {name!r}: expected k (a number in [0, 1]) or a table of parameters, "
                      f"got {value!r}")
@@ -115,6 +118,9 @@ def _item_params(item: str, params: list[str]) -> dict[str, Any]:
         if not sep or not key.strip():
             raise InputError(f"weather spec item {item!r}: parameter {p!r} must be PARAM=VALUE "
                              "(the form is NAME:K:PARAM=VALUE:..., e.g. dim:0.5:mode=physical)")
+        if key.strip() in RESERVED:
+            raise InputError(f"weather spec item {item!r}: {key.strip()!r} is reserved, not a parameter "
+                             "(the form is NAME:K:PARAM=VALUE:...; k is the number after the name)")
         kwargs[key.strip()] = _param_value(value.strip())
     return kwargs
 

@@ -13,10 +13,10 @@ Example:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
-from weather_gym.errors import InputError
+from weather_gym.errors import InputError, check_known
 from weather_gym.weather.base import Effect
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.registry import EFFECTS, make
@@ -38,7 +38,12 @@ def effect_from_table(table: Mapping[str, Any]) -> Effect:
             raise InputError(f"weather table {dict(table)!r}: a ramp needs 'effect'")
         return Ramp(**rest)
     if name == "compose":
-        return Compose([effect_from_table(t) for t in rest.get("effects", [])])
+        check_known(rest, ("effects",), what=f"weather table {dict(table)!r}", kind="key",
+                    hint=" (a compose table holds only 'name' and 'effects', a list of effect tables)")
+        effects = rest.get("effects", [])
+        if isinstance(effects, (str, bytes, Mapping)) or not isinstance(effects, Sequence):
+            raise InputError(f"weather table {dict(table)!r}: 'effects' must be a list of effect tables, got {effects!r}")
+        return Compose([effect_from_table(t) for t in effects])
     if "k" not in rest:
         raise InputError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
     return make(name, **rest)

@@ -14,7 +14,7 @@ from typing import Any
 
 from weather_gym.errors import InputError, LimitError
 from weather_gym.limits import check_image_size, check_seed
-from weather_gym.perception.conenet import DEFAULT_BLOCKS, STRIDE, STRIDES
+from weather_gym.perception.conenet import DEFAULT_BLOCKS, MAX_BLOCKS, STRIDE, STRIDES
 
 MAX_OBJECTS = 128
 
@@ -85,8 +85,13 @@ class TrainConfig:
             raise InputError("hidden_boxes needs hidden (the boxes are the hidden-cone head's; --hidden-heads)")
         if len(self.blocks) != 4 or any(int(b) != b or b < 0 for b in self.blocks):
             raise InputError(f"blocks must be 4 whole numbers >= 0 (strides 4, 8, 16, 32), got {self.blocks}")
+        if max(self.blocks) > MAX_BLOCKS:
+            raise LimitError(f"blocks (--blocks) must be at most {MAX_BLOCKS} per stride (default "
+                             f"{','.join(map(str, DEFAULT_BLOCKS))}), got {','.join(map(str, self.blocks))}")
         if int(self.stem_blocks) != self.stem_blocks or self.stem_blocks < 0:
             raise InputError(f"stem_blocks must be a whole number >= 0, got {self.stem_blocks}")
+        if self.stem_blocks > MAX_BLOCKS:
+            raise LimitError(f"stem_blocks (--stem-blocks) must be at most {MAX_BLOCKS}, got {self.stem_blocks}")
         if not (self.device == "cpu" or self.device == "cuda" or
                 (self.device.startswith("cuda:") and self.device[5:].isdigit())):
             raise InputError(f"device must be 'cpu', 'cuda' or 'cuda:N', got {self.device!r}")
