@@ -55,6 +55,9 @@ class LidarConfig:
         rate_hz: scans per second (the env casts a scan every ``control_hz / rate_hz`` steps).
         max_range, min_range: returns farther than ``max_range`` or nearer than ``min_range`` (m) are none.
         range_noise_m: standard deviation of the range of a return in clear air (m).
+        ref_reflectivity: the detection threshold: a return is detected while its received power
+            (intensity / range^2) is at least that of a target of this reflectivity at ``max_range``
+            (an assumption: the HDL-32E's 100 m for a 10 % target is the data sheet's best case).
         mount_x, mount_y, mount_z: the sensor's origin in the car frame (m from the rear axle's centre
             on the ground: x forward, y left, z up).
         yaw_deg, pitch_deg: the sensor's heading on the car and its downward tilt (degrees).
@@ -70,6 +73,7 @@ class LidarConfig:
     max_range: float = 100.0
     min_range: float = 1.0
     range_noise_m: float = 0.02
+    ref_reflectivity: float = 0.1
     mount_x: float = 2.25
     mount_y: float = 0.0
     mount_z: float = 0.3
@@ -95,6 +99,7 @@ class LidarConfig:
         _in_range(self, "max_range", 1.0, 1000.0)
         _in_range(self, "min_range", 0.0, self.max_range)
         _in_range(self, "range_noise_m", 0.0, 1.0)
+        _in_range(self, "ref_reflectivity", 1e-4, 1.0)
         _in_range(self, "mount_z", 0.01, 5.0)
         _in_range(self, "pitch_deg", -45.0, 45.0)
         if self.rays > MAX_RAYS:
