@@ -13,6 +13,9 @@ The shipped modes, in the order ``auto`` choices search them (:func:`auto_mode`)
 * ``oracle``    - ``GroundTruthConeWrapper`` on the rendered ground truth (pixel-exact visibility).
 * ``gt_cones``  - ground-truth cones from geometry; the camera renders nothing (``camera_images=False,
   ground_truth="geometry"``): thousands of steps per second, for training controllers on cone lists.
+* ``lidar``     - ``LidarConeWrapper``: the car's LiDAR (an HDL-32E by default; nothing rendered for the
+  camera) through its own weather (``perception_kwargs={"lidar_weather": "fog:mor=60"}``) to cones of
+  unknown colour (:mod:`weather_gym.wrappers.lidar`).
 * ``surrogate`` - ``SurrogatePerceptionWrapper``: the ``gt_cones`` truth turned into what the shipped
   detector reports in the weather, drawn from a fitted model (:mod:`weather_gym.surrogate`).
 
@@ -22,13 +25,13 @@ Agents declare the observation keys they read (``weather_gym.agents.agent_observ
 Example:
     >>> from weather_gym.perception_modes import PERCEPTION_MODES, auto_mode, perception_mode
     >>> [m.name for m in PERCEPTION_MODES.values() if not m.renders_frames]
-    ['gt_cones', 'surrogate']
+    ['gt_cones', 'surrogate', 'lidar']
     >>> auto_mode(frozenset({"cones", "mask", "state"})).name, auto_mode(frozenset()).name
     ('detector', 'camera')
     >>> perception_mode("sonar")
     Traceback (most recent call last):
     ...
-    weather_gym.errors.InputError: unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones, surrogate
+    weather_gym.errors.InputError: unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones, surrogate, lidar
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from typing import Any
 import gymnasium as gym
 
 from weather_gym._io import file_id
+from weather_gym.envs.config import LidarConfig
 from weather_gym.errors import InputError
 from weather_gym.perception.detector_spec import detector_id
 from weather_gym.registry import add_unique
@@ -49,6 +53,7 @@ from weather_gym.weather import parse_weather, to_spec
 from weather_gym.wrappers import (
     DetectorWrapper,
     GroundTruthConeWrapper,
+    LidarConeWrapper,
     SurrogatePerceptionWrapper,
     WeatherWrapper,
 )
@@ -240,3 +245,16 @@ register_mode(PerceptionMode(
     wrapper=SurrogatePerceptionWrapper, env_overrides=RENDER_FREE,
     fingerprint=lambda kw: {"surrogate": file_id(kw.get("model") or SHIPPED_MODEL)},
     check_weather=_surrogate_weather))
+
+
+def _wrap_lidar(env: gym.Env, weather: Any, kwargs: dict[str, Any]) -> gym.Env:
+    if weather is not None and to_spec(parse_weather(weather)):
+        raise InputError(f"weather {weather!r} acts on camera images; perception 'lidar' takes its own weather: "
+                         "perception_kwargs={'lidar_weather': 'fog:mor=60+rain@2'} (weather-gym lap --lidar-weather)")
+    return LidarConeWrapper(env, **kwargs)
+
+
+register_mode(PerceptionMode(
+    "lidar", "the car's LiDAR through its weather -> cones of unknown colour (ground removal, clustering)",
+    _wrap_lidar, CONES, renders_frames=False, can_record_video=False, wrapper=LidarConeWrapper,
+    env_overrides={**RENDER_FREE, "lidar": LidarConfig()}))

@@ -27,7 +27,7 @@ import numpy as np
 
 from weather_gym.errors import InputError
 
-__all__ = ["LABELS", "PointCloud", "label_id"]
+__all__ = ["LABELS", "PointCloud", "label_id", "pack_points"]
 
 LABELS: tuple[str, ...] = ("ground", "cone", "car", "other", "fog", "rain", "snow")
 """What made a return: the road (``ground``), a cone, the ego car, other scenery, or the weather
@@ -114,3 +114,17 @@ class PointCloud:
     def equals(self, other: PointCloud) -> bool:
         """Same returns, same bytes."""
         return all(np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self))
+
+
+def pack_points(cloud: PointCloud, max_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(points, mask)``: ``(max_points, 4)`` float32 rows x, y, z, intensity padded with zeros, and the
+    ``(max_points,)`` int8 mask of valid rows (the nearest returns kept when there are more)."""
+    n = len(cloud)
+    rows = np.arange(n) if n <= max_points else np.sort(np.argsort(cloud.ranges, kind="stable")[:max_points])
+    k = len(rows)
+    points = np.zeros((max_points, 4), np.float32)
+    mask = np.zeros(max_points, np.int8)
+    points[:k, :3] = cloud.xyz[rows]
+    points[:k, 3] = cloud.intensity[rows]
+    mask[:k] = 1
+    return points, mask

@@ -33,7 +33,7 @@ Example:
     >>> pts = np.array([[7.75, 1.0, -0.1], [7.76, 1.02, -0.12], [7.75, 0.98, -0.14], [5.0, -3.0, -0.3]])
     >>> cones = cones_from_points(PointCloud.from_arrays(xyz=pts, intensity=np.full(4, 0.5), ring=np.zeros(4)), cfg)
     >>> cones["x_body"].round(2).tolist(), cones["y_body"].round(2).tolist(), cones["classes"].tolist()
-    ([10.05], [1.0], [-1])
+    ([10.05], [1.01], [-1])
 """
 
 from __future__ import annotations
