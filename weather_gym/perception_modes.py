@@ -89,6 +89,7 @@ class PerceptionMode:
         env_overrides: ``EnvConfig`` overrides the mode needs (e.g. :data:`RENDER_FREE`).
         record_kwargs: perception keywords that keep the camera image for a recording.
         fingerprint: ``kwargs -> {part: id}`` of the model files the mode runs with (results keys).
+        takes_lidar_weather: the mode's wrapper takes ``lidar_weather`` (a LiDAR weather spec) among its keywords.
         check_weather: ``(kwargs, weather spec) -> None``, raising ``InputError`` for a weather the mode
             cannot produce (checked before a grid runs).
     """
@@ -108,6 +109,7 @@ class PerceptionMode:
     record_kwargs: Mapping[str, Any] = field(default_factory=dict)
     fingerprint: Callable[[Mapping[str, Any]], dict[str, str]] | None = None
     check_weather: Callable[[Mapping[str, Any], Any], None] | None = None
+    takes_lidar_weather: bool = False
 
     def describe(self) -> str:
         """The doc line with what the mode cannot do (for ``--help``)."""
@@ -256,5 +258,5 @@ def _wrap_lidar(env: gym.Env, weather: Any, kwargs: dict[str, Any]) -> gym.Env:
 
 register_mode(PerceptionMode(
     "lidar", "the car's LiDAR through its weather -> cones of unknown colour (ground removal, clustering)",
-    _wrap_lidar, CONES, renders_frames=False, can_record_video=False, wrapper=LidarConeWrapper,
+    _wrap_lidar, CONES, renders_frames=False, can_record_video=False, wrapper=LidarConeWrapper, takes_lidar_weather=True,
     env_overrides={**RENDER_FREE, "lidar": LidarConfig()}))
