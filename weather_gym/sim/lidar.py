@@ -15,7 +15,7 @@ can end elsewhere; those are found from the cones' angular windows and cast with
 ``rayTestBatch`` against the world (the cones' collision meshes, as physics has them). A scan of
 the default 72 000-beam HDL-32E casts a few hundred to a few thousand rays; :meth:`LidarSensor.scan_naive`
 casts every beam through ``rayTestBatch`` instead (the benchmark's baseline, ``weather-gym bench lidar``;
-both give the same returns: tests/sim/test_lidar.py). Track-side scenery of the realistic world has
+both give the same returns, bit for bit: tests/sim/test_lidar.py). Track-side scenery of the realistic world has
 no collision shapes (it is drawn only) and so returns nothing.
 
 Example:
@@ -113,7 +113,6 @@ class LidarSensor:
         self.client, self.ground_body, self.car_body = client, ground_body, car_body
         self.dirs_sensor, self.dirs_car = beam_directions(cfg)
         self.origin = np.array([cfg.mount_x, cfg.mount_y, cfg.mount_z])
-        n = cfg.rays
         self.ring = np.repeat(np.arange(cfg.channels, dtype=np.int16), cfg.columns)
         # the static part of every scan: the ground plane and the car's body, in the car frame
         dz = self.dirs_car[:, 2]
@@ -126,7 +125,11 @@ class LidarSensor:
         self._label_static = np.where(car_first, _CAR, _GROUND).astype(np.uint8)
         self._refl_static = np.where(car_first, REFLECTIVITY["car"], REFLECTIVITY["ground"]).astype(np.float32)
         self._cos_static = np.where(car_first, cos_car, np.maximum(-dz, 0.0)).astype(np.float32)
-        self._cone_static = np.full(n, -1, dtype=np.int32)
+        static = np.flatnonzero(self._detected(self._t_static, self._refl_static * self._cos_static))
+        self._s_rows, self._s_t = static, self._t_static[static]
+        self._s_refl, self._s_label = self._refl_static[static], self._label_static[static]
+        self._s_int = (self._refl_static * self._cos_static)[static].astype(np.float32)
+        self._s_cone = np.full(len(static), -1, dtype=np.int32)
         self._cone_classes = np.asarray(cone_classes, dtype=np.int64)
         self._cone_heights = np.asarray(cone_heights, dtype=np.float64)
         base = np.array([CONE_BASE_M[CONE_CLASSES[c]] for c in self._cone_classes])
@@ -146,7 +149,7 @@ class LidarSensor:
         return np.array([x, y, 0.0]) + rot @ self.origin, rot
 
     def candidates(self, car_pose, cone_xy: np.ndarray, tilted: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Indices of the beams that may hit a cone (sorted), and how far each must be cast (m).
+        """Indices of the beams that may hit a cone (sorted) and how far each must be cast (m).
 
         Two steps. A standing cone fits in an upright cylinder of radius ``r`` (its base plate's
         half-diagonal) and its height, so its beams lie within the azimuths ``centre +- asin(r /
@@ -192,14 +195,15 @@ class LidarSensor:
         c_lo, c_hi = np.where(full, 0, c_lo), np.where(full, cols, c_hi)
         if not cfg.spinning:
             c_lo, c_hi = np.clip(c_lo, 0, cols), np.clip(c_hi, 0, cols)
-        ids, owner = [], []
-        for j in np.flatnonzero((r_hi > r_lo) & (c_hi > c_lo)):
-            c = np.arange(c_lo[j], c_hi[j]) % cols
-            ids.append((np.arange(r_lo[j], r_hi[j])[:, None] * cols + c[None, :]).ravel())
-            owner.append(np.full(ids[-1].shape[0], j))
-        if not ids:
+        ok = np.flatnonzero((r_hi > r_lo) & (c_hi > c_lo))
+        if not len(ok):
             return empty
-        ray, j = np.concatenate(ids), np.concatenate(owner)
+        nr, nc = (r_hi - r_lo)[ok], (c_hi - c_lo)[ok]
+        per = nr * nc
+        j = np.repeat(ok, per)  # every (beam, cone) pair of the windows, vectorised
+        k = np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)
+        width = np.repeat(nc, per)
+        ray = (r_lo[j] + k // width) * cols + (c_lo[j] + k % width) % cols
         idx = near[j]
         h, top = self._cone_heights[idx] + 0.01, self._cone_top[idx] + 0.01
         keep = ~standing[idx] | self._through(ray, rel[j], self._cone_radius[idx] + 0.005, top, h)
@@ -243,36 +247,48 @@ class LidarSensor:
         id + 1 to cone index; ``cone_frames`` (knocked cones: index -> (base origin (3,), rotation (3, 3)));
         ``rng`` draws the range noise (None: none)."""
         cand, far = self.candidates(car_pose, cone_xy, cone_frames)
-        t = self._t_static.copy()
-        label, refl = self._label_static.copy(), self._refl_static.copy()
-        cos, cone = self._cos_static.copy(), self._cone_static.copy()
+        cfg = self.config
+        rows = self._s_rows  # the static returns (ground, car), in beam order
+        t, refl, intensity = self._s_t, self._s_refl, self._s_int
+        label, cone = self._s_label, self._s_cone
         if len(cand):
             eye, rot = self._pose(car_pose)
-            reach = np.minimum(np.minimum(t[cand], self.config.max_range), far)
+            reach = np.minimum(np.minimum(self._t_static[cand], cfg.max_range), far)
             d_world = self.dirs_car[cand] @ rot.T
             hits = self._cast(eye, d_world, reach)
             fraction = np.fromiter((h[2] for h in hits), float, len(hits))
             body = np.fromiter((h[0] for h in hits), np.int64, len(hits))
             idx = cone_lut[np.clip(body + 1, 0, len(cone_lut) - 1)]
-            got = (body >= 0) & (idx >= 0)
-            if got.any():
-                rows = cand[got]
+            got = np.flatnonzero((body >= 0) & (idx >= 0))
+            if len(got):
+                beams = cand[got]  # sorted: candidates are
                 t_hit = fraction[got] * reach[got]
-                normals = np.array([hits[k][4] for k in np.flatnonzero(got)], dtype=np.float64).reshape(-1, 3)
+                normals = np.array([hits[k][4] for k in got], dtype=np.float64).reshape(-1, 3)
                 points = eye + d_world[got] * t_hit[:, None]
                 ci = idx[got].astype(np.int64)
-                t[rows], label[rows], cone[rows] = t_hit, _CONE, ci
-                cos[rows] = np.abs(np.einsum("ij,ij->i", normals, d_world[got]))
-                refl[rows] = self._cone_reflectivity(ci, points, cone_xy, cone_frames)
-        cfg = self.config
-        keep = np.flatnonzero(self._detected(t, refl * cos))
-        r = t[keep]
+                cos = np.abs(np.einsum("ij,ij->i", normals, d_world[got]))
+                refl_hit = self._cone_reflectivity(ci, points, cone_xy, cone_frames)
+                seen = self._detected(t_hit, refl_hit * cos)
+                # a cone hides what lay behind it on its beams; its detected returns join in beam order
+                pos = np.searchsorted(rows, beams)
+                hidden = pos[(pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == beams)]
+                stay = np.ones(len(rows), bool)
+                stay[hidden] = False
+                new = beams[seen]
+                allrows = np.concatenate([rows[stay], new])
+                order = np.argsort(allrows, kind="stable")
+                rows = allrows[order]
+                t = np.concatenate([t[stay], t_hit[seen]])[order]
+                refl = np.concatenate([refl[stay], refl_hit[seen].astype(np.float32)])[order]
+                intensity = np.concatenate([intensity[stay], (refl_hit * cos)[seen].astype(np.float32)])[order]
+                label = np.concatenate([label[stay], np.full(len(new), _CONE, np.uint8)])[order]
+                cone = np.concatenate([cone[stay], ci[seen].astype(np.int32)])[order]
+        r = t
         if rng is not None and cfg.range_noise_m > 0:
-            r = r + cfg.range_noise_m * rng.standard_normal(len(r))
-        xyz = (self.dirs_sensor[keep] * r[:, None]).astype(np.float32)
-        rk = refl[keep]
-        return PointCloud.trusted(xyz=xyz, intensity=(rk * cos[keep]).astype(np.float32), reflectivity=rk,
-                                  ring=self.ring[keep], cone=cone[keep], label=label[keep])
+            r = t + cfg.range_noise_m * rng.standard_normal(len(t))
+        xyz = (self.dirs_sensor[rows] * r[:, None]).astype(np.float32)
+        return PointCloud.trusted(xyz=xyz, intensity=intensity.copy(), reflectivity=refl.copy(),
+                                  ring=self.ring[rows], cone=cone.copy(), label=label.copy())
 
     def _detected(self, t: np.ndarray, intensity: np.ndarray) -> np.ndarray:
         """Beams whose hit gives a return: within the range limits and with a received power
@@ -283,6 +299,9 @@ class LidarSensor:
                     & (intensity * (cfg.max_range * cfg.max_range) >= cfg.ref_reflectivity * t * t))
 
     def _cast(self, eye: np.ndarray, d_world: np.ndarray, reach: np.ndarray) -> list:
+        """``rayTestBatch`` from ``eye`` along ``d_world`` to ``reach`` metres. Each ray starts at the sensor:
+        Bullet's convex ray cast is iterative, and a ray started just short of a cone hits it up to 7 mm
+        elsewhere (and grazing beams another cone) than one from the sensor."""
         start = [eye.tolist()] * len(d_world)
         end = (eye + d_world * reach[:, None]).tolist()
         out: list = []
