@@ -144,6 +144,22 @@ def _geometric_sides(points: np.ndarray, guide: np.ndarray | None) -> np.ndarray
     return np.where(cross >= 0, 1, -1)
 
 
+def _corridor(body: np.ndarray, cls: np.ndarray, guide: np.ndarray | None,
+              reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Drop the cones of unknown colour farther than ``reach`` from ``guide`` (the previous centre line,
+    car frame; without one, from the car's heading line): they belong to another part of the track."""
+    unknown = cls < 0
+    if guide is None or len(guide) < 2:
+        dist = np.abs(body[:, 1])
+    else:
+        a, seg = guide[:-1], np.diff(guide, axis=0)
+        rel = body[:, None, :] - a[None]
+        t = np.clip((rel * seg[None]).sum(axis=2) / np.maximum((seg * seg).sum(axis=1), 1e-9)[None], 0.0, 1.0)
+        dist = np.hypot(*(rel - t[..., None] * seg[None]).transpose(2, 0, 1)).min(axis=1)
+    keep = ~unknown | (dist <= reach)
+    return body[keep], cls[keep]
+
+
 def _sides(body: np.ndarray, cls: np.ndarray, guide: np.ndarray | None = None) -> np.ndarray:
     """+1 (left) for blue, -1 (right) for yellow. An orange cone joins the side it stands on across
     the track: its position along the segment from the nearest blue to the nearest yellow cone
@@ -198,9 +214,12 @@ class CenterlinePlanner:
         near = (np.hypot(body[:, 0], body[:, 1]) < cfg.radius) & (body[:, 0] > -cfg.behind)
         body, cls = body[near], classes[near]
         guide = None
-        if self._last_path is not None and (cls < 0).any():
-            g = self._last_path - (px, py)
-            guide = np.c_[c * g[:, 0] + s * g[:, 1], -s * g[:, 0] + c * g[:, 1]]
+        if (cls < 0).any():
+            if self._last_path is not None:
+                g = self._last_path - (px, py)
+                guide = np.c_[c * g[:, 0] + s * g[:, 1], -s * g[:, 0] + c * g[:, 1]]
+            # a cone of unknown colour far from the corridor (another part of the track) is left out
+            body, cls = _corridor(body, cls, guide, cfg.max_width / 2 + 1.0)
         side = _sides(body, cls, guide)
 
         mids, half, links = self._gates(body, side)
