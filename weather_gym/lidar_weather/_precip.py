@@ -15,6 +15,17 @@ Re-implemented from the papers, not their code:
   m^3 of the size distribution); with probability ``1 - exp(-lambda)`` one is drawn uniformly in the
   cone's volume, and its return replaces the target's when it is the stronger (the strongest return
   wins). Only beams that had a return are considered (a scan holds no beams that returned nothing).
+
+Example:
+    >>> import numpy as np
+    >>> from weather_gym.lidar_weather._precip import precipitation
+    >>> from weather_gym.point_cloud import PointCloud
+    >>> pc = PointCloud.from_arrays(xyz=[[30.0, 0, 0]], intensity=[0.8], ring=[0])
+    >>> out = precipitation(pc, np.random.default_rng(0), alpha=0.02, rate=5.0, n_total=2000.0, mean_d_m=3e-4,
+    ...                     particle_reflectivity=0.05, label=5, divergence=0.003, ref_reflectivity=0.1,
+    ...                     max_range_m=100.0, min_range_m=1.0)
+    >>> round(float(out.intensity[0]), 3)   # 0.8 exp(-2 * 0.02 * 30)
+    0.241
 """
 
 from __future__ import annotations
