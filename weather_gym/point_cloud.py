@@ -115,6 +115,13 @@ class PointCloud:
         """Same returns, same bytes."""
         return all(np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self))
 
+    def __eq__(self, other: object) -> bool:  # compares the arrays (Gymnasium's env checker compares infos)
+        if not isinstance(other, PointCloud):
+            return NotImplemented
+        return self.equals(other)
+
+    __hash__ = None  # type: ignore[assignment]  # holds arrays: not hashable
+
 
 def pack_points(cloud: PointCloud, max_points: int) -> tuple[np.ndarray, np.ndarray]:
     """``(points, mask)``: ``(max_points, 4)`` float32 rows x, y, z, intensity padded with zeros, and the

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gymnasium as gym
+from gymnasium.utils.env_checker import check_env
 import numpy as np
 import pytest
 
@@ -101,3 +102,11 @@ def test_lap_option_checks_mode_and_spec():
         _perception_kwargs(perception_mode("gt_cones"), False, None, "fog@1")
     with pytest.raises(InputError, match="hail"):
         _perception_kwargs(perception_mode("lidar"), False, None, "hail@1")
+
+
+def test_gymnasium_env_checker_passes_with_a_lidar():
+    env = _env()
+    try:
+        check_env(env, skip_render_check=True)
+    finally:
+        env.close()
