@@ -75,8 +75,9 @@ def register(sub) -> None:
     g = p.add_argument_group("grid")
     g.add_argument("--agent", "--agents", dest="agents", default="mapper_pure_pursuit",
                    help="agent name(s), comma-separated (weather_gym.agents.AGENTS)")
-    g.add_argument("--effects", default="droplets,dim", help="weather conditions / effect names, comma-separated")
-    g.add_argument("--severities", default="0,1,2,3,4", help="preset severities (0-4), comma-separated")
+    g.add_argument("--effects", default="droplets,dim", help="weather conditions / effect names, comma-separated "
+                                                           "(--perception lidar: fog, rain, snow, wet)")
+    g.add_argument("--severities", default="0,1,2,3,4", help="preset severities (0-4; the LiDAR's 0-5), comma-separated")
     seeds = g.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=3, help="number of seeds: 0..N-1")
     seeds.add_argument("--seed-list", default=None, help="explicit seeds, comma-separated (instead of --seeds)")
