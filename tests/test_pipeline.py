@@ -78,8 +78,8 @@ def test_gym_make_keywords_and_make_env_build_the_same_stack():
 
 
 def test_bad_settings_are_clear_errors():
-    with pytest.raises(ValueError, match="unknown perception 'lidar'; valid: camera, detector, oracle, gt_cones"):
-        make_env(perception="lidar")
+    with pytest.raises(ValueError, match="unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones"):
+        make_env(perception="sonar")
     with pytest.raises(ValueError, match="needs perception='detector'"):
         make_env(perception="oracle", detector="model.onnx", camera=SMALL_CAMERA)
     with pytest.raises(ValueError, match="acts on camera images.*gt_cones"):
