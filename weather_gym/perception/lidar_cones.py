@@ -2,7 +2,8 @@
 
 1. **Into the car frame** (the mount's pitch, yaw and position undone).
 2. **Ground removal**: the car drives on flat ground without pitch or roll, so the ground is the plane
-   ``z = 0`` and returns below ``ground_z`` (3 cm) are ground (a stack on a real car would fit the
+   ``z = 0`` and returns below ``ground_z`` (1 cm) are ground (a cone's base plate is 2 cm thick: the beam
+   just below the horizon meets cones at 10-13 m there) (a stack on a real car would fit the
    plane, e.g. by RANSAC, each scan).
 3. **Outlier removal** (DROR, Charron et al. 2018, "De-noising of Lidar Point Clouds Corrupted by
    Snowfall"): a return keeps only with at least ``min_neighbours`` other returns within
@@ -58,7 +59,7 @@ __all__ = ["LidarConeConfig", "cones_from_points", "to_car_frame"]
 class LidarConeConfig:
     """Tuning of :func:`cones_from_points` (metres; see the module doc)."""
 
-    ground_z: float = 0.03
+    ground_z: float = 0.01
     max_range: float = 30.0
     link_m: float = 0.3
     min_points: int = 2
@@ -66,7 +67,7 @@ class LidarConeConfig:
     max_depth_m: float = 1.0
     min_neighbours: int = 1
     dror_factor: float = 3.0
-    min_height_m: float = 0.08
+    min_height_m: float = 0.015
     max_height_m: float = 0.6
     radius_m: float = 0.05
 
