@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import gymnasium as gym
-from gymnasium.utils.env_checker import check_env
 import numpy as np
 import pytest
+from gymnasium.utils.env_checker import check_env
 
 import weather_gym  # noqa: F401  (registers the ids)
 from weather_gym.cli.lap import _perception_kwargs
