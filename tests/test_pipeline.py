@@ -9,7 +9,13 @@ import pytest
 import weather_gym
 from tests.conftest import SMALL_CAMERA
 from weather_gym.pipeline import PERCEPTION_MODES, make_env, make_vec_env
-from weather_gym.wrappers import DetectorWrapper, EpisodeStatistics, GroundTruthConeWrapper, LidarConeWrapper, WeatherWrapper
+from weather_gym.wrappers import (
+    DetectorWrapper,
+    EpisodeStatistics,
+    GroundTruthConeWrapper,
+    LidarConeWrapper,
+    WeatherWrapper,
+)
 
 
 def _chain(env) -> list[type]:
