@@ -26,7 +26,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "weather_gym"
 
 PLUMBING = {"registry", "_io", "_inputs", "_jit_cache", "_image_files", "_figures", "_output_args", "errors", "limits", "paths", "cone_spec",
-            "cone_arrays", "_lazy", "_toml", "_lock", "_confine", "_markdown"}
+            "cone_arrays", "_lazy", "_toml", "_lock", "_confine", "_markdown", "point_cloud"}
 """Shared plumbing with no layer of its own: importable from anywhere, imports no layer."""
 
 SUBLAYERS = {"perception.train": "perception_tools", "perception.conenet": "perception_tools",
@@ -41,11 +41,12 @@ ALLOWED: dict[str, set[str]] = {
     "tracks": set(),
     "camera": set(),
     "weather": set(),
+    "lidar_weather": set(),
     "sim": {"tracks", "camera"},
     "envs": {"sim", "tracks", "camera", "weather"},
     "perception": {"camera", "weather"},
     "surrogate": {"perception", "weather", "camera"},
-    "wrappers": {"weather", "perception", "camera", "surrogate"},
+    "wrappers": {"weather", "lidar_weather", "perception", "camera", "surrogate"},
     "pipeline": {"envs", "weather", "wrappers", "perception", "surrogate", "root"},
     "agents": {"tracks", "camera", "perception", "wrappers"},
     "ros": {"camera", "weather", "perception"},
@@ -78,7 +79,7 @@ refractive drops' blend, the sensor noise's pass and the motion smear's blend (`
 loading the weather layer does not load numba) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s crowding) and stays out of the
 other layers (its import takes about a second, a compile seconds on a cold cache)."""
 
-NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather"}}
+NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather", "lidar_weather"}}
 
 
 def _modules() -> dict[str, Path]:

@@ -39,14 +39,16 @@ def toy_mode(monkeypatch):
 
 
 def test_modes_carry_their_properties():
-    assert modes_where(renders_frames=False) == ["gt_cones", "surrogate"]
+    assert modes_where(renders_frames=False) == ["gt_cones", "surrogate", "lidar"]
     assert modes_where(takes_weather=False) == ["gt_cones"]
+    assert modes_where(takes_lidar_weather=True) == ["lidar"]
     assert modes_where(is_scored=True) == ["detector"]
     assert modes_where(gives_detections=True) == ["detector", "surrogate"]
     assert modes_where(can_record_video=True) == ["camera", "detector", "oracle"]
-    assert all(PERCEPTION_MODES[n].observation == CONES for n in ("detector", "oracle", "gt_cones", "surrogate"))
-    with pytest.raises(InputError, match="unknown perception 'lidar'; valid: camera, detector"):
-        perception_mode("lidar")
+    assert all(PERCEPTION_MODES[n].observation == CONES
+               for n in ("detector", "oracle", "gt_cones", "surrogate", "lidar"))
+    with pytest.raises(InputError, match="unknown perception 'sonar'; valid: camera, detector"):
+        perception_mode("sonar")
 
 
 def test_auto_picks_the_first_mode_that_gives_what_the_agent_reads():
@@ -63,7 +65,7 @@ def test_an_agent_on_a_mode_without_its_observation_is_a_typed_error(tmp_path, c
     from weather_gym.evaluation.evaluate import EvalConfig, make_cells
 
     with pytest.raises(InputError, match=r"agent 'mapper_pure_pursuit' reads obs\['cones', 'mask'\].*perception "
-                                         r"'camera'.*modes for this agent: detector, oracle, gt_cones, surrogate"):
+                                         r"'camera'.*modes for this agent: detector, oracle, gt_cones, surrogate, lidar"):
         check_agent_observes("mapper_pure_pursuit", CONES, "camera")
     with pytest.raises(InputError, match="reads obs"):
         make_cells(EvalConfig(agents=("mapper_pure_pursuit",), perception="camera", severities=(0,), seeds=(0,)))

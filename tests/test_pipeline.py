@@ -9,7 +9,13 @@ import pytest
 import weather_gym
 from tests.conftest import SMALL_CAMERA
 from weather_gym.pipeline import PERCEPTION_MODES, make_env, make_vec_env
-from weather_gym.wrappers import DetectorWrapper, EpisodeStatistics, GroundTruthConeWrapper, WeatherWrapper
+from weather_gym.wrappers import (
+    DetectorWrapper,
+    EpisodeStatistics,
+    GroundTruthConeWrapper,
+    LidarConeWrapper,
+    WeatherWrapper,
+)
 
 
 def _chain(env) -> list[type]:
@@ -24,7 +30,7 @@ def test_one_vocabulary_for_every_caller():
     from weather_gym.cli.lap import perception_choices
     from weather_gym.evaluation.evaluate import PERCEPTIONS
 
-    assert set(PERCEPTION_MODES) == {"camera", "detector", "oracle", "gt_cones", "surrogate"}
+    assert set(PERCEPTION_MODES) == {"camera", "detector", "oracle", "gt_cones", "surrogate", "lidar"}
     assert PERCEPTIONS == tuple(PERCEPTION_MODES)
     assert perception_choices() == ("auto", *PERCEPTION_MODES)
 
@@ -34,6 +40,7 @@ def test_one_vocabulary_for_every_caller():
     ("oracle", {"cones", "mask", "state"}, GroundTruthConeWrapper),
     ("gt_cones", {"cones", "mask", "state"}, GroundTruthConeWrapper),
     ("detector", {"cones", "mask", "state"}, DetectorWrapper),
+    ("lidar", {"cones", "mask", "state"}, LidarConeWrapper),
 ])
 def test_each_perception_mode_builds_its_observation(perception, keys, wrapper):
     env = make_env(perception=perception, camera=SMALL_CAMERA, max_episode_steps=50)
@@ -78,8 +85,8 @@ def test_gym_make_keywords_and_make_env_build_the_same_stack():
 
 
 def test_bad_settings_are_clear_errors():
-    with pytest.raises(ValueError, match="unknown perception 'lidar'; valid: camera, detector, oracle, gt_cones"):
-        make_env(perception="lidar")
+    with pytest.raises(ValueError, match="unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones"):
+        make_env(perception="sonar")
     with pytest.raises(ValueError, match="needs perception='detector'"):
         make_env(perception="oracle", detector="model.onnx", camera=SMALL_CAMERA)
     with pytest.raises(ValueError, match="acts on camera images.*gt_cones"):

@@ -13,6 +13,9 @@ from weather_gym.errors import InputError
 CONE_CLASSES: tuple[str, ...] = ("blue", "yellow", "orange", "big_orange")
 """Class id = index in this tuple; COCO category id = index + 1."""
 
+UNKNOWN_CLASS = -1
+"""The class id of a cone whose colour is not known (a LiDAR's cone: shape, no colour)."""
+
 CONE_HEIGHT_M: dict[str, float] = {"blue": 0.325, "yellow": 0.325, "orange": 0.325, "big_orange": 0.505}
 CONE_BASE_M: dict[str, float] = {"blue": 0.228, "yellow": 0.228, "orange": 0.228, "big_orange": 0.285}
 

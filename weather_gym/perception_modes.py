@@ -13,6 +13,9 @@ The shipped modes, in the order ``auto`` choices search them (:func:`auto_mode`)
 * ``oracle``    - ``GroundTruthConeWrapper`` on the rendered ground truth (pixel-exact visibility).
 * ``gt_cones``  - ground-truth cones from geometry; the camera renders nothing (``camera_images=False,
   ground_truth="geometry"``): thousands of steps per second, for training controllers on cone lists.
+* ``lidar``     - ``LidarConeWrapper``: the car's LiDAR (an HDL-32E by default; nothing rendered for the
+  camera) through its own weather (``perception_kwargs={"lidar_weather": "fog:mor=60"}``) to cones of
+  unknown colour (:mod:`weather_gym.wrappers.lidar`).
 * ``surrogate`` - ``SurrogatePerceptionWrapper``: the ``gt_cones`` truth turned into what the shipped
   detector reports in the weather, drawn from a fitted model (:mod:`weather_gym.surrogate`).
 
@@ -22,13 +25,13 @@ Agents declare the observation keys they read (``weather_gym.agents.agent_observ
 Example:
     >>> from weather_gym.perception_modes import PERCEPTION_MODES, auto_mode, perception_mode
     >>> [m.name for m in PERCEPTION_MODES.values() if not m.renders_frames]
-    ['gt_cones', 'surrogate']
+    ['gt_cones', 'surrogate', 'lidar']
     >>> auto_mode(frozenset({"cones", "mask", "state"})).name, auto_mode(frozenset()).name
     ('detector', 'camera')
     >>> perception_mode("sonar")
     Traceback (most recent call last):
     ...
-    weather_gym.errors.InputError: unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones, surrogate
+    weather_gym.errors.InputError: unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones, surrogate, lidar
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ from typing import Any
 import gymnasium as gym
 
 from weather_gym._io import file_id
+from weather_gym.envs.config import LidarConfig
 from weather_gym.errors import InputError, check_known
 from weather_gym.perception.detector_spec import detector_id
 from weather_gym.registry import add_unique
@@ -50,6 +54,7 @@ from weather_gym.weather import parse_weather, to_spec
 from weather_gym.wrappers import (
     DetectorWrapper,
     GroundTruthConeWrapper,
+    LidarConeWrapper,
     SurrogatePerceptionWrapper,
     WeatherWrapper,
 )
@@ -87,6 +92,7 @@ class PerceptionMode:
         env_overrides: ``EnvConfig`` overrides the mode needs (e.g. :data:`RENDER_FREE`).
         record_kwargs: perception keywords that keep the camera image for a recording.
         fingerprint: ``kwargs -> {part: id}`` of the model files the mode runs with (results keys).
+        takes_lidar_weather: the mode's wrapper takes ``lidar_weather`` (a LiDAR weather spec) among its keywords.
         check_weather: ``(kwargs, weather spec) -> None``, raising ``InputError`` for a weather the mode
             cannot produce (checked before a grid runs).
     """
@@ -106,6 +112,7 @@ class PerceptionMode:
     record_kwargs: Mapping[str, Any] = field(default_factory=dict)
     fingerprint: Callable[[Mapping[str, Any]], dict[str, str]] | None = None
     check_weather: Callable[[Mapping[str, Any], Any], None] | None = None
+    takes_lidar_weather: bool = False
 
     def describe(self) -> str:
         """The doc line with what the mode cannot do (for ``--help``)."""
@@ -276,3 +283,17 @@ register_mode(PerceptionMode(
     wrapper=SurrogatePerceptionWrapper, env_overrides=RENDER_FREE,
     fingerprint=lambda kw: {"surrogate": file_id(kw.get("model") or SHIPPED_MODEL)},
     check_weather=_surrogate_weather))
+
+
+def _wrap_lidar(env: gym.Env, weather: Any, kwargs: dict[str, Any]) -> gym.Env:
+    if weather is not None and to_spec(parse_weather(weather)):
+        raise InputError(f"weather {weather!r} acts on camera images; perception 'lidar' takes its own weather: "
+                         "perception_kwargs={'lidar_weather': 'fog:mor=60+rain@2'} (weather-gym lap --lidar-weather)")
+    wrapped: gym.Env = LidarConeWrapper(env, **kwargs)
+    return wrapped
+
+
+register_mode(PerceptionMode(
+    "lidar", "the car's LiDAR through its weather -> cones of unknown colour (ground removal, clustering)",
+    _wrap_lidar, CONES, renders_frames=False, can_record_video=False, wrapper=LidarConeWrapper, takes_lidar_weather=True,
+    env_overrides={**RENDER_FREE, "lidar": LidarConfig()}))

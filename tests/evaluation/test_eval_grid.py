@@ -89,7 +89,7 @@ def test_stack_names_the_world_and_the_model_files(tmp_path):
         ({"tracks": ("nowhere",)}, r"unknown track 'nowhere'; valid names"),
         ({"seeds": ()}, "list of seeds is empty"),
         ({"seeds": (0, 0)}, "seeds repeated: 0"),
-        ({"perception": "lidar"}, r"unknown perception 'lidar'; valid: camera, detector, oracle, gt_cones"),
+        ({"perception": "sonar"}, r"unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones"),
         ({"env_id": "CartPole-v1x"}, r"unknown env id 'CartPole-v1x'; weather-gym ids: .*WeatherGym/ConeTrack-v0"),
         ({"laps": 0}, "laps must be an integer >= 1"),
         ({"agent_kwargs": {"model": object()}}, "agent_kwargs must be JSON-serialisable"),

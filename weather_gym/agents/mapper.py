@@ -30,7 +30,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
 from weather_gym.agents._checks import check_fields
-from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.cone_spec import CONE_CLASSES, UNKNOWN_CLASS
 from weather_gym.errors import InputError
 from weather_gym.perception.cones import unpack_cones
 
@@ -107,7 +107,8 @@ class ConeMap:
     Attributes:
         xy: (K, 2) cone positions.
         cov: (K, 2, 2) position covariances (m^2).
-        class_prob: (K, 4) colour vote, normalised (rows sum to 1).
+        class_prob: (K, 4) colour vote, normalised (rows sum to 1; all zero for a cone whose colour was
+            never seen, e.g. mapped from LiDAR cones: its class is ``UNKNOWN_CLASS``).
         hits, misses: (K,) association / in-view-but-undetected counts.
         confirmed: (K,) bool.
         age: (K,) updates since the cone was last associated (0 = seen in the latest frame).
@@ -127,7 +128,9 @@ class ConeMap:
     @property
     def classes(self) -> np.ndarray:
         """Most voted class id per cone."""
-        return self.class_prob.argmax(axis=1) if len(self) else np.zeros(0, np.int64)
+        if not len(self):
+            return np.zeros(0, np.int64)
+        return np.where(self.class_prob.max(axis=1) > 0, self.class_prob.argmax(axis=1), UNKNOWN_CLASS)
 
     @property
     def class_confidence(self) -> np.ndarray:
@@ -244,7 +247,8 @@ class ConeMapper:
             gain = p @ np.linalg.inv(innov_cov)
             self.xy[k] = self.xy[k] + gain @ (z[i] - self.xy[k])
             self.cov[k] = (np.eye(2) - gain) @ p
-            self.votes[k, classes[i]] += max(scores[i], 1e-3)
+            if classes[i] >= 0:  # a cone of unknown colour (a LiDAR's) casts no colour vote
+                self.votes[k, classes[i]] += max(scores[i], 1e-3)
             self.hits[k] += 1
             self.last_seen[k] = self.steps
         # misses: mapped cones in view that nothing was associated with
@@ -260,7 +264,8 @@ class ConeMapper:
         if new.any():
             k0 = len(self)
             votes = np.zeros((int(new.sum()), _N_CLASSES))
-            votes[np.arange(votes.shape[0]), classes[new]] = np.maximum(scores[new], 1e-3)
+            coloured = classes[new] >= 0
+            votes[np.flatnonzero(coloured), classes[new][coloured]] = np.maximum(scores[new][coloured], 1e-3)
             self.xy = np.vstack([self.xy, z[new]])
             self.cov = np.concatenate([self.cov, r_meas[new]])
             self.votes = np.vstack([self.votes, votes])
@@ -377,7 +382,7 @@ class ConeMapper:
             sel = sel & (self.steps - self.last_seen <= max_age)
         votes = self.votes[sel]
         total = votes.sum(axis=1, keepdims=True)
-        prob = np.divide(votes, total, out=np.full_like(votes, 1.0 / _N_CLASSES), where=total > 0)
+        prob = np.divide(votes, total, out=np.zeros_like(votes), where=total > 0)
         return ConeMap(
             xy=self.xy[sel].copy(), cov=self.cov[sel].copy(), class_prob=prob, hits=self.hits[sel].copy(),
             misses=self.misses[sel].copy(), confirmed=self.confirmed[sel].copy(),

@@ -129,11 +129,48 @@ def _chain(points: np.ndarray, start: np.ndarray, direction: np.ndarray, max_ste
     return np.asarray(order, dtype=np.int64)
 
 
-def _sides(body: np.ndarray, cls: np.ndarray) -> np.ndarray:
+def _geometric_sides(points: np.ndarray, guide: np.ndarray | None) -> np.ndarray:
+    """+1 / -1: whether each point lies left or right of ``guide`` (the previous plan's centre line, car
+    frame: the side of its nearest segment), or of the car's heading without one."""
+    if guide is None or len(guide) < 2 or not len(points):
+        return np.where(points[:, 1] >= 0, 1, -1)
+    a, b = guide[:-1], guide[1:]
+    seg = b - a
+    rel = points[:, None, :] - a[None, :, :]
+    t = np.clip((rel * seg[None]).sum(axis=2) / np.maximum((seg * seg).sum(axis=1), 1e-9)[None], 0.0, 1.0)
+    nearest = a[None] + t[..., None] * seg[None]
+    j = np.hypot(*(points[:, None, :] - nearest).transpose(2, 0, 1)).argmin(axis=1)
+    cross = seg[j, 0] * (points[:, 1] - a[j, 1]) - seg[j, 1] * (points[:, 0] - a[j, 0])
+    return np.where(cross >= 0, 1, -1)
+
+
+def _corridor(body: np.ndarray, cls: np.ndarray, guide: np.ndarray | None,
+              reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Drop the cones of unknown colour farther than ``reach`` from ``guide`` (the previous centre line,
+    car frame; without one, from the car's heading line): they belong to another part of the track."""
+    unknown = cls < 0
+    if guide is None or len(guide) < 2:
+        dist = np.abs(body[:, 1])
+    else:
+        a, seg = guide[:-1], np.diff(guide, axis=0)
+        rel = body[:, None, :] - a[None]
+        t = np.clip((rel * seg[None]).sum(axis=2) / np.maximum((seg * seg).sum(axis=1), 1e-9)[None], 0.0, 1.0)
+        dist = np.hypot(*(rel - t[..., None] * seg[None]).transpose(2, 0, 1)).min(axis=1)
+    keep = ~unknown | (dist <= reach)
+    return body[keep], cls[keep]
+
+
+def _sides(body: np.ndarray, cls: np.ndarray, guide: np.ndarray | None = None) -> np.ndarray:
     """+1 (left) for blue, -1 (right) for yellow. An orange cone joins the side it stands on across
     the track: its position along the segment from the nearest blue to the nearest yellow cone
-    (start / finish line, braking zones); without both colours near, the side of the car it is on."""
+    (start / finish line, braking zones); without both colours near, the side of the car it is on.
+    A cone of unknown colour (:data:`~weather_gym.cone_spec.UNKNOWN_CLASS`, a LiDAR's) takes the side
+    of ``guide`` it stands on (the previous plan's centre line in the car frame; without one, the
+    side of the car)."""
     side = np.where(cls == BLUE, 1, np.where(cls == YELLOW, -1, 0))
+    unknown = np.flatnonzero(cls < 0)
+    if len(unknown):
+        side[unknown] = _geometric_sides(body[unknown], guide)
     other = np.flatnonzero(side == 0)
     if not len(other):
         return side
@@ -157,9 +194,11 @@ class CenterlinePlanner:
     def __init__(self, config: PlannerConfig | None = None) -> None:
         self.config = config or PlannerConfig()
         self.half_width = self.config.nominal_half_width
+        self._last_path: np.ndarray | None = None  # map frame: sides the next plan's unknown-colour cones
 
     def reset(self) -> None:
         self.half_width = self.config.nominal_half_width
+        self._last_path = None
 
     def plan(self, cones_xy: np.ndarray, classes: np.ndarray, pose) -> Plan:
         cfg = self.config
@@ -174,7 +213,14 @@ class CenterlinePlanner:
         body = np.c_[c * dx + s * dy, -s * dx + c * dy]
         near = (np.hypot(body[:, 0], body[:, 1]) < cfg.radius) & (body[:, 0] > -cfg.behind)
         body, cls = body[near], classes[near]
-        side = _sides(body, cls)
+        guide = None
+        if (cls < 0).any():
+            if self._last_path is not None:
+                g = self._last_path - (px, py)
+                guide = np.c_[c * g[:, 0] + s * g[:, 1], -s * g[:, 0] + c * g[:, 1]]
+            # a cone of unknown colour far from the corridor (another part of the track) is left out
+            body, cls = _corridor(body, cls, guide, cfg.max_width / 2 + 1.0)
+        side = _sides(body, cls, guide)
 
         mids, half, links = self._gates(body, side)
         if len(half):
@@ -213,6 +259,7 @@ class CenterlinePlanner:
             p = np.asarray(p, dtype=np.float64).reshape(-1, 2)
             return np.c_[px + c * p[:, 0] - s * p[:, 1], py + s * p[:, 0] + c * p[:, 1]]
 
+        self._last_path = to_map(path) if len(path) > 1 else None
         return Plan(path=to_map(path), left=to_map(chains[1]), right=to_map(chains[-1]), midpoints=to_map(mids),
                     virtual=to_map(virtual), half_width=self.half_width)
 

@@ -80,8 +80,9 @@ def register(sub) -> None:
     g.add_argument("--baseline", default=None, metavar="AGENT",
                    help="an agent of --agent the others are compared against in the report, cell by cell "
                         "(lap time ratio, cones hit difference; a table and plots/lap_time_ratio.png)")
-    g.add_argument("--effects", default="droplets,dim", help="weather conditions / effect names, comma-separated")
-    g.add_argument("--severities", default="0,1,2,3,4", help="preset severities (0-4), comma-separated")
+    g.add_argument("--effects", default="droplets,dim", help="weather conditions / effect names, comma-separated "
+                                                           "(--perception lidar: fog, rain, snow, wet)")
+    g.add_argument("--severities", default="0,1,2,3,4", help="preset severities (0-4; the LiDAR's 0-5), comma-separated")
     seeds = g.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=3, help="number of seeds: 0..N-1")
     seeds.add_argument("--seed-list", default=None, help="explicit seeds, comma-separated (instead of --seeds)")

@@ -40,6 +40,7 @@ from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
 from weather_gym.errors import InputError
 from weather_gym.evaluation.metrics import DetectorScoring, Episode, episode_metrics, lap_lines
+from weather_gym.lidar_weather import parse_lidar_weather
 from weather_gym.perception.ranging import check_depth_quantile
 from weather_gym.perception_modes import (
     PERCEPTION_MODES,
@@ -109,6 +110,9 @@ def register(sub) -> None:
                    help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
     p.add_argument("--perception", choices=perception_choices(), default=AUTO, help="what the agent sees (see below)")
+    p.add_argument("--lidar-weather", metavar="SPEC",
+                   help="weather on the LiDAR (--perception lidar): fog:mor=60, rain:rate=5, snow@3, wet@2, joined by "
+                        "'+' (weather_gym.lidar_weather; default clear)")
     add_detector_args(p, what=f"for --perception {' / '.join(modes_where(runs_detector=True))}")
     p.add_argument("--depth-quantile", type=float, default=None, metavar="Q",
                    help="quantile of the depths inside a detection's box that gives its range (a perception "
@@ -173,7 +177,7 @@ def _run(args) -> int:
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
         overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile, bag=args.bag,
-        bag_images=args.bag_images,
+        bag_images=args.bag_images, lidar_weather=args.lidar_weather,
     )
     print(result_json(result) if args.json else format_result(result))
     return 0 if result["completed"] else 1
@@ -210,10 +214,18 @@ def default_max_steps(env_id: str, track: str | None, laps: int) -> int:
     return int(math.ceil(laps * max(60.0, length / MIN_SPEED_FOR_LIMIT) * cfg.sim.control_hz))
 
 
-def _perception_kwargs(mode: PerceptionMode, recording: bool, depth_quantile: float | None) -> dict[str, Any]:
-    """The perception wrapper's keyword arguments for ``mode``: its recording ones when ``recording``, and
-    ``depth_quantile`` (checked; only for a mode that runs the detector)."""
+def _perception_kwargs(mode: PerceptionMode, recording: bool, depth_quantile: float | None,
+                       lidar_weather: str | None = None) -> dict[str, Any]:
+    """The perception wrapper's keyword arguments for ``mode``: its recording ones when ``recording``,
+    ``depth_quantile`` (checked; only for a mode that runs the detector) and ``lidar_weather`` (checked;
+    only for a mode with a LiDAR)."""
     kwargs = dict(mode.record_kwargs) if recording else {}
+    if lidar_weather is not None:
+        if not mode.takes_lidar_weather:
+            raise InputError(f"--lidar-weather acts on the LiDAR, and perception {mode.name!r} has none; take "
+                             f"--perception {' or '.join(modes_where(takes_lidar_weather=True))}")
+        parse_lidar_weather(lidar_weather)  # a bad spec fails here, with the parser's message
+        kwargs["lidar_weather"] = lidar_weather
     if depth_quantile is not None:
         if not mode.runs_detector:
             raise InputError(f"--depth-quantile ranges the detector's boxes, and perception is {mode.name!r}; "
@@ -227,7 +239,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
              detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
              overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None,
-             bag: Path | None = None, bag_images: str = "jpeg") -> dict[str, Any]:
+             bag: Path | None = None, bag_images: str = "jpeg", lidar_weather: str | None = None) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
 
     ``bag``: also write the run as an MCAP rosbag2 folder (:class:`~weather_gym.ros.episode_bag.EpisodeBag`).
@@ -258,7 +270,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     if weather is not None:
         parse_weather(weather)  # a bad spec fails here, with the parser's message
     perception_kwargs = _perception_kwargs(mode, recording or (bag is not None and mode.can_record_video),
-                                           depth_quantile)
+                                           depth_quantile, lidar_weather)
     env = make_env(env_id, perception=mode.name, weather=weather, detector=detector if mode.runs_detector else None,
                    perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, **env_kwargs)
     recorder = None
@@ -275,7 +287,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
             nonlocal recorder, episode_bag
             if step == 0:
-                state["weather"] = weather or _describe_weather(info.get("weather"))
+                state["weather"] = weather or info.get("lidar_weather") or _describe_weather(info.get("weather"))
                 state["weathered"] = "weather" in info
                 if recording:
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,

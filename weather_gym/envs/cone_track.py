@@ -50,6 +50,7 @@ from weather_gym.camera_isp import CameraModel, CameraPipeline
 from weather_gym.cone_arrays import ConeArrays
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError, LimitError, StateError, check_known
+from weather_gym.point_cloud import PointCloud, pack_points
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look, sample_look
 from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
@@ -112,6 +113,14 @@ class ConeTrackEnv(gym.Env):
         if config.camera_images:
             obs = {"image": spaces.Box(0, 255, (cam.height, cam.width, 3), np.uint8),
                    "depth": spaces.Box(0.0, float(cam.far), (cam.height, cam.width), np.float32), **obs}
+        if config.lidar is not None:
+            n = config.lidar.rays
+            obs["points"] = spaces.Box(-np.inf, np.inf, (n, 4), np.float32)
+            obs["points_mask"] = spaces.Box(0, 1, (n,), np.int8)
+            self._scan_every = max(1, int(round(config.sim.control_hz / config.lidar.rate_hz)))
+        self._scan: PointCloud | None = None
+        self._scan_new = False
+        self._lidar_rng: np.random.Generator | None = None
         self.observation_space = spaces.Dict(obs)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self._frame_every = max(1, int(round(config.sim.control_hz / cam.fps)))
@@ -200,6 +209,8 @@ class ConeTrackEnv(gym.Env):
             raise InputError(f"reset option camera_frame must be an integer >= 0 (frames since the episode's "
                              f"seeded reset), got {camera_frame!r}")
         self._set_pipeline(model, rng)
+        if self.config.lidar is not None:  # drawn only with a LiDAR: the episodes of envs without one stay as they were
+            self._lidar_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
         if self._pipeline is not None:
             self._pipeline.skip(cast(np.random.Generator, self._pipeline_rng), int(camera_frame))  # set with the pipeline
         world = self.world
@@ -228,6 +239,7 @@ class ConeTrackEnv(gym.Env):
         self._stall_window = deque([0.0], maxlen=max(stall_steps, 1) + 1) if self.config.stall_s > 0 else None
         self._lateral = float(proj.lateral)
         self._update_frame()
+        self._update_scan()
         meas = self._measure(0.0)
         self._episode_started = True
         return self._observation(meas), self._info(proj, new_hits=0, end_reason=None)
@@ -346,6 +358,9 @@ class ConeTrackEnv(gym.Env):
 
         if self._step % self._frame_every == 0:
             self._update_frame()
+        self._scan_new = False
+        if self.config.lidar is not None and self._step % self._scan_every == 0:
+            self._update_scan()
         meas = self._measure(dt)
         return self._observation(meas), float(reward), terminated, False, self._info(proj, new_hits, end_reason)
 
@@ -384,12 +399,24 @@ class ConeTrackEnv(gym.Env):
         if pipe.model.distorts and self._gt is not None and self._gt.count:
             self._gt = ConeArrays({**self._gt, "boxes": pipe.distort_boxes(self._gt["boxes"])})
 
+    def _update_scan(self) -> None:
+        """Cast the LiDAR's scan (with a LiDAR configured)."""
+        lidar = self.config.lidar
+        if lidar is None:
+            return
+        self._scan = self.world.lidar_scan(lidar, self._lidar_rng)
+        self._scan_new = True
+
     def _observation(self, meas: tuple[float, float]) -> dict[str, np.ndarray]:
         state = np.array([meas[0], meas[1], *self._odom], dtype=np.float32)
-        if not self.config.camera_images:
-            return {"state": state}
-        assert self._image is not None and self._depth is not None
-        return {"image": self._image.copy(), "depth": self._depth.copy(), "state": state}
+        out: dict[str, np.ndarray] = {"state": state}
+        if self.config.camera_images:
+            assert self._image is not None and self._depth is not None
+            out = {"image": self._image.copy(), "depth": self._depth.copy(), "state": state}
+        if self.config.lidar is not None:
+            assert self._scan is not None
+            out["points"], out["points_mask"] = pack_points(self._scan, self.config.lidar.rays)
+        return out
 
     def _info(self, proj: Projection, new_hits: int, end_reason: str | None) -> dict[str, Any]:
         world = self.world
@@ -422,6 +449,9 @@ class ConeTrackEnv(gym.Env):
             "track": self.track.name,
             "renderer": world.renderer_name,
         })
+        if self.config.lidar is not None:
+            info["lidar"] = self._scan
+            info["lidar_new"] = self._scan_new
         if end_reason is not None:
             info["end_reason"] = end_reason
         return info

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 from weather_gym.camera_config import CameraConfig
 from weather_gym.camera_isp import CameraModel
 from weather_gym.errors import InputError
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
+from weather_gym.sim.lidar_config import LidarConfig
 
 GROUND_TRUTH_MODES = ("segmentation", "geometry", "off")
 """Where ``info["gt"]`` comes from: the rendered segmentation (pixel exact), geometry (no rendering;
@@ -83,6 +85,12 @@ class EnvConfig:
             delivers frames; ``CameraModel.ideal()`` switches it off = the study's ideal camera, as
             ``WeatherGym/ConeTrackPlain-v0`` does). Weather wrappers act on the finished frame.
 
+        lidar: a LiDAR on the car (``LidarConfig``; None, the default: none). With one, the observation
+            gains ``points`` ``(lidar.rays, 4)`` float32 (x, y, z in the sensor frame, intensity; padded
+            with zeros) and ``points_mask`` ``(lidar.rays,)`` int8, a new scan every ``control_hz /
+            lidar.rate_hz`` steps, and ``info["lidar"]`` holds the scan as a ``PointCloud`` (with the
+            ground truth of which cone each return hit) and ``info["lidar_new"]`` whether it is new.
+
     The episode's time limit is not here: Gymnasium's ``TimeLimit`` owns truncation
     (``gym.make(id, max_episode_steps=...)``; each scenario registers its default).
     """
@@ -105,6 +113,7 @@ class EnvConfig:
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     reward: RewardConfig = field(default_factory=RewardConfig)
     camera_model: CameraModel = field(default_factory=CameraModel.realistic)
+    lidar: LidarConfig | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.track, str) or not self.track:
@@ -135,8 +144,21 @@ class EnvConfig:
                           ("odometry", OdometryConfig), ("reward", RewardConfig), ("camera_model", CameraModel)):
             if not isinstance(getattr(self, name), cls):
                 raise InputError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+        object.__setattr__(self, "lidar", _lidar(self.lidar))
         if self.camera_images and self.sim.renderer == "none":
             raise InputError('EnvConfig: sim.renderer="none" renders no camera frames; set camera_images=False '
                              '(or pick renderer "auto", "egl" or "tiny")')
         if self.render_view == "camera" and not self.camera_images:
             raise InputError('EnvConfig: render_view="camera" needs camera_images=True (nothing is rendered otherwise)')
+
+
+def _lidar(value: Any) -> LidarConfig | None:
+    """``EnvConfig.lidar`` checked: a ``LidarConfig``, a dict of its fields (a scenario file's table) or None."""
+    if isinstance(value, dict):
+        try:
+            return LidarConfig(**value)
+        except TypeError as exc:
+            raise InputError(f"EnvConfig.lidar: {exc}") from None
+    if value is not None and not isinstance(value, LidarConfig):
+        raise InputError(f"EnvConfig.lidar must be a LidarConfig, a dict of its fields or None, got {type(value).__name__}")
+    return value

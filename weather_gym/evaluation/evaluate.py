@@ -59,6 +59,7 @@ from weather_gym.evaluation.metrics import (
     map_precision_recall,
 )
 from weather_gym.evaluation.runner import check_results_path, run_cells
+from weather_gym.lidar_weather import LIDAR_EFFECTS, parse_lidar_weather
 from weather_gym.paths import PPO_CONES_MODEL
 from weather_gym.perception_modes import (
     PERCEPTION_MODES,
@@ -135,8 +136,9 @@ class EvalConfig:
     Attributes:
         agents: names in ``weather_gym.agents.AGENTS``, or agents of your own as ``"module.path:Factory"``
             (importable by the workers too: installed, or on ``PYTHONPATH``).
-        effects: weather conditions or their effect names (``droplets``, ``dim``/``low_light``).
-        severities: preset severities (0-4).
+        effects: weather conditions or their effect names (``droplets``, ``dim``/``low_light``); with
+            perception ``lidar``, the LiDAR's effects (``fog``, ``rain``, ``snow``, ``wet``).
+        severities: preset severities (0-4); the LiDAR's are 0-5 (its published grids).
         seeds: episode seeds (``reset(seed=...)``: weather realisation, odometry noise, ...).
         tracks: track names, ``random:SEED``, ``reverse:SPEC``, ``mirror:SPEC`` or cone CSV paths (anything
             ``gymnasium.make(track=...)`` takes).
@@ -255,13 +257,14 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
             raise InputError(f"a track must be a non-empty name or path, got {t!r}")
         load_track(t)  # unknown names list the valid ones; a bad CSV names its line
     effects = _check_names("effects", config.effects)
-    for e in effects:
-        canonical_condition(e)
-    if len({canonical_condition(e) for e in effects}) != len(effects):
-        raise InputError(f"effects {', '.join(effects)} name the same condition twice (dim is low_light)")
+    mode = perception_mode(config.perception)
+    if not mode.takes_lidar_weather:
+        for e in effects:
+            canonical_condition(e)
+        if len({canonical_condition(e) for e in effects}) != len(effects):
+            raise InputError(f"effects {', '.join(effects)} name the same condition twice (dim is low_light)")
     severities = _check_names("severities", config.severities)
     seeds = tuple(_check_int("a seed", s, 0) for s in _check_names("seeds", config.seeds))
-    mode = perception_mode(config.perception)
     check_env_id(config.env_id)
     laps = _check_int("laps", config.laps, 1)
     max_steps = _check_int("max_steps", config.max_steps, 1)
@@ -281,8 +284,14 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     if config.agent_kwargs:  # a bad agent argument fails now, not in every cell
         for a in agents:
             _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))  # type: ignore[union-attr]  # None for an id without a scenario: AttributeError (a known gap)
-    weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
-    _check_weather_for_mode(mode, weather, config.perception_kwargs)  # fails now, not in every cell
+    if mode.takes_lidar_weather:  # the LiDAR's own weather: effects fog, rain, snow, wet at severities 0-5
+        if "lidar_weather" in config.perception_kwargs:
+            raise InputError("perception_kwargs may not set lidar_weather: the evaluation sets it per cell "
+                             "from effects and severities")
+        weather = {(e, s): _json(_lidar_spec(e, s)) for e in effects for s in severities}
+    else:
+        weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
+        _check_weather_for_mode(mode, weather, config.perception_kwargs)  # fails now, not in every cell
     stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
@@ -292,6 +301,14 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         for a in agents for t in tracks for e in effects for s in severities for seed in seeds
     ]
     return cells
+
+
+def _lidar_spec(effect: str, severity: Any) -> str:
+    """The LiDAR weather spec of ``effect`` at ``severity`` (0-5), checked (``LIDAR_EFFECTS``)."""
+    spec = "clear" if severity == 0 else f"{effect}@{severity}"
+    LIDAR_EFFECTS.get(effect)  # an unknown effect lists the valid ones
+    parse_lidar_weather(spec)  # a severity outside 0-5 fails here
+    return spec
 
 
 def _check_weather_for_mode(mode: PerceptionMode, weather: Mapping[tuple[str, Any], str],
@@ -351,12 +368,14 @@ def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
     if isinstance(cell, Mapping):
         cell = EvalCell(**cell)
     mode = perception_mode(cell.perception)
-    pkw = json.loads(cell.perception_kwargs)
+    weather, perception_kwargs = json.loads(cell.weather), json.loads(cell.perception_kwargs)
+    if mode.takes_lidar_weather:  # the cell's weather is the LiDAR's
+        weather, perception_kwargs = None, {**perception_kwargs, "lidar_weather": weather}
     if bag_dir is not None and mode.can_record_video:
-        pkw = {**pkw, **mode.record_kwargs}  # keep the camera frame in the observation for the bag
+        perception_kwargs = {**perception_kwargs, **mode.record_kwargs}  # keep the camera frame for the bag
     env = make_env(cell.env_id, track=cell.track, laps=cell.laps, max_episode_steps=cell.max_steps,
-                   weather=json.loads(cell.weather), perception=mode.name,
-                   perception_kwargs=pkw, **json.loads(cell.env_kwargs))
+                   weather=weather, perception=mode.name, perception_kwargs=perception_kwargs,
+                   **json.loads(cell.env_kwargs))
     bag: EpisodeBag | None = None
     try:
         base = cast(ConeTrackEnv, env.unwrapped)

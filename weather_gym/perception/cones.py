@@ -20,11 +20,11 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.cone_spec import CONE_CLASSES, UNKNOWN_CLASS
 from weather_gym.errors import InputError
 
 CONE_FIELDS: tuple[str, ...] = (
-    *(f"is_{c}" for c in CONE_CLASSES),  # one-hot class (4)
+    *(f"is_{c}" for c in CONE_CLASSES),  # one-hot class (4); all zero: colour unknown (a LiDAR's cone)
     "range",  # horizontal distance camera -> cone, metres
     "bearing",  # horizontal angle from the optical axis, rad, positive left
     "score",  # detector confidence in [0, 1] (1 for ground truth)
@@ -76,8 +76,9 @@ def pack_cones(
     bearings = np.asarray(bearings, dtype=np.float64).reshape(n)
     scores = np.asarray(scores, dtype=np.float64).reshape(n)
     boxes = np.asarray(boxes, dtype=np.float64).reshape(n, 4)
-    if n and (classes.min() < 0 or classes.max() >= len(CONE_CLASSES)):
-        raise InputError(f"cone classes must be in 0..{len(CONE_CLASSES) - 1}, got {np.unique(classes).tolist()}")
+    if n and (classes.min() < UNKNOWN_CLASS or classes.max() >= len(CONE_CLASSES)):
+        raise InputError(f"cone classes must be in 0..{len(CONE_CLASSES) - 1} or {UNKNOWN_CLASS} (unknown colour), "
+                         f"got {np.unique(classes).tolist()}")
     order = np.argsort(ranges, kind="stable")[:max_cones]
     k = order.shape[0]
     out = np.zeros((max_cones, len(CONE_FIELDS)), dtype=np.float32)
@@ -85,7 +86,8 @@ def pack_cones(
     if k:
         c = classes[order]
         r, br, b = ranges[order], bearings[order], boxes[order]
-        out[np.arange(k), c] = 1.0
+        known = c >= 0  # an unknown colour leaves the one-hot all zero
+        out[np.flatnonzero(known), c[known]] = 1.0
         out[:k, FIELD["range"]] = r
         out[:k, FIELD["bearing"]] = br
         out[:k, FIELD["score"]] = scores[order]
@@ -99,11 +101,14 @@ def pack_cones(
 
 
 def unpack_cones(cones: np.ndarray, mask: np.ndarray) -> dict[str, np.ndarray]:
-    """Valid rows as named arrays: ``classes``, ``range``, ``bearing``, ``score``, ``x_body``, ``y_body``."""
+    """Valid rows as named arrays: ``classes`` (:data:`~weather_gym.cone_spec.UNKNOWN_CLASS` where the
+    one-hot is all zero), ``range``, ``bearing``, ``score``, ``x_body``, ``y_body``."""
     valid = np.asarray(mask).astype(bool)
     rows = np.asarray(cones)[valid]
+    onehot = rows[:, : len(CONE_CLASSES)]
     return {
-        "classes": rows[:, : len(CONE_CLASSES)].argmax(axis=1) if len(rows) else np.zeros(0, np.int64),
+        "classes": (np.where(onehot.max(axis=1) > 0, onehot.argmax(axis=1), UNKNOWN_CLASS) if len(rows)
+                    else np.zeros(0, np.int64)),
         "range": rows[:, FIELD["range"]],
         "bearing": rows[:, FIELD["bearing"]],
         "score": rows[:, FIELD["score"]],

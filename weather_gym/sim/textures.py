@@ -16,7 +16,7 @@ import numpy as np
 from weather_gym.cone_spec import CONE_BODY_RGB, CONE_STRIPE_RGB
 
 # stripe bands as (v_from, v_to) fractions of the cone height (0 = bottom)
-_STRIPES = {
+STRIPES = {
     "blue": ((0.42, 0.62),),
     "yellow": ((0.42, 0.62),),
     "orange": ((0.42, 0.62),),
@@ -31,7 +31,7 @@ def cone_texture(cls: str, shade: tuple[float, float, float] = (1.0, 1.0, 1.0), 
     tex = np.empty((rows, 4, 3), np.float64)
     tex[:] = body
     v = 1.0 - (np.arange(rows) + 0.5) / rows  # texture v of each row
-    for lo, hi in _STRIPES[cls]:
+    for lo, hi in STRIPES[cls]:
         tex[(v >= lo) & (v < hi)] = stripe
     return np.clip(tex, 0, 255).astype(np.uint8)
 

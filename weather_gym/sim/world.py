@@ -34,6 +34,7 @@ import numpy as np
 
 from weather_gym.camera_config import CameraConfig
 from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.errors import StateError
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim import scenery
 from weather_gym.sim.bullet import pybullet as p
@@ -42,6 +43,8 @@ from weather_gym.sim.car import Car
 from weather_gym.sim.cast_shadows import ShadowCaster
 from weather_gym.sim.config import CarConfig, SimConfig
 from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse
+from weather_gym.sim.lidar import LidarSensor
+from weather_gym.sim.lidar_config import LidarConfig
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look
 from weather_gym.sim.mesh_files import mesh_file
 from weather_gym.sim.meshes import box_obj, cone_dimensions, cone_obj
@@ -208,6 +211,7 @@ class World(WorldViews):
         self._cone_lut = np.full(1, -1, dtype=np.int32)
         self._grow_lut()
         self._cone_xy = xy.copy()
+        self._lidars: dict[LidarConfig, LidarSensor] = {}
 
     def _declare_mesh_sizes(self, reuse: ShadowMapReuse) -> None:
         """How far the meshes of the bodies that move reach from their centre of mass (the shadow map
@@ -423,6 +427,32 @@ class World(WorldViews):
     def cone_displacement(self) -> np.ndarray:
         """Distance of each cone from where it was placed (m)."""
         return np.hypot(*(self._cone_xy - self._cone_home).T)
+
+    # ------------------------------------------------------------------ LiDAR
+    def lidar(self, config: LidarConfig) -> LidarSensor:
+        """The LiDAR ``config`` on this car (made once per config; see :mod:`weather_gym.sim.lidar`)."""
+        sensor = self._lidars.get(config)
+        if sensor is None:
+            if self._client is None:
+                raise StateError("World.lidar: the world is closed")
+            cfg = self.car_config
+            x0 = self._car_body_dx - cfg.length / 2
+            z0 = self._car_body_z - CAR_BODY_HEIGHT_M / 2
+            box = (x0, x0 + cfg.length, -cfg.width / 2, cfg.width / 2, z0, z0 + CAR_BODY_HEIGHT_M)
+            sensor = LidarSensor(config, self._client, self._ground, self._car_body, box, self.cone_classes,
+                                 self._cone_height)
+            self._lidars[config] = sensor
+        return sensor
+
+    def lidar_scan(self, config: LidarConfig, rng: np.random.Generator | None = None, *, naive: bool = False):
+        """One scan of the LiDAR ``config`` at the car's pose (a ``PointCloud``); ``rng`` draws its range
+        noise (None: none); ``naive`` casts every beam through ``rayTestBatch`` (the benchmark's baseline)."""
+        self._activate()
+        sensor = self.lidar(config)
+        frames = self._cone_tilt or None
+        if naive:
+            return sensor.scan_naive(self.car.pose, self._cone_xy, self._cone_lut, cone_frames=frames)
+        return sensor.scan(self.car.pose, self._cone_xy, self._cone_lut, cone_frames=frames, rng=rng)
 
     # ------------------------------------------------------------------ lifetime
     @property

@@ -37,6 +37,7 @@ _LAZY = {
     "DetectorWrapper": "weather_gym.wrappers.detector",
     "WeatherWrapper": "weather_gym.wrappers.weather",
     "GroundTruthConeWrapper": "weather_gym.wrappers.ground_truth",
+    "LidarConeWrapper": "weather_gym.wrappers.lidar",
     "OracleNoise": "weather_gym.wrappers.ground_truth",
     "EpisodeStatistics": "weather_gym.wrappers.episode_statistics",
     "latencies": "weather_gym.wrappers.episode_statistics",
