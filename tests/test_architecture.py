@@ -26,7 +26,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "weather_gym"
 
 PLUMBING = {"registry", "_io", "_inputs", "_jit_cache", "_image_files", "_figures", "_output_args", "errors", "limits", "paths", "cone_spec",
-            "cone_arrays", "_lazy", "_toml", "_lock", "_confine", "_markdown", "point_cloud"}
+            "cone_arrays", "_lazy", "_toml", "_lock", "_confine", "_markdown", "point_cloud", "_option_alias"}
 """Shared plumbing with no layer of its own: importable from anywhere, imports no layer."""
 
 SUBLAYERS = {"perception.train": "perception_tools", "perception.conenet": "perception_tools",

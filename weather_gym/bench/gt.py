@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from weather_gym._option_alias import alias
 from weather_gym.agents import AGENTS
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.camera_config import CameraConfig
@@ -50,7 +51,9 @@ BIG_PX = 20
 def register(targets) -> None:
     p = targets.add_parser("gt", help="ground truth from geometry: agreement with the rendered one, env-steps/s",
                            description=__doc__.split("\n\n")[1])
-    p.add_argument("--tracks", default="small_track,hairpin,peanut", help="tracks to compare on (default %(default)s)")
+    p.add_argument("--track", dest="tracks", default="small_track,hairpin,peanut",
+                   help="tracks to compare on, comma-separated (default %(default)s)")
+    alias(p, "--track", "--tracks")
     p.add_argument("--camera", default="672x376", help="camera WxH (default %(default)s)")
     p.add_argument("--steps", type=int, default=900, help="steps driven per track (default %(default)s)")
     p.add_argument("--every", type=int, default=3, help="compare every N-th frame (default %(default)s)")

@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 
+from weather_gym._option_alias import alias
 from weather_gym.bench._timing import machine_line, markdown_table
 from weather_gym.errors import InputError
 from weather_gym.lidar_weather import parse_lidar_weather
@@ -44,7 +45,8 @@ WEATHER = ("fog@3", "rain@3", "snow@3", "wet@3")
 def register(targets) -> None:
     p = targets.add_parser("lidar", help="one LiDAR scan: fast vs every beam through rayTestBatch; weather, cones",
                            description=__doc__.split("\n\n")[1])
-    p.add_argument("--tracks", default="small_track,hairpin", help="tracks (default %(default)s)")
+    p.add_argument("--track", dest="tracks", default="small_track,hairpin", help="tracks, comma-separated (default %(default)s)")
+    alias(p, "--track", "--tracks")
     p.add_argument("--poses", type=int, default=10, help="places along each track (default %(default)s)")
     p.add_argument("--repeats", type=int, default=30, help="fast scans timed per place (default %(default)s)")
     p.add_argument("--naive-repeats", type=int, default=3, help="naive scans timed per place (default %(default)s)")

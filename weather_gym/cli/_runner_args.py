@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 
+from weather_gym._option_alias import alias
 from weather_gym.errors import InputError, LimitError, MissingDependencyError
 
 
@@ -31,7 +32,8 @@ def add_runner_args(p, *, what: str = "cells", resumable: bool = True) -> None:
     if resumable:
         p.add_argument("--skip-failed", action="store_true",
                        help="on resume, keep failed cells as they are instead of retrying them")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", dest="no_progress", action="store_true", help="no progress bar")
+    alias(p, "--quiet", "--no-progress")
 
 
 def check_runner_args(args) -> None:

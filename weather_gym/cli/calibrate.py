@@ -21,13 +21,13 @@ A command line parsed (nothing runs):
 
 from __future__ import annotations
 
-import argparse
 import math
 import shlex
 import sys
 from pathlib import Path
 
 from weather_gym._io import check_output, declare_inputs, derived_outputs_replaceable
+from weather_gym._option_alias import OneDefaultFormatter
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.calibration.calibrate import calibrate, fill_from_curves, parse_use, remeasure, write_presets
 from weather_gym.calibration.curve import load_curves
@@ -46,7 +46,7 @@ def register(sub) -> None:
                     "weather (a CSV table like the study's Table 2, or labelled COCO image sets scored here) and "
                     "write a presets TOML plus a calibration report. Matches the relative drop (mAP / ideal mAP "
                     "of the same domain) by default, because our detector is not the study's.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=OneDefaultFormatter,
     )
     p.add_argument("--curve", action="append", type=Path, required=True,
                    help="curve file(s) written by `weather-gym sweep` (OUT/curves.csv); repeat for several")

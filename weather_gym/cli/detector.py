@@ -19,6 +19,7 @@ The second command line above, parsed (nothing runs):
 
 from __future__ import annotations
 
+import argparse
 import os
 from pathlib import Path
 
@@ -104,7 +105,8 @@ def register(sub) -> None:
     t.add_argument("--max-steps", type=int, default=None, help="stop after this many optimizer steps")
     t.add_argument("--out", type=Path, required=True, help="ONNX file to write (+ .json sidecar)")
     add_overwrite_arg(t, help="replace an existing --out")
-    t.add_argument("--no-resume", action="store_true", help="ignore a checkpoint from an interrupted run")
+    t.add_argument("--resume", action=argparse.BooleanOptionalAction, default=True,
+                   help="continue from the checkpoint of an interrupted run into --out (--no-resume: start afresh)")
     t.set_defaults(func=_train)
 
     e = cmds.add_parser("eval", help="score the detector on a COCO folder (optionally under weather)")
@@ -180,7 +182,7 @@ def _train(args) -> int:
                              tiny_negatives=args.tiny_negatives,
                              **({} if args.blocks is None else {"blocks": _parse_blocks(args.blocks)}),
                              device=args.device, workers=args.workers, **extra)
-    result = train_detector(args.data, args.out, cfg, val=args.val, resume=not args.no_resume,
+    result = train_detector(args.data, args.out, cfg, val=args.val, resume=args.resume,
                             overwrite=args.overwrite)
     print(f"wrote {result['model']} ({result['steps']} steps, {result['train_time_s']:.0f} s)")
     return 0

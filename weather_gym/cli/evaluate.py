@@ -8,7 +8,7 @@ Examples:
     weather-gym evaluate --agent mapper_pure_pursuit --effects droplets,dim --severities 0,1,2,3,4 \\
         --seeds 3 --tracks small_track --out runs/eval
     weather-gym evaluate --agent gt_pure_pursuit --perception oracle --seeds 1 --max-steps 300 --out runs/smoke
-    weather-gym evaluate --agent sb3 --agent-kwargs '{"path": "ppo.zip"}' --perception oracle --out runs/ppo
+    weather-gym evaluate --agent sb3 --agent-arg path=ppo.zip --perception oracle --out runs/ppo
     weather-gym evaluate ... --backend ray --ray-address auto       # on a running Ray cluster
 
 The second command line above, parsed (nothing runs):
@@ -28,10 +28,12 @@ import time
 from pathlib import Path
 
 from weather_gym._io import declare_inputs
+from weather_gym._option_alias import OneDefaultFormatter, alias
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
+from weather_gym.cli.lap import parse_agent_args
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.evaluation.evaluate import BAGS, DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
 from weather_gym.evaluation.report import report_replaceable, write_report
@@ -72,11 +74,12 @@ def register(sub) -> None:
         description="Run every cell (agent x track x effect x severity x seed) as one episode, write a tidy "
                     "OUT/results.csv (resumable: finished cells are skipped, failed ones retried), OUT/report.md "
                     "and OUT/plots/*.png. Severities are weather presets (weather_gym/weather/presets.toml).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=OneDefaultFormatter,
     )
     g = p.add_argument_group("grid")
-    g.add_argument("--agent", "--agents", dest="agents", default="mapper_pure_pursuit",
-                   help="agent name(s), comma-separated (weather_gym.agents.AGENTS)")
+    g.add_argument("--agent", dest="agents", default="mapper_pure_pursuit",
+                   help="agent name(s), comma-separated (weather_gym.agents.AGENTS, or module.path:Factory)")
+    alias(g, "--agent", "--agents")
     g.add_argument("--baseline", default=None, metavar="AGENT",
                    help="an agent of --agent the others are compared against in the report, cell by cell "
                         "(lap time ratio, cones hit difference; a table and plots/lap_time_ratio.png)")
@@ -86,8 +89,9 @@ def register(sub) -> None:
     seeds = g.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=3, help="number of seeds: 0..N-1")
     seeds.add_argument("--seed-list", default=None, help="explicit seeds, comma-separated (instead of --seeds)")
-    g.add_argument("--tracks", default="small_track",
+    g.add_argument("--track", dest="tracks", default="small_track",
                    help="track names / 'random:SEED' / 'reverse:SPEC' / 'mirror:SPEC' / cone CSV paths, comma-separated")
+    alias(g, "--track", "--tracks")
     e = p.add_argument_group("episode")
     e.add_argument("--env-id", default="WeatherGym/ConeTrack-v0", help="Gymnasium id of the scenario")
     e.add_argument("--perception", default=DEFAULT_PERCEPTION, choices=tuple(PERCEPTION_MODES),
@@ -95,7 +99,9 @@ def register(sub) -> None:
                                                                      for m in PERCEPTION_MODES.values())))
     e.add_argument("--laps", type=int, default=1, help="laps per episode")
     e.add_argument("--max-steps", type=int, default=3000, help="step limit per episode (30 steps = 1 s)")
-    e.add_argument("--agent-kwargs", default=None, help="JSON object of agent factory arguments")
+    e.add_argument("--agent-arg", action="append", default=[], metavar="KEY=VALUE",
+                   help="keyword for the agent factory, repeatable (e.g. v_max=12, path=model.zip)")
+    e.add_argument("--agent-kwargs", default=None, help=argparse.SUPPRESS)  # deprecated: the same as JSON
     e.add_argument("--env-kwargs", default=None, help='JSON object of gymnasium.make arguments, e.g. \'{"camera": {"width": 336, "height": 188}}\'')
     e.add_argument("--perception-kwargs", default=None, help="JSON object of the perception wrapper's arguments (DetectorWrapper / GroundTruthConeWrapper / SurrogatePerceptionWrapper)")
     e.add_argument("--presets", type=Path, default=None, help="presets TOML (default: the shipped one)")
@@ -125,11 +131,24 @@ def build_config(args):
     return EvalConfig(
         agents=_names(args.agents), effects=_names(args.effects), severities=_ints("--severities", args.severities),
         seeds=seeds, tracks=_names(args.tracks), env_id=args.env_id, perception=args.perception, laps=args.laps,
-        max_steps=args.max_steps, agent_kwargs=_json_arg("--agent-kwargs", args.agent_kwargs),
+        max_steps=args.max_steps, agent_kwargs=_agent_kwargs(args),
         env_kwargs=_json_arg("--env-kwargs", args.env_kwargs),
         perception_kwargs=_perception_kwargs(args),
         presets=str(args.presets) if args.presets is not None else None,
     )
+
+
+def _agent_kwargs(args) -> dict:
+    """``--agent-arg KEY=VALUE`` options, and the deprecated ``--agent-kwargs JSON`` (with a note)."""
+    given = parse_agent_args(args.agent_arg)
+    if args.agent_kwargs is not None:
+        print("note: --agent-kwargs is deprecated and goes in the next release; use --agent-arg KEY=VALUE "
+              "(repeatable)", file=sys.stderr)
+        old = _json_arg("--agent-kwargs", args.agent_kwargs) or {}
+        if clash := sorted(set(old) & set(given)):
+            raise InputError(f"{', '.join(clash)} given both with --agent-arg and in --agent-kwargs; give each once")
+        given = {**old, **given}
+    return given
 
 
 def _perception_kwargs(args) -> dict:

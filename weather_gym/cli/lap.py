@@ -30,6 +30,7 @@ from typing import Any, cast
 import numpy as np
 from tqdm import tqdm
 
+from weather_gym._option_alias import alias
 from weather_gym.agents import AGENTS, agent_factory, agent_observes, run_episode
 from weather_gym.agents.mapper import MapperConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
@@ -102,7 +103,8 @@ def register(sub) -> None:
         epilog=_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--track", help="track name, 'random:SEED', 'reverse:SPEC', 'mirror:SPEC' or a cone CSV "
                                    "(default: the scenario's track); see `weather-gym tracks list`")
-    p.add_argument("--env", default="WeatherGym/ConeTrack-v0", help="Gymnasium env id (default %(default)s)")
+    p.add_argument("--env-id", dest="env", default="WeatherGym/ConeTrack-v0", help="Gymnasium env id (default %(default)s)")
+    alias(p, "--env-id", "--env")
     p.add_argument("--agent", default="gt_pure_pursuit",
                    help=f"registered agent ({literal(', '.join(AGENTS))}) or an agent of your own as "
                         "'module.path:Factory' (default gt_pure_pursuit)")

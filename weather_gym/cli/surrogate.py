@@ -1,7 +1,7 @@
 """``weather-gym surrogate``: log the full pipeline, fit the perception surrogate, validate it.
 
 Examples:
-    weather-gym surrogate log --track small_track --weather droplets@3 --seeds 0,1 --steps 600 --out logs/d3.npz
+    weather-gym surrogate log --track small_track --weather droplets@3 --seed-list 0,1 --steps 600 --out logs/d3.npz
     weather-gym surrogate fit logs/*.npz --out model.npz
     weather-gym surrogate validate --track hairpin --full-logs scratch/val_logs --out docs/surrogate/validation
 
@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from weather_gym._io import check_output, declare_inputs, exclusive
+from weather_gym._option_alias import alias
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._seed_arg import int_list, seed_list
@@ -52,7 +53,8 @@ def register(sub) -> None:
     lg.add_argument("--track", default="small_track", help="comma-separated tracks (default %(default)s)")
     lg.add_argument("--weather", action="append", default=None, metavar="SPEC",
                     help="weather spec, repeatable (e.g. clear, droplets@3, low_light@2; default clear)")
-    lg.add_argument("--seeds", default="0", help="comma-separated episode seeds (default %(default)s)")
+    lg.add_argument("--seed-list", dest="seeds", default="0", help="comma-separated episode seeds (default %(default)s)")
+    alias(lg, "--seed-list", "--seeds")
     lg.add_argument("--steps", type=int, default=600, help="steps per episode, at most (default %(default)s)")
     lg.add_argument("--agent", default="gt_pure_pursuit", choices=("gt_pure_pursuit", "mapper_pure_pursuit"),
                     help="driver: gt_pure_pursuit (the true track) or mapper_pure_pursuit (drives on the cone "
@@ -76,7 +78,8 @@ def register(sub) -> None:
     va.add_argument("--track", default="hairpin", help="track (not used for fitting; default %(default)s)")
     va.add_argument("--conditions", default="droplets,low_light", help="conditions (default %(default)s)")
     va.add_argument("--severities", default="0,1,2,3,4", help="severities (default %(default)s)")
-    va.add_argument("--seeds", default="0,1,2", help="full-pipeline seeds (default %(default)s)")
+    va.add_argument("--seed-list", dest="seeds", default="0,1,2", help="full-pipeline seeds, comma-separated (default %(default)s)")
+    alias(va, "--seed-list", "--seeds")
     va.add_argument("--surrogate-seeds", default="0,1,2,3,4,5,6,7,8,9", help="surrogate seeds (default %(default)s)")
     va.add_argument("--steps", type=int, default=900, help="steps per lap, at most (default %(default)s)")
     va.add_argument("--full-logs", type=Path, default=None, metavar="DIR",
@@ -102,7 +105,7 @@ def _log(args) -> int:
 
     for t in tracks:
         load_track(t)
-    seeds = seed_list(args.seeds, "--seeds")
+    seeds = seed_list(args.seeds, "--seed-list")
     detector = detector_spec_from_args(args) if perception_mode(args.perception).runs_detector else None
     with exclusive(args.out, message=f"another run is writing {args.out}; wait for it or choose another --out"):
         log = record(tracks=tracks, weathers=args.weather or ["clear"], seeds=seeds, steps=args.steps,
@@ -130,7 +133,7 @@ def _validate(args) -> int:
         raise InputError(f"--steps must be >= 1, got {args.steps}")
 
     validate(model=args.model, track=args.track, conditions=_names(args.conditions),
-             severities=int_list(args.severities, "--severities"), seeds=seed_list(args.seeds, "--seeds"),
+             severities=int_list(args.severities, "--severities"), seeds=seed_list(args.seeds, "--seed-list"),
              surrogate_seeds=seed_list(args.surrogate_seeds, "--surrogate-seeds"), steps=args.steps,
              full_logs=args.full_logs, camera=_camera_size(args.camera),
              weathers=_names(args.weathers) if args.weathers else None,

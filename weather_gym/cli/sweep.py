@@ -19,7 +19,6 @@ The first command line above, parsed (nothing runs):
 
 from __future__ import annotations
 
-import argparse
 import json
 import shlex
 import sys
@@ -28,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from weather_gym._io import declare_inputs
+from weather_gym._option_alias import OneDefaultFormatter
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.calibration.curve import load_curves
 from weather_gym.calibration.sweep import (
@@ -54,7 +54,7 @@ def register(sub) -> None:
                     "of one or more effects, on a fixed COCO evaluation set, each seed a different weather "
                     "realisation. Parallel and resumable (the evaluation runner); writes OUT/curves.csv, "
                     "OUT/curves.png, OUT/curves_recall.png and OUT/sweep.json.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=OneDefaultFormatter,
     )
     p.add_argument("--weather", action="append", required=True, metavar="SPEC",
                    help=f"effects to sweep, {OPEN_K_GRAMMAR}; repeatable")

@@ -63,6 +63,7 @@ from typing import Any
 
 from weather_gym._io import _make_parent, atomic_path, atomic_write_json
 from weather_gym._lock import exclusive_folder
+from weather_gym._option_alias import alias
 from weather_gym.agents.cone_memory import ConeMemoryConfig
 from weather_gym.errors import (
     FileFormatError,
@@ -150,7 +151,8 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     """The options of ``weather-gym train`` (and ``examples/train_ppo.py``), added to ``p``."""
     p = p or argparse.ArgumentParser(prog="weather-gym train", description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, required=True, help="run folder (see --resume, --overwrite)")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint")
+    p.add_argument("--resume", action=argparse.BooleanOptionalAction, default=False,
+                   help="continue the run in --out from its newest checkpoint (--no-resume, the default: a new run)")
     p.add_argument("--overwrite", action="store_true",
                    help="start a new run in a --out that holds one: what that run wrote (model, checkpoints, best/, "
                         "logs/steps*, run.json, curves) is removed first, nothing else; a folder holding no run is "
@@ -168,7 +170,8 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
                         "surrogate with >= 2 envs and >= 2 usable cores, else dummy")
     p.add_argument("--env-id", default="WeatherGym/ConeTrack-v0",
                    help="the scenario (an id with camera images, so the policy evaluates through the detector)")
-    p.add_argument("--tracks", default=",".join(DEFAULT_TRACKS), help="training tracks, comma-separated")
+    p.add_argument("--track", dest="tracks", default=",".join(DEFAULT_TRACKS), help="training tracks, comma-separated")
+    alias(p, "--track", "--tracks")
     p.add_argument("--eval-track", default=DEFAULT_EVAL_TRACK, help="held-out track of the EvalCallback")
     p.add_argument("--perception", choices=PERCEPTIONS, default="gt_cones",
                    help="gt_cones: geometry, nothing rendered (fast); surrogate: the detector's statistics, "

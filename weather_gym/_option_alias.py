@@ -1,4 +1,5 @@
-"""One name per idea across the sub-commands, with the old spellings kept for one release.
+"""One name per idea across the commands (the CLI's and the benches'), with the old spellings kept
+for one release.
 
 :func:`alias` gives an option an old spelling that still works for one release: it is hidden from
 ``--help`` (which shows one name per idea) and prints one note saying what to write instead. The
@@ -42,3 +43,14 @@ def alias(parser: argparse.ArgumentParser, new: str, old: str, *, note: str | No
     if issubclass(kind, _PLAIN):
         kwargs.update(nargs=action.nargs, type=action.type, choices=action.choices, metavar=action.metavar)
     parser.add_argument(old, action=Deprecated, **kwargs)
+
+
+class OneDefaultFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's defaults-in-help, once per option: not where the help already says its default, not
+    for a required option, nor for an option whose default is nothing (None, False, an empty list)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text or action.required or action.default in (None, False, [], argparse.SUPPRESS):
+            return text
+        return super()._get_help_string(action) or text
