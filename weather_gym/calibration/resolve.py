@@ -416,71 +416,74 @@ def _bootstrap(clear: FrameMatches, hit: FrameMatches, seed: int) -> tuple[float
     return float(np.std(v, ddof=1)), (float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5)))
 
 
+class _Search:
+    """The measured points of one condition's effect (shared by its rows) and the search for each row's k."""
+
+    def __init__(self, ref: _ReferenceSet, items, clear: FrameMatches, clear_map: float, scenario: Scenario,
+                 tick: Callable[[], None]) -> None:
+        table = {k: v for k, v in items[0][1]["effects"][0].items() if k != "k"}
+        self.name, self.params = table.pop("name"), table
+        self.label = json.dumps([self.name, self.params], sort_keys=True)
+        self.pool = _pool_curve([(s, float(t["effects"][0]["k"]), float(t["measured_relative"])) for s, t in items])
+        self.ref, self.clear, self.clear_map, self.scenario, self.tick = ref, clear, clear_map, scenario, tick
+        self.points: dict[float, float] = {}
+        self.matches: dict[float, FrameMatches] = {}
+
+    def measure(self, k: float) -> None:
+        m = self.ref.matches(self.label, make(self.name, k=k, **self.params), k)
+        self.matches[k] = m
+        self.points[k] = m.map50() / self.clear_map
+        self.tick()
+
+    def _hit(self, target: float) -> bool:
+        return any(abs(v - target) <= HIT for v in self.points.values())
+
+    def row(self, cond: str, sev: int, t: dict[str, Any]) -> ResolvedRow:
+        target, k_pool = float(t["measured_relative"]), float(t["effects"][0]["k"])
+        points, evals, note, reachable = self.points, 0, "", True
+        if target >= 1.0 and 0.0 not in points:
+            self.measure(0.0)
+            evals += 1
+        while evals < MAX_EVALS and not self._hit(target):
+            k = _next_k(points, target, self.pool, k_pool)
+            if k is None:
+                break
+            self.measure(k)
+            evals += 1
+        ks = sorted(points)
+        if all(points[k] > target for k in ks) and max(ks) >= 1.0:
+            raise ResolutionError(
+                f"{cond}@{sev} cannot be resolved for {self.scenario.describe()}: its target relative mAP "
+                f"{target:.3f} is out of the effect's reach (at k = 1 the detector keeps {points[1.0]:.3f} of its "
+                f"clear mAP {self.clear_map:.3f}); use the shipped pool presets (--presets pool) or a stronger effect mode")
+        if all(points[k] < target for k in ks) and min(ks) <= 0.0:
+            reachable = False
+            note = (f"the target {target:.3f} is above what k = 0 keeps ({points[0.0]:.3f}): the effect only "
+                    "lowers it; k = 0 comes closest")
+        elif len(ks) >= 2 and not self._hit(target):
+            k_inv = round(invert(ks, [points[k] for k in ks], target, what="the relative mAP").k, 3)
+            if k_inv not in points:  # measure where the search ended, so the damage is known there
+                self.measure(k_inv)
+                evals += 1
+        k_res = min(points, key=lambda k: (abs(points[k] - target), k))
+        if reachable and abs(points[k_res] - target) > HIT:
+            note = (f"closest measured point after {evals} steps ({points[k_res]:.3f} against {target:.3f}): "
+                    "the curve is steep or noisy here")
+        return _row(cond, sev, target, k_res, k_pool, points, self.matches, self.clear, self.name, self.params,
+                    evals, reachable=reachable, note=note)
+
+
 def _resolve_rows(ref: _ReferenceSet, targets, clear: FrameMatches, clear_map: float, scenario: Scenario,
                   tick: Callable[[], None]) -> tuple[list[ResolvedRow], dict[str, list[list[float]]]]:
-    rows: list[ResolvedRow] = []
-    points_out: dict[str, list[list[float]]] = {}
     by_cond: dict[str, list] = {}
     for cond, sev, t in targets:
         by_cond.setdefault(cond, []).append((sev, t))
+    rows: list[ResolvedRow] = []
+    points_out: dict[str, list[list[float]]] = {}
     for cond, items in by_cond.items():
-        table = {k: v for k, v in items[0][1]["effects"][0].items() if k != "k"}
-        name, params = table.pop("name"), table
-        label = json.dumps([name, params], sort_keys=True)
-        pool = _pool_curve([(s, float(t["effects"][0]["k"]), float(t["measured_relative"])) for s, t in items])
-        points: dict[float, float] = {}
-        matches: dict[float, FrameMatches] = {}
-
-        def measure(k: float, name=name, params=params, label=label, points=points, matches=matches) -> None:
-            m = ref.matches(label, make(name, k=k, **params), k)
-            matches[k] = m
-            points[k] = m.map50() / clear_map
-            tick()
-
-        for sev, t in items:
-            target = float(t["measured_relative"])
-            k_pool = float(t["effects"][0]["k"])
-            note, evals = "", 0
-            if target >= 1.0:
-                if 0.0 not in points:
-                    measure(0.0)
-                    evals += 1
-                if points[0.0] <= target:
-                    rows.append(_row(cond, sev, target, 0.0, k_pool, points, matches, clear, name, params, evals,
-                                     reachable=False, note=f"the target {target:.3f} is at or above the clear "
-                                     f"level (k = 0 keeps {points[0.0]:.3f}): the effect only lowers it; k = 0"))
-                    continue
-            while evals < MAX_EVALS:
-                if any(abs(v - target) <= HIT for v in points.values()):
-                    break
-                k = _next_k(points, target, pool, k_pool)
-                if k is None:
-                    break
-                measure(k)
-                evals += 1
-            ks = sorted(points)
-            reachable = True
-            if all(points[k] > target for k in ks) and max(ks) >= 1.0:
-                raise ResolutionError(
-                    f"{cond}@{sev} cannot be resolved for {scenario.describe()}: its target relative mAP "
-                    f"{target:.3f} is out of the effect's reach (at k = 1 the detector keeps {points[1.0]:.3f} of its "
-                    f"clear mAP {clear_map:.3f}); use the shipped pool presets (--presets pool) or a stronger effect mode")
-            if all(points[k] < target for k in ks) and min(ks) <= 0.0:
-                reachable = False
-                note = (f"the target {target:.3f} is above what k = 0 keeps ({points[0.0]:.3f}): the effect only "
-                        "lowers it; k = 0 comes closest")
-            elif len(ks) >= 2 and not any(abs(points[k] - target) <= HIT for k in ks):
-                k_inv = round(invert(ks, [points[k] for k in ks], target, what="the relative mAP").k, 3)
-                if k_inv not in points and evals < MAX_EVALS + 1:  # measure where the search ended
-                    measure(k_inv)
-                    evals += 1
-            k_res = min(points, key=lambda k: (abs(points[k] - target), k))
-            if reachable and abs(points[k_res] - target) > HIT:
-                note = (f"closest measured point after {evals} steps ({points[k_res]:.3f} against {target:.3f}): "
-                        "the curve is steep or noisy here")
-            rows.append(_row(cond, sev, target, k_res, k_pool, points, matches, clear, name, params, evals,
-                             reachable=reachable, note=note))
-        points_out[cond] = [[k, points[k]] for k in sorted(points)]
+        search = _Search(ref, items, clear, clear_map, scenario, tick)
+        rows += [search.row(cond, sev, t) for sev, t in items]
+        points_out[cond] = [[k, search.points[k]] for k in sorted(search.points)]
     return rows, points_out
 
 
