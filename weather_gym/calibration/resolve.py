@@ -33,6 +33,7 @@ Example (nothing is rendered):
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -518,9 +519,12 @@ def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathL
         raise InputError(f"tolerance must be a number in (0, 1), got {tolerance!r}")
     key = resolution_key(scenario, presets, tolerance)
     root = cache_dir() if cache else None
-    if root is None:
+    if root is None:  # frames in a temporary folder; the presets file beside them in the temp dir, if it is writable
+        out = Path(tempfile.gettempdir()) / f"weather-gym-resolved-{key}.toml"
         with tempfile.TemporaryDirectory(prefix="weather-gym-resolve-") as tmp:
             res = _compute(scenario, presets, tolerance, key, Path(tmp), None, progress, threads)
+        with contextlib.suppress(OSError):
+            res.path = write_resolved(res, out, presets=presets, scenario=scenario, overwrite=True)
         res.note = ("no cache folder (set WEATHER_GYM_CACHE to a writable folder to keep resolutions)" if cache
                     else "cache off")
         return res

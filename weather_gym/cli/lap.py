@@ -29,7 +29,9 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym.agents import AGENTS, agent_observes, run_episode
+from weather_gym.calibration.resolve import Scenario
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._presets_arg import add_presets_arg, presets_from_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
@@ -102,6 +104,7 @@ def register(sub) -> None:
     p.add_argument("--weather", help="weather spec (e.g. droplets:0.55 or droplets@3); default: the scenario's")
     p.add_argument("--perception", choices=perception_choices(), default=AUTO, help="what the agent sees (see below)")
     add_detector_args(p, what=f"for --perception {' / '.join(modes_where(runs_detector=True))}")
+    add_presets_arg(p)
     p.add_argument("--depth-quantile", type=float, default=None, metavar="Q",
                    help="quantile of the depths inside a detection's box that gives its range (a perception "
                         "that runs the detector; default the median, 0.5; 0.25 ranges far cones better: docs/perception.md)")
@@ -152,14 +155,23 @@ def _run(args) -> int:
         raise InputError("--video and --strip must be different files")
     detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
+    presets = presets_from_arg(args.presets, lambda: lap_scenario(args.env, args.track, detector))
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
-        overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile,
+        overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile, presets=presets,
     )
     print(format_result(result))
     return 0 if result["completed"] else 1
+
+
+def lap_scenario(env_id: str, track: str | None, detector: Any = None) -> Scenario:
+    """The scenario a lap's presets are resolved for: its track, camera, camera model and world, and
+    ``detector`` (the one in the loop)."""
+    cfg = build_config(scenario_of(env_id), {"track": track} if track is not None else None)
+    return Scenario(tracks=(cfg.track,), scene=cfg.sim.scene, camera=cfg.camera, camera_model=cfg.camera_model,
+                    detector=detector)
 
 
 def default_max_steps(env_id: str, track: str | None, laps: int) -> int:
@@ -186,11 +198,14 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
              agent_kwargs: dict[str, Any] | None = None, weather: str | None = None, perception: str = AUTO,
              detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
-             overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None) -> dict[str, Any]:
+             overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None,
+             presets: Any = None) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
-    and the episode from :func:`weather_gym.agents.run_episode`.
+    and the episode from :func:`weather_gym.agents.run_episode`. ``presets``: the presets file a
+    ``CONDITION@SEVERITY`` reads (None: ``$WEATHER_GYM_PRESETS``, else the shipped pool presets); the
+    result's ``weather_k`` and ``weather_source`` say which k was used and where it came from.
     """
 
     factory = AGENTS.get(agent)
@@ -209,10 +224,11 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     if track is not None:
         env_kwargs["track"] = track
     if weather is not None:
-        parse_weather(weather)  # a bad spec fails here, with the parser's message
+        parse_weather(weather, presets)  # a bad spec fails here, with the parser's message
     perception_kwargs = _perception_kwargs(mode, recording, depth_quantile)
     env = make_env(env_id, perception=mode.name, weather=weather, detector=detector if mode.runs_detector else None,
-                   perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, **env_kwargs)
+                   perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, presets=presets,
+                   **env_kwargs)
     recorder = None
     try:
         base = env.unwrapped
@@ -227,6 +243,8 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
             nonlocal recorder
             if step == 0:
                 state["weather"] = weather or _describe_weather(info.get("weather"))
+                state["weather_k"] = info.get("weather", [])
+                state["weather_source"] = info.get("weather_source", "given")
                 state["weathered"] = "weather" in info
                 if recording:
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
@@ -252,7 +270,9 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         env.close()
     result = {
         "env": env_id, "track": track or trk.name, "event": trk.event, "track_length_m": float(trk.length), "agent": agent,
-        "perception": mode.name, "weather": state["weather"], "seed": seed, "laps_requested": laps,
+        "perception": mode.name, "weather": state["weather"], "weather_k": state.get("weather_k", []),
+        "weather_source": state.get("weather_source", "given"), "presets": None if presets is None else str(presets),
+        "seed": seed, "laps_requested": laps,
         "lap_times_s": list(res.lap_times_s), "completed": res.completed, "end": res.end_reason,
         "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,
         "max_steps": max_steps, "renderer": renderer,
@@ -309,6 +329,10 @@ def _describe_weather(spec: Any) -> str:
 def format_result(r: dict[str, Any]) -> str:
     lines = [f"track {r['track']} ({r['event']}, {r['track_length_m']:.1f} m) | agent {r['agent']} | "
              f"perception {r['perception']} | weather {r['weather']} | seed {r['seed']}"]
+    if r.get("weather_k"):
+        ks = ", ".join(f"{t['name']} k={t['k']:.3f}" for t in r["weather_k"] if "k" in t)
+        src = r.get("weather_source", "given")
+        lines.append(f"weather k used: {ks} ({src}" + (f": {r['presets']})" if r.get("presets") and src != "pool" else ")"))
     for i, t in enumerate(r["lap_times_s"], 1):
         lines.append(f"lap {i}: {t:.2f} s")
     end = r["end"] if r["end"] != "time_limit" else f"time_limit, {r['max_steps']} steps"
