@@ -143,7 +143,9 @@ class Scenario:
                 "seed": self.seed, "frames_per_episode": self.frames_per_episode}
 
     def describe(self) -> str:
-        det = "shipped detector" if self.detector is None else f"detector {self.detector}"
+        spec = parse_detector_spec(self.detector) if self.detector is not None else None
+        shipped = spec is None or (spec.kind == "conenet" and spec.path is None and spec == type(spec)())
+        det = "shipped detector" if shipped else f"detector {spec}"
         if self.dataset is not None:
             return f"recording {self.dataset}, {det}"
         cam = "default camera" if self.camera == CameraConfig() and self.camera_model is None else "given camera"
