@@ -27,10 +27,12 @@ from typing import Any
 
 from weather_gym._io import declare_inputs
 from weather_gym.calibration.resolve import Resolution, Scenario, resolve_presets
+from weather_gym.envs.registration import scenario_of
+from weather_gym.envs.scenario import build_config
 from weather_gym.errors import MissingInputError, ResolutionError
 from weather_gym.weather.presets import DEFAULT_PRESETS, load_presets
 
-__all__ = ["add_presets_arg", "presets_from_arg", "resolution_lines"]
+__all__ = ["add_presets_arg", "env_scenario", "presets_from_arg", "resolution_lines"]
 
 
 def add_presets_arg(p: Any) -> None:
@@ -40,6 +42,19 @@ def add_presets_arg(p: Any) -> None:
                         "tracks), 'resolved' (k resolved for this run's track, camera, world and detector; "
                         "minutes the first time, cached after; docs/calibration.md) or a presets FILE "
                         "(default: $WEATHER_GYM_PRESETS, else pool)")
+
+
+def env_scenario(env_id: str, track: str | None, detector: Any = None,
+                 env_kwargs: dict[str, Any] | None = None) -> Scenario:
+    """The scenario presets are resolved for in a run of ``env_id`` on ``track`` (None: the scenario's):
+    its track, camera, camera model and world (``env_kwargs`` override them as in ``make_env``), and
+    ``detector`` (the one in the loop)."""
+    overrides = {k: v for k, v in (env_kwargs or {}).items() if k in ("camera", "camera_model", "sim")}
+    if track is not None:
+        overrides["track"] = track
+    cfg = build_config(scenario_of(env_id), overrides or None)
+    return Scenario(tracks=(cfg.track,), scene=cfg.sim.scene, camera=cfg.camera, camera_model=cfg.camera_model,
+                    detector=detector)
 
 
 def presets_from_arg(value: str | None, scenario: Callable[[], Scenario] | None, *,

@@ -29,9 +29,8 @@ import numpy as np
 from tqdm import tqdm
 
 from weather_gym.agents import AGENTS, agent_observes, run_episode
-from weather_gym.calibration.resolve import Scenario
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
-from weather_gym.cli._presets_arg import add_presets_arg, presets_from_arg
+from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
@@ -155,7 +154,7 @@ def _run(args) -> int:
         raise InputError("--video and --strip must be different files")
     detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
-    presets = presets_from_arg(args.presets, lambda: lap_scenario(args.env, args.track, detector))
+    presets = presets_from_arg(args.presets, lambda: env_scenario(args.env, args.track, detector))
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
@@ -164,14 +163,6 @@ def _run(args) -> int:
     )
     print(format_result(result))
     return 0 if result["completed"] else 1
-
-
-def lap_scenario(env_id: str, track: str | None, detector: Any = None) -> Scenario:
-    """The scenario a lap's presets are resolved for: its track, camera, camera model and world, and
-    ``detector`` (the one in the loop)."""
-    cfg = build_config(scenario_of(env_id), {"track": track} if track is not None else None)
-    return Scenario(tracks=(cfg.track,), scene=cfg.sim.scene, camera=cfg.camera, camera_model=cfg.camera_model,
-                    detector=detector)
 
 
 def default_max_steps(env_id: str, track: str | None, laps: int) -> int:

@@ -66,7 +66,7 @@ from weather_gym.perception_modes import (
 )
 from weather_gym.pipeline import make_env
 from weather_gym.tracks import load_track
-from weather_gym.weather.presets import canonical_condition, preset_spec
+from weather_gym.weather.presets import canonical_condition, preset_source, preset_spec
 from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise
 
 __all__ = [
@@ -119,9 +119,10 @@ class EvalCell:
     env_kwargs: str = "{}"
     perception_kwargs: str = "{}"
     stack: str = ""  # stack_id(): the resolved scenario and the model files the cell runs with
+    k_source: str = ""  # where the preset's k came from (pool / resolved / file); not a key field: k is in weather
 
 
-CELL_KEY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(EvalCell))
+CELL_KEY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(EvalCell) if f.name != "k_source")
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,9 @@ class EvalConfig:
             of ``gymnasium.make`` (e.g. ``{"camera": {"width": 336, "height": 188}}``) and of the
             perception wrapper (``DetectorWrapper``: ``score_threshold``, ``max_cones``...;
             ``GroundTruthConeWrapper``: ``OracleNoise`` fields such as ``miss_prob``).
-        presets: a presets TOML file (default: the shipped ``presets.toml``).
+        presets: a presets TOML file (default: ``$WEATHER_GYM_PRESETS``, else the shipped ``presets.toml``), or
+            one per track (``{track: file}``, e.g. each resolved for its track: ``weather-gym evaluate
+            --presets resolved``). ``results.csv`` has the k's in ``weather`` and their source in ``k_source``.
     """
 
     agents: tuple[str, ...] = ("mapper_pure_pursuit",)
@@ -158,7 +161,7 @@ class EvalConfig:
     agent_kwargs: Mapping[str, Any] = field(default_factory=dict)
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     perception_kwargs: Mapping[str, Any] = field(default_factory=dict)
-    presets: str | None = None
+    presets: str | Mapping[str, str] | None = None
 
 
 def _check_int(name: str, value: Any, lo: int) -> int:
@@ -276,14 +279,23 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     if config.agent_kwargs:  # a bad agent argument fails now, not in every cell
         for a in agents:
             _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))
-    weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
-    _check_weather_for_mode(mode, weather, config.perception_kwargs)  # fails now, not in every cell
+    def presets_of(t: str) -> str | None:
+        if isinstance(config.presets, Mapping):
+            if t not in config.presets:
+                raise InputError(f"presets per track: no presets file for track {t!r} (given for "
+                                 f"{', '.join(map(repr, config.presets))})")
+            return config.presets[t]
+        return config.presets
+
+    weather = {(t, e, s): _json(preset_spec(e, s, presets_of(t))) for t in tracks for e in effects for s in severities}
+    source = {t: preset_source(presets_of(t)) for t in tracks}
+    _check_weather_for_mode(mode, {(e, s): w for (_, e, s), w in weather.items()}, config.perception_kwargs)
     stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
-                 perception=config.perception, laps=laps, max_steps=max_steps, weather=weather[e, s],
+                 perception=config.perception, laps=laps, max_steps=max_steps, weather=weather[t, e, s],
                  agent_kwargs=agent_kwargs, env_kwargs=env_kwargs, perception_kwargs=perception_kwargs,
-                 stack=stacks[a])
+                 stack=stacks[a], k_source=source[t] if int(s) > 0 else "given")
         for a in agents for t in tracks for e in effects for s in severities for seed in seeds
     ]
     return cells
@@ -358,7 +370,8 @@ def run_cell(cell: EvalCell | Mapping[str, Any]) -> dict[str, Any]:
         # every frame the agent acts on (the reset frame included, the final one not)
         scoring = DetectorScoring(mode)
         res = run_episode(env, agent, seed=cell.seed, on_step=scoring, agent_name=cell.agent)
-        return episode_metrics(Episode(res, agent, track, mode, scoring.scores()))
+        metrics = episode_metrics(Episode(res, agent, track, mode, scoring.scores()))
+        return {"k_source": cell.k_source, **metrics} if cell.k_source else metrics
     finally:
         env.close()
 
