@@ -62,7 +62,7 @@ from weather_gym.datasets.coco import load_coco
 from weather_gym.datasets.render import render_dataset
 from weather_gym.envs.config import EnvConfig
 from weather_gym.errors import InputError, ResolutionError
-from weather_gym.perception.detector_spec import detector_id, load_detector, parse_detector_spec
+from weather_gym.perception.detector_spec import DEFAULT_MODEL, load_detector, parse_detector_spec
 from weather_gym.perception.scoring import small_rule
 from weather_gym.weather import make
 from weather_gym.weather.presets import CONDITIONS, DEFAULT_PRESETS, SEVERITIES, load_presets
@@ -277,7 +277,9 @@ def resolution_key(scenario: Scenario, presets: str | os.PathLike | None = None,
     spec = parse_detector_spec(scenario.detector)
     rows = [[c, s, t["measured_relative"], {k: v for k, v in t["effects"][0].items() if k != "k"}]
             for c, s, t in _targets(presets)]
-    doc = {"scenario": scenario.identity(), "detector": detector_id(spec), "detector_spec": str(spec),
+    model = Path(spec.path) if spec.path is not None else DEFAULT_MODEL  # its SHA-256, as detector_id, cached
+    detector = [_file_sha(model), spec.kind, spec.classes, spec.resize, spec.input_size, spec.score_threshold]
+    doc = {"scenario": scenario.identity(), "detector": detector, "detector_spec": str(spec),
            "rows": rows, "tolerance": float(tolerance), "code": code_version()}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
