@@ -198,3 +198,22 @@ def test_too_few_cones_is_a_typed_error(calib_set_8, tmp_path, monkeypatch):
     two = _few_cones_set(tmp_path, calib_set_8)
     with pytest.raises(ResolutionError, match=r"recording .*two.*only \d+ blue and yellow cones.*at least 100"):
         resolve_presets(Scenario(dataset=str(two)), progress=False)
+
+
+def test_evaluate_cells_take_presets_per_track_and_record_their_source(tmp_path):
+    from weather_gym.evaluation.evaluate import CELL_KEY_FIELDS, EvalConfig, make_cells
+
+    row = ResolvedRow("low_light", 2, 0.344, 0.86, 0.843, 0.345, 0.01, (0.33, 0.36), (0.859, 0.861), True,
+                      {"name": "dim", "k": 0.86, "mode": "night"}, 3)
+    path = rs.write_resolved(Resolution("s", "k", [row], 0.95, 900, 160, 1.0, None), tmp_path / "r.toml")
+    cfg = EvalConfig(effects=("low_light",), severities=(0, 2), seeds=(0,), tracks=("small_track", "peanut"),
+                     presets={"small_track": str(path), "peanut": str(DEFAULT_PRESETS)})
+    cells = {(c.track, c.severity): c for c in make_cells(cfg)}
+    assert json.loads(cells["small_track", 2].weather)[0]["k"] == 0.86
+    assert json.loads(cells["peanut", 2].weather)[0]["k"] == 0.843
+    assert (cells["small_track", 2].k_source, cells["peanut", 2].k_source, cells["peanut", 0].k_source) == \
+        ("resolved", "pool", "given")
+    assert "k_source" not in CELL_KEY_FIELDS  # the k itself is in `weather`: old results.csv files still resume
+    with pytest.raises(InputError, match="no presets file for track 'hairpin'"):
+        make_cells(EvalConfig(effects=("low_light",), severities=(2,), seeds=(0,), tracks=("hairpin",),
+                              presets={"small_track": str(path)}))
