@@ -217,3 +217,38 @@ def test_evaluate_cells_take_presets_per_track_and_record_their_source(tmp_path)
     with pytest.raises(InputError, match="no presets file for track 'hairpin'"):
         make_cells(EvalConfig(effects=("low_light",), severities=(2,), seeds=(0,), tracks=("hairpin",),
                               presets={"small_track": str(path)}))
+
+
+def _resolve_in_child(cache: str, marker_dir: str, q) -> None:
+    import os as _os
+    import time as _time
+
+    _os.environ[rs.CACHE_ENV] = cache
+
+    def fake_compute(scenario, presets, tolerance, key, frames_root, out, progress, threads):
+        (Path(marker_dir) / f"computed-{_os.getpid()}").write_text("x")
+        _time.sleep(1.5)  # long enough for the other process to arrive and wait
+        row = ResolvedRow("low_light", 2, 0.344, 0.85, 0.843, 0.345, 0.01, (0.33, 0.36), (0.849, 0.851), True,
+                          {"name": "dim", "k": 0.85, "mode": "night"}, 3)
+        res = Resolution(scenario.describe(), key, [row], 0.95, 900, 160, 1.5, None)
+        res.path = rs.write_resolved(res, out, overwrite=True)
+        return res
+
+    rs._compute = fake_compute
+    res = resolve_presets(Scenario(tracks=("skidpad",)), progress=False)
+    q.put((res.cached, res.row("low_light", 2).k))
+
+
+def test_concurrent_processes_compute_once(tmp_path):
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork")
+    q = ctx.Queue()
+    procs = [ctx.Process(target=_resolve_in_child, args=(str(tmp_path / "cache"), str(tmp_path), q)) for _ in range(2)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(60)
+    results = sorted(q.get(timeout=5) for _ in procs)
+    assert len(list(tmp_path.glob("computed-*"))) == 1  # one computed, the other waited and read its result
+    assert results == [(False, 0.85), (True, 0.85)]
