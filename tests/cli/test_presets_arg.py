@@ -13,7 +13,7 @@ from weather_gym.weather.presets import DEFAULT_PRESETS
 def test_values(tmp_path):
     assert presets_from_arg(None, None) is None
     assert presets_from_arg("pool", None) == DEFAULT_PRESETS
-    with pytest.raises(MissingInputError, match="no such presets file"):
+    with pytest.raises(MissingInputError, match="--presets: .*nope.toml not found"):
         presets_from_arg(str(tmp_path / "nope.toml"), None)
     bad = tmp_path / "bad.toml"
     bad.write_text("x = 1\n")

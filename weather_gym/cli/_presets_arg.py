@@ -77,7 +77,7 @@ def presets_from_arg(value: str | None, scenario: Callable[[], Scenario] | None,
     path = Path(value)
     declare_inputs(path)
     if not path.is_file():
-        raise MissingInputError(f"--presets {value}: no such presets file (or say pool / resolved)")
+        raise MissingInputError(f"--presets: {value} not found (give a presets file, pool or resolved)")
     load_presets(path)  # a bad file fails here, naming the key
     return path
 
