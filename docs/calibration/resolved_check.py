@@ -3,7 +3,8 @@
 For each scenario: resolve the presets (``weather_gym.calibration.resolve.resolve_presets``; its own
 reference set, cached), render a *different* 80-frame set of the same scenario (seed 4242), and score the
 detector there at the pool k and at the resolved k of every study row, 5 weather seeds each (relative
-mAP@0.5 over blue and yellow, mean and sd over seeds). Writes ``OUT/resolved_check.csv`` and ``.md``.
+mAP@0.5 over blue and yellow, mean and sd over seeds). Writes ``OUT/resolved_check.csv`` and ``.md``, and
+each scenario's resolved presets and curve plot (``OUT/<scenario>.toml``, ``.png``).
 
     python docs/calibration/resolved_check.py --out docs/calibration/resolved skidpad random:90 realistic:small_track
 """
@@ -17,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym.calibration.resolve import Scenario, resolve_presets
+from weather_gym.calibration.resolve import Scenario, resolve_presets, write_resolved
+from weather_gym.calibration.resolve_plot import plot_resolution
 from weather_gym.datasets.coco import load_coco
 from weather_gym.datasets.render import render_dataset
 from weather_gym.perception.detector_spec import load_detector
@@ -36,6 +38,8 @@ def main() -> None:
     ap.add_argument("--detector", default=None)
     ap.add_argument("--frames", type=int, default=80)
     ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--sets", type=Path, default=Path("scratch/resolved_check_sets"),
+                    help="where the check sets are rendered (large; not in the repository)")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -44,7 +48,10 @@ def main() -> None:
         t0 = time.perf_counter()
         res = resolve_presets(sc, progress=False)
         t_res = time.perf_counter() - t0
-        check = args.out / "sets" / text.replace(":", "_")
+        stem = args.out / text.replace(":", "_")
+        write_resolved(res, stem.with_suffix(".toml"), scenario=sc, overwrite=True)
+        plot_resolution(res, stem.with_suffix(".png"), overwrite=True)
+        check = args.sets / text.replace(":", "_")
         if not (check / "annotations.json").is_file():
             render_dataset(check, tracks=list(sc.tracks), frames=args.frames, seed=4242, scene=sc.scene,
                            frames_per_episode=4, progress=False, overwrite=True)
