@@ -52,6 +52,21 @@ def real_dataset(real_frames_src, tmp_path_factory) -> Path:
     return out
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _pool_presets_and_private_cache(tmp_path_factory):
+    """Every test reads the shipped pool presets (``CONDITION@SEVERITY`` does not resolve anything) and a
+    resolution, where a test runs one, caches into a session folder, never the user's cache."""
+    saved = {k: os.environ.get(k) for k in ("WEATHER_GYM_PRESETS", "WEATHER_GYM_CACHE")}
+    os.environ.pop("WEATHER_GYM_PRESETS", None)
+    os.environ["WEATHER_GYM_CACHE"] = str(tmp_path_factory.mktemp("weather-gym-cache"))
+    yield
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)

@@ -6,6 +6,9 @@ in this process or another, gets :class:`~weather_gym.errors.OutputExistsError` 
 the caller gave, at once: it never waits. On a file system without locks the block runs unlocked. Used by ``dataset import`` and ``evaluate``'s results
 folder; any long writer (render, gap, surrogate logs, training) can hold one the same way.
 
+:func:`waiting_lock` is the other kind, for a shared cache: one process computes an entry while the
+others *wait* on the same lock file, then read what it wrote.
+
 Example:
     >>> import tempfile
     >>> d = tempfile.mkdtemp()
@@ -26,7 +29,7 @@ from collections.abc import Iterator
 
 from weather_gym.errors import OutputExistsError, OutputPathError
 
-__all__ = ["exclusive_folder"]
+__all__ = ["exclusive_folder", "waiting_lock"]
 
 
 @contextlib.contextmanager
@@ -54,6 +57,44 @@ def exclusive_folder(folder: str | os.PathLike, *, busy: str) -> Iterator[None]:
             locked = False
         try:
             yield
+        finally:
+            if locked:
+                fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def waiting_lock(path: str | os.PathLike) -> Iterator[bool]:
+    """Hold an exclusive ``flock`` on the lock file ``path`` (created if needed), waiting for any other
+    holder (another process computing the same cache entry) to finish first. Yields whether it locked:
+    False where the file cannot be created or the file system has no locks (then the block runs
+    unlocked; the caller's atomic writes keep readers safe).
+
+    Example:
+        >>> import tempfile, os
+        >>> with waiting_lock(os.path.join(tempfile.mkdtemp(), "entry.lock")) as locked:
+        ...     locked
+        True
+    """
+    try:
+        import fcntl
+    except ModuleNotFoundError:  # pragma: no cover - Windows: no lock
+        yield False
+        return
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+    except OSError:
+        yield False
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            locked = True
+        except OSError:
+            locked = False
+        try:
+            yield locked
         finally:
             if locked:
                 fcntl.flock(fd, fcntl.LOCK_UN)

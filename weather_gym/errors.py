@@ -14,6 +14,7 @@ built-in exception a caller would expect (``ValueError``, ``FileNotFoundError``,
     │   ├── FileFormatError                    a file whose content is wrong (names the file)
     │   ├── OutsideRootError                   a path that escapes its root folder
     │   ├── LimitError                         a parameter outside its physical/allowed bounds
+    │   ├── ResolutionError                    a preset cannot be resolved for a scenario (why, and the fix)
     │   └── MissingInputError (FileNotFoundError)  a named input file or folder is not there
     ├── OutputExistsError (FileExistsError)    refusing to overwrite without ``--overwrite``
     ├── OutputPathError (OSError)              an output that cannot be written there
@@ -46,6 +47,7 @@ __all__ = [
     "FileFormatError",
     "OutsideRootError",
     "LimitError",
+    "ResolutionError",
     "MissingInputError",
     "OutputExistsError",
     "OutputPathError",
@@ -74,6 +76,12 @@ class OutsideRootError(InputError):
 
 class LimitError(InputError):
     """A parameter outside its physical or allowed range (checked before any work starts)."""
+
+
+class ResolutionError(InputError):
+    """A preset cannot be resolved for a scenario: too few visible cones, a clear mAP too low to measure a
+    drop, a target out of the effect's reach, or a damage not known within the tolerance (the message
+    names the scenario, the number and what would fix it)."""
 
 
 class MissingInputError(InputError, FileNotFoundError):

@@ -220,8 +220,8 @@ def _weathered(env: gym.Env, weather: Any, mode: str) -> gym.Env:
     if weather is None:
         return env
     effect = parse_weather(weather)  # a bad spec fails here, with the parser's message
-    if _has_images(env):
-        return WeatherWrapper(env, weather=effect)
+    if _has_images(env):  # the spec itself, so the wrapper records where its k's came from
+        return WeatherWrapper(env, weather=weather)
     if to_spec(effect):
         wet = [n for n, m in PERCEPTION_MODES.items() if m.takes_weather and n != mode]
         raise InputError(f"weather {weather!r} acts on camera images, and this env renders none (perception "

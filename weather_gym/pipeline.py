@@ -51,6 +51,7 @@ from weather_gym.perception_modes import (
     detector_mode,
     perception_mode,
 )
+from weather_gym.weather import WeatherSpec
 from weather_gym.wrappers import EpisodeStatistics
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
@@ -103,12 +104,14 @@ def _scenario_perception(sc: Scenario) -> tuple[str, Any, dict[str, Any]]:
 def make_scenario_env(scenario: str, render_mode: str | None = None, *, perception: str | None = None,
                       weather: Any = None, severity: int | None = None, detector: Any = None,
                       perception_kwargs: Mapping[str, Any] | None = None, env_checker: bool = False,
+                      presets: Any = None,
                       **overrides: Any) -> gym.Env:
     """Entry point of the registered ids (``gym.make``): the scenario's env, weather and perception.
 
     Keywords: ``perception`` (a mode of :data:`PERCEPTION_MODES`; default: the scenario's, else
     ``camera``), ``weather`` (any weather spec, or a condition with ``severity``), ``detector`` and
-    ``perception_kwargs`` (see :func:`wrap_pipeline`; ``detector=True`` or a dict of
+    ``perception_kwargs`` (see :func:`wrap_pipeline`), ``presets`` (the presets file a ``CONDITION@SEVERITY``
+    reads: None is ``$WEATHER_GYM_PRESETS``, else the shipped pool presets; ``detector=True`` or a dict of
     ``DetectorWrapper`` keywords, the older form, mean ``perception="detector"`` with those keywords);
     the rest override the scenario's ``EnvConfig`` (``track=``, ``camera={"width": 336, "height":
     188}``, ``laps=``...). ``env_checker=True`` (what the registered ids pass) puts Gymnasium's passive
@@ -135,8 +138,11 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     overrides = {**mode.env_overrides, **overrides}
     env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
     try:
-        env = wrap_pipeline(env, weather=_weather_spec(sc, weather, severity), perception=perception,
-                            detector=detector, perception_kwargs=perception_kwargs)
+        spec = _weather_spec(sc, weather, severity)
+        if presets is not None and spec is not None:
+            spec = WeatherSpec(spec, str(presets))
+        env = wrap_pipeline(env, weather=spec, perception=perception, detector=detector,
+                            perception_kwargs=perception_kwargs)
         return PassiveEnvCheckerSafeReset(env) if env_checker else env
     except BaseException:
         env.close()
@@ -160,7 +166,8 @@ def _weather_spec(sc: Scenario, weather: Any, severity: int | None) -> Any:
 def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, weather: Any = None,
              severity: int | None = None, detector: Any = None, perception_kwargs: Mapping[str, Any] | None = None,
              max_episode_steps: int | None = None, max_episode_s: float | None = None,
-             episode_statistics: bool = True, render_mode: str | None = None, **env_kwargs: Any) -> gym.Env:
+             episode_statistics: bool = True, render_mode: str | None = None, presets: Any = None,
+             **env_kwargs: Any) -> gym.Env:
     """One env: ``gym.make(env_id, ...)`` (env -> weather -> perception, ``TimeLimit``) ->
     ``EpisodeStatistics`` (``info["episode"]`` at the end of each episode).
 
@@ -178,6 +185,10 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
             ``TimeLimit`` is ``max_episode_s * control_hz`` steps, so ``sim={"control_hz": 60}`` gets
             twice the steps of 30 Hz. Give this or ``max_episode_steps``, not both.
         episode_statistics: add :class:`~weather_gym.wrappers.EpisodeStatistics`.
+        presets: the presets file that ``CONDITION@SEVERITY`` weather reads (default: ``$WEATHER_GYM_PRESETS``,
+            else the shipped pool presets): e.g. the file ``weather_gym.calibration.resolve.resolve_presets``
+            resolved for this track, camera and detector (docs/calibration.md). ``info["weather_source"]`` says
+            which one a frame's k came from.
         env_kwargs: ``EnvConfig`` overrides (``track``, ``laps``, ``camera``, ``sim``, ...).
     """
 
@@ -185,7 +196,7 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
     kwargs: dict[str, Any] = dict(env_kwargs)
     for key, value in (("perception", perception), ("weather", weather), ("severity", severity),
                        ("detector", detector), ("perception_kwargs", perception_kwargs),
-                       ("render_mode", render_mode)):
+                       ("render_mode", render_mode), ("presets", None if presets is None else str(presets))):
         if value is not None:
             kwargs[key] = value
     if max_episode_steps is not None:

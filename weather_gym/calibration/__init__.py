@@ -11,7 +11,10 @@ The reference study's method (Fursa et al., Sections 3.5 and 4) as a reusable to
 * :mod:`~weather_gym.calibration.shapes` - the study's two shapes (linear, exponential) fitted, R^2;
 * :mod:`~weather_gym.calibration.calibrate` - ``calibrate``, ``remeasure``, ``write_presets``
   (``weather-gym calibrate``), the format ``weather_gym.weather.presets`` reads;
-* :mod:`~weather_gym.calibration.report` - plots and the Markdown report.
+* :mod:`~weather_gym.calibration.report` - plots and the Markdown report;
+* :mod:`~weather_gym.calibration.resolve` - ``resolve_presets``: the calibrated presets resolved for one
+  scenario (track, camera, world, detector), cached on disk (``weather-gym calibrate --track``,
+  ``--presets resolved``); :mod:`~weather_gym.calibration.frame_ap` - its bootstrap over frames.
 
 ``PHYSICAL_PRESETS`` is the alternative presets file whose ``low_light`` uses the physical dim mode
 (pass it as ``path=`` to ``weather_gym.weather.preset_spec`` or ``--presets`` to ``weather-gym evaluate``).
@@ -55,6 +58,9 @@ _LAZY = {
     "parse_k_range": "weather_gym.calibration.sweep",
     "run_sweep": "weather_gym.calibration.sweep",
     "run_sweep_cell": "weather_gym.calibration.sweep",
+    "Scenario": "weather_gym.calibration.resolve",
+    "Resolution": "weather_gym.calibration.resolve",
+    "resolve_presets": "weather_gym.calibration.resolve",
     "plot_curves": "weather_gym.calibration.report",
     "write_report": "weather_gym.calibration.report",
 }

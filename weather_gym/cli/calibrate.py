@@ -12,6 +12,12 @@ Reads the mean curve of each condition's effect (droplets -> droplets, low_light
 drop by default), writes a presets TOML that ``weather_gym.weather.load_presets`` accepts, and a
 report (Markdown + plots). With ``--dataset`` the chosen k are re-measured there.
 
+Without ``--curve`` it **resolves** the shipped presets for one scenario instead (docs/calibration.md,
+"Two meanings of a severity"): ``weather-gym calibrate --track skidpad --world realistic --detector
+yolov8:my.onnx --out skidpad.toml`` renders a reference set of the scenario, finds each calibrated row's k
+there, and writes the presets (k, interval, bootstrap error; ``k_source = "resolved"``) and a curve plot;
+``--dataset DIR`` resolves on a clear recording of your own. Use the file with ``--presets FILE``.
+
 A command line parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
     >>> args = build_parser().parse_args(['calibrate', '--curve', 'runs/sweep/curves.csv', '--measured', 'ideal=data/real_clear', '--out', 'my_presets.toml'])
@@ -29,11 +35,17 @@ from pathlib import Path
 from weather_gym._io import check_output, declare_inputs, derived_outputs_replaceable
 from weather_gym._option_alias import OneDefaultFormatter
 from weather_gym._output_args import add_overwrite_arg
+from weather_gym._toml import read_toml
 from weather_gym.calibration.calibrate import calibrate, fill_from_curves, parse_use, remeasure, write_presets
 from weather_gym.calibration.curve import load_curves
 from weather_gym.calibration.measured import load_measured
 from weather_gym.calibration.report import REPORT_FILES, study_points, write_report
+from weather_gym.calibration.resolve import Scenario, resolve_presets, write_resolved
+from weather_gym.calibration.resolve_plot import plot_resolution
+from weather_gym.camera_config import CameraConfig
+from weather_gym.cli._camera_isp_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._presets_arg import resolution_lines
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.errors import InputError, MissingInputError
 from weather_gym.weather.presets import load_presets
@@ -48,9 +60,10 @@ def register(sub) -> None:
                     "of the same domain) by default, because our detector is not the study's.",
         formatter_class=OneDefaultFormatter,
     )
-    p.add_argument("--curve", action="append", type=Path, required=True,
-                   help="curve file(s) written by `weather-gym sweep` (OUT/curves.csv); repeat for several")
-    p.add_argument("--measured", action="append", required=True, metavar="TABLE|DIR|COND@SEV=DIR|ideal=DIR",
+    p.add_argument("--curve", action="append", type=Path, default=None,
+                   help="curve file(s) written by `weather-gym sweep` (OUT/curves.csv); repeat for several. Without "
+                        "--curve, calibrate RESOLVES the shipped presets for a scenario (--track or --dataset)")
+    p.add_argument("--measured", action="append", default=None, metavar="TABLE|DIR|COND@SEV=DIR|ideal=DIR",
                    help="measured levels: a CSV (condition, severity, map and/or relative_to_ideal, optional domain), "
                         "or labelled COCO image sets whose mAP is measured here; repeat for several")
     p.add_argument("--out", type=Path, required=True, help="presets TOML to write (never overwritten without --overwrite)")
@@ -65,7 +78,21 @@ def register(sub) -> None:
     p.add_argument("--dataset-id", default=None, help="use only curve rows of this dataset_id")
     p.add_argument("--model-id", default=None, help="use only curve rows of this model_id")
     p.add_argument("--dataset", type=Path, default=None,
-                   help="re-measure every chosen k on this COCO set (achieved mAP); default: interpolate the curve")
+                   help="with --curve: re-measure every chosen k on this COCO set (achieved mAP; default: interpolate "
+                        "the curve); without: resolve the presets on this clear recording (a COCO set)")
+    r = p.add_argument_group("resolving presets for a scenario (no --curve; docs/calibration.md)")
+    r.add_argument("--track", action="append", default=None,
+                   help="track to resolve for (name, random:SEED, a cone CSV; repeat for several)")
+    r.add_argument("--world", default="plain", choices=("plain", "realistic"), help="the world rendered")
+    r.add_argument("--camera", type=Path, default=None, metavar="FILE.toml",
+                   help="camera (a TOML of CameraConfig fields: width, height, fov_deg, ...; default: the env's)")
+    add_camera_model_arg(r, "the env's, realistic", "the camera's finishing stage")
+    r.add_argument("--frames", type=int, default=Scenario.frames, help="frames of the reference set (one chunk)")
+    r.add_argument("--max-frames", type=int, default=Scenario.max_frames,
+                   help="widen the reference set up to this many frames while a damage is not known within --tolerance")
+    r.add_argument("--tolerance", type=float, default=0.02,
+                   help="largest bootstrap standard error (over episodes) of a resolved damage")
+    r.add_argument("--plot", type=Path, default=None, help="curve plot PNG (default: next to --out, OUT_STEM.png)")
     p.add_argument("--seeds", type=int, default=5, help="weather realisations per preset when re-measuring")
     add_detector_args(p, what="scores the measured image sets and re-measures", legacy_model=True)
     p.add_argument("--base", type=Path, default=None,
@@ -90,6 +117,12 @@ def _merge_curves(paths, metric, dataset_id, model_id):
 
 
 def _run(args) -> int:
+    if args.curve is None:
+        return _run_resolve(args)
+    if args.measured is None:
+        raise InputError("--curve needs --measured (the levels to read off k at)")
+    if args.track is not None:
+        raise InputError("--track resolves presets for a scenario and takes no --curve; give one or the other")
     declare_inputs(args.base, args.dataset, args.study_points, *args.curve,
                    *(Path(m.rpartition("=")[2]) for m in args.measured))
     check_output(args.out, overwrite=args.overwrite, suffixes=(".toml",), what="--out")
@@ -141,4 +174,44 @@ def _run(args) -> int:
         if c.note:
             print(f"    note: {c.note}")
     print(f"wrote {path} and {report_dir / 'calibration_report.md'}")
+    return 0
+
+
+def _scenario_from_args(args, detector) -> Scenario:
+    camera = CameraConfig()
+    if args.camera is not None:
+        table = read_toml(args.camera, "--camera file")
+        try:
+            camera = CameraConfig(**table.get("camera", table))
+        except TypeError as exc:
+            raise InputError(f"--camera {args.camera}: {exc}") from None
+    if args.track is None and args.dataset is None:
+        raise InputError("give --track TRACK (repeatable) or --dataset DIR (a clear recording) to resolve for, "
+                         "or --curve/--measured to calibrate from sweep curves")
+    if args.track is not None and args.dataset is not None:
+        raise InputError("give --track or --dataset, not both")
+    if args.dataset is not None:
+        declare_inputs(args.dataset)
+        if not args.dataset.exists():
+            raise MissingInputError(f"--dataset {args.dataset} not found")
+    return Scenario(tracks=tuple(args.track or ()), scene=args.world, camera=camera,
+                    camera_model=camera_model_arg(args.camera_model), detector=detector,
+                    dataset=None if args.dataset is None else str(args.dataset), frames=args.frames,
+                    max_frames=args.max_frames)
+
+
+def _run_resolve(args) -> int:
+    """``calibrate --track ...`` / ``--dataset DIR`` without ``--curve``: resolve, write presets and a plot."""
+    declare_inputs(args.base)
+    check_output(args.out, overwrite=args.overwrite, suffixes=(".toml",), what="--out")
+    plot = args.plot or args.out.with_suffix(".png")
+    check_output(plot, overwrite=args.overwrite, suffixes=(".png",), what="--plot")
+    detector = detector_spec_from_args(args)
+    scenario = _scenario_from_args(args, detector)
+    res = resolve_presets(scenario, presets=args.base, tolerance=args.tolerance, progress=not args.no_progress)
+    for line in resolution_lines(res):
+        print(line)
+    path = write_resolved(res, args.out, presets=args.base, scenario=scenario, overwrite=args.overwrite)
+    plot_resolution(res, plot, overwrite=args.overwrite)
+    print(f"wrote {path} and {plot}; use it with --presets {path} (or WEATHER_GYM_PRESETS={path})")
     return 0

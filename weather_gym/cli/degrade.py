@@ -57,6 +57,8 @@ from weather_gym._image_files import (
 )
 from weather_gym._io import atomic_path, check_output, declare_inputs, write_image
 from weather_gym._output_args import add_overwrite_arg
+from weather_gym.calibration.resolve import Scenario
+from weather_gym.cli._presets_arg import add_presets_arg, presets_from_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.datasets.coco import read_image
 from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
@@ -64,6 +66,7 @@ from weather_gym.limits import check_image_size
 from weather_gym.ros.bags import bag_kind
 from weather_gym.ros.degrade import degrade_bag
 from weather_gym.viz.video import VideoWriter, check_free_space
+from weather_gym.weather import to_spec, weather_source
 from weather_gym.weather.option import add_weather_arg, weather_from_arg
 
 IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
@@ -78,6 +81,10 @@ def register(sub) -> None:
     p.add_argument("output", type=Path, help="output file or folder (names mirror the input)")
     add_weather_arg(p, help="the weather to apply (required)")
     p.add_argument("--seed", type=seed_arg, default=0, help="random seed (default %(default)s)")
+    add_presets_arg(p)
+    p.add_argument("--reference", type=Path, default=None, metavar="DIR",
+                   help="with --presets resolved: a clear COCO recording of the scenario these images come from "
+                        "(same camera and scene), on which the presets are resolved for the shipped detector")
     p.add_argument("--depth", type=Path, help="depth PNG (uint16 mm) or folder of them mirroring INPUT")
     add_overwrite_arg(p)
     ros = p.add_argument_group("ROS bags (docs/ros.md)")
@@ -272,7 +279,17 @@ def _run(args) -> int:
     if args.weather is None:
         raise InputError("give the weather with --weather SPEC (e.g. droplets:0.55, low_light@2 or "
                          "droplets:0.55,dim:0.3)")
-    weather = weather_from_arg(args.weather)
+    if args.reference is not None and args.presets != "resolved":
+        raise InputError("--reference is the clear recording presets are resolved on; it goes with --presets resolved")
+    if args.presets == "resolved" and args.reference is None:
+        raise InputError("--presets resolved needs --reference DIR: a clear COCO recording of the scenario to resolve on")
+    presets = presets_from_arg(args.presets, None if args.reference is None else
+                               (lambda: Scenario(dataset=str(args.reference))), progress=not args.quiet)
+    weather = weather_from_arg(args.weather, presets=presets)
+    source = weather_source(args.weather, presets)
+    if source != "given" and weather is not None:
+        ks = ", ".join(f"{t['name']}={t['k']:.3f}" for t in to_spec(weather) if "k" in t)
+        print(f"weather {args.weather}: k {ks} ({source}" + (f": {presets})" if presets is not None and source != "pool" else ")"))
     src = args.input
     declare_inputs(src, args.depth)
     if not src.exists():

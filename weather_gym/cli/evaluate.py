@@ -25,16 +25,17 @@ import json
 import shlex
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
-from weather_gym._io import declare_inputs
 from weather_gym._option_alias import OneDefaultFormatter, alias
 from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
+from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.cli.lap import parse_agent_args
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.errors import InputError
 from weather_gym.evaluation.evaluate import BAGS, DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
 from weather_gym.evaluation.report import report_replaceable, write_report
 from weather_gym.evaluation.runner import check_results_path
@@ -104,7 +105,7 @@ def register(sub) -> None:
     e.add_argument("--agent-kwargs", default=None, help=argparse.SUPPRESS)  # deprecated: the same as JSON
     e.add_argument("--env-kwargs", default=None, help='JSON object of gymnasium.make arguments, e.g. \'{"camera": {"width": 336, "height": 188}}\'')
     e.add_argument("--perception-kwargs", default=None, help="JSON object of the perception wrapper's arguments (DetectorWrapper / GroundTruthConeWrapper / SurrogatePerceptionWrapper)")
-    e.add_argument("--presets", type=Path, default=None, help="presets TOML (default: the shipped one)")
+    add_presets_arg(e)
     add_detector_args(e, what=f"for --perception {' / '.join(modes_where(runs_detector=True))}; the same as the "
                                "detector keys of --perception-kwargs")
     r = p.add_argument_group("run")
@@ -134,7 +135,7 @@ def build_config(args):
         max_steps=args.max_steps, agent_kwargs=_agent_kwargs(args),
         env_kwargs=_json_arg("--env-kwargs", args.env_kwargs),
         perception_kwargs=_perception_kwargs(args),
-        presets=str(args.presets) if args.presets is not None else None,
+        presets=_presets(args),
     )
 
 
@@ -149,6 +150,18 @@ def _agent_kwargs(args) -> dict:
             raise InputError(f"{', '.join(clash)} given both with --agent-arg and in --agent-kwargs; give each once")
         given = {**old, **given}
     return given
+
+
+def _presets(args) -> str | dict[str, str] | None:
+    """``--presets``: a file (pool, FILE) for every track, or with ``resolved`` one per track, resolved for it."""
+    if args.presets != "resolved":
+        path = presets_from_arg(args.presets, None)
+        return None if path is None else str(path)
+    detector = detector_spec_from_args(args) if perception_mode(args.perception).runs_detector else None
+    env_kwargs = _json_arg("--env-kwargs", args.env_kwargs)
+    return {t: str(presets_from_arg("resolved", partial(env_scenario, args.env_id, t, detector, env_kwargs),
+                                    progress=not args.no_progress))
+            for t in _names(args.tracks)}
 
 
 def _perception_kwargs(args) -> dict:
@@ -170,10 +183,7 @@ def _perception_kwargs(args) -> dict:
 
 
 def _run(args) -> int:
-    declare_inputs(args.presets)
     check_runner_args(args)
-    if args.presets is not None and not args.presets.is_file():
-        raise MissingInputError(f"--presets: {args.presets} not found")
     config = build_config(args)
     if args.baseline is not None and args.baseline not in config.agents:
         raise InputError(f"--baseline {args.baseline!r} must be one of the agents of --agent "

@@ -35,6 +35,7 @@ from weather_gym.agents import AGENTS, agent_factory, agent_observes, run_episod
 from weather_gym.agents.mapper import MapperConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
+from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.registration import scenario_of
@@ -116,6 +117,7 @@ def register(sub) -> None:
                    help="weather on the LiDAR (--perception lidar): fog:mor=60, rain:rate=5, snow@3, wet@2, joined by "
                         "'+' (weather_gym.lidar_weather; default clear)")
     add_detector_args(p, what=f"for --perception {' / '.join(modes_where(runs_detector=True))}")
+    add_presets_arg(p)
     p.add_argument("--depth-quantile", type=float, default=None, metavar="Q",
                    help="quantile of the depths inside a detection's box that gives its range (a perception "
                         "that runs the detector; default the median, 0.5; 0.25 ranges far cones better: docs/perception.md)")
@@ -174,12 +176,13 @@ def _run(args) -> int:
         raise InputError("--video and --strip must be different files")
     detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
+    presets = presets_from_arg(args.presets, lambda: env_scenario(args.env, args.track, detector))
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
         overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile, bag=args.bag,
-        bag_images=args.bag_images, lidar_weather=args.lidar_weather,
+        bag_images=args.bag_images, lidar_weather=args.lidar_weather, presets=presets,
     )
     print(result_json(result) if args.json else format_result(result))
     return 0 if result["completed"] else 1
@@ -241,13 +244,16 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
              detector: Any = None, laps: int = 1, seed: int = 0, max_steps: int | None = None,
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
              overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None,
-             bag: Path | None = None, bag_images: str = "jpeg", lidar_weather: str | None = None) -> dict[str, Any]:
+             bag: Path | None = None, bag_images: str = "jpeg", lidar_weather: str | None = None,
+             presets: Any = None) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
 
     ``bag``: also write the run as an MCAP rosbag2 folder (:class:`~weather_gym.ros.episode_bag.EpisodeBag`).
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
-    and the episode from :func:`weather_gym.agents.run_episode`.
+    and the episode from :func:`weather_gym.agents.run_episode`. ``presets``: the presets file a
+    ``CONDITION@SEVERITY`` reads (None: ``$WEATHER_GYM_PRESETS``, else the shipped pool presets); the
+    result's ``weather_k`` and ``weather_source`` say which k was used and where it came from.
     """
 
     factory = agent_factory(agent)
@@ -270,11 +276,12 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     if track is not None:
         env_kwargs["track"] = track
     if weather is not None:
-        parse_weather(weather)  # a bad spec fails here, with the parser's message
+        parse_weather(weather, presets)  # a bad spec fails here, with the parser's message
     perception_kwargs = _perception_kwargs(mode, recording or (bag is not None and mode.can_record_video),
                                            depth_quantile, lidar_weather)
     env = make_env(env_id, perception=mode.name, weather=weather, detector=detector if mode.runs_detector else None,
-                   perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, **env_kwargs)
+                   perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, presets=presets,
+                   **env_kwargs)
     recorder = None
     episode_bag: EpisodeBag | None = None
     try:
@@ -290,6 +297,8 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
             nonlocal recorder, episode_bag
             if step == 0:
                 state["weather"] = weather or info.get("lidar_weather") or _describe_weather(info.get("weather"))
+                state["weather_k"] = info.get("weather", [])
+                state["weather_source"] = info.get("weather_source", "given")
                 state["weathered"] = "weather" in info
                 if recording:
                     recorder = _Recorder(video, strip, strip_frames, overwrite, hz, trk, driver, agent,
@@ -327,7 +336,9 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     result = {
         "env": env_id, "track": trk.name if track is None else track_label(track), "track_spec": track or trk.name,
         "event": trk.event, "track_length_m": float(trk.length), "agent": agent,
-        "perception": mode.name, "weather": state["weather"], "seed": seed, "laps_requested": laps,
+        "perception": mode.name, "weather": state["weather"], "weather_k": state.get("weather_k", []),
+        "weather_source": state.get("weather_source", "given"), "presets": None if presets is None else str(presets),
+        "seed": seed, "laps_requested": laps,
         "lap_times_s": list(res.lap_times_s), "completed": res.completed, "end": res.end_reason,
         "steps": res.steps, "sim_time_s": res.steps / hz, "wall_time_s": res.wall_time_s,
         "max_steps": max_steps, "renderer": renderer,
@@ -387,6 +398,10 @@ def _describe_weather(spec: Any) -> str:
 def format_result(r: dict[str, Any]) -> str:
     lines = [f"track {r['track']} ({r['event']}, {r['track_length_m']:.1f} m) | agent {r['agent']} | "
              f"perception {r['perception']} | weather {r['weather']} | seed {r['seed']}"]
+    if r.get("weather_k"):
+        ks = ", ".join(f"{t['name']} k={t['k']:.3f}" for t in r["weather_k"] if "k" in t)
+        src = r.get("weather_source", "given")
+        lines.append(f"weather k used: {ks} ({src}" + (f": {r['presets']})" if r.get("presets") and src != "pool" else ")"))
     for i, t in enumerate(r["lap_times_s"], 1):
         lines.append(f"lap {i}: {t:.2f} s")
     end = r["end"] if r["end"] != "time_limit" else f"time_limit, {r['max_steps']} steps"

@@ -72,7 +72,7 @@ from weather_gym.perception_modes import (
 from weather_gym.pipeline import make_env
 from weather_gym.ros.episode_bag import BAG_IMAGES, ConeNoise, EpisodeBag
 from weather_gym.tracks import load_track
-from weather_gym.weather.presets import canonical_condition, preset_spec
+from weather_gym.weather.presets import canonical_condition, preset_source, preset_spec
 
 __all__ = [
     "CELL_KEY_FIELDS",
@@ -124,9 +124,10 @@ class EvalCell:
     env_kwargs: str = "{}"
     perception_kwargs: str = "{}"
     stack: str = ""  # stack_id(): the resolved scenario and the model files the cell runs with
+    k_source: str = ""  # where the preset's k came from (pool / resolved / file); not a key field: k is in weather
 
 
-CELL_KEY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(EvalCell))
+CELL_KEY_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(EvalCell) if f.name != "k_source")
 
 
 @dataclass(frozen=True)
@@ -150,7 +151,9 @@ class EvalConfig:
             of ``gymnasium.make`` (e.g. ``{"camera": {"width": 336, "height": 188}}``) and of the
             perception wrapper (``DetectorWrapper``: ``score_threshold``, ``max_cones``...;
             ``GroundTruthConeWrapper``: ``OracleNoise`` fields such as ``miss_prob``).
-        presets: a presets TOML file (default: the shipped ``presets.toml``).
+        presets: a presets TOML file (default: ``$WEATHER_GYM_PRESETS``, else the shipped ``presets.toml``), or
+            one per track (``{track: file}``, e.g. each resolved for its track: ``weather-gym evaluate
+            --presets resolved``). ``results.csv`` has the k's in ``weather`` and their source in ``k_source``.
     """
 
     agents: tuple[str, ...] = ("mapper_pure_pursuit",)
@@ -165,7 +168,7 @@ class EvalConfig:
     agent_kwargs: Mapping[str, Any] = field(default_factory=dict)
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     perception_kwargs: Mapping[str, Any] = field(default_factory=dict)
-    presets: str | None = None
+    presets: str | Mapping[str, str] | None = None
 
 
 def _check_int(name: str, value: Any, lo: int) -> int:
@@ -284,23 +287,42 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
     if config.agent_kwargs:  # a bad agent argument fails now, not in every cell
         for a in agents:
             _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))  # type: ignore[union-attr]  # None for an id without a scenario: AttributeError (a known gap)
+
+    weather, source = _cell_weather(config, mode, tracks, effects, severities)
+    stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
+    cells = [
+        EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
+                 perception=config.perception, laps=laps, max_steps=max_steps, weather=weather[t, e, s],
+                 agent_kwargs=agent_kwargs, env_kwargs=env_kwargs, perception_kwargs=perception_kwargs,
+                 stack=stacks[a], k_source=source[t] if int(s) > 0 else "given")
+        for a in agents for t in tracks for e in effects for s in severities for seed in seeds
+    ]
+    return cells
+
+
+def _cell_weather(config: EvalConfig, mode: Any, tracks: Sequence[str], effects: Sequence[str],
+                  severities: Sequence[int]) -> tuple[dict[tuple[str, str, int], str], dict[str, str]]:
+    """Every cell's weather (JSON) by (track, effect, severity), and where each track's k come from:
+    the LiDAR's published grids (given), or the presets (per track where ``config.presets`` maps them)."""
+
+    def presets_of(t: str) -> str | None:
+        if isinstance(config.presets, Mapping):
+            if t not in config.presets:
+                raise InputError(f"presets per track: no presets file for track {t!r} (given for "
+                                 f"{', '.join(map(repr, config.presets))})")
+            return config.presets[t]
+        return config.presets
+
     if mode.takes_lidar_weather:  # the LiDAR's own weather: effects fog, rain, snow, wet at severities 0-5
         if "lidar_weather" in config.perception_kwargs:
             raise InputError("perception_kwargs may not set lidar_weather: the evaluation sets it per cell "
                              "from effects and severities")
-        weather = {(e, s): _json(_lidar_spec(e, s)) for e in effects for s in severities}
-    else:
-        weather = {(e, s): _json(preset_spec(e, s, config.presets)) for e in effects for s in severities}
-        _check_weather_for_mode(mode, weather, config.perception_kwargs)  # fails now, not in every cell
-    stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
-    cells = [
-        EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
-                 perception=config.perception, laps=laps, max_steps=max_steps, weather=weather[e, s],
-                 agent_kwargs=agent_kwargs, env_kwargs=env_kwargs, perception_kwargs=perception_kwargs,
-                 stack=stacks[a])
-        for a in agents for t in tracks for e in effects for s in severities for seed in seeds
-    ]
-    return cells
+        weather = {(t, e, s): _json(_lidar_spec(e, s)) for t in tracks for e in effects for s in severities}
+        return weather, {t: "given" for t in tracks}  # the LiDAR's severities are its published grids
+    weather = {(t, e, s): _json(preset_spec(e, s, presets_of(t))) for t in tracks for e in effects
+               for s in severities}
+    _check_weather_for_mode(mode, {(e, s): w for (_, e, s), w in weather.items()}, config.perception_kwargs)
+    return weather, {t: preset_source(presets_of(t)) for t in tracks}
 
 
 def _lidar_spec(effect: str, severity: Any) -> str:
@@ -405,7 +427,8 @@ def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
             raise
         if bag is not None:
             bag.__exit__(None, None, None)
-        return episode_metrics(Episode(res, agent, track, mode, scoring.scores()))
+        metrics = episode_metrics(Episode(res, agent, track, mode, scoring.scores()))
+        return {"k_source": cell.k_source, **metrics} if cell.k_source else metrics
     finally:
         env.close()
 

@@ -34,7 +34,7 @@ from weather_gym._io import atomic_write, derived_outputs_replaceable
 from weather_gym._markdown import markdown_table
 from weather_gym.evaluation import metrics as registry
 from weather_gym.evaluation.metrics import METRICS
-from weather_gym.weather.presets import DEFAULT_PRESETS, preset_entry
+from weather_gym.weather.presets import DEFAULT_PRESETS, preset_entry, preset_source
 
 __all__ = ["aggregate", "plot_metric", "report_paths", "report_replaceable", "write_report"]
 
@@ -153,7 +153,11 @@ def plot_metric(rows: Sequence[Mapping[str, Any]], metric: str, path: str | Path
     return save_figure(fig, path, overwrite=overwrite, dpi=110)
 
 
-def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> list[str]:
+def _severity_table(rows: Sequence[Mapping[str, Any]], presets: Any) -> list[str]:
+    if isinstance(presets, Mapping):  # one presets file per track (e.g. each resolved for its track)
+        head = [f"Severities resolve per track: {', '.join(f'{t}: `{p}` ({preset_source(p)})' for t, p in presets.items())}; "
+                "results.csv has each cell's k in `weather` and its source in `k_source`.", ""]
+        return head + _severity_table(rows, next(iter(presets.values()), None))[1:]
     seen = list(dict.fromkeys((r.get("effect"), r.get("severity"), _hashable(r.get("weather"))) for r in rows))
     lines: list[str] = []
     try:
@@ -163,7 +167,7 @@ def _severity_table(rows: Sequence[Mapping[str, Any]], presets: str | None) -> l
             except (ValueError, TypeError):
                 return "?"
 
-        source = presets or str(DEFAULT_PRESETS.name)
+        source = f"{presets or DEFAULT_PRESETS.name}` ({preset_source(presets)}"
         lines.insert(0, f"Severities resolve through the presets file `{source}` (calibrated: k read off a "
                         f"measured perception drop; nominal: a documented choice of k, not measured):\n")
     except Exception:  # noqa: BLE001 - the report still lists the specs the cells used

@@ -50,17 +50,25 @@ from weather_gym.weather.glare import Glare
 from weather_gym.weather.jpeg import Jpeg
 from weather_gym.weather.motion_blur import MotionBlur
 from weather_gym.weather.noise import Noise
-from weather_gym.weather.presets import CONDITIONS, SEVERITIES, load_presets, preset_entry, preset_spec
+from weather_gym.weather.presets import (
+    CONDITIONS,
+    PRESETS_ENV,
+    SEVERITIES,
+    load_presets,
+    preset_entry,
+    preset_source,
+    preset_spec,
+)
 from weather_gym.weather.rain import Rain
 from weather_gym.weather.registry import EFFECTS, make, register_effect
 from weather_gym.weather.schedule import Ramp
-from weather_gym.weather.spec import current_spec, parse_weather, to_spec
+from weather_gym.weather.spec import WeatherSpec, current_spec, parse_weather, to_spec, weather_source
 from weather_gym.weather.vignette import Vignette
 
 __all__ = [
-    "CONDITIONS", "DEFAULT_SEED", "EFFECTS", "SEVERITIES", "STATE_KEYS",
+    "CONDITIONS", "DEFAULT_SEED", "EFFECTS", "PRESETS_ENV", "SEVERITIES", "STATE_KEYS",
     "Blur", "Compose", "Dim", "Droplets", "Effect", "EffectRun", "Exposure", "Fog", "Glare", "Jpeg", "KnobEffect",
-    "MotionBlur", "Noise", "Rain", "Ramp", "Vignette",
-    "current_spec", "load_presets", "make", "parse_weather", "preset_entry", "preset_spec",
-    "register_effect", "to_spec",
+    "MotionBlur", "Noise", "Rain", "Ramp", "Vignette", "WeatherSpec",
+    "current_spec", "load_presets", "make", "parse_weather", "preset_entry", "preset_source", "preset_spec",
+    "register_effect", "to_spec", "weather_source",
 ]

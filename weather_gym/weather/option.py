@@ -43,14 +43,15 @@ def add_weather_arg(p: Any, *, help: str = "weather applied to the images", **kw
     p.add_argument("--weather", metavar="SPEC", help=f"{help}: {WEATHER_GRAMMAR}", **kwargs)
 
 
-def weather_from_arg(text: str | None, option: str = "--weather") -> Effect | None:
-    """The effect of a ``--weather`` value (None stays None); errors name the option and the bad part."""
+def weather_from_arg(text: str | None, option: str = "--weather", presets: Any = None) -> Effect | None:
+    """The effect of a ``--weather`` value (None stays None); errors name the option and the bad part.
+    ``presets``: the presets file ``CONDITION@SEVERITY`` reads (None: ``$WEATHER_GYM_PRESETS``, else the shipped one)."""
     if text is None:
         return None
     stripped = text.strip()
     if stripped[:1] in ("[", "{"):
         try:
-            return parse_weather(json.loads(stripped))
+            return parse_weather(json.loads(stripped), presets)
         except json.JSONDecodeError as exc:
             raise InputError(f"{option} {text!r}: not valid JSON ({exc.msg})") from None
-    return parse_weather(stripped)
+    return parse_weather(stripped, presets)

@@ -38,8 +38,8 @@ from typing import Any
 from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.weather.tables import effect_from_table
 
-__all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "SEVERITIES", "canonical_condition",
-           "load_presets", "preset_entry", "preset_spec"]
+__all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "canonical_condition",
+           "load_presets", "preset_entry", "preset_source", "preset_spec", "presets_path"]
 
 CONDITIONS = ("droplets", "low_light", "blur", "motion_blur", "noise", "exposure", "fog", "rain", "glare",
               "vignette", "jpeg")
@@ -50,7 +50,35 @@ ALIASES = {"dim": "low_light", "droplets": "droplets"}
 #: The shipped table.
 DEFAULT_PRESETS = Path(__file__).with_name("presets.toml")
 
+#: Environment variable that switches the presets every ``CONDITION@SEVERITY`` reads when none is given:
+#: a presets file (e.g. one ``weather-gym calibrate --track`` resolved), or ``pool`` / unset: the shipped one.
+PRESETS_ENV = "WEATHER_GYM_PRESETS"
+
 _CACHE: dict[tuple[str, int], dict[str, Any]] = {}
+
+
+def presets_path(path: str | os.PathLike | None = None) -> Path:
+    """The presets file in use: ``path``, else ``$WEATHER_GYM_PRESETS`` (a file), else the shipped pool presets."""
+    if path is not None:
+        return Path(path)
+    env = os.environ.get(PRESETS_ENV, "").strip()
+    return DEFAULT_PRESETS if env in ("", "pool") else Path(env)
+
+
+def preset_source(path: str | os.PathLike | None = None) -> str:
+    """Where a preset's k comes from with ``path`` (see :func:`presets_path`): ``"pool"`` (the shipped
+    presets, calibrated on the pool of tracks), ``"resolved"`` (a file resolved for one scenario,
+    ``k_source = "resolved"``) or ``"file"`` (another presets file).
+
+    Example:
+        >>> preset_source(DEFAULT_PRESETS)
+        'pool'
+    """
+    p = presets_path(path)
+    if p.resolve() == DEFAULT_PRESETS.resolve():
+        return "pool"
+    src = load_presets(p).get("k_source")
+    return src if src in ("resolved", "pool") else "file"
 
 
 def canonical_condition(condition: str) -> str:
@@ -119,9 +147,10 @@ def load_presets(path: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     (conditions whose every row is calibrated), "calibrated": bool(calibrated_conditions)}``; every
     table has its ``calibrated`` flag. Re-read whenever the file changes.
     """
-    p = Path(path) if path is not None else DEFAULT_PRESETS
+    p = presets_path(path)
     if not p.is_file():
-        raise MissingInputError(f"presets file {p} not found")
+        env = os.environ.get(PRESETS_ENV, "").strip() if path is None else ""
+        raise MissingInputError(f"presets file {p} not found" + (f" (from ${PRESETS_ENV})" if env else ""))
     key = (str(p.resolve()), p.stat().st_mtime_ns)
     if key not in _CACHE:
         try:
@@ -138,7 +167,7 @@ def preset_entry(condition: str, severity: int, path: str | Path | None = None) 
     cond, sev = canonical_condition(condition), _check_severity(severity)
     table = load_presets(path)["presets"]
     if cond not in table:
-        raise InputError(f"presets file {path or DEFAULT_PRESETS} has no rows for condition {cond!r} "
+        raise InputError(f"presets file {presets_path(path)} has no rows for condition {cond!r} "
                          f"(it has: {', '.join(table)})")
     entry: dict[str, Any] = table[cond][sev]
     return entry

@@ -35,20 +35,70 @@ from __future__ import annotations
 
 import json
 import numbers
+import os
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from weather_gym.errors import InputError
 from weather_gym.weather.base import Effect, EffectRun, KnobEffect
 from weather_gym.weather.compose import Compose
-from weather_gym.weather.presets import preset_spec
+from weather_gym.weather.presets import preset_source, preset_spec
 from weather_gym.weather.registry import RESERVED, make
 from weather_gym.weather.schedule import Ramp
 from weather_gym.weather.tables import effect_from_table
 
-__all__ = ["current_spec", "parse_open_k", "parse_weather", "to_spec"]
+__all__ = ["WeatherSpec", "current_spec", "parse_open_k", "parse_weather", "to_spec", "weather_source"]
 
 _CLEAR = ("clear", "none")
+
+
+@dataclass(frozen=True)
+class WeatherSpec:
+    """A weather spec with the presets file its ``CONDITION@SEVERITY`` items read (None: the shipped pool
+    presets, or ``$WEATHER_GYM_PRESETS``): what ``make_env(weather=..., presets=...)`` hands down to the
+    ``WeatherWrapper``, so an env built from a resolved presets file says so in ``info["weather_source"]``.
+
+    Example:
+        >>> WeatherSpec("low_light@2").source
+        'pool'
+        >>> WeatherSpec("droplets:0.5").source
+        'given'
+    """
+
+    spec: Any
+    presets: str | os.PathLike | None = None
+
+    @property
+    def source(self) -> str:
+        return weather_source(self.spec, self.presets)
+
+
+def _uses_preset(spec: Any) -> bool:
+    if isinstance(spec, WeatherSpec):
+        return _uses_preset(spec.spec)
+    if isinstance(spec, str):
+        return "@" in spec
+    if (isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str)
+            and isinstance(spec[1], numbers.Integral) and not isinstance(spec[1], bool)):
+        return True
+    if isinstance(spec, Sequence) and not isinstance(spec, str | bytes):
+        return any(_uses_preset(x) for x in spec)
+    return False
+
+
+def weather_source(spec: Any, presets: str | os.PathLike | None = None) -> str:
+    """Where the k's of ``spec`` come from: ``"given"`` (no ``CONDITION@SEVERITY`` in it: every k is
+    written out and never changed), else the presets' :func:`~weather_gym.weather.presets.preset_source`
+    (``"pool"``, ``"resolved"`` or ``"file"``).
+
+    Example:
+        >>> weather_source("droplets@3"), weather_source({"dim": 0.5})
+        ('pool', 'given')
+    """
+    if isinstance(spec, WeatherSpec):
+        presets = spec.presets if spec.presets is not None else presets
+    return preset_source(presets) if _uses_preset(spec) else "given"
 
 
 def _number(v: Any) -> bool:
@@ -71,8 +121,8 @@ def _from_item(name: Any, value: Any) -> Effect:
                      f"got {value!r}")
 
 
-def _preset(condition: Any, severity: Any) -> list[Effect]:
-    return [effect_from_table(t) for t in preset_spec(condition, severity)]
+def _preset(condition: Any, severity: Any, presets: Any = None) -> list[Effect]:
+    return [effect_from_table(t) for t in preset_spec(condition, severity, presets)]
 
 
 def _param_value(text: str) -> Any:
@@ -82,7 +132,7 @@ def _param_value(text: str) -> Any:
         return text
 
 
-def _from_string(text: str) -> list[Effect]:
+def _from_string(text: str, presets: Any = None) -> list[Effect]:
     if not text.strip():
         raise InputError("empty weather spec; write 'clear' for no weather, or e.g. 'droplets:0.55' or 'low_light@2'")
     if text.strip().lower() in _CLEAR:
@@ -96,7 +146,7 @@ def _from_string(text: str) -> list[Effect]:
                 severity = int(sev)
             except ValueError:
                 raise InputError(f"weather spec item {item!r}: severity {sev!r} must be an integer 0-4") from None
-            out += _preset(cond.strip(), severity)
+            out += _preset(cond.strip(), severity, presets)
         elif ":" in item:
             name, k, *params = (p.strip() for p in item.split(":"))
             try:
@@ -152,18 +202,20 @@ def parse_open_k(text: str) -> list[tuple[str, dict[str, Any]]]:
     return out
 
 
-def _effects(spec: Any) -> list[Effect]:
+def _effects(spec: Any, presets: Any = None) -> list[Effect]:
     if spec is None:
         return []
+    if isinstance(spec, WeatherSpec):
+        return _effects(spec.spec, spec.presets if spec.presets is not None else presets)
     if isinstance(spec, Compose):
         return list(spec.effects)
     if isinstance(spec, Effect):
         return [spec]
     if isinstance(spec, str):
-        return _from_string(spec)
+        return _from_string(spec, presets)
     if (isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str)
             and isinstance(spec[1], numbers.Integral) and not isinstance(spec[1], bool)):
-        return _preset(spec[0], spec[1])
+        return _preset(spec[0], spec[1], presets)
     if isinstance(spec, Mapping):
         if "name" in spec or "k" in spec:
             return [effect_from_table(spec)]
@@ -171,17 +223,21 @@ def _effects(spec: Any) -> list[Effect]:
     if isinstance(spec, Sequence):
         out: list[Effect] = []
         for item in spec:
-            out += _effects(item)
+            out += _effects(item, presets)
         return out
     raise InputError(f"cannot read weather spec {spec!r}: expected None, 'clear', an effect, "
                      f"{{name: k}}, 'name:k,...', 'condition@severity' or a list of {{name, k, ...}} tables")
 
 
-def parse_weather(spec: Any) -> Effect:
-    """Parse any weather spec (see module doc) into one effect; errors name the bad part."""
+def parse_weather(spec: Any, presets: str | os.PathLike | None = None) -> Effect:
+    """Parse any weather spec (see module doc) into one effect; errors name the bad part.
+
+    ``presets``: the presets file ``CONDITION@SEVERITY`` items read (None: ``$WEATHER_GYM_PRESETS``, else the
+    shipped pool presets); a :class:`WeatherSpec` brings its own. Explicit ``NAME:K`` items never change.
+    """
     if isinstance(spec, Effect):
         return spec
-    effects = _effects(spec)
+    effects = _effects(spec, presets)
     return effects[0] if len(effects) == 1 else Compose(effects)
 
 

@@ -25,7 +25,10 @@ bytes). It works through any wrappers above and on vector envs::
     envs.set_attr("weather", ["clear", "droplets@4"])     # one spec per env
     vec_env.env_method("set_weather", "low_light@2")      # stable-baselines3 VecEnv
 
-``info["weather"]`` is the spec applied to the frame (a ramp's current k). The time the weather
+``info["weather"]`` is the spec applied to the frame (a ramp's current k); ``info["weather_source"]`` says
+where its k's came from: ``"given"`` (written out in the spec), ``"pool"`` (a ``CONDITION@SEVERITY`` read
+from the shipped presets, calibrated on the pool of tracks), ``"resolved"`` (from a presets file resolved
+for this scenario, ``presets=`` or ``$WEATHER_GYM_PRESETS``; docs/calibration.md) or ``"file"``. The time the weather
 added to the last step is ``wrapper.latency_ms``; it goes into ``info["weather_latency_ms"]`` only
 with ``latency_in_info=True`` (a wall-clock time differs between identical runs, so by default the
 info stays deterministic). With ``render_mode="rgb_array"`` and a camera ``render_view`` below
@@ -60,7 +63,7 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.errors import InputError
-from weather_gym.weather import Effect, EffectRun, current_spec, parse_weather
+from weather_gym.weather import Effect, EffectRun, WeatherSpec, current_spec, parse_weather, weather_source
 
 __all__ = ["STATE_FIELDS", "WeatherWrapper"]
 
@@ -83,10 +86,14 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     def __init__(self, env: gym.Env, weather: Any = None, *, image_key: str = "image",
                  depth_key: str | None = "depth", state_key: str | None = "state",
                  state_fields: Sequence[str] = STATE_FIELDS, fx: float | None = None,
-                 render_weather: bool | None = None, latency_in_info: bool = False) -> None:
+                 render_weather: bool | None = None, latency_in_info: bool = False,
+                 presets: str | None = None) -> None:
         gym.utils.RecordConstructorArgs.__init__(
             self, weather=weather, image_key=image_key, depth_key=depth_key, state_key=state_key,
-            state_fields=state_fields, fx=fx, render_weather=render_weather, latency_in_info=latency_in_info)
+            state_fields=state_fields, fx=fx, render_weather=render_weather, latency_in_info=latency_in_info,
+            presets=presets)
+        given: Any = weather.presets if isinstance(weather, WeatherSpec) and presets is None else presets
+        self.presets = None if given is None else str(given)
         gym.ObservationWrapper.__init__(self, env)
         self.latency_in_info = bool(latency_in_info)
         space = env.observation_space
@@ -107,7 +114,8 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         if fx is not None and not (np.isfinite(fx) and fx > 0):
             raise InputError(f"WeatherWrapper: fx must be a positive focal length in pixels, got {fx!r}")
         self.fx = fx
-        self._weather: Effect = parse_weather(weather)
+        self._weather: Effect = parse_weather(weather, self.presets)
+        self.weather_source = weather_source(weather, self.presets)
         self._run: EffectRun | None = None  # the weather's episode, started on reset
         self._ss: np.random.SeedSequence | None = None
         self._rng: np.random.Generator | None = None
@@ -163,7 +171,8 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             >>> int(env.step(0)[0][0, 0, 0])
             100
         """
-        effect = copy.deepcopy(parse_weather(spec))
+        effect = copy.deepcopy(parse_weather(spec, self.presets))
+        self.weather_source = weather_source(spec, self.presets)
         if self._ss is not None:  # inside an episode: a fresh, repeatable stream for the new weather
             self._run = effect.start(self._ss.spawn(1)[0])
         self._weather = effect
@@ -190,7 +199,9 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
               ) -> tuple[Any, dict[str, Any]]:
         options = dict(options or {})
         if "weather" in options:
-            self._weather = parse_weather(options.pop("weather"))
+            spec = options.pop("weather")
+            self._weather = parse_weather(spec, self.presets)
+            self.weather_source = weather_source(spec, self.presets)
         obs, info = self.env.reset(seed=seed, options=options or None)
         self._seed_episode(seed)
         obs = self.observation(obs)
@@ -202,7 +213,8 @@ class WeatherWrapper(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         return obs, reward, terminated, truncated, self._info(info)
 
     def _info(self, info: dict[str, Any]) -> dict[str, Any]:
-        out = {**info, "weather": current_spec(self._run if self._run is not None else self._weather)}
+        out = {**info, "weather": current_spec(self._run if self._run is not None else self._weather),
+               "weather_source": self.weather_source}
         if self.latency_in_info:
             out["weather_latency_ms"] = self._latency_ms
         return out
