@@ -11,7 +11,7 @@ the same observation space.
 
 Usage:
     python examples/evaluate_policy.py --model runs/ppo_cones/model.zip --effects droplets,dim \\
-        --severities 0,1,2,3,4 --seeds 3 --tracks small_track --out runs/ppo_eval
+        --severities 0,1,2,3,4 --seeds 3 --track small_track --out runs/ppo_eval
 """
 
 from __future__ import annotations

@@ -230,7 +230,7 @@ def _cli(id: str, culprit: str, *argv: str, out: str | None = None, forbid: str 
 
 DEG = ("--weather", "dim:0.5")
 EV = ("evaluate", "--agent", "gt_pure_pursuit", "--perception", "oracle", "--effects", "droplets",
-      "--severities", "0", "--seeds", "1", "--backend", "serial", "--no-progress")
+      "--severities", "0", "--seeds", "1", "--backend", "serial", "--quiet")
 
 CASES: list[Case] = [
     # ---- degrade
@@ -343,7 +343,7 @@ CASES: list[Case] = [
     # ---- tracks
     _cli("train-unknown-hyperparams-section", "Nope", "train", "--out", "{w}/o/run", "--hyperparams-key", "Nope",
          out="o"),
-    _cli("train-eval-track-is-a-training-track", "hairpin", "train", "--out", "{w}/o/run", "--tracks", "hairpin",
+    _cli("train-eval-track-is-a-training-track", "hairpin", "train", "--out", "{w}/o/run", "--track", "hairpin",
          "--eval-track", "hairpin", out="o"),
     _cli("tracks-show-collinear-cones", "collinear.csv", "tracks", "show", "{w}/collinear.csv", "--out",
          "{w}/o/t.png", out="o"),
@@ -373,7 +373,7 @@ CASES: list[Case] = [
     _cli("lap-collinear-track", "collinear.csv", "lap", "--track", "{w}/collinear.csv"),
     _cli("lap-missing-detector", "nope.onnx", "lap", "--perception", "detector", "--detector", "{w}/nope.onnx"),
     _cli("lap-agent-arg-syntax", "v_max", "lap", "--agent-arg", "v_max"),
-    _cli("lap-unknown-env", "Nope/Env-v0", "lap", "--env", "Nope/Env-v0"),
+    _cli("lap-unknown-env", "Nope/Env-v0", "lap", "--env-id", "Nope/Env-v0"),
     _cli("lap-surrogate-two-effects", "one weather effect at a time", "lap", "--perception", "surrogate",
          "--weather", "droplets@3,low_light@1", "--max-steps", "5"),
     _cli("lap-surrogate-video", "perception surrogate renders none", "lap", "--perception", "surrogate",
@@ -381,7 +381,7 @@ CASES: list[Case] = [
     # ---- surrogate
     _cli("evaluate-surrogate-unknown-effect", "hail", "evaluate", "--agent",
          "gt_pure_pursuit", "--perception", "surrogate", "--effects", "hail", "--severities", "0,2", "--seeds", "1",
-         "--backend", "serial", "--no-progress", "--out", "{w}/o_ev_sur", out="o_ev_sur"),
+         "--backend", "serial", "--quiet", "--out", "{w}/o_ev_sur", out="o_ev_sur"),
     _cli("surrogate-log-two-effects", "one weather effect at a time", "surrogate", "log", "--weather",
          "fog@1,droplets@3", "--steps", "5",
          "--out", "{w}/o/l.npz", out="o"),
@@ -399,11 +399,11 @@ CASES: list[Case] = [
          out="o_ev"),
     _cli("evaluate-severity-out-of-range", "7", *EV[:8], "7", *EV[9:], "--out", "{w}/o_ev", out="o_ev"),
     _cli("evaluate-workers-zero", "--workers", *EV, "--workers", "0", "--out", "{w}/o_ev", out="o_ev"),
-    _cli("evaluate-workers-10000", "--workers", *EV[:-3], "--workers", "10000", "--no-progress", "--out", "{w}/o_ev",
+    _cli("evaluate-workers-10000", "--workers", *EV[:-3], "--workers", "10000", "--quiet", "--out", "{w}/o_ev",
          out="o_ev"),
     _cli("evaluate-agent-kwargs-not-json", "--agent-kwargs", *EV, "--agent-kwargs", "{bad", "--out", "{w}/o_ev",
          out="o_ev"),
-    _cli("evaluate-collinear-track", "collinear.csv", *EV, "--tracks", "{w}/collinear.csv", "--out", "{w}/o_ev",
+    _cli("evaluate-collinear-track", "collinear.csv", *EV, "--track", "{w}/collinear.csv", "--out", "{w}/o_ev",
          out="o_ev"),
     _cli("evaluate-zero-laps", "laps", *EV, "--laps", "0", "--out", "{w}/o_ev", out="o_ev"),
     _cli("evaluate-negative-max-steps", "max_steps", *EV, "--max-steps", "-1", "--out", "{w}/o_ev", out="o_ev"),
@@ -423,7 +423,7 @@ CASES: list[Case] = [
     _cli("sweep-fixed-k", "k is left open", "sweep", "--weather", "dim:0.5", "--dataset", "{w}/ds", "--out",
          "{w}/o_sw", out="o_sw"),
     _cli("sweep-someones-plot", "curves.png", "sweep", "--weather", "dim", "--k-grid", "0", "--seeds", "1", "--dataset",
-         "{w}/ds", "--backend", "serial", "--no-progress", "--out", "{w}/sweep_plot"),
+         "{w}/ds", "--backend", "serial", "--quiet", "--out", "{w}/sweep_plot"),
     # ---- calibrate
     _cli("calibrate-missing-curve", "nope.csv", "calibrate", "--curve", "{w}/nope.csv", "--measured",
          "{w}/measured_bad.csv", "--out", "{w}/o/p.toml", out="o"),

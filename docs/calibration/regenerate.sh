@@ -73,15 +73,15 @@ BLIND+=(--set "realistic (jellybean, small_track)=$SETS/blind_realistic")
 # the study's faithful effects and the physical dim on the four-track set, on a 0.1 grid (refractive drops
 # too, for the physical alternative); the shipped modes on the pool, the night camera finer where it falls
 weather-gym sweep --weather droplets,dim,dim:k:mode=physical,droplets:k:mode=refractive \
-  --k-grid 0:1:0.1 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+  --k-grid 0:1:0.1 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" --overwrite --quiet
 # the study's dim is a cliff (near 1 up to k 0.85, gone by 0.95): finer, to show its shape
 weather-gym sweep --weather dim --k-grid 0:1:0.05 --seeds 3 --dataset "$SET" --out "$OUT" --workers "$WORKERS" \
-  --overwrite --no-progress
+  --overwrite --quiet
 weather-gym sweep --weather droplets:k:mode=refractive --k-grid 0:1:0.1 --seeds 2 \
-  --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+  --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --quiet
 weather-gym sweep --weather dim:k:mode=night \
   --k-grid 0,0.2,0.4,0.5,0.55,0.6,0.625,0.65,0.675,0.7,0.725,0.75,0.775,0.8,0.825,0.85,0.875,0.9,0.925,0.95,0.975,1 \
-  --seeds 3 --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --no-progress
+  --seeds 3 --dataset "$POOL" --out "$OUT" --workers "$WORKERS" --overwrite --quiet
 
 id_of() { python -c "from weather_gym._io import file_id; print(file_id('$1/annotations.json'))"; }
 POOL_ID=$(id_of "$POOL"); SET_ID=$(id_of "$SET")
@@ -91,12 +91,12 @@ python docs/calibration/plot_modes.py "$OUT/curves.csv" --dataset-id "$POOL_ID" 
 weather-gym calibrate --curve "$OUT/curves.csv" --dataset-id "$POOL_ID" --measured "$OUT/study_table2.csv" \
   --metric map50_blue_yellow --use droplets=droplets_refractive --use low_light=dim_night \
   --study-points "$OUT/study_figure7.csv" --dataset "$POOL" --seeds 5 --workers "$WORKERS" \
-  --out weather_gym/weather/presets.toml --overwrite --report "$OUT" --no-progress
+  --out weather_gym/weather/presets.toml --overwrite --report "$OUT" --quiet
 
 weather-gym calibrate --curve "$OUT/curves.csv" --dataset-id "$SET_ID" --measured "$OUT/study_table2.csv" \
   --metric map50_blue_yellow --use droplets=droplets_refractive --use low_light=dim_physical \
   --dataset "$SET" --seeds 5 --workers "$WORKERS" \
-  --out weather_gym/calibration/presets_physical.toml --overwrite --report "$OUT/physical" --no-progress
+  --out weather_gym/calibration/presets_physical.toml --overwrite --report "$OUT/physical" --quiet
 
 # do the presets transfer? relative mAP per preset on the held-out sets (and real frames, if given)
 TRANSFER=()

@@ -90,7 +90,7 @@ def test_calibrate_from_a_curve_file_alone(capsys, tmp_path):
 def test_sweep_then_calibrate_on_a_rendered_set(capsys, tmp_path, calib_set_8):
     out = tmp_path / "sweep"
     argv = ["sweep", "--weather", "droplets", "--weather", "dim", "--k-grid", "0,0.5,1", "--seeds", "2",
-            "--dataset", str(calib_set_8), "--out", str(out), "--workers", "2", "--no-progress"]
+            "--dataset", str(calib_set_8), "--out", str(out), "--workers", "2", "--quiet"]
     rc, stdout, err = _run(capsys, *argv)
     assert rc == 0, err
     with open(out / "curves.csv") as f:
@@ -115,7 +115,7 @@ def test_sweep_then_calibrate_on_a_rendered_set(capsys, tmp_path, calib_set_8):
     presets = tmp_path / "presets.toml"
     rc, stdout, err = _run(capsys, "calibrate", "--curve", str(out / "curves.csv"), "--measured", str(table),
                            "--out", str(presets), "--dataset", str(calib_set_8), "--seeds", "2",
-                           "--backend", "serial", "--no-progress")
+                           "--backend", "serial", "--quiet")
     assert rc == 0, err
     data = load_presets(presets)
     assert data["calibrated"] is True
@@ -157,7 +157,7 @@ def test_calibrate_against_a_measured_image_set_recovers_k(capsys, tmp_path, cal
     presets = tmp_path / "p.toml"
     rc, stdout, err = _run(capsys, "calibrate", "--curve", str(tmp_path / "sweep" / "curves.csv"),
                            "--measured", f"ideal={clean}", "--measured", f"low_light@3={dark}",
-                           "--out", str(presets), "--no-progress")
+                           "--out", str(presets), "--quiet")
     assert rc == 0, err
     e = preset_entry("low_light", 3, presets)
     assert e["effects"][0]["k"] == pytest.approx(true_k, abs=0.1), stdout

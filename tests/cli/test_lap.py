@@ -70,7 +70,7 @@ def test_existing_outputs_are_never_overwritten(tmp_path, capsys):
 def test_short_run_writes_video_and_strip(tmp_path, capsys):
     video, strip = tmp_path / "lap.mp4", tmp_path / "strip.png"
     code = main(["lap", "--track", "small_track", "--max-steps", "45", "--video", str(video), "--strip", str(strip),
-                 "--strip-frames", "3", "--env", "WeatherGym/ConeTrackSmall-v0"])
+                 "--strip-frames", "3", "--env-id", "WeatherGym/ConeTrackSmall-v0"])
     out = capsys.readouterr().out
     assert code == 1  # one lap was asked for and the step limit came first
     assert "laps completed: 0/1 (time_limit, 45 steps)" in out and "cross-track error: mean" in out
@@ -84,13 +84,13 @@ def test_short_run_writes_video_and_strip(tmp_path, capsys):
     # again, without --overwrite: refused; with it: replaced
     assert main(["lap", "--max-steps", "5", "--video", str(video)]) == 2
     assert main(["lap", "--max-steps", "5", "--video", str(video), "--overwrite",
-                 "--env", "WeatherGym/ConeTrackSmall-v0"]) == 1
+                 "--env-id", "WeatherGym/ConeTrackSmall-v0"]) == 1
 
 
 @pytest.mark.slow
 def test_mapper_stack_laps_with_oracle_perception(capsys):
     code = main(["lap", "--track", "hairpin", "--agent", "mapper_pure_pursuit", "--perception", "oracle",
-                 "--env", "WeatherGym/ConeTrackSmall-v0"])
+                 "--env-id", "WeatherGym/ConeTrackSmall-v0"])
     out = capsys.readouterr().out
     assert code == 0, out
     assert "lap 1:" in out and "laps completed: 1/1" in out
@@ -103,7 +103,7 @@ def test_weather_goes_into_the_pipeline(tmp_path, capsys):
     strip = tmp_path / "wet.png"
     clear = tmp_path / "clear.png"
     base = ["lap", "--agent", "mapper_pure_pursuit", "--perception", "oracle", "--max-steps", "10",
-            "--env", "WeatherGym/ConeTrackSmall-v0", "--strip-frames", "1"]
+            "--env-id", "WeatherGym/ConeTrackSmall-v0", "--strip-frames", "1"]
     assert main([*base, "--weather", "droplets:0.55", "--strip", str(strip)]) == 1
     out = capsys.readouterr().out
     assert "weather droplets:0.55" in out and "perception oracle" in out
@@ -148,7 +148,7 @@ def test_a_terminated_lap_leaves_no_video(tmp_path):
 def test_a_detector_lap_reports_map_latency_and_an_h264_video(tmp_path, capsys):
     video = tmp_path / "wet.mp4"
     code = main(["lap", "--agent", "mapper_pure_pursuit", "--weather", "droplets@3", "--max-steps", "20",
-                 "--env", "WeatherGym/ConeTrackSmall-v0", "--video", str(video)])
+                 "--env-id", "WeatherGym/ConeTrackSmall-v0", "--video", str(video)])
     out = capsys.readouterr().out
     assert code == 1 and "perception detector | weather droplets@3" in out
     m = re.search(r"detector: mAP@0.5 (\d\.\d+), recall (\d\.\d+) on the 21 frames it saw", out)
@@ -176,11 +176,15 @@ def test_help_lists_every_registered_agent(capsys):
     assert "ppo_cones" in text and all(name in text for name in AGENTS)
 
 
-def test_json_gives_the_result_machine_readable(capsys):
+def test_json_gives_the_result_machine_readable(capsys, tmp_path):
     import json
 
-    assert main(["lap", "--track", "hairpin", "--perception", "gt_cones", "--json"]) == 0
+    assert main(["lap", "--track", "hairpin", "--perception", "gt_cones", "--json", "-"]) == 0
     result = json.loads(capsys.readouterr().out)  # stdout holds the one JSON object, nothing else
+    assert main(["lap", "--track", "hairpin", "--perception", "gt_cones", "--json", str(tmp_path / "r.json")]) == 0
+    assert f"json: {tmp_path / 'r.json'}" in capsys.readouterr().out  # with the text summary
+    assert json.loads((tmp_path / "r.json").read_text())["lap_times_s"] == result["lap_times_s"]
+    assert main(["lap", "--track", "hairpin", "--perception", "gt_cones", "--json", str(tmp_path / "r.json")]) == 2
     assert result["track"] == "hairpin" and result["completed"] is True and result["end"] == "laps"
     assert len(result["lap_times_s"]) == 1 and result["metrics"]["cones_hit"] == 0
     assert result["metrics"]["det_map50"] is None  # not measured (no detector): null, not NaN

@@ -16,7 +16,7 @@ from weather_gym.cli import main
         (["--effects", "droplets,snow"], "unknown weather condition 'snow'; valid conditions: droplets, low_light"),
         (["--severities", "0,7"], "invalid severity 7; valid severities: 0, 1, 2, 3, 4"),
         (["--severities", "0,x"], "--severities: 'x' is not an integer"),
-        (["--tracks", ","], "the list of tracks is empty"),
+        (["--track", ","], "the list of tracks is empty"),
         (["--seeds", "0"], "--seeds must be >= 1"),
         (["--workers", "0"], "--workers must be >= 1"),
         (["--agent-kwargs", "{v_max: 3}"], "--agent-kwargs: not valid JSON"),
@@ -42,7 +42,7 @@ def test_tiny_evaluation_end_to_end_and_resume(tmp_path, capsys):
     out = tmp_path / "eval"
     args = ["evaluate", "--agent", "gt_pure_pursuit", "--perception", "camera", "--effects", "dim",
             "--severities", "0,4", "--seeds", "1", "--max-steps", "20", "--env-id", "WeatherGym/ConeTrackSmall-v0",
-            "--backend", "serial", "--no-progress", "--out", str(out)]
+            "--backend", "serial", "--quiet", "--out", str(out)]
     assert main(args) == 0
     assert "2 ok, 0 failed" in capsys.readouterr().out
     rows = list(csv.DictReader(open(out / "results.csv")))
@@ -70,5 +70,5 @@ def test_evaluate_takes_every_perception_mode_gt_cones_included(tmp_path, capsys
     out = tmp_path / "eval"
     assert main(["evaluate", "--agent", "gt_pure_pursuit", "--perception", "gt_cones", "--effects", "dim",
                  "--severities", "0", "--seeds", "1", "--max-steps", "10", "--backend", "serial",
-                 "--no-progress", "--out", str(out)]) == 0
+                 "--quiet", "--out", str(out)]) == 0
     assert "1 ok, 0 failed" in capsys.readouterr().out

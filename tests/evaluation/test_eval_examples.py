@@ -60,7 +60,7 @@ def test_ppo_trains_on_gt_cones_resumes_and_drives_through_the_detector(tmp_path
     pytest.importorskip("weather_gym.pipeline", reason="the render-free gt_cones mode comes with the pipeline builder")
     train, evaluate_policy = _load("train_ppo"), _load("evaluate_policy")
     out = tmp_path / "run"
-    common = ["--n-envs", "2", "--tracks", "hairpin,oval", "--n-steps", "128", "--batch-size", "64",
+    common = ["--n-envs", "2", "--track", "hairpin,oval", "--n-steps", "128", "--batch-size", "64",
               "--n-epochs", "1", "--max-steps", "150", "--eval-freq", "256", "--eval-episodes", "1",
               "--checkpoint-freq", "256", "--out", str(out)]
     assert train.main(["--timesteps", "512", *common]) == 0

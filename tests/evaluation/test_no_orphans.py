@@ -54,7 +54,7 @@ def test_killed_evaluate_leaves_no_process(tmp_path, sig):
     cmd = [sys.executable, "-m", "weather_gym.cli", "evaluate", "--agent", "gt_pure_pursuit", "--perception",
            "oracle", "--effects", "droplets", "--severities", "0,1,2,3", "--seeds", "2", "--max-steps", "100000",
            "--laps", "5", "--env-kwargs", '{"camera": {"width": 64, "height": 36}}', "--workers", "2",
-           "--no-progress", "--out", str(tmp_path / "eval")]
+           "--quiet", "--out", str(tmp_path / "eval")]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, start_new_session=True, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE)

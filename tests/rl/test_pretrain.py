@@ -16,7 +16,7 @@ pytest.importorskip("stable_baselines3")
 
 
 def _args(out, *extra):
-    return ["train", "--out", str(out), "--n-envs", "2", "--tracks", "hairpin,peanut", "--perception", "gt_cones",
+    return ["train", "--out", str(out), "--n-envs", "2", "--track", "hairpin,peanut", "--perception", "gt_cones",
             "--pretrain", "gt_pure_pursuit", "--pretrain-steps", "600", "--dagger-rounds", "2",
             "--pretrain-epochs", "4", "--timesteps", "0", *extra]
 

@@ -19,7 +19,7 @@ from weather_gym.rl.run_outputs import RUN_FILES, _remove_run, holds_run
 
 pytest.importorskip("stable_baselines3")
 ROOT = Path(__file__).resolve().parents[2]
-TINY = ["--n-envs", "1", "--vec", "dummy", "--tracks", "hairpin", "--n-steps", "64", "--batch-size", "64",
+TINY = ["--n-envs", "1", "--vec", "dummy", "--track", "hairpin", "--n-steps", "64", "--batch-size", "64",
         "--n-epochs", "1", "--max-steps", "60", "--eval-freq", "1000000", "--checkpoint-freq", "64"]
 """A run that checkpoints every update of 64 steps and evaluates never (gt_cones: nothing rendered)."""
 
@@ -126,7 +126,7 @@ def test_sigterm_to_the_whole_process_group_still_saves(tmp_path):
     argv = [a if a != "dummy" else "split" for a in TINY]
     argv[argv.index("--n-envs") + 1], argv[argv.index("--n-steps") + 1] = "2", "32"
     proc = subprocess.Popen([sys.executable, "-m", "weather_gym.cli", "train", "--out", str(out), *argv,
-                             "--tracks", "hairpin,oval", "--timesteps", "10000000"], cwd=tmp_path, env=env,
+                             "--track", "hairpin,oval", "--timesteps", "10000000"], cwd=tmp_path, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     try:
         _wait_for(lambda: (out / "checkpoints" / "ppo_128_steps.json").is_file(), proc, "second checkpoint")

@@ -62,7 +62,7 @@ def test_bad_hyperparameter_files_are_refused(tmp_path, text, message):
 @pytest.mark.slow
 def test_rl_zoo3_trains_with_the_shipped_file(tmp_path):
     pytest.importorskip("rl_zoo3")
-    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "WeatherGym/ConeTrackCones-v0",
+    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env-id", "WeatherGym/ConeTrackCones-v0",
            "--gym-packages", "weather_gym", "-conf", str(HYPERPARAMS), "-n", "64", "--eval-freq", "-1",
            "-f", str(tmp_path), "-params", "n_envs:1", "n_steps:64", "batch_size:64", "n_epochs:1"]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=tmp_path)
@@ -75,7 +75,7 @@ def test_tiny_run_ctrl_c_resume_and_every_saved_model_evaluates(tmp_path, monkey
     from stable_baselines3 import PPO
 
     out = tmp_path / "run"
-    args = ["train", "--out", str(out), "--n-envs", "1", "--tracks", "hairpin", "--n-steps", "64",
+    args = ["train", "--out", str(out), "--n-envs", "1", "--track", "hairpin", "--n-steps", "64",
             "--batch-size", "64", "--n-epochs", "1", "--max-steps", "60", "--eval-freq", "64",
             "--eval-episodes", "1", "--checkpoint-freq", "64", "--cone-memory"]
     updates = {"n": 0}
@@ -165,7 +165,7 @@ def test_ppo_steps_render_free_envs_in_two_processes_with_lean_infos(tmp_path, m
 
     monkeypatch.setattr(PPO, "learn", no_learning)
     monkeypatch.setattr(train_module.os, "sched_getaffinity", lambda pid: {0, 1})
-    assert main(["train", "--out", str(tmp_path / "run"), "--n-envs", "2", "--tracks", "hairpin,oval",
+    assert main(["train", "--out", str(tmp_path / "run"), "--n-envs", "2", "--track", "hairpin,oval",
                  "--perception", "surrogate", "--timesteps", "64", "--n-steps", "32", "--batch-size", "32"]) == 0
     assert seen["wrapped"] == [True, True]
     vec = seen["vec"]

@@ -96,7 +96,7 @@ def test_jpeg_frames_and_an_error_leaves_nothing(tmp_path):
 def test_a_detector_lap_with_a_bag(tmp_path, capsys):
     bag = tmp_path / "lap_bag"
     code = main(["lap", "--agent", "mapper_pure_pursuit", "--weather", "droplets@3", "--max-steps", "6",
-                 "--env", "WeatherGym/ConeTrackSmall-v0", "--bag", str(bag), "--bag-images", "raw"])
+                 "--env-id", "WeatherGym/ConeTrackSmall-v0", "--bag", str(bag), "--bag-images", "raw"])
     out = capsys.readouterr().out
     assert code == 1 and f"bag: {bag} (MCAP rosbag2)" in out and "/perception/cones 7" in out
     with AnyReader([bag]) as r:

@@ -14,11 +14,11 @@ ground-truth lap (the agent's time is not counted). The machine's load average i
 table: other processes on the same cores lower every number.
 
 Example:
-    $ weather-gym bench gt --tracks small_track,hairpin --camera 672x376
+    $ weather-gym bench gt --track small_track,hairpin --camera 672x376
 
 The first command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
-    >>> args = build_parser().parse_args(['bench', 'gt', '--tracks', 'small_track,hairpin', '--camera', '672x376'])
+    >>> args = build_parser().parse_args(['bench', 'gt', '--track', 'small_track,hairpin', '--camera', '672x376'])
     >>> args.target, args.tracks, args.steps
     ('gt', 'small_track,hairpin', 900)
 """

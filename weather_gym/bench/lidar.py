@@ -10,11 +10,11 @@ the cone extraction, per scan. The machine's load average is printed with the ta
 on the same cores lower every number.
 
 Example:
-    $ weather-gym bench lidar --tracks small_track --poses 10
+    $ weather-gym bench lidar --track small_track --poses 10
 
 The command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
-    >>> args = build_parser().parse_args(['bench', 'lidar', '--tracks', 'small_track', '--poses', '10'])
+    >>> args = build_parser().parse_args(['bench', 'lidar', '--track', 'small_track', '--poses', '10'])
     >>> args.target, args.poses, args.repeats
     ('lidar', 10, 30)
 """

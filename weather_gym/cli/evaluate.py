@@ -6,7 +6,7 @@ command skips finished cells and retries failed ones. Everything is validated be
 
 Examples:
     weather-gym evaluate --agent mapper_pure_pursuit --effects droplets,dim --severities 0,1,2,3,4 \\
-        --seeds 3 --tracks small_track --out runs/eval
+        --seeds 3 --track small_track --out runs/eval
     weather-gym evaluate --agent gt_pure_pursuit --perception oracle --seeds 1 --max-steps 300 --out runs/smoke
     weather-gym evaluate --agent sb3 --agent-arg path=ppo.zip --perception oracle --out runs/ppo
     weather-gym evaluate ... --backend ray --ray-address auto       # on a running Ray cluster
@@ -30,6 +30,7 @@ from pathlib import Path
 
 from weather_gym._option_alias import OneDefaultFormatter, alias
 from weather_gym._output_args import add_overwrite_arg
+from weather_gym.agents import agent_observes
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
 from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
@@ -39,7 +40,7 @@ from weather_gym.errors import InputError
 from weather_gym.evaluation.evaluate import BAGS, DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
 from weather_gym.evaluation.report import report_replaceable, write_report
 from weather_gym.evaluation.runner import check_results_path
-from weather_gym.perception_modes import PERCEPTION_MODES, modes_where, perception_mode
+from weather_gym.perception_modes import PERCEPTION_MODES, auto_mode, modes_where, perception_mode
 from weather_gym.ros.episode_bag import BAG_IMAGES
 
 
@@ -95,8 +96,8 @@ def register(sub) -> None:
     alias(g, "--track", "--tracks")
     e = p.add_argument_group("episode")
     e.add_argument("--env-id", default="WeatherGym/ConeTrack-v0", help="Gymnasium id of the scenario")
-    e.add_argument("--perception", default=DEFAULT_PERCEPTION, choices=tuple(PERCEPTION_MODES),
-                   help="what the agent sees: " + literal("; ".join(f"{m.name}: {m.describe()}"
+    e.add_argument("--perception", default=DEFAULT_PERCEPTION, choices=("auto", *PERCEPTION_MODES),
+                   help="what the agent sees: auto: the first mode that gives what the agents read (as for lap); " + literal("; ".join(f"{m.name}: {m.describe()}"
                                                                      for m in PERCEPTION_MODES.values())))
     e.add_argument("--laps", type=int, default=1, help="laps per episode")
     e.add_argument("--max-steps", type=int, default=3000, help="step limit per episode (30 steps = 1 s)")
@@ -182,8 +183,20 @@ def _perception_kwargs(args) -> dict:
     return {**kw, **given}
 
 
+def resolve_auto_perception(args) -> None:
+    """``--perception auto``: the mode ``lap`` would take, the same for every agent of the grid."""
+    if args.perception != "auto":
+        return
+    modes = {a: auto_mode(agent_observes(a)).name for a in _names(args.agents)}
+    if len(set(modes.values())) > 1:
+        raise InputError("--perception auto gives the agents different modes ("
+                         + ", ".join(f"{a}: {m}" for a, m in modes.items()) + "); name one with --perception")
+    args.perception = next(iter(modes.values()), DEFAULT_PERCEPTION)
+
+
 def _run(args) -> int:
     check_runner_args(args)
+    resolve_auto_perception(args)
     config = build_config(args)
     if args.baseline is not None and args.baseline not in config.agents:
         raise InputError(f"--baseline {args.baseline!r} must be one of the agents of --agent "

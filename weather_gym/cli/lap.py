@@ -30,6 +30,7 @@ from typing import Any, cast
 import numpy as np
 from tqdm import tqdm
 
+from weather_gym._io import atomic_write, check_output
 from weather_gym._option_alias import alias
 from weather_gym.agents import AGENTS, agent_factory, agent_observes, run_episode
 from weather_gym.agents.mapper import MapperConfig
@@ -135,8 +136,9 @@ def register(sub) -> None:
                    help="camera frames in --bag: jpeg (CompressedImage, quality 90) or raw (Image rgb8, the exact "
                         "pixels, about ten times larger); default %(default)s")
     p.add_argument("--overwrite", action="store_true", help="replace existing --video / --strip files / --bag")
-    p.add_argument("--json", action="store_true",
-                   help="print the result as one JSON object (the summary's numbers, machine-readable) instead of text")
+    p.add_argument("--json", type=Path, metavar="PATH.json",
+                   help="write the result as one JSON object (the summary's numbers, machine-readable); '-' prints "
+                        "it instead of the text summary")
     p.set_defaults(func=_run)
 
 
@@ -174,6 +176,9 @@ def _run(args) -> int:
         check_output_path(args.strip, overwrite=args.overwrite, suffixes=(".png",))
     if args.video is not None and args.strip is not None and args.video.resolve() == args.strip.resolve():
         raise InputError("--video and --strip must be different files")
+    to_stdout = args.json is not None and str(args.json) == "-"
+    if args.json is not None and not to_stdout:
+        check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
     presets = presets_from_arg(args.presets, lambda: env_scenario(args.env, args.track, detector))
@@ -184,7 +189,13 @@ def _run(args) -> int:
         overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile, bag=args.bag,
         bag_images=args.bag_images, lidar_weather=args.lidar_weather, presets=presets,
     )
-    print(result_json(result) if args.json else format_result(result))
+    if to_stdout:
+        print(result_json(result))
+    else:
+        print(format_result(result))
+        if args.json is not None:
+            atomic_write(args.json, result_json(result) + "\n", overwrite=args.overwrite)
+            print(f"json: {args.json}")
     return 0 if result["completed"] else 1
 
 

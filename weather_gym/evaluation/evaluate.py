@@ -360,11 +360,11 @@ def _check_agent_kwargs(name: str, track: Any, camera: Any, kwargs: dict[str, An
     try:
         make_agent(name, track, camera, **kwargs)
     except InputError as exc:
-        raise InputError(f"--agent-kwargs for agent {name!r}: {exc}") from None
+        raise InputError(f"--agent-arg for agent {name!r}: {exc}") from None
     except TypeError as exc:
         if "keyword argument" not in str(exc):
             raise  # not the arguments' fault: a bug keeps its traceback
-        raise InputError(f"--agent-kwargs for agent {name!r}: {exc}") from None
+        raise InputError(f"--agent-arg for agent {name!r}: {exc}") from None
 
 
 # ------------------------------------------------------------------------------------------ the cell

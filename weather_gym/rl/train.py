@@ -18,7 +18,7 @@ trains with ``python -m rl_zoo3.train --algo ppo --env WeatherGym/ConeTrackCones
 weather_gym -conf FILE``. Options given on the command line (``--n-envs``, ``--timesteps``,
 ``--learning-rate``, ...) override single values.
 
-**Tracks.** Env ``i`` drives ``--tracks[i % len]``, each episode from a random point of its track
+**Tracks.** Env ``i`` drives ``--track[i % len]``, each episode from a random point of its track
 (drawn from the reset seed); the ``EvalCallback`` drives the held-out ``--eval-track`` (never trained
 on) from the start line and logs the mean reward and lap completion (``eval/success_rate``).
 
@@ -257,7 +257,7 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
             raise InputError(f"{opt} must be a JSON object of fields, got {value!r}")
     tracks = [t.strip() for t in args.tracks.split(",") if t.strip()]
     if not tracks:
-        raise InputError("--tracks is empty")
+        raise InputError("--track is empty")
     if args.eval_track in tracks:
         raise InputError(f"--eval-track {args.eval_track} is also a training track: it would not be held out")
     mode = perception_mode(args.perception)
