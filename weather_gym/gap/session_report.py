@@ -15,57 +15,20 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import fields
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from weather_gym.gap.compare import GapMeter, compare_signals, signal_scale
 from weather_gym.gap.config import BEYOND_RANGE, EFFECT_FAMILY, PERCEPTION_MIN_MAP, REPORT_VERSION, Comparison
 from weather_gym.gap.domain import clutter, compare_clutter, ego_vehicle, name_differences
 from weather_gym.gap.perception import perception_stats
+from weather_gym.gap.session_host import SessionHost
 from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS, signal_table
 from weather_gym.gap.weather_model import model_tables
 
-if TYPE_CHECKING:  # the host's attributes, for type checkers
-    import numpy as np
 
-    from weather_gym.gap.config import GapConfig
-    from weather_gym.gap.fit import Evaluator
-    from weather_gym.gap.simulate import GapData
-    from weather_gym.weather import KnobEffect
-
-
-class ReportSteps:
+class ReportSteps(SessionHost):
     """The report of a run; a part of :class:`~weather_gym.gap.session.GapSession` (it reads the
     session's steps, comparisons and log)."""
-
-    if TYPE_CHECKING:  # what GapSession provides
-        data: GapData
-        config: GapConfig
-        input_model: list[KnobEffect]
-        model: list[KnobEffect]
-        steps: list[dict[str, Any]]
-        refits: list[dict[str, Any]]
-        history: list[tuple[str, list[KnobEffect]]]
-        timings: dict[str, float]
-        log: list[str]
-        pruned: list[dict[str, Any]]
-        flagged: list[dict[str, Any]]
-        attempts: list[dict[str, Any]]
-        measured_signals: np.ndarray
-        reference_signals: np.ndarray | None
-        scale: np.ndarray
-        weights: np.ndarray
-        _fit_idx: tuple[np.ndarray, np.ndarray]
-        fit_ev: Evaluator
-        held_ev: Evaluator
-        _fixed_matches: dict[str, Any]
-
-        @property
-        def detector(self) -> Any: ...
-        def _say(self, msg: str) -> None: ...
-        def _match(self, images: Sequence[np.ndarray], gts: Sequence[dict]) -> Any: ...
-        def _fixed(self, which: str) -> Any: ...
-        def compare(self, model: Sequence[KnobEffect] | None = None, *, perception: bool | None = None
-                    ) -> Comparison: ...
 
     # ------------------------------------------------------------------ domain
     def domain(self) -> dict[str, Any] | None:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from tqdm import tqdm
 
@@ -42,51 +42,14 @@ from weather_gym.gap.fit import (
     screen,
 )
 from weather_gym.gap.measured import KIND, MEASURED, MEASURED_PARAMS, PARTNERS, estimate, shape_text
+from weather_gym.gap.session_host import SessionHost
 from weather_gym.gap.signals import SIGNAL_NAMES, SIGNALS
 from weather_gym.gap.weather_model import describe, insert_position
 
-if TYPE_CHECKING:  # the host's attributes, for type checkers
-    import numpy as np
 
-    from weather_gym.gap.config import Comparison, GapConfig
-    from weather_gym.gap.fit import Evaluator
-    from weather_gym.gap.simulate import GapData
-    from weather_gym.weather import KnobEffect
-
-
-class SearchSteps:
+class SearchSteps(SessionHost):
     """Finding and adding missing effects; a part of :class:`~weather_gym.gap.session.GapSession`
     (the session holds the data, the evaluators and the model these steps read and change)."""
-
-    if TYPE_CHECKING:  # what GapSession provides
-        data: GapData
-        config: GapConfig
-        input_model: list[KnobEffect]
-        model: list[KnobEffect]
-        steps: list[dict[str, Any]]
-        refits: list[dict[str, Any]]
-        history: list[tuple[str, list[KnobEffect]]]
-        timings: dict[str, float]
-        log: list[str]
-        pruned: list[dict[str, Any]]
-        flagged: list[dict[str, Any]]
-        attempts: list[dict[str, Any]]
-        measured_signals: np.ndarray
-        reference_signals: np.ndarray | None
-        scale: np.ndarray
-        weights: np.ndarray
-        _fit_idx: tuple[np.ndarray, np.ndarray]
-        fit_ev: Evaluator
-        held_ev: Evaluator
-        _fixed_matches: dict[str, Any]
-
-        @property
-        def detector(self) -> Any: ...
-        def _say(self, msg: str) -> None: ...
-        def _match(self, images: Sequence[np.ndarray], gts: Sequence[dict]) -> Any: ...
-        def _fixed(self, which: str) -> Any: ...
-        def compare(self, model: Sequence[KnobEffect] | None = None, *, perception: bool | None = None
-                    ) -> Comparison: ...
 
     def diagnose(self, names: Sequence[str] | None = None) -> list[dict[str, Any]]:
         """Fit every candidate effect (k grid, then the best ``top`` fully); best first.
