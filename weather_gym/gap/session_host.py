@@ -1,6 +1,12 @@
 """What :class:`~weather_gym.gap.session.GapSession` gives the parts of it that live in other modules
 (:class:`~weather_gym.gap.session_search.SearchSteps`, :class:`~weather_gym.gap.session_report.ReportSteps`),
-declared once for type checkers; the class holds nothing at run time."""
+declared once for type checkers; the class holds nothing at run time.
+
+Example:
+    >>> from weather_gym.gap.session import GapSession
+    >>> issubclass(GapSession, SessionHost), vars(SessionHost).get("data", "declared only")
+    (True, 'declared only')
+"""
 
 from __future__ import annotations
 
