@@ -10,6 +10,13 @@ import pytest
 
 from weather_gym.camera_config import CameraConfig
 
+# The suite renders many thousands of EGL frames: it reuses PyBullet's shadow map between them (the
+# opt-in of weather_gym.sim.egl_shadow_reuse, whose frames are the default's to the byte, which
+# tests/sim/test_egl_shadow_reuse.py checks, as it checks that the default patches nothing). Set here,
+# before any test runs, so that the suite's subprocesses inherit it too; WEATHER_GYM_SHADOW_MAP_REUSE=0
+# runs the suite on the default path.
+os.environ.setdefault("WEATHER_GYM_SHADOW_MAP_REUSE", "1")
+
 SMALL_CAMERA = CameraConfig(width=96, height=54)
 """A tiny camera that keeps env tests fast (rendering dominates the step time)."""
 

@@ -35,6 +35,8 @@ def test_bench_sim_naive_times_the_opt_in_reuse_beside_the_default(monkeypatch, 
     from weather_gym.sim import egl_shadow_reuse
 
     monkeypatch.setattr(bench_sim, "NAIVE_SIZES", ((96, 54),))
+    if egl_shadow_reuse._hook is not None:  # this process's hook (the suite runs with the reuse on)
+        egl_shadow_reuse._hook._entry.release()
     monkeypatch.setattr(egl_shadow_reuse, "_hook", None)
     monkeypatch.setattr(egl_shadow_reuse, "_reason", None)
     monkeypatch.delenv("WEATHER_GYM_SHADOW_MAP_REUSE", raising=False)

@@ -21,6 +21,8 @@ def egl_client():
 
 
 def test_an_entry_is_pointed_again_after_a_release_and_refused_when_unknown(egl_client, monkeypatch):
+    if egl_shadow_reuse._hook is not None:  # this process's hook (the suite runs with the reuse on)
+        egl_shadow_reuse._hook._entry.release()
     monkeypatch.setattr(egl_shadow_reuse, "_hook", None)
     monkeypatch.setattr(egl_shadow_reuse, "_reason", None)
     monkeypatch.setenv("WEATHER_GYM_SHADOW_MAP_REUSE", "1")  # the hook on its glViewport entry

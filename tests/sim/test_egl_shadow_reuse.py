@@ -57,6 +57,8 @@ def test_declared_sizes_are_checked(radius):
 @pytest.fixture
 def reuse_on(monkeypatch):
     """Shadow-map reuse switched on for one test, from a fresh start; the GL table given back after."""
+    if egl_shadow_reuse._hook is not None:  # this process's hook (the suite runs with the reuse on)
+        egl_shadow_reuse._hook._entry.release()  # points itself back at its next frame
     monkeypatch.setattr(egl_shadow_reuse, "_hook", None)
     monkeypatch.setattr(egl_shadow_reuse, "_reason", None)
     monkeypatch.setenv("WEATHER_GYM_SHADOW_MAP_REUSE", "1")
