@@ -66,7 +66,7 @@ def test_evaluate_takes_every_perception_mode_gt_cones_included(tmp_path, capsys
 
     with pytest.raises(SystemExit):
         main(["evaluate", "--help"])
-    assert "{" + ",".join(PERCEPTION_MODES) + "}" in capsys.readouterr().out
+    assert "{" + ",".join(("auto", *PERCEPTION_MODES)) + "}" in capsys.readouterr().out
     out = tmp_path / "eval"
     assert main(["evaluate", "--agent", "gt_pure_pursuit", "--perception", "gt_cones", "--effects", "dim",
                  "--severities", "0", "--seeds", "1", "--max-steps", "10", "--backend", "serial",
