@@ -72,3 +72,20 @@ def test_evaluate_takes_every_perception_mode_gt_cones_included(tmp_path, capsys
                  "--severities", "0", "--seeds", "1", "--max-steps", "10", "--backend", "serial",
                  "--quiet", "--out", str(out)]) == 0
     assert "1 ok, 0 failed" in capsys.readouterr().out
+
+
+def test_perception_auto_takes_the_mode_lap_would_take_for_every_agent():
+    import argparse
+
+    from weather_gym.cli.evaluate import resolve_auto_perception
+    from weather_gym.errors import InputError
+
+    args = argparse.Namespace(perception="auto", agents="mapper_pure_pursuit")
+    resolve_auto_perception(args)
+    assert args.perception == "detector"  # lap's auto for a cone-list driver
+    args = argparse.Namespace(perception="auto", agents="mapper_pure_pursuit,gt_pure_pursuit")
+    with pytest.raises(InputError, match="--perception auto gives the agents different modes"):
+        resolve_auto_perception(args)
+    args = argparse.Namespace(perception="oracle", agents="gt_pure_pursuit")
+    resolve_auto_perception(args)
+    assert args.perception == "oracle"  # a named mode stays
