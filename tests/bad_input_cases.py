@@ -387,7 +387,7 @@ CASES: list[Case] = [
          "--out", "{w}/o/l.npz", out="o"),
     _cli("surrogate-log-zero-steps", "--steps", "surrogate", "log", "--steps", "0", "--out", "{w}/o/l.npz", out="o"),
     _cli("surrogate-log-not-npz", "l.csv", "surrogate", "log", "--out", "{w}/o/l.csv", out="o"),
-    _cli("surrogate-log-bad-seeds", "--seeds", "surrogate", "log", "--seeds", "0,x", "--out", "{w}/o/l.npz", out="o"),
+    _cli("surrogate-log-bad-seeds", "--seed-list", "surrogate", "log", "--seed-list", "0,x", "--out", "{w}/o/l.npz", out="o"),
     _cli("surrogate-fit-not-a-log", "text.png", "surrogate", "fit", "{w}/text.png", "--out", "{w}/o/m.npz", out="o"),
     _cli("surrogate-fit-missing-log", "nope.npz", "surrogate", "fit", "{w}/nope.npz", "--out", "{w}/o/m.npz", out="o"),
     _cli("surrogate-validate-missing-model", "nope.npz", "surrogate", "validate", "--model", "{w}/nope.npz",

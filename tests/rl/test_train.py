@@ -62,7 +62,7 @@ def test_bad_hyperparameter_files_are_refused(tmp_path, text, message):
 @pytest.mark.slow
 def test_rl_zoo3_trains_with_the_shipped_file(tmp_path):
     pytest.importorskip("rl_zoo3")
-    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env-id", "WeatherGym/ConeTrackCones-v0",
+    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "WeatherGym/ConeTrackCones-v0",
            "--gym-packages", "weather_gym", "-conf", str(HYPERPARAMS), "-n", "64", "--eval-freq", "-1",
            "-f", str(tmp_path), "-params", "n_envs:1", "n_steps:64", "batch_size:64", "n_epochs:1"]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=tmp_path)
