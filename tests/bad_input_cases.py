@@ -592,7 +592,7 @@ CASES += [
          "--seed", "-3", "--out", "{w}/o_ds", out="o_ds"),
     _cli("detector-eval-negative-seed", "--seed", "detector", "eval", "{w}/ds", "--seed", "-1"),
     _cli("lap-negative-seed", "--seed", "lap", "--seed", "-1"),
-    _cli("surrogate-log-negative-seed", "--seeds", "surrogate", "log", "--seeds", "0,-1", "--out", "{w}/o/l.npz",
+    _cli("surrogate-log-negative-seed", "--seed-list", "surrogate", "log", "--seed-list", "0,-1", "--out", "{w}/o/l.npz",
          out="o"),
     _cli("surrogate-validate-negative-seed", "--surrogate-seeds", "surrogate", "validate", "--surrogate-seeds", "-2",
          "--out", "{w}/o/val", out="o"),
@@ -630,7 +630,7 @@ CASES += [
     Case("py-reset-friction-1e9", "friction", call=_reset_env(friction=1e9)),
     Case("py-make-vec-env-a-million", "num_envs", call=_vec_env_million),
     # ---- arguments of agents and perception, checked before any cell runs
-    _cli("evaluate-agent-kwargs-unknown-key", "--agent-kwargs", *EV, "--agent-kwargs", '{"vmax": 3}', "--out",
+    _cli("evaluate-agent-arg-unknown-key", "--agent-arg", *EV, "--agent-arg", "vmax=3", "--out",
          "{w}/o_ev", out="o_ev"),
     _cli("evaluate-perception-kwargs-unknown-key", "--perception-kwargs", *EV, "--perception-kwargs",
          '{"noise_level": 3}', "--out", "{w}/o_ev", out="o_ev"),
