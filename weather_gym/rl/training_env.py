@@ -117,7 +117,7 @@ class LeanInfo(gym.Wrapper, gym.utils.RecordConstructorArgs):
         >>> env = LeanInfo(make_training_env("WeatherGym/ConeTrack-v0", "small_track", "gt_cones", {}, 50, {}))
         >>> _ = env.reset(seed=0)
         >>> env.step(env.action_space.sample())[4]
-        {'lap': 0, 'cones_hit': 0, 'off_track_events': 0}
+        {'is_success': False, 'lap': 0, 'cones_hit': 0, 'off_track_events': 0}
         >>> env.close()
     """
 

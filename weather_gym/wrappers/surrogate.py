@@ -63,7 +63,7 @@ from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pac
 from weather_gym.surrogate.conditions import SurrogateFallbackWarning, fallback_note, split_nominal
 from weather_gym.surrogate.model import SurrogateModel, load_model
 from weather_gym.surrogate.sample import FrameSampler
-from weather_gym.weather import current_spec, parse_weather
+from weather_gym.weather import current_spec, parse_weather, weather_source
 from weather_gym.wrappers._recorded import recorded, unrecorded
 
 __all__ = ["SurrogatePerceptionWrapper", "frames_change_by_themselves"]
@@ -137,6 +137,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.latency_in_info = bool(latency_in_info)
         self.observation_space = spaces.Dict({**cone_list_space(max_cones).spaces, "state": inner["state"]})
         self._report_weather = weather is not None
+        self._source = weather_source(weather)  # given / pool (the surrogate reads the pool presets)
         self._effect = parse_weather(weather)
         self._spec = current_spec(self._effect)
         point, self._fallback = model.resolve(self._spec)
@@ -166,6 +167,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         effect = copy.deepcopy(parse_weather(spec))
         tables = current_spec(effect)
         point, fallback = self.model.resolve(tables)  # a weather the model cannot cover fails here
+        self._source = weather_source(spec)
         self._sampler.set_point(point)
         self._fallback = fallback
         _warn_fallback(self.model, tables)
@@ -210,6 +212,7 @@ class SurrogatePerceptionWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         out_info = dict(info)
         if self._report_weather:
             out_info["weather"] = [dict(t) for t in self._spec]  # nothing is drawn: the spec only changes when set
+            out_info["weather_source"] = self._source  # as the WeatherWrapper says it
         out_info["detections"] = self._last
         if self._fallback is not None:
             out_info["surrogate_fallback"] = self._fallback
