@@ -28,7 +28,6 @@ Example:
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
 from collections import Counter
@@ -38,7 +37,6 @@ from typing import Any
 from tqdm import tqdm
 
 from weather_gym._io import atomic_write_json, write_image
-from weather_gym._lock import exclusive_folder
 from weather_gym.camera_config import CameraConfig
 from weather_gym.datasets.coco import ANNOTATIONS
 from weather_gym.datasets.importers import (
@@ -46,10 +44,10 @@ from weather_gym.datasets.importers import (
     _check_resume,
     _clear_but_marker,
     _condition,
-    _out_state,
+    import_folder,
     parse_intrinsics,
 )
-from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
+from weather_gym.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception.labels import CATEGORIES, SmallRule
 from weather_gym.ros.bags import open_bag
 from weather_gym.ros.camera import ALL_FRAMES, Window, camera_frames, intrinsics_of
@@ -91,24 +89,9 @@ def import_rosbag(bag: str | os.PathLike, out: str | os.PathLike, *, topic: str 
     src = Path(os.path.realpath(given))
     cond, sev = _condition(condition, severity)
     given_k = parse_intrinsics(intrinsics)
-    _out_state(out, src, overwrite, resume)
-    created = not out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputPathError(f"cannot make --out {out}: {exc.strerror or exc}") from None
-    try:
-        with exclusive_folder(out, busy=f"another import is writing into {out}; wait for it to finish or choose "
-                                        "another --out folder"):
-            state = _out_state(out, src, overwrite, resume)
-            with open_bag(src) as b:
-                return _import(b, src, out, state, topic=topic, window=window, camera_info=camera_info, cond=cond,
-                               sev=sev, given_k=given_k, detector=detector, progress=progress)
-    except BaseException:
-        if created:
-            with contextlib.suppress(OSError):
-                out.rmdir()  # only when nothing was written
-        raise
+    with import_folder(out, src, overwrite, resume) as state, open_bag(src) as b:
+        return _import(b, src, out, state, topic=topic, window=window, camera_info=camera_info, cond=cond,
+                       sev=sev, given_k=given_k, detector=detector, progress=progress)
 
 
 def _import(b: Any, src: Path, out: Path, state: str, *, topic: str | None, window: Window,  # noqa: C901

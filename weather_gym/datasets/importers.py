@@ -63,7 +63,7 @@ import math
 import os
 import shutil
 from collections import Counter
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -255,6 +255,17 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
         raise InputError(f"location frame must be auto, camera, vehicle or none, got {location_frame!r}")
     if mask is not None and not Path(mask).is_file():
         raise MissingInputError(f"--mask {mask} not found")
+    with import_folder(out, src, overwrite, resume) as state:
+        return _import(fmt, src, out, state, cmap=cmap, cond=cond, sev=sev, given_k=given_k, detector=detector,
+                       mask=mask, annotations=annotations, location_frame=location_frame,
+                       project_3d=project_3d, progress=progress)
+
+
+@contextlib.contextmanager
+def import_folder(out: Path, src: Path, overwrite: bool, resume: bool) -> Iterator[str]:
+    """``--out`` of an import, made and held by this import alone (the project's lock); yields its state
+    (new, resume, overwrite: :func:`_out_state`, checked before anything is made and again under the
+    lock). A folder this import made is removed again when it fails before writing anything."""
     _out_state(out, src, overwrite, resume)  # refuse early, before anything is made
     created = not out.exists()
     try:
@@ -264,10 +275,7 @@ def import_dataset(fmt: str, src: str | os.PathLike, out: str | os.PathLike, *,
     try:
         with exclusive_folder(out, busy=f"another import is writing into {out}; wait for it to finish or choose "
                                         "another --out folder"):
-            state = _out_state(out, src, overwrite, resume)  # again, now that no other writer can change it
-            return _import(fmt, src, out, state, cmap=cmap, cond=cond, sev=sev, given_k=given_k, detector=detector,
-                           mask=mask, annotations=annotations, location_frame=location_frame,
-                           project_3d=project_3d, progress=progress)
+            yield _out_state(out, src, overwrite, resume)  # again, now that no other writer can change it
     except BaseException:
         if created:
             with contextlib.suppress(OSError):
