@@ -54,36 +54,51 @@ def _worker(conn: Any, env_fns: CloudpickleWrapper) -> None:
         except (EOFError, OSError):  # the main process is gone
             break
         try:
-            if cmd == "build":
-                venv = DummyVecEnv(env_fns.var)
-                result: Any = None
-            elif cmd == "step":
-                venv.step_async(data)
-                result = (*venv.step_wait(), list(venv.reset_infos))
-            elif cmd == "reset":
-                venv._seeds, venv._options = list(data[0]), list(data[1])
-                result = (venv.reset(), list(venv.reset_infos))
-            elif cmd == "get_attr":
-                result = venv.get_attr(data[0], data[1])
-            elif cmd == "set_attr":
-                result = venv.set_attr(data[0], data[1], data[2])  # type: ignore[func-returns-value]  # the reply: None
-            elif cmd == "env_method":
-                result = venv.env_method(data[0], *data[1], indices=data[3], **data[2])
-            elif cmd == "is_wrapped":
-                result = [is_wrapped(venv.envs[i], data[0]) for i in data[1]]
-            elif cmd == "get_images":
-                result = venv.get_images()
-            elif cmd == "close":
+            if cmd == "close":
                 if venv is not None:
                     venv.close()
-                conn.send(("ok", None))
+                _answer(conn, ("ok", None))
                 break
-            else:
-                raise RuntimeError(f"SplitVecEnv worker: unknown command {cmd!r} (a bug in weather-gym)")
-            conn.send(("ok", result))
+            venv, result = _handle(venv, env_fns, cmd, data)
+            reply: tuple[str, Any] = ("ok", result)
         except Exception as exc:  # noqa: BLE001 - sent to the main process and raised there
-            conn.send(("error", (_picklable(exc), traceback.format_exc())))
+            reply = ("error", (_picklable(exc), traceback.format_exc()))
+        if not _answer(conn, reply):
+            break
     conn.close()
+
+
+def _handle(venv: DummyVecEnv, env_fns: CloudpickleWrapper, cmd: str, data: Any) -> tuple[DummyVecEnv, Any]:
+    """One command of the main process on the worker's envs: ``(the envs, the reply's value)``."""
+    if cmd == "build":
+        return DummyVecEnv(env_fns.var), None
+    if cmd == "step":
+        venv.step_async(data)
+        return venv, (*venv.step_wait(), list(venv.reset_infos))
+    if cmd == "reset":
+        venv._seeds, venv._options = list(data[0]), list(data[1])
+        return venv, (venv.reset(), list(venv.reset_infos))
+    if cmd == "get_attr":
+        return venv, venv.get_attr(data[0], data[1])
+    if cmd == "set_attr":
+        return venv, venv.set_attr(data[0], data[1], data[2])  # type: ignore[func-returns-value]  # the reply: None
+    if cmd == "env_method":
+        return venv, venv.env_method(data[0], *data[1], indices=data[3], **data[2])
+    if cmd == "is_wrapped":
+        return venv, [is_wrapped(venv.envs[i], data[0]) for i in data[1]]
+    if cmd == "get_images":
+        return venv, venv.get_images()
+    raise RuntimeError(f"SplitVecEnv worker: unknown command {cmd!r} (a bug in weather-gym)")
+
+
+def _answer(conn: Any, message: tuple[str, Any]) -> bool:
+    """Send ``message`` to the main process; False when it stopped listening (it has gone, or gave up
+    waiting for a slow close on a loaded machine): then there is no one to answer, and no traceback."""
+    try:
+        conn.send(message)
+    except (BrokenPipeError, ConnectionResetError):
+        return False
+    return True
 
 
 def _picklable(exc: Exception) -> Exception | None:
