@@ -15,7 +15,7 @@ At 672x376 and 336x188, the rows taking turns call by call:
 
 The clears row is a diagnostic, not something the env does: the plugin offers no switch for it, so
 this script points the ``glClear`` entry of the plugin's GL pointer table
-(``weather_gym.sim.egl_gl_table.GLTableEntry``) at a scissoring one. Linux, 64-bit, with the EGL
+(``weather_gym.sim.egl.gl_table.GLTableEntry``) at a scissoring one. Linux, 64-bit, with the EGL
 plugin loading; otherwise it says why and exits.
 """
 
@@ -28,14 +28,15 @@ from functools import partial
 
 import numpy as np
 
-from weather_gym.bench._timing import interleaved_ms, machine_line, markdown_table
-from weather_gym.bench.sim import NAIVE_SIZES, _Driver, _driving_actions
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
+from weather_gym.lab.bench._timing import interleaved_ms, machine_line, markdown_table
+from weather_gym.lab.bench.sim import NAIVE_SIZES, _Driver, _driving_actions
 from weather_gym.pipeline import make_env
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim.baseline import naive_scene
 from weather_gym.sim.config import SimConfig
-from weather_gym.sim.egl_gl_table import (
+from weather_gym.sim.egl.elf_symbols import SymbolUnavailable
+from weather_gym.sim.egl.gl_table import (
     FOUR_INTS,
     GL_SCISSOR_TEST,
     ONE_ENUM,
@@ -43,7 +44,6 @@ from weather_gym.sim.egl_gl_table import (
     draw_framebuffer,
     gl_function,
 )
-from weather_gym.sim.elf_symbols import SymbolUnavailable
 
 
 class ScissoredClears:

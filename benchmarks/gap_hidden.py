@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from hidden_effects import CASES, FAMILY, hide  # noqa: E402
 
-from weather_gym.gap.workflow import GapConfig, run_gap  # noqa: E402
+from weather_gym.lab.gap.workflow import GapConfig, run_gap  # noqa: E402
 
 REAL_CASES = ("disc_blur", "jpeg", "box_motion", "falloff_cos4", "sensor_noise", "tone_gamma")
 SIM_CASES = ("disc_blur", "aniso_blur", "box_motion", "sensor_noise", "tone_gamma", "tone_scurve", "falloff_cos4",
@@ -44,9 +44,9 @@ FAST = dict(fit_frames=12, bootstrap=500, perception=False)
 def real_clear(root: Path) -> Path | None:
     from conftest import REAL_FRAMES, REAL_INTRINSICS, shared_dir
 
-    from weather_gym.datasets.coco import load_coco
-    from weather_gym.datasets.importers import import_dataset
-    from weather_gym.datasets.masks import propose_mask, set_dataset_mask, write_mask
+    from weather_gym.lab.datasets.coco import load_coco
+    from weather_gym.lab.datasets.importers import import_dataset
+    from weather_gym.lab.datasets.masks import propose_mask, set_dataset_mask, write_mask
 
     src = shared_dir() / REAL_FRAMES
     if not (src / "images").is_dir():
@@ -63,8 +63,8 @@ def real_clear(root: Path) -> Path | None:
 def sim_clean(root: Path) -> Path:
     from gap_cases import CLEAN_FRAMES, GAP_CAMERA
 
-    from weather_gym.camera_isp import CameraModel
-    from weather_gym.datasets import render_dataset
+    from weather_gym.camera.isp import CameraModel
+    from weather_gym.lab.datasets import render_dataset
 
     out = root / "sim_clean"
     if not (out / "annotations.json").is_file():
@@ -84,7 +84,7 @@ def run_case(setting: str, case: str, root: Path) -> dict:
                          plots=False, overwrite=True)
     else:
         clean = sim_clean(root)
-        from weather_gym.camera_isp import CameraModel
+        from weather_gym.camera.isp import CameraModel
 
         measured = hide(clean, root / "data" / f"{setting}_{case}", case, strip_poses=setting == "unpaired")
         cfg = GapConfig(**FAST) if setting == "paired" else GapConfig(

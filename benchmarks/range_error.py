@@ -16,9 +16,9 @@ import argparse
 
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.camera_isp import CameraModel, CameraPipeline
-from weather_gym.datasets.coco import load_coco
+from weather_gym.camera.config import CameraConfig
+from weather_gym.camera.isp import CameraModel, CameraPipeline
+from weather_gym.lab.datasets.coco import load_coco
 from weather_gym.perception import ConeDetector
 from weather_gym.perception.labels import hidden_mask
 from weather_gym.perception.ranging import range_from_depth

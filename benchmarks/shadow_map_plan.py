@@ -1,5 +1,5 @@
 """What planning a frame's shadow map costs: reading every body's pose and projecting what moved
-(``weather_gym.sim.egl_shadow_reuse.ShadowMapReuse``), per frame of a straight drive.
+(``weather_gym.sim.egl.shadow_reuse.ShadowMapReuse``), per frame of a straight drive.
 
     python benchmarks/shadow_map_plan.py [--frames 40] [--cases small_track:plain,fsds_training:realistic]
 
@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from weather_gym.bench._timing import machine_line, markdown_table
+from weather_gym.lab.bench._timing import machine_line, markdown_table
 from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.config import SimConfig
-from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse
+from weather_gym.sim.egl.shadow_reuse import ShadowMapReuse
 from weather_gym.sim.world import World
 from weather_gym.tracks import load_track
 

@@ -24,9 +24,9 @@ from pathlib import Path
 
 from weather_gym.agents.sb3 import model_sidecar
 from weather_gym.cli import run_command
-from weather_gym.errors import FileFormatError, MissingInputError
-from weather_gym.evaluation.evaluate import EvalConfig, evaluate
-from weather_gym.evaluation.report import report_replaceable, write_report
+from weather_gym.core.errors import FileFormatError, MissingInputError
+from weather_gym.lab.evaluation.evaluate import EvalConfig, evaluate
+from weather_gym.lab.evaluation.report import report_replaceable, write_report
 
 
 def find_sidecar(model: Path) -> Path:

@@ -35,10 +35,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="seed of the hidden weather's random numbers (default 4242, not the workflow's)")
     args = ap.parse_args(argv)
 
-    from weather_gym._io import atomic_write
-    from weather_gym.camera_isp import CameraModel
-    from weather_gym.datasets import render_dataset
-    from weather_gym.gap import degrade_dataset
+    from weather_gym.camera.isp import CameraModel
+    from weather_gym.core._io import atomic_write
+    from weather_gym.lab.datasets import render_dataset
+    from weather_gym.lab.gap import degrade_dataset
 
     clean, measured, model = args.out / "clean", args.out / "measured", args.out / "model.toml"
     t0 = time.perf_counter()

@@ -1,8 +1,8 @@
 """Train a stable-baselines3 PPO driver on the cone-list observation: ``weather-gym train`` as a script.
 
-The training lives in :mod:`weather_gym.rl.train` (logs, checkpoints with their ``.json`` metadata,
+The training lives in :mod:`weather_gym.lab.training.policy.train` (logs, checkpoints with their ``.json`` metadata,
 held-out evaluation, resume, a usable ``model.zip`` after Ctrl-C); this script takes the same options.
-Hyper-parameters come from ``weather_gym/rl/ppo.yml`` (rl-zoo3's format; ``--hyperparams`` for another
+Hyper-parameters come from ``weather_gym/lab/training/policy/ppo.yml`` (rl-zoo3's format; ``--hyperparams`` for another
 file); see ``docs/rl.md``.
 
 Usage:
@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 
 from weather_gym.cli import run_command
-from weather_gym.rl.train import (  # noqa: F401 - the script's public names, as before
+from weather_gym.lab.training.policy.train import (  # noqa: F401 - the script's public names, as before
     DEFAULT_NOISE,
     DEFAULT_TRACKS,
     LapSuccess,

@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from weather_gym._output_args import add_overwrite_arg
+from weather_gym.core._output_args import add_overwrite_arg
 from weather_gym.weather import EFFECTS, make
 
 KS = (0.25, 0.5, 0.75)
@@ -100,8 +100,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args) -> int:
-    from weather_gym._io import check_output, write_image
-    from weather_gym.datasets.coco import read_image
+    from weather_gym.core._io import check_output, write_image
+    from weather_gym.lab.datasets.coco import read_image
 
     check_output(args.out, overwrite=args.overwrite, suffixes=(".png",), what="--out")
     if args.synthetic:
@@ -116,7 +116,7 @@ def _run(args) -> int:
     only = tuple(n for n in args.only.split(",") if n)
     unknown = [n for n in only if n not in EFFECTS.names()]
     if unknown:
-        from weather_gym.errors import InputError
+        from weather_gym.core.errors import InputError
 
         raise InputError(f"--only: unknown effect(s) {', '.join(unknown)}; known: {', '.join(EFFECTS.names())}")
     out = grid(image, depth, state, seed=args.seed, only=only)

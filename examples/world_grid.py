@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from weather_gym._output_args import add_overwrite_arg
+from weather_gym.core._output_args import add_overwrite_arg
 
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "docs" / "img" / "world.png"
 
@@ -49,9 +49,9 @@ def main(argv: list[str] | None = None) -> int:
     add_overwrite_arg(p, help="overwrite --out if it exists")
     args = p.parse_args(argv)
 
-    from weather_gym._io import check_output, write_image
-    from weather_gym.camera_config import CameraConfig
-    from weather_gym.camera_isp import CameraModel
+    from weather_gym.camera.config import CameraConfig
+    from weather_gym.camera.isp import CameraModel
+    from weather_gym.core._io import check_output, write_image
     from weather_gym.envs import ConeTrackEnv, EnvConfig
     from weather_gym.sim.config import SimConfig
     from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK

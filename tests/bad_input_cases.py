@@ -2,7 +2,7 @@
 
 A :class:`Case` is either a command line (``argv``, run through ``weather_gym.cli.main`` in this
 process) or a Python call (``call(w)`` with ``w`` the :class:`World` of prepared files). Every case
-must fail cleanly: exit status 2 (CLI) or a :class:`weather_gym.errors.WeatherGymError` (Python),
+must fail cleanly: exit status 2 (CLI) or a :class:`weather_gym.core.errors.WeatherGymError` (Python),
 an ``error:`` line (or message) containing ``culprit``, no input changed and nothing written
 outside ``out``. ``{w}`` in ``argv``, ``culprit`` and ``out`` is the world folder.
 
@@ -57,8 +57,8 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 
 
 def _dataset(root: Path, frames: int) -> None:
-    from weather_gym.camera_config import CameraConfig
-    from weather_gym.datasets.coco import CocoWriter
+    from weather_gym.camera.config import CameraConfig
+    from weather_gym.lab.datasets.coco import CocoWriter
 
     cam = CameraConfig(width=W, height=H)
     with CocoWriter(root) as writer:
@@ -203,7 +203,7 @@ def _motion_blur(_w):
 
 
 def _run_cells_into_dir(w):
-    from weather_gym.evaluation.runner import run_cells
+    from weather_gym.lab.evaluation.runner import run_cells
 
     run_cells([{"x": 1}], _square, w["eval_resdir/results.csv"], backend="serial", progress=False)
 
@@ -213,7 +213,7 @@ def _square(cell):
 
 
 def _evaluate_laps0(w):
-    from weather_gym.evaluation.evaluate import EvalConfig, evaluate
+    from weather_gym.lab.evaluation.evaluate import EvalConfig, evaluate
 
     evaluate(EvalConfig(agents=("gt_pure_pursuit",), effects=("droplets",), severities=(0,), seeds=(0,),
                         perception="oracle", laps=0), w["eval_new"], backend="serial", progress=False)
@@ -488,9 +488,9 @@ CASES: list[Case] = [
     Case("py-parse-empty-weather", "empty weather spec", call=lambda w: __import__(
         "weather_gym.weather", fromlist=["parse_weather"]).parse_weather("")),
     Case("py-load-coco-dotdot", "file_name", call=lambda w: __import__(
-        "weather_gym.datasets.coco", fromlist=["load_coco"]).load_coco(w["ds_dotdot"])),
+        "weather_gym.lab.datasets.coco", fromlist=["load_coco"]).load_coco(w["ds_dotdot"])),
     Case("py-degrade-dataset-absolute-file-name", "file_name", out="o_degraded", call=lambda w: __import__(
-        "weather_gym.gap", fromlist=["degrade_dataset"]).degrade_dataset(w["ds_abs"], w["o_degraded"], "blur:0.6")),
+        "weather_gym.lab.gap", fromlist=["degrade_dataset"]).degrade_dataset(w["ds_abs"], w["o_degraded"], "blur:0.6")),
     Case("py-load-track-huge-coordinates", "huge.csv", call=lambda w: __import__(
         "weather_gym.tracks", fromlist=["load_track"]).load_track(str(w["huge.csv"]))),
     Case("py-run-cells-results-path-is-a-folder", "results.csv", call=_run_cells_into_dir),
@@ -505,18 +505,18 @@ CASES: list[Case] = [
     Case("py-depth-quantile-above-1", "depth_quantile", call=lambda w: __import__(
         "weather_gym.perception.ranging", fromlist=["detections_to_cones"]).detections_to_cones(
             {"boxes": np.zeros((1, 4)), "scores": np.ones(1), "classes": np.zeros(1, int)},
-            __import__("weather_gym.camera_config", fromlist=["CameraConfig"]).CameraConfig(),
+            __import__("weather_gym.camera.config", fromlist=["CameraConfig"]).CameraConfig(),
             np.ones((376, 672), np.float32), depth_quantile=1.5)),
     Case("py-detector-corrupt-model", "corrupt.onnx", call=lambda w: __import__(
         "weather_gym.perception", fromlist=["ConeDetector"]).ConeDetector(w["corrupt.onnx"])),
     Case("py-render-dataset-zero-frames", "frames", out="o_render", call=lambda w: __import__(
-        "weather_gym.datasets.render", fromlist=["render_dataset"]).render_dataset(
+        "weather_gym.lab.datasets.render", fromlist=["render_dataset"]).render_dataset(
             w["o_render"], tracks=["oval"], frames=0, progress=False)),
     Case("py-evaluate-zero-laps", "laps", out="eval_new", call=_evaluate_laps0),
     Case("py-measured-table-bad-severity", "measured_bad.csv", call=lambda w: __import__(
-        "weather_gym.calibration.measured", fromlist=["load_measured"]).load_measured([str(w["measured_bad.csv"])])),
+        "weather_gym.lab.calibration.measured", fromlist=["load_measured"]).load_measured([str(w["measured_bad.csv"])])),
     Case("py-read-model-unknown-effect", "model_bad.toml", call=lambda w: __import__(
-        "weather_gym.gap.weather_model", fromlist=["read_model"]).read_model(w["model_bad.toml"])),
+        "weather_gym.lab.gap.weather_model", fromlist=["read_model"]).read_model(w["model_bad.toml"])),
 ]
 
 
@@ -547,7 +547,7 @@ def _input_output_sources(w: World) -> None:
 
     import torch
 
-    from weather_gym.perception.train import TrainConfig
+    from weather_gym.lab.training.detector.train import TrainConfig
 
     torch.save({"config": asdict(TrainConfig(seed=5)), "data": [str(w["ds"])]}, w["o_train/m.onnx.ckpt"])
 
@@ -613,7 +613,7 @@ CASES += [
     _cli("calibrate-curve-not-utf8", "latin1.csv", "calibrate", "--curve", "{w}/latin1.csv", "--measured",
          "{w}/measured_bad.csv", "--out", "{w}/o/p.toml", out="o"),
     Case("py-measured-table-not-utf8", "latin1.csv", call=lambda w: __import__(
-        "weather_gym.calibration.measured", fromlist=["load_measured"]).load_measured([str(w["latin1.csv"])])),
+        "weather_gym.lab.calibration.measured", fromlist=["load_measured"]).load_measured([str(w["latin1.csv"])])),
     Case("py-presets-base-not-utf8", "latin1.toml", call=lambda w: __import__(
         "weather_gym.weather.presets", fromlist=["load_presets"]).load_presets(w["latin1.toml"])),
     _cli("surrogate-fit-episode-without-weather", "weather", "surrogate", "fit", "{w}/log_noweather.npz", "--out",

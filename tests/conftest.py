@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 
 # The suite renders many thousands of EGL frames: it reuses PyBullet's shadow map between them (the
-# opt-in of weather_gym.sim.egl_shadow_reuse, whose frames are the default's to the byte, which
+# opt-in of weather_gym.sim.egl.shadow_reuse, whose frames are the default's to the byte, which
 # tests/sim/test_egl_shadow_reuse.py checks, as it checks that the default patches nothing). Set here,
 # before any test runs, so that the suite's subprocesses inherit it too; WEATHER_GYM_SHADOW_MAP_REUSE=0
 # runs the suite on the default path.
@@ -46,9 +46,9 @@ def real_frames_src() -> Path:
 def real_dataset(real_frames_src, tmp_path_factory) -> Path:
     """The real frames imported once per session (into pytest's temporary folder), with the proposed
     ego-vehicle mask stored; condition clear."""
-    from weather_gym.datasets.coco import load_coco
-    from weather_gym.datasets.importers import import_dataset
-    from weather_gym.datasets.masks import propose_mask, set_dataset_mask, write_mask
+    from weather_gym.lab.datasets.coco import load_coco
+    from weather_gym.lab.datasets.importers import import_dataset
+    from weather_gym.lab.datasets.masks import propose_mask, set_dataset_mask, write_mask
 
     out = tmp_path_factory.mktemp("real") / "clear"
     import_dataset("kitti", real_frames_src, out, intrinsics=REAL_INTRINSICS, condition="clear")

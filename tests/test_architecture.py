@@ -3,7 +3,7 @@
 Every ``import`` statement of the package is read from its source (those inside functions and
 methods too), so an upward dependency cannot hide in a function body. Three rules:
 
-1. a layer imports only the layers the table allows (``ALLOWED``);
+1. no import runs up a floor: a layer imports only the rows below it in pyproject.toml's import-linter contract;
 2. the heavy packages are imported only where the table allows them (``HEAVY``): PyBullet in the
    simulator, onnxruntime in perception, torch/onnx in training and the SB3 feature extractor, Ray in
    the evaluation runner;
@@ -19,67 +19,42 @@ methods too), so an upward dependency cannot hide in a function body. Three rule
 from __future__ import annotations
 
 import ast
+import tomllib
 from pathlib import Path
 
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "weather_gym"
 
-PLUMBING = {"registry", "_io", "_inputs", "_jit_cache", "_image_files", "_figures", "_output_args", "errors", "limits", "paths", "cone_spec",
-            "cone_arrays", "_lazy", "_toml", "_lock", "_confine", "_markdown", "point_cloud", "_option_alias"}
-"""Shared plumbing with no layer of its own: importable from anywhere, imports no layer."""
-
-SUBLAYERS = {"perception.train": "perception_tools", "perception.conenet": "perception_tools",
-             "perception.plots": "perception_tools",
-             "surrogate.record": "surrogate_tools", "surrogate.validate": "surrogate_tools"}
-"""Modules that sit above their package's layer: training and dataset-level reports need datasets;
-the surrogate's logging and validation drive full-pipeline episodes (a top layer, like evaluation)."""
-
-LOWER = {"plumbing"}
-ALLOWED: dict[str, set[str]] = {
-    "plumbing": set(),
-    "tracks": set(),
-    "camera": set(),
-    "weather": set(),
-    "lidar_weather": set(),
-    "sim": {"tracks", "camera"},
-    "envs": {"sim", "tracks", "camera", "weather"},
-    "perception": {"camera", "weather"},
-    "surrogate": {"perception", "weather", "camera"},
-    "wrappers": {"weather", "lidar_weather", "perception", "camera", "surrogate"},
-    "pipeline": {"envs", "weather", "wrappers", "perception", "surrogate", "root"},
-    "agents": {"tracks", "camera", "perception", "wrappers"},
-    "ros": {"camera", "weather", "perception"},
-    "datasets": {"envs", "sim", "tracks", "camera", "weather", "perception", "pipeline", "agents", "ros"},
-    "perception_tools": {"perception", "datasets", "camera", "weather"},
-    "viz": {"perception", "camera", "tracks"},
-}
-"""Layer -> the layers it may import (besides itself and the plumbing). Layers not listed here
-(evaluation, calibration, gap, bench, cli, the package root) sit on top and may import any layer below
-them, but not the CLI (only ``cli`` itself does)."""
-
-TOP = {"evaluation", "calibration", "gap", "bench", "cli", "root", "surrogate_tools", "rl"}
+PYPROJECT = PACKAGE.parent / "pyproject.toml"
+_CONTRACT = next(c for c in tomllib.loads(PYPROJECT.read_text())["tool"]["importlinter"]["contracts"]
+                 if c["type"] == "layers")
+ROWS: list[list[str]] = [[name.strip() for name in row.split("|")] for row in reversed(_CONTRACT["layers"])]
+"""The layers, bottom row first, as ``pyproject.toml``'s import-linter contract lists them (one place)."""
+RANK = {name: i for i, row in enumerate(ROWS) for name in row}
+"""Layer (a folder under ``weather_gym/``, ``lab.gap`` for one inside the lab) -> its row."""
 
 HEAVY: dict[str, set[str]] = {
     "pybullet": {"sim"},
     "pybullet_data": {"sim"},
-    "onnxruntime": {"perception", "bench"},
-    "torch": {"perception_tools", "agents", "bench", "rl"},
-    "onnx": {"perception_tools"},
-    "ray": {"evaluation", "cli"},
-    "stable_baselines3": {"agents", "rl"},
+    "onnxruntime": {"perception", "lab.bench"},
+    "torch": {"lab.training", "agents", "lab.bench"},
+    "onnx": {"lab.training"},
+    "ray": {"lab.evaluation", "cli"},
+    "stable_baselines3": {"agents", "lab.training"},
     "numba": {"sim", "surrogate", "tracks", "weather"},
 }
-"""Heavy package -> the layers that may import it. ``bench`` compares against a torch baseline;
+"""Heavy package -> the layers that may import it. ``lab.bench`` compares against a torch baseline;
 ``agents`` holds the SB3 feature extractor (a torch module); ``numba`` compiles the geometric ground
 truth (``sim.visibility``), the car's dynamics (``sim.car``), one point's centerline projection
-(``_track_kernel``, imported by ``Track`` on first use, so that loading a track does not load numba), the
+(``tracks._kernel``, imported by ``Track`` on first use, so that loading a track does not load numba), the
 refractive drops' blend, the sensor noise's pass and the motion smear's blend (``weather._drop_blend``,
 ``weather._noise_pass``, ``weather._near_blend``, each imported with the first frame that needs it, so that
-loading the weather layer does not load numba) and the surrogate's per-step draws (``surrogate.sample``, ``surrogate.point``'s crowding) and stays out of the
-other layers (its import takes about a second, a compile seconds on a cold cache)."""
+loading the weather layer does not load numba) and the surrogate's per-step draws (``surrogate.sample``,
+``surrogate.point``'s crowding) and stays out of the other layers (its import takes about a second, a
+compile seconds on a cold cache)."""
 
-NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"tracks", "camera", "sim", "weather", "lidar_weather"}}
+NEVER_IMPORTED_BY: dict[str, set[str]] = {"gymnasium": {"core", "tracks", "camera", "sim", "weather", "lidar_weather"}}
 
 
 def _modules() -> dict[str, Path]:
@@ -94,29 +69,17 @@ MODULES = _modules()
 
 
 def layer_of(module: str) -> str | None:
-    """The layer of a ``weather_gym`` module (None for anything else)."""
+    """The layer of a ``weather_gym`` module: the deepest folder on its path that the rows name
+    (``None`` for anything else; ``"root"`` for the package itself, the lab's own ``__init__`` and the
+    deprecated aliases in ``_moved/``, which belong to no layer)."""
     parts = module.split(".")
     if parts[0] != "weather_gym":
         return None
-    if len(parts) == 1:
-        return "root"
-    rest = ".".join(parts[1:])
-    for prefix, sub in SUBLAYERS.items():
-        if rest == prefix or rest.startswith(prefix + "."):
-            return sub
-    head = parts[1]
-    if head in PLUMBING:
-        return "plumbing"
-    if head in ("tracks", "_track", "_track_csv", "_track_geometry", "_track_kernel", "_track_layout",
-                "track_plot"):
-        return "tracks"
-    if head == "perception_modes":  # the registry of perception modes: the pipeline builder's layer
-        return "pipeline"
-    if head in ("camera_config", "camera_isp"):
-        return "camera"
-    if head == "__version__":
-        return "root"
-    return head
+    for n in range(len(parts), 1, -1):
+        name = ".".join(parts[1:n])
+        if name in RANK:
+            return name
+    return "root"
 
 
 def _catches_import_error(handler: ast.ExceptHandler) -> bool:
@@ -186,28 +149,37 @@ def test_the_scan_sees_imports_inside_functions(tmp_path):
     assert ("weather_gym.envs.cone_track", True) in found          # hidden upward import: seen
     assert ("yaml", False) in found                                # optional dependency: allowed
     assert layer_of("weather_gym.sim.world") == "sim"
-    assert layer_of("weather_gym.perception.train") == "perception_tools"
-    assert layer_of("weather_gym.errors") == "plumbing"
+    assert layer_of("weather_gym.lab.training.detector.train") == "lab.training"
+    assert layer_of("weather_gym.core.errors") == "core"
+    assert layer_of("weather_gym._moved.errors") == "root"
     assert layer_of("numpy") is None
 
 
 @pytest.mark.parametrize("module", sorted(MODULES))
-def test_layers_import_only_what_the_table_allows(module):
+def test_no_import_runs_up_a_floor(module):
+    """A layer imports only rows below its own: not a row above, not a neighbour in its own row."""
     src = layer_of(module)
     bad = []
     for target, line, _ in IMPORTS[module]:
         dst = layer_of(target)
-        if dst is None or dst == src or dst == "plumbing":
+        if dst is None or dst == src or src == "root":
             continue
-        if src == "plumbing":
-            bad.append((line, target, "plumbing imports no layer"))
-        elif dst == "cli":
-            bad.append((line, target, "only the CLI imports the CLI"))
-        elif src in TOP:
-            continue
-        elif dst not in ALLOWED.get(src, set()):
-            bad.append((line, target, f"layer {src!r} may import only {sorted(ALLOWED.get(src, set()))}"))
+        if dst == "root":
+            bad.append((line, target, "the package root, the lab's __init__ and the deprecated aliases are imported by no layer"))
+        elif RANK[dst] >= RANK[src]:
+            bad.append((line, target, f"{dst!r} is not below {src!r} in the rows of pyproject.toml"))
     assert not bad, f"{module}: " + "; ".join(f"line {ln}: imports {t} ({why})" for ln, t, why in bad)
+
+
+def test_every_folder_is_a_layer():
+    """The floor plan is the table: every folder of the package (but the lab wing's and the layers' own
+    sub-folders) is a row of the contract, and every row is a folder."""
+    folders = {".".join(p.relative_to(PACKAGE).parts) for p in PACKAGE.rglob("*") if p.is_dir()
+               and p.name not in ("__pycache__", "models") and not p.name.startswith("_")}
+    top = {f for f in folders if "." not in f or f.startswith("lab.") and f.count(".") == 1}
+    assert top - {"lab"} == set(RANK) - {"lab"}, (sorted(top - set(RANK)), sorted(set(RANK) - top))
+    loose = sorted(p.name for p in PACKAGE.glob("*.py") if p.name != "__init__.py")
+    assert loose == [], f"modules loose at the package's top: {loose}"
 
 
 @pytest.mark.parametrize("module", sorted(MODULES))
@@ -247,7 +219,7 @@ def test_training_a_detector_does_not_need_the_simulator():
              "        if name.split('.')[0] in ('pybullet', 'pybullet_data'):\n"
              "            raise ImportError(name)\n"
              "sys.meta_path.insert(0, NoSim())\n"
-             "import weather_gym.perception.train, weather_gym.datasets.coco\n")
+             "import weather_gym.lab.training.detector.train, weather_gym.lab.datasets.coco\n")
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
 
@@ -344,13 +316,13 @@ def test_no_import_cycle():
 
 
 def layer_graph() -> dict[str, set[str]]:
-    """Layer -> the layers its modules import (every import, inside functions too; plumbing left out)."""
+    """Layer -> the layers its modules import (every import, inside functions too)."""
     graph: dict[str, set[str]] = {}
     for module, imports in IMPORTS.items():
         src = layer_of(module)
         for target, _, _ in imports:
             dst = layer_of(target)
-            if dst is not None and dst not in (src, "plumbing"):
+            if dst is not None and dst != src:
                 graph.setdefault(src, set()).add(dst)
     return graph
 
@@ -362,7 +334,6 @@ def test_no_arrow_up_a_layer():
     assert not found, "layers import each other (one of these arrows runs up): " + "; ".join(
         ", ".join(f"{a} -> {b} ({where[(a, b)]})" for a in c for b in sorted(graph.get(a, ())) if b in c)
         for c in found)
-    assert not cycles({k: set(v) for k, v in ALLOWED.items()}), "the layer table itself allows a cycle"
 
 
 

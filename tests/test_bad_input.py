@@ -1,6 +1,6 @@
 """Bad input, over every sub-command and the main Python entry points: each fails cleanly.
 
-Clean means: exit status 2 (or a :class:`weather_gym.errors.WeatherGymError` from Python), an
+Clean means: exit status 2 (or a :class:`weather_gym.core.errors.WeatherGymError` from Python), an
 ``error:`` line that names the culprit (file, option, key or value), no input file changed, nothing
 written outside the case's output folder, and no more than a few seconds spent. The cases are the
 table in ``tests/bad_input_cases.py``; add yours there.
@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bad_input_cases import CASES, Case, World, build_world  # noqa: E402
 
 try:
-    from weather_gym.errors import WeatherGymError
+    from weather_gym.core.errors import WeatherGymError
 except ModuleNotFoundError:  # an old checkout (the "before" count of docs/reliability.md)
     WeatherGymError = (ValueError, OSError)  # type: ignore[assignment,misc]  # the stand-in on an old checkout
 

@@ -42,7 +42,7 @@ DOC_BLOCKS = _doc_blocks()
 
 
 def _unguarded_vec_calls(source: str) -> list[int]:
-    from weather_gym.pipeline import _is_main_guard
+    from weather_gym.pipeline.builder import _is_main_guard
 
     tree = ast.parse(source)
     out = []

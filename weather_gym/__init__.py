@@ -11,11 +11,15 @@ Example:
 
 from __future__ import annotations
 
+from pathlib import Path as _Path
+
+from weather_gym.core._lazy import lazy_exports
+from weather_gym.core.version import __version__
 from weather_gym.envs.registration import register_envs as _register
 
-__version__ = "0.1.0"
-
-from weather_gym._lazy import lazy_exports
+# the old import paths (weather_gym.errors, weather_gym.evaluation, ...): one alias file each, found on the
+# package's own path; see weather_gym.core.moved
+__path__.append(str(_Path(__file__).with_name("_moved")))
 
 _LAZY = {"make_env": "weather_gym.pipeline", "make_vec_env": "weather_gym.pipeline",
          "PERCEPTION_MODES": "weather_gym.pipeline"}

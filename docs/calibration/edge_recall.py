@@ -5,7 +5,7 @@ low-light preset (weather seed ``--seed``: the frames of the transfer check's ce
 and the blue and yellow cones' recall at the detector's operating score (pycocotools' matching at IoU
 0.5, as in every recall the project reports) is split by where the cone's box is: cut by the frame
 (a side within ``CUT_PX`` of the frame's border), else by whether its centre lies beyond
-``EDGE_RADIUS`` (:mod:`weather_gym.datasets.frame_position`) of the frame's half-diagonal ellipse
+``EDGE_RADIUS`` (:mod:`weather_gym.lab.datasets.frame_position`) of the frame's half-diagonal ellipse
 ("edge") or inside it ("centre"), and by the cone's distance (``RANGE_EDGES_M``); and each of those
 by its surroundings in the clean frame: grass when the mean colour of the strips beside and below its
 box (half its height wide) is green by more than ``GREEN_MARGIN`` code values over red and blue, else
@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.datasets.coco import load_coco
-from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_radius
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.lab.datasets.coco import load_coco
+from weather_gym.lab.datasets.frame_position import EDGE_RADIUS, edge_radius
 from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.labels import xyxy_to_xywh
 from weather_gym.perception.scoring import score_dataset

@@ -26,14 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym.calibration.sweep import (
+from weather_gym.lab.calibration.sweep import (
     KEY_FIELDS,
     SweepEffect,
     make_sweep_cells,
     metric_by_cell,
     run_sweep_cell,
 )
-from weather_gym.evaluation.runner import run_cells
+from weather_gym.lab.evaluation.runner import run_cells
 from weather_gym.weather import make
 from weather_gym.weather.presets import load_presets
 

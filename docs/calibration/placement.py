@@ -3,7 +3,7 @@
 At the steep low-light presets the held-out tracks spread by more than a preset may miss by. This
 script puts each set's relative mAP (from ``transfer.py`` outputs) next to two properties of the set:
 the share of its blue and yellow cones that the camera sees near the frame's edge
-(:mod:`weather_gym.datasets.frame_position`: box centre beyond 0.8 of the frame's half-diagonal
+(:mod:`weather_gym.lab.datasets.frame_position`: box centre beyond 0.8 of the frame's half-diagonal
 ellipse, the corners and the far left and right; `weather-gym dataset info` prints it too), and the
 mean absolute yaw rate of the car over the set's frames (the turns' motion blur). It writes
 ``OUT/placement.csv`` (one row per set), ``OUT/placement.md`` (per preset: the correlation of relative
@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym.datasets.coco import load_coco
-from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_share
+from weather_gym.lab.datasets.coco import load_coco
+from weather_gym.lab.datasets.frame_position import EDGE_RADIUS, edge_share
 
 PRESETS = (("low_light", 1), ("low_light", 2), ("low_light", 3), ("droplets", 4))
 TOLERANCE = 0.05

@@ -20,7 +20,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from weather_gym.calibration.curve import load_curves  # noqa: E402
+from weather_gym.lab.calibration.curve import load_curves  # noqa: E402
 
 PANELS = {
     "droplets": (("droplets", "faithful (the study's white discs)"), ("droplets_refractive", "refractive (shipped)")),

@@ -1,6 +1,6 @@
 """Before and after: the shipped pool presets and the presets resolved per scenario, on held-out scenarios.
 
-For each scenario: resolve the presets (``weather_gym.calibration.resolve.resolve_presets``; its own
+For each scenario: resolve the presets (``weather_gym.lab.calibration.resolve.resolve_presets``; its own
 reference set, cached), render a *different* 80-frame set of the same scenario (seed 4242), and score the
 detector there at the pool k and at the resolved k of every study row, 5 weather seeds each (relative
 mAP@0.5 over blue and yellow, mean and sd over seeds). Writes ``OUT/resolved_check.csv`` and ``.md``, and
@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym.calibration.resolve import Scenario, resolve_presets, write_resolved
-from weather_gym.calibration.resolve_plot import plot_resolution
-from weather_gym.datasets.coco import load_coco
-from weather_gym.datasets.render import render_dataset
+from weather_gym.lab.calibration.resolve import Scenario, resolve_presets, write_resolved
+from weather_gym.lab.calibration.resolve_plot import plot_resolution
+from weather_gym.lab.datasets.coco import load_coco
+from weather_gym.lab.datasets.render import render_dataset
 from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.scoring import score_dataset
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from transfer import _preset_effect, parse_set_args  # docs/calibration/transfer.py, beside this script
 
-from weather_gym.calibration.sweep import (
+from weather_gym.lab.calibration.sweep import (
     KEY_FIELDS,
     SweepCell,
     SweepEffect,
@@ -32,7 +32,7 @@ from weather_gym.calibration.sweep import (
     run_sweep_cell,
     score_cell,
 )
-from weather_gym.evaluation.runner import run_cells
+from weather_gym.lab.evaluation.runner import run_cells
 from weather_gym.weather import make
 
 TOLERANCE = 0.05

@@ -22,14 +22,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from weather_gym._figures import save_figure  # noqa: E402
-from weather_gym._io import atomic_file  # noqa: E402
 from weather_gym.agents import AGENTS  # noqa: E402
-from weather_gym.camera_config import CameraConfig  # noqa: E402
+from weather_gym.camera.config import CameraConfig  # noqa: E402
+from weather_gym.core._figures import save_figure  # noqa: E402
+from weather_gym.core._io import atomic_file  # noqa: E402
+from weather_gym.core.point_cloud import LABELS  # noqa: E402
 from weather_gym.lidar_weather import LIDAR_EFFECTS, parse_lidar_weather  # noqa: E402
 from weather_gym.perception.lidar_cones import cones_from_points  # noqa: E402
 from weather_gym.perception.lidar_scoring import LidarScoring  # noqa: E402
-from weather_gym.point_cloud import LABELS  # noqa: E402
 from weather_gym.sim.config import SimConfig  # noqa: E402
 from weather_gym.sim.lidar_config import LidarConfig  # noqa: E402
 from weather_gym.sim.world import World  # noqa: E402

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import cone_height
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_spec import cone_height
 from weather_gym.perception.cones import pack_cones
 from weather_gym.sim.car import Car
 from weather_gym.sim.config import CarConfig

@@ -8,7 +8,7 @@ import pytest
 
 from weather_gym.agents import agent_factory, agent_observes, make_agent
 from weather_gym.cli import main
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 MODULE = '''
 import numpy as np

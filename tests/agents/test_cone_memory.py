@@ -9,7 +9,7 @@ import pytest
 
 from weather_gym.agents.cone_memory import ConeMemory, ConeMemoryConfig
 from weather_gym.agents.mapper import MapperConfig
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.perception.cones import FIELD, cone_list_space, unpack_cones
 
 N = cone_list_space()["mask"].shape[0]

@@ -16,7 +16,7 @@ from weather_gym.agents.pure_pursuit import (
     resample_path,
     speed_profile,
 )
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.tracks import TRACKS, load_track
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from weather_gym.agents import AGENTS
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 
 CAMERA = CameraConfig(width=336, height=188)
 
@@ -47,8 +47,8 @@ def test_stack_laps_hairpin_with_degraded_perception(make_env):
 def test_stack_laps_the_realistic_world_from_the_shipped_detector():
     # clutter, shadows and a real camera's rendition: the seed on which far, long-ranged detections
     # once left ghost cones behind the real ones and took the car off the track after 60 m
-    from weather_gym.agents import run_episode
     from weather_gym.pipeline import make_env
+    from weather_gym.pipeline.episode import run_episode
 
     env = make_env("WeatherGym/ConeTrackRealistic-v0", perception="detector", track="small_track",
                    max_episode_steps=3000)

@@ -7,7 +7,7 @@ import pytest
 from agent_sim import SyntheticCones
 
 from weather_gym.agents.mapper import ConeMapper, MapperConfig
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.perception.cones import unpack_cones
 from weather_gym.tracks import load_track
 

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from weather_gym.paths import PPO_CONES_MODEL
+from weather_gym.core.paths import PPO_CONES_MODEL
 
 
 def test_the_shipped_policy_is_small_and_documented():
@@ -23,7 +23,7 @@ def test_ppo_cones_reads_the_cone_list_through_the_memory_it_was_trained_with():
     pytest.importorskip("stable_baselines3")
     from weather_gym.agents import AGENTS
     from weather_gym.agents.cone_memory import ConeMemoryConfig
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
 
     meta = json.loads(PPO_CONES_MODEL.with_suffix(".json").read_text())
     agent = AGENTS.get("ppo_cones")(None, CameraConfig())
@@ -56,8 +56,9 @@ def test_ppo_cones_drives_from_a_cone_list():
 def test_ppo_cones_leaves_the_start_line_and_laps_a_held_out_track():
     """The failure it replaces: a policy that stood at the start line until the time limit."""
     pytest.importorskip("stable_baselines3")
-    from weather_gym.agents import AGENTS, run_episode
+    from weather_gym.agents import AGENTS
     from weather_gym.pipeline import make_env
+    from weather_gym.pipeline.episode import run_episode
 
     env = make_env(perception="surrogate", weather="droplets@2", track="small_track", max_episode_steps=1200)
     meta = json.loads(PPO_CONES_MODEL.with_suffix(".json").read_text())
@@ -78,8 +79,9 @@ def test_ppo_cones_laps_the_mirror_image_of_a_training_track(name, weather):
     frame's cones (no cone memory) hit up to 3 cones there at droplets S3 and left it at low light S1,
     where the cone list is thinnest (CHANGELOG.md)."""
     pytest.importorskip("stable_baselines3")
-    from weather_gym.agents import AGENTS, run_episode
+    from weather_gym.agents import AGENTS
     from weather_gym.pipeline import make_env
+    from weather_gym.pipeline.episode import run_episode
 
     env = make_env(perception="surrogate", weather=weather, track=f"mirror:{name}", max_episode_steps=1200)
     agent = AGENTS.get("ppo_cones")(env.unwrapped.track, env.unwrapped.config.camera)
@@ -94,8 +96,9 @@ def test_ppo_cones_laps_on_perfect_cones_too():
     """Geometric ground truth lists every cone in view, to 70 m; the driver, cloned on the surrogate's
     lists (which thin out near 30 m), hit 4-6 cones a lap here when it read them all (CHANGELOG.md)."""
     pytest.importorskip("stable_baselines3")
-    from weather_gym.agents import AGENTS, run_episode
+    from weather_gym.agents import AGENTS
     from weather_gym.pipeline import make_env
+    from weather_gym.pipeline.episode import run_episode
 
     env = make_env(perception="gt_cones", track="random:100", max_episode_steps=1200)
     agent = AGENTS.get("ppo_cones")(env.unwrapped.track, env.unwrapped.config.camera)

@@ -8,7 +8,7 @@ from agent_sim import SyntheticCones, drive
 
 from weather_gym.agents import AGENTS
 from weather_gym.agents.skidpad import SkidpadConfig, SkidpadPlanner, skidpad_cones
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.tracks import load_track
 
 

@@ -7,7 +7,7 @@ import pytest
 from agent_sim import SyntheticCones, drive
 
 from weather_gym.agents import AGENTS, Agent
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.tracks import load_track
 
 DRIFT = {"scale_error": 0.005, "gyro_bias": 0.002}  # about the env's odometry errors

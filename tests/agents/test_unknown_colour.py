@@ -7,7 +7,7 @@ import pytest
 
 from weather_gym.agents.mapper import ConeMapper
 from weather_gym.agents.planner import CenterlinePlanner
-from weather_gym.cone_spec import UNKNOWN_CLASS
+from weather_gym.core.cone_spec import UNKNOWN_CLASS
 from weather_gym.tracks import load_track
 
 

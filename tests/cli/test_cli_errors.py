@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from weather_gym.cli import INTERNAL_ERROR, main, run_command
-from weather_gym.errors import (
+from weather_gym.core.errors import (
     FileFormatError,
     InputError,
     LimitError,

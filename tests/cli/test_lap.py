@@ -191,7 +191,7 @@ def test_json_gives_the_result_machine_readable(capsys, tmp_path):
 
 
 def test_a_csv_track_is_printed_by_its_name(tmp_path, capsys):
-    from weather_gym.paths import data_dir
+    from weather_gym.core.paths import data_dir
 
     csv = tmp_path / "my_test_day.csv"
     csv.write_text((data_dir("tracks") / "eufs" / "Hairpin_02_03_2023.csv").read_text())

@@ -1,7 +1,7 @@
 """Long writers take their output for themselves: a second run into the same output is refused up front.
 
 ``dataset render``, ``gap``, ``surrogate log`` and ``detector train`` hold a lock on their output
-(``weather_gym._io.exclusive``) for the whole run; here the lock is held by this test, as a first run
+(``weather_gym.core._io.exclusive``) for the whole run; here the lock is held by this test, as a first run
 would, and the command must stop at once with exit status 2 and leave the output alone.
 """
 
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import pytest
 
-from weather_gym._io import exclusive
 from weather_gym.cli import main
+from weather_gym.core._io import exclusive
 
 
 def _refused(argv, capsys) -> str:

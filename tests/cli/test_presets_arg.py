@@ -6,7 +6,7 @@ import pytest
 
 from weather_gym.cli import build_parser
 from weather_gym.cli._presets_arg import env_scenario, presets_from_arg
-from weather_gym.errors import FileFormatError, MissingInputError, ResolutionError
+from weather_gym.core.errors import FileFormatError, MissingInputError, ResolutionError
 from weather_gym.weather.presets import DEFAULT_PRESETS
 
 

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 import weather_gym  # noqa: F401  (registers the ids)
-from weather_gym.camera_isp import CameraModel
+from weather_gym.camera.isp import CameraModel
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.sim.config import SimConfig

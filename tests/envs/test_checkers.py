@@ -179,8 +179,8 @@ def test_a_detector_or_surrogate_model_object_rebuilds_from_the_spec():
 def test_a_refused_first_reset_leaves_the_env_usable_and_checked(kwargs, bad):
     """Gymnasium's checker marks its reset check done before the reset runs; a refused first reset then
     broke the first step after a valid reset (TypeError inside Gymnasium). The ids' checker does not."""
+    from weather_gym.core.errors import InputError
     from weather_gym.envs.checker import PassiveEnvCheckerSafeReset
-    from weather_gym.errors import InputError
 
     env = gym.make("WeatherGym/ConeTrackSmall-v0", camera=CAMERA, **kwargs)
     try:

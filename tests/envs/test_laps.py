@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from tests.conftest import drive_gt
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.tracks import SHIPPED
 
 TINY = CameraConfig(width=64, height=36)  # the camera is not what is tested here

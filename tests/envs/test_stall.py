@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from tests.conftest import drive_gt
+from weather_gym.core.errors import InputError
 from weather_gym.envs import END_REASONS, EnvConfig
 from weather_gym.envs.config import RewardConfig
-from weather_gym.errors import InputError
 
 CONES = "WeatherGym/ConeTrackCones-v0"
 STALL = {"stall_s": 3.0}

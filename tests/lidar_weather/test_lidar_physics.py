@@ -14,8 +14,8 @@ import math
 import numpy as np
 import pytest
 
+from weather_gym.core.point_cloud import PointCloud, label_id
 from weather_gym.lidar_weather import RAIN_SEVERITIES, SNOW_SEVERITIES, Fog, Rain, Snow, WetRoad
-from weather_gym.point_cloud import PointCloud, label_id
 
 TARGET, FOG, RAIN, SNOW = label_id("cone"), label_id("fog"), label_id("rain"), label_id("snow")
 

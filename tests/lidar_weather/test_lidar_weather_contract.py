@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.errors import InputError, LimitError
+from weather_gym.core.errors import InputError, LimitError
+from weather_gym.core.point_cloud import PointCloud, label_id
 from weather_gym.lidar_weather import (
     FOG_SEVERITIES,
     LIDAR_EFFECTS,
@@ -17,7 +18,6 @@ from weather_gym.lidar_weather import (
     mor_of,
     parse_lidar_weather,
 )
-from weather_gym.point_cloud import PointCloud, label_id
 
 NAMES = ["fog", "rain", "snow", "wet"]
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from weather_gym.datasets import load_coco, render_dataset
+from weather_gym.lab.datasets import load_coco, render_dataset
 from weather_gym.perception import ConeDetector, score_dataset
 
 pytestmark = pytest.mark.slow

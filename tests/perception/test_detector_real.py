@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import pytest
 
-from weather_gym.datasets import load_coco
+from weather_gym.lab.datasets import load_coco
 from weather_gym.perception import ConeDetector, score_dataset
 
 pytestmark = pytest.mark.slow  # the import and the mask proposal read 23 real frames

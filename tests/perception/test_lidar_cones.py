@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import UNKNOWN_CLASS
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_spec import UNKNOWN_CLASS
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import pack_cones, unpack_cones
 from weather_gym.perception.lidar_cones import LidarConeConfig, cones_from_points
 from weather_gym.perception.lidar_scoring import LidarScoring

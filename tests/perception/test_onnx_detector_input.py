@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from cone_synth import synth_frame
 
-from weather_gym.errors import InputError, LimitError
+from weather_gym.core.errors import InputError, LimitError
 from weather_gym.perception.detector_spec import DetectorSpec, detector_id, load_detector, parse_detector_spec
 from weather_gym.perception.onnx_detector import ConeDetector, input_size_for
 

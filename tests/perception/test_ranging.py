@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import FIELD, unpack_cones
 from weather_gym.perception.ranging import cones_to_observation, detections_to_cones, range_from_depth
 
@@ -123,7 +123,7 @@ def test_a_calibrated_stack_undoes_the_lens_before_bearing_and_range():
     """Through a distorting camera model a box lands elsewhere and bigger (barrel distortion, zoom);
     with the lens's inverse (``CameraPipeline.undistort_points``) the bearing and the box-height range
     are those of the pinhole box again, without it they are off."""
-    from weather_gym.camera_isp import CameraModel, CameraPipeline
+    from weather_gym.camera.isp import CameraModel, CameraPipeline
 
     cam = CameraConfig()
     pipe = CameraPipeline(CameraModel.realistic(), cam.width, cam.height, fx=cam.fx, cx=cam.cx, cy=cam.cy)

@@ -99,7 +99,7 @@ def test_detections_objects_and_bad_input():
 def test_coco_dataset_input(tmp_path):
     from cone_synth import write_synth_dataset
 
-    from weather_gym.datasets.coco import load_coco
+    from weather_gym.lab.datasets.coco import load_coco
 
     ds = load_coco(write_synth_dataset(tmp_path / "d", 3))
     dets = [_det(ds.gt(i)["boxes"], [0.9] * len(ds.gt(i)["boxes"]), ds.gt(i)["classes"]) for i in range(len(ds))]

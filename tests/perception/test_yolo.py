@@ -191,7 +191,7 @@ def test_every_command_takes_the_detector_options(tmp_path, capsys):
 
     from weather_gym.cli import main
     from weather_gym.cli.evaluate import _perception_kwargs
-    from weather_gym.datasets.coco import CocoWriter
+    from weather_gym.lab.datasets.coco import CocoWriter
 
     path = make_onnx(tmp_path / "m.onnx", {"output0": raw_v8()})
     with CocoWriter(tmp_path / "ds") as w:

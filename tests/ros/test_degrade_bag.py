@@ -16,7 +16,7 @@ from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 
 from weather_gym.cli import main  # noqa: E402
-from weather_gym.errors import FileFormatError, InputError, OutputExistsError, OutputPathError  # noqa: E402
+from weather_gym.core.errors import FileFormatError, InputError, OutputExistsError, OutputPathError  # noqa: E402
 from weather_gym.ros.degrade import degrade_bag  # noqa: E402
 from weather_gym.ros.messages import image_to_rgb  # noqa: E402
 from weather_gym.weather import parse_weather  # noqa: E402

@@ -14,9 +14,9 @@ from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.interfaces import QosDurability  # noqa: E402
 
-from weather_gym.camera_config import CameraConfig  # noqa: E402
+from weather_gym.camera.config import CameraConfig  # noqa: E402
 from weather_gym.cli import main  # noqa: E402
-from weather_gym.errors import OutputExistsError  # noqa: E402
+from weather_gym.core.errors import OutputExistsError  # noqa: E402
 from weather_gym.perception.cones import pack_cones  # noqa: E402
 from weather_gym.ros.episode_bag import ConeNoise, EpisodeBag  # noqa: E402
 from weather_gym.ros.messages import CONE_FIELDS  # noqa: E402
@@ -118,7 +118,7 @@ def test_the_cone_covariance_is_the_mappers_noise_model():
 def test_an_evaluation_cell_writes_its_bag_and_the_same_metrics(tmp_path):
     import math
 
-    from weather_gym.evaluation.evaluate import EvalConfig, bag_name, make_cells, run_cell
+    from weather_gym.lab.evaluation.evaluate import EvalConfig, bag_name, make_cells, run_cell
 
     cell, = make_cells(EvalConfig(effects=("droplets",), severities=(3,), seeds=(0,), tracks=("hairpin",),
                                   env_id="WeatherGym/ConeTrackSmall-v0", max_steps=5))

@@ -14,9 +14,9 @@ pytest.importorskip("rosbags")
 from _make_bags import DT, T0, frame, ros1_bag, ros2_bag  # noqa: E402
 
 from weather_gym.cli import main  # noqa: E402
-from weather_gym.datasets.coco import load_coco  # noqa: E402
-from weather_gym.datasets.import_rosbag import import_rosbag  # noqa: E402
-from weather_gym.errors import FileFormatError, InputError, OutputExistsError  # noqa: E402
+from weather_gym.core.errors import FileFormatError, InputError, OutputExistsError  # noqa: E402
+from weather_gym.lab.datasets.coco import load_coco  # noqa: E402
+from weather_gym.lab.datasets.import_rosbag import import_rosbag  # noqa: E402
 from weather_gym.ros.camera import Window  # noqa: E402
 
 
@@ -72,7 +72,7 @@ def test_truncated_bag_is_a_typed_error_and_nothing_is_written(tmp_path, kind):
 
 
 def test_an_interrupted_import_resumes(tmp_path, monkeypatch):
-    from weather_gym.datasets import import_rosbag as mod
+    from weather_gym.lab.datasets import import_rosbag as mod
 
     bag = ros2_bag(tmp_path / "run", n=5)
     real, calls = mod.write_image, []
@@ -121,7 +121,7 @@ def test_cli_import(tmp_path, capsys):
 
 
 def test_without_rosbags_the_error_names_the_pip_command(tmp_path, monkeypatch):
-    from weather_gym.errors import MissingDependencyError
+    from weather_gym.core.errors import MissingDependencyError
     from weather_gym.ros import _deps
 
     monkeypatch.setattr(_deps, "_LIB", False)

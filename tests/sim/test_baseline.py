@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.sim.baseline import naive_scene
 
 

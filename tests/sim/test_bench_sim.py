@@ -3,9 +3,9 @@
 
 from __future__ import annotations
 
-from weather_gym.bench import sim as bench_sim
 from weather_gym.cli import main
-from weather_gym.sim import egl_shadow_map
+from weather_gym.lab.bench import sim as bench_sim
+from weather_gym.sim.egl import shadow_map as egl_shadow_map
 
 
 def test_bench_sim_naive_prints_the_baseline_and_the_default_env(monkeypatch, capsys):
@@ -32,8 +32,7 @@ def test_bench_sim_naive_says_why_the_shadow_map_row_is_missing(monkeypatch, cap
 
 
 def test_bench_sim_naive_times_the_opt_in_reuse_beside_the_default(monkeypatch, capsys):
-    from weather_gym.sim import egl_shadow_reuse
-
+    from weather_gym.sim.egl import shadow_reuse as egl_shadow_reuse
     monkeypatch.setattr(bench_sim, "NAIVE_SIZES", ((96, 54),))
     if egl_shadow_reuse._hook is not None:  # this process's hook (the suite runs with the reuse on)
         egl_shadow_reuse._hook._entry.release()

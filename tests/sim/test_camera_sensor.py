@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.sim.camera_sensor import CameraSensor, depth_from_zbuffer
 from weather_gym.sim.look import DEFAULT_LOOK
 from weather_gym.sim.textures import sky_panorama

@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.errors import InputError
 from weather_gym.sim.cast_shadows import (
     MAX_SHADOW_M,
     ShadowCaster,

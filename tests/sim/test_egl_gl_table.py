@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from weather_gym.sim import egl_shadow_reuse, renderer
-from weather_gym.sim.egl_gl_table import ONE_ENUM, GLTableEntry
-from weather_gym.sim.elf_symbols import SymbolUnavailable
+from weather_gym.sim import renderer
+from weather_gym.sim.egl import shadow_reuse as egl_shadow_reuse
+from weather_gym.sim.egl.elf_symbols import SymbolUnavailable
+from weather_gym.sim.egl.gl_table import ONE_ENUM, GLTableEntry
 
 
 @pytest.fixture

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.errors import InputError
-from weather_gym.sim import egl_shadow_map
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.errors import InputError
 from weather_gym.sim.config import SimConfig
+from weather_gym.sim.egl import shadow_map as egl_shadow_map
 from weather_gym.sim.world import World
 from weather_gym.tracks import load_track
 

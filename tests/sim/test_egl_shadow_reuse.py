@@ -1,5 +1,5 @@
 """EGL frames that keep the shadow map of the frame before and redraw only where something moved
-(``weather_gym.sim.egl_shadow_reuse``): the frames (the camera's and the chase view's) must keep the
+(``weather_gym.sim.egl.shadow_reuse``): the frames (the camera's and the chase view's) must keep the
 bytes of frames whose whole map is redrawn, through knocked cones, new looks, chase views in between
 and several worlds at once; a map drawn outside the plan (a frame of your own) makes the next one whole.
 It is off unless switched on, checks itself with a probe frame, and touches ``sys.unraisablehook``
@@ -15,10 +15,10 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from weather_gym.errors import InputError
-from weather_gym.sim import egl_shadow_reuse
+from weather_gym.core.errors import InputError
 from weather_gym.sim.config import SimConfig
-from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse, light_basis, texel_rect
+from weather_gym.sim.egl import shadow_reuse as egl_shadow_reuse
+from weather_gym.sim.egl.shadow_reuse import ShadowMapReuse, light_basis, texel_rect
 from weather_gym.sim.look import sample_look
 from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
@@ -89,9 +89,9 @@ def test_a_switch_that_is_neither_on_nor_off_is_refused(monkeypatch):
 
 DEFAULT_FRAME = """
 import sys
-from weather_gym.sim import egl_shadow_reuse
-from weather_gym.sim.egl_gl_table import _proc_address
-from weather_gym.sim.elf_symbols import loaded_symbol
+from weather_gym.sim.egl import shadow_reuse as egl_shadow_reuse
+from weather_gym.sim.egl.gl_table import _proc_address
+from weather_gym.sim.egl.elf_symbols import loaded_symbol
 from weather_gym.sim.renderer import _egl_plugin_path
 from weather_gym.sim.world import World
 from weather_gym.tracks import load_track

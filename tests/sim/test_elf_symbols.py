@@ -6,7 +6,7 @@ import pybullet
 import pytest
 
 from weather_gym.sim import renderer
-from weather_gym.sim.elf_symbols import SymbolUnavailable, elf_symbol, load_address, loaded_symbol
+from weather_gym.sim.egl.elf_symbols import SymbolUnavailable, elf_symbol, load_address, loaded_symbol
 from weather_gym.sim.renderer import _egl_plugin_path
 
 

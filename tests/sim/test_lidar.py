@@ -6,8 +6,8 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from weather_gym.errors import InputError
-from weather_gym.point_cloud import label_id
+from weather_gym.core.errors import InputError
+from weather_gym.core.point_cloud import label_id
 from weather_gym.sim.config import SimConfig
 from weather_gym.sim.lidar_config import LidarConfig
 from weather_gym.sim.world import World

@@ -24,7 +24,7 @@ SCRIPT = textwrap.dedent('''
     import gymnasium as gym
     import numpy as np
     import weather_gym
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
 
     CAM = CameraConfig(width=64, height=36)
     ID = "WeatherGym/ConeTrack-v0"

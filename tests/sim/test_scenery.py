@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from tests.conftest import SMALL_CAMERA
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.errors import FileFormatError, InputError
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.errors import FileFormatError, InputError
 from weather_gym.sim.ego import clip_ground_truth, ego_overlay
 from weather_gym.sim.randomize import RandomizeRanges, sample_realistic
 from weather_gym.sim.scenery import CLEARANCE_M, clutter_layout, corridor_clearance
@@ -85,7 +85,7 @@ def test_randomize_ranges_from_toml(tmp_path):
 
 @pytest.fixture(scope="module")
 def realistic_env():
-    from weather_gym.camera_isp import CameraModel
+    from weather_gym.camera.isp import CameraModel
     from weather_gym.envs import ConeTrackEnv, EnvConfig
     from weather_gym.sim.config import SimConfig
 
@@ -172,7 +172,7 @@ def test_realistic_scene_defaults_to_the_realistic_look(realistic_env):
 def test_knocked_cone_leaves_no_contact_shadow_and_reset_restores_it():
     import pybullet as p
 
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
     from weather_gym.sim.config import SimConfig
     from weather_gym.sim.world import World
 

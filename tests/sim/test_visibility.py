@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from weather_gym.bench.gt import compare_ground_truth
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
+from weather_gym.lab.bench.gt import compare_ground_truth
 from weather_gym.sim.visibility import visible_cones
 from weather_gym.sim.world import World
 from weather_gym.tracks import load_track

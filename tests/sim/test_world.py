@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.sim.config import SimConfig
 from weather_gym.sim.ego import ego_overlay
 from weather_gym.sim.look import sample_look

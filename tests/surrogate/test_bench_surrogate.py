@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from weather_gym.bench import surrogate as bench_surrogate
 from weather_gym.cli import main
+from weather_gym.lab.bench import surrogate as bench_surrogate
 
 
 def test_paired_rates_interleave_the_blocks_of_both_envs(monkeypatch):

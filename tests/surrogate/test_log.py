@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.errors import FileFormatError, InputError
+from weather_gym.core.errors import FileFormatError, InputError
+from weather_gym.lab.training.surrogate.record import record
 from weather_gym.surrogate.log import (
     CONE_COLUMNS,
     FP_COLUMNS,
@@ -15,7 +16,6 @@ from weather_gym.surrogate.log import (
     match_detections,
     save_log,
 )
-from weather_gym.surrogate.record import record
 from weather_gym.weather.presets import preset_spec
 
 

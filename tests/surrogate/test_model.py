@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.surrogate.log import SurrogateLog
 from weather_gym.surrogate.model import SHIPPED_MODEL, fit, load_model, save_model
 

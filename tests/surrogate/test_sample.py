@@ -99,7 +99,7 @@ def test_the_fitting_cameras_samples_are_unchanged():
 
 def test_false_positives_logged_at_the_fitting_camera_land_in_the_same_place_of_another():
     model = load_model(SHIPPED_MODEL)
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
 
     point = model.point("droplets@3")
     big = FrameSampler(point, CameraConfig(width=1344, height=752), fit_camera=(672, 376))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.errors import MissingDependencyError
+from weather_gym.core.errors import MissingDependencyError
 from weather_gym.viz import video as video_mod
 from weather_gym.viz.video import VideoWriter, h264_available
 
@@ -134,7 +134,7 @@ def test_a_full_disk_is_a_typed_error_and_leaves_no_file(tmp_path, suffix):
 
 
 def test_a_video_is_not_started_on_a_full_disk(tmp_path, monkeypatch):
-    from weather_gym.errors import OutputPathError
+    from weather_gym.core.errors import OutputPathError
 
     class Full:
         f_bavail, f_frsize = 10, 4096

@@ -7,7 +7,7 @@ import pytest
 
 A = pytest.importorskip("albumentations")
 
-from weather_gym.errors import InputError  # noqa: E402
+from weather_gym.core.errors import InputError  # noqa: E402
 from weather_gym.weather import parse_weather  # noqa: E402
 from weather_gym.weather.augment import Weather  # noqa: E402
 

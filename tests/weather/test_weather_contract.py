@@ -233,8 +233,8 @@ def test_the_weather_layer_imports_only_numpy_opencv_and_the_stdlib():
                     assert top in allowed | kernels.get(path.name, set()) or top in sys.stdlib_module_names, \
                         f"{path.name} imports {name}"
                     if top == "weather_gym":
-                        assert name.startswith(("weather_gym.weather", "weather_gym.registry", "weather_gym.errors",
-                                                "weather_gym.limits", "weather_gym._jit_cache")), \
+                        assert name.startswith(("weather_gym.weather", "weather_gym.core.registry", "weather_gym.core.errors",
+                                                "weather_gym.core.limits", "weather_gym.core._jit_cache")), \
                             f"{path.name} imports {name} (the weather layer depends on nothing else)"
 
 

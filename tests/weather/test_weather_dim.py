@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather import make
 from weather_gym.weather._common import smooth
 from weather_gym.weather.dim import add_chroma_blotches, auto_exposure, black_level_lut

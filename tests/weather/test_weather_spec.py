@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather import (
     CONDITIONS,
     EFFECTS,

@@ -6,8 +6,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import FIELD, unpack_cones
 from weather_gym.perception.onnx_detector import Detections
 from weather_gym.wrappers import DetectorWrapper

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.perception.cones import FIELD, unpack_cones
 from weather_gym.wrappers.ground_truth import OracleNoise, oracle_cones
 

@@ -9,10 +9,10 @@ from gymnasium.utils.env_checker import check_env
 
 import weather_gym  # noqa: F401  (registers the ids)
 from weather_gym.cli.lap import _perception_kwargs
+from weather_gym.core.errors import InputError
 from weather_gym.envs import ConeTrackEnv, EnvConfig
-from weather_gym.errors import InputError
-from weather_gym.perception_modes import perception_mode
 from weather_gym.pipeline import make_env
+from weather_gym.pipeline.modes import perception_mode
 from weather_gym.sim.lidar_config import LidarConfig
 from weather_gym.wrappers.lidar import LidarConeWrapper
 

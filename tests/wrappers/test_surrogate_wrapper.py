@@ -7,7 +7,7 @@ import copy
 import numpy as np
 import pytest
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.pipeline import make_env
 from weather_gym.weather.presets import preset_spec
 

@@ -44,20 +44,23 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 import numpy as np
 
 from weather_gym.agents._checks import check_action
-from weather_gym.agents.episode_driver import EpisodeResult, run_episode
 from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
 from weather_gym.agents.sb3 import SB3Agent
 from weather_gym.agents.stack import MapperPurePursuit
-from weather_gym.errors import InputError
-from weather_gym.paths import PPO_CONES_MODEL
-from weather_gym.registry import Registry
+from weather_gym.core.errors import InputError
+from weather_gym.core.moved import deprecated_exports
+from weather_gym.core.paths import PPO_CONES_MODEL
+from weather_gym.core.registry import Registry
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
     from weather_gym.tracks import Track
 
-__all__ = ["Agent", "AGENTS", "EpisodeResult", "agent_factory", "agent_observes", "check_action", "make_agent", "observes",
-           "run_episode"]
+__all__ = ["Agent", "AGENTS", "agent_factory", "agent_observes", "check_action", "make_agent", "observes"]
+
+# the episode driver moved up to the pipeline layer (weather_gym.pipeline.episode); old names for one release
+__getattr__ = deprecated_exports(__name__, {"run_episode": "weather_gym.pipeline.episode",
+                                            "EpisodeResult": "weather_gym.pipeline.episode"})
 
 F = TypeVar("F", bound=Callable[..., Any])
 CONE_LIST_KEYS = frozenset({"cones", "mask", "state"})

@@ -10,7 +10,7 @@ Example:
     >>> C()
     Traceback (most recent call last):
     ...
-    weather_gym.errors.InputError: C.gain must be a finite number > 0, got -1.0
+    weather_gym.core.errors.InputError: C.gain must be a finite number > 0, got -1.0
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 
 def check_fields(obj, *, positive: Iterable[str] = (), non_negative: Iterable[str] = (),

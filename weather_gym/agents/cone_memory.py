@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from weather_gym.agents._checks import check_fields
 from weather_gym.agents.mapper import ConeMap, ConeMapper, MapperConfig
-from weather_gym.errors import InputError, check_known
+from weather_gym.core.errors import InputError, check_known
 from weather_gym.perception.cones import FIELD
 
 __all__ = ["ConeMemory", "ConeMemoryConfig"]

@@ -7,7 +7,7 @@ default driver of ``weather-gym lap``, of dataset rendering and of the env tests
 Example:
     >>> import numpy as np
     >>> from types import SimpleNamespace
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
     >>> line = np.c_[np.linspace(0, 50, 101), np.zeros(101)]
     >>> track = SimpleNamespace(centerline=line, closed=False)       # anything with these two
@@ -26,10 +26,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig
-from weather_gym.errors import InputError, check_known
+from weather_gym.core.errors import InputError, check_known
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
     from weather_gym.tracks import Track
 
 __all__ = ["GroundTruthPurePursuit", "config_with"]

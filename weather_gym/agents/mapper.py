@@ -30,8 +30,8 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
 from weather_gym.agents._checks import check_fields
-from weather_gym.cone_spec import CONE_CLASSES, UNKNOWN_CLASS
-from weather_gym.errors import InputError
+from weather_gym.core.cone_spec import CONE_CLASSES, UNKNOWN_CLASS
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import unpack_cones
 
 __all__ = ["MapperConfig", "ConeMap", "ConeMapper"]

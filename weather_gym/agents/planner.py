@@ -33,8 +33,8 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.spatial import Delaunay, QhullError
 
 from weather_gym.agents._checks import check_fields
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.errors import InputError
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import InputError
 
 __all__ = ["PlannerConfig", "Plan", "CenterlinePlanner"]
 
@@ -164,7 +164,7 @@ def _sides(body: np.ndarray, cls: np.ndarray, guide: np.ndarray | None = None) -
     """+1 (left) for blue, -1 (right) for yellow. An orange cone joins the side it stands on across
     the track: its position along the segment from the nearest blue to the nearest yellow cone
     (start / finish line, braking zones); without both colours near, the side of the car it is on.
-    A cone of unknown colour (:data:`~weather_gym.cone_spec.UNKNOWN_CLASS`, a LiDAR's) takes the side
+    A cone of unknown colour (:data:`~weather_gym.core.cone_spec.UNKNOWN_CLASS`, a LiDAR's) takes the side
     of ``guide`` it stands on (the previous plan's centre line in the car frame; without one, the
     side of the car)."""
     side = np.where(cls == BLUE, 1, np.where(cls == YELLOW, -1, 0))

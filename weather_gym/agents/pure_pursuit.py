@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from weather_gym.agents._checks import check_fields
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 __all__ = ["PurePursuitConfig", "PurePursuit", "resample_path", "path_curvature", "speed_profile"]
 

@@ -31,10 +31,10 @@ import numpy as np
 
 from weather_gym.agents._checks import check_action
 from weather_gym.agents.cone_memory import ConeMemory, ConeMemoryConfig
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
     from weather_gym.tracks import Track
 
 __all__ = ["SB3Agent", "SB3_ALGOS", "model_sidecar"]

@@ -30,7 +30,7 @@ from gymnasium import spaces
 from stable_baselines3.common.policies import MultiInputActorCriticPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import FIELD
 
 __all__ = ["ConeListExtractor", "ConeListPolicy"]

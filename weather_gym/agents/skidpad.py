@@ -37,8 +37,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from weather_gym.agents._checks import check_fields
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.errors import InputError
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import InputError
 
 __all__ = ["SkidpadConfig", "SkidpadPlanner", "skidpad_cones"]
 

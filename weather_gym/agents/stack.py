@@ -14,7 +14,7 @@ the rule figure eight fitted to the mapped cones, until the car is in the exit l
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> from weather_gym.agents import AGENTS
     >>> agent = AGENTS.get("mapper_pure_pursuit")(None, CameraConfig())
     >>> agent.reset(seed=0)
@@ -36,10 +36,10 @@ from weather_gym.agents.mapper import ConeMap, ConeMapper, MapperConfig
 from weather_gym.agents.planner import CenterlinePlanner, Plan, PlannerConfig
 from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig
 from weather_gym.agents.skidpad import SkidpadConfig, SkidpadPlanner
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from weather_gym.camera_config import CameraConfig
+    from weather_gym.camera.config import CameraConfig
     from weather_gym.tracks import Track
 
 __all__ = ["MapperPurePursuit", "STACK_DEFAULTS"]

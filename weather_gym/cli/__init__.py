@@ -8,7 +8,7 @@ checks). :func:`main` imports only the sub-command it runs (``weather-gym lap --
 of ``train`` or ``evaluate``; ``weather-gym --help`` loads no sub-command): a sub-command whose
 packages are missing or broken cannot stop another from running.
 
-Errors: a :class:`weather_gym.errors.WeatherGymError` (bad input, an output that exists, a path
+Errors: a :class:`weather_gym.core.errors.WeatherGymError` (bad input, an output that exists, a path
 outside its folder, ...) is printed as ``error: MESSAGE`` with exit status 2; anything else is a
 bug and keeps its traceback, followed by a line asking to report it (exit status 70). Ctrl-C exits
 with 130, SIGTERM with 143, after cleaning up (no temporary file or worker process is left); output
@@ -38,9 +38,9 @@ import sys
 import traceback
 
 import weather_gym.cli as pkg
-from weather_gym import __version__
-from weather_gym.errors import InputError, WeatherGymError
-from weather_gym.errors import Terminated as _Terminated
+from weather_gym.core.errors import InputError, WeatherGymError
+from weather_gym.core.errors import Terminated as _Terminated
+from weather_gym.core.version import __version__
 
 BUG_REPORT = ("this is a bug in weather-gym, not a problem with your input: please report it with the command "
               "you ran and the traceback above")
@@ -116,7 +116,7 @@ def run_command(func, *args, **kwargs) -> int:
     (143) after the ``finally`` blocks ran, so no temporary file is left; any other exception
     prints its traceback and a line asking to report the bug, and gives 70. Scripts in
     ``examples/`` use it too. Each call runs in a fresh ``contextvars`` context, so the inputs a
-    command declares (``weather_gym._io.declare_inputs``) end with it.
+    command declares (``weather_gym.core._io.declare_inputs``) end with it.
     """
     with _terminate_as_exit():
         try:

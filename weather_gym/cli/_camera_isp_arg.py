@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from weather_gym._toml import read_toml
-from weather_gym.camera_isp import CameraModel
-from weather_gym.errors import InputError
+from weather_gym.camera.isp import CameraModel
+from weather_gym.core._toml import read_toml
+from weather_gym.core.errors import InputError
 
 __all__ = ["add_camera_model_arg", "camera_model_arg"]
 

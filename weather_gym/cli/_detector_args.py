@@ -19,8 +19,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from weather_gym._io import declare_inputs
-from weather_gym.errors import InputError
+from weather_gym.core._io import declare_inputs
+from weather_gym.core.errors import InputError
 from weather_gym.perception.detector_spec import parse_detector_spec
 
 

@@ -3,7 +3,7 @@
 * ``pool`` - the shipped presets, calibrated once on the pool of tracks for the shipped detector (fast; the
   meaning of older results);
 * ``resolved`` - resolved for the command's own scenario (track, camera, world, detector): the k that makes
-  this scenario's detector lose what the study measured (``weather_gym.calibration.resolve``; minutes the
+  this scenario's detector lose what the study measured (``weather_gym.lab.calibration.resolve``; minutes the
   first time, cached after);
 * ``FILE`` - a presets file (``weather-gym calibrate --track ... --out FILE`` writes one).
 
@@ -25,11 +25,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from weather_gym._io import declare_inputs
-from weather_gym.calibration.resolve import Resolution, Scenario, resolve_presets
+from weather_gym.core._io import declare_inputs
+from weather_gym.core.errors import MissingInputError, ResolutionError
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
-from weather_gym.errors import MissingInputError, ResolutionError
+from weather_gym.lab.calibration.resolve import Resolution, Scenario, resolve_presets
 from weather_gym.weather.presets import DEFAULT_PRESETS, load_presets
 
 __all__ = ["add_presets_arg", "env_scenario", "presets_from_arg", "resolution_lines"]

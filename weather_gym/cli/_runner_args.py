@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import os
 
-from weather_gym._option_alias import alias
-from weather_gym.errors import InputError, LimitError, MissingDependencyError
+from weather_gym.core._option_alias import alias
+from weather_gym.core.errors import InputError, LimitError, MissingDependencyError
 
 
 def add_runner_args(p, *, what: str = "cells", resumable: bool = True) -> None:

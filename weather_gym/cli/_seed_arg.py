@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import argparse
 
-from weather_gym.errors import InputError
-from weather_gym.limits import check_seed
+from weather_gym.core.errors import InputError
+from weather_gym.core.limits import check_seed
 
 
 def seed_arg(text: str) -> int:

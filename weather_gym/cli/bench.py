@@ -1,6 +1,6 @@
 """``weather-gym bench TARGET``: speed benchmarks (median of many runs, baseline side by side).
 
-Each module in ``weather_gym.bench`` is one target with ``register(subparsers)``.
+Each module in ``weather_gym.lab.bench`` is one target with ``register(subparsers)``.
 
 Example:
     >>> from weather_gym.cli import build_parser
@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
-import weather_gym.bench as pkg
+import weather_gym.lab.bench as pkg
 
 
 def register(sub) -> None:
@@ -23,4 +23,4 @@ def register(sub) -> None:
 
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):
-            importlib.import_module(f"weather_gym.bench.{info.name}").register(targets)
+            importlib.import_module(f"weather_gym.lab.bench.{info.name}").register(targets)

@@ -32,22 +32,28 @@ import shlex
 import sys
 from pathlib import Path
 
-from weather_gym._io import check_output, declare_inputs, derived_outputs_replaceable
-from weather_gym._option_alias import OneDefaultFormatter
-from weather_gym._output_args import add_overwrite_arg
-from weather_gym._toml import read_toml
-from weather_gym.calibration.calibrate import calibrate, fill_from_curves, parse_use, remeasure, write_presets
-from weather_gym.calibration.curve import load_curves
-from weather_gym.calibration.measured import load_measured
-from weather_gym.calibration.report import REPORT_FILES, study_points, write_report
-from weather_gym.calibration.resolve import Scenario, resolve_presets, write_resolved
-from weather_gym.calibration.resolve_plot import plot_resolution
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.cli._camera_isp_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._presets_arg import resolution_lines
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.core._io import check_output, declare_inputs, derived_outputs_replaceable
+from weather_gym.core._option_alias import OneDefaultFormatter
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core._toml import read_toml
+from weather_gym.core.errors import InputError, MissingInputError
+from weather_gym.lab.calibration.calibrate import (
+    calibrate,
+    fill_from_curves,
+    parse_use,
+    remeasure,
+    write_presets,
+)
+from weather_gym.lab.calibration.curve import load_curves
+from weather_gym.lab.calibration.measured import load_measured
+from weather_gym.lab.calibration.report import REPORT_FILES, study_points, write_report
+from weather_gym.lab.calibration.resolve import Scenario, resolve_presets, write_resolved
+from weather_gym.lab.calibration.resolve_plot import plot_resolution
 from weather_gym.weather.presets import load_presets
 
 
@@ -152,7 +158,7 @@ def _run(args) -> int:
     command = shlex.join(["weather-gym", *sys.argv[1:]]) if "calibrate" in sys.argv[1:2] else None
     used = sorted({c.curve for c in calibs})
     meta = {
-        "source": args.source or command or "weather_gym.calibration.calibrate",
+        "source": args.source or command or "weather_gym.lab.calibration.calibrate",
         "match": args.match,
         "metric": f"{args.metric} (pycocotools)",
         "domain": calibs[0].domain if calibs else "",

@@ -25,21 +25,21 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym._io import check_output, declare_inputs, write_image
-from weather_gym._output_args import add_overwrite_arg
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.cli._camera_isp_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._seed_arg import seed_arg
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.datasets.coco import load_coco
-from weather_gym.datasets.frame_position import EDGE_RADIUS, edge_share
-from weather_gym.datasets.import_rosbag import import_rosbag
-from weather_gym.datasets.importers import DEFAULT_CLASSES, FORMATS, import_dataset
-from weather_gym.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
-from weather_gym.datasets.merge import merge_coco
-from weather_gym.datasets.render import render_dataset
-from weather_gym.errors import InputError
+from weather_gym.core._io import check_output, declare_inputs, write_image
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import InputError
+from weather_gym.lab.datasets.coco import load_coco
+from weather_gym.lab.datasets.frame_position import EDGE_RADIUS, edge_share
+from weather_gym.lab.datasets.import_rosbag import import_rosbag
+from weather_gym.lab.datasets.importers import DEFAULT_CLASSES, FORMATS, import_dataset
+from weather_gym.lab.datasets.masks import mask_preview, propose_mask, set_dataset_mask, write_mask
+from weather_gym.lab.datasets.merge import merge_coco
+from weather_gym.lab.datasets.render import render_dataset
 from weather_gym.perception.ignore import inside_mask
 from weather_gym.perception.labels import MIN_BOX_HEIGHT_PX
 from weather_gym.perception.scoring import small_rule

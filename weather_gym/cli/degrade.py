@@ -14,7 +14,7 @@ Examples:
   rebuilt under OUTPUT; an existing folder as OUTPUT of a file receives a file of the same name).
 * The input is never written to. An existing output file is an error unless ``--overwrite``; for a
   folder, outputs that already exist are skipped, so an interrupted run resumes where it stopped.
-  Files are written to a fresh temporary file first, then renamed (``weather_gym._io``). An
+  Files are written to a fresh temporary file first, then renamed (``weather_gym.core._io``). An
   unreadable image in a folder stops the run, naming it, unless ``--skip-unreadable``.
 * Randomness: each image gets its own generator from ``--seed`` and its relative path (so the
   result does not depend on the order or on resuming); a video is one episode from ``--seed``.
@@ -47,7 +47,9 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym._image_files import (
+from weather_gym.cli._presets_arg import add_presets_arg, presets_from_arg
+from weather_gym.cli._seed_arg import seed_arg
+from weather_gym.core._image_files import (
     CONVERSIONS,
     colour_conversions,
     conversion_note,
@@ -55,14 +57,12 @@ from weather_gym._image_files import (
     read_image_file,
     shown,
 )
-from weather_gym._io import atomic_path, check_output, declare_inputs, write_image
-from weather_gym._output_args import add_overwrite_arg
-from weather_gym.calibration.resolve import Scenario
-from weather_gym.cli._presets_arg import add_presets_arg, presets_from_arg
-from weather_gym.cli._seed_arg import seed_arg
-from weather_gym.datasets.coco import read_image
-from weather_gym.errors import FileFormatError, InputError, MissingInputError, OutputPathError
-from weather_gym.limits import check_image_size
+from weather_gym.core._io import atomic_path, check_output, declare_inputs, write_image
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError, OutputPathError
+from weather_gym.core.limits import check_image_size
+from weather_gym.lab.calibration.resolve import Scenario
+from weather_gym.lab.datasets.coco import read_image
 from weather_gym.ros.bags import bag_kind
 from weather_gym.ros.degrade import degrade_bag
 from weather_gym.viz.video import VideoWriter, check_free_space

@@ -25,21 +25,21 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym._io import atomic_write_json, check_output, declare_inputs, write_image
-from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_from_args
 from weather_gym.cli._seed_arg import seed_arg
-from weather_gym.datasets.coco import load_coco, read_image
-from weather_gym.errors import InputError, LimitError, MissingDependencyError, MissingInputError
-from weather_gym.limits import check_image_size
-from weather_gym.perception.draw import draw_detections
-from weather_gym.perception.plots import (
+from weather_gym.core._io import atomic_write_json, check_output, declare_inputs, write_image
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core.errors import InputError, LimitError, MissingDependencyError, MissingInputError
+from weather_gym.core.limits import check_image_size
+from weather_gym.lab.datasets.coco import load_coco, read_image
+from weather_gym.lab.training.detector.plots import (
     STUDY_CLEAN_MAP,
     STUDY_POINTS,
     detections_figure,
     plot_map_vs_k,
     sweep_map_vs_k,
 )
+from weather_gym.perception.draw import draw_detections
 from weather_gym.perception.scoring import coco_results, score_dataset
 from weather_gym.weather.option import OPEN_K_GRAMMAR, add_weather_arg, weather_from_arg
 from weather_gym.weather.spec import parse_open_k
@@ -161,7 +161,7 @@ def register(sub) -> None:
 
 def _train(args) -> int:
     try:
-        from weather_gym.perception.train import TrainConfig, train_detector
+        from weather_gym.lab.training.detector.train import TrainConfig, train_detector
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise MissingDependencyError(f"training needs the 'train' extra (torch, onnx): {exc}") from None
     declare_inputs(*args.data, args.val, args.init)

@@ -28,19 +28,19 @@ import time
 from functools import partial
 from pathlib import Path
 
-from weather_gym._option_alias import OneDefaultFormatter, alias
-from weather_gym._output_args import add_overwrite_arg
 from weather_gym.agents import agent_observes
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
 from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.cli.lap import parse_agent_args
-from weather_gym.errors import InputError
-from weather_gym.evaluation.evaluate import BAGS, DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
-from weather_gym.evaluation.report import report_replaceable, write_report
-from weather_gym.evaluation.runner import check_results_path
-from weather_gym.perception_modes import PERCEPTION_MODES, auto_mode, modes_where, perception_mode
+from weather_gym.core._option_alias import OneDefaultFormatter, alias
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core.errors import InputError
+from weather_gym.lab.evaluation.evaluate import BAGS, DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
+from weather_gym.lab.evaluation.report import report_replaceable, write_report
+from weather_gym.lab.evaluation.runner import check_results_path
+from weather_gym.pipeline.modes import PERCEPTION_MODES, auto_mode, modes_where, perception_mode
 from weather_gym.ros.episode_bag import BAG_IMAGES
 
 

@@ -21,12 +21,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from weather_gym._io import declare_inputs
 from weather_gym.cli._camera_isp_arg import add_camera_model_arg, camera_model_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._seed_arg import seed_arg
-from weather_gym.errors import InputError, MissingInputError
-from weather_gym.gap.workflow import GapConfig, run_gap
+from weather_gym.core._io import declare_inputs
+from weather_gym.core.errors import InputError, MissingInputError
+from weather_gym.lab.gap.workflow import GapConfig, run_gap
 from weather_gym.sim.config import SCENES
 
 

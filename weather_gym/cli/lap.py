@@ -30,22 +30,24 @@ from typing import Any, cast
 import numpy as np
 from tqdm import tqdm
 
-from weather_gym._io import atomic_write, check_output
-from weather_gym._option_alias import alias
-from weather_gym.agents import AGENTS, agent_factory, agent_observes, run_episode
+from weather_gym.agents import AGENTS, agent_factory, agent_observes
 from weather_gym.agents.mapper import MapperConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
 from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
 from weather_gym.cli._seed_arg import seed_arg
+from weather_gym.core._io import atomic_write, check_output
+from weather_gym.core._option_alias import alias
+from weather_gym.core.errors import InputError
 from weather_gym.envs.cone_track import ConeTrackEnv
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
-from weather_gym.errors import InputError
-from weather_gym.evaluation.metrics import DetectorScoring, Episode, episode_metrics, lap_lines
+from weather_gym.lab.evaluation.metrics import DetectorScoring, Episode, episode_metrics, lap_lines
 from weather_gym.lidar_weather import parse_lidar_weather
 from weather_gym.perception.ranging import check_depth_quantile
-from weather_gym.perception_modes import (
+from weather_gym.pipeline import make_env
+from weather_gym.pipeline.episode import run_episode
+from weather_gym.pipeline.modes import (
     PERCEPTION_MODES,
     PerceptionMode,
     auto_mode,
@@ -53,7 +55,6 @@ from weather_gym.perception_modes import (
     modes_where,
     perception_mode,
 )
-from weather_gym.pipeline import make_env
 from weather_gym.ros.bag_output import check_bag_output
 from weather_gym.ros.episode_bag import BAG_IMAGES, ConeNoise, EpisodeBag
 from weather_gym.tracks import load_track, track_label
@@ -75,7 +76,7 @@ def _epilog() -> str:
     modes = [f"  {AUTO:<9} the first mode below that gives what the agent reads (agents that read cone lists:"
              f" {auto_mode(frozenset({'cones'})).name}), else {auto_mode(()).name}"]
     modes += [f"  {m.name:<9} {m.describe()}" for m in PERCEPTION_MODES.values()]
-    return ("perception (what the agent sees; the modes of weather_gym.perception_modes.PERCEPTION_MODES):\n"
+    return ("perception (what the agent sees; the modes of weather_gym.pipeline.modes.PERCEPTION_MODES):\n"
             + "\n".join(modes) + "\n\n" + EPILOG)
 
 
@@ -262,7 +263,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
     ``bag``: also write the run as an MCAP rosbag2 folder (:class:`~weather_gym.ros.episode_bag.EpisodeBag`).
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
-    and the episode from :func:`weather_gym.agents.run_episode`. ``presets``: the presets file a
+    and the episode from :func:`weather_gym.pipeline.run_episode`. ``presets``: the presets file a
     ``CONDITION@SEVERITY`` reads (None: ``$WEATHER_GYM_PRESETS``, else the shipped pool presets); the
     result's ``weather_k`` and ``weather_source`` say which k was used and where it came from.
     """
@@ -418,7 +419,7 @@ def format_result(r: dict[str, Any]) -> str:
     end = r["end"] if r["end"] != "time_limit" else f"time_limit, {r['max_steps']} steps"
     lines.append(f"laps completed: {len(r['lap_times_s'])}/{r['laps_requested']} ({end}) in {r['steps']} steps, "
                  f"{r['sim_time_s']:.1f} s simulated, {r['wall_time_s']:.1f} s wall, renderer {r['renderer']}")
-    lines += lap_lines(r["metrics"])  # the metrics of weather_gym.evaluation.metrics.METRICS, in their lap form
+    lines += lap_lines(r["metrics"])  # the metrics of weather_gym.lab.evaluation.metrics.METRICS, in their lap form
     if "map" in r:
         m = r["map"]
         lines.append(f"map: {m['confirmed']} confirmed cones, mean position std {m['mean_position_std_m']:.3f} m, "

@@ -18,18 +18,18 @@ import argparse
 import sys
 from pathlib import Path
 
-from weather_gym._io import check_output, declare_inputs, exclusive
-from weather_gym._option_alias import alias
-from weather_gym._output_args import add_overwrite_arg
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._seed_arg import int_list, seed_list
-from weather_gym.errors import InputError
-from weather_gym.limits import parse_size
-from weather_gym.perception_modes import detector_mode, perception_mode
+from weather_gym.core._io import check_output, declare_inputs, exclusive
+from weather_gym.core._option_alias import alias
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core.errors import InputError
+from weather_gym.core.limits import parse_size
+from weather_gym.lab.training.surrogate.record import loggable_modes, record
+from weather_gym.lab.training.surrogate.validate import validate
+from weather_gym.pipeline.modes import detector_mode, perception_mode
 from weather_gym.surrogate.log import concat_logs, load_log, save_log
 from weather_gym.surrogate.model import fit, save_model
-from weather_gym.surrogate.record import loggable_modes, record
-from weather_gym.surrogate.validate import validate
 from weather_gym.tracks import load_track
 
 

@@ -26,11 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym._io import declare_inputs
-from weather_gym._option_alias import OneDefaultFormatter
-from weather_gym._output_args import add_overwrite_arg
-from weather_gym.calibration.curve import load_curves
-from weather_gym.calibration.sweep import (
+from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
+from weather_gym.cli._runner_args import add_runner_args, check_runner_args
+from weather_gym.core._io import declare_inputs
+from weather_gym.core._option_alias import OneDefaultFormatter
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core.errors import InputError, MissingInputError
+from weather_gym.lab.calibration.curve import load_curves
+from weather_gym.lab.calibration.sweep import (
     CURVE_FILE,
     SweepEffect,
     make_sweep_cells,
@@ -39,10 +42,7 @@ from weather_gym.calibration.sweep import (
     parse_seeds,
     run_sweep,
 )
-from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
-from weather_gym.cli._runner_args import add_runner_args, check_runner_args
-from weather_gym.errors import InputError, MissingInputError
-from weather_gym.evaluation.runner import check_results_path
+from weather_gym.lab.evaluation.runner import check_results_path
 from weather_gym.weather.option import OPEN_K_GRAMMAR
 from weather_gym.weather.spec import parse_open_k
 

@@ -21,12 +21,12 @@ from pathlib import Path
 import matplotlib
 import matplotlib.pyplot as plt
 
-from weather_gym._figures import save_figure
-from weather_gym._io import check_output
-from weather_gym._output_args import add_overwrite_arg
-from weather_gym.errors import InputError
-from weather_gym.track_plot import plot_track
+from weather_gym.core._figures import save_figure
+from weather_gym.core._io import check_output
+from weather_gym.core._output_args import add_overwrite_arg
+from weather_gym.core.errors import InputError
 from weather_gym.tracks import TRACKS, load_track, source_label
+from weather_gym.tracks.plot import plot_track
 
 ALL_SEED = 7
 """Seed of the random track drawn by ``show --all``."""

@@ -1,4 +1,4 @@
-"""``weather-gym train``: train a PPO driver on the cone list (:mod:`weather_gym.rl.train`).
+"""``weather-gym train``: train a PPO driver on the cone list (:mod:`weather_gym.lab.training.policy.train`).
 
 Examples:
     weather-gym train --out runs/ppo                                   # the shipped ppo.yml, 300k steps
@@ -19,8 +19,8 @@ import argparse
 
 
 def register(sub) -> None:
-    from weather_gym.rl.train import __doc__ as doc
-    from weather_gym.rl.train import build_parser
+    from weather_gym.lab.training.policy.train import __doc__ as doc
+    from weather_gym.lab.training.policy.train import build_parser
 
     p = sub.add_parser("train", help="train a PPO driver on the cone list (logs, checkpoints, held-out eval, resume)",
                        description=doc.split("Example:")[0].strip(),
@@ -30,6 +30,6 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    from weather_gym.rl.train import train
+    from weather_gym.lab.training.policy.train import train
 
     return train(args)

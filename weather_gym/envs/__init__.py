@@ -11,7 +11,7 @@ Example:
 
 from __future__ import annotations
 
-from weather_gym._lazy import lazy_exports
+from weather_gym.core._lazy import lazy_exports
 
 _LAZY = {
     "ConeTrackEnv": "weather_gym.envs.cone_track",

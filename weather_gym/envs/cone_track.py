@@ -45,16 +45,16 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym._track import Projection
-from weather_gym.camera_isp import CameraModel, CameraPipeline
-from weather_gym.cone_arrays import ConeArrays
+from weather_gym.camera.isp import CameraModel, CameraPipeline
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.errors import InputError, LimitError, StateError, check_known
+from weather_gym.core.point_cloud import PointCloud, pack_points
 from weather_gym.envs.config import EnvConfig
-from weather_gym.errors import InputError, LimitError, StateError, check_known
-from weather_gym.point_cloud import PointCloud, pack_points
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look, sample_look
 from weather_gym.sim.randomize import sample_realistic
 from weather_gym.sim.world import World
 from weather_gym.tracks import load_track
+from weather_gym.tracks._track import Projection
 
 STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_yaw")
 """Names of ``obs["state"]``: wheel-speed odometry (m/s), gyro yaw rate (rad/s), odometry pose."""

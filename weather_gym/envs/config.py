@@ -15,9 +15,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.camera_isp import CameraModel
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.camera.isp import CameraModel
+from weather_gym.core.errors import InputError
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 from weather_gym.sim.lidar_config import LidarConfig
 
@@ -80,7 +80,7 @@ class EnvConfig:
             ``WeatherWrapper`` it is the weathered frame the agent sees, so Gymnasium's and our
             ``RecordVideo`` record the weather).
         camera_model: the camera's image pipeline applied to every frame before anything else sees it
-            (``weather_gym.camera_isp``; by default ``CameraModel.realistic()``: exposure, tone curve,
+            (``weather_gym.camera.isp``; by default ``CameraModel.realistic()``: exposure, tone curve,
             white balance, vignetting, distortion, defocus, sensor noise, 4:2:0 and JPEG, as a real camera
             delivers frames; ``CameraModel.ideal()`` switches it off = the study's ideal camera, as
             ``WeatherGym/ConeTrackPlain-v0`` does). Weather wrappers act on the finished frame.

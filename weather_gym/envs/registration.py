@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import gymnasium as gym
 
+from weather_gym.core.errors import InputError
 from weather_gym.envs.scenario import Scenario, load_scenario, scenario_files
-from weather_gym.errors import InputError
 
 ENTRY_POINT = "weather_gym.pipeline:make_scenario_env"
 

@@ -12,7 +12,7 @@ A scenario file::
     [camera]      # CameraConfig fields
     [odometry]    # OdometryConfig fields
     [reward]      # RewardConfig fields
-    [camera_model]  # CameraModel fields (weather_gym.camera_isp); no table: the default realistic camera;
+    [camera_model]  # CameraModel fields (weather_gym.camera.isp); no table: the default realistic camera;
                     # keys change single fields of it; enabled = false: the study's ideal camera (off)
     [weather]     # optional: spec = "droplets@2" (any weather spec), or condition/severity
     [perception]  # optional: mode = "detector" (see weather_gym.pipeline.PERCEPTION_MODES),
@@ -33,13 +33,13 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any
 
-from weather_gym._io import resolve_inside
-from weather_gym._toml import read_toml
-from weather_gym.camera_config import CameraConfig
-from weather_gym.camera_isp import CameraModel
+from weather_gym.camera.config import CameraConfig
+from weather_gym.camera.isp import CameraModel
+from weather_gym.core._io import resolve_inside
+from weather_gym.core._toml import read_toml
+from weather_gym.core.errors import FileFormatError, InputError, check_known
+from weather_gym.core.paths import data_dir
 from weather_gym.envs.config import EnvConfig, RewardConfig
-from weather_gym.errors import FileFormatError, InputError, check_known
-from weather_gym.paths import data_dir
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 from weather_gym.tracks import track_file_part
 from weather_gym.weather import parse_weather
@@ -163,7 +163,7 @@ def _pop_time_limit(path: Path, env: dict[str, Any]) -> tuple[Any, Any]:
 
 def _confine_paths(path: Path, table: dict[str, Any], section: str, key: str) -> dict[str, Any]:
     """A file named in a scenario (a track CSV, a detector model) is read relative to the scenario's
-    folder and must stay inside it (``weather_gym._io.resolve_inside``); names are kept as they are."""
+    folder and must stay inside it (``weather_gym.core._io.resolve_inside``); names are kept as they are."""
 
     value = table.get(key)
     prefix, file = "", value

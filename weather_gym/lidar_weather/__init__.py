@@ -1,7 +1,7 @@
 """Weather on LiDAR scans, in physical units: fog by visibility, rain and snow by rate, a wet road.
 
 Every effect follows the contract of :mod:`weather_gym.lidar_weather.base` (one knob ``k``, ``k = 0``
-the identity, seeded, typed errors) and works on a :class:`~weather_gym.point_cloud.PointCloud`; no
+the identity, seeded, typed errors) and works on a :class:`~weather_gym.core.point_cloud.PointCloud`; no
 PyBullet here. Effects: ``fog`` (:mod:`~weather_gym.lidar_weather.fog`, Bijelic et al. 2020), ``rain``
 (:mod:`~weather_gym.lidar_weather.rain`, Goodin et al. 2019), ``snow``
 (:mod:`~weather_gym.lidar_weather.snow`) and ``wet`` (:mod:`~weather_gym.lidar_weather.wet`).
@@ -21,7 +21,7 @@ Example:
     >>> parse_lidar_weather("hail:0.5")
     Traceback (most recent call last):
     ...
-    weather_gym.errors.InputError: unknown LiDAR weather effect 'hail'; valid names: fog, rain, snow, wet
+    weather_gym.core.errors.InputError: unknown LiDAR weather effect 'hail'; valid names: fog, rain, snow, wet
 """
 
 from __future__ import annotations
@@ -31,14 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.errors import InputError, check_known
+from weather_gym.core.errors import InputError, check_known
+from weather_gym.core.point_cloud import PointCloud
+from weather_gym.core.registry import Registry
 from weather_gym.lidar_weather.base import LidarEffect, check_rng
 from weather_gym.lidar_weather.fog import FOG_SEVERITIES, Fog, mor_of
 from weather_gym.lidar_weather.rain import RAIN_SEVERITIES, Rain
 from weather_gym.lidar_weather.snow import SNOW_SEVERITIES, Snow
 from weather_gym.lidar_weather.wet import WET_SEVERITIES, WetRoad
-from weather_gym.point_cloud import PointCloud
-from weather_gym.registry import Registry
 
 __all__ = ["FOG_SEVERITIES", "LIDAR_EFFECTS", "RAIN_SEVERITIES", "SNOW_SEVERITIES", "WET_SEVERITIES", "Fog",
            "LidarEffect", "LidarWeather", "Rain", "Snow", "WetRoad", "make", "mor_of", "parse_lidar_weather"]

@@ -19,7 +19,7 @@ Re-implemented from the papers, not their code:
 Example:
     >>> import numpy as np
     >>> from weather_gym.lidar_weather._precip import precipitation
-    >>> from weather_gym.point_cloud import PointCloud
+    >>> from weather_gym.core.point_cloud import PointCloud
     >>> pc = PointCloud.from_arrays(xyz=[[30.0, 0, 0]], intensity=[0.8], ring=[0])
     >>> out = precipitation(pc, np.random.default_rng(0), alpha=0.02, rate=5.0, n_total=2000.0, mean_d_m=3e-4,
     ...                     particle_reflectivity=0.05, label=5, divergence=0.003, ref_reflectivity=0.1,
@@ -34,8 +34,8 @@ import math
 
 import numpy as np
 
+from weather_gym.core.point_cloud import PointCloud
 from weather_gym.lidar_weather.base import detectable
-from weather_gym.point_cloud import PointCloud
 
 
 def precipitation(cloud: PointCloud, rng: np.random.Generator, *, alpha: float, rate: float, n_total: float,

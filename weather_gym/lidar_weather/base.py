@@ -1,7 +1,7 @@
 """The contract of a LiDAR weather effect: one knob ``k`` in [0, 1] mapped to a physical parameter.
 
 An effect is a frozen dataclass. ``effect(cloud, rng)`` returns a new
-:class:`~weather_gym.point_cloud.PointCloud`; the input is never changed.
+:class:`~weather_gym.core.point_cloud.PointCloud`; the input is never changed.
 
 * ``k = 0`` returns the cloud unchanged (the same arrays, bytes equal).
 * Every random value comes from ``rng`` (a ``numpy.random.Generator``): same seed, same points.
@@ -10,7 +10,7 @@ An effect is a frozen dataclass. ``effect(cloud, rng)`` returns a new
 * Each effect names its physical parameter (``PHYSICAL``: fog's extinction, rain's rate, ...), maps
   ``k`` linearly onto it (``k = 1`` is the effect's ``max_*`` field: severity 5 of the published grid)
   and takes the physical value itself too (``Fog(mor=50)``); :data:`SEVERITIES` holds severities 1-5.
-* A value outside its range raises :class:`~weather_gym.errors.LimitError` naming the parameter, the
+* A value outside its range raises :class:`~weather_gym.core.errors.LimitError` naming the parameter, the
   value and the range.
 
 The sensor's detection threshold (rain, snow, wet road): a return is detected while its received
@@ -23,14 +23,14 @@ The simulated sensor applies the same threshold in clear air (:mod:`weather_gym.
 Example:
     >>> import numpy as np
     >>> from weather_gym.lidar_weather import make
-    >>> from weather_gym.point_cloud import PointCloud
+    >>> from weather_gym.core.point_cloud import PointCloud
     >>> pc = PointCloud.from_arrays(xyz=[[20.0, 0, 0]], intensity=[0.5], ring=[0])
     >>> make("fog", k=0.0)(pc, np.random.default_rng(0)) is pc
     True
     >>> make("fog", k=1.5)
     Traceback (most recent call last):
     ...
-    weather_gym.errors.LimitError: fog: k = 1.5 is outside [0, 1]
+    weather_gym.core.errors.LimitError: fog: k = 1.5 is outside [0, 1]
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from weather_gym.errors import InputError, LimitError
-from weather_gym.point_cloud import PointCloud
+from weather_gym.core.errors import InputError, LimitError
+from weather_gym.core.point_cloud import PointCloud
 
 __all__ = ["LidarEffect", "check_rng", "detectable"]
 

@@ -25,9 +25,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from weather_gym.core.point_cloud import PointCloud, label_id
 from weather_gym.lidar_weather._precip import precipitation
 from weather_gym.lidar_weather.base import LidarEffect
-from weather_gym.point_cloud import PointCloud, label_id
 
 __all__ = ["RAIN_SEVERITIES", "Rain"]
 

@@ -5,7 +5,7 @@ Runtime needs onnxruntime only; ``model.py`` and ``train.py`` need the ``train``
 Example:
     >>> import numpy as np
     >>> from weather_gym.perception import ConeDetector, detections_to_cones, evaluate
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> det = ConeDetector()
     >>> cones = detections_to_cones(det(np.zeros((376, 672, 3), np.uint8)), CameraConfig())
     >>> cones["ranges"].shape
@@ -14,7 +14,7 @@ Example:
 
 from __future__ import annotations
 
-from weather_gym._lazy import lazy_exports
+from weather_gym.core._lazy import lazy_exports
 
 _LAZY = {
     "ConeDetector": "weather_gym.perception.onnx_detector",

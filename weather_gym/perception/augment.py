@@ -30,7 +30,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from weather_gym.cone_spec import CONE_BODY_RGB, CONE_STRIPE_RGB
+from weather_gym.core.cone_spec import CONE_BODY_RGB, CONE_STRIPE_RGB
 
 __all__ = ["paste_distractors", "camera_look"]
 

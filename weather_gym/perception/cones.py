@@ -5,7 +5,7 @@ of valid rows, so stable-baselines3 and vectorized envs accept it.
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> from weather_gym.perception.cones import pack_cones, CONE_FIELDS
     >>> cones, mask = pack_cones(classes=np.array([0]), ranges=np.array([5.0]), bearings=np.array([0.1]),
     ...                          scores=np.array([0.9]), boxes=np.array([[300, 180, 320, 210.]]),
@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import CONE_CLASSES, UNKNOWN_CLASS
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_spec import CONE_CLASSES, UNKNOWN_CLASS
+from weather_gym.core.errors import InputError
 
 CONE_FIELDS: tuple[str, ...] = (
     *(f"is_{c}" for c in CONE_CLASSES),  # one-hot class (4); all zero: colour unknown (a LiDAR's cone)
@@ -101,7 +101,7 @@ def pack_cones(
 
 
 def unpack_cones(cones: np.ndarray, mask: np.ndarray) -> dict[str, np.ndarray]:
-    """Valid rows as named arrays: ``classes`` (:data:`~weather_gym.cone_spec.UNKNOWN_CLASS` where the
+    """Valid rows as named arrays: ``classes`` (:data:`~weather_gym.core.cone_spec.UNKNOWN_CLASS` where the
     one-hot is all zero), ``range``, ``bearing``, ``score``, ``x_body``, ``y_body``."""
     valid = np.asarray(mask).astype(bool)
     rows = np.asarray(cones)[valid]

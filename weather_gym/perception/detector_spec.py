@@ -49,8 +49,8 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.errors import InputError, MissingInputError
-from weather_gym.limits import check_image_size, parse_size
+from weather_gym.core.errors import InputError, MissingInputError
+from weather_gym.core.limits import check_image_size, parse_size
 from weather_gym.perception.onnx_detector import (
     DEFAULT_MODEL,
     ConeDetector,
@@ -218,7 +218,7 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 
 def _check_input_size(size: tuple[int, int]) -> None:
-    """The one frame-size bound (``weather_gym.limits``) for a YOLO export's input (W, H)."""
+    """The one frame-size bound (``weather_gym.core.limits``) for a YOLO export's input (W, H)."""
     check_image_size((size[1], size[0]), what=f"detector input size {size[0]}x{size[1]} (--detector-input)")
 
 

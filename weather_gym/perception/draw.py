@@ -17,7 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.core.cone_spec import CONE_CLASSES
 
 BOX_RGB = {"blue": (40, 120, 255), "yellow": (255, 230, 0), "orange": (255, 120, 0), "big_orange": (255, 0, 160)}
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 __all__ = ["MASKED_FRACTION", "box_mask_fraction", "inside_mask", "check_mask"]
 

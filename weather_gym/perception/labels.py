@@ -26,8 +26,8 @@ from typing import cast
 
 import numpy as np
 
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.errors import InputError
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import InputError
 
 MIN_BOX_HEIGHT_PX: float = 8.0
 """Boxes shorter than this (pixels of the default 672x376 camera image) are ``iscrowd`` / ignored."""

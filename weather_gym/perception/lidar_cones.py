@@ -21,14 +21,14 @@
    the line of sight (the beams see the cone's near side; 0.05 m is its mean radius); **size**: width and
    height of the cluster.
 
-The colour stays unknown (:data:`~weather_gym.cone_spec.UNKNOWN_CLASS`): a cone's stripe shows in the
+The colour stays unknown (:data:`~weather_gym.core.cone_spec.UNKNOWN_CLASS`): a cone's stripe shows in the
 intensity of the rings that cross it, and with the HDL-32E's 1.33 degrees between rings a 0.325 m cone
 is crossed by two rings or fewer beyond about 7 m, too few to read a dark-bright-dark pattern from.
 
 Example:
     >>> import numpy as np
     >>> from weather_gym.perception.lidar_cones import cones_from_points
-    >>> from weather_gym.point_cloud import PointCloud
+    >>> from weather_gym.core.point_cloud import PointCloud
     >>> from weather_gym.sim.lidar_config import LidarConfig
     >>> cfg = LidarConfig()
     >>> pts = np.array([[7.75, 1.0, -0.1], [7.76, 1.02, -0.12], [7.75, 0.98, -0.14], [5.0, -3.0, -0.3]])
@@ -47,10 +47,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.cone_spec import UNKNOWN_CLASS
-from weather_gym.errors import InputError
-from weather_gym.point_cloud import PointCloud
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.cone_spec import UNKNOWN_CLASS
+from weather_gym.core.errors import InputError
+from weather_gym.core.point_cloud import PointCloud
 
 __all__ = ["LidarConeConfig", "cones_from_points", "to_car_frame"]
 

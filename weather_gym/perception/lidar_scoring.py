@@ -1,7 +1,7 @@
 """Scoring LiDAR cones: recall and precision by range and the position error, per frame and over frames.
 
 A LiDAR's cones carry no boxes, so they are matched by position, as the map is scored
-(:func:`weather_gym.evaluation.metrics.map_precision_recall`): a detected cone and a true one within
+(:func:`weather_gym.lab.evaluation.metrics.map_precision_recall`): a detected cone and a true one within
 ``radius`` (0.5 m) of each other in the car frame, one to one (``scipy.optimize.linear_sum_assignment``
 on the distances). The truth of a frame is the cones the clear-air scan hit with at least
 ``min_points`` returns (what the sensor could see); ranges are from the sensor; the bins are the camera

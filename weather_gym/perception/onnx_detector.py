@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.errors import InputError, MissingInputError
-from weather_gym.limits import MAX_CAMERA_SIDE, check_image_size
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import InputError, MissingInputError
+from weather_gym.core.limits import MAX_CAMERA_SIDE, check_image_size
 from weather_gym.perception.preprocess import decode, letterbox
 
 __all__ = ["ConeDetector", "Detections", "DEFAULT_MODEL", "NATIVE_INPUT", "REFERENCE_CAMERA", "INPUT_MULTIPLE",

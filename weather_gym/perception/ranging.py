@@ -22,14 +22,14 @@ Range, two ways (``ranges_source`` tells which one each cone used):
   shorter) - documented, not hidden.
 
 Bearing: ``atan2(cx - u, fx)`` at the box's horizontal centre (positive left), as in the env's
-ground truth. A camera with lens distortion (``weather_gym.camera_isp``) is used as a calibrated
+ground truth. A camera with lens distortion (``weather_gym.camera.isp``) is used as a calibrated
 stack would: ``undistort`` maps the box's image points back to the pinhole image first (the box
 centre for the bearing and the depth's direction, its top and bottom centre for the box height);
 the depth is still read inside the box as the frame shows it.
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> from weather_gym.perception.ranging import detections_to_cones
     >>> cam = CameraConfig()
     >>> det = {"boxes": np.array([[326, 180, 346, 201.8]]), "scores": np.array([0.9]), "classes": np.array([1])}
@@ -46,9 +46,9 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, pack_cones
 
 __all__ = ["DEPTH_QUANTILE", "check_depth_quantile", "detections_to_cones", "cones_to_observation", "range_from_depth",

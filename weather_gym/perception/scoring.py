@@ -40,9 +40,9 @@ from pycocotools.coco import COCO
 from pycocotools.cocoeval import COCOeval
 from tqdm import tqdm
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import InputError
 from weather_gym.perception.ignore import inside_mask
 from weather_gym.perception.labels import CATEGORIES, MIN_BOX_HEIGHT_PX, SmallRule, tiny_mask, xyxy_to_xywh
 from weather_gym.weather import parse_weather

@@ -41,8 +41,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.perception.labels import DEFAULT_CLASSES, IGNORE, parse_class_map
 from weather_gym.perception.onnx_detector import Detections, check_frame, rebuild_detector
 from weather_gym.perception.preprocess import letterbox

@@ -8,7 +8,7 @@
 
 These modules import without ``rosbags`` installed (the library comes through
 :mod:`weather_gym.ros._deps`, guarded); reading or writing a bag without it raises
-:class:`~weather_gym.errors.MissingDependencyError` with the pip command.
+:class:`~weather_gym.core.errors.MissingDependencyError` with the pip command.
 
 Example:
     >>> from weather_gym.ros.bags import bag_kind

@@ -1,6 +1,6 @@
 """The optional ROS bag library (the ``ros`` extra: ``rosbags``), imported on first use, guarded: the
 rest of weather-gym never needs it, commands that do not touch a bag do not load it, and a bag read or
-written without it raises :class:`~weather_gym.errors.MissingDependencyError` naming the pip command.
+written without it raises :class:`~weather_gym.core.errors.MissingDependencyError` naming the pip command.
 
 Example:
     >>> from weather_gym.ros._deps import lib
@@ -13,7 +13,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 from typing import Any
 
-from weather_gym.errors import MissingDependencyError
+from weather_gym.core.errors import MissingDependencyError
 
 __all__ = ["INSTALL", "latched_qos", "lib", "require"]
 

@@ -20,8 +20,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from weather_gym._io import check_not_input
-from weather_gym.errors import OutputExistsError, OutputPathError
+from weather_gym.core._io import check_not_input
+from weather_gym.core.errors import OutputExistsError, OutputPathError
 from weather_gym.ros.bags import bag_kind
 
 __all__ = ["bag_output", "check_bag_output"]

@@ -2,7 +2,7 @@
 storage file) and ROS 1 ``.bag`` files, through ``rosbags``' reader, with typed errors.
 
 * :func:`open_bag`: the opened reader (:class:`Bag`); a missing, truncated or corrupt bag raises
-  :class:`~weather_gym.errors.MissingInputError` / :class:`~weather_gym.errors.FileFormatError` naming
+  :class:`~weather_gym.core.errors.MissingInputError` / :class:`~weather_gym.core.errors.FileFormatError` naming
   it, while it is opened or later while its messages are read (:meth:`Bag.messages`).
 * :meth:`Bag.image_topic`: the camera topic (``sensor_msgs/Image`` or ``CompressedImage``) named, or the
   bag's only one; :meth:`Bag.camera_info_topic`: its ``camera_info`` beside it.
@@ -15,7 +15,7 @@ Example:
     ...     pass
     Traceback (most recent call last):
     ...
-    weather_gym.errors.MissingInputError: bag .../missing.mcap not found
+    weather_gym.core.errors.MissingInputError: bag .../missing.mcap not found
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.ros._deps import lib
 from weather_gym.ros.messages import CAMERA_INFO, IMAGE_TYPES, msgtype_name, typestore
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.ros.bags import Bag
 from weather_gym.ros.messages import CAMERA_INFO, image_to_rgb, msgtype_name, stamp_of
 

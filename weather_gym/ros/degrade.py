@@ -27,7 +27,7 @@ Example:
     >>> degrade_bag(d + "/in.mcap", d + "/out", weather=parse_weather("droplets@2"))
     Traceback (most recent call last):
     ...
-    weather_gym.errors.MissingInputError: bag .../in.mcap not found
+    weather_gym.core.errors.MissingInputError: bag .../in.mcap not found
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from weather_gym.errors import InputError, MissingInputError
+from weather_gym.core.errors import InputError, MissingInputError
 from weather_gym.ros._deps import lib
 from weather_gym.ros.bag_output import bag_output, check_bag_output
 from weather_gym.ros.bags import Bag, bag_kind, open_bag

@@ -28,7 +28,7 @@ turned into x-y in the car frame, row major in ``float64[4]``.
 
 Example:
     >>> import tempfile, numpy as np
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> cam = CameraConfig(width=64, height=36)
     >>> out = tempfile.mkdtemp() + "/lap"
     >>> with EpisodeBag(out, camera=cam, cones_xy=np.zeros((1, 2)), cone_classes=np.zeros(1, int)) as bag:
@@ -49,8 +49,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.errors import InputError, OutputPathError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.errors import InputError, OutputPathError
 from weather_gym.perception.cones import FIELD
 from weather_gym.ros._deps import latched_qos, lib
 from weather_gym.ros.bag_output import bag_output, check_bag_output

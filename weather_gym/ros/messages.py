@@ -27,8 +27,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from weather_gym.errors import FileFormatError
-from weather_gym.limits import check_image_size
+from weather_gym.core.errors import FileFormatError
+from weather_gym.core.limits import check_image_size
 from weather_gym.ros._deps import lib
 
 __all__ = ["COMPRESSED", "CONE_ARRAY", "CONE_FIELDS", "CONE_MSGS", "ENCODINGS", "IMAGE", "IMAGE_TYPES",

@@ -2,7 +2,7 @@
 rendered with one ``p.getCameraImage`` call (TinyRenderer), nothing before or after it.
 
 Example:
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> from weather_gym.sim.baseline import naive_scene
     >>> frame, close = naive_scene(CameraConfig(width=64, height=36))
     >>> frame()[2].shape
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim.bullet import pybullet as p
 

@@ -20,11 +20,11 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.sim import egl_shadow_map
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_arrays import ConeArrays
 from weather_gym.sim.bullet import pybullet as p
-from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse, planned_frame
+from weather_gym.sim.egl import shadow_map as egl_shadow_map
+from weather_gym.sim.egl.shadow_reuse import ShadowMapReuse, planned_frame
 from weather_gym.sim.look import Look
 from weather_gym.sim.renderer import quiet_if_egl
 from weather_gym.sim.visibility import empty_ground_truth, visible_cones
@@ -63,7 +63,7 @@ class CameraSensor:
         self.client = client
         self.renderer = renderer
         self.shadows = shadows  # None: the renderer's own (EGL: its shadow map; TinyRenderer: none)
-        # EGL draws its shadow map unless switched off around each frame (weather_gym.sim.egl_shadow_map)
+        # EGL draws its shadow map unless switched off around each frame (weather_gym.sim.egl.shadow_map)
         self._without_shadow_map = renderer == p.ER_BULLET_HARDWARE_OPENGL and shadows is False
         if self._without_shadow_map and (reason := egl_shadow_map.unavailable_reason()) is not None:
             raise RuntimeError(f"SimConfig.shadows=False cannot be honoured with the EGL renderer here: {reason}; "

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from weather_gym._jit_cache import jit_cache
+from weather_gym.core._jit_cache import jit_cache
 from weather_gym.sim.config import CarConfig
 
 _LOW_SPEED = 1.0  # below this, the kinematic model takes over (dynamic slip angles are singular at v=0)

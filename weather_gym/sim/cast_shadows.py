@@ -31,7 +31,7 @@ import math
 import cv2
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
 
 MAX_SHADOW_M = 4.0
 """Longest shadow drawn (m, from the cone's centre to its tip's shadow), for a very low sun."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 RENDERERS = ("auto", "egl", "tiny", "none")
 SCENES = ("plain", "realistic")
@@ -58,7 +58,7 @@ class SimConfig:
             about twice the frame). False: none with either; with EGL the frame is about 15 ms faster
             (the shadow-map pass; ``weather-gym bench sim --naive``) and its cones lose the plugin's
             shading, so the calibration's numbers do not hold for it as they stand
-            (:mod:`weather_gym.sim.egl_shadow_map`).
+            (:mod:`weather_gym.sim.egl.shadow_map`).
         scene: ``"plain"`` (default) or ``"realistic"`` (see ``SCENES``).
         cast_shadows: the realistic scene's cones cast shadows away from the sun, drawn into each
             frame after rendering (:mod:`weather_gym.sim.cast_shadows`); the plain scene has none.

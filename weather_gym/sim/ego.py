@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.errors import InputError
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.errors import InputError
 
 EGO_VARIANTS = 16
 """Number of distinct ego-car overlays (``Look.ego_seed`` in ``[0, EGO_VARIANTS)``)."""

@@ -1,7 +1,7 @@
 """The car's LiDAR: one scan of beams against the PyBullet world (ground, cones, the car's own body).
 
 Each beam's first hit gives a return: its point in the sensor frame, range, ring, intensity and the
-ground truth of which cone it hit (:class:`~weather_gym.point_cloud.PointCloud`). Intensity is the
+ground truth of which cone it hit (:class:`~weather_gym.core.point_cloud.PointCloud`). Intensity is the
 hit surface's reflectivity at 905 nm times the cosine of the incidence angle (a Lambertian surface;
 the unit reports range-compensated reflectivity, as Velodyne's calibrated intensity does). The
 reflectivities (:data:`REFLECTIVITY`) are assumed values, not measured ones: asphalt about 0.15, the
@@ -39,8 +39,8 @@ import math
 import numpy as np
 import pybullet as p
 
-from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES
-from weather_gym.point_cloud import PointCloud, label_id
+from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES
+from weather_gym.core.point_cloud import PointCloud, label_id
 from weather_gym.sim.lidar_config import LidarConfig
 from weather_gym.sim.meshes import cone_dimensions
 from weather_gym.sim.textures import STRIPES

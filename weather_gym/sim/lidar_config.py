@@ -24,7 +24,7 @@ Example:
     >>> LidarConfig(channels=0)
     Traceback (most recent call last):
     ...
-    weather_gym.errors.InputError: LidarConfig.channels must be an integer in 1..512, got 0
+    weather_gym.core.errors.InputError: LidarConfig.channels must be an integer in 1..512, got 0
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 __all__ = ["LidarConfig", "MAX_RAYS"]
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.errors import InputError, check_known
+from weather_gym.core.errors import InputError, check_known
 from weather_gym.sim.ego import EGO_VARIANTS
 from weather_gym.sim.scenery import CLUTTER_LAYOUTS
 

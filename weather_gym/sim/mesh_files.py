@@ -27,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from weather_gym._io import atomic_write
+from weather_gym.core._io import atomic_write
 
 __all__ = ["mesh_file", "mesh_dir"]
 

@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from weather_gym._toml import read_toml
-from weather_gym.camera_config import CameraConfig
-from weather_gym.camera_isp import CameraModel
-from weather_gym.errors import FileFormatError, InputError, check_known
+from weather_gym.camera.config import CameraConfig
+from weather_gym.camera.isp import CameraModel
+from weather_gym.core._toml import read_toml
+from weather_gym.core.errors import FileFormatError, InputError, check_known
 from weather_gym.sim.ego import EGO_VARIANTS
 from weather_gym.sim.look import Look
 from weather_gym.sim.scenery import CLUTTER_LAYOUTS

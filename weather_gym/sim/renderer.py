@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.quiet import quiet_c_output
 

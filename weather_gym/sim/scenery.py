@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.sim import scenery_textures as tx
 
 CLUTTER_LAYOUTS = 64

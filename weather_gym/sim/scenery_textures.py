@@ -18,7 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 # FS cones (FSG handbook): blue with a white stripe, yellow with a black stripe, small orange with two
 # white stripes, big orange with two white stripes. (v_from, v_to) fractions of the frustum height.

@@ -13,7 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from weather_gym.cone_spec import CONE_BODY_RGB, CONE_STRIPE_RGB
+from weather_gym.core.cone_spec import CONE_BODY_RGB, CONE_STRIPE_RGB
 
 # stripe bands as (v_from, v_to) fractions of the cone height (0 = bottom)
 STRIPES = {

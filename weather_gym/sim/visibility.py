@@ -17,7 +17,7 @@ rendered ground truth on real laps.
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> from weather_gym.sim.visibility import visible_cones
     >>> cam = CameraConfig(width=160, height=90)
     >>> xy = np.array([[5.0, 0.0], [6.0, 0.0], [5.0, 30.0]])        # ahead, just behind it, far left
@@ -35,10 +35,10 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from weather_gym._jit_cache import jit_cache
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core._jit_cache import jit_cache
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.sim.meshes import cone_dimensions
 
 __all__ = ["visible_cones", "empty_ground_truth"]

@@ -32,9 +32,9 @@ import sys
 
 import numpy as np
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
-from weather_gym.errors import StateError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.core.errors import StateError
 from weather_gym.sim import renderer as _renderer
 from weather_gym.sim import scenery
 from weather_gym.sim.bullet import pybullet as p
@@ -42,7 +42,7 @@ from weather_gym.sim.camera_sensor import CameraSensor
 from weather_gym.sim.car import Car
 from weather_gym.sim.cast_shadows import ShadowCaster
 from weather_gym.sim.config import CarConfig, SimConfig
-from weather_gym.sim.egl_shadow_reuse import ShadowMapReuse
+from weather_gym.sim.egl.shadow_reuse import ShadowMapReuse
 from weather_gym.sim.lidar import LidarSensor
 from weather_gym.sim.lidar_config import LidarConfig
 from weather_gym.sim.look import DEFAULT_LOOK, REALISTIC_LOOK, Look

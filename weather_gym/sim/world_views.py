@@ -25,7 +25,7 @@ import numpy as np
 from weather_gym.sim.bullet import pybullet as p
 from weather_gym.sim.camera_sensor import CameraFrame
 from weather_gym.sim.cast_shadows import shadow_strength
-from weather_gym.sim.egl_shadow_reuse import planned_frame
+from weather_gym.sim.egl.shadow_reuse import planned_frame
 from weather_gym.sim.ego import EGO_DEPTH_M, clip_ground_truth, composite, ego_overlay
 from weather_gym.sim.renderer import quiet_if_egl, renderer_flag
 

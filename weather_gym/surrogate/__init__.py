@@ -10,7 +10,7 @@ steps per second, for training controllers on cone lists.
 * :mod:`~weather_gym.surrogate.log` - full-pipeline runs -> per-cone / false-positive logs (``.npz``).
 * :mod:`~weather_gym.surrogate.model` - fit the model from logs, save / load it (validated).
 * :mod:`~weather_gym.surrogate.sample` - draw one frame's cone list from the model.
-* :mod:`~weather_gym.surrogate.validate` - surrogate vs full pipeline on a held-out track.
+* :mod:`~weather_gym.lab.training.surrogate.validate` - surrogate vs full pipeline on a held-out track.
 
 The wrapper that uses it is :class:`weather_gym.wrappers.SurrogatePerceptionWrapper`
 (``make_env(perception="surrogate", weather="droplets@3")``); see ``docs/surrogate.md``.

@@ -8,7 +8,7 @@ effect: a model fitted with logs of it covers it. A model without it falls back 
 (:func:`split_nominal`, :data:`FALLBACK`) with a :class:`SurrogateFallbackWarning`: nothing measured
 says how much such an effect hurts the detector, so the surrogate does not invent a damage level; it
 reports what the detector sees without that effect, and says so. Two effects at once that the model
-covers are an :class:`~weather_gym.errors.InputError`; an unknown effect name fails in ``parse_weather``.
+covers are an :class:`~weather_gym.core.errors.InputError`; an unknown effect name fails in ``parse_weather``.
 
 Example:
     >>> from weather_gym.surrogate.conditions import condition_of, split_nominal
@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather import EFFECTS, current_spec, parse_weather
 
 __all__ = ["EFFECT_CONDITION", "FALLBACK", "SurrogateFallbackWarning", "condition_defaults", "condition_of",

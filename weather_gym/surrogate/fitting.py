@@ -23,7 +23,7 @@ import math
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.surrogate.point import (
     CROWDED,
     ERR_RANGE_EDGES,

@@ -42,10 +42,10 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym._io import atomic_file, check_output
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import CONE_CLASSES, CONE_HEIGHT_M
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core._io import atomic_file, check_output
+from weather_gym.core.cone_spec import CONE_CLASSES, CONE_HEIGHT_M
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 
 __all__ = ["LOG_SCHEMA", "SurrogateLog", "match_detections", "visibility", "save_log", "load_log",
            "concat_logs", "loose_matches", "part_matches", "CONE_COLUMNS", "FP_COLUMNS", "FRAME_COLUMNS"]
@@ -134,7 +134,7 @@ def visibility(boxes: np.ndarray, classes: np.ndarray, ranges: np.ndarray, beari
 
     Example:
         >>> import numpy as np
-        >>> from weather_gym.camera_config import CameraConfig
+        >>> from weather_gym.camera.config import CameraConfig
         >>> v = visibility(np.array([[0, 0, 5, 14.]]), np.array([1]), np.array([5.0]), np.array([0.0]), CameraConfig())
         >>> round(float(v[0]), 2)
         0.64

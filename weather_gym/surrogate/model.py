@@ -3,7 +3,7 @@
 One *point* per weather condition and fitted ``k`` (clear is ``("clear", 0)``, the ``k = 0`` end of
 every condition); between points every parameter is interpolated linearly in ``k`` (logits,
 quantiles, rates; false-positive rows as a mixture), beyond the last fitted ``k`` nothing is
-extrapolated (an :class:`~weather_gym.errors.InputError`). Each point holds:
+extrapolated (an :class:`~weather_gym.core.errors.InputError`). Each point holds:
 
 * **detection probability**: logistic regression on a linear B-spline ("hat") basis of range,
   |bearing|, log box height, visibility and crowding (the largest IoU of the cone's box with
@@ -50,9 +50,9 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym._io import atomic_file, check_output
-from weather_gym.camera_config import CameraConfig
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core._io import atomic_file, check_output
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.surrogate.camera import box_factor, fitted_input_size
 from weather_gym.surrogate.conditions import (
     condition_defaults,
@@ -138,7 +138,7 @@ class SurrogateModel:
         holds, so the range error is drawn from that range's bin.
 
         Example:
-            >>> from weather_gym.camera_config import CameraConfig
+            >>> from weather_gym.camera.config import CameraConfig
             >>> from weather_gym.surrogate.model import load_model
             >>> load_model().range_factor(CameraConfig()), load_model().range_factor(CameraConfig(width=336, height=188))
             (1.0, 2.0)

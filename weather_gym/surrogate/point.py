@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from weather_gym._jit_cache import jit_cache
-from weather_gym.cone_spec import CONE_CLASSES
+from weather_gym.core._jit_cache import jit_cache
+from weather_gym.core.cone_spec import CONE_CLASSES
 
 RANGE_KNOTS = np.array([0.0, 4.0, 8.0, 12.0, 16.0, 22.0, 30.0, 45.0, 80.0])
 BEARING_KNOTS = np.array([0.0, 0.3, 0.6, 0.9])

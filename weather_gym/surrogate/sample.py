@@ -32,8 +32,8 @@ from typing import Any
 import numba
 import numpy as np
 
-from weather_gym._jit_cache import jit_cache
-from weather_gym.camera_config import CameraConfig
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core._jit_cache import jit_cache
 from weather_gym.surrogate.log import _HEIGHTS
 from weather_gym.surrogate.model import CROWDED, ERR_RANGE_EDGES, QUANTILES, Point, crowding, hat_terms
 

@@ -2,7 +2,7 @@
 
 Example:
     >>> import numpy as np
-    >>> from weather_gym.camera_config import CameraConfig
+    >>> from weather_gym.camera.config import CameraConfig
     >>> from weather_gym.perception.cones import pack_cones
     >>> from weather_gym.viz.overlay import cone_list_boxes
     >>> cam = CameraConfig()
@@ -21,8 +21,8 @@ from typing import cast
 import cv2
 import numpy as np
 
-from weather_gym.cone_spec import CONE_CLASSES
-from weather_gym.errors import InputError
+from weather_gym.core.cone_spec import CONE_CLASSES
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import FIELD
 from weather_gym.perception.draw import BOX_RGB, draw_detections
 

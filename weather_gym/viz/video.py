@@ -5,7 +5,7 @@ Videos are H.264 (``yuv420p``, ``+faststart``: browsers and notebooks play them)
 falls back to OpenCV's MPEG-4 Part 2 (``mp4v``) with a warning. Frames go to a hidden temporary
 file beside the target, renamed into place by ``close()``: an interrupted run never leaves a
 half-written video under the real name (the temporary file is made and moved by
-``weather_gym._io``: an unpredictable name, ``O_EXCL``, fsync, one rename). Nothing a user wrote is
+``weather_gym.core._io``: an unpredictable name, ``O_EXCL``, fsync, one rename). Nothing a user wrote is
 overwritten unless they say so (``overwrite=True``).
 
 Example:
@@ -34,9 +34,9 @@ import av
 import cv2
 import numpy as np
 
-from weather_gym._image_files import opencv_name
-from weather_gym._io import atomic_path, check_output, write_failure, write_image
-from weather_gym.errors import InputError, MissingDependencyError, OutputPathError
+from weather_gym.core._image_files import opencv_name
+from weather_gym.core._io import atomic_path, check_output, write_failure, write_image
+from weather_gym.core.errors import InputError, MissingDependencyError, OutputPathError
 
 __all__ = ["check_output_path", "h264_available", "VideoWriter", "FrameSampler", "save_strip"]
 
@@ -45,7 +45,7 @@ H264_OPTIONS = {"crf": "23", "preset": "veryfast", "movflags": "+faststart"}
 
 
 def check_output_path(path: str | os.PathLike, *, overwrite: bool = False, suffixes: Sequence[str] = ()) -> Path:
-    """``path`` as a Path, after :func:`weather_gym._io.check_output` (suffix, no overwrite unless asked)."""
+    """``path`` as a Path, after :func:`weather_gym.core._io.check_output` (suffix, no overwrite unless asked)."""
     return check_output(path, overwrite=overwrite, suffixes=suffixes)
 
 

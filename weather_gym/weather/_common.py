@@ -19,7 +19,7 @@ from statistics import NormalDist
 import cv2
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 #: Horizontal field of view assumed when neither the state nor the effect gives a focal length.
 DEFAULT_HFOV_DEG = 90.0

@@ -12,7 +12,7 @@ byte, in one pass without Python between the drops:
 * ``cv2.add(roi, big, dst=roi)``, saturating.
 
 ``tests/weather/test_weather_lens_drops.py`` checks the result against those OpenCV calls drop by drop.
-numba compiles the kernel on first use (cached on disk afterwards where a cache folder is writable: weather_gym._jit_cache).
+numba compiles the kernel on first use (cached on disk afterwards where a cache folder is writable: weather_gym.core._jit_cache).
 
 Example:
     >>> import numpy as np
@@ -31,7 +31,7 @@ from functools import lru_cache
 import numba
 import numpy as np
 
-from weather_gym._jit_cache import jit_cache
+from weather_gym.core._jit_cache import jit_cache
 from weather_gym.weather._common import into
 
 __all__ = ["blend_drops", "resize_tables"]

@@ -13,7 +13,7 @@ conversion to bytes, its complement, both spread to three channels, two multipli
 * ``cv2.add``: saturating.
 
 ``tests/weather/test_weather_near_blend.py`` checks it against those OpenCV calls. numba compiles the
-kernels on first use (cached on disk afterwards where a cache folder is writable: weather_gym._jit_cache).
+kernels on first use (cached on disk afterwards where a cache folder is writable: weather_gym.core._jit_cache).
 
 Example:
     >>> import numpy as np
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from weather_gym._jit_cache import jit_cache
+from weather_gym.core._jit_cache import jit_cache
 from weather_gym.weather._common import into
 
 __all__ = ["near_blend", "near_weight"]

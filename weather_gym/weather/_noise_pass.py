@@ -8,7 +8,7 @@ so :func:`noise_pass` reads the frame once and writes the result once, where fiv
 (a look-up, a split, a multiply, a subtract and a masked add) each wrote a temporary frame.
 
 ``tests/weather/test_weather_noise_pass.py`` checks the result against those OpenCV passes. numba
-compiles the kernel on first use (cached on disk afterwards where a cache folder is writable: weather_gym._jit_cache).
+compiles the kernel on first use (cached on disk afterwards where a cache folder is writable: weather_gym.core._jit_cache).
 
 Example:
     >>> import numpy as np
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from weather_gym._jit_cache import jit_cache
+from weather_gym.core._jit_cache import jit_cache
 
 __all__ = ["noise_pass"]
 

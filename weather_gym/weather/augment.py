@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.errors import InputError, MissingDependencyError
+from weather_gym.core.errors import InputError, MissingDependencyError
 from weather_gym.weather.spec import parse_weather
 
 try:

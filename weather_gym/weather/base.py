@@ -53,8 +53,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from weather_gym.errors import InputError, LimitError
-from weather_gym.limits import check_image_size
+from weather_gym.core.errors import InputError, LimitError
+from weather_gym.core.limits import check_image_size
 
 __all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "CheckedArgs", "Effect", "EffectRun", "KnobEffect", "check_depth",
            "check_image"]

@@ -18,7 +18,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather.base import Effect, EffectRun, SeedLike, check_seed
 
 __all__ = ["Compose", "ComposeRun"]

@@ -19,7 +19,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
-from weather_gym.errors import LimitError
+from weather_gym.core.errors import LimitError
 from weather_gym.weather._common import (
     DEFAULT_HFOV_DEG,
     depth_min,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 
 __all__ = ["rms_contrast", "ssim"]
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather.base import Effect
 from weather_gym.weather.spec import parse_weather
 

@@ -35,7 +35,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from weather_gym.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.weather.tables import effect_from_table
 
 __all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "canonical_condition",

@@ -9,15 +9,15 @@ Example:
     >>> make("snow")
     Traceback (most recent call last):
     ...
-    weather_gym.errors.InputError: unknown weather effect 'snow'; valid names: blur, dim, droplets, exposure, fog, glare, jpeg, motion_blur, noise, rain, vignette
+    weather_gym.core.errors.InputError: unknown weather effect 'snow'; valid names: blur, dim, droplets, exposure, fog, glare, jpeg, motion_blur, noise, rain, vignette
 """
 
 from __future__ import annotations
 
 from typing import Any, TypeVar
 
-from weather_gym.errors import check_known
-from weather_gym.registry import Registry
+from weather_gym.core.errors import check_known
+from weather_gym.core.registry import Registry
 from weather_gym.weather.base import KnobEffect
 
 __all__ = ["EFFECTS", "make", "register_effect"]

@@ -22,7 +22,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather.base import Effect, EffectRun, KnobEffect, SeedLike, check_seed
 from weather_gym.weather.registry import make
 

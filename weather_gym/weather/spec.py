@@ -40,7 +40,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather.base import Effect, EffectRun, KnobEffect
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.presets import preset_source, preset_spec

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from weather_gym.errors import InputError, check_known
+from weather_gym.core.errors import InputError, check_known
 from weather_gym.weather.base import Effect
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.registry import EFFECTS, make

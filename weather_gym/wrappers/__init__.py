@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from weather_gym._lazy import lazy_exports
+from weather_gym.core._lazy import lazy_exports
 
 if TYPE_CHECKING:  # the lazily exported names, for type checkers
     from weather_gym.wrappers.detector import DetectorWrapper  # noqa: F401

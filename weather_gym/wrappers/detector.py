@@ -39,9 +39,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space
 from weather_gym.perception.detector_spec import DetectorSpec, as_detector, load_detector
 from weather_gym.perception.ranging import (

@@ -36,9 +36,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_spec import CONE_CLASSES, cone_height
-from weather_gym.errors import InputError, check_known
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_spec import CONE_CLASSES, cone_height
+from weather_gym.core.errors import InputError, check_known
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
 
 __all__ = ["GroundTruthConeWrapper", "OracleNoise", "oracle_cones"]

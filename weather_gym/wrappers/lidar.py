@@ -35,13 +35,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.cone_spec import UNKNOWN_CLASS
-from weather_gym.errors import InputError
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.cone_spec import UNKNOWN_CLASS
+from weather_gym.core.errors import InputError
+from weather_gym.core.point_cloud import pack_points
 from weather_gym.lidar_weather import parse_lidar_weather
 from weather_gym.perception.cones import CONE_FIELDS, DEFAULT_MAX_CONES, FIELD, cone_list_space
 from weather_gym.perception.lidar_cones import LidarConeConfig, cones_from_points
-from weather_gym.point_cloud import pack_points
 
 __all__ = ["LidarConeWrapper"]
 

@@ -56,9 +56,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.camera_config import CameraConfig
-from weather_gym.cone_arrays import ConeArrays
-from weather_gym.errors import InputError
+from weather_gym.camera.config import CameraConfig
+from weather_gym.core.cone_arrays import ConeArrays
+from weather_gym.core.errors import InputError
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
 from weather_gym.surrogate.conditions import SurrogateFallbackWarning, fallback_note, split_nominal
 from weather_gym.surrogate.model import SurrogateModel, load_model

@@ -62,7 +62,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from weather_gym.errors import InputError
+from weather_gym.core.errors import InputError
 from weather_gym.weather import Effect, EffectRun, WeatherSpec, current_spec, parse_weather, weather_source
 
 __all__ = ["STATE_FIELDS", "WeatherWrapper"]

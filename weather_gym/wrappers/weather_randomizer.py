@@ -36,7 +36,7 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from weather_gym.errors import InputError, check_known
+from weather_gym.core.errors import InputError, check_known
 from weather_gym.weather import make
 from weather_gym.weather.base import CheckedArgs, keyword_args
 from weather_gym.weather.presets import canonical_condition, preset_spec

@@ -1,0 +1,644 @@
+"""Presets resolved per scenario: the k that makes *this* scenario's perception lose what the study measured.
+
+A calibrated preset (``low_light@2``) carries its target: the relative mAP the study measured in real
+weather (``measured_relative``, 0.344 at sunset) on its metric (mAP@0.5 over blue and yellow cones).
+The shipped k (``presets.toml``) met it on the calibration pool of tracks for the shipped detector;
+:func:`resolve_presets` finds the k that meets it in a given :class:`Scenario` (track or clear
+recording, camera and camera model, world, detector, effect mode):
+
+1. a deterministic reference set of the scenario is rendered once (``weather_gym.lab.datasets.render``;
+   short episodes from start points spread over the track) and shared by every row;
+2. the detector runs on the clear frames once (clear mAP; too few visible cones or a clear mAP too low
+   to measure a drop is a :class:`~weather_gym.core.errors.ResolutionError`);
+3. per row, k is found by a secant/bisection search on the relative mAP (every frame degraded with its
+   own seed, the same at every k), started at the shipped k and stepped along the shipped presets' curve;
+   every point measured serves every row of its condition (:func:`weather_gym.lab.calibration.curve.invert`
+   reads the final k off them);
+4. the damage at the resolved k is bootstrapped over the set's episodes (frames of an episode are not
+   independent): when its standard error exceeds ``tolerance`` (0.02) the set is widened by more episodes,
+   up to ``scenario.max_frames``; still wider is a ``ResolutionError`` naming the rows and the fix.
+
+The result is written once to a disk cache (:func:`cache_dir`, ``$WEATHER_GYM_CACHE``) keyed by
+everything that changes it (:func:`resolution_key`); concurrent processes computing the same key wait
+for the first and read its result. The resolved table is an ordinary presets file (``k_source =
+"resolved"``), so ``--presets FILE`` and ``presets=`` take it like the shipped one.
+
+Example (nothing is rendered):
+    >>> s = Scenario(tracks=("skidpad",))
+    >>> s.describe()
+    'track skidpad, plain world, default camera, shipped detector, 160 frames (seed 0)'
+    >>> len(resolution_key(s))
+    16
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from weather_gym.camera.config import CameraConfig
+from weather_gym.camera.isp import CameraModel
+from weather_gym.core._io import atomic_write, atomic_write_json
+from weather_gym.core._lock import waiting_lock
+from weather_gym.core._toml import toml_document
+from weather_gym.core.errors import InputError, ResolutionError
+from weather_gym.core.paths import PACKAGE
+from weather_gym.core.version import __version__
+from weather_gym.envs.config import EnvConfig
+from weather_gym.lab.calibration.curve import invert
+from weather_gym.lab.calibration.frame_ap import FrameMatches, frame_matches
+from weather_gym.lab.datasets.coco import load_coco
+from weather_gym.lab.datasets.render import render_dataset
+from weather_gym.perception.detector_spec import DEFAULT_MODEL, load_detector, parse_detector_spec
+from weather_gym.perception.scoring import small_rule
+from weather_gym.weather import make
+from weather_gym.weather.presets import CONDITIONS, DEFAULT_PRESETS, SEVERITIES, load_presets
+
+__all__ = ["CACHE_ENV", "MIN_CLEAR_MAP", "MIN_CONES", "Resolution", "ResolvedRow", "Scenario", "cache_dir",
+           "code_version", "resolution_key", "resolve_presets"]
+
+CACHE_ENV = "WEATHER_GYM_CACHE"
+"""Environment variable naming the cache folder (``off``: no cache); default ``$XDG_CACHE_HOME/weather-gym``
+or ``~/.cache/weather-gym``."""
+MIN_CONES = 100
+"""Fewest blue and yellow cones (that count: not too small) a reference set needs to measure a drop."""
+MIN_CLEAR_MAP = 0.3
+"""Lowest clear mAP@0.5 (blue and yellow) at which a relative drop is measured."""
+HIT = 0.005
+"""A measured point this close to the target ends a row's search."""
+MAX_EVALS = 8
+"""Most k values measured per row and set."""
+BOOTSTRAP = 200
+"""Bootstrap replicates (over episodes) of the damage at the resolved k."""
+VERSION = 1
+"""Version of this resolution method (part of the cache key)."""
+
+_CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coco.py",
+         "lab/datasets/coco_writer.py", "perception/scoring.py", "perception/onnx_detector.py", "perception/yolo.py",
+         "perception/preprocess.py", "perception/cones.py", "lab/calibration/resolve.py", "lab/calibration/frame_ap.py",
+         "lab/calibration/curve.py")
+
+
+# ------------------------------------------------------------------------------------------ scenario
+@dataclass(frozen=True)
+class Scenario:
+    """What a preset is resolved for. ``dataset``: a clear COCO recording used as it is (no render);
+    otherwise ``frames`` frames are rendered over ``tracks`` in ``scene`` through ``camera`` and
+    ``camera_model`` (None: the env's default), in episodes of ``frames_per_episode``, from ``seed``,
+    widened by as many again up to ``max_frames`` while the damage is not known within the tolerance.
+    ``detector``: a detector spec (None: the shipped one; ``"yolov8:model.onnx"``, ...)."""
+
+    tracks: tuple[str, ...] = ("small_track",)
+    scene: str = "plain"
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    camera_model: CameraModel | None = None
+    detector: Any = None
+    dataset: str | None = None
+    frames: int = 160
+    max_frames: int = 480
+    seed: int = 0
+    frames_per_episode: int = 4
+
+    def __post_init__(self) -> None:
+        if isinstance(self.tracks, str):
+            object.__setattr__(self, "tracks", (self.tracks,))
+        object.__setattr__(self, "tracks", tuple(self.tracks))
+        if self.dataset is None and not self.tracks:
+            raise InputError("a scenario needs a track (tracks=...) or a clear recording (dataset=...)")
+        for name in ("frames", "max_frames", "frames_per_episode"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise InputError(f"Scenario.{name} must be an integer >= 1, got {v!r}")
+        if self.max_frames < self.frames:
+            raise InputError(f"Scenario.max_frames ({self.max_frames}) is below frames ({self.frames})")
+        if not isinstance(self.camera, CameraConfig):
+            raise InputError(f"Scenario.camera must be a CameraConfig, got {type(self.camera).__name__}")
+        if self.camera_model is not None and not isinstance(self.camera_model, CameraModel):
+            raise InputError(f"Scenario.camera_model must be a CameraModel or None, got {type(self.camera_model).__name__}")
+
+    @property
+    def model(self) -> CameraModel:
+        return self.camera_model if self.camera_model is not None else EnvConfig().camera_model
+
+    def identity(self) -> dict[str, Any]:
+        """Everything about the scenario that changes its frames (JSON)."""
+        if self.dataset is not None:
+            ann = Path(self.dataset) / "annotations.json"
+            return {"dataset": str(Path(self.dataset).resolve()), "annotations_sha256": _file_sha(ann)}
+        return {"tracks": list(self.tracks), "scene": self.scene, "camera": self.camera.to_dict(),
+                "camera_model": self.model.to_dict(), "frames": self.frames, "max_frames": self.max_frames,
+                "seed": self.seed, "frames_per_episode": self.frames_per_episode}
+
+    def describe(self) -> str:
+        spec = parse_detector_spec(self.detector) if self.detector is not None else None
+        shipped = spec is None or (spec.kind == "conenet" and spec.path is None and spec == type(spec)())
+        det = "shipped detector" if shipped else f"detector {spec}"
+        if self.dataset is not None:
+            return f"recording {self.dataset}, {det}"
+        cam = "default camera" if self.camera == CameraConfig() and self.camera_model is None else "given camera"
+        return (f"track {'+'.join(self.tracks)}, {self.scene} world, {cam}, {det}, {self.frames} frames "
+                f"(seed {self.seed})")
+
+
+@dataclass
+class ResolvedRow:
+    """One preset resolved: its ``k`` for the scenario beside the shipped pool ``k_pool``, the relative mAP
+    measured there (``achieved``) with its bootstrap standard error and 95 % interval, the ``k_interval``
+    over which the damage stays within one standard error of the target, and the search's points."""
+
+    condition: str
+    severity: int
+    target: float
+    k: float
+    k_pool: float
+    achieved: float
+    se: float
+    ci95: tuple[float, float]
+    k_interval: tuple[float, float]
+    reachable: bool
+    effect: dict[str, Any]
+    evals: int
+    note: str = ""
+
+
+@dataclass
+class Resolution:
+    """The resolved presets of a scenario: rows, the clear mAP and cones they rest on, the presets file."""
+
+    scenario: str
+    key: str
+    rows: list[ResolvedRow]
+    clear_map: float
+    n_cones: int
+    n_frames: int
+    seconds: float
+    path: Path | None
+    cached: bool = False
+    points: dict[str, list[list[float]]] = field(default_factory=dict)
+    note: str = ""
+
+    def row(self, condition: str, severity: int) -> ResolvedRow:
+        for r in self.rows:
+            if r.condition == condition and r.severity == severity:
+                return r
+        raise InputError(f"no resolved row {condition}@{severity} (resolved: "
+                         f"{', '.join(f'{r.condition}@{r.severity}' for r in self.rows)})")
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["path"] = None if self.path is None else str(self.path)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Resolution:
+        rows = [ResolvedRow(**{**r, "ci95": tuple(r["ci95"]), "k_interval": tuple(r["k_interval"])}) for r in d["rows"]]
+        return cls(**{**d, "rows": rows, "path": None if d["path"] is None else Path(d["path"])})
+
+
+# ---------------------------------------------------------------------------------------------- cache
+def cache_dir() -> Path | None:
+    """The cache folder (created), or None when there is none (``WEATHER_GYM_CACHE=off``, or no writable
+    place: a read-only install with no writable home resolves every time)."""
+    env = os.environ.get(CACHE_ENV)
+    if env is not None and env.strip().lower() in ("", "off", "none", "0"):
+        return None
+    if env:
+        root = Path(env)
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        root = Path(base) / "weather-gym"
+    try:
+        (root / "resolved").mkdir(parents=True, exist_ok=True)
+        probe = tempfile.NamedTemporaryFile(dir=root / "resolved", prefix=".probe", delete=True)
+        probe.close()
+    except OSError:
+        return None
+    return root
+
+
+def _file_sha(path: Path) -> str:
+    st = path.stat()
+    return _sha_cached(str(path.resolve()), st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=64)
+def _sha_cached(path: str, mtime_ns: int, size: int) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+@lru_cache(maxsize=1)
+def code_version() -> str:
+    """16 hex digits of the source of the pieces a resolution depends on (renderer, effects, camera,
+    detector wrappers, scoring, this module) and the package version."""
+    pkg = PACKAGE
+    h = hashlib.sha256(f"{__version__}/{VERSION}".encode())
+    for part in _CODE:
+        p = pkg / part
+        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
+        for f in files:
+            h.update(str(f.relative_to(pkg)).encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _targets(presets: str | os.PathLike | None) -> list[tuple[str, int, dict[str, Any]]]:
+    """The rows that can be resolved: calibrated, with a measured relative target and one effect."""
+    table = load_presets(presets)["presets"]
+    out = []
+    for cond in CONDITIONS:
+        for sev in SEVERITIES:
+            t = table.get(cond, {}).get(sev)
+            if (t and t.get("calibrated") and len(t["effects"]) == 1 and "measured_relative" in t
+                    and t.get("target", "relative") == "relative" and t["effects"][0].get("name") not in ("ramp", "compose")):
+                out.append((cond, sev, t))
+    return out
+
+
+def resolution_key(scenario: Scenario, presets: str | os.PathLike | None = None, tolerance: float = 0.02) -> str:
+    """16 hex digits naming a resolution: scenario, detector file and options, the rows' targets and
+    effects, the tolerance and :func:`code_version`."""
+    spec = parse_detector_spec(scenario.detector)
+    rows = [[c, s, t["measured_relative"], {k: v for k, v in t["effects"][0].items() if k != "k"}]
+            for c, s, t in _targets(presets)]
+    model = Path(spec.path) if spec.path is not None else DEFAULT_MODEL  # its SHA-256, as detector_id, cached
+    detector = [_file_sha(model), spec.kind, spec.classes, spec.resize, spec.input_size, spec.score_threshold]
+    doc = {"scenario": scenario.identity(), "detector": detector, "detector_spec": str(spec),
+           "rows": rows, "tolerance": float(tolerance), "code": code_version()}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+# ------------------------------------------------------------------------------------ the reference set
+class _ReferenceSet:
+    """The scenario's frames (rendered in chunks of ``scenario.frames``, each chunk once), the detector's
+    clear detections and every degraded frame's detections, kept per (effect, k, chunk)."""
+
+    def __init__(self, scenario: Scenario, root: Path, detector: Any, progress: bool) -> None:
+        self.scenario, self.root, self.detector, self.progress = scenario, root, detector, progress
+        self.chunks: list[dict[str, Any]] = []
+        self._dets: dict[tuple[str, float, int], list[Any]] = {}
+
+    def widen(self) -> None:
+        i = len(self.chunks)
+        s = self.scenario
+        if s.dataset is not None:
+            ds = load_coco(s.dataset, cache_images=True)
+        else:
+            folder = self.root / f"chunk{i}"
+            with waiting_lock(str(self.root / f".chunk{i}.lock")):
+                if not (folder / "annotations.json").is_file():
+                    render_dataset(folder, tracks=list(s.tracks), frames=s.frames, seed=s.seed + 7919 * i,
+                                   camera=s.camera, camera_model=s.model, scene=s.scene,
+                                   frames_per_episode=s.frames_per_episode, progress=self.progress,
+                                   resume=folder.exists())
+            ds = load_coco(folder, cache_images=True)
+        n = len(ds)
+        records = [ds.record(j) for j in range(n)]
+        states = []
+        for rec in records:
+            st = {"speed": float(rec.get("speed", 0.0)), "yaw_rate": float(rec.get("yaw_rate", 0.0))}
+            if rec.get("camera"):
+                c = CameraConfig(**rec["camera"])
+                st.update(exposure_s=c.exposure_s, fx=c.fx)
+            states.append(st)
+        rule = small_rule(ds, self.detector)
+        self.chunks.append({
+            "images": [ds.image(j) for j in range(n)],
+            "depths": [ds.depth(j) if rec.get("depth_file") else None for j, rec in enumerate(records)],
+            "states": states, "gts": [ds.gt(j) for j in range(n)],
+            "groups": [(i, rec.get("episode", j)) for j, rec in enumerate(records)],
+            "seeds": np.random.SeedSequence([s.seed, i]).generate_state(max(n, 1), dtype=np.uint32),
+            "min_box_height": None if rule is None else rule.min_height_px,
+        })
+
+    @property
+    def n_frames(self) -> int:
+        return sum(len(c["images"]) for c in self.chunks)
+
+    def detections(self, label: str, effect: Any, k: float, chunk: int) -> list[Any]:
+        key = (label, round(float(k), 6), chunk)
+        if key not in self._dets:
+            c = self.chunks[chunk]
+            ims = c["images"]
+            if effect is not None:
+                out = []
+                for im, d, st, sd in zip(ims, c["depths"], c["states"], c["seeds"], strict=True):
+                    effect.reset(int(sd))
+                    out.append(effect(im, depth=d, state=dict(st), rng=np.random.default_rng(int(sd))))
+                ims = out
+            self._dets[key] = self.detector.detect_batch(ims, score_threshold=0.05)
+        return self._dets[key]
+
+    def matches(self, label: str, effect: Any, k: float) -> FrameMatches:
+        gts, dets, groups = [], [], []
+        rules = {c["min_box_height"] for c in self.chunks}
+        for i, c in enumerate(self.chunks):
+            gts += c["gts"]
+            groups += c["groups"]
+            dets += self.detections(label, effect, k, i)
+        return frame_matches(gts, dets, groups=groups, min_box_height=rules.pop() if len(rules) == 1 else None)
+
+
+# ------------------------------------------------------------------------------------------ the search
+def _pool_curve(rows: list[tuple[int, float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """The shipped presets' (k, relative) points of a condition, from k = 0 (relative 1), made a usable curve."""
+    pts = sorted({(0.0, 1.0), *((k, t) for _, k, t in rows if k > 0)})
+    ks = np.array([p[0] for p in pts])
+    rel = np.minimum.accumulate(np.array([p[1] for p in pts]))
+    return ks, rel
+
+
+def _pool_k(ks: np.ndarray, rel: np.ndarray, r: float) -> float:
+    """k at which the shipped curve reaches relative ``r`` (extended linearly past its ends)."""
+    if r >= rel[0]:
+        return float(ks[0])
+    if r <= rel[-1]:
+        slope = (rel[-1] - rel[-2]) / max(ks[-1] - ks[-2], 1e-6)
+        return float(ks[-1] + (r - rel[-1]) / min(slope, -1e-3))
+    return float(np.interp(-r, -rel, ks))
+
+
+def _next_k(points: dict[float, float], target: float, pool: tuple[np.ndarray, np.ndarray], k0: float) -> float | None:
+    """The next k to measure (None: nothing new to learn), from the measured ``points`` {k: relative}."""
+    if not points:
+        return k0
+    ks = sorted(points)
+    above = [k for k in ks if points[k] > target]
+    below = [k for k in ks if points[k] < target]
+    if above and below and max(above) < min(below):
+        lo, hi = max(above), min(below)
+        if hi - lo <= 0.0015:
+            return None
+        k = lo + (points[lo] - target) / (points[lo] - points[hi]) * (hi - lo)
+        k = min(max(k, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))  # keep the bracket shrinking
+    elif above and not below:
+        k_cur = max(above)
+        if k_cur >= 1.0:
+            return None
+        step = _pool_k(*pool, target) - _pool_k(*pool, points[k_cur])
+        k = min(1.0, k_cur + max(step, 0.01))
+    elif below and not above:
+        k_cur = min(below)
+        if k_cur <= 0.0:
+            return None
+        step = _pool_k(*pool, points[k_cur]) - _pool_k(*pool, target)
+        k = max(0.0, k_cur - max(step, 0.01))
+    else:  # not monotone between the bracketing points: bisect the widest gap around the target
+        lo = max(k for k in ks if points[k] >= target) if any(points[k] >= target for k in ks) else 0.0
+        hi = min((k for k in ks if k > lo and points[k] < target), default=1.0)
+        k = 0.5 * (lo + hi)
+    k = round(k, 3)
+    return None if k in points else k
+
+
+def _bootstrap(clear: FrameMatches, hit: FrameMatches, seed: int) -> tuple[float, tuple[float, float]]:
+    """Standard error and 95 % interval of relative mAP over episodes (``BOOTSTRAP`` replicates)."""
+    rng = np.random.default_rng(seed)
+    n = clear.n_groups
+    vals = []
+    for _ in range(BOOTSTRAP):
+        w = rng.multinomial(n, np.full(n, 1.0 / n)).astype(np.float64)
+        c = clear.map50(w)
+        if c > 0:
+            vals.append(hit.map50(w) / c)
+    v = np.array(vals)
+    return float(np.std(v, ddof=1)), (float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5)))
+
+
+class _Search:
+    """The measured points of one condition's effect (shared by its rows) and the search for each row's k."""
+
+    def __init__(self, ref: _ReferenceSet, items, clear: FrameMatches, clear_map: float, scenario: Scenario,
+                 tick: Callable[[], None]) -> None:
+        table = {k: v for k, v in items[0][1]["effects"][0].items() if k != "k"}
+        self.name, self.params = table.pop("name"), table
+        self.label = json.dumps([self.name, self.params], sort_keys=True)
+        self.pool = _pool_curve([(s, float(t["effects"][0]["k"]), float(t["measured_relative"])) for s, t in items])
+        self.ref, self.clear, self.clear_map, self.scenario, self.tick = ref, clear, clear_map, scenario, tick
+        self.points: dict[float, float] = {}
+        self.matches: dict[float, FrameMatches] = {}
+
+    def measure(self, k: float) -> None:
+        m = self.ref.matches(self.label, make(self.name, k=k, **self.params), k)
+        self.matches[k] = m
+        self.points[k] = m.map50() / self.clear_map
+        self.tick()
+
+    def _hit(self, target: float) -> bool:
+        return any(abs(v - target) <= HIT for v in self.points.values())
+
+    def row(self, cond: str, sev: int, t: dict[str, Any]) -> ResolvedRow:
+        target, k_pool = float(t["measured_relative"]), float(t["effects"][0]["k"])
+        points, evals, note, reachable = self.points, 0, "", True
+        if target >= 1.0 and 0.0 not in points:
+            self.measure(0.0)
+            evals += 1
+        while evals < MAX_EVALS and not self._hit(target):
+            k = _next_k(points, target, self.pool, k_pool)
+            if k is None:
+                break
+            self.measure(k)
+            evals += 1
+        ks = sorted(points)
+        if all(points[k] > target for k in ks) and max(ks) >= 1.0:
+            raise ResolutionError(
+                f"{cond}@{sev} cannot be resolved for {self.scenario.describe()}: its target relative mAP "
+                f"{target:.3f} is out of the effect's reach (at k = 1 the detector keeps {points[1.0]:.3f} of its "
+                f"clear mAP {self.clear_map:.3f}); use the shipped pool presets (--presets pool) or a stronger effect mode")
+        if all(points[k] < target for k in ks) and min(ks) <= 0.0:
+            reachable = False
+            note = (f"the target {target:.3f} is above what k = 0 keeps ({points[0.0]:.3f}): the effect only "
+                    "lowers it; k = 0 comes closest")
+        elif len(ks) >= 2 and not self._hit(target):
+            k_inv = round(invert(ks, [points[k] for k in ks], target, what="the relative mAP").k, 3)
+            if k_inv not in points:  # measure where the search ended, so the damage is known there
+                self.measure(k_inv)
+                evals += 1
+        k_res = min(points, key=lambda k: (abs(points[k] - target), k))
+        if reachable and abs(points[k_res] - target) > HIT:
+            note = (f"closest measured point after {evals} steps ({points[k_res]:.3f} against {target:.3f}): "
+                    "the curve is steep or noisy here")
+        return _row(cond, sev, target, k_res, k_pool, points, self.matches, self.clear, self.name, self.params,
+                    evals, reachable=reachable, note=note)
+
+
+def _resolve_rows(ref: _ReferenceSet, targets, clear: FrameMatches, clear_map: float, scenario: Scenario,
+                  tick: Callable[[], None]) -> tuple[list[ResolvedRow], dict[str, list[list[float]]]]:
+    by_cond: dict[str, list] = {}
+    for cond, sev, t in targets:
+        by_cond.setdefault(cond, []).append((sev, t))
+    rows: list[ResolvedRow] = []
+    points_out: dict[str, list[list[float]]] = {}
+    for cond, items in by_cond.items():
+        search = _Search(ref, items, clear, clear_map, scenario, tick)
+        rows += [search.row(cond, sev, t) for sev, t in items]
+        points_out[cond] = [[k, search.points[k]] for k in sorted(search.points)]
+    return rows, points_out
+
+
+def _row(cond, sev, target, k, k_pool, points, matches, clear, name, params, evals, *, reachable, note) -> ResolvedRow:
+    se, ci = _bootstrap(clear, matches[k], seed=1000 * SEVERITIES.index(sev) + len(cond))
+    ks = sorted(points)
+    vals = np.array([points[x] for x in ks])
+    i = ks.index(k)
+    nb = [j for j in (i - 1, i + 1) if 0 <= j < len(ks)]
+    slopes = [(vals[j] - vals[i]) / (ks[j] - ks[i]) for j in nb if ks[j] != ks[i]]
+    slope = min(slopes) if slopes else -math.inf
+    dk = se / abs(slope) if slope < 0 else 0.0
+    k_int = (round(max(0.0, k - dk), 3), round(min(1.0, k + dk), 3))
+    effect = {"name": name, "k": float(k), **params}
+    return ResolvedRow(cond, int(sev), float(target), float(k), float(k_pool), float(points[k]), round(se, 4),
+                       (round(ci[0], 4), round(ci[1], 4)), k_int, bool(reachable), effect, int(evals), note)
+
+
+# ------------------------------------------------------------------------------------------- resolving
+def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathLike | None = None,
+                    tolerance: float = 0.02, cache: bool = True, progress: bool = True,
+                    threads: int = 1) -> Resolution:
+    """The shipped (or ``presets``) calibrated rows resolved for ``scenario`` (see module doc).
+
+    Cached: a second call with the same key reads the result (tens of ms); ``cache=False`` or no cache
+    folder (:func:`cache_dir`) resolves anew, in a temporary folder. ``tolerance``: the largest bootstrap
+    standard error of a row's damage that is accepted. Raises :class:`~weather_gym.core.errors.ResolutionError`
+    where the scenario does not allow it.
+    """
+    scenario = scenario or Scenario()
+    if not (isinstance(tolerance, float | int) and 0 < tolerance < 1):
+        raise InputError(f"tolerance must be a number in (0, 1), got {tolerance!r}")
+    key = resolution_key(scenario, presets, tolerance)
+    root = cache_dir() if cache else None
+    if root is None:  # frames in a temporary folder; the presets file beside them in the temp dir, if it is writable
+        out = Path(tempfile.gettempdir()) / f"weather-gym-resolved-{key}.toml"
+        with tempfile.TemporaryDirectory(prefix="weather-gym-resolve-") as tmp:
+            res = _compute(scenario, presets, tolerance, key, Path(tmp), None, progress, threads)
+        with contextlib.suppress(OSError):
+            res.path = write_resolved(res, out, presets=presets, scenario=scenario, overwrite=True)
+        res.note = ("no cache folder (set WEATHER_GYM_CACHE to a writable folder to keep resolutions)" if cache
+                    else "cache off")
+        return res
+    entry = root / "resolved" / f"{key}.json"
+    hit = _read_entry(entry)
+    if hit is not None:
+        return hit
+    with waiting_lock(str(root / "resolved" / f".{key}.lock")):
+        hit = _read_entry(entry)  # another process may have computed it while we waited
+        if hit is not None:
+            return hit
+        frames = root / "frames" / hashlib.sha256(json.dumps(scenario.identity(), sort_keys=True,
+                                                             default=str).encode()).hexdigest()[:16]
+        frames.mkdir(parents=True, exist_ok=True)
+        res = _compute(scenario, presets, tolerance, key, frames, root / "resolved" / f"{key}.toml", progress, threads)
+        atomic_write_json(entry, res.to_dict(), indent=1, overwrite=True)
+    return res
+
+
+def _read_entry(entry: Path) -> Resolution | None:
+    if not entry.is_file():
+        return None
+    try:
+        res = Resolution.from_dict(json.loads(entry.read_text()))
+    except (OSError, ValueError, TypeError, KeyError):
+        return None  # a damaged entry is computed again (and replaced)
+    if res.path is not None and not res.path.is_file():
+        return None
+    res.cached = True
+    return res
+
+
+def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_root: Path, out: Path | None,
+             progress: bool, threads: int) -> Resolution:
+    t0 = time.perf_counter()
+    targets = _targets(presets)
+    if not targets:
+        raise InputError(f"presets file {presets or DEFAULT_PRESETS} has no calibrated rows with a relative target to resolve")
+    detector = load_detector(scenario.detector, threads=threads)
+    ref = _ReferenceSet(scenario, frames_root, detector, progress)
+    bar = tqdm(desc="resolve presets", unit="k", disable=not progress)
+    try:
+        while True:
+            ref.widen()
+            clear = ref.matches("clear", None, 0.0)
+            n_cones = int(clear.npos.sum())
+            if n_cones < MIN_CONES:
+                raise ResolutionError(
+                    f"{scenario.describe()}: only {n_cones} blue and yellow cones are big enough to count in "
+                    f"{ref.n_frames} frames (at least {MIN_CONES} needed to measure a drop); use more frames "
+                    f"(Scenario.frames / --frames), a longer track, or the shipped pool presets (--presets pool)")
+            clear_map = clear.map50()
+            if not clear_map >= MIN_CLEAR_MAP:
+                raise ResolutionError(
+                    f"{scenario.describe()}: the detector's clear mAP@0.5 (blue and yellow) is {clear_map:.3f}, "
+                    f"below {MIN_CLEAR_MAP} at which a relative drop is measured; check the detector spec "
+                    f"(classes, input size) or use the shipped pool presets (--presets pool)")
+            rows, points = _resolve_rows(ref, targets, clear, clear_map, scenario, bar.update)
+            wide = [r for r in rows if r.se > tolerance]
+            if not wide:
+                break
+            if scenario.dataset is not None or ref.n_frames + scenario.frames > scenario.max_frames:
+                worst = max(wide, key=lambda r: r.se)
+                need = int(math.ceil(ref.n_frames * (worst.se / tolerance) ** 2))
+                raise ResolutionError(
+                    f"{scenario.describe()}: the damage of {', '.join(f'{r.condition}@{r.severity}' for r in wide)} is "
+                    f"not known within {tolerance:g} on {ref.n_frames} frames ({worst.condition}@{worst.severity}: "
+                    f"relative mAP {worst.achieved:.3f}, bootstrap standard error {worst.se:.3f}); about {need} frames "
+                    f"would do: raise max_frames (--max-frames), record a longer clear set, or loosen --tolerance")
+    finally:
+        bar.close()
+    res = Resolution(scenario=scenario.describe(), key=key, rows=rows, clear_map=round(clear_map, 4), n_cones=n_cones,
+                     n_frames=ref.n_frames, seconds=round(time.perf_counter() - t0, 1), path=None, points=points)
+    if out is not None:
+        res.path = write_resolved(res, out, presets=presets, scenario=scenario, overwrite=True)
+    return res
+
+
+def write_resolved(res: Resolution, path: str | os.PathLike, *, presets: str | os.PathLike | None = None,
+                   scenario: Scenario | None = None, overwrite: bool = False) -> Path:
+    """The presets file of ``res``: the base table (``presets``, default the shipped one) with the resolved
+    rows' k replaced (``k_source = "resolved"``, the pool's k, the interval and the bootstrap beside it)."""
+    base = load_presets(presets)
+    done = {(r.condition, r.severity): r for r in res.rows}
+    rows = []
+    for cond, sevs in base["presets"].items():
+        for sev in SEVERITIES:
+            t = dict(sevs[sev])
+            r = done.get((cond, sev))
+            if r is not None:
+                t.update(effects=[r.effect], k_pool=r.k_pool, k_interval=list(r.k_interval), k_source="resolved",
+                         achieved_relative=round(r.achieved, 4), achieved_se=r.se, achieved_ci95=list(r.ci95),
+                         reachable=r.reachable, note=r.note, resolution_evals=r.evals)
+                for k in ("achieved_map", "achieved_sd", "predicted", "k_absolute"):
+                    t.pop(k, None)
+            rows.append(t)
+    meta = {k: v for k, v in base.items() if k not in ("presets", "calibrated", "calibrated_conditions")}
+    meta.update(source=f"resolved by weather_gym.lab.calibration.resolve for {res.scenario}", k_source="resolved",
+                resolution_key=res.key, scenario=res.scenario, clear_map=res.clear_map, n_frames=res.n_frames,
+                n_cones=res.n_cones, base_presets=str(presets or DEFAULT_PRESETS.name))
+    if scenario is not None and scenario.detector is not None:
+        meta["detector"] = str(parse_detector_spec(scenario.detector))
+    header = ("# weather-gym presets RESOLVED for one scenario (docs/calibration.md, 'Two meanings of a severity'):\n"
+              "# each calibrated row's k makes this scenario's detector lose what the study measured.\n")
+    text = header + toml_document({**meta, "presets": rows}, digits=4, none="")
+    return atomic_write(path, text, check=load_presets, overwrite=overwrite)
+
+
+def resolve_many(scenarios: Sequence[Scenario], **kwargs: Any) -> list[Resolution]:
+    """:func:`resolve_presets` of each scenario in turn (their frames and results cached as each one's)."""
+    return [resolve_presets(s, **kwargs) for s in scenarios]
+

@@ -1,0 +1,177 @@
+"""Settings of a gap run (:class:`GapConfig`), a model's comparison with the measured frames
+(:class:`Comparison`) and the rules the workflow adds effects by (the evidence each effect needs, the
+smallest gap cut worth an effect).
+
+Example:
+    >>> GapConfig().held_out, REQUIRES["dim"]
+    (0.5, ('brightness', 'tone_p50'))
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from weather_gym.camera.isp import CameraModel
+from weather_gym.core.errors import InputError
+from weather_gym.lab.gap.compare import ALPHA, MIN_EFFECT
+from weather_gym.lab.gap.diagnose import significant_signals
+from weather_gym.lab.gap.measured import MEASURED
+from weather_gym.lab.gap.simulate import COMPARE_WIDTH, MIN_FRAMES, MODES
+from weather_gym.sim.config import SCENES
+from weather_gym.weather import EFFECTS, KnobEffect
+
+REPORT_VERSION = 2
+
+MIN_GAP_CUT = 0.1
+"""Smallest held-out gap cut (in scene-to-scene spreads) for which an effect is added or kept."""
+
+CLIP_EXPLAINS = 0.5
+"""A fit clipped by its family's range is still added (flagged :data:`BEYOND_RANGE`) when it takes the
+held-out gap to at most this fraction of what it was: the family is right, the model needs more of it."""
+
+BEYOND_RANGE = "the measured effect goes beyond this family's range"
+
+#: the evidence an effect cannot be named without (its fingerprint): at least one of these signals or
+#: signal families must disagree. ``dim`` darkens the frame, so noise alone (or noise that only moves
+#: the extreme percentiles) is not dim; each kind's effects need their kind's signals; ``glare`` (a
+#: veil and bloom) is never a fix for the noise signals alone
+REQUIRES: dict[str, tuple[str, ...]] = {"dim": ("brightness", "tone_p50"), "exposure": ("tone",), "tone_curve": ("tone",),
+                                        "noise": ("noise",), "noise_level": ("noise",), "vignette": ("vignette",),
+                                        "radial_gain": ("vignette",), "glare": ("blobs", "tone", "haze"),
+                                        "blur_kernel": ("sharpness", "motion", "cones")}
+#: the parametric and measured effects of each kind
+KIND_EFFECTS: dict[str, tuple[str, ...]] = {"tone": ("exposure", "tone_curve"), "noise": ("noise", "noise_level"),
+                                            "sharpness": ("blur", "blur_kernel"), "motion": ("motion_blur",),
+                                            "vignette": ("vignette", "radial_gain")}
+#: the signal family that is each effect's main fingerprint (for the verdict's advice)
+EFFECT_FAMILY: dict[str, str] = {"blur": "sharpness", "motion_blur": "motion", "noise": "noise", "noise_level": "noise",
+                                 "exposure": "tone", "dim": "tone", "tone_curve": "tone", "fog": "haze",
+                                 "vignette": "vignette", "radial_gain": "vignette", "jpeg": "block",
+                                 "droplets": "blobs", "glare": "blobs", "rain": "blobs", "blur_kernel": "sharpness"}
+#: signal families whose disagreement lets a measured member be measured (default: its kind)
+MEASURED_KINDS: dict[str, tuple[str, ...]] = {"blur_kernel": ("sharpness", "motion")}
+#: effects that change every pixel alike (no dependence on the distance from the centre)
+GLOBAL_TONE = ("exposure", "dim", "tone_curve")
+EVIDENCE_MARGIN = 2.0
+"""A radial candidate within this factor of a global tone change's penalised gap is named before it
+when the fall-off to the corners disagrees."""
+
+PERCEPTION_MIN_MAP = 0.3
+"""Below this mAP@0.5 on the measured clear frames the perception gap means nothing (the report says so)."""
+
+
+
+@dataclass(frozen=True)
+class GapConfig:
+    """Settings of a gap run (all have defaults; the CLI exposes the common ones).
+
+    Attributes:
+        seed: seeds the split, the bootstrap and every effect's random numbers.
+        mode: ``auto`` / ``paired`` / ``unpaired`` / ``same-camera`` / ``did`` (the last two need a
+            clear reference; see :func:`~weather_gym.lab.gap.simulate.simulate`).
+        tracks: tracks to render in unpaired and did modes (default: the records' tracks).
+        sim_frames: frames to render in unpaired / did mode (default: as many as measured).
+        scene: the simulator world of unpaired / did renders (``"plain"`` or ``"realistic"``; default: the
+            one the records name, else the default world).
+        camera_model: the camera model of unpaired / did renders (a ``CameraModel``; default: the one the
+            records name when they all agree, else the env's default ``CameraModel.realistic()``).
+        compare_width: frames wider than this are scaled down once on loading.
+        held_out: fraction of the frames held out for the reported gaps.
+        fit_frames: at most this many fitting frames are used by the parameter search.
+        max_steps: at most this many effects are added.
+        candidates: effect names that may be added (default: every registered effect and every measured
+            member, :mod:`~weather_gym.lab.gap.measured`).
+        top: candidates fully fitted per step (the best of the k-grid screening).
+        alpha: family-wise significance level (Holm) of disagreements and of a step.
+        min_effect: smallest standardised bias reported as a disagreement.
+        bootstrap: bootstrap resamples of the image signals (perception uses 300).
+        perception: run the detector (the report's perception level).
+        detector: a detector spec (``"yolov8:model.onnx"``, a ``DetectorSpec``; default: the shipped
+            detector; see ``weather_gym.perception.load_detector``).
+        prune: after the loop, drop every added effect whose removal does not worsen the held-out
+            gap significantly.
+    """
+
+    seed: int = 0
+    mode: str = "auto"
+    tracks: tuple[str, ...] | None = None
+    sim_frames: int | None = None
+    scene: str | None = None
+    camera_model: CameraModel | None = None
+    held_out: float = 0.5
+    fit_frames: int = 32
+    max_steps: int = 4
+    candidates: tuple[str, ...] | None = None
+    top: int = 2
+    alpha: float = ALPHA
+    min_effect: float = MIN_EFFECT
+    bootstrap: int = 1000
+    perception: bool = True
+    detector: Any = None
+    prune: bool = True
+    compare_width: int | None = COMPARE_WIDTH
+    progress: bool = False
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.held_out < 1.0:
+            raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
+        if self.mode not in MODES:
+            raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.scene is not None and self.scene not in SCENES:
+            raise InputError(f"scene must be one of {SCENES} (or None: from the records), got {self.scene!r}")
+        if self.camera_model is not None and not isinstance(self.camera_model, CameraModel):
+            raise InputError(f"camera_model must be a CameraModel (or None: from the records), "
+                             f"got {type(self.camera_model).__name__}")
+        if self.sim_frames is not None and self.sim_frames < MIN_FRAMES:
+            raise InputError(f"sim_frames must be >= {MIN_FRAMES}, got {self.sim_frames}")
+        if self.compare_width is not None and self.compare_width < 64:
+            raise InputError(f"compare_width must be >= 64 pixels (or None), got {self.compare_width}")
+        if self.fit_frames < 4:
+            raise InputError(f"fit_frames must be >= 4, got {self.fit_frames}")
+        if self.max_steps < 0:
+            raise InputError(f"max_steps must be >= 0, got {self.max_steps}")
+        if self.top < 1:
+            raise InputError(f"top must be >= 1, got {self.top}")
+        if not 0.0 < self.alpha < 1.0:
+            raise InputError(f"alpha must be in (0, 1), got {self.alpha}")
+        if self.bootstrap < 100:
+            raise InputError(f"bootstrap must be >= 100 resamples, got {self.bootstrap}")
+        for name in self.candidates or ():
+            if name not in MEASURED:
+                EFFECTS.get(name)  # unknown names: ValueError listing the valid ones
+
+
+@dataclass
+class Comparison:
+    """A model compared with the measured frames on the held-out frames."""
+
+    model: list[KnobEffect]
+    signals: np.ndarray
+    rows: list[dict[str, Any]]
+    gap: float
+    perception_rows: list[dict[str, Any]] | None = None
+    perception: dict[str, Any] | None = None
+
+    @property
+    def significant(self) -> list[str]:
+        """Image signals that disagree significantly, strongest first."""
+        return significant_signals(self.rows)
+
+    @property
+    def perception_gap(self) -> float:
+        return math.nan if self.perception is None else self.perception["abs_diff"]
+
+    def disagreements(self) -> list[dict[str, Any]]:
+        """Perception rows then image rows, each group strongest first (the report's list)."""
+        def order(rows):
+            return sorted(rows, key=lambda r: (not r["significant"], -_finite_abs(r["effect_size"])))
+
+        return order(self.perception_rows or []) + order(self.rows)
+
+
+def _finite_abs(v: float) -> float:
+    return abs(v) if v is not None and math.isfinite(v) else -1.0

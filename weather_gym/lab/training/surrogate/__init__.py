@@ -1,0 +1,1 @@
+"""Recording full-pipeline episodes for the perception surrogate and validating it (``record``, ``validate``)."""

@@ -1,0 +1,1 @@
+"""EGL frame plumbing of the simulator: the plugin's shadow map switched off or reused (opt-in), found through its ELF symbols."""
