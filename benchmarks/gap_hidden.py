@@ -1,6 +1,6 @@
 """The gap workflow on hidden effects outside its families: a table of named / halved per case.
 
-Cases (``tests/gap/hidden_effects.py``, written independently of the weather library): other tone
+Cases (``tests/lab/gap/hidden_effects.py``, written independently of the weather library): other tone
 curves, Poisson-Gaussian sensor noise, disc / box / anisotropic blur kernels, cos^4 and polynomial
 fall-offs, OpenCV JPEG, a low-light mix (``--cases low_light``). Three settings:
 

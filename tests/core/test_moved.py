@@ -54,3 +54,16 @@ def test_the_episode_driver_left_agents_with_a_warning():
         assert agents.run_episode is run_episode
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         agents.nothing  # noqa: B018
+
+
+@pytest.mark.parametrize("old", sorted(old for old in MOVED if old.count(".") == 2))
+def test_a_module_that_left_a_package_keeps_its_old_path(old):
+    probe = (f"import warnings, importlib\n"
+             f"with warnings.catch_warnings(record=True) as w:\n"
+             f"    warnings.simplefilter('always')\n"
+             f"    import {old} as old\n"
+             f"import {MOVED[old]} as new\n"
+             f"assert old is new, (old, new)\n"
+             f"assert any(issubclass(x.category, DeprecationWarning) and 'moved to' in str(x.message) for x in w)\n")
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-1500:]

@@ -89,7 +89,7 @@ def realistic_env():
     from weather_gym.envs import ConeTrackEnv, EnvConfig
     from weather_gym.sim.config import SimConfig
 
-    # the world alone: the camera model (lens distortion, noise, JPEG) is tested in tests/test_camera_isp.py
+    # the world alone: the camera model (lens distortion, noise, JPEG) is tested in tests/camera/test_isp.py
     env = ConeTrackEnv(EnvConfig(track="small_track", camera=SMALL_CAMERA.scaled(192, 108),
                                  sim=SimConfig(scene="realistic"), camera_model=CameraModel.ideal()))
     yield env

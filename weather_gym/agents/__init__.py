@@ -48,7 +48,7 @@ from weather_gym.agents.gt_pure_pursuit import GroundTruthPurePursuit
 from weather_gym.agents.sb3 import SB3Agent
 from weather_gym.agents.stack import MapperPurePursuit
 from weather_gym.core.errors import InputError
-from weather_gym.core.moved import deprecated_exports
+from weather_gym.core.moved import deprecated_exports, moved_path
 from weather_gym.core.paths import PPO_CONES_MODEL
 from weather_gym.core.registry import Registry
 
@@ -59,6 +59,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["Agent", "AGENTS", "agent_factory", "agent_observes", "check_action", "make_agent", "observes"]
 
 # the episode driver moved up to the pipeline layer (weather_gym.pipeline.episode); old names for one release
+__path__.append(moved_path(__name__))  # the old module paths, deprecated (weather_gym.core.moved)
 __getattr__ = deprecated_exports(__name__, {"run_episode": "weather_gym.pipeline.episode",
                                             "EpisodeResult": "weather_gym.pipeline.episode"})
 

@@ -2,10 +2,11 @@
 
 ``MOVED`` maps every old public module path to its new home. The old paths still import (with a
 ``DeprecationWarning``) and name the same module objects, so ``isinstance`` and monkeypatching work
-across both spellings: ``weather_gym/_moved/`` holds one small alias file per old top-level name,
-found through the package's own ``__path__`` (nothing is added to ``sys.meta_path``); the modules of a
-moved package are aliased when the old package is first imported (loaded on first use, so an old
-path costs no more than the new one). The aliases go in weather-gym 0.3.
+across both spellings: ``weather_gym/_moved/`` holds one small alias file per old name (``errors.py``
+for ``weather_gym.errors``, ``perception/train.py`` for ``weather_gym.perception.train``), found
+through the package's own ``__path__`` (``moved_path``; nothing is added to ``sys.meta_path``); the
+modules of a moved package are aliased when the old package is first imported (loaded on first use,
+so an old path costs no more than the new one). The aliases go in weather-gym 0.3.
 
 Example:
     >>> import warnings
@@ -25,10 +26,11 @@ import pkgutil
 import sys
 import warnings
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-__all__ = ["MOVED", "REMOVED_IN", "alias_module", "deprecated_exports"]
+__all__ = ["MOVED", "REMOVED_IN", "alias_module", "deprecated_exports", "moved_path"]
 
 REMOVED_IN = "0.3"
 """The release that drops the old paths."""
@@ -46,7 +48,7 @@ MOVED: dict[str, str] = {
     "weather_gym.gap": "weather_gym.lab.gap",
     "weather_gym.bench": "weather_gym.lab.bench",
     "weather_gym.rl": "weather_gym.lab.training.policy",
-    # modules that left a package which stays (reached through the new path only; listed for the changelog)
+    # modules that left a package which stays (that package puts its folder in _moved/ on its __path__)
     "weather_gym.agents.episode_driver": "weather_gym.pipeline.episode",
     "weather_gym.perception.train": "weather_gym.lab.training.detector.train",
     "weather_gym.perception.conenet": "weather_gym.lab.training.detector.conenet",
@@ -59,6 +61,16 @@ MOVED: dict[str, str] = {
     "weather_gym.sim.elf_symbols": "weather_gym.sim.egl.elf_symbols",
 }
 """Old module path -> new module path."""
+
+
+def moved_path(package: str) -> str:
+    """The folder of ``package``'s old module paths, for its ``__path__``: ``weather_gym/_moved/<sub>``.
+
+    >>> moved_path("weather_gym.perception").endswith("_moved/perception")
+    True
+    """
+    base = Path(__file__).resolve().parents[1] / "_moved"
+    return str(base.joinpath(*package.split(".")[1:]))
 
 
 def _warn(old: str, new: str, stacklevel: int) -> None:

@@ -15,6 +15,7 @@ Example:
 from __future__ import annotations
 
 from weather_gym.core._lazy import lazy_exports
+from weather_gym.core.moved import moved_path
 
 _LAZY = {
     "ConeDetector": "weather_gym.perception.onnx_detector",
@@ -41,3 +42,4 @@ _LAZY = {
 
 __all__ = sorted(_LAZY)
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
+__path__.append(moved_path(__name__))  # the old module paths, deprecated (weather_gym.core.moved)

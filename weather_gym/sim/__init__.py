@@ -6,3 +6,7 @@ Example:
     >>> SimConfig(renderer="none").control_hz
     30.0
 """
+
+from weather_gym.core.moved import moved_path
+
+__path__.append(moved_path(__name__))  # the old module paths, deprecated (weather_gym.core.moved)

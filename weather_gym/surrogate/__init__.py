@@ -20,3 +20,7 @@ Example:
     >>> condition_of({"droplets": 0.5})
     ('droplets', 0.5)
 """
+
+from weather_gym.core.moved import moved_path
+
+__path__.append(moved_path(__name__))  # the old module paths, deprecated (weather_gym.core.moved)

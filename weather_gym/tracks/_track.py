@@ -222,7 +222,7 @@ class Track:
 
     def _project_one(self, x: float, y: float, s_hint: float | None, window: float) -> Projection:
         """:meth:`project` of one point: the same arithmetic in one compiled call (every env step;
-        tests/test_tracks.py checks that both paths give the same floats)."""
+        tests/tracks/test_tracks.py checks that both paths give the same floats)."""
         # numba is loaded on the first call, not with a track
         from weather_gym.tracks._kernel import project_point
 

@@ -5,7 +5,7 @@ S-curve), sensor noise with a gain and read noise (Poisson-Gaussian, drawn per p
 kernels (disc, box, anisotropic Gaussian), other radial fall-offs (cos^4, a polynomial), JPEG by
 OpenCV's encoder. Each is a plain function ``f(img, rng) -> img`` on 8-bit RGB; :func:`hide` copies
 a COCO folder with one of them applied to every frame (PNG, the annotations unchanged, poses
-stripped on request). Used by ``tests/gap/test_gap_hidden.py`` and ``benchmarks/gap_hidden.py``.
+stripped on request). Used by ``tests/lab/gap/test_gap_hidden.py`` and ``benchmarks/gap_hidden.py``.
 
 Example:
     >>> import numpy as np
