@@ -9,7 +9,7 @@ def test_lazy_names_resolve_and_are_listed():
     import weather_gym
     import weather_gym.wrappers as wrappers
 
-    assert weather_gym.make_env.__module__ == "weather_gym.pipeline"
+    assert weather_gym.make_env.__module__ == "weather_gym.pipeline.builder"
     assert {"make_env", "register_envs", "__version__"} <= set(dir(weather_gym))  # lazy and own names
     assert wrappers.RecordVideo.__module__ == "weather_gym.viz.record_video"  # defined outside the package
 

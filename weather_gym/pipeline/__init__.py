@@ -8,9 +8,10 @@ Example:
     >>> from weather_gym.pipeline import make_env, run_episode
     >>> from weather_gym.agents import make_agent
     >>> env = make_env(perception="gt_cones", max_episode_steps=50)
-    >>> result = run_episode(env, make_agent("gt_pure_pursuit", env=env), seed=0)
-    >>> result.steps
-    50
+    >>> agent = make_agent("gt_pure_pursuit", env.unwrapped.track, env.unwrapped.config.camera)
+    >>> result = run_episode(env, agent, seed=0)
+    >>> result.steps, result.end_reason
+    (50, 'time_limit')
     >>> env.close()
 """
 

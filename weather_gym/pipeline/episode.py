@@ -10,7 +10,8 @@ the reset (step 0) and after every step (videos, progress bars, scoring the dete
 
 Example:
     >>> from weather_gym.pipeline import make_env
-    >>> from weather_gym.agents import make_agent, run_episode
+    >>> from weather_gym.agents import make_agent
+    >>> from weather_gym.pipeline import run_episode
     >>> env = make_env(perception="gt_cones", track="hairpin", max_episode_steps=900)
     >>> agent = make_agent("mapper_pure_pursuit", env.unwrapped.track, env.unwrapped.config.camera)
     >>> result = run_episode(env, agent, seed=0)
