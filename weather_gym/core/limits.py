@@ -2,7 +2,7 @@
 
 Images a weather effect or the detector is given, and camera sizes the simulator renders, must
 lie within these limits; effect parameters carry their own physical ranges
-(``weather_gym.weather.base.Param``). A value outside raises :class:`LimitError` naming it.
+(declared on each effect). A value outside raises :class:`LimitError` naming it.
 
 Example:
     >>> from weather_gym.core.limits import check_image_size

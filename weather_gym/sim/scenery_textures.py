@@ -2,7 +2,7 @@
 atlas, and a skyline (buildings, trees, poles) painted into the sky panorama.
 
 Every function is a deterministic function of its arguments (seeds included), and each produces one of
-a *finite* set of images for the values :func:`weather_gym.sim.look.sample_realistic_look` draws:
+a *finite* set of images for the values :func:`weather_gym.sim.randomize.sample_realistic` draws:
 PyBullet keeps every texture it loaded for the life of the process, keyed by file path, so the
 realistic world draws from palettes instead of making a new texture per episode.
 
