@@ -328,6 +328,15 @@ class KnobEffect(Effect, metaclass=CheckedArgs):
       fitted in ``[0, 1]`` and is not listed).
     * ``PARAM_LIMITS``: ``{param: (lo, hi)}`` valid ranges of the other numeric parameters.
     * ``CHOICES``: ``{param: (allowed strings...)}``.
+    * ``CONDITION``: the presets' condition it is (``rain@2``; default: its ``name``).
+    * ``CHAIN_RANK``: its place when a chain is built effect by effect (the gap workflow): the scene and
+      atmosphere first (fog 10, rain 20, glare 30), then the lens (droplets 40, blur 50), the car's motion
+      (60), lens shading (70), exposure (dim 80, exposure 90), the sensor (noise 100) and encoding (jpeg
+      110); default: last.
+    * ``NOMINAL_K``: the k of severities 1-4 of its **nominal** presets rows, used where a presets file has
+      no row for its condition (default ``(0.25, 0.5, 0.75, 1.0)``: severity / 4; ``None``: its rows are
+      calibrated, no nominal ones), and ``NOMINAL_NOUN``, what their descriptions call it (default: the
+      name, ``_`` as a space).
 
     and implements ``_render_into(img, draw, depth, state, out)`` (one frame written into ``out``)
     or ``_render_frame(img, draw, depth, state)`` (a new array), plus ``_sample_frame(rng, shape,
@@ -342,6 +351,15 @@ class KnobEffect(Effect, metaclass=CheckedArgs):
     PARAM_BOUNDS: ClassVar[Mapping[str, tuple[float, float]]] = {}
     PARAM_LIMITS: ClassVar[Mapping[str, tuple[float, float]]] = {}
     CHOICES: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    CONDITION: ClassVar[str] = ""
+    CHAIN_RANK: ClassVar[float] = math.inf
+    NOMINAL_K: ClassVar[tuple[float, ...] | None] = (0.25, 0.5, 0.75, 1.0)
+    NOMINAL_NOUN: ClassVar[str] = ""
+
+    @classmethod
+    def condition(cls) -> str:
+        """The presets' condition of the effect (``CONDITION``, else its ``name``)."""
+        return cls.CONDITION or cls.name
 
     @classmethod
     def _checked(cls, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
