@@ -34,7 +34,7 @@ def _blocks(section: str, lang: str) -> list[str]:
 
 def _table_row(text: str, anchor: str) -> tuple[int, list[str]]:
     """``(count, paths)`` of the guide's table row whose first cell links to ``#anchor``."""
-    row = next(line for line in text.splitlines() if line.startswith(f"| [") and f"](#{anchor})" in line)
+    row = next(line for line in text.splitlines() if line.startswith("| [") and f"](#{anchor})" in line)
     files = row.split("|")[2]
     count = int(re.match(r"\s*(\d+):", files).group(1))
     return count, re.findall(r"`([^`]+)`", files)

@@ -44,7 +44,7 @@ from weather_gym.core.errors import FileFormatError, InputError, MissingInputErr
 from weather_gym.weather.registry import EFFECTS
 from weather_gym.weather.tables import effect_from_table
 
-__all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "STUDY_CONDITIONS", "aliases",
+__all__ = ["DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "STUDY_CONDITIONS", "aliases",
            "canonical_condition", "conditions", "load_presets", "nominal_rows", "preset_entry", "preset_source",
            "preset_spec", "presets_path"]
 

@@ -50,7 +50,13 @@ from weather_gym.lab.calibration.sweep import (
     run_sweep_cell,
 )
 from weather_gym.lab.evaluation.runner import run_cells
-from weather_gym.weather.presets import SEVERITIES, canonical_condition, conditions, load_presets, nominal_rows
+from weather_gym.weather.presets import (
+    SEVERITIES,
+    canonical_condition,
+    conditions,
+    load_presets,
+    nominal_rows,
+)
 
 __all__ = ["DEFAULT_USE", "MATCHES", "PresetCalibration", "calibrate", "parse_use", "remeasure",
            "write_presets"]

@@ -49,7 +49,7 @@ from weather_gym.core.errors import FileFormatError, MissingInputError, check_kn
 from weather_gym.lab.gap.measured import MEASURED, PARTNERS, make_measured
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
-__all__ = ["CHAIN_ORDER", "chain_order", "read_model", "write_model", "model_tables", "insert_position",
+__all__ = ["chain_order", "read_model", "write_model", "model_tables", "insert_position",
            "apply_chain", "describe"]
 
 
