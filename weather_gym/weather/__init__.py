@@ -1,6 +1,6 @@
 """Weather effects: cheap image degradations, each driven by one severity knob ``k`` in [0, 1].
 
-No PyBullet here: the layer works on any uint8 RGB image stream (numpy + OpenCV only).
+No PyBullet here: the layer works on any uint8 RGB image stream (numpy + OpenCV; pydantic for the declared parameter schemas).
 
 * ``EFFECTS`` / ``make(name, k=..., **params)``: the registry of effects (``EFFECTS.names()``; each
   module imported below registers its effect: a new effect is its file and its line there);
