@@ -327,7 +327,9 @@ _PARAM_PHRASES = {
 }
 
 
-@functools.cache
+_SCHEMAS: dict[type, type[pydantic.BaseModel]] = {}
+
+
 def param_schema(cls: type[KnobEffect]) -> type[pydantic.BaseModel]:
     """The declared schema of an effect's parameters: one pydantic field per dataclass field, its type
     from the annotation and its constraints from ``PARAM_BOUNDS`` / ``PARAM_LIMITS`` / ``CHOICES``
@@ -338,6 +340,8 @@ def param_schema(cls: type[KnobEffect]) -> type[pydantic.BaseModel]:
         >>> param_schema(EFFECTS.get("vignette")).model_json_schema()["properties"]["exponent"]
         {'default': 2.0, 'maximum': 8.0, 'minimum': 0.5, 'title': 'Exponent', 'type': 'number'}
     """
+    if cls in _SCHEMAS:
+        return _SCHEMAS[cls]
     hints = typing.get_type_hints(cls)
     declared: dict[str, Any] = {
         f.name: (cls.param_type(f.name, hints[f.name]),
@@ -346,6 +350,7 @@ def param_schema(cls: type[KnobEffect]) -> type[pydantic.BaseModel]:
     model: type[pydantic.BaseModel] = pydantic.create_model(
         f"{cls.__name__}Params", __config__=pydantic.ConfigDict(arbitrary_types_allowed=True, extra="forbid"),
         **declared)
+    _SCHEMAS[cls] = model
     return model
 
 
