@@ -224,6 +224,7 @@ def test_the_weather_layer_imports_only_numpy_opencv_and_the_stdlib():
     kernels = {name: {"numba"} for name in ("_drop_blend.py", "_noise_pass.py", "_near_blend.py")}  # compiled
     # passes, each loaded with the first frame that needs it
     kernels["augment.py"] = {"albumentations"}  # the optional Albumentations adapter: imported only by its users
+    kernels["base.py"] = {"pydantic", "pydantic_core"}  # the effects' declared parameter schemas (param_schema)
     for path in Path(pkg.__file__).parent.glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import | ast.ImportFrom):

@@ -26,7 +26,7 @@ from weather_gym.weather import (
     preset_spec,
     to_spec,
 )
-from weather_gym.weather.presets import DEFAULT_PRESETS
+from weather_gym.weather.presets import DEFAULT_PRESETS, STUDY_CONDITIONS, nominal_rows
 
 
 def test_every_form_of_spec():
@@ -140,7 +140,7 @@ UNCALIBRATED = Path(__file__).with_name("data") / "presets_uncalibrated.toml"
 @pytest.mark.parametrize("path", [DEFAULT_PRESETS, UNCALIBRATED], ids=["shipped", "uncalibrated"])
 def test_presets_are_complete_and_grow_with_severity(path):
     data = load_presets(path)
-    want = set(CONDITIONS) if path == DEFAULT_PRESETS else {"droplets", "low_light"}
+    want = set(CONDITIONS)  # the file's conditions and every other effect's nominal rows
     assert set(data["presets"]) == want
     for cond in want:
         assert sorted(data["presets"][cond]) == list(SEVERITIES)
@@ -167,9 +167,35 @@ def test_every_effect_has_a_severity_table_marked_calibrated_or_nominal():
     assert preset_entry("droplets", 3)["calibrated"] is True
 
 
-def test_a_file_may_hold_some_conditions_and_says_which_are_missing():
-    with pytest.raises(ValueError, match="has no rows for condition 'rain' \\(it has: droplets, low_light\\)"):
-        preset_spec("rain", 2, UNCALIBRATED)
+def test_a_file_may_hold_some_conditions_and_says_which_are_missing(tmp_path):
+    # a condition whose effect declares no nominal rows (low_light: calibrated only) must be in the file
+    text = UNCALIBRATED.read_text()
+    only_drops = tmp_path / "drops.toml"
+    only_drops.write_text(text[:text.index('condition = "low_light"')].rsplit("[[presets]]", 1)[0])
+    with pytest.raises(ValueError, match="has no rows for condition 'low_light' \\(it has: droplets, blur, "):
+        preset_spec("low_light", 2, only_drops)
+    # the other effects' nominal rows come with every file: a file need not repeat them
+    assert preset_entry("rain", 2, UNCALIBRATED) == preset_entry("rain", 2) == nominal_rows("rain")[2]
+
+
+def test_nominal_rows_are_declared_by_the_effect_and_a_file_row_replaces_them(tmp_path):
+    from weather_gym.weather import EFFECTS
+
+    for name in EFFECTS:
+        cls = EFFECTS.get(name)
+        rows = nominal_rows(cls.condition())
+        if cls.NOMINAL_K is None:
+            assert rows == {} and cls.condition() in STUDY_CONDITIONS
+            continue
+        assert [r["effects"] for r in rows.values()] == [[]] + [[{"name": name, "k": k}] for k in cls.NOMINAL_K]
+        assert {r["calibrated"] for r in rows.values()} == {False}
+    text = UNCALIBRATED.read_text() + "".join(
+        f'\n[[presets]]\ncondition = "rain"\nseverity = {s}\neffects = [{{ name = "rain", k = {s / 8} }}]\n'
+        for s in SEVERITIES)
+    path = tmp_path / "rain.toml"
+    path.write_text(text)
+    assert preset_spec("rain", 2, path) == [{"name": "rain", "k": 0.25}]
+    assert preset_spec("fog", 2, path) == [{"name": "fog", "k": 0.5}]
 
 
 def test_an_uncalibrated_table_says_so():

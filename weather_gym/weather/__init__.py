@@ -1,9 +1,9 @@
 """Weather effects: cheap image degradations, each driven by one severity knob ``k`` in [0, 1].
 
-No PyBullet here: the layer works on any uint8 RGB image stream (numpy + OpenCV only).
+No PyBullet here: the layer works on any uint8 RGB image stream (numpy + OpenCV; pydantic for the declared parameter schemas).
 
-* ``EFFECTS`` / ``make(name, k=..., **params)``: the registry of effects (droplets, dim, blur,
-  motion_blur, noise, exposure, fog, rain, glare, vignette, jpeg);
+* ``EFFECTS`` / ``make(name, k=..., **params)``: the registry of effects (``EFFECTS.names()``; each
+  module imported below registers its effect: a new effect is its file and its line there);
 * ``Compose``: effects in order; ``Ramp``: k changing over an episode;
 * ``parse_weather`` / ``to_spec``: weather specs; ``load_presets`` / ``preset_spec``: the
   condition x severity table.
@@ -51,7 +51,6 @@ from weather_gym.weather.jpeg import Jpeg
 from weather_gym.weather.motion_blur import MotionBlur
 from weather_gym.weather.noise import Noise
 from weather_gym.weather.presets import (
-    CONDITIONS,
     PRESETS_ENV,
     SEVERITIES,
     load_presets,
@@ -59,6 +58,7 @@ from weather_gym.weather.presets import (
     preset_source,
     preset_spec,
 )
+from weather_gym.weather.presets import __getattr__ as __getattr__  # CONDITIONS, ALIASES: from the registry
 from weather_gym.weather.rain import Rain
 from weather_gym.weather.registry import EFFECTS, make, register_effect
 from weather_gym.weather.schedule import Ramp

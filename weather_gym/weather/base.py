@@ -48,16 +48,19 @@ import dataclasses
 import functools
 import math
 import numbers
+import typing
 from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
+import pydantic
+from pydantic_core import PydanticCustomError
 
 from weather_gym.core.errors import InputError, LimitError
 from weather_gym.core.limits import check_image_size
 
-__all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "CheckedArgs", "Effect", "EffectRun", "KnobEffect", "check_depth",
-           "check_image"]
+__all__ = ["DEFAULT_SEED", "STATE_BOUNDS", "STATE_KEYS", "Effect", "EffectRun", "KnobEffect", "check_depth",
+           "check_image", "param_schema"]
 
 #: Seed of the episode generator of an effect whose ``reset`` was never called.
 DEFAULT_SEED = 20220607
@@ -287,38 +290,72 @@ class Effect:
         raise NotImplementedError
 
 
-def keyword_args(who: str, fields: Sequence[dataclasses.Field], args: tuple[Any, ...],
-                 kwargs: dict[str, Any]) -> dict[str, Any]:
-    """Positional and keyword constructor arguments of a dataclass as one keyword dict."""
-    if len(args) > len(fields):
-        raise TypeError(f"{who}: takes at most {len(fields)} positional arguments, got {len(args)}")
-    given = dict(kwargs)
-    for f, v in zip(fields, args, strict=False):
-        if f.name in given:
-            raise TypeError(f"{who}: got multiple values for argument {f.name!r}")
-        given[f.name] = v
-    return given
-
-
 def _is_real(v: Any) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, bool)
 
 
-class CheckedArgs(type):
-    """Metaclass of frozen dataclasses whose arguments are checked and normalised before the instance
-    is built: ``cls._checked(args, kwargs)`` returns the keywords to build it with (for
-    :class:`KnobEffect`: ``1`` -> ``1.0`` for a float parameter, ``numpy.bool_`` -> ``bool``), so
-    nothing is set on the instance afterwards."""
+def _finite_float(v: Any) -> float:
+    """A real, finite number as a float (``1`` -> ``1.0``, ``numpy.float32`` -> ``float``); not a bool."""
+    if _is_real(v) and math.isfinite(float(v)):
+        return float(v)
+    raise PydanticCustomError("finite_number", "must be a finite number")
 
-    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
-        if dataclasses.is_dataclass(cls):
-            kwargs = cls._checked(args, kwargs)
-            args = ()
-        return super().__call__(*args, **kwargs)
+
+def _whole(v: Any) -> int:
+    """A real, finite, whole number as an int (``2.0`` -> ``2``); not a bool."""
+    f = _finite_float(v)
+    if f != int(f):
+        raise PydanticCustomError("integer", "must be an integer")
+    return int(f)
+
+
+def _boolean(v: Any) -> bool:
+    """``True``/``False`` (or numpy's) as a bool; nothing else (``1``, ``"yes"``) is one."""
+    if isinstance(v, bool | np.bool_):
+        return bool(v)
+    raise PydanticCustomError("boolean", "must be true or false")
+
+
+#: What each kind of failure of a parameter says, after ``<effect>: parameter <name>=<value>``.
+_PARAM_PHRASES = {
+    "finite_number": "must be a finite number in [{lo}, {hi}]",
+    "integer": "must be an integer in [{lo}, {hi}]",
+    "greater_than_equal": "is outside [{lo}, {hi}]",
+    "less_than_equal": "is outside [{lo}, {hi}]",
+    "boolean": "must be true or false",
+    "literal_error": "must be one of {choices}",
+}
+
+
+_SCHEMAS: dict[type, type[pydantic.BaseModel]] = {}
+
+
+def param_schema(cls: type[KnobEffect]) -> type[pydantic.BaseModel]:
+    """The declared schema of an effect's parameters: one pydantic field per dataclass field, its type
+    from the annotation and its constraints from ``PARAM_BOUNDS`` / ``PARAM_LIMITS`` / ``CHOICES``
+    (:meth:`KnobEffect.param_type`); its JSON Schema is ``param_schema(cls).model_json_schema()``.
+
+    Example:
+        >>> from weather_gym.weather import EFFECTS
+        >>> param_schema(EFFECTS.get("vignette")).model_json_schema()["properties"]["exponent"]
+        {'default': 2.0, 'maximum': 8.0, 'minimum': 0.5, 'title': 'Exponent', 'type': 'number'}
+    """
+    if cls in _SCHEMAS:
+        return _SCHEMAS[cls]
+    hints = typing.get_type_hints(cls)
+    declared: dict[str, Any] = {
+        f.name: (cls.param_type(f.name, hints[f.name]),
+                 pydantic.Field(default=f.default) if f.default is not dataclasses.MISSING else ...)
+        for f in dataclasses.fields(cls) if f.init}
+    model: type[pydantic.BaseModel] = pydantic.create_model(
+        f"{cls.__name__}Params", __config__=pydantic.ConfigDict(arbitrary_types_allowed=True, extra="forbid"),
+        **declared)
+    _SCHEMAS[cls] = model
+    return model
 
 
 @dataclasses.dataclass(frozen=True)
-class KnobEffect(Effect, metaclass=CheckedArgs):
+class KnobEffect(Effect):
     """An effect with one severity knob ``k`` in ``[0, 1]`` and named physical parameters.
 
     Class attributes a subclass declares:
@@ -328,11 +365,23 @@ class KnobEffect(Effect, metaclass=CheckedArgs):
       fitted in ``[0, 1]`` and is not listed).
     * ``PARAM_LIMITS``: ``{param: (lo, hi)}`` valid ranges of the other numeric parameters.
     * ``CHOICES``: ``{param: (allowed strings...)}``.
+    * ``CONDITION``: the presets' condition it is (``rain@2``; default: its ``name``).
+    * ``CHAIN_RANK``: its place when a chain is built effect by effect (the gap workflow): the scene and
+      atmosphere first (fog 10, rain 20, glare 30), then the lens (droplets 40, blur 50), the car's motion
+      (60), lens shading (70), exposure (dim 80, exposure 90), the sensor (noise 100) and encoding (jpeg
+      110); default: last.
+    * ``NOMINAL_K``: the k of severities 1-4 of its **nominal** presets rows, used where a presets file has
+      no row for its condition (default ``(0.25, 0.5, 0.75, 1.0)``: severity / 4; ``None``: its rows are
+      calibrated, no nominal ones), and ``NOMINAL_NOUN``, what their descriptions call it (default: the
+      name, ``_`` as a space).
 
     and implements ``_render_into(img, draw, depth, state, out)`` (one frame written into ``out``)
     or ``_render_frame(img, draw, depth, state)`` (a new array), plus ``_sample_frame(rng, shape,
     episode)`` when it draws random values. ``k = 0`` is an exact copy without drawing anything
-    (unless ``keeps_time``). Every constructor argument is a float, int, bool or str, so
+    (unless ``keeps_time``). The parameters are checked when the effect is built, against the schema
+    these declarations and the field annotations make (:func:`param_schema`, pydantic; a bad one is an
+    ``InputError`` naming the effect, the parameter, its value and its range or choices). Every
+    constructor argument is a float, int, bool or str, so
     :meth:`params` is JSON/TOML serialisable and ``make(name, **effect.params())`` rebuilds an
     equal effect.
     """
@@ -342,44 +391,60 @@ class KnobEffect(Effect, metaclass=CheckedArgs):
     PARAM_BOUNDS: ClassVar[Mapping[str, tuple[float, float]]] = {}
     PARAM_LIMITS: ClassVar[Mapping[str, tuple[float, float]]] = {}
     CHOICES: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    CONDITION: ClassVar[str] = ""
+    CHAIN_RANK: ClassVar[float] = math.inf
+    NOMINAL_K: ClassVar[tuple[float, ...] | None] = (0.25, 0.5, 0.75, 1.0)
+    NOMINAL_NOUN: ClassVar[str] = ""
 
     @classmethod
-    def _checked(cls, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
-        """Constructor arguments as keywords, each checked against its declared type and range."""
+    def condition(cls) -> str:
+        """The presets' condition of the effect (``CONDITION``, else its ``name``)."""
+        return cls.CONDITION or cls.name
+
+    def __post_init__(self) -> None:
+        """Every parameter checked against the declared schema (:func:`param_schema`) and normalised
+        (``1`` -> ``1.0`` for a float parameter, ``numpy.bool_`` -> ``bool``); an error names the effect,
+        the parameter, its value and what was expected."""
+        cls = type(self)
+        given = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.init}
+        try:
+            checked = param_schema(cls).model_validate(given)
+        except pydantic.ValidationError as exc:
+            raise InputError(self._param_error(exc.errors()[0])) from None
+        for key, value in given.items():
+            new = getattr(checked, key)
+            if new is not value:
+                object.__setattr__(self, key, new)  # the dataclass idiom for a frozen field's own value
+
+    @classmethod
+    def param_type(cls, param: str, annotation: Any) -> Any:
+        """The declared type of a parameter: a string of ``CHOICES``, a bool, a float or int in its
+        declared range (:meth:`bounds_of`), else the annotation as it is (a subclass's own kind of
+        parameter: it overrides this, or checks it itself)."""
+        if param in cls.CHOICES:
+            return Literal[tuple(cls.CHOICES[param])]
+        if annotation is bool:
+            return Annotated[bool, pydantic.BeforeValidator(_boolean)]
+        if annotation in (float, int):
+            lo, hi = cls.bounds_of(param)
+            kind = _finite_float if annotation is float else _whole
+            return Annotated[annotation, pydantic.Field(ge=lo, le=hi), pydantic.BeforeValidator(kind)]
+        return Annotated[Any, annotation]
+
+    @classmethod
+    def _param_error(cls, error: Mapping[str, Any]) -> str:
+        """The message of a failed parameter: ``<effect>: parameter <name>=<value> <what was expected>``."""
         who = cls.name or cls.__name__
-        fields = [f for f in dataclasses.fields(cls) if f.init]
-        given = keyword_args(who, fields, args, kwargs)
-        for f in fields:
-            if f.name in given:
-                given[f.name] = cls._checked_value(who, f, given[f.name])
-        return given
-
-    @classmethod
-    def _checked_value(cls, who: str, f: dataclasses.Field, v: Any) -> Any:
-        ftype = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
-        if f.name in cls.CHOICES:
-            allowed = cls.CHOICES[f.name]
-            if v not in allowed:
-                raise InputError(f"{who}: parameter {f.name}={v!r} must be one of {', '.join(allowed)}")
-            return v
-        if ftype == "bool":
-            if not isinstance(v, bool | np.bool_):
-                raise InputError(f"{who}: parameter {f.name}={v!r} must be true or false")
-            return bool(v)
-        if ftype not in ("float", "int"):
-            return v  # a subclass's own kind of parameter (it checks it itself)
-        lo, hi = cls.bounds_of(f.name)
-        if not _is_real(v) or not math.isfinite(float(v)):
-            raise InputError(f"{who}: parameter {f.name}={v!r} must be a finite number in [{lo}, {hi}]")
-        if ftype == "int":
-            if float(v) != int(v):
-                raise InputError(f"{who}: parameter {f.name}={v!r} must be an integer in [{lo}, {hi}]")
-            v = int(v)
-        else:
-            v = float(v)
-        if not lo <= v <= hi:
-            raise InputError(f"{who}: parameter {f.name}={v!r} is outside [{lo}, {hi}]")
-        return v
+        param = str(error["loc"][0]) if error.get("loc") else "?"
+        raised = error.get("ctx", {}).get("error")
+        if isinstance(raised, InputError):  # a parameter's own check (``param_type``) says it all
+            return str(raised)
+        phrase = _PARAM_PHRASES.get(error["type"])
+        if phrase is None:
+            return f"{who}: parameter {param}={error.get('input')!r}: {error['msg']}"
+        lo, hi = cls.bounds_of(param) if "{lo}" in phrase else (None, None)
+        return f"{who}: parameter {param}={error.get('input')!r} " + phrase.format(
+            lo=lo, hi=hi, choices=", ".join(cls.CHOICES.get(param, ())))
 
     @classmethod
     def bounds_of(cls, param: str) -> tuple[float, float]:

@@ -36,6 +36,8 @@ class Blur(KnobEffect):
     """Defocus; ``k`` scales the blur radius up to ``max_radius_frac`` of the width."""
 
     name: ClassVar[str] = "blur"
+    CHAIN_RANK: ClassVar[float] = 50
+    NOMINAL_NOUN: ClassVar[str] = "defocus blur"
 
     max_radius_frac: float = 0.01
 

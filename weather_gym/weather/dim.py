@@ -185,6 +185,9 @@ class Dim(EgoMotion):
     """Fading light; ``k`` = 1 - brightness factor (faithful) or light lost in ``stops`` (physical)."""
 
     name: ClassVar[str] = "dim"
+    CONDITION: ClassVar[str] = "low_light"
+    CHAIN_RANK: ClassVar[float] = 80
+    NOMINAL_K: ClassVar[tuple[float, ...] | None] = None  # its presets rows are calibrated
 
     mode: str = "faithful"
     stops: float = 12.0

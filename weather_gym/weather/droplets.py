@@ -164,6 +164,8 @@ class Droplets(KnobEffect):
     """Adherent droplets; ``k`` = droplet opacity (the study's ``alpha_coef``). See module doc."""
 
     name: ClassVar[str] = "droplets"
+    CHAIN_RANK: ClassVar[float] = 40
+    NOMINAL_K: ClassVar[tuple[float, ...] | None] = None  # its presets rows are calibrated
     stateful: ClassVar[bool] = True
 
     fog_coef: float = STUDY_FOG_COEF

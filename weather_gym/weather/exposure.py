@@ -61,6 +61,8 @@ class Exposure(KnobEffect):
     """Wrong exposure; ``k`` = fraction of ``max_stops`` of error. See module doc."""
 
     name: ClassVar[str] = "exposure"
+    CHAIN_RANK: ClassVar[float] = 90
+    NOMINAL_NOUN: ClassVar[str] = "under-exposure"
 
     max_stops: float = 3.0
     direction: str = "under"

@@ -70,6 +70,8 @@ class Fog(CameraGeometry):
     """Koschmieder haze; ``k`` = extinction / that of ``min_visibility_m`` fog. See module doc."""
 
     name: ClassVar[str] = "fog"
+    CHAIN_RANK: ClassVar[float] = 10
+    NOMINAL_NOUN: ClassVar[str] = "fog"
 
     min_visibility_m: float = 15.0
     airlight: float = 0.85

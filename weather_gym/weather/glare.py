@@ -82,6 +82,8 @@ class Glare(KnobEffect):
     """Sun flare, veiling glare and bloom; ``k`` = stray-light strength. See module doc."""
 
     name: ClassVar[str] = "glare"
+    CHAIN_RANK: ClassVar[float] = 30
+    NOMINAL_NOUN: ClassVar[str] = "sun glare"
 
     source_x: float = 0.8
     source_y: float = 0.1

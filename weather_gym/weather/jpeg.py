@@ -34,6 +34,8 @@ class Jpeg(KnobEffect):
     """Compression; ``k`` lowers the quality from 100 to ``min_quality``. See module doc."""
 
     name: ClassVar[str] = "jpeg"
+    CHAIN_RANK: ClassVar[float] = 110
+    NOMINAL_NOUN: ClassVar[str] = "compression artefacts"
 
     min_quality: float = 5.0
     chroma_subsampling: bool = True

@@ -52,6 +52,8 @@ class MotionBlur(EgoMotion):
     """Smear from speed and yaw rate; ``k`` = fraction of the exposure time. See module doc."""
 
     name: ClassVar[str] = "motion_blur"
+    CHAIN_RANK: ClassVar[float] = 60
+    NOMINAL_NOUN: ClassVar[str] = "motion blur"
 
     exposure_s: float = 1 / 30
     kind: str = "ego"

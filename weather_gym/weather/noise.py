@@ -90,6 +90,8 @@ class Noise(KnobEffect):
     """Sensor noise; ``k`` = gain / ``max_gain``. See module doc."""
 
     name: ClassVar[str] = "noise"
+    CHAIN_RANK: ClassVar[float] = 100
+    NOMINAL_NOUN: ClassVar[str] = "sensor noise"
 
     max_gain: float = 64.0
     full_well_e: float = 6000.0

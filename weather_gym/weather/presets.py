@@ -1,22 +1,25 @@
 """Weather presets: a condition and a severity 0-4 name a list of effects (``presets.toml``).
 
-Every effect is a condition (``rain@2``, ``fog@3``, ...), plus the study's two: ``droplets`` and
-``low_light`` (alias ``dim``). Each row says whether it is **calibrated** (its k was read off a
-measured perception drop by ``weather-gym calibrate``; ``calibrated = true``) or **nominal** (a
-documented choice of k, not measured; ``calibrated = false``). The table ships with the package
-(``weather_gym/weather/presets.toml``); calibration rewrites the rows it measured, keeps the others
-as nominal, and nothing else changes.
+Every registered effect is a condition (``rain@2``, ``fog@3``, ...; its ``CONDITION``, by default its
+name): the study's two, ``droplets`` and ``low_light`` (alias ``dim``), then the others by name. Each
+row says whether it is **calibrated** (its k was read off a measured perception drop by ``weather-gym
+calibrate``; ``calibrated = true``) or **nominal** (a documented choice of k, not measured;
+``calibrated = false``). The presets file holds the calibrated rows; the nominal ones are the effect's
+own, generated from what its class declares (``NOMINAL_K``, default k = severity / 4, and
+``NOMINAL_NOUN``) for every condition the file has no row for. The table ships with the package
+(``weather_gym/weather/presets.toml``); calibration rewrites the rows it measured, keeps the others,
+and nothing else changes.
 
 File format: free top-level metadata, then one ``[[presets]]`` table per condition and severity with
 ``condition``, ``severity``, ``effects`` (a list of ``{name, k, ...}`` tables as in model files),
 ``calibrated`` (bool; default: the file's top-level ``calibrated``, else false) and optional fields
 (``description``, ``k_interval``, ``measured_map``, ``measured_relative``, ``achieved_relative``,
-``note``, anything else) kept as they are. A condition in the file has all five severities; a file
-need not hold every condition.
+``note``, anything else) kept as they are. A condition in the file has all five severities (they
+replace its nominal rows); a file need not hold every condition.
 
 Example:
-    >>> from weather_gym.weather.presets import preset_entry, preset_spec, CONDITIONS
-    >>> CONDITIONS[:3]
+    >>> from weather_gym.weather.presets import conditions, nominal_rows, preset_entry, preset_spec
+    >>> conditions()[:3]
     ('droplets', 'low_light', 'blur')
     >>> preset_spec("droplets", 3)[0]["name"]
     'droplets'
@@ -24,6 +27,8 @@ Example:
     []
     >>> preset_entry("rain", 2)["calibrated"], preset_spec("rain", 2)
     (False, [{'name': 'rain', 'k': 0.5}])
+    >>> nominal_rows("glare")[3]["description"]
+    'Nominal heavy sun glare'
 """
 
 from __future__ import annotations
@@ -36,23 +41,65 @@ from pathlib import Path
 from typing import Any
 
 from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
+from weather_gym.weather.registry import EFFECTS
 from weather_gym.weather.tables import effect_from_table
 
-__all__ = ["ALIASES", "CONDITIONS", "DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "canonical_condition",
-           "load_presets", "preset_entry", "preset_source", "preset_spec", "presets_path"]
+__all__ = ["DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "STUDY_CONDITIONS", "aliases",
+           "canonical_condition", "conditions", "load_presets", "nominal_rows", "preset_entry", "preset_source",
+           "preset_spec", "presets_path"]
 
-CONDITIONS = ("droplets", "low_light", "blur", "motion_blur", "noise", "exposure", "fog", "rain", "glare",
-              "vignette", "jpeg")
-"""The study's two conditions, then every other effect under its own name."""
+#: The reference study's conditions (its Table 2), listed first.
+STUDY_CONDITIONS = ("droplets", "low_light")
 SEVERITIES = (0, 1, 2, 3, 4)
-#: Other names accepted for a condition (the effect names of each condition).
-ALIASES = {"dim": "low_light", "droplets": "droplets"}
 #: The shipped table.
 DEFAULT_PRESETS = Path(__file__).with_name("presets.toml")
 
 #: Environment variable that switches the presets every ``CONDITION@SEVERITY`` reads when none is given:
 #: a presets file (e.g. one ``weather-gym calibrate --track`` resolved), or ``pool`` / unset: the shipped one.
 PRESETS_ENV = "WEATHER_GYM_PRESETS"
+
+_NOMINAL_NOTE = "nominal: k = severity / 4 over the effect's designed range [0, 1]; not measured"
+_NOMINAL_WORDS = ("", "light", "moderate", "heavy", "severe")
+
+
+def conditions() -> tuple[str, ...]:
+    """Every condition: the study's two, then the other registered effects' conditions by name."""
+    found = {cls.condition() for cls in (EFFECTS.get(n) for n in EFFECTS)}
+    study = tuple(c for c in STUDY_CONDITIONS if c in found)
+    return study + tuple(sorted(found - set(study)))
+
+
+def aliases() -> dict[str, str]:
+    """Other names accepted for a condition: the name of each effect whose condition is not its name."""
+    return {n: EFFECTS.get(n).condition() for n in EFFECTS if EFFECTS.get(n).condition() != n}
+
+
+def __getattr__(name: str) -> Any:
+    """``CONDITIONS`` (:func:`conditions`) and ``ALIASES`` (:func:`aliases`), read from the registry
+    when asked, so an effect registered later is in them."""
+    if name == "CONDITIONS":
+        return conditions()
+    if name == "ALIASES":
+        return aliases()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def nominal_rows(condition: str) -> dict[int, dict[str, Any]]:
+    """The nominal ``[[presets]]`` rows of a condition, ``{severity: table}``, from its effect's
+    ``NOMINAL_K`` and ``NOMINAL_NOUN``; ``{}`` when its effect declares none (calibrated rows only)."""
+    cond = canonical_condition(condition)
+    cls = next(EFFECTS.get(n) for n in EFFECTS if EFFECTS.get(n).condition() == cond)
+    if cls.NOMINAL_K is None:
+        return {}
+    noun = cls.NOMINAL_NOUN or cls.name.replace("_", " ")
+    ks = (0.0, *cls.NOMINAL_K)
+    note = _NOMINAL_NOTE if tuple(cls.NOMINAL_K) == (0.25, 0.5, 0.75, 1.0) else \
+        f"nominal: k = {', '.join(f'{k:g}' for k in cls.NOMINAL_K)} at severities 1-4, declared by the effect; not measured"
+    return {s: {"condition": cond, "severity": s, "calibrated": False,
+                "description": f"Nominal {_NOMINAL_WORDS[s]} {noun}" if s else "No effect",
+                "effects": [{"name": cls.name, "k": float(ks[s])}] if s else [], "note": note}
+            for s in SEVERITIES}
+
 
 _CACHE: dict[tuple[str, int], dict[str, Any]] = {}
 
@@ -82,13 +129,14 @@ def preset_source(path: str | os.PathLike | None = None) -> str:
 
 
 def canonical_condition(condition: str) -> str:
-    """``condition`` or its alias as one of :data:`CONDITIONS`; ValueError listing them otherwise."""
+    """``condition`` or its alias as one of :func:`conditions`; ValueError listing them otherwise."""
+    known, alias = conditions(), aliases()
     if isinstance(condition, str):
-        c = ALIASES.get(condition, condition)
-        if c in CONDITIONS:
+        c = alias.get(condition, condition)
+        if c in known:
             return c
-    raise InputError(f"unknown weather condition {condition!r}; valid conditions: {', '.join(CONDITIONS)} "
-                     f"(aliases: {', '.join(f'{a}={c}' for a, c in ALIASES.items() if a != c)})")
+    raise InputError(f"unknown weather condition {condition!r}; valid conditions: {', '.join(known)} "
+                     f"(aliases: {', '.join(f'{a}={c}' for a, c in alias.items())})")
 
 
 def _check_severity(severity: Any) -> int:
@@ -104,7 +152,7 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
     default_calibrated = data.get("calibrated", False)
     if not isinstance(default_calibrated, bool):
         raise FileFormatError(f"{path}: 'calibrated' must be true or false")
-    out: dict[str, dict[int, dict[str, Any]]] = {c: {} for c in CONDITIONS}
+    out: dict[str, dict[int, dict[str, Any]]] = {c: {} for c in conditions()}
     for i, t in enumerate(tables):
         where = f"{path}: [[presets]] #{i + 1}"
         if not isinstance(t, dict):
@@ -145,7 +193,8 @@ def load_presets(path: str | os.PathLike[str] | None = None) -> dict[str, Any]:
 
     Returns ``{<top-level keys>, "presets": {condition: {severity: table}}, "calibrated_conditions":
     (conditions whose every row is calibrated), "calibrated": bool(calibrated_conditions)}``; every
-    table has its ``calibrated`` flag. Re-read whenever the file changes.
+    table has its ``calibrated`` flag. The conditions the file has no rows for get their effect's
+    nominal rows (:func:`nominal_rows`). Re-read whenever the file changes.
     """
     p = presets_path(path)
     if not p.is_file():
@@ -159,7 +208,11 @@ def load_presets(path: str | os.PathLike[str] | None = None) -> dict[str, Any]:
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:  # a TOML file is UTF-8 text
             raise FileFormatError(f"{p}: not valid TOML: {exc}") from None
         _CACHE[key] = _validate(data, p)
-    return copy.deepcopy(_CACHE[key])
+    out = copy.deepcopy(_CACHE[key])
+    in_file = out["presets"]
+    out["presets"] = {c: in_file[c] if c in in_file else nominal_rows(c) for c in conditions()}
+    out["presets"] = {c: rows for c, rows in out["presets"].items() if rows}
+    return out
 
 
 def preset_entry(condition: str, severity: int, path: str | Path | None = None) -> dict[str, Any]:

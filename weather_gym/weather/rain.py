@@ -36,6 +36,8 @@ class Rain(KnobEffect):
     """Rain streaks and veil; ``k`` = rain rate. See module doc."""
 
     name: ClassVar[str] = "rain"
+    CHAIN_RANK: ClassVar[float] = 20
+    NOMINAL_NOUN: ClassVar[str] = "rain"
 
     density: float = 3.0
     length_frac: float = 0.06

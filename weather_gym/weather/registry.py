@@ -9,7 +9,7 @@ Example:
     >>> make("snow")
     Traceback (most recent call last):
     ...
-    weather_gym.core.errors.InputError: unknown weather effect 'snow'; valid names: blur, dim, droplets, exposure, fog, glare, jpeg, motion_blur, noise, rain, vignette
+    weather_gym.core.errors.InputError: unknown weather effect 'snow'; valid names: blur, dim, droplets, ...
 """
 
 from __future__ import annotations
@@ -32,6 +32,10 @@ def register_effect(cls: E) -> E:
     """Class decorator: register an effect class under its ``name``."""
     if not cls.name:
         raise TypeError(f"{cls.__name__} has no name")
+    nominal = cls.NOMINAL_K
+    if nominal is not None and (len(nominal) != 4 or not all(0.0 <= k <= 1.0 for k in nominal)):
+        raise TypeError(f"{cls.__name__}.NOMINAL_K must be the k of severities 1-4, each in [0, 1] (or None), "
+                        f"got {nominal!r}")
     EFFECTS.register(cls.name, cls)
     return cls
 

@@ -45,6 +45,8 @@ class Vignette(KnobEffect):
     """Corner darkening; ``k`` = light lost in the corners. See module doc."""
 
     name: ClassVar[str] = "vignette"
+    CHAIN_RANK: ClassVar[float] = 70
+    NOMINAL_NOUN: ClassVar[str] = "vignetting"
 
     exponent: float = 2.0
     center_x: float = 0.5

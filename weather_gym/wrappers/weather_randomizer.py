@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, SupportsFloat
 
@@ -38,7 +38,6 @@ import numpy as np
 
 from weather_gym.core.errors import InputError, check_known
 from weather_gym.weather import make
-from weather_gym.weather.base import CheckedArgs, keyword_args
 from weather_gym.weather.presets import canonical_condition, preset_spec
 from weather_gym.wrappers.weather import WeatherWrapper
 
@@ -61,7 +60,7 @@ def _k_range(name: str, value: Any) -> tuple[float, float]:
 
 
 @dataclass(frozen=True)
-class RandomWeather(metaclass=CheckedArgs):
+class RandomWeather:
     """What ``WeatherRandomizer`` draws (see the module doc).
 
     Attributes:
@@ -86,18 +85,6 @@ class RandomWeather(metaclass=CheckedArgs):
     schedule: str = "episode"
     every: int = 300
 
-    @classmethod
-    def _checked(cls, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
-        """The arguments with ``presets`` (one or several) canonical and ``severities`` a tuple."""
-        given = keyword_args("RandomWeather", fields(cls), args, kwargs)
-        if "presets" in given:
-            presets = given["presets"]
-            presets = (presets,) if isinstance(presets, str) else tuple(presets)
-            given["presets"] = tuple(canonical_condition(c) for c in presets)
-        if "severities" in given:
-            given["severities"] = tuple(given["severities"])
-        return given
-
     @cached_property
     def _tables(self) -> dict[str, tuple[tuple[float, float], dict[str, Any]]]:
         """effect name -> ``((k low, k high), other parameters)``, checked."""
@@ -112,6 +99,9 @@ class RandomWeather(metaclass=CheckedArgs):
         return tables
 
     def __post_init__(self) -> None:
+        presets = (self.presets,) if isinstance(self.presets, str) else tuple(self.presets)
+        object.__setattr__(self, "presets", tuple(canonical_condition(c) for c in presets))  # one or several
+        object.__setattr__(self, "severities", tuple(self.severities))
         if self.presets and not self.severities:
             raise InputError("RandomWeather: presets need at least one severity")
         for c in self.presets:

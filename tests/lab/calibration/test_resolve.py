@@ -194,7 +194,7 @@ def test_wrapper_records_k_source(tmp_path):
 
 
 def _few_cones_set(tmp_path: Path, src: Path) -> Path:
-    from tests.calibration.conftest import subset_coco
+    from tests.lab.calibration.conftest import subset_coco
 
     return subset_coco(src, tmp_path / "two", 2)
 

@@ -50,7 +50,13 @@ from weather_gym.lab.calibration.sweep import (
     run_sweep_cell,
 )
 from weather_gym.lab.evaluation.runner import run_cells
-from weather_gym.weather.presets import CONDITIONS, SEVERITIES, canonical_condition, load_presets
+from weather_gym.weather.presets import (
+    SEVERITIES,
+    canonical_condition,
+    conditions,
+    load_presets,
+    nominal_rows,
+)
 
 __all__ = ["DEFAULT_USE", "MATCHES", "PresetCalibration", "calibrate", "parse_use", "remeasure",
            "write_presets"]
@@ -259,8 +265,9 @@ HEADER = """\
 # fixed rendered evaluation set at each k (5 weather realisations per k), and read off the k where that curve
 # meets the level measured in real weather of the severity. Conditions and severities are the study's
 # (Table 2): real-world "droplets" on the lens and "low_light" (late afternoon .. night).
-# Rows with calibrated = false are NOMINAL: a documented choice of k (see their note), not measured; every
-# effect has such a table, so that "rain@2" works. Calibration keeps them as they are.
+# Rows with calibrated = false are NOMINAL: a documented choice of k (see their note), not measured. Every
+# effect has such rows, so that "rain@2" works: those its class declares (NOMINAL_K, default k = severity / 4)
+# are generated on load and not written here; a row here replaces them. Calibration keeps them as they are.
 #
 # match = "relative": what is matched is the DROP, mAP in the weather / mAP in ideal conditions of the same
 # domain (the study's real camera: 0.793; our detector on our clean set: eval_ideal_map), because our
@@ -281,8 +288,9 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
     """Write a presets TOML (``weather_gym.weather.presets`` format), validated by ``load_presets`` first.
 
     The calibrated rows get ``calibrated = true``. Every other condition x severity of ``base``
-    (default: the shipped table) is copied with ``calibrated = false``: a nominal row as it is, a row
-    calibrated before (not measured in this run) with a note saying so. ``path`` is never overwritten
+    (default: the shipped table) is copied with ``calibrated = false``: a nominal row as it is (an
+    effect's own generated nominal rows are not written: they are generated on load), a row calibrated
+    before (not measured in this run) with a note saying so. ``path`` is never overwritten
     unless ``overwrite``.
     """
 
@@ -300,9 +308,11 @@ def write_presets(calibs: Sequence[PresetCalibration], path: str | os.PathLike, 
             lines.append(f"# {cond}: curve {curve!r}, effect {_effect_text(eff)} with the k below.")
     lines.append("")
     rows = []
-    for cond in CONDITIONS:
+    for cond in conditions():
         if not any((cond, s) in done for s in SEVERITIES) and cond not in base_tables:
             continue
+        if not any((cond, s) in done for s in SEVERITIES) and base_tables[cond] == nominal_rows(cond):
+            continue  # its effect's own nominal rows: generated on load, not written
         for sev in SEVERITIES:
             if (cond, sev) in done:
                 rows.append(done[cond, sev].toml_fields())

@@ -38,7 +38,7 @@ from weather_gym.lab.datasets import load_coco
 from weather_gym.perception import score_detections
 from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.scoring import small_rule
-from weather_gym.weather.presets import ALIASES, CONDITIONS, SEVERITIES, canonical_condition
+from weather_gym.weather.presets import SEVERITIES, aliases, canonical_condition, conditions
 
 __all__ = ["IDEAL", "MeasuredLevel", "levels_by_condition", "load_measured", "measure_datasets",
            "parse_measured_arg", "read_measured_table"]
@@ -69,9 +69,9 @@ def _condition(text: str, where: str) -> str:
     try:
         return canonical_condition(t)
     except ValueError:
-        aliases = ", ".join(f"{a} = {c}" for a, c in ALIASES.items() if a != c)
-        raise InputError(f"{where}: unknown condition {t!r}; valid: ideal, {', '.join(CONDITIONS)} "
-                         f"(aliases: {aliases})") from None
+        alias = ", ".join(f"{a} = {c}" for a, c in aliases().items())
+        raise InputError(f"{where}: unknown condition {t!r}; valid: ideal, {', '.join(conditions())} "
+                         f"(aliases: {alias})") from None
 
 
 def _severity(text: str, where: str) -> int:

@@ -66,7 +66,7 @@ from weather_gym.lab.datasets.render import render_dataset
 from weather_gym.perception.detector_spec import DEFAULT_MODEL, load_detector, parse_detector_spec
 from weather_gym.perception.scoring import small_rule
 from weather_gym.weather import make
-from weather_gym.weather.presets import CONDITIONS, DEFAULT_PRESETS, SEVERITIES, load_presets
+from weather_gym.weather.presets import DEFAULT_PRESETS, SEVERITIES, conditions, load_presets, nominal_rows
 
 __all__ = ["CACHE_ENV", "MIN_CLEAR_MAP", "MIN_CONES", "Resolution", "ResolvedRow", "Scenario", "cache_dir",
            "code_version", "resolution_key", "resolve_presets"]
@@ -263,7 +263,7 @@ def _targets(presets: str | os.PathLike | None) -> list[tuple[str, int, dict[str
     """The rows that can be resolved: calibrated, with a measured relative target and one effect."""
     table = load_presets(presets)["presets"]
     out = []
-    for cond in CONDITIONS:
+    for cond in conditions():
         for sev in SEVERITIES:
             t = table.get(cond, {}).get(sev)
             if (t and t.get("calibrated") and len(t["effects"]) == 1 and "measured_relative" in t
@@ -616,6 +616,8 @@ def write_resolved(res: Resolution, path: str | os.PathLike, *, presets: str | o
     done = {(r.condition, r.severity): r for r in res.rows}
     rows = []
     for cond, sevs in base["presets"].items():
+        if sevs == nominal_rows(cond) and not any((cond, s) in done for s in SEVERITIES):
+            continue  # its effect's own nominal rows: generated on load, not written
         for sev in SEVERITIES:
             t = dict(sevs[sev])
             r = done.get((cond, sev))

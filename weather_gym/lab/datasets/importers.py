@@ -93,7 +93,7 @@ from weather_gym.lab.datasets.import_geometry import (
 from weather_gym.lab.datasets.import_readers import read_source
 from weather_gym.lab.datasets.masks import MASK_FILE, read_mask, write_mask
 from weather_gym.perception.labels import CATEGORIES, DEFAULT_CLASSES, IGNORE, SmallRule, parse_class_map
-from weather_gym.weather.presets import CONDITIONS, canonical_condition
+from weather_gym.weather.presets import canonical_condition, conditions
 
 __all__ = ["FORMATS", "DEFAULT_CLASSES", "IGNORE", "MIN_POSE_ROWS", "PARTIAL", "parse_class_map", "parse_intrinsics",
            "import_dataset", "IMAGE_EXTS"]
@@ -137,7 +137,7 @@ def _condition(condition: str | None, severity: int | None) -> tuple[str | None,
         c = canonical_condition(condition.strip())
     except ValueError:
         raise InputError(f"--condition {condition!r}: expected clear or a weather condition "
-                         f"({', '.join(CONDITIONS)}, or the effect names droplets, dim)") from None
+                         f"({', '.join(conditions())}, or the effect names droplets, dim)") from None
     if severity is None or not 1 <= int(severity) <= 4:
         raise InputError(f"--condition {condition} needs --severity 1-4, got {severity}")
     return c, int(severity)

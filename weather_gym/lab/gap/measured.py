@@ -44,10 +44,11 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 import cv2
 import numpy as np
+from pydantic import BeforeValidator
 
 from weather_gym.core.errors import InputError, check_known
 from weather_gym.core.registry import Registry
@@ -94,16 +95,13 @@ class MeasuredEffect(KnobEffect):
     MEASURED: ClassVar[bool] = True
 
     @classmethod
-    def _checked_value(cls, who: str, f: dataclasses.Field, v: Any) -> Any:
-        """``k`` a finite number in [0, 1]; a curve field a tuple of floats in its range (and monotone)."""
-        if f.name == "k":
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)) or not 0 <= v <= 1:
-                raise InputError(f"{who}: parameter k={v!r} must be a finite number in [0.0, 1.0]")
-            return float(v)
-        if f.name in cls.CURVES:
-            lo, hi, mono = cls.CURVES[f.name]
-            return _curve(who, f.name, v, lo, hi, mono)
-        return super()._checked_value(who, f, v)
+    def param_type(cls, param: str, annotation: Any) -> Any:
+        """A curve field: a tuple of floats in its range (and monotone where declared), rounded."""
+        if param in cls.CURVES:
+            lo, hi, mono = cls.CURVES[param]
+            who = cls.name or cls.__name__
+            return Annotated[tuple[float, ...], BeforeValidator(lambda v: _curve(who, param, v, lo, hi, mono))]
+        return super().param_type(param, annotation)
 
     def params(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -196,6 +194,7 @@ class BlurKernel(MeasuredEffect):
     CURVES: ClassVar = {"kernel": (0.0, 1.0, False)}
 
     def __post_init__(self) -> None:
+        super().__post_init__()  # the declared parameters first
         n = math.isqrt(len(self.kernel))
         if n * n != len(self.kernel) or n % 2 == 0 or abs(sum(self.kernel) - 1.0) > 0.01:
             raise InputError(f"{self.name}: parameter kernel must hold an odd square of weights (row by row) that "

@@ -49,13 +49,27 @@ from weather_gym.core.errors import FileFormatError, MissingInputError, check_kn
 from weather_gym.lab.gap.measured import MEASURED, PARTNERS, make_measured
 from weather_gym.weather import EFFECTS, KnobEffect, make
 
-__all__ = ["CHAIN_ORDER", "read_model", "write_model", "model_tables", "insert_position", "apply_chain",
-           "describe"]
+__all__ = ["chain_order", "read_model", "write_model", "model_tables", "insert_position",
+           "apply_chain", "describe"]
 
-#: Where an added effect goes in the chain: the scene and atmosphere first, then the lens, the
-#: car's motion, exposure, the sensor, and encoding last.
-CHAIN_ORDER: tuple[str, ...] = ("fog", "rain", "glare", "droplets", "blur", "motion_blur", "vignette", "dim",
-                                "exposure", "noise", "jpeg")
+
+def chain_order() -> tuple[str, ...]:
+    """Where an added effect goes in the chain: every registered effect by its declared ``CHAIN_RANK``
+    (the scene and atmosphere first, then the lens, the car's motion, exposure, the sensor, and
+    encoding last; an effect that declares none after them), ties by name.
+
+    Example:
+        >>> chain_order()[:3], chain_order()[-1]
+        (('fog', 'rain', 'glare'), 'jpeg')
+    """
+    return tuple(sorted(EFFECTS, key=lambda n: (EFFECTS.get(n).CHAIN_RANK, n)))
+
+
+def __getattr__(name: str) -> Any:
+    """``CHAIN_ORDER``: :func:`chain_order`, read from the registry when asked."""
+    if name == "CHAIN_ORDER":
+        return chain_order()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def read_model(path: str | os.PathLike) -> list[KnobEffect]:
@@ -126,7 +140,7 @@ def write_model(path: str | os.PathLike, effects: Sequence[KnobEffect],
 
 def insert_position(effects: Sequence[KnobEffect], name: str) -> int:
     """Index at which effect ``name`` joins the chain (after every effect that comes before it in
-    :data:`CHAIN_ORDER`)."""
+    :func:`chain_order`)."""
     rank = _rank(name)
     pos = 0
     for i, e in enumerate(effects):
@@ -136,10 +150,11 @@ def insert_position(effects: Sequence[KnobEffect], name: str) -> int:
 
 
 def _rank(name: str) -> float:
-    """Place of an effect in :data:`CHAIN_ORDER`; a measured member goes right after its kind's effects."""
+    """Place of an effect in :func:`chain_order`; a measured member goes right after its kind's effects."""
     if name in PARTNERS:
         return max(_rank(p) for p in PARTNERS[name]) + 0.5
-    return float(CHAIN_ORDER.index(name)) if name in CHAIN_ORDER else float(len(CHAIN_ORDER))
+    order = chain_order()
+    return float(order.index(name)) if name in order else float(len(order))
 
 
 def _effect_seed(seed: int, frame_id: int, name: str) -> np.random.SeedSequence:
