@@ -5,8 +5,8 @@ input), 672x376 (its camera) and 1280x720:
 
 * every registered effect (droplets at the study's k = 0.55, dim at 0.78, the others at 0.5) and
   the persistent-droplet, refractive-droplet (also at k = 1, its heaviest), physical-dim
-  and night-dim variants, and the heaviest shipped presets of each (``droplets@4``,
-  ``low_light@4``), one frame per call, through the public call;
+  and night-dim variants, and every shipped preset that uses them (``droplets@2`` to ``@4``,
+  ``low_light@1`` to ``@4``: what the presets resolve to), one frame per call, through the public call;
 * at 672x376, ``--batch`` different frames as a loop of single calls that keeps its outputs (as a
   caller that needs every frame does) and as one batched call, per frame;
 * in the same run the study's recipe (:mod:`weather_gym.weather.reference`: the Albumentations-era
@@ -82,15 +82,24 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
             cases.append((f"droplets persistent (k={k})", make(name, k=k, persistent=True)))
             for rk in (k, 1.0):
                 cases.append((f"droplets refractive (k={rk})", make(name, k=rk, mode="refractive")))
-            heavy = parse_weather("droplets@4")  # the heaviest shipped preset
-            cases.append((f"droplets@4 ({heavy.mode} k={heavy.k})", heavy))  # type: ignore[arg-type, attr-defined]  # a KnobEffect (droplets)
+            cases += _preset_cases("droplets")
             cases.append((f"droplets refractive persistent (k={k})",
                           make(name, k=k, mode="refractive", persistent=True)))
         if name == "dim":
             cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
             cases.append((f"dim night (k={k})", make(name, k=k, mode="night")))
-            heavy = parse_weather("low_light@4")
-            cases.append((f"low_light@4 ({heavy.mode} k={heavy.k})", heavy))  # type: ignore[arg-type, attr-defined]  # a KnobEffect (dim)
+            cases += _preset_cases("low_light")
+    return cases
+
+
+def _preset_cases(condition: str) -> list[tuple[str, Any]]:
+    """Every shipped preset of ``condition`` that does something (k > 0), lightest first: what the
+    presets resolve to (a scenario's resolved k lies near these)."""
+    cases = []
+    for severity in range(1, 5):
+        effect = parse_weather(f"{condition}@{severity}")
+        if getattr(effect, "k", 0.0) > 0:
+            cases.append((f"{condition}@{severity} ({effect.mode} k={effect.k})", effect))  # type: ignore[attr-defined]  # a KnobEffect
     return cases
 
 
