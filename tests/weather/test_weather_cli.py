@@ -134,9 +134,10 @@ def test_bench_weather_runs_and_prints_the_table(tmp_path, capsys):
     assert "droplets@1 " not in text  # k = 0: a copy
     assert out.read_text().strip() == text.strip()
     assert main(["bench", "weather", "--sizes", "64x48", "--repeats", "2", "--warmup", "0", "--batch", "0",
-                 "--effects", "vignette", "--cold"]) == 0
+                 "--effects", "vignette", "--cold", "--cpu-time"]) == 0
     text = capsys.readouterr().out
     assert "(`--cold`)" in text and "vignette (k=0.5)" in text and "loop of" not in text
+    assert "CPU time of the thread per call (`--cpu-time`)" in text
     assert main(["bench", "weather", "--sizes", "96by64"]) == 2
 
 
