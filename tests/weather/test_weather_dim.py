@@ -11,7 +11,13 @@ import pytest
 from weather_gym.core.errors import InputError
 from weather_gym.weather import make
 from weather_gym.weather._common import gauss_lut, smooth
-from weather_gym.weather.dim import add_chroma_blotches, auto_exposure, black_level_lut, chroma_draw, chroma_grid
+from weather_gym.weather.dim import (
+    add_chroma_blotches,
+    auto_exposure,
+    black_level_lut,
+    chroma_draw,
+    chroma_grid,
+)
 from weather_gym.weather.reference import study_dim
 
 ALL_VALUES = np.arange(256, dtype=np.uint8).reshape(8, 32, 1).repeat(3, axis=2)
