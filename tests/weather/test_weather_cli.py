@@ -122,19 +122,22 @@ def test_degrade_errors(tmp_path, frame, capsys, argv, message):
 
 def test_bench_weather_runs_and_prints_the_table(tmp_path, capsys):
     out = tmp_path / "bench.md"
-    heaviest = [(p, parse_weather(p)) for p in ("droplets@4", "low_light@4")]  # rows of the heaviest presets
+    presets = [(p, parse_weather(p)) for p in ("droplets@2", "droplets@3", "droplets@4", "low_light@1", "low_light@2",
+                                                "low_light@3", "low_light@4")]  # a row per preset that does something
     assert main(["bench", "weather", "--sizes", "96x64", "--repeats", "2", "--warmup", "0", "--batch", "2",
                  "--effects", "droplets,dim,noise", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     for row in ("frame copy (np.copyto)", "study droplets", "study dim: Pillow", "droplets (k=0.55)",
                 "dim physical", "noise (k=0.5)", "speed-up vs study",
-                *(f"{p} ({e.mode} k={e.k})" for p, e in heaviest)):
+                *(f"{p} ({e.mode} k={e.k})" for p, e in presets)):
         assert row in text
+    assert "droplets@1 " not in text  # k = 0: a copy
     assert out.read_text().strip() == text.strip()
     assert main(["bench", "weather", "--sizes", "64x48", "--repeats", "2", "--warmup", "0", "--batch", "0",
-                 "--effects", "vignette", "--cold"]) == 0
+                 "--effects", "vignette", "--cold", "--cpu-time"]) == 0
     text = capsys.readouterr().out
     assert "(`--cold`)" in text and "vignette (k=0.5)" in text and "loop of" not in text
+    assert "CPU time of the thread per call (`--cpu-time`)" in text
     assert main(["bench", "weather", "--sizes", "96by64"]) == 2
 
 

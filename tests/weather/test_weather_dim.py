@@ -2,14 +2,22 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 import pytest
 
 from weather_gym.core.errors import InputError
 from weather_gym.weather import make
-from weather_gym.weather._common import smooth
-from weather_gym.weather.dim import add_chroma_blotches, auto_exposure, black_level_lut
+from weather_gym.weather._common import gauss_lut, smooth
+from weather_gym.weather.dim import (
+    add_chroma_blotches,
+    auto_exposure,
+    black_level_lut,
+    chroma_draw,
+    chroma_grid,
+)
 from weather_gym.weather.reference import study_dim
 
 ALL_VALUES = np.arange(256, dtype=np.uint8).reshape(8, 32, 1).repeat(3, axis=2)
@@ -143,6 +151,37 @@ def test_night_colour_noise_is_colour_only():
     d = img.astype(float) - 100
     assert 3.0 < d.std() < 9.0
     assert np.abs(d.sum(axis=2)).mean() < 1.5  # the three offsets cancel: luma kept
+
+
+def _blotches_as_two_saturating_passes(img, sigma, cell_px, raw, weight):
+    """The colour blotches as first written: numpy's axis mean, then + the positive part and - the
+    negative part of the blotch, each a saturating uint8 pass."""
+    gh, gw = chroma_grid(img.shape, cell_px)
+    z = gauss_lut()[raw].reshape(gh, gw, 3)
+    z -= z.mean(axis=2, keepdims=True)
+    z *= np.float32(sigma * math.sqrt(1.5))
+    z *= weight[:, :, None]
+    grid = np.clip(np.rint(z + 128.0), 0, 255).astype(np.uint8)
+    big = cv2.resize(grid, (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR)
+    out = cv2.add(img, cv2.subtract(big, np.full_like(big, 128)))
+    return cv2.subtract(out, cv2.subtract(np.full_like(big, 128), big))
+
+
+@pytest.mark.parametrize("shape, sigma, cell_px", [((376, 672, 3), 16.0, 8.0), ((67, 101, 3), 40.0, 5.0)])
+def test_colour_blotches_in_one_pass_are_the_two_saturating_passes(shape, sigma, cell_px):
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, shape, np.uint8)
+    img[: shape[0] // 3] //= 8  # shadows and highlights, where the saturations act
+    img[-shape[0] // 3:] |= 0xF0
+    raw = chroma_draw(rng, shape, cell_px)
+    weight = rng.uniform(0.0, 4.0, chroma_grid(shape, cell_px)).astype(np.float32)
+    want = _blotches_as_two_saturating_passes(img, sigma, cell_px, raw, weight)
+    add_chroma_blotches(img, sigma, cell_px, raw, weight)
+    np.testing.assert_array_equal(img, want)
+    pairs = np.arange(1 << 16)  # the one pass on every (value, blotch) pair of bytes
+    a, b = (pairs >> 8).astype(np.uint8).reshape(256, 256), (pairs & 255).astype(np.uint8).reshape(256, 256)
+    two = cv2.subtract(cv2.add(a, cv2.subtract(b, np.full_like(b, 128))), cv2.subtract(np.full_like(b, 128), b))
+    np.testing.assert_array_equal(cv2.addWeighted(a, 1.0, b, 1.0, -128.0), two)
 
 
 def test_black_level_lut_crushes_shadows():

@@ -29,13 +29,16 @@ def median_ms(fn: Callable[[], object], repeats: int = 50, warmup: int = 5) -> f
     return 1000.0 * statistics.median(times)
 
 
-def interleaved_ms(fns: dict[str, Callable[[], object]], repeats: int, warmup: int, budget_s: float, run: int = 4) -> dict[str, float]:
+def interleaved_ms(fns: dict[str, Callable[[], object]], repeats: int, warmup: int, budget_s: float, run: int = 4,
+                   clock: Callable[[], float] = time.perf_counter) -> dict[str, float]:
     """Median milliseconds per call of each function, the functions taking turns.
 
     Each round gives every function, in turn, one untimed call (its data back in the caches) and
     ``run`` timed calls back to back; ``run=0``: one timed call per round and no untimed one
     (caches as the other functions left them). ``repeats`` timed calls per function at most, fewer
     when that takes much longer than ``budget_s`` (but at least 15 when ``repeats`` allows).
+    ``clock``: what a call's time is read from (``time.thread_time``: the CPU time of this thread,
+    which leaves out the time other processes hold the core, on a loaded machine).
     """
     t0 = time.perf_counter()
     for _ in range(max(warmup, 1)):
@@ -49,9 +52,9 @@ def interleaved_ms(fns: dict[str, Callable[[], object]], repeats: int, warmup: i
             if run:
                 fn()
             for _ in range(max(run, 1)):
-                t = time.perf_counter()
+                t = clock()
                 fn()
-                times[k].append(time.perf_counter() - t)
+                times[k].append(clock() - t)
     return {k: 1000.0 * statistics.median(v) for k, v in times.items()}
 
 

@@ -5,8 +5,8 @@ input), 672x376 (its camera) and 1280x720:
 
 * every registered effect (droplets at the study's k = 0.55, dim at 0.78, the others at 0.5) and
   the persistent-droplet, refractive-droplet (also at k = 1, its heaviest), physical-dim
-  and night-dim variants, and the heaviest shipped presets of each (``droplets@4``,
-  ``low_light@4``), one frame per call, through the public call;
+  and night-dim variants, and every shipped preset that uses them (``droplets@2`` to ``@4``,
+  ``low_light@1`` to ``@4``: what the presets resolve to), one frame per call, through the public call;
 * at 672x376, ``--batch`` different frames as a loop of single calls that keeps its outputs (as a
   caller that needs every frame does) and as one batched call, per frame;
 * in the same run the study's recipe (:mod:`weather_gym.weather.reference`: the Albumentations-era
@@ -18,8 +18,10 @@ caches) and 4 timed calls back to back; each row reports the median of its timed
 shared machine a change of load so hits every row alike, and the ratios within a run hold even
 when the absolute times do not. ``--cold`` times one call per row per turn instead, right after
 the other rows' (the frame and buffers as a pipeline leaves them, mostly out of the core's
-caches). The frame is :func:`weather_gym.weather.sample.sample_frame` (JPEG and bloom cost depend
-on content).
+caches). ``--cpu-time`` reads each call's time from the CPU time of its thread instead of the
+wall clock: on a loaded machine that leaves out the time other processes hold the core (what they do to
+the caches stays in). The frame is :func:`weather_gym.weather.sample.sample_frame` (JPEG and bloom cost
+depend on content).
 
 Example:
     weather-gym bench weather --repeats 200 --out bench_weather.md
@@ -34,6 +36,7 @@ The first command line above, parsed (nothing runs):
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +71,9 @@ def register(targets) -> None:
     p.add_argument("--cold", action="store_true",
                    help="one timed call per row per turn, right after the other rows' (caches as a pipeline "
                         "leaves them) instead of short back-to-back runs")
+    p.add_argument("--cpu-time", action="store_true",
+                   help="time each call by the CPU time of its thread (time.thread_time) instead of the wall "
+                        "clock: leaves out the time other processes hold the core, on a loaded machine")
     p.add_argument("--out", type=Path, help="also write the markdown table to this file")
     add_overwrite_arg(p, help="replace an existing --out")
     p.set_defaults(func=_run)
@@ -82,20 +88,29 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
             cases.append((f"droplets persistent (k={k})", make(name, k=k, persistent=True)))
             for rk in (k, 1.0):
                 cases.append((f"droplets refractive (k={rk})", make(name, k=rk, mode="refractive")))
-            heavy = parse_weather("droplets@4")  # the heaviest shipped preset
-            cases.append((f"droplets@4 ({heavy.mode} k={heavy.k})", heavy))  # type: ignore[arg-type, attr-defined]  # a KnobEffect (droplets)
+            cases += _preset_cases("droplets")
             cases.append((f"droplets refractive persistent (k={k})",
                           make(name, k=k, mode="refractive", persistent=True)))
         if name == "dim":
             cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
             cases.append((f"dim night (k={k})", make(name, k=k, mode="night")))
-            heavy = parse_weather("low_light@4")
-            cases.append((f"low_light@4 ({heavy.mode} k={heavy.k})", heavy))  # type: ignore[arg-type, attr-defined]  # a KnobEffect (dim)
+            cases += _preset_cases("low_light")
+    return cases
+
+
+def _preset_cases(condition: str) -> list[tuple[str, Any]]:
+    """Every shipped preset of ``condition`` that does something (k > 0), lightest first: what the
+    presets resolve to (a scenario's resolved k lies near these)."""
+    cases = []
+    for severity in range(1, 5):
+        effect = parse_weather(f"{condition}@{severity}")
+        if getattr(effect, "k", 0.0) > 0:
+            cases.append((f"{condition}@{severity} ({effect.mode} k={effect.k})", effect))  # type: ignore[attr-defined]  # a KnobEffect
     return cases
 
 
 def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batch: int,
-               rows: dict, batch_rows: dict, run: int = 4) -> None:
+               rows: dict, batch_rows: dict, run: int = 4, clock: Any = time.perf_counter) -> None:
     """Time every row at one size (``batch`` > 0: also the loop-vs-batch columns)."""
 
     frame, depth = sample_frame(h, w, seed=0)
@@ -124,16 +139,17 @@ def _time_size(w: int, h: int, names: list[str], repeats: int, warmup: int, batc
 
             pairs[label + " [loop]"] = loop
             pairs[label + " [batch]"] = lambda e=effect: e(frames, depth=depths, state=state, rng=rng)
-    for label, ms in interleaved_ms(singles, repeats, warmup, 20.0, run).items():
+    for label, ms in interleaved_ms(singles, repeats, warmup, 20.0, run, clock).items():
         rows.setdefault(label, {})[(w, h)] = ms
     if pairs:
-        for label, ms in interleaved_ms(pairs, repeats, warmup, 60.0, run).items():
+        for label, ms in interleaved_ms(pairs, repeats, warmup, 60.0, run, clock).items():
             batch_rows.setdefault(label, {})[(w, h)] = ms / batch
 
 
 def run_benchmark(sizes=DEFAULT_SIZES, repeats: int = 200, warmup: int = 10, batch: int = 8,
-                  effects: list[str] | None = None, cold: bool = False) -> dict[str, Any]:
-    """Time everything; returns ``{"sizes", "rows": {label: {size: ms}}, "batch": {...}, "machine"}``."""
+                  effects: list[str] | None = None, cold: bool = False, cpu_time: bool = False) -> dict[str, Any]:
+    """Time everything; returns ``{"sizes", "rows": {label: {size: ms}}, "batch": {...}, "machine"}``
+    (``cpu_time``: each call's CPU time of this thread, not its wall time)."""
 
 
     names = EFFECTS.names() if effects is None else effects
@@ -147,11 +163,11 @@ def run_benchmark(sizes=DEFAULT_SIZES, repeats: int = 200, warmup: int = 10, bat
         ref = REFERENCE_SIZE if REFERENCE_SIZE in sizes else sizes[0]
         for w, h in sizes:
             _time_size(w, h, names, repeats, warmup, batch if (w, h) == ref else 0, rows, batch_rows,
-                       run=0 if cold else 4)
+                       run=0 if cold else 4, clock=time.thread_time if cpu_time else time.perf_counter)
     finally:
         cv2.setNumThreads(threads)
     return {"sizes": list(sizes), "rows": rows, "batch": batch_rows, "batch_size": batch,
-            "machine": machine_line(), "repeats": repeats, "cold": cold}
+            "machine": machine_line(), "repeats": repeats, "cold": cold, "cpu_time": cpu_time}
 
 
 def format_table(res: dict[str, Any]) -> str:
@@ -191,11 +207,13 @@ def _run(args) -> int:
     if args.repeats < 1 or args.warmup < 0 or args.batch < 0:
         raise InputError("--repeats must be >= 1, --warmup and --batch >= 0")
     load0 = os.getloadavg()[0]
-    res = run_benchmark(parse_sizes(args.sizes, what="--sizes"), args.repeats, args.warmup, args.batch, names, args.cold)
+    res = run_benchmark(parse_sizes(args.sizes, what="--sizes"), args.repeats, args.warmup, args.batch, names, args.cold,
+                        args.cpu_time)
     how = ("one call per row per turn, caches as the other rows left them (`--cold`)" if args.cold else
            "rows taking turns, each turn an untimed call and 4 timed ones back to back")
+    clock = "CPU time of the thread per call (`--cpu-time`)" if args.cpu_time else "wall time per call"
     text = (f"Machine: {res['machine']}; one OpenCV thread; median of up to {res['repeats']} calls per row "
-            f"after warm-up, {how} (`weather-gym bench weather`); 1-minute load average {load0:.1f} at the "
+            f"after warm-up, {how}, {clock} (`weather-gym bench weather`); 1-minute load average {load0:.1f} at the "
             f"start, {os.getloadavg()[0]:.1f} at the end.\n\n{format_table(res)}\n")
     print(text)
     if args.out is not None:
