@@ -44,7 +44,8 @@ def interpolate(a: WeatherState, b: WeatherState, t: float) -> WeatherState:
     t = min(max(float(t), 0.0), 1.0)
     beta = (1 - t) * a.beta + t * b.beta
     mor = math.inf if beta <= 0 else math.log(20.0) / beta
-    lux = math.exp((1 - t) * math.log(a.illuminance_lux) + t * math.log(b.illuminance_lux))
+    lo, hi = sorted((a.illuminance_lux, b.illuminance_lux))  # exp(log) may leave the pair by a rounding
+    lux = min(max(math.exp((1 - t) * math.log(a.illuminance_lux) + t * math.log(b.illuminance_lux)), lo), hi)
     film = (1 - t) * a.film_mm() + t * b.film_mm()
     return WeatherState(mor_m=mor, rain_mm_h=(1 - t) * a.rain_mm_h + t * b.rain_mm_h,
                         snow_mm_h=(1 - t) * a.snow_mm_h + t * b.snow_mm_h, illuminance_lux=lux,
