@@ -65,7 +65,7 @@ DIM_STOPS = 12.0
 
 def rain_extinction(rate_mm_h: float) -> float:
     """Visible extinction by rain (1/m): ``0.312 R^0.67`` per km (Halder et al. 2019)."""
-    return 0.312 * rate_mm_h ** 0.67 / 1000.0 if rate_mm_h > 0 else 0.0
+    return 0.312 * float(rate_mm_h) ** 0.67 / 1000.0 if rate_mm_h > 0 else 0.0
 
 
 def dim_k(lux: float) -> float:
@@ -75,7 +75,7 @@ def dim_k(lux: float) -> float:
 
 def lux_of_dim_k(k: float) -> float:
     """The illuminance a ``dim`` k stands for (the inverse of :func:`dim_k`)."""
-    return DAYLIGHT_LUX * 2.0 ** (-DIM_STOPS * k)
+    return float(DAYLIGHT_LUX * 2.0 ** (-DIM_STOPS * k))
 
 
 def camera_tables(state: WeatherState, control_hz: float = 30.0) -> list[dict[str, Any]]:

@@ -37,8 +37,8 @@ import re
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
-from weather_gym.core.errors import InputError, LimitError
 from weather_gym.conditions.grip import MAX_FILM_MM
+from weather_gym.core.errors import InputError, LimitError
 
 __all__ = ["CLEAR", "DAYLIGHT_LUX", "ITEMS", "RANGES", "WeatherState", "parse_state"]
 

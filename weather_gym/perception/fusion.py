@@ -52,7 +52,8 @@ class SensorCones:
     source: np.ndarray
 
     @classmethod
-    def of(cls, *, x: Sequence[float], y: Sequence[float], classes: Sequence[int], scores: Sequence[float],
+    def of(cls, *, x: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray,
+           classes: Sequence[int] | np.ndarray, scores: Sequence[float] | np.ndarray,
            source: int | Sequence[int] = 0) -> SensorCones:
         xa = np.asarray(x, np.float64).reshape(-1)
         n = len(xa)

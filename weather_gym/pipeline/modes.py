@@ -200,10 +200,10 @@ def check_perception_kwargs(perception: str | PerceptionMode, kwargs: Mapping[st
             raise error(f"{what}: {sorted(kwargs)}: perception {mode.name!r} takes no arguments")
         return
     params = inspect.signature(wrapper.__init__).parameters  # type: ignore[misc]  # the wrapper class's own constructor
-    allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
+    found = dict(params)
     if wrapper is FusionWrapper:  # the detector's keywords go to the DetectorWrapper below it
-        params = {**inspect.signature(DetectorWrapper.__init__).parameters, **params}
-    allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
+        found = {**inspect.signature(DetectorWrapper.__init__).parameters, **found}
+    allowed = {n for n, q in found.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
     allowed -= {"self", "env", "weather"}
     noise = {}
     if wrapper is GroundTruthConeWrapper:  # OracleNoise fields as keywords
@@ -310,7 +310,8 @@ def _wrap_fused(env: gym.Env, weather: Any, kwargs: dict[str, Any]) -> gym.Env:
     if not _has_images(env):
         raise InputError("perception 'fused' needs camera images (camera_images=True) and a LiDAR")
     kwargs = dict(kwargs)
-    fusion_keys = {k: kwargs.pop(k) for k in ("lidar_weather", "fusion", "cone_config", "min_gt_points") if k in kwargs}
+    fusion_keys: dict[str, Any] = {k: kwargs.pop(k) for k in ("lidar_weather", "fusion", "cone_config", "min_gt_points")
+                                   if k in kwargs}
     if "max_cones" in kwargs:
         fusion_keys["max_cones"] = kwargs["max_cones"]
     camera = DetectorWrapper(_weathered(env, "clear" if weather is None else weather, "fused"), **kwargs)

@@ -27,8 +27,8 @@ from weather_gym.core._lazy import lazy_exports
 if TYPE_CHECKING:  # the lazily exported names, for type checkers
     from weather_gym.wrappers.conditions import ConditionsWrapper  # noqa: F401
     from weather_gym.wrappers.detector import DetectorWrapper  # noqa: F401
-    from weather_gym.wrappers.fusion import FusionWrapper  # noqa: F401
     from weather_gym.wrappers.episode_statistics import EpisodeStatistics, latencies  # noqa: F401
+    from weather_gym.wrappers.fusion import FusionWrapper  # noqa: F401
     from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise  # noqa: F401
     from weather_gym.wrappers.surrogate import SurrogatePerceptionWrapper  # noqa: F401
     from weather_gym.wrappers.weather import WeatherWrapper  # noqa: F401
