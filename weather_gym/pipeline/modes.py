@@ -321,5 +321,5 @@ def _wrap_fused(env: gym.Env, weather: Any, kwargs: dict[str, Any]) -> gym.Env:
 register_mode(PerceptionMode(
     "fused", "the detector's cones and the LiDAR's fused: LiDAR position, camera colour, noisy-OR confidence",
     _wrap_fused, CONES, is_scored=True, gives_detections=True, runs_detector=True, wrapper=FusionWrapper,
-    takes_lidar_weather=True, record_kwargs={"keep_image": True}, env_overrides={"lidar": LidarConfig()},
+    takes_lidar_weather=True, can_record_video=False, env_overrides={"lidar": LidarConfig()},
     fingerprint=lambda kw: {"detector": detector_id(kw.get("detector"))}))
