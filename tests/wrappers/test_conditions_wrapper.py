@@ -64,3 +64,14 @@ def test_bad_conditions_are_refused_before_anything_runs():
         assert info["conditions"] == "rain:2mm/h" and not math.isnan(info["friction"])
     finally:
         env.close()
+
+
+def test_lap_takes_conditions():
+    from weather_gym.cli.lap import run_laps
+
+    result = run_laps(track="small_track", agent="mapper_pure_pursuit", perception="lidar",
+                      conditions="fog:60m+film:0.2mm", max_steps=10)
+    assert result["weather"] == "fog:60m+film:0.2mm"
+    with pytest.raises(InputError, match="once"):
+        run_laps(track="small_track", agent="mapper_pure_pursuit", perception="lidar", conditions="fog:60m",
+                 lidar_weather="rain@2", max_steps=10)
