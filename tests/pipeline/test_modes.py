@@ -41,12 +41,12 @@ def toy_mode(monkeypatch):
 def test_modes_carry_their_properties():
     assert modes_where(renders_frames=False) == ["gt_cones", "surrogate", "lidar"]
     assert modes_where(takes_weather=False) == ["gt_cones"]
-    assert modes_where(takes_lidar_weather=True) == ["lidar"]
-    assert modes_where(is_scored=True) == ["detector"]
-    assert modes_where(gives_detections=True) == ["detector", "surrogate"]
+    assert modes_where(takes_lidar_weather=True) == ["lidar", "fused"]
+    assert modes_where(is_scored=True) == ["detector", "fused"]
+    assert modes_where(gives_detections=True) == ["detector", "surrogate", "fused"]
     assert modes_where(can_record_video=True) == ["camera", "detector", "oracle"]
     assert all(PERCEPTION_MODES[n].observation == CONES
-               for n in ("detector", "oracle", "gt_cones", "surrogate", "lidar"))
+               for n in ("detector", "oracle", "gt_cones", "surrogate", "lidar", "fused"))
     with pytest.raises(InputError, match="unknown perception 'sonar'; valid: camera, detector"):
         perception_mode("sonar")
 

@@ -30,7 +30,7 @@ def test_one_vocabulary_for_every_caller():
     from weather_gym.cli.lap import perception_choices
     from weather_gym.lab.evaluation.evaluate import PERCEPTIONS
 
-    assert set(PERCEPTION_MODES) == {"camera", "detector", "oracle", "gt_cones", "surrogate", "lidar"}
+    assert set(PERCEPTION_MODES) == {"camera", "detector", "oracle", "gt_cones", "surrogate", "lidar", "fused"}
     assert PERCEPTIONS == tuple(PERCEPTION_MODES)
     assert perception_choices() == ("auto", *PERCEPTION_MODES)
 

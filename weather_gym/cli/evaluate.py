@@ -10,6 +10,8 @@ Examples:
     weather-gym evaluate --agent gt_pure_pursuit --perception oracle --seeds 1 --max-steps 300 --out runs/smoke
     weather-gym evaluate --agent sb3 --agent-arg path=ppo.zip --perception oracle --out runs/ppo
     weather-gym evaluate ... --backend ray --ray-address auto       # on a running Ray cluster
+    weather-gym evaluate --stacks detector,lidar,fused --conditions clear,rain:8mm/h,fog:60m,dusk:20lux \
+        --seeds 1 --track peanut --out runs/sensors                    # which sensor carries the stack
 
 The second command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
@@ -37,9 +39,17 @@ from weather_gym.cli.lap import parse_agent_args
 from weather_gym.core._option_alias import OneDefaultFormatter, alias
 from weather_gym.core._output_args import add_overwrite_arg
 from weather_gym.core.errors import InputError
-from weather_gym.lab.evaluation.evaluate import BAGS, DEFAULT_PERCEPTION, EvalConfig, evaluate, make_cells
+from weather_gym.lab.evaluation.evaluate import (
+    BAGS,
+    DEFAULT_PERCEPTION,
+    EvalConfig,
+    evaluate,
+    evaluate_stacks,
+    make_cells,
+)
 from weather_gym.lab.evaluation.report import report_replaceable, write_report
 from weather_gym.lab.evaluation.runner import check_results_path
+from weather_gym.lab.evaluation.sensors import write_sensor_report
 from weather_gym.pipeline.modes import PERCEPTION_MODES, auto_mode, modes_where, perception_mode
 from weather_gym.ros.episode_bag import BAG_IMAGES
 
@@ -88,6 +98,13 @@ def register(sub) -> None:
     g.add_argument("--effects", default="droplets,dim", help="weather conditions / effect names, comma-separated "
                                                            "(--perception lidar: fog, rain, snow, wet)")
     g.add_argument("--severities", default="0,1,2,3,4", help="preset severities (0-4; the LiDAR's 0-5), comma-separated")
+    g.add_argument("--conditions", default=None, metavar="STATES",
+                   help="physical weather states, comma-separated (clear, rain:8mm/h, fog:60m, dusk:20lux, "
+                        "fog:60m+rain:2mm/h, ...; docs/weather.md): the grid's weathers instead of --effects x "
+                        "--severities, reaching camera, LiDAR and tyres")
+    g.add_argument("--stacks", default=None, metavar="MODES",
+                   help="perception modes to run side by side on the same grid, comma-separated (e.g. "
+                        "detector,lidar,fused); adds OUT/sensors.md: which sensor carries the stack per weather")
     seeds = g.add_mutually_exclusive_group()
     seeds.add_argument("--seeds", type=int, default=3, help="number of seeds: 0..N-1")
     seeds.add_argument("--seed-list", default=None, help="explicit seeds, comma-separated (instead of --seeds)")
@@ -136,7 +153,7 @@ def build_config(args):
         max_steps=args.max_steps, agent_kwargs=_agent_kwargs(args),
         env_kwargs=_json_arg("--env-kwargs", args.env_kwargs),
         perception_kwargs=_perception_kwargs(args),
-        presets=_presets(args),
+        presets=_presets(args), conditions=_names(args.conditions) if args.conditions else (),
     )
 
 
@@ -172,6 +189,8 @@ def _perception_kwargs(args) -> dict:
              "detector_resize": args.detector_resize, "detector_input": args.detector_input,
              "score_threshold": args.detector_threshold}
     given = {k: v for k, v in given.items() if v is not None}
+    if given and not perception_mode(args.perception).runs_detector and getattr(args, "stacks", None):
+        given = {}  # --stacks: the detector options go to the stacks that run the detector
     if given and not perception_mode(args.perception).runs_detector:
         raise InputError(f"--detector options go with --perception {' / '.join(modes_where(runs_detector=True))}, "
                          f"not {args.perception}")
@@ -194,8 +213,42 @@ def resolve_auto_perception(args) -> None:
     args.perception = next(iter(modes.values()), DEFAULT_PERCEPTION)
 
 
+def _run_stacks(args) -> int:
+    """``--stacks``: one grid per perception mode, one results file, the per-sensor report."""
+    stacks = _names(args.stacks)
+    for m in stacks:
+        perception_mode(m)
+    if len(set(stacks)) != len(stacks):
+        raise InputError(f"--stacks repeats a mode: {args.stacks}")
+    configs = []
+    for m in stacks:
+        args.perception = m
+        configs.append(build_config(args))
+    cells = [c for config in configs for c in make_cells(config)]  # every stack's grid checked first
+    check_results_path(args.out / "results.csv")
+    command = shlex.join(["weather-gym", *sys.argv[1:]]) if "evaluate" in sys.argv[1:2] else None
+    print(f"{len(cells)} cells ({', '.join(stacks)}) -> {args.out / 'results.csv'} ({args.backend}, "
+          f"{args.workers} workers)", file=sys.stderr)
+    replace = report_replaceable(args.out, overwrite=args.overwrite)
+    started = time.perf_counter()
+    rows = evaluate_stacks(configs, args.out, workers=args.workers, backend=args.backend,
+                           ray_address=args.ray_address, progress=not args.no_progress,
+                           retry_failed=not args.skip_failed)
+    write_report(rows, args.out, config=configs[0], wall_s=time.perf_counter() - started, command=command,
+                 group_by=("agent", "perception", "track", "effect", "severity"), plot_metrics=(),
+                 overwrite=replace)
+    path = write_sensor_report(rows, args.out, command=command, overwrite=replace)
+    failed = [r for r in rows if r["status"] != "ok"]
+    print(f"{len(rows) - len(failed)} ok, {len(failed)} failed; report: {args.out / 'report.md'}, {path}")
+    for r in failed[:5]:
+        print(f"  failed: {r['perception']} {r['track']} {r['effect']} seed {r['seed']}: {r['error']}", file=sys.stderr)
+    return 1 if failed else 0
+
+
 def _run(args) -> int:
     check_runner_args(args)
+    if args.stacks:
+        return _run_stacks(args)
     resolve_auto_perception(args)
     config = build_config(args)
     if args.baseline is not None and args.baseline not in config.agents:

@@ -118,6 +118,9 @@ def register(sub) -> None:
     p.add_argument("--lidar-weather", metavar="SPEC",
                    help="weather on the LiDAR (--perception lidar): fog:mor=60, rain:rate=5, snow@3, wet@2, joined by "
                         "'+' (weather_gym.lidar_weather; default clear)")
+    p.add_argument("--conditions", metavar="STATE",
+                   help="one physical weather for the camera, the LiDAR and the tyres: rain:8mm/h, fog:60m, "
+                        "dusk:20lux, film:0.5mm, joined by '+' (docs/conditions.md); not with --weather / --lidar-weather")
     add_detector_args(p, what=f"for --perception {' / '.join(modes_where(runs_detector=True))}")
     add_presets_arg(p)
     p.add_argument("--depth-quantile", type=float, default=None, metavar="Q",
@@ -188,7 +191,7 @@ def _run(args) -> int:
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
         max_steps=args.max_steps, video=args.video, strip=args.strip, strip_frames=args.strip_frames,
         overwrite=args.overwrite, progress=True, depth_quantile=args.depth_quantile, bag=args.bag,
-        bag_images=args.bag_images, lidar_weather=args.lidar_weather, presets=presets,
+        bag_images=args.bag_images, lidar_weather=args.lidar_weather, presets=presets, conditions=args.conditions,
     )
     if to_stdout:
         print(result_json(result))
@@ -257,8 +260,11 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
              video: Path | None = None, strip: Path | None = None, strip_frames: int = 8,
              overwrite: bool = False, progress: bool = False, depth_quantile: float | None = None,
              bag: Path | None = None, bag_images: str = "jpeg", lidar_weather: str | None = None,
-             presets: Any = None) -> dict[str, Any]:
+             presets: Any = None, conditions: str | None = None) -> dict[str, Any]:
     """Drive ``laps`` laps and return the measurements (see ``format_result``).
+
+    ``conditions``: one physical weather state for the camera, the LiDAR and the tyres
+    (:mod:`weather_gym.conditions`; not with ``weather`` or ``lidar_weather``).
 
     ``bag``: also write the run as an MCAP rosbag2 folder (:class:`~weather_gym.ros.episode_bag.EpisodeBag`).
 
@@ -293,7 +299,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
                                            depth_quantile, lidar_weather)
     env = make_env(env_id, perception=mode.name, weather=weather, detector=detector if mode.runs_detector else None,
                    perception_kwargs=perception_kwargs or None, max_episode_steps=max_steps, presets=presets,
-                   **env_kwargs)
+                   conditions=conditions, **env_kwargs)
     recorder = None
     episode_bag: EpisodeBag | None = None
     try:
@@ -308,7 +314,7 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
         def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
             nonlocal recorder, episode_bag
             if step == 0:
-                state["weather"] = weather or info.get("lidar_weather") or _describe_weather(info.get("weather"))
+                state["weather"] = weather or info.get("conditions") or info.get("lidar_weather") or _describe_weather(info.get("weather"))
                 state["weather_k"] = info.get("weather", [])
                 state["weather_source"] = info.get("weather_source", "given")
                 state["weathered"] = "weather" in info

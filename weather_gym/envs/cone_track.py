@@ -46,6 +46,7 @@ import numpy as np
 from gymnasium import spaces
 
 from weather_gym.camera.isp import CameraModel, CameraPipeline
+from weather_gym.conditions.grip import grip_ratio
 from weather_gym.core.cone_arrays import ConeArrays
 from weather_gym.core.errors import InputError, LimitError, StateError, check_known
 from weather_gym.core.point_cloud import PointCloud, pack_points
@@ -61,7 +62,8 @@ STATE_FIELDS: tuple[str, ...] = ("speed", "yaw_rate", "odom_x", "odom_y", "odom_
 
 MAX_FRICTION = 3.0
 """Largest tyre-road friction coefficient a reset accepts (racing slicks on dry tarmac reach about 1.7)."""
-RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction", "camera_model", "camera_frame")
+RESET_OPTIONS = ("look", "start_pose", "start_s", "start_speed", "friction", "water_film_mm", "camera_model",
+                 "camera_frame")
 WRAPPER_RESET_OPTIONS = ("weather",)
 """Reset options the weather wrappers above the env take (and remove) before the env sees the rest."""
 
@@ -83,6 +85,9 @@ class ConeTrackEnv(gym.Env):
     ``reset(options=...)`` accepts: ``look`` (a ``Look``, its dict, or ``"random"``),
     ``start_pose`` (x, y, yaw), ``start_s`` (arc length along the centerline to start at),
     ``start_speed`` (m/s), ``friction`` (tyre-road mu for this episode, e.g. 0.6 for wet),
+    ``water_film_mm`` (water on the road: every step the tyres get ``friction`` times the Bosch table's
+    wet/dry grip ratio at the car's speed, :mod:`weather_gym.conditions.grip`; :meth:`set_water_film`
+    changes it mid-episode),
     ``camera_model`` (this episode's ``CameraModel`` or its dict) and ``camera_frame`` (start the camera's
     noise stream at this frame of the episode: re-renders a recorded frame with its own sensor noise).
     """
@@ -108,6 +113,7 @@ class ConeTrackEnv(gym.Env):
                               "set): running without a window", RuntimeWarning, stacklevel=2)
         self._sim = sim
         self._world: World | None = None
+        self._water_film = 0.0
         cam = config.camera
         obs: dict[str, spaces.Space[Any]] = {"state": spaces.Box(-np.inf, np.inf, (len(STATE_FIELDS),), np.float32)}
         if config.camera_images:
@@ -199,6 +205,8 @@ class ConeTrackEnv(gym.Env):
             raise LimitError(f"reset option friction must be a tyre-road friction coefficient in (0, {MAX_FRICTION:g}] "
                              f"(ice 0.1, wet 0.6, dry 1.0, slicks ~1.7), got {friction!r}")
         self._friction = float(friction)
+        self._water_film = 0.0
+        self.set_water_film(options.get("water_film_mm", 0.0))
         model = options.get("camera_model", self.config.camera_model)
         try:
             model = CameraModel.from_dict(model)
@@ -243,6 +251,26 @@ class ConeTrackEnv(gym.Env):
         meas = self._measure(0.0)
         self._episode_started = True
         return self._observation(meas), self._info(proj, new_hits=0, end_reason=None)
+
+    def set_water_film(self, film_mm: float) -> None:
+        """Water on the road (mm, 0 to 2: the Bosch table's range) from the next step on; 0: dry."""
+        if isinstance(film_mm, bool) or not isinstance(film_mm, (int, float)):
+            raise InputError(f"water_film_mm must be a number of millimetres, got {film_mm!r}")
+        grip_ratio(float(film_mm), 0.0)  # LimitError outside [0, 2] mm, naming the value
+        self._water_film = float(film_mm)
+
+    @property
+    def water_film_mm(self) -> float:
+        """The water film on the road (mm)."""
+        return self._water_film
+
+    @property
+    def friction_now(self) -> float:
+        """The tyre-road friction of the next step: the episode's dry ``friction`` times the grip ratio of
+        the water film at the car's speed (:func:`weather_gym.conditions.grip.grip_ratio`)."""
+        if self._water_film == 0.0 or self._world is None:
+            return self._friction
+        return self._friction * grip_ratio(self._water_film, self._world.car.speed)
 
     def _set_pipeline(self, model: CameraModel, rng: np.random.Generator) -> None:
         """This episode's camera pipeline; its noise comes from a generator seeded from the episode's
@@ -300,7 +328,7 @@ class ConeTrackEnv(gym.Env):
         steer, pedal = min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)  # only float rounding is clipped
 
         assert self._world is not None  # reset() made the world
-        touched = self._world.step(steer, pedal, self._friction)
+        touched = self._world.step(steer, pedal, self.friction_now)
         new_hits = len(touched - self._cones_hit)
         self._cones_hit |= touched
         dt = self.config.sim.dt

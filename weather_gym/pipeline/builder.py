@@ -39,6 +39,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from weather_gym.conditions import parse_state
 from weather_gym.core.errors import FileFormatError, InputError, LimitError, StateError
 from weather_gym.envs.checker import PassiveEnvCheckerSafeReset
 from weather_gym.envs.cone_track import ConeTrackEnv
@@ -52,7 +53,7 @@ from weather_gym.pipeline.modes import (
     perception_mode,
 )
 from weather_gym.weather import WeatherSpec
-from weather_gym.wrappers import EpisodeStatistics
+from weather_gym.wrappers import ConditionsWrapper, EpisodeStatistics
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
 
@@ -167,7 +168,7 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
              severity: int | None = None, detector: Any = None, perception_kwargs: Mapping[str, Any] | None = None,
              max_episode_steps: int | None = None, max_episode_s: float | None = None,
              episode_statistics: bool = True, render_mode: str | None = None, presets: Any = None,
-             **env_kwargs: Any) -> gym.Env:
+             conditions: Any = None, **env_kwargs: Any) -> gym.Env:
     """One env: ``gym.make(env_id, ...)`` (env -> weather -> perception, ``TimeLimit``) ->
     ``EpisodeStatistics`` (``info["episode"]`` at the end of each episode).
 
@@ -189,11 +190,23 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
             else the shipped pool presets): e.g. the file ``weather_gym.lab.calibration.resolve.resolve_presets``
             resolved for this track, camera and detector (docs/calibration.md). ``info["weather_source"]`` says
             which one a frame's k came from.
+        conditions: one physical weather state for the camera, the LiDAR and the tyres
+            (``"rain:8mm/h+fog:60m"``, :mod:`weather_gym.conditions`): a
+            :class:`~weather_gym.wrappers.ConditionsWrapper` on top; not with ``weather`` or a ``lidar_weather``.
         env_kwargs: ``EnvConfig`` overrides (``track``, ``laps``, ``camera``, ``sim``, ...).
     """
 
     check_env_id(env_id)
     kwargs: dict[str, Any] = dict(env_kwargs)
+    if conditions is not None:
+        parse_state(conditions)  # a bad spec fails before anything is built
+        if weather is not None or severity is not None or "lidar_weather" in (perception_kwargs or {}):
+            raise InputError("give the weather once: conditions= (one state for every sensor and the tyres) or "
+                             "weather= / perception_kwargs['lidar_weather'], not both")
+        if perception == "surrogate":
+            raise InputError("conditions= does not reach perception 'surrogate' (its model is fitted to named camera "
+                             "effects); take perception 'detector', 'lidar' or 'fused'")
+        weather = "clear"  # a WeatherWrapper under camera stacks, for the conditions' camera effects
     for key, value in (("perception", perception), ("weather", weather), ("severity", severity),
                        ("detector", detector), ("perception_kwargs", perception_kwargs),
                        ("render_mode", render_mode), ("presets", None if presets is None else str(presets))):
@@ -210,6 +223,8 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
         if steps is not None:
             kwargs["max_episode_steps"] = steps
     env = gym.make(env_id, **kwargs)
+    if conditions is not None:
+        env = ConditionsWrapper(env, conditions)
     if episode_statistics:
         env = EpisodeStatistics(env)
     return env

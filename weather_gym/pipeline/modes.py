@@ -16,6 +16,9 @@ The shipped modes, in the order ``auto`` choices search them (:func:`auto_mode`)
 * ``lidar``     - ``LidarConeWrapper``: the car's LiDAR (an HDL-32E by default; nothing rendered for the
   camera) through its own weather (``perception_kwargs={"lidar_weather": "fog:mor=60"}``) to cones of
   unknown colour (:mod:`weather_gym.wrappers.lidar`).
+* ``fused``     - ``FusionWrapper`` on the ``detector`` stack: the camera's cones and the LiDAR's (an HDL-32E)
+  fused, position from the LiDAR, colour from the camera (:mod:`weather_gym.wrappers.fusion`); camera
+  weather as ``detector``, the LiDAR's through ``perception_kwargs={"lidar_weather": ...}``.
 * ``surrogate`` - ``SurrogatePerceptionWrapper``: the ``gt_cones`` truth turned into what the shipped
   detector reports in the weather, drawn from a fitted model (:mod:`weather_gym.surrogate`).
 
@@ -31,7 +34,7 @@ Example:
     >>> perception_mode("sonar")
     Traceback (most recent call last):
     ...
-    weather_gym.core.errors.InputError: unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones, surrogate, lidar
+    weather_gym.core.errors.InputError: unknown perception 'sonar'; valid: camera, detector, oracle, gt_cones, surrogate, lidar, fused
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ from weather_gym.surrogate.model import SHIPPED_MODEL, load_model
 from weather_gym.weather import parse_weather, to_spec
 from weather_gym.wrappers import (
     DetectorWrapper,
+    FusionWrapper,
     GroundTruthConeWrapper,
     LidarConeWrapper,
     SurrogatePerceptionWrapper,
@@ -196,7 +200,10 @@ def check_perception_kwargs(perception: str | PerceptionMode, kwargs: Mapping[st
             raise error(f"{what}: {sorted(kwargs)}: perception {mode.name!r} takes no arguments")
         return
     params = inspect.signature(wrapper.__init__).parameters  # type: ignore[misc]  # the wrapper class's own constructor
-    allowed = {n for n, q in params.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
+    found = dict(params)
+    if wrapper is FusionWrapper:  # the detector's keywords go to the DetectorWrapper below it
+        found = {**inspect.signature(DetectorWrapper.__init__).parameters, **found}
+    allowed = {n for n, q in found.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)}
     allowed -= {"self", "env", "weather"}
     noise = {}
     if wrapper is GroundTruthConeWrapper:  # OracleNoise fields as keywords
@@ -297,3 +304,22 @@ register_mode(PerceptionMode(
     "lidar", "the car's LiDAR through its weather -> cones of unknown colour (ground removal, clustering)",
     _wrap_lidar, CONES, renders_frames=False, can_record_video=False, wrapper=LidarConeWrapper, takes_lidar_weather=True,
     env_overrides={**RENDER_FREE, "lidar": LidarConfig()}))
+
+
+def _wrap_fused(env: gym.Env, weather: Any, kwargs: dict[str, Any]) -> gym.Env:
+    if not _has_images(env):
+        raise InputError("perception 'fused' needs camera images (camera_images=True) and a LiDAR")
+    kwargs = dict(kwargs)
+    fusion_keys: dict[str, Any] = {k: kwargs.pop(k) for k in ("lidar_weather", "fusion", "cone_config", "min_gt_points")
+                                   if k in kwargs}
+    if "max_cones" in kwargs:
+        fusion_keys["max_cones"] = kwargs["max_cones"]
+    camera = DetectorWrapper(_weathered(env, "clear" if weather is None else weather, "fused"), **kwargs)
+    return FusionWrapper(camera, **fusion_keys)
+
+
+register_mode(PerceptionMode(
+    "fused", "the detector's cones and the LiDAR's fused: LiDAR position, camera colour, noisy-OR confidence",
+    _wrap_fused, CONES, is_scored=True, gives_detections=True, runs_detector=True, wrapper=FusionWrapper,
+    takes_lidar_weather=True, can_record_video=False, env_overrides={"lidar": LidarConfig()},
+    fingerprint=lambda kw: {"detector": detector_id(kw.get("detector"))}))

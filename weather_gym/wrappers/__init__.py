@@ -25,8 +25,10 @@ from typing import TYPE_CHECKING
 from weather_gym.core._lazy import lazy_exports
 
 if TYPE_CHECKING:  # the lazily exported names, for type checkers
+    from weather_gym.wrappers.conditions import ConditionsWrapper  # noqa: F401
     from weather_gym.wrappers.detector import DetectorWrapper  # noqa: F401
     from weather_gym.wrappers.episode_statistics import EpisodeStatistics, latencies  # noqa: F401
+    from weather_gym.wrappers.fusion import FusionWrapper  # noqa: F401
     from weather_gym.wrappers.ground_truth import GroundTruthConeWrapper, OracleNoise  # noqa: F401
     from weather_gym.wrappers.surrogate import SurrogatePerceptionWrapper  # noqa: F401
     from weather_gym.wrappers.weather import WeatherWrapper  # noqa: F401
@@ -38,6 +40,8 @@ _LAZY = {
     "WeatherWrapper": "weather_gym.wrappers.weather",
     "GroundTruthConeWrapper": "weather_gym.wrappers.ground_truth",
     "LidarConeWrapper": "weather_gym.wrappers.lidar",
+    "FusionWrapper": "weather_gym.wrappers.fusion",
+    "ConditionsWrapper": "weather_gym.wrappers.conditions",
     "OracleNoise": "weather_gym.wrappers.ground_truth",
     "EpisodeStatistics": "weather_gym.wrappers.episode_statistics",
     "latencies": "weather_gym.wrappers.episode_statistics",

@@ -40,10 +40,12 @@ from pathlib import Path
 from typing import Any, cast
 
 import gymnasium as gym
+import numpy as np
 
 from weather_gym.agents import agent_factory, agent_observes, make_agent
 from weather_gym.agents.mapper import MapperConfig
 from weather_gym.agents.sb3 import model_sidecar
+from weather_gym.conditions import parse_state
 from weather_gym.core._io import file_id
 from weather_gym.core.errors import InputError
 from weather_gym.core.paths import PPO_CONES_MODEL
@@ -54,6 +56,7 @@ from weather_gym.envs.scenario import build_config, load_scenario
 from weather_gym.lab.evaluation.metrics import (
     MAP_MATCH_RADIUS_M,
     METRICS,
+    ConeListScoring,
     DetectorScoring,
     Episode,
     episode_metrics,
@@ -85,6 +88,7 @@ __all__ = [
     "METRICS",
     "PERCEPTIONS",
     "evaluate",
+    "evaluate_stacks",
     "make_cells",
     "map_precision_recall",
     "run_cell",
@@ -155,6 +159,10 @@ class EvalConfig:
         presets: a presets TOML file (default: ``$WEATHER_GYM_PRESETS``, else the shipped ``presets.toml``), or
             one per track (``{track: file}``, e.g. each resolved for its track: ``weather-gym evaluate
             --presets resolved``). ``results.csv`` has the k's in ``weather`` and their source in ``k_source``.
+        conditions: physical weather states (``"rain:8mm/h"``, ``"fog:60m+dusk:20lux"``, ``"clear"``;
+            :mod:`weather_gym.conditions`): given, they are the grid's weathers instead of ``effects`` x
+            ``severities`` (each a cell with ``effect`` = the state's spec, ``severity`` 0), reaching the
+            camera, the LiDAR and the tyres of any perception mode.
     """
 
     agents: tuple[str, ...] = ("mapper_pure_pursuit",)
@@ -170,6 +178,7 @@ class EvalConfig:
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     perception_kwargs: Mapping[str, Any] = field(default_factory=dict)
     presets: str | Mapping[str, str] | None = None
+    conditions: tuple[str, ...] = ()
 
 
 def _check_int(name: str, value: Any, lo: int) -> int:
@@ -260,8 +269,10 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         if not isinstance(t, str) or not t:
             raise InputError(f"a track must be a non-empty name or path, got {t!r}")
         load_track(t)  # unknown names list the valid ones; a bad CSV names its line
-    effects = _check_names("effects", config.effects)
     mode = perception_mode(config.perception)
+    if config.conditions:
+        return _condition_cells(config, agents, tracks, mode)
+    effects = _check_names("effects", config.effects)
     if not mode.takes_lidar_weather:
         for e in effects:
             canonical_condition(e)
@@ -299,6 +310,34 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         for a in agents for t in tracks for e in effects for s in severities for seed in seeds
     ]
     return cells
+
+
+def _condition_cells(config: EvalConfig, agents: Sequence[str], tracks: Sequence[str], mode: Any) -> list[EvalCell]:
+    """The cells of a grid over physical weather states (``config.conditions``)."""
+    specs = [parse_state(c).spec() for c in _check_names("conditions", config.conditions)]
+    dup = sorted({s for s in specs if specs.count(s) > 1})
+    if dup:
+        raise InputError(f"conditions name the same state twice: {', '.join(dup)}")
+    if mode.name == "surrogate":
+        raise InputError("conditions do not reach perception 'surrogate'; take detector, lidar or fused")
+    if "lidar_weather" in config.perception_kwargs:
+        raise InputError("perception_kwargs may not set lidar_weather: the conditions set it per cell")
+    seeds = tuple(_check_int("a seed", s, 0) for s in _check_names("seeds", config.seeds))
+    check_env_id(config.env_id)
+    laps, max_steps = _check_int("laps", config.laps, 1), _check_int("max_steps", config.max_steps, 1)
+    agent_kwargs = _jsonable("agent_kwargs", config.agent_kwargs)
+    env_kwargs = _jsonable("env_kwargs", config.env_kwargs)
+    perception_kwargs = _jsonable("perception_kwargs", config.perception_kwargs)
+    env_config = _resolved_env(config)
+    _check_perception_kwargs(config.perception, dict(config.perception_kwargs))
+    for a in agents:
+        check_agent_observes(a, agent_observes(a), mode)
+    stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
+    return [EvalCell(agent=a, effect=spec, severity=0, seed=seed, track=t, env_id=config.env_id,
+                     perception=config.perception, laps=laps, max_steps=max_steps,
+                     weather=_json({"conditions": spec}), agent_kwargs=agent_kwargs, env_kwargs=env_kwargs,
+                     perception_kwargs=perception_kwargs, stack=stacks[a], k_source="given")
+            for a in agents for t in tracks for spec in specs for seed in seeds]
 
 
 def _cell_weather(config: EvalConfig, mode: Any, tracks: Sequence[str], effects: Sequence[str],
@@ -392,13 +431,16 @@ def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
         cell = EvalCell(**cell)
     mode = perception_mode(cell.perception)
     weather, perception_kwargs = json.loads(cell.weather), json.loads(cell.perception_kwargs)
-    if mode.takes_lidar_weather:  # the cell's weather is the LiDAR's
+    conditions = weather.get("conditions") if isinstance(weather, dict) else None
+    if conditions is not None:  # one physical state for the camera, the LiDAR and the tyres
+        weather = None
+    elif mode.takes_lidar_weather:  # the cell's weather is the LiDAR's
         weather, perception_kwargs = None, {**perception_kwargs, "lidar_weather": weather}
     if bag_dir is not None and mode.can_record_video:
         perception_kwargs = {**perception_kwargs, **mode.record_kwargs}  # keep the camera frame for the bag
     env = make_env(cell.env_id, track=cell.track, laps=cell.laps, max_episode_steps=cell.max_steps,
                    weather=weather, perception=mode.name, perception_kwargs=perception_kwargs,
-                   **json.loads(cell.env_kwargs))
+                   conditions=conditions, **json.loads(cell.env_kwargs))
     bag: EpisodeBag | None = None
     try:
         base = cast(ConeTrackEnv, env.unwrapped)
@@ -406,10 +448,12 @@ def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
         agent = make_agent(cell.agent, track, camera, **json.loads(cell.agent_kwargs))
         # every frame the agent acts on (the reset frame included, the final one not)
         scoring = DetectorScoring(mode)
+        cone_list = ConeListScoring(track.cones_xy, half_fov=np.radians(camera.hfov_deg) / 2, mount_x=camera.mount_x)
 
         def on_step(step: int, obs: Any, info: dict, done: bool) -> None:
             nonlocal bag
             scoring(step, obs, info, done)
+            cone_list(step, obs, info, done)
             if bag_dir is None:
                 return
             if step == 0:
@@ -428,7 +472,7 @@ def run_cell(cell: EvalCell | Mapping[str, Any], *, bag_dir: str | None = None,
             raise
         if bag is not None:
             bag.__exit__(None, None, None)
-        metrics = episode_metrics(Episode(res, agent, track, mode, scoring.scores()))
+        metrics = episode_metrics(Episode(res, agent, track, mode, scoring.scores(), cone_list=cone_list.scores()))
         return {"k_source": cell.k_source, **metrics} if cell.k_source else metrics
     finally:
         env.close()
@@ -451,6 +495,17 @@ def evaluate(config: EvalConfig, out_dir: str | Path, *, workers: int | None = N
         raise InputError(f"--bag-images must be one of {', '.join(BAG_IMAGES)}, got {bag_images!r}")
     cell_fn = partial(run_cell, bag_dir=str(Path(out_dir) / BAGS), bag_images=bag_images) if bags else run_cell
     return run_cells(cells, cell_fn, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
+                     ray_address=ray_address, progress=progress, retry_failed=retry_failed, desc="evaluate")
+
+
+def evaluate_stacks(configs: Sequence[EvalConfig], out_dir: str | Path, *, workers: int | None = None,
+                    backend: str = "process", ray_address: str | None = None, progress: bool = True,
+                    retry_failed: bool = True) -> list[dict[str, Any]]:
+    """Run the grids of several ``configs`` (one per perception stack: the same tracks, weathers and seeds)
+    into one ``out_dir/results.csv``, all cells in one pool, and return their rows."""
+    cells = [c for config in configs for c in make_cells(config)]
+    results = check_results_path(Path(out_dir) / "results.csv")
+    return run_cells(cells, run_cell, results, key_fields=CELL_KEY_FIELDS, workers=workers, backend=backend,
                      ray_address=ray_address, progress=progress, retry_failed=retry_failed, desc="evaluate")
 
 

@@ -27,6 +27,8 @@ from scipy.spatial import cKDTree
 
 from weather_gym.core.errors import InputError
 from weather_gym.core.registry import add_unique
+from weather_gym.perception.cones import FIELD
+from weather_gym.perception.lidar_scoring import LidarScores, LidarScoring
 from weather_gym.perception.scoring import EvalResult, score_detections
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -34,7 +36,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.pipeline.modes import PerceptionMode
     from weather_gym.tracks import Track
 
-__all__ = ["DetectorScoring", "Episode", "MAP_MATCH_RADIUS_M", "METRICS", "Metric", "episode_metrics",
+__all__ = ["CONE_LIST_BINS", "ConeListScoring", "cone_list_bins", "DetectorScoring", "Episode", "MAP_MATCH_RADIUS_M", "METRICS", "Metric", "episode_metrics",
            "lap_lines", "map_precision_recall", "plot_metrics", "register_metric", "table_metrics"]
 
 MAP_MATCH_RADIUS_M = 0.5
@@ -80,6 +82,60 @@ class DetectorScoring:
         return self._scores
 
 
+CONE_LIST_BINS: tuple[float, ...] = (0.0, 5.0, 10.0, 20.0, math.inf)
+"""Range bins (m, from the camera) of the stack's cone recall (``cone_recall_*`` metrics)."""
+
+
+class ConeListScoring:
+    """Episode observer: the cone list the agent reads (``obs["cones"]``, any sensor or fusion) against the
+    track's true cones, every ``every`` steps, so camera, LiDAR and fused stacks are scored alike.
+
+    The truth of a step: the track's cones in the field ahead, within ``half_fov`` of the camera's axis
+    and ``max_range`` of it (the camera's view: what the planner steers by); cones of the list in that
+    field are the detections. Matched one to one within ``radius`` (1 m: a camera's range from a box is
+    less exact than a LiDAR's), in the car frame (``info["pose"]``, the true pose). Occlusion is not
+    checked (a cone behind another counts as visible).
+
+    Example:
+        >>> import numpy as np
+        >>> s = ConeListScoring(np.array([[5.0, 0.0], [15.0, 1.0], [-5.0, 0.0]]), half_fov=0.8, mount_x=0.0)
+        >>> cones = np.zeros((4, 14), np.float32); cones[0, 11] = 5.2   # one cone at (5.2, 0) in the car frame
+        >>> s(0, {"cones": cones, "mask": np.array([1, 0, 0, 0])}, {"pose": np.zeros(3)}, False)
+        >>> r = s.scores(); r.recall, r.precision, r.recall_by_range["10-20 m"]
+        (0.5, 1.0, (0.0, 1))
+    """
+
+    def __init__(self, cones_xy: np.ndarray, *, half_fov: float, mount_x: float, max_range: float = 25.0,
+                 every: int = 3, radius: float = 1.0) -> None:
+        self.cones_xy = np.asarray(cones_xy, np.float64).reshape(-1, 2)
+        self.half_fov, self.mount_x, self.max_range = float(half_fov), float(mount_x), float(max_range)
+        self.every = int(every)
+        self._scoring = LidarScoring(radius=radius, range_bins=CONE_LIST_BINS)
+
+    def _field(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rx = x - self.mount_x
+        r = np.hypot(rx, y)
+        return (rx > 0) & (np.abs(np.arctan2(y, rx)) <= self.half_fov) & (r <= self.max_range), r
+
+    def __call__(self, step: int, obs: Any, info: Mapping[str, Any], done: bool) -> None:
+        if done or step % self.every or not isinstance(obs, Mapping) or "cones" not in obs or "pose" not in info:
+            return
+        x0, y0, yaw = (float(v) for v in info["pose"])
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = self.cones_xy[:, 0] - x0, self.cones_xy[:, 1] - y0
+        gx, gy = c * dx + s * dy, -s * dx + c * dy
+        g_in, g_r = self._field(gx, gy)
+        rows = np.asarray(obs["cones"])[np.asarray(obs["mask"]).astype(bool)]
+        dxb, dyb = rows[:, FIELD["x_body"]].astype(np.float64), rows[:, FIELD["y_body"]].astype(np.float64)
+        d_in, d_r = self._field(dxb, dyb)
+        self._scoring.add(det_xy=np.c_[dxb[d_in], dyb[d_in]], gt_xy=np.c_[gx[g_in], gy[g_in]], gt_ranges=g_r[g_in],
+                          det_ranges=d_r[d_in])
+
+    def scores(self) -> LidarScores | None:
+        """Recall and precision (overall and by range) over the steps scored (None when none were)."""
+        return self._scoring.result() if self._scoring.frames else None
+
+
 @dataclass(frozen=True)
 class Episode:
     """What a metric is computed from: one driven episode.
@@ -87,7 +143,8 @@ class Episode:
     Attributes:
         result: the episode driver's ``EpisodeResult``. agent: the agent that drove. track: the track.
         mode: the perception mode. detector: the detector's scores over the frames it saw (None
-        unless the mode is scored). weathered: the env had weather (``info["weather"]``).
+        unless the mode is scored). weathered: the env had weather (``info["weather"]``). cone_list:
+        the scores of the cone list the agent read (:class:`ConeListScoring`; None for an image agent).
     """
 
     result: EpisodeResult
@@ -96,6 +153,7 @@ class Episode:
     mode: PerceptionMode
     detector: EvalResult | None = None
     weathered: bool = True
+    cone_list: LidarScores | None = None
 
 
 @dataclass(frozen=True)
@@ -214,6 +272,35 @@ def _det(attr: str, kind: type) -> Callable[[Episode], Any]:
     return compute
 
 
+def _cone_list(attr: str) -> Callable[[Episode], float | None]:
+    def compute(ep: Episode) -> float | None:
+        return None if ep.cone_list is None else float(getattr(ep.cone_list, attr))
+
+    return compute
+
+
+def _cone_bin(label: str) -> Callable[[Episode], float | None]:
+    def compute(ep: Episode) -> float | None:
+        if ep.cone_list is None:
+            return None
+        v, n = ep.cone_list.recall_by_range[label]
+        return float(v) if n else None
+
+    return compute
+
+
+def cone_list_bins() -> list[tuple[str, str]]:
+    """(metric name suffix, the scoring's label) of each range bin of :data:`CONE_LIST_BINS`.
+
+    Example:
+        >>> cone_list_bins()[-1]
+        ('20m_plus', '>20 m')
+    """
+    return [((f"{lo:g}_{hi:g}m" if math.isfinite(hi) else f"{lo:g}m_plus"),
+             (f"{lo:g}-{hi:g} m" if math.isfinite(hi) else f">{lo:g} m"))
+            for lo, hi in zip(CONE_LIST_BINS[:-1], CONE_LIST_BINS[1:])]
+
+
 def _added_line(v: Mapping[str, Any]) -> str | None:
     parts = [f"{name} {v[key]:.1f} ms" for name, key in (("weather", "weather_latency_ms"),
                                                           ("detector", "detector_latency_ms"))
@@ -273,5 +360,13 @@ for _metric in (
     Metric("added_latency_ms", "weather_latency_ms + detector_latency_ms",
            lambda e: e.result.weather_latency_ms + e.result.detector_latency_ms, "added latency per step (ms)", "ms",
            table=True, plot=True, lap=False),
+    Metric("cone_recall", "share of the true cones ahead (camera's field, 25 m) the agent's cone list held, "
+           "within 1 m (ConeListScoring, every 3rd step)", _cone_list("recall"), "cone list recall (ahead)",
+           table=True, plot=True, lap=False),
+    Metric("cone_precision", "share of the cone list's cones ahead within 1 m of a true cone",
+           _cone_list("precision"), "cone list precision (ahead)", table=True, lap=False),
+    *(Metric(f"cone_recall_{suffix}", f"cone_recall of the true cones {label} from the camera", _cone_bin(label),
+             f"cone list recall {label}", lap=False)
+      for suffix, label in cone_list_bins()),
 ):
     register_metric(_metric)
