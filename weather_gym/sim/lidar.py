@@ -38,11 +38,12 @@ import math
 
 import numpy as np
 import pybullet as p
+from scipy.spatial import ConvexHull
 
-from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES
+from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.core.point_cloud import PointCloud, label_id
 from weather_gym.sim.lidar_config import LidarConfig
-from weather_gym.sim.meshes import cone_dimensions
+from weather_gym.sim.meshes import cone_dimensions, cone_obj
 from weather_gym.sim.textures import STRIPES
 
 __all__ = ["REFLECTIVITY", "LidarSensor", "beam_directions"]
@@ -58,6 +59,10 @@ REFLECTIVITY: dict[str, float] = {
 _STRIPE_REFL = {"blue": "white", "yellow": "black", "orange": "white", "big_orange": "white"}
 _GROUND, _CONE, _CAR = label_id("ground"), label_id("cone"), label_id("car")
 _MAX_BATCH = 8192  # rays per rayTestBatch call (PyBullet drops some beyond about 16 000)
+HULL_MARGIN_M = 0.01
+"""How far outside a standing cone's collision hull a beam may pass and still be cast through PyBullet
+(Bullet's convex ray test is iterative and its shapes carry a margin: a beam that misses the hull by
+less than this is cast, one that misses it by more cannot hit)."""
 
 
 def beam_directions(cfg: LidarConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -76,6 +81,37 @@ def _mount_rotation(cfg: LidarConfig) -> np.ndarray:
     cp, sp, cy, sy = math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
     return np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]]) @ np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0],
                                                                                  [-sp, 0.0, cp]])
+
+
+def _cone_hulls() -> np.ndarray:
+    """The half-spaces ``(n_x, n_y, n_z, offset)`` of each cone class's collision hull (the convex hull
+    PyBullet builds from the cone mesh's vertices, :func:`weather_gym.sim.meshes.cone_obj`, as written to
+    its file), a point ``x`` inside where ``n . x + offset <= 0``; ``(classes, faces, 4)``, padded with
+    half-spaces everything satisfies."""
+    planes = []
+    for name in CONE_CLASSES:
+        text = cone_obj(CONE_HEIGHT_M[name], CONE_BASE_M[name])
+        verts = np.array([[float(v) for v in line.split()[1:4]] for line in text.splitlines() if line.startswith("v ")])
+        planes.append(np.unique(np.round(ConvexHull(verts).equations, 9), axis=0))
+    out = np.zeros((len(planes), max(len(q) for q in planes), 4))
+    out[:, :, 3] = -1.0
+    for i, q in enumerate(planes):
+        out[i, :len(q)] = q
+    return out
+
+
+def _hull_hits(p0: np.ndarray, d: np.ndarray, planes: np.ndarray, t_max: np.ndarray) -> np.ndarray:
+    """Whether each ray ``p0 + t d`` (``0 <= t <= t_max``) meets the convex polytope ``planes`` ((N, F, 4),
+    its half-spaces; Cyrus-Beck clipping, all rays at once)."""
+    n, off = planes[:, :, :3], planes[:, :, 3]
+    den = np.einsum("nfk,nk->nf", n, d)
+    num = -(np.einsum("nfk,nk->nf", n, p0) + off)  # den * t <= num inside
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = num / den
+    enter = np.max(np.where(den < 0, ratio, -np.inf), axis=1, initial=0.0)
+    leave = np.min(np.where(den > 0, ratio, np.inf), axis=1, initial=np.inf)
+    parallel_out = ((den == 0) & (num < 0)).any(axis=1)
+    return (enter <= np.minimum(leave, t_max)) & ~parallel_out
 
 
 def _box_hits(origin: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,6 +147,10 @@ class LidarSensor:
                  cone_heights: np.ndarray) -> None:
         self.config = cfg = config
         self.client, self.ground_body, self.car_body = client, ground_body, car_body
+        # Bullet keeps a static body's broadphase bounds from its creation, where a cone's (made with its
+        # centre of mass above its base) sit com_z too low: rays missed every cone's top third until the
+        # first physics step or reset moved it. Refresh them all once (no body moves).
+        p.performCollisionDetection(physicsClientId=client)
         self.dirs_sensor, self.dirs_car = beam_directions(cfg)
         self.origin = np.array([cfg.mount_x, cfg.mount_y, cfg.mount_z])
         self.ring = np.repeat(np.arange(cfg.channels, dtype=np.int16), cfg.columns)
@@ -126,10 +166,12 @@ class LidarSensor:
         self._refl_static = np.where(car_first, REFLECTIVITY["car"], REFLECTIVITY["ground"]).astype(np.float32)
         self._cos_static = np.where(car_first, cos_car, np.maximum(-dz, 0.0)).astype(np.float32)
         static = np.flatnonzero(self._detected(self._t_static, self._refl_static * self._cos_static))
+        # the static returns (ground, car) in beam order: a scan merges its cone returns into them
         self._s_rows, self._s_t = static, self._t_static[static]
-        self._s_refl, self._s_label = self._refl_static[static], self._label_static[static]
+        self._s_xyz = (self.dirs_sensor[static] * self._s_t[:, None]).astype(np.float32)
         self._s_int = (self._refl_static * self._cos_static)[static].astype(np.float32)
-        self._s_cone = np.full(len(static), -1, dtype=np.int32)
+        self._s_refl, self._s_label = self._refl_static[static], self._label_static[static]
+        self._s_cone, self._s_ring = np.full(len(static), -1, dtype=np.int32), self.ring[static]
         self._cone_classes = np.asarray(cone_classes, dtype=np.int64)
         self._cone_heights = np.asarray(cone_heights, dtype=np.float64)
         base = np.array([CONE_BASE_M[CONE_CLASSES[c]] for c in self._cone_classes])
@@ -139,6 +181,8 @@ class LidarSensor:
         self._elev = np.radians(cfg.elevations_deg)
         self._az0 = math.radians(cfg.azimuths_deg[0])
         self._res = math.radians(cfg.h_res_deg)
+        self._hull = _cone_hulls()
+        self._hull[:, :, 3] -= HULL_MARGIN_M  # unit normals: every face pushed out by the margin
 
     # ------------------------------------------------------------------ the scan
     def _pose(self, car_pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -204,10 +248,24 @@ class LidarSensor:
         k = np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)
         width = np.repeat(nc, per)
         ray = (r_lo[j] + k // width) * cols + (c_lo[j] + k % width) % cols
+        # a beam that meets the ground or the car's own body short of the cone's near side cannot reach it
+        t_stop = np.minimum(self._t_static[ray], cfg.max_range)
+        keep = t_stop >= d_near[j]
+        ray, j, t_stop = ray[keep], j[keep], t_stop[keep]
         idx = near[j]
         h, top = self._cone_heights[idx] + 0.01, self._cone_top[idx] + 0.01
         keep = ~standing[idx] | self._through(ray, rel[j], self._cone_radius[idx] + 0.005, top, h)
-        ray, j = ray[keep], j[keep]
+        ray, j, idx, t_stop = ray[keep], j[keep], idx[keep], t_stop[keep]
+        # then the standing cones' beams that pass within HULL_MARGIN_M of the collision hull itself
+        test = np.flatnonzero(standing[idx])
+        if len(test):
+            base = np.zeros((len(test), 3))
+            base[:, :2] = xy[idx[test]]
+            hit = _hull_hits(eye - base, self.dirs_car[ray[test]] @ rot.T, self._hull[self._cone_classes[idx[test]]],
+                             t_stop[test])
+            keep = np.ones(len(ray), bool)
+            keep[test[~hit]] = False
+            ray, j = ray[keep], j[keep]
         far = np.hypot(d_far, np.maximum(np.abs(lo_z), np.abs(hi_z))) + 0.05  # past the cylinder's far side
         reach = np.zeros(cfg.rays)
         np.maximum.at(reach, ray, far[j])
@@ -248,47 +306,52 @@ class LidarSensor:
         ``rng`` draws the range noise (None: none)."""
         cand, far = self.candidates(car_pose, cone_xy, cone_frames)
         cfg = self.config
-        rows = self._s_rows  # the static returns (ground, car), in beam order
-        t, refl, intensity = self._s_t, self._s_refl, self._s_int
-        label, cone = self._s_label, self._s_cone
+        static = (self._s_rows, self._s_t, self._s_xyz, self._s_int, self._s_refl, self._s_cone, self._s_ring,
+                  self._s_label)
+        rows, t, xyz, intensity, refl, cone, ring, label = static
         if len(cand):
             eye, rot = self._pose(car_pose)
             reach = np.minimum(np.minimum(self._t_static[cand], cfg.max_range), far)
             d_world = self.dirs_car[cand] @ rot.T
             hits = self._cast(eye, d_world, reach)
-            fraction = np.fromiter((h[2] for h in hits), float, len(hits))
             body = np.fromiter((h[0] for h in hits), np.int64, len(hits))
             idx = cone_lut[np.clip(body + 1, 0, len(cone_lut) - 1)]
             got = np.flatnonzero((body >= 0) & (idx >= 0))
             if len(got):
-                beams = cand[got]  # sorted: candidates are
-                t_hit = fraction[got] * reach[got]
-                normals = np.array([hits[k][4] for k in got], dtype=np.float64).reshape(-1, 3)
-                points = eye + d_world[got] * t_hit[:, None]
-                ci = idx[got].astype(np.int64)
-                cos = np.abs(np.einsum("ij,ij->i", normals, d_world[got]))
-                refl_hit = self._cone_reflectivity(ci, points, cone_xy, cone_frames)
-                seen = self._detected(t_hit, refl_hit * cos)
-                # a cone hides what lay behind it on its beams; its detected returns join in beam order
-                pos = np.searchsorted(rows, beams)
-                hidden = pos[(pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == beams)]
-                stay = np.ones(len(rows), bool)
-                stay[hidden] = False
-                new = beams[seen]
-                allrows = np.concatenate([rows[stay], new])
-                order = np.argsort(allrows, kind="stable")
-                rows = allrows[order]
-                t = np.concatenate([t[stay], t_hit[seen]])[order]
-                refl = np.concatenate([refl[stay], refl_hit[seen].astype(np.float32)])[order]
-                intensity = np.concatenate([intensity[stay], (refl_hit * cos)[seen].astype(np.float32)])[order]
-                label = np.concatenate([label[stay], np.full(len(new), _CONE, np.uint8)])[order]
-                cone = np.concatenate([cone[stay], ci[seen].astype(np.int32)])[order]
-        r = t
+                rows, t, xyz, intensity, refl, cone, ring, label = self._merge(
+                    static, cand[got], [hits[k] for k in got], reach[got], d_world[got], eye,
+                    idx[got].astype(np.int64), cone_xy, cone_frames)
         if rng is not None and cfg.range_noise_m > 0:
             r = t + cfg.range_noise_m * rng.standard_normal(len(t))
-        xyz = (self.dirs_sensor[rows] * r[:, None]).astype(np.float32)
-        return PointCloud.trusted(xyz=xyz, intensity=intensity.copy(), reflectivity=refl.copy(),
-                                  ring=self.ring[rows], cone=cone.copy(), label=label.copy())
+            xyz = (self.dirs_sensor[rows] * r[:, None]).astype(np.float32)
+        return PointCloud.trusted(xyz=xyz.copy() if xyz is self._s_xyz else xyz,
+                                  intensity=intensity.copy() if intensity is self._s_int else intensity,
+                                  reflectivity=refl.copy() if refl is self._s_refl else refl,
+                                  ring=ring.copy() if ring is self._s_ring else ring,
+                                  cone=cone.copy() if cone is self._s_cone else cone,
+                                  label=label.copy() if label is self._s_label else label)
+
+    def _merge(self, static: tuple, beams: np.ndarray, hits: list, reach: np.ndarray, d_world: np.ndarray,
+               eye: np.ndarray, ci: np.ndarray, cone_xy: np.ndarray, frames: dict | None) -> tuple:
+        """The static returns' arrays with the cone hits ``hits`` of the sorted ``beams`` (cone ``ci``) in
+        place of what lay behind them; those detected join in beam order."""
+        t_hit = np.fromiter((h[2] for h in hits), float, len(hits)) * reach
+        normals = np.array([h[4] for h in hits], dtype=np.float64).reshape(-1, 3)
+        points = eye + d_world * t_hit[:, None]
+        cos = np.abs(np.einsum("ij,ij->i", normals, d_world))
+        refl = self._cone_reflectivity(ci, points, cone_xy, frames)
+        seen = np.flatnonzero(self._detected(t_hit, refl * cos))
+        rows = static[0]
+        pos = np.searchsorted(rows, beams)
+        hidden = pos[(pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == beams)]
+        kept = np.delete(np.arange(len(rows)), hidden)
+        new_rows, new_t = beams[seen], t_hit[seen]
+        new = (new_rows, new_t, (self.dirs_sensor[new_rows] * new_t[:, None]).astype(np.float32),
+               (refl * cos)[seen].astype(np.float32), refl[seen], ci[seen].astype(np.int32), self.ring[new_rows],
+               np.full(len(seen), _CONE, np.uint8))
+        # where each output return comes from: a kept static one, or (index past the static ones) a new one
+        src = np.insert(kept, np.searchsorted(rows[kept], new_rows), len(rows) + np.arange(len(seen)))
+        return tuple(np.concatenate([a, b])[src] for a, b in zip(static, new))
 
     def _detected(self, t: np.ndarray, intensity: np.ndarray) -> np.ndarray:
         """Beams whose hit gives a return: within the range limits and with a received power
