@@ -60,6 +60,7 @@ class LidarConeConfig:
     """Tuning of :func:`cones_from_points` (metres; see the module doc)."""
 
     ground_z: float = 0.01
+    ground_sigmas: float = 3.0
     max_range: float = 30.0
     link_m: float = 0.3
     min_points: int = 2
@@ -72,7 +73,7 @@ class LidarConeConfig:
     radius_m: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("ground_z", "max_range", "link_m", "max_width_m", "max_depth_m", "dror_factor", "min_height_m",
+        for name in ("ground_z", "ground_sigmas", "max_range", "link_m", "max_width_m", "max_depth_m", "dror_factor", "min_height_m",
                      "max_height_m", "radius_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
@@ -101,7 +102,11 @@ def cones_from_points(cloud: PointCloud, lidar, config: LidarConeConfig | None =
     cfg = config or LidarConeConfig()
     car = to_car_frame(cloud.xyz, lidar)
     dx, dy = car[:, 0] - lidar.mount_x, car[:, 1] - lidar.mount_y
-    keep = np.flatnonzero((car[:, 2] > cfg.ground_z) & (dx * dx + dy * dy <= cfg.max_range ** 2))
+    dz = car[:, 2] - lidar.mount_z
+    # range noise moves a ground return along its beam: up to ground_sigmas standard deviations of it
+    sin_el = np.abs(dz) / np.maximum(np.sqrt(dx * dx + dy * dy + dz * dz), 1e-9)
+    ground = car[:, 2] <= cfg.ground_z + cfg.ground_sigmas * lidar.range_noise_m * sin_el
+    keep = np.flatnonzero(~ground & (dx * dx + dy * dy <= cfg.max_range ** 2))
     pts = car[keep]
     if len(pts) < cfg.min_points:
         return _empty()
