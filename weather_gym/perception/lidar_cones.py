@@ -48,11 +48,15 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from weather_gym.core.cone_arrays import ConeArrays
-from weather_gym.core.cone_spec import UNKNOWN_CLASS
+from weather_gym.core.cone_spec import CONE_CLASSES, CONE_HEIGHT_M, UNKNOWN_CLASS
 from weather_gym.core.errors import InputError
 from weather_gym.core.point_cloud import PointCloud
 
-__all__ = ["LidarConeConfig", "cones_from_points", "to_car_frame"]
+__all__ = ["LidarConeConfig", "STRIPE_BAND", "cones_from_points", "to_car_frame"]
+
+STRIPE_BAND = (0.42, 0.62)
+"""The stripe of a small cone, as fractions of its height (the sim's cones: weather_gym.sim.textures.STRIPES;
+FS rules: one stripe in the middle)."""
 
 
 @dataclass(frozen=True)
@@ -71,10 +75,14 @@ class LidarConeConfig:
     min_height_m: float = 0.015
     max_height_m: float = 0.6
     radius_m: float = 0.05
+    stripe_colour: bool = True
+    bright_stripe: float = 2.5
+    dark_stripe: float = 0.5
+    big_cone_m: float = 0.42
 
     def __post_init__(self) -> None:
-        for name in ("ground_z", "ground_sigmas", "max_range", "link_m", "max_width_m", "max_depth_m", "dror_factor", "min_height_m",
-                     "max_height_m", "radius_m"):
+        for name in ("ground_z", "ground_sigmas", "max_range", "link_m", "max_width_m", "max_depth_m", "dror_factor",
+                     "min_height_m", "max_height_m", "radius_m", "bright_stripe", "dark_stripe", "big_cone_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise InputError(f"LidarConeConfig.{name} must be a finite number >= 0, got {v!r}")
@@ -107,14 +115,14 @@ def cones_from_points(cloud: PointCloud, lidar, config: LidarConeConfig | None =
     sin_el = np.abs(dz) / np.maximum(np.sqrt(dx * dx + dy * dy + dz * dz), 1e-9)
     ground = car[:, 2] <= cfg.ground_z + cfg.ground_sigmas * lidar.range_noise_m * sin_el
     keep = np.flatnonzero(~ground & (dx * dx + dy * dy <= cfg.max_range ** 2))
-    pts = car[keep]
+    pts, inten = car[keep], np.asarray(cloud.intensity, np.float64)[keep]
     if len(pts) < cfg.min_points:
         return _empty()
     if cfg.min_neighbours:
         r = np.sqrt(dx[keep] ** 2 + dy[keep] ** 2 + (car[keep, 2] - lidar.mount_z) ** 2)
         radius = np.maximum(0.05, cfg.dror_factor * r * math.radians(lidar.h_res_deg))
         near = cKDTree(pts).query_ball_point(pts, radius, return_length=True) - 1
-        pts = pts[near >= cfg.min_neighbours]
+        pts, inten = pts[near >= cfg.min_neighbours], inten[near >= cfg.min_neighbours]
         if len(pts) < cfg.min_points:
             return _empty()
     pairs = cKDTree(pts[:, :2]).query_pairs(cfg.link_m, output_type="ndarray")
@@ -147,10 +155,47 @@ def cones_from_points(cloud: PointCloud, lidar, config: LidarConeConfig | None =
     rx, ry = cx - lidar.mount_x, cy - lidar.mount_y
     ranges, bearings = np.hypot(rx, ry), np.arctan2(ry, rx)
     o = np.argsort(ranges, kind="stable")
+    classes = np.full(len(ids), UNKNOWN_CLASS, np.int64)
+    if cfg.stripe_colour:
+        classes = _stripe_classes(pts[:, 2], inten, label, ids, top[ids], cfg)
     return ConeArrays(x_body=cx[o], y_body=cy[o], ranges=ranges[o].astype(np.float32),
-                      bearings=bearings[o].astype(np.float32), classes=np.full(len(o), UNKNOWN_CLASS, np.int64),
+                      bearings=bearings[o].astype(np.float32), classes=classes[o],
                       scores=np.ones(len(o), np.float32), widths=width[ids][o].astype(np.float32),
                       heights=top[ids][o].astype(np.float32), points=count[ids][o].astype(np.int64))
+
+
+def _stripe_classes(z: np.ndarray, intensity: np.ndarray, label: np.ndarray, ids: np.ndarray, top: np.ndarray,
+                    cfg: LidarConeConfig) -> np.ndarray:
+    """The colour of each cone cluster ``ids`` read from its returns (see the module doc): a cluster
+    taller than ``big_cone_m`` is a big orange cone; on a small one, the returns inside the stripe band
+    (0.42-0.62 of its height, 1 cm in from each edge) against those on the body above and below it: a
+    stripe ``bright_stripe`` times brighter is blue (a white stripe on blue), 1.2-``bright_stripe``
+    times orange (white on orange), ``dark_stripe`` times or darker yellow (black on yellow); without
+    returns on both, or a contrast in between, unknown."""
+    out = np.full(len(ids), UNKNOWN_CLASS, np.int64)
+    v = z / CONE_HEIGHT_M["blue"]
+    lo, hi = STRIPE_BAND
+    edge = 0.01 / CONE_HEIGHT_M["blue"]
+    stripe = (v >= lo + edge) & (v < hi - edge)
+    body = ((v > 0.1) & (v < lo - edge)) | ((v >= hi + edge) & (v < 1.0))
+    where = np.full(int(label.max()) + 1, -1, np.int64)
+    where[ids] = np.arange(len(ids))
+    k = where[label]
+    for j in np.unique(k[(k >= 0) & stripe]):
+        if top[j] > cfg.big_cone_m:
+            continue
+        on_body = (k == j) & body
+        if not on_body.any():
+            continue
+        ratio = float(np.median(intensity[(k == j) & stripe])) / max(float(np.median(intensity[on_body])), 1e-9)
+        if ratio >= cfg.bright_stripe:
+            out[j] = CONE_CLASSES.index("blue")
+        elif ratio >= 1.2:
+            out[j] = CONE_CLASSES.index("orange")
+        elif ratio <= cfg.dark_stripe:
+            out[j] = CONE_CLASSES.index("yellow")
+    out[top > cfg.big_cone_m] = CONE_CLASSES.index("big_orange")
+    return out
 
 
 def _empty() -> ConeArrays:

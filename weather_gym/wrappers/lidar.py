@@ -149,6 +149,10 @@ class LidarConeWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         out[:k, FIELD["score"]] = 1.0
         out[:k, FIELD["x_body"]] = xb[order]
         out[:k, FIELD["y_body"]] = yb[order]
+        assert self._cones is not None  # packed after a scan
+        cls = np.asarray(self._cones["classes"], np.int64)[order]
+        known = np.flatnonzero(cls >= 0)  # colour read from the stripes; the rest stay all zero (unknown)
+        out[known, cls[known]] = 1.0
         return out
 
     def _mask(self, n: int) -> np.ndarray:
