@@ -60,6 +60,9 @@ _STRIPE_REFL = {"blue": "white", "yellow": "black", "orange": "white", "big_oran
 _GROUND, _CONE, _CAR = label_id("ground"), label_id("cone"), label_id("car")
 _MAX_BATCH = 8192  # rays per rayTestBatch call (PyBullet drops some beyond about 16 000)
 HULL_MARGIN_M = 0.01
+BULLET_MARGIN_M = 0.001
+"""Bullet's collision margin on a convex mesh (PyBullet's default): its ray tests hit a cone's hull pushed
+out by about this much (0.9-2.0 mm measured), and so does the analytic cone hit."""
 """How far outside a standing cone's collision hull a beam may pass and still be cast through PyBullet
 (Bullet's convex ray test is iterative and its shapes carry a margin: a beam that misses the hull by
 less than this is cast, one that misses it by more cannot hit)."""
@@ -112,6 +115,23 @@ def _hull_hits(p0: np.ndarray, d: np.ndarray, planes: np.ndarray, t_max: np.ndar
     leave = np.min(np.where(den > 0, ratio, np.inf), axis=1, initial=np.inf)
     parallel_out = ((den == 0) & (num < 0)).any(axis=1)
     return (enter <= np.minimum(leave, t_max)) & ~parallel_out
+
+
+def _hull_entry(p0: np.ndarray, d: np.ndarray, planes: np.ndarray,
+                t_max: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each ray ``p0 + t d`` enters the convex polytope ``planes`` ((N, F, 4)) within ``0 < t <= t_max``:
+    ``(hit, t, face)`` (Cyrus-Beck; ``face`` indexes the entered half-space, whose normal is the surface's)."""
+    n, off = planes[:, :, :3], planes[:, :, 3]
+    den = np.einsum("nfk,nk->nf", n, d)
+    num = -(np.einsum("nfk,nk->nf", n, p0) + off)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = num / den
+    ent = np.where(den < 0, ratio, -np.inf)
+    face = ent.argmax(axis=1)
+    enter = ent[np.arange(len(ent)), face]
+    leave = np.min(np.where(den > 0, ratio, np.inf), axis=1, initial=np.inf)
+    hit = (enter > 0) & (enter <= np.minimum(leave, t_max)) & ~((den == 0) & (num < 0)).any(axis=1)
+    return hit, enter, face
 
 
 def _box_hits(origin: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -181,8 +201,12 @@ class LidarSensor:
         self._elev = np.radians(cfg.elevations_deg)
         self._az0 = math.radians(cfg.azimuths_deg[0])
         self._res = math.radians(cfg.h_res_deg)
-        self._hull = _cone_hulls()
+        hull = _cone_hulls()
+        self._hull = hull.copy()
         self._hull[:, :, 3] -= HULL_MARGIN_M  # unit normals: every face pushed out by the margin
+        self._hull_exact = hull
+        self._hull_exact[:, :, 3] -= BULLET_MARGIN_M
+        self.analytic = True
 
     # ------------------------------------------------------------------ the scan
     def _pose(self, car_pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -192,7 +216,8 @@ class LidarSensor:
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         return np.array([x, y, 0.0]) + rot @ self.origin, rot
 
-    def candidates(self, car_pose, cone_xy: np.ndarray, tilted: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def candidates(self, car_pose, cone_xy: np.ndarray, tilted: dict | None = None, *,
+                   analytic: bool = False) -> tuple:
         """Indices of the beams that may hit a cone (sorted) and how far each must be cast (m).
 
         Two steps. A standing cone fits in an upright cylinder of radius ``r`` (its base plate's
@@ -207,7 +232,7 @@ class LidarSensor:
         cfg = self.config
         eye, rot = self._pose(car_pose)
         xy = np.asarray(cone_xy, dtype=np.float64)
-        empty = np.zeros(0, np.int64), np.zeros(0)
+        empty: tuple = (np.zeros(0, np.int64), np.zeros(0)) + ((None,) if analytic else ())
         if len(xy) == 0:
             return empty
         r, z0, z1 = self._cone_radius.copy(), np.zeros(len(xy)), self._cone_heights + 0.01
@@ -258,18 +283,31 @@ class LidarSensor:
         ray, j, idx, t_stop = ray[keep], j[keep], idx[keep], t_stop[keep]
         # then the standing cones' beams that pass within HULL_MARGIN_M of the collision hull itself
         test = np.flatnonzero(standing[idx])
+        found = None
         if len(test):
             base = np.zeros((len(test), 3))
             base[:, :2] = xy[idx[test]]
-            hit = _hull_hits(eye - base, self.dirs_car[ray[test]] @ rot.T, self._hull[self._cone_classes[idx[test]]],
-                             t_stop[test])
+            p0, d_world = eye - base, self.dirs_car[ray[test]] @ rot.T
             keep = np.ones(len(ray), bool)
-            keep[test[~hit]] = False
+            if analytic:  # the hit itself, on the hull Bullet's ray test sees (its margin included)
+                planes = self._hull_exact[self._cone_classes[idx[test]]]
+                hit, t_in, face = _hull_entry(p0, d_world, planes, t_stop[test])
+                keep[test] = False
+                first = np.lexsort((t_in[hit], ray[test][hit]))  # by beam, nearest cone first
+                b, t_b = ray[test][hit][first], t_in[hit][first]
+                one = np.r_[True, b[1:] != b[:-1]]
+                normal = planes[hit][first][one, face[hit][first][one], :3]
+                found = (b[one], t_b[one], normal, idx[test][hit][first][one])
+            else:
+                hit = _hull_hits(p0, d_world, self._hull[self._cone_classes[idx[test]]], t_stop[test])
+                keep[test[~hit]] = False
             ray, j = ray[keep], j[keep]
         far = np.hypot(d_far, np.maximum(np.abs(lo_z), np.abs(hi_z))) + 0.05  # past the cylinder's far side
         reach = np.zeros(cfg.rays)
         np.maximum.at(reach, ray, far[j])
         rays = np.flatnonzero(reach)
+        if analytic:
+            return rays, reach[rays], found
         return rays, reach[rays]
 
     def _through(self, ray: np.ndarray, rel: np.ndarray, a0: np.ndarray, a1: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -304,13 +342,18 @@ class LidarSensor:
         """The returns of one scan at ``car_pose`` (rear axle x, y, yaw). ``cone_lut`` maps PyBullet body
         id + 1 to cone index; ``cone_frames`` (knocked cones: index -> (base origin (3,), rotation (3, 3)));
         ``rng`` draws the range noise (None: none)."""
-        cand, far = self.candidates(car_pose, cone_xy, cone_frames)
         cfg = self.config
+        found = None
+        if self.analytic:
+            cand, far, found = self.candidates(car_pose, cone_xy, cone_frames, analytic=True)
+        else:
+            cand, far = self.candidates(car_pose, cone_xy, cone_frames)
         static = (self._s_rows, self._s_t, self._s_xyz, self._s_int, self._s_refl, self._s_cone, self._s_ring,
                   self._s_label)
         rows, t, xyz, intensity, refl, cone, ring, label = static
-        if len(cand):
-            eye, rot = self._pose(car_pose)
+        eye, rot = self._pose(car_pose)
+        parts = [] if found is None else [found]
+        if len(cand):  # knocked cones (or every cone without the analytic hits): through rayTestBatch
             reach = np.minimum(np.minimum(self._t_static[cand], cfg.max_range), far)
             d_world = self.dirs_car[cand] @ rot.T
             hits = self._cast(eye, d_world, reach)
@@ -318,9 +361,18 @@ class LidarSensor:
             idx = cone_lut[np.clip(body + 1, 0, len(cone_lut) - 1)]
             got = np.flatnonzero((body >= 0) & (idx >= 0))
             if len(got):
+                t_cast = np.fromiter((hits[k][2] for k in got), float, len(got)) * reach[got]
+                normals = np.array([hits[k][4] for k in got], dtype=np.float64).reshape(-1, 3)
+                parts.append((cand[got], t_cast, normals, idx[got].astype(np.int64)))
+        if parts:
+            beams, t_hit, normals, ci = (np.concatenate(a) for a in zip(*parts))
+            if len(parts) > 1:  # a beam that meets two cones returns from the nearer
+                first = np.lexsort((t_hit, beams))
+                one = first[np.r_[True, beams[first][1:] != beams[first][:-1]]]
+                beams, t_hit, normals, ci = beams[one], t_hit[one], normals[one], ci[one]
+            if len(beams):
                 rows, t, xyz, intensity, refl, cone, ring, label = self._merge(
-                    static, cand[got], [hits[k] for k in got], reach[got], d_world[got], eye,
-                    idx[got].astype(np.int64), cone_xy, cone_frames)
+                    static, beams, t_hit, normals, self.dirs_car[beams] @ rot.T, eye, ci, cone_xy, cone_frames)
         if rng is not None and cfg.range_noise_m > 0:
             r = t + cfg.range_noise_m * rng.standard_normal(len(t))
             xyz = (self.dirs_sensor[rows] * r[:, None]).astype(np.float32)
@@ -331,12 +383,10 @@ class LidarSensor:
                                   cone=cone.copy() if cone is self._s_cone else cone,
                                   label=label.copy() if label is self._s_label else label)
 
-    def _merge(self, static: tuple, beams: np.ndarray, hits: list, reach: np.ndarray, d_world: np.ndarray,
+    def _merge(self, static: tuple, beams: np.ndarray, t_hit: np.ndarray, normals: np.ndarray, d_world: np.ndarray,
                eye: np.ndarray, ci: np.ndarray, cone_xy: np.ndarray, frames: dict | None) -> tuple:
-        """The static returns' arrays with the cone hits ``hits`` of the sorted ``beams`` (cone ``ci``) in
-        place of what lay behind them; those detected join in beam order."""
-        t_hit = np.fromiter((h[2] for h in hits), float, len(hits)) * reach
-        normals = np.array([h[4] for h in hits], dtype=np.float64).reshape(-1, 3)
+        """The static returns' arrays with the cone hits of the sorted ``beams`` (range ``t_hit``, surface
+        ``normals``, cone ``ci``) in place of what lay behind them; those detected join in beam order."""
         points = eye + d_world * t_hit[:, None]
         cos = np.abs(np.einsum("ij,ij->i", normals, d_world))
         refl = self._cone_reflectivity(ci, points, cone_xy, frames)
