@@ -139,7 +139,7 @@ def test_rain_loses_a_target_beyond_goodins_detection_range(rho):
     reach = []
     for rate in RAIN_SEVERITIES:
         alpha = 0.01 * rate ** 0.6
-        root = brentq(lambda r: rho * math.exp(-2 * alpha * r) / r ** 2 - 0.1 / 100.0 ** 2, 1.0, 1000.0)
+        root = brentq(lambda r, a=alpha: rho * math.exp(-2 * a * r) / r ** 2 - 0.1 / 100.0 ** 2, 1.0, 1000.0)
         out = Rain(rate=rate, drop_reflectivity=0.0)(targets(rho, ranges), np.random.default_rng(5))
         noise = 0.02 * ranges * (1 - math.exp(-rate)) ** 2  # Goodin's range noise moves the kept targets
         kept = out.label == TARGET
