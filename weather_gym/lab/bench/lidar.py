@@ -66,7 +66,7 @@ def _timed(fn, repeats: int, wall: list, cpu: list):
 
 def bench_sensor(cfg: LidarConfig, tracks: list[str], poses: int, repeats: int, naive_repeats: int) -> dict:
     t: dict[str, list[float]] = {k: [] for k in ("fast_wall", "fast_cpu", "naive_wall", "naive_cpu")}
-    diff = {"scans": 0, "returns": 0, "different": 0, "cone_returns": 0}
+    diff: dict[str, float] = {"scans": 0, "returns": 0, "different": 0, "cone_returns": 0}
     clouds, ranges = [], []
     for name in tracks:
         world = World(load_track(name), sim=SimConfig(renderer="none"))
