@@ -1,10 +1,12 @@
-"""Cones from a LiDAR scan: ground removal, clustering, a size check, the cone's position and size.
+"""Cones from a LiDAR scan: ground removal, clustering, a size check, position, size and the stripe's colour.
 
 1. **Into the car frame** (the mount's pitch, yaw and position undone).
 2. **Ground removal**: the car drives on flat ground without pitch or roll, so the ground is the plane
-   ``z = 0`` and returns below ``ground_z`` (1 cm) are ground (a cone's base plate is 2 cm thick: the beam
-   just below the horizon meets cones at 10-13 m there) (a stack on a real car would fit the
-   plane, e.g. by RANSAC, each scan).
+   ``z = 0``; a return is ground below ``ground_z`` (1 cm) plus ``ground_sigmas`` (3) standard deviations
+   of the sensor's range noise along its beam (``range_noise_m * |sin(elevation)|``: a beam 30 degrees
+   down with 2 cm noise puts ground returns up to 3 cm high, which a fixed 1 cm cut took for cones
+   beside the car; a beam near the horizon keeps the 1 cm cut, and sees a cone's 2 cm base plate at
+   10-13 m). A stack on a real car would fit the plane, e.g. by RANSAC, each scan.
 3. **Outlier removal** (DROR, Charron et al. 2018, "De-noising of Lidar Point Clouds Corrupted by
    Snowfall"): a return keeps only with at least ``min_neighbours`` other returns within
    ``max(0.05, dror_factor * r * h_res)`` (``r`` its range, ``h_res`` the sensor's azimuth step): the
@@ -21,9 +23,17 @@
    the line of sight (the beams see the cone's near side; 0.05 m is its mean radius); **size**: width and
    height of the cluster.
 
-The colour stays unknown (:data:`~weather_gym.core.cone_spec.UNKNOWN_CLASS`): a cone's stripe shows in the
-intensity of the rings that cross it, and with the HDL-32E's 1.33 degrees between rings a 0.325 m cone
-is crossed by two rings or fewer beyond about 7 m, too few to read a dark-bright-dark pattern from.
+7. **Colour from the stripes** (``stripe_colour``): a cluster taller than ``big_cone_m`` (0.42 m) is a
+   big orange cone. On a small cone the returns inside the stripe band (:data:`STRIPE_BAND`, 0.42-0.62
+   of its 0.325 m, 1 cm in from each edge) against those on the body above and below: a stripe
+   ``bright_stripe`` (2.5) times brighter is blue (white on blue), 1.2-2.5 times orange (white on
+   orange), ``dark_stripe`` (0.5) times or less yellow (black on yellow); otherwise, or without returns
+   on both, the colour stays unknown (:data:`~weather_gym.core.cone_spec.UNKNOWN_CLASS`). The
+   intensities are the sensor's assumed reflectivities (:data:`weather_gym.sim.lidar.REFLECTIVITY`)
+   times the incidence cosine, so the thresholds sit between the assumed contrasts (3.4, 1.7, 0.08);
+   fog and rain scale a cone's returns alike and leave the ratio. A sensor 0.3 m up sees the stripe
+   (0.14-0.20 m) with its -1.33 degree ring at 4.3-7 m, its -2.67 degree ring at 2.1-3.5 m and lower
+   rings nearer: beyond about 7 m the HDL-32E reads no colour.
 
 Example:
     >>> import numpy as np
@@ -35,6 +45,8 @@ Example:
     >>> cones = cones_from_points(PointCloud.from_arrays(xyz=pts, intensity=np.full(4, 0.5), ring=np.zeros(4)), cfg)
     >>> cones["x_body"].round(2).tolist(), cones["y_body"].round(2).tolist(), cones["classes"].tolist()
     ([10.05], [1.01], [-1])
+
+(Equal intensities: no stripe contrast, the colour stays unknown.)
 """
 
 from __future__ import annotations
