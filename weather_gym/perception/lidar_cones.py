@@ -117,7 +117,7 @@ def to_car_frame(xyz: np.ndarray, lidar) -> np.ndarray:
 
 def cones_from_points(cloud: PointCloud, lidar, config: LidarConeConfig | None = None) -> ConeArrays:
     """The cones in one scan (see the module doc): ``ConeArrays`` with ``x_body``, ``y_body`` (car frame),
-    ``ranges``, ``bearings`` (from the sensor, horizontal), ``classes`` (all unknown), ``scores`` (1),
+    ``ranges``, ``bearings`` (from the sensor, horizontal), ``classes`` (from the stripes, else unknown), ``scores`` (1),
     ``widths``, ``heights``, ``points`` (returns per cone), in order of range."""
     cfg = config or LidarConeConfig()
     car = to_car_frame(cloud.xyz, lidar)
