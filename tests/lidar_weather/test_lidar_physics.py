@@ -118,3 +118,32 @@ def test_wet_road_loses_ground_returns_only():
     assert counts[0] == len(pc) and counts[1] > counts[2] and counts[2] == counts[3]
     out = WetRoad(film_mm=0.5)(both, np.random.default_rng(0))
     assert (out.label == TARGET).sum() == len(cone)
+
+
+@pytest.mark.parametrize("rho, product", [(0.1, 1.31), (0.5, 1.58), (0.9, 1.76)])
+def test_fog_d_max_times_beta_matches_the_published_values(rho, product):
+    # Bijelic et al. 2020's HDL-64E S3D parameters (n 0.04, g 0.45) give d_max * beta = 1.31 / 1.58 / 1.76
+    for mor in (50.0, 150.0, 600.0):
+        fog = Fog(mor=mor, max_beta=0.1)
+        assert float(fog.d_max(np.array([rho]))[0]) * fog.beta == pytest.approx(product, abs=0.005)
+
+
+@pytest.mark.parametrize("rho", [0.05, 0.5])
+def test_rain_loses_a_target_beyond_goodins_detection_range(rho):
+    """A target is lost where its received power rho exp(-2 alpha r) / r^2 (alpha = 0.01 R^0.6) falls below the
+    threshold, a 10 % target at 100 m: the farthest target kept at each rate of the grid sits at the root of
+    that equation (found here by bisection), and the root falls with the rate."""
+    from scipy.optimize import brentq
+
+    ranges = np.linspace(2.0, 100.0, 9801)  # 1 cm apart
+    reach = []
+    for rate in RAIN_SEVERITIES:
+        alpha = 0.01 * rate ** 0.6
+        root = brentq(lambda r, a=alpha: rho * math.exp(-2 * a * r) / r ** 2 - 0.1 / 100.0 ** 2, 1.0, 1000.0)
+        out = Rain(rate=rate, drop_reflectivity=0.0)(targets(rho, ranges), np.random.default_rng(5))
+        noise = 0.02 * ranges * (1 - math.exp(-rate)) ** 2  # Goodin's range noise moves the kept targets
+        kept = out.label == TARGET
+        assert int(kept.sum()) == int((ranges <= root).sum())
+        assert float(out.ranges[kept].max()) == pytest.approx(min(root, 100.0), abs=5 * float(noise.max()) + 0.01)
+        reach.append(root)
+    assert all(a > b for a, b in zip(reach, reach[1:]))

@@ -1,10 +1,12 @@
-"""Cones from a LiDAR scan: ground removal, clustering, a size check, the cone's position and size.
+"""Cones from a LiDAR scan: ground removal, clustering, a size check, position, size and the stripe's colour.
 
 1. **Into the car frame** (the mount's pitch, yaw and position undone).
 2. **Ground removal**: the car drives on flat ground without pitch or roll, so the ground is the plane
-   ``z = 0`` and returns below ``ground_z`` (1 cm) are ground (a cone's base plate is 2 cm thick: the beam
-   just below the horizon meets cones at 10-13 m there) (a stack on a real car would fit the
-   plane, e.g. by RANSAC, each scan).
+   ``z = 0``; a return is ground below ``ground_z`` (1 cm) plus ``ground_sigmas`` (3) standard deviations
+   of the sensor's range noise along its beam (``range_noise_m * |sin(elevation)|``: a beam 30 degrees
+   down with 2 cm noise puts ground returns up to 3 cm high, which a fixed 1 cm cut took for cones
+   beside the car; a beam near the horizon keeps the 1 cm cut, and sees a cone's 2 cm base plate at
+   10-13 m). A stack on a real car would fit the plane, e.g. by RANSAC, each scan.
 3. **Outlier removal** (DROR, Charron et al. 2018, "De-noising of Lidar Point Clouds Corrupted by
    Snowfall"): a return keeps only with at least ``min_neighbours`` other returns within
    ``max(0.05, dror_factor * r * h_res)`` (``r`` its range, ``h_res`` the sensor's azimuth step): the
@@ -21,9 +23,17 @@
    the line of sight (the beams see the cone's near side; 0.05 m is its mean radius); **size**: width and
    height of the cluster.
 
-The colour stays unknown (:data:`~weather_gym.core.cone_spec.UNKNOWN_CLASS`): a cone's stripe shows in the
-intensity of the rings that cross it, and with the HDL-32E's 1.33 degrees between rings a 0.325 m cone
-is crossed by two rings or fewer beyond about 7 m, too few to read a dark-bright-dark pattern from.
+7. **Colour from the stripes** (``stripe_colour``): a cluster taller than ``big_cone_m`` (0.42 m) is a
+   big orange cone. On a small cone the returns inside the stripe band (:data:`STRIPE_BAND`, 0.42-0.62
+   of its 0.325 m, 1 cm in from each edge) against those on the body above and below: a stripe
+   ``bright_stripe`` (2.5) times brighter is blue (white on blue), 1.2-2.5 times orange (white on
+   orange), ``dark_stripe`` (0.5) times or less yellow (black on yellow); otherwise, or without returns
+   on both, the colour stays unknown (:data:`~weather_gym.core.cone_spec.UNKNOWN_CLASS`). The
+   intensities are the sensor's assumed reflectivities (:data:`weather_gym.sim.lidar.REFLECTIVITY`)
+   times the incidence cosine, so the thresholds sit between the assumed contrasts (3.4, 1.7, 0.08);
+   fog and rain scale a cone's returns alike and leave the ratio. A sensor 0.3 m up sees the stripe
+   (0.14-0.20 m) with its -1.33 degree ring at 4.3-7 m, its -2.67 degree ring at 2.1-3.5 m and lower
+   rings nearer: beyond about 7 m the HDL-32E reads no colour.
 
 Example:
     >>> import numpy as np
@@ -35,6 +45,8 @@ Example:
     >>> cones = cones_from_points(PointCloud.from_arrays(xyz=pts, intensity=np.full(4, 0.5), ring=np.zeros(4)), cfg)
     >>> cones["x_body"].round(2).tolist(), cones["y_body"].round(2).tolist(), cones["classes"].tolist()
     ([10.05], [1.01], [-1])
+
+(Equal intensities: no stripe contrast, the colour stays unknown.)
 """
 
 from __future__ import annotations
@@ -48,11 +60,15 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from weather_gym.core.cone_arrays import ConeArrays
-from weather_gym.core.cone_spec import UNKNOWN_CLASS
+from weather_gym.core.cone_spec import CONE_CLASSES, CONE_HEIGHT_M, UNKNOWN_CLASS
 from weather_gym.core.errors import InputError
 from weather_gym.core.point_cloud import PointCloud
 
-__all__ = ["LidarConeConfig", "cones_from_points", "to_car_frame"]
+__all__ = ["LidarConeConfig", "STRIPE_BAND", "cones_from_points", "to_car_frame"]
+
+STRIPE_BAND = (0.42, 0.62)
+"""The stripe of a small cone, as fractions of its height (the sim's cones: weather_gym.sim.textures.STRIPES;
+FS rules: one stripe in the middle)."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +76,7 @@ class LidarConeConfig:
     """Tuning of :func:`cones_from_points` (metres; see the module doc)."""
 
     ground_z: float = 0.01
+    ground_sigmas: float = 3.0
     max_range: float = 30.0
     link_m: float = 0.3
     min_points: int = 2
@@ -70,10 +87,14 @@ class LidarConeConfig:
     min_height_m: float = 0.015
     max_height_m: float = 0.6
     radius_m: float = 0.05
+    stripe_colour: bool = True
+    bright_stripe: float = 2.5
+    dark_stripe: float = 0.5
+    big_cone_m: float = 0.42
 
     def __post_init__(self) -> None:
-        for name in ("ground_z", "max_range", "link_m", "max_width_m", "max_depth_m", "dror_factor", "min_height_m",
-                     "max_height_m", "radius_m"):
+        for name in ("ground_z", "ground_sigmas", "max_range", "link_m", "max_width_m", "max_depth_m", "dror_factor",
+                     "min_height_m", "max_height_m", "radius_m", "bright_stripe", "dark_stripe", "big_cone_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise InputError(f"LidarConeConfig.{name} must be a finite number >= 0, got {v!r}")
@@ -96,20 +117,24 @@ def to_car_frame(xyz: np.ndarray, lidar) -> np.ndarray:
 
 def cones_from_points(cloud: PointCloud, lidar, config: LidarConeConfig | None = None) -> ConeArrays:
     """The cones in one scan (see the module doc): ``ConeArrays`` with ``x_body``, ``y_body`` (car frame),
-    ``ranges``, ``bearings`` (from the sensor, horizontal), ``classes`` (all unknown), ``scores`` (1),
+    ``ranges``, ``bearings`` (from the sensor, horizontal), ``classes`` (from the stripes, else unknown), ``scores`` (1),
     ``widths``, ``heights``, ``points`` (returns per cone), in order of range."""
     cfg = config or LidarConeConfig()
     car = to_car_frame(cloud.xyz, lidar)
     dx, dy = car[:, 0] - lidar.mount_x, car[:, 1] - lidar.mount_y
-    keep = np.flatnonzero((car[:, 2] > cfg.ground_z) & (dx * dx + dy * dy <= cfg.max_range ** 2))
-    pts = car[keep]
+    dz = car[:, 2] - lidar.mount_z
+    # range noise moves a ground return along its beam: up to ground_sigmas standard deviations of it
+    sin_el = np.abs(dz) / np.maximum(np.sqrt(dx * dx + dy * dy + dz * dz), 1e-9)
+    ground = car[:, 2] <= cfg.ground_z + cfg.ground_sigmas * lidar.range_noise_m * sin_el
+    keep = np.flatnonzero(~ground & (dx * dx + dy * dy <= cfg.max_range ** 2))
+    pts, inten = car[keep], np.asarray(cloud.intensity, np.float64)[keep]
     if len(pts) < cfg.min_points:
         return _empty()
     if cfg.min_neighbours:
         r = np.sqrt(dx[keep] ** 2 + dy[keep] ** 2 + (car[keep, 2] - lidar.mount_z) ** 2)
         radius = np.maximum(0.05, cfg.dror_factor * r * math.radians(lidar.h_res_deg))
         near = cKDTree(pts).query_ball_point(pts, radius, return_length=True) - 1
-        pts = pts[near >= cfg.min_neighbours]
+        pts, inten = pts[near >= cfg.min_neighbours], inten[near >= cfg.min_neighbours]
         if len(pts) < cfg.min_points:
             return _empty()
     pairs = cKDTree(pts[:, :2]).query_pairs(cfg.link_m, output_type="ndarray")
@@ -142,10 +167,47 @@ def cones_from_points(cloud: PointCloud, lidar, config: LidarConeConfig | None =
     rx, ry = cx - lidar.mount_x, cy - lidar.mount_y
     ranges, bearings = np.hypot(rx, ry), np.arctan2(ry, rx)
     o = np.argsort(ranges, kind="stable")
+    classes = np.full(len(ids), UNKNOWN_CLASS, np.int64)
+    if cfg.stripe_colour:
+        classes = _stripe_classes(pts[:, 2], inten, label, ids, top[ids], cfg)
     return ConeArrays(x_body=cx[o], y_body=cy[o], ranges=ranges[o].astype(np.float32),
-                      bearings=bearings[o].astype(np.float32), classes=np.full(len(o), UNKNOWN_CLASS, np.int64),
+                      bearings=bearings[o].astype(np.float32), classes=classes[o],
                       scores=np.ones(len(o), np.float32), widths=width[ids][o].astype(np.float32),
                       heights=top[ids][o].astype(np.float32), points=count[ids][o].astype(np.int64))
+
+
+def _stripe_classes(z: np.ndarray, intensity: np.ndarray, label: np.ndarray, ids: np.ndarray, top: np.ndarray,
+                    cfg: LidarConeConfig) -> np.ndarray:
+    """The colour of each cone cluster ``ids`` read from its returns (see the module doc): a cluster
+    taller than ``big_cone_m`` is a big orange cone; on a small one, the returns inside the stripe band
+    (0.42-0.62 of its height, 1 cm in from each edge) against those on the body above and below it: a
+    stripe ``bright_stripe`` times brighter is blue (a white stripe on blue), 1.2-``bright_stripe``
+    times orange (white on orange), ``dark_stripe`` times or darker yellow (black on yellow); without
+    returns on both, or a contrast in between, unknown."""
+    out = np.full(len(ids), UNKNOWN_CLASS, np.int64)
+    v = z / CONE_HEIGHT_M["blue"]
+    lo, hi = STRIPE_BAND
+    edge = 0.01 / CONE_HEIGHT_M["blue"]
+    stripe = (v >= lo + edge) & (v < hi - edge)
+    body = ((v > 0.1) & (v < lo - edge)) | ((v >= hi + edge) & (v < 1.0))
+    where = np.full(int(label.max()) + 1, -1, np.int64)
+    where[ids] = np.arange(len(ids))
+    k = where[label]
+    for j in np.unique(k[(k >= 0) & stripe]):
+        if top[j] > cfg.big_cone_m:
+            continue
+        on_body = (k == j) & body
+        if not on_body.any():
+            continue
+        ratio = float(np.median(intensity[(k == j) & stripe])) / max(float(np.median(intensity[on_body])), 1e-9)
+        if ratio >= cfg.bright_stripe:
+            out[j] = CONE_CLASSES.index("blue")
+        elif ratio >= 1.2:
+            out[j] = CONE_CLASSES.index("orange")
+        elif ratio <= cfg.dark_stripe:
+            out[j] = CONE_CLASSES.index("yellow")
+    out[top > cfg.big_cone_m] = CONE_CLASSES.index("big_orange")
+    return out
 
 
 def _empty() -> ConeArrays:

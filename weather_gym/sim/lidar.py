@@ -10,13 +10,16 @@ stripe pattern.
 
 **How a scan stays cheap.** The car moves on the flat ground plane without pitch or roll, so every
 beam's hit on the ground and on the car's own body (a box) is the same in the sensor frame at every
-pose: computed once, analytically. Only beams whose direction passes within a cone's bounding box
-can end elsewhere; those are found from the cones' angular windows and cast with PyBullet's
-``rayTestBatch`` against the world (the cones' collision meshes, as physics has them). A scan of
-the default 72 000-beam HDL-32E casts a few hundred to a few thousand rays; :meth:`LidarSensor.scan_naive`
-casts every beam through ``rayTestBatch`` instead (the benchmark's baseline, ``weather-gym bench lidar``;
-both give the same returns, bit for bit: tests/sim/test_lidar.py). Track-side scenery of the realistic world has
-no collision shapes (it is drawn only) and so returns nothing.
+pose: computed once, analytically. Only beams within a cone's angular window that pass near its
+collision hull can end elsewhere. A standing cone's hull (the convex hull PyBullet makes of the cone
+mesh, pushed out by Bullet's 1 mm collision margin) is met analytically (Cyrus-Beck clipping against
+its 26 faces, all beams at once); a knocked cone's beams are cast with PyBullet's ``rayTestBatch``.
+:meth:`LidarSensor.scan_naive` casts every beam through ``rayTestBatch`` instead (the benchmark's
+baseline, ``weather-gym bench lidar``): the same returns but for grazing beams (under 1 % of the cone
+returns), cone ranges within 3 mm at the 99th percentile (Bullet's ray test is iterative; its hits
+lie 0.9-2 mm outside the hull). With ``analytic = False`` the standing cones' beams within 1 cm of
+their hull are cast instead: bit for bit the naive scan (tests/sim/test_lidar.py). Track-side scenery
+of the realistic world has no collision shapes (it is drawn only) and so returns nothing.
 
 Example:
     >>> import numpy as np
@@ -38,11 +41,12 @@ import math
 
 import numpy as np
 import pybullet as p
+from scipy.spatial import ConvexHull
 
-from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES
+from weather_gym.core.cone_spec import CONE_BASE_M, CONE_CLASSES, CONE_HEIGHT_M
 from weather_gym.core.point_cloud import PointCloud, label_id
 from weather_gym.sim.lidar_config import LidarConfig
-from weather_gym.sim.meshes import cone_dimensions
+from weather_gym.sim.meshes import cone_dimensions, cone_obj
 from weather_gym.sim.textures import STRIPES
 
 __all__ = ["REFLECTIVITY", "LidarSensor", "beam_directions"]
@@ -58,6 +62,13 @@ REFLECTIVITY: dict[str, float] = {
 _STRIPE_REFL = {"blue": "white", "yellow": "black", "orange": "white", "big_orange": "white"}
 _GROUND, _CONE, _CAR = label_id("ground"), label_id("cone"), label_id("car")
 _MAX_BATCH = 8192  # rays per rayTestBatch call (PyBullet drops some beyond about 16 000)
+HULL_MARGIN_M = 0.01
+BULLET_MARGIN_M = 0.001
+"""Bullet's collision margin on a convex mesh (PyBullet's default): its ray tests hit a cone's hull pushed
+out by about this much (0.9-2.0 mm measured), and so does the analytic cone hit."""
+"""How far outside a standing cone's collision hull a beam may pass and still be cast through PyBullet
+(Bullet's convex ray test is iterative and its shapes carry a margin: a beam that misses the hull by
+less than this is cast, one that misses it by more cannot hit)."""
 
 
 def beam_directions(cfg: LidarConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -76,6 +87,54 @@ def _mount_rotation(cfg: LidarConfig) -> np.ndarray:
     cp, sp, cy, sy = math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
     return np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]]) @ np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0],
                                                                                  [-sp, 0.0, cp]])
+
+
+def _cone_hulls() -> np.ndarray:
+    """The half-spaces ``(n_x, n_y, n_z, offset)`` of each cone class's collision hull (the convex hull
+    PyBullet builds from the cone mesh's vertices, :func:`weather_gym.sim.meshes.cone_obj`, as written to
+    its file), a point ``x`` inside where ``n . x + offset <= 0``; ``(classes, faces, 4)``, padded with
+    half-spaces everything satisfies."""
+    planes = []
+    for name in CONE_CLASSES:
+        text = cone_obj(CONE_HEIGHT_M[name], CONE_BASE_M[name])
+        verts = np.array([[float(v) for v in line.split()[1:4]] for line in text.splitlines() if line.startswith("v ")])
+        planes.append(np.unique(np.round(ConvexHull(verts).equations, 9), axis=0))
+    out = np.zeros((len(planes), max(len(q) for q in planes), 4))
+    out[:, :, 3] = -1.0
+    for i, q in enumerate(planes):
+        out[i, :len(q)] = q
+    return out
+
+
+def _hull_hits(p0: np.ndarray, d: np.ndarray, planes: np.ndarray, t_max: np.ndarray) -> np.ndarray:
+    """Whether each ray ``p0 + t d`` (``0 <= t <= t_max``) meets the convex polytope ``planes`` ((N, F, 4),
+    its half-spaces; Cyrus-Beck clipping, all rays at once)."""
+    n, off = planes[:, :, :3], planes[:, :, 3]
+    den = np.einsum("nfk,nk->nf", n, d)
+    num = -(np.einsum("nfk,nk->nf", n, p0) + off)  # den * t <= num inside
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = num / den
+    enter = np.max(np.where(den < 0, ratio, -np.inf), axis=1, initial=0.0)
+    leave = np.min(np.where(den > 0, ratio, np.inf), axis=1, initial=np.inf)
+    parallel_out = ((den == 0) & (num < 0)).any(axis=1)
+    return (enter <= np.minimum(leave, t_max)) & ~parallel_out
+
+
+def _hull_entry(p0: np.ndarray, d: np.ndarray, planes: np.ndarray,
+                t_max: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each ray ``p0 + t d`` enters the convex polytope ``planes`` ((N, F, 4)) within ``0 < t <= t_max``:
+    ``(hit, t, face)`` (Cyrus-Beck; ``face`` indexes the entered half-space, whose normal is the surface's)."""
+    n, off = planes[:, :, :3], planes[:, :, 3]
+    den = np.einsum("nfk,nk->nf", n, d)
+    num = -(np.einsum("nfk,nk->nf", n, p0) + off)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = num / den
+    ent = np.where(den < 0, ratio, -np.inf)
+    face = ent.argmax(axis=1)
+    enter = ent[np.arange(len(ent)), face]
+    leave = np.min(np.where(den > 0, ratio, np.inf), axis=1, initial=np.inf)
+    hit = (enter > 0) & (enter <= np.minimum(leave, t_max)) & ~((den == 0) & (num < 0)).any(axis=1)
+    return hit, enter, face
 
 
 def _box_hits(origin: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,6 +170,10 @@ class LidarSensor:
                  cone_heights: np.ndarray) -> None:
         self.config = cfg = config
         self.client, self.ground_body, self.car_body = client, ground_body, car_body
+        # Bullet keeps a static body's broadphase bounds from its creation, where a cone's (made with its
+        # centre of mass above its base) sit com_z too low: rays missed every cone's top third until the
+        # first physics step or reset moved it. Refresh them all once (no body moves).
+        p.performCollisionDetection(physicsClientId=client)
         self.dirs_sensor, self.dirs_car = beam_directions(cfg)
         self.origin = np.array([cfg.mount_x, cfg.mount_y, cfg.mount_z])
         self.ring = np.repeat(np.arange(cfg.channels, dtype=np.int16), cfg.columns)
@@ -126,10 +189,12 @@ class LidarSensor:
         self._refl_static = np.where(car_first, REFLECTIVITY["car"], REFLECTIVITY["ground"]).astype(np.float32)
         self._cos_static = np.where(car_first, cos_car, np.maximum(-dz, 0.0)).astype(np.float32)
         static = np.flatnonzero(self._detected(self._t_static, self._refl_static * self._cos_static))
+        # the static returns (ground, car) in beam order: a scan merges its cone returns into them
         self._s_rows, self._s_t = static, self._t_static[static]
-        self._s_refl, self._s_label = self._refl_static[static], self._label_static[static]
+        self._s_xyz = (self.dirs_sensor[static] * self._s_t[:, None]).astype(np.float32)
         self._s_int = (self._refl_static * self._cos_static)[static].astype(np.float32)
-        self._s_cone = np.full(len(static), -1, dtype=np.int32)
+        self._s_refl, self._s_label = self._refl_static[static], self._label_static[static]
+        self._s_cone, self._s_ring = np.full(len(static), -1, dtype=np.int32), self.ring[static]
         self._cone_classes = np.asarray(cone_classes, dtype=np.int64)
         self._cone_heights = np.asarray(cone_heights, dtype=np.float64)
         base = np.array([CONE_BASE_M[CONE_CLASSES[c]] for c in self._cone_classes])
@@ -139,6 +204,12 @@ class LidarSensor:
         self._elev = np.radians(cfg.elevations_deg)
         self._az0 = math.radians(cfg.azimuths_deg[0])
         self._res = math.radians(cfg.h_res_deg)
+        hull = _cone_hulls()
+        self._hull = hull.copy()
+        self._hull[:, :, 3] -= HULL_MARGIN_M  # unit normals: every face pushed out by the margin
+        self._hull_exact = hull
+        self._hull_exact[:, :, 3] -= BULLET_MARGIN_M
+        self.analytic = True
 
     # ------------------------------------------------------------------ the scan
     def _pose(self, car_pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -148,22 +219,23 @@ class LidarSensor:
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         return np.array([x, y, 0.0]) + rot @ self.origin, rot
 
-    def candidates(self, car_pose, cone_xy: np.ndarray, tilted: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Indices of the beams that may hit a cone (sorted) and how far each must be cast (m).
+    def candidates(self, car_pose, cone_xy: np.ndarray, tilted: dict | None = None, *,
+                   analytic: bool = False) -> tuple:
+        """Indices of the beams to cast (sorted) and how far each must be cast (m); with ``analytic``, also
+        the standing cones' hits ``(beams, ranges, surface normals (world), cone indices)`` (None: none).
 
-        Two steps. A standing cone fits in an upright cylinder of radius ``r`` (its base plate's
-        half-diagonal) and its height, so its beams lie within the azimuths ``centre +- asin(r /
-        distance)`` and between the elevations of the cylinder's bottom and top at its near and far
-        side (a knocked cone: a cylinder of its length around its centre of mass; a mount pitched by
-        ``a`` widens both windows by ``2 a``). Of those beams, a standing cone keeps the ones that
-        pass through a solid enclosing its collision shape (PyBullet's convex hull of the mesh: from the
-        square base plate's corners up to the top ring): radius ``r + 0.005`` m at the ground falling
-        linearly to the top ring's radius + 1 cm, 1 cm above the top; a quadratic in the distance along
-        the beam, solved for all beams at once."""
+        A standing cone fits in an upright cylinder of radius ``r`` (its base plate's half-diagonal) and
+        its height, so its beams lie within the azimuths ``centre +- asin(r / distance)`` and between the
+        elevations of the cylinder's bottom and top at its near and far side (a knocked cone: a cylinder
+        of its length around its centre of mass; a mount pitched by ``a`` widens both windows by ``2 a``).
+        Beams that meet the ground or the car before the cone's near side drop out. Of the rest, a
+        standing cone keeps those through a solid of revolution enclosing its hull (a quadratic per beam),
+        then those that meet the hull itself: within ``HULL_MARGIN_M`` (cast) or exactly, on the hull
+        pushed out by ``BULLET_MARGIN_M`` (``analytic``). A knocked cone's window beams are all cast."""
         cfg = self.config
         eye, rot = self._pose(car_pose)
         xy = np.asarray(cone_xy, dtype=np.float64)
-        empty = np.zeros(0, np.int64), np.zeros(0)
+        empty: tuple = (np.zeros(0, np.int64), np.zeros(0)) + ((None,) if analytic else ())
         if len(xy) == 0:
             return empty
         r, z0, z1 = self._cone_radius.copy(), np.zeros(len(xy)), self._cone_heights + 0.01
@@ -204,14 +276,41 @@ class LidarSensor:
         k = np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)
         width = np.repeat(nc, per)
         ray = (r_lo[j] + k // width) * cols + (c_lo[j] + k % width) % cols
+        # a beam that meets the ground or the car's own body short of the cone's near side cannot reach it
+        t_stop = np.minimum(self._t_static[ray], cfg.max_range)
+        keep = t_stop >= d_near[j]
+        ray, j, t_stop = ray[keep], j[keep], t_stop[keep]
         idx = near[j]
         h, top = self._cone_heights[idx] + 0.01, self._cone_top[idx] + 0.01
         keep = ~standing[idx] | self._through(ray, rel[j], self._cone_radius[idx] + 0.005, top, h)
-        ray, j = ray[keep], j[keep]
+        ray, j, idx, t_stop = ray[keep], j[keep], idx[keep], t_stop[keep]
+        # then the standing cones' beams that pass within HULL_MARGIN_M of the collision hull itself
+        test = np.flatnonzero(standing[idx])
+        found = None
+        if len(test):
+            base = np.zeros((len(test), 3))
+            base[:, :2] = xy[idx[test]]
+            p0, d_world = eye - base, self.dirs_car[ray[test]] @ rot.T
+            keep = np.ones(len(ray), bool)
+            if analytic:  # the hit itself, on the hull Bullet's ray test sees (its margin included)
+                planes = self._hull_exact[self._cone_classes[idx[test]]]
+                hit, t_in, face = _hull_entry(p0, d_world, planes, t_stop[test])
+                keep[test] = False
+                first = np.lexsort((t_in[hit], ray[test][hit]))  # by beam, nearest cone first
+                b, t_b = ray[test][hit][first], t_in[hit][first]
+                one = np.r_[True, b[1:] != b[:-1]]
+                normal = planes[hit][first][one, face[hit][first][one], :3]
+                found = (b[one], t_b[one], normal, idx[test][hit][first][one])
+            else:
+                hit = _hull_hits(p0, d_world, self._hull[self._cone_classes[idx[test]]], t_stop[test])
+                keep[test[~hit]] = False
+            ray, j = ray[keep], j[keep]
         far = np.hypot(d_far, np.maximum(np.abs(lo_z), np.abs(hi_z))) + 0.05  # past the cylinder's far side
         reach = np.zeros(cfg.rays)
         np.maximum.at(reach, ray, far[j])
         rays = np.flatnonzero(reach)
+        if analytic:
+            return rays, reach[rays], found
         return rays, reach[rays]
 
     def _through(self, ray: np.ndarray, rel: np.ndarray, a0: np.ndarray, a1: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -246,49 +345,66 @@ class LidarSensor:
         """The returns of one scan at ``car_pose`` (rear axle x, y, yaw). ``cone_lut`` maps PyBullet body
         id + 1 to cone index; ``cone_frames`` (knocked cones: index -> (base origin (3,), rotation (3, 3)));
         ``rng`` draws the range noise (None: none)."""
-        cand, far = self.candidates(car_pose, cone_xy, cone_frames)
         cfg = self.config
-        rows = self._s_rows  # the static returns (ground, car), in beam order
-        t, refl, intensity = self._s_t, self._s_refl, self._s_int
-        label, cone = self._s_label, self._s_cone
-        if len(cand):
-            eye, rot = self._pose(car_pose)
+        found = None
+        if self.analytic:
+            cand, far, found = self.candidates(car_pose, cone_xy, cone_frames, analytic=True)
+        else:
+            cand, far = self.candidates(car_pose, cone_xy, cone_frames)
+        static = (self._s_rows, self._s_t, self._s_xyz, self._s_int, self._s_refl, self._s_cone, self._s_ring,
+                  self._s_label)
+        rows, t, xyz, intensity, refl, cone, ring, label = static
+        eye, rot = self._pose(car_pose)
+        parts = [] if found is None else [found]
+        if len(cand):  # knocked cones (or every cone without the analytic hits): through rayTestBatch
             reach = np.minimum(np.minimum(self._t_static[cand], cfg.max_range), far)
             d_world = self.dirs_car[cand] @ rot.T
             hits = self._cast(eye, d_world, reach)
-            fraction = np.fromiter((h[2] for h in hits), float, len(hits))
             body = np.fromiter((h[0] for h in hits), np.int64, len(hits))
             idx = cone_lut[np.clip(body + 1, 0, len(cone_lut) - 1)]
             got = np.flatnonzero((body >= 0) & (idx >= 0))
             if len(got):
-                beams = cand[got]  # sorted: candidates are
-                t_hit = fraction[got] * reach[got]
+                t_cast = np.fromiter((hits[k][2] for k in got), float, len(got)) * reach[got]
                 normals = np.array([hits[k][4] for k in got], dtype=np.float64).reshape(-1, 3)
-                points = eye + d_world[got] * t_hit[:, None]
-                ci = idx[got].astype(np.int64)
-                cos = np.abs(np.einsum("ij,ij->i", normals, d_world[got]))
-                refl_hit = self._cone_reflectivity(ci, points, cone_xy, cone_frames)
-                seen = self._detected(t_hit, refl_hit * cos)
-                # a cone hides what lay behind it on its beams; its detected returns join in beam order
-                pos = np.searchsorted(rows, beams)
-                hidden = pos[(pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == beams)]
-                stay = np.ones(len(rows), bool)
-                stay[hidden] = False
-                new = beams[seen]
-                allrows = np.concatenate([rows[stay], new])
-                order = np.argsort(allrows, kind="stable")
-                rows = allrows[order]
-                t = np.concatenate([t[stay], t_hit[seen]])[order]
-                refl = np.concatenate([refl[stay], refl_hit[seen].astype(np.float32)])[order]
-                intensity = np.concatenate([intensity[stay], (refl_hit * cos)[seen].astype(np.float32)])[order]
-                label = np.concatenate([label[stay], np.full(len(new), _CONE, np.uint8)])[order]
-                cone = np.concatenate([cone[stay], ci[seen].astype(np.int32)])[order]
-        r = t
+                parts.append((cand[got], t_cast, normals, idx[got].astype(np.int64)))
+        if parts:
+            beams, t_hit, normals, ci = (np.concatenate(a) for a in zip(*parts))
+            if len(parts) > 1:  # a beam that meets two cones returns from the nearer
+                first = np.lexsort((t_hit, beams))
+                one = first[np.r_[True, beams[first][1:] != beams[first][:-1]]]
+                beams, t_hit, normals, ci = beams[one], t_hit[one], normals[one], ci[one]
+            if len(beams):
+                rows, t, xyz, intensity, refl, cone, ring, label = self._merge(
+                    static, beams, t_hit, normals, self.dirs_car[beams] @ rot.T, eye, ci, cone_xy, cone_frames)
         if rng is not None and cfg.range_noise_m > 0:
             r = t + cfg.range_noise_m * rng.standard_normal(len(t))
-        xyz = (self.dirs_sensor[rows] * r[:, None]).astype(np.float32)
-        return PointCloud.trusted(xyz=xyz, intensity=intensity.copy(), reflectivity=refl.copy(),
-                                  ring=self.ring[rows], cone=cone.copy(), label=label.copy())
+            xyz = (self.dirs_sensor[rows] * r[:, None]).astype(np.float32)
+        return PointCloud.trusted(xyz=xyz.copy() if xyz is self._s_xyz else xyz,
+                                  intensity=intensity.copy() if intensity is self._s_int else intensity,
+                                  reflectivity=refl.copy() if refl is self._s_refl else refl,
+                                  ring=ring.copy() if ring is self._s_ring else ring,
+                                  cone=cone.copy() if cone is self._s_cone else cone,
+                                  label=label.copy() if label is self._s_label else label)
+
+    def _merge(self, static: tuple, beams: np.ndarray, t_hit: np.ndarray, normals: np.ndarray, d_world: np.ndarray,
+               eye: np.ndarray, ci: np.ndarray, cone_xy: np.ndarray, frames: dict | None) -> tuple:
+        """The static returns' arrays with the cone hits of the sorted ``beams`` (range ``t_hit``, surface
+        ``normals``, cone ``ci``) in place of what lay behind them; those detected join in beam order."""
+        points = eye + d_world * t_hit[:, None]
+        cos = np.abs(np.einsum("ij,ij->i", normals, d_world))
+        refl = self._cone_reflectivity(ci, points, cone_xy, frames)
+        seen = np.flatnonzero(self._detected(t_hit, refl * cos))
+        rows = static[0]
+        pos = np.searchsorted(rows, beams)
+        hidden = pos[(pos < len(rows)) & (rows[np.minimum(pos, len(rows) - 1)] == beams)]
+        kept = np.delete(np.arange(len(rows)), hidden)
+        new_rows, new_t = beams[seen], t_hit[seen]
+        new = (new_rows, new_t, (self.dirs_sensor[new_rows] * new_t[:, None]).astype(np.float32),
+               (refl * cos)[seen].astype(np.float32), refl[seen], ci[seen].astype(np.int32), self.ring[new_rows],
+               np.full(len(seen), _CONE, np.uint8))
+        # where each output return comes from: a kept static one, or (index past the static ones) a new one
+        src = np.insert(kept, np.searchsorted(rows[kept], new_rows), len(rows) + np.arange(len(seen)))
+        return tuple(np.concatenate([a, b])[src] for a, b in zip(static, new))
 
     def _detected(self, t: np.ndarray, intensity: np.ndarray) -> np.ndarray:
         """Beams whose hit gives a return: within the range limits and with a received power

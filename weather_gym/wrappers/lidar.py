@@ -3,8 +3,8 @@
 On an env with a LiDAR (``EnvConfig.lidar``): each new scan (``info["lidar_new"]``) goes through the
 LiDAR weather (:mod:`weather_gym.lidar_weather`, seeded from the env's generator) and the cone
 extraction (:mod:`weather_gym.perception.lidar_cones`); the observation becomes the same
-``{"cones", "mask", "state"}`` a camera perception gives, every cone of unknown colour (its one-hot
-all zero). Between scans (10 Hz against 30 Hz control) the last scan's cones are moved into the car's
+``{"cones", "mask", "state"}`` a camera perception gives, each cone's colour one-hot read from its
+stripe near the car, all zero (unknown) where it could not be read. Between scans (10 Hz against 30 Hz control) the last scan's cones are moved into the car's
 present frame by the odometry (``obs["state"]``), as a stack compensates its own motion.
 
 ``info["detections"]`` (a ``ConeArrays``: ``x_body``, ``y_body``, ``ranges``, ``bearings``, ``classes``,
@@ -149,6 +149,10 @@ class LidarConeWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         out[:k, FIELD["score"]] = 1.0
         out[:k, FIELD["x_body"]] = xb[order]
         out[:k, FIELD["y_body"]] = yb[order]
+        assert self._cones is not None  # packed after a scan
+        cls = np.asarray(self._cones["classes"], np.int64)[order]
+        known = np.flatnonzero(cls >= 0)  # colour read from the stripes; the rest stay all zero (unknown)
+        out[known, cls[known]] = 1.0
         return out
 
     def _mask(self, n: int) -> np.ndarray:
