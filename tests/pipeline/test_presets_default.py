@@ -75,3 +75,9 @@ def test_the_cli_default_follows_the_switch(monkeypatch):
     assert default_choice(None, "low_light@2") == "pool"
     monkeypatch.setenv("WEATHER_GYM_PRESETS", "resolved")
     assert default_choice(None, [("low_light", 1)]) == "resolved"
+
+
+def test_the_surrogate_keeps_the_pool_presets(fake_resolver):
+    """The surrogate's table holds the pool presets' k's: its env resolves nothing."""
+    env = make_env(perception="surrogate", weather="droplets@3", max_episode_steps=5)
+    assert _source(env) == "pool" and fake_resolver == []

@@ -48,13 +48,17 @@ def add_presets_arg(p: Any) -> None:
                         "$WEATHER_GYM_PRESETS, else resolved where the run has a scenario)")
 
 
-def default_choice(value: str | None, weather: Any) -> str | None:
+def default_choice(value: str | None, weather: Any, mode: Any = None) -> str | None:
     """``--presets`` as given, or its default for ``weather`` (any weather spec, or a list of
     ``(condition, severity)``): ``$WEATHER_GYM_PRESETS``'s meaning, ``resolved`` when it is unset and
     ``weather`` names a preset that resolution changes (a calibrated ``CONDITION@SEVERITY``, severity above 0),
-    else None (the weather layer's default: the pool presets, or the file ``$WEATHER_GYM_PRESETS`` names)."""
+    else None (the weather layer's default: the pool presets, or the file ``$WEATHER_GYM_PRESETS`` names).
+    ``mode``: the perception mode of the run; one whose camera frames do not go through the weather (the
+    surrogate, whose table holds the pool presets' k's; ground truth; LiDAR) keeps the pool presets."""
     if value is not None:
         return value
+    if mode is not None and not (mode.renders_frames and mode.takes_weather):
+        return None
     meaning = presets_meaning()
     if meaning == "pool":
         return "pool"

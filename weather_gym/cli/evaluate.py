@@ -162,7 +162,8 @@ def _preset_cells(args) -> list[tuple[str, int]]:
 
 def _presets(args) -> str | dict[str, str] | None:
     """``--presets``: a file (pool, FILE) for every track, or with ``resolved`` one per track, resolved for it."""
-    choice = default_choice(args.presets, _preset_cells(args))
+    mode = None if args.perception == "auto" else perception_mode(args.perception)
+    choice = default_choice(args.presets, _preset_cells(args), mode)
     if choice != "resolved":
         path = presets_from_arg(choice, None)
         return None if path is None else str(path)

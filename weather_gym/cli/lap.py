@@ -182,7 +182,8 @@ def _run(args) -> int:
         check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
-    presets = presets_from_arg(default_choice(args.presets, args.weather),
+    mode = auto_mode(agent_observes(args.agent)) if args.perception == AUTO else perception_mode(args.perception)
+    presets = presets_from_arg(default_choice(args.presets, args.weather, mode),
                                lambda: env_scenario(args.env, args.track, detector))
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,

@@ -142,11 +142,14 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
     try:
         spec = _weather_spec(sc, weather, severity)
-        if presets in (None, "resolved") and not isinstance(spec, WeatherSpec):  # the default: resolved for this env
-            presets = default_presets(spec, env.unwrapped.config, detector if mode.runs_detector else None,
-                                      force=presets == "resolved")
-        elif presets == "pool":
+        if presets == "pool":
             presets = DEFAULT_PRESETS
+        elif presets in (None, "resolved") and not isinstance(spec, WeatherSpec):
+            # the default: resolved for this env where its frames go through the weather (the surrogate's
+            # table holds the pool presets' k's; ground truth and LiDAR see no camera weather)
+            images = mode.renders_frames and mode.takes_weather
+            presets = default_presets(spec, env.unwrapped.config, detector if mode.runs_detector else None,
+                                      force=presets == "resolved") if images else None
         if presets is not None and spec is not None:
             spec = WeatherSpec(spec, str(presets))
         env = wrap_pipeline(env, weather=spec, perception=perception, detector=detector,
