@@ -79,15 +79,16 @@ MIN_CONES = 100
 """Fewest blue and yellow cones (that count: not too small) a reference set needs to measure a drop."""
 MIN_CLEAR_MAP = 0.3
 """Lowest clear mAP@0.5 (blue and yellow) at which a relative drop is measured."""
-HIT = 0.005
-"""A measured point this close to the target ends a row's search."""
+HIT = 0.01
+"""A measured point this close to the target ends a row's search (half the ``tolerance`` the bootstrap
+holds the damage to: a closer search would chase the reference set's own sampling error)."""
 MAX_EVALS = 8
 """Most k values measured per row and set."""
 BOOTSTRAP = 200
 """Bootstrap replicates (over episodes) of the damage at the resolved k."""
 DETECT_BATCH = 1
 """Frames per detector call while resolving (CPU per frame grows with the batch: ``weather-gym bench resolve``)."""
-VERSION = 1
+VERSION = 2
 """Version of this resolution method (part of the cache key)."""
 
 _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coco.py",
