@@ -81,3 +81,16 @@ def test_the_surrogate_keeps_the_pool_presets(fake_resolver):
     """The surrogate's table holds the pool presets' k's: its env resolves nothing."""
     env = make_env(perception="surrogate", weather="droplets@3", max_episode_steps=5)
     assert _source(env) == "pool" and fake_resolver == []
+
+
+def test_evaluate_resolves_each_track_by_default(fake_resolver):
+    """``evaluate`` writes every cell's k out: by default, each track's resolved k (``k_source`` resolved)."""
+    from weather_gym.lab.evaluation.evaluate import EvalConfig, _cell_weather
+    from weather_gym.pipeline.modes import perception_mode
+
+    config = EvalConfig(tracks=("skidpad", "small_track"), effects=("low_light", "rain"), severities=(0, 2))
+    weather, source = _cell_weather(config, perception_mode("detector"), config.tracks, config.effects,
+                                    config.severities, EnvConfig(camera=SMALL_CAMERA))
+    assert source == {"skidpad": "resolved", "small_track": "resolved"}
+    assert sorted(c[1].track for c in fake_resolver) == ["skidpad", "small_track"]
+    assert sorted(set(fake_resolver[0][0])) == [("low_light", 0), ("low_light", 2), ("rain", 0), ("rain", 2)]

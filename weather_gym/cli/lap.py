@@ -266,7 +266,8 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
     and the episode from :func:`weather_gym.pipeline.run_episode`. ``presets``: the presets file a
-    ``CONDITION@SEVERITY`` reads (None: ``$WEATHER_GYM_PRESETS``, else the shipped pool presets); the
+    ``CONDITION@SEVERITY`` reads (None: resolved for the run's scenario, unless ``$WEATHER_GYM_PRESETS`` is
+    ``pool`` or a file: :mod:`weather_gym.pipeline.presets_default`); the
     result's ``weather_k`` and ``weather_source`` say which k was used and where it came from.
     """
 
