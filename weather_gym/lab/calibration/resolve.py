@@ -251,16 +251,34 @@ def _sha_cached(path: str, mtime_ns: int, size: int) -> str:
 @lru_cache(maxsize=1)
 def code_version() -> str:
     """16 hex digits of the source of the pieces a resolution depends on (renderer, effects, camera,
-    detector wrappers, scoring, this module) and the package version."""
+    detector wrappers, scoring, this module) and the package version.
+
+    The content hash is remembered in the cache folder under a hash of the files' names, sizes and
+    modification times, so a new process (an env, a worker) stats the files instead of reading them."""
     pkg = PACKAGE
-    h = hashlib.sha256(f"{__version__}/{VERSION}".encode())
+    files = []
     for part in _CODE:
         p = pkg / part
-        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
-        for f in files:
-            h.update(str(f.relative_to(pkg)).encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()[:16]
+        files += sorted(p.rglob("*.py")) if p.is_dir() else [p]
+    stats = [(str(f.relative_to(pkg)), f.stat().st_mtime_ns, f.stat().st_size) for f in files]
+    sig = hashlib.sha256(json.dumps([__version__, VERSION, stats]).encode()).hexdigest()[:16]
+    root = cache_dir()
+    memo = None if root is None else root / "code" / f"{sig}.txt"
+    if memo is not None and memo.is_file():
+        with contextlib.suppress(OSError):
+            text = memo.read_text().strip()
+            if len(text) == 16:
+                return text
+    h = hashlib.sha256(f"{__version__}/{VERSION}".encode())
+    for f in files:
+        h.update(str(f.relative_to(pkg)).encode())
+        h.update(f.read_bytes())
+    out = h.hexdigest()[:16]
+    if memo is not None:
+        with contextlib.suppress(OSError):
+            memo.parent.mkdir(exist_ok=True)
+            atomic_write(memo, out + "\n", overwrite=True)
+    return out
 
 
 def _targets(presets: str | os.PathLike | None) -> list[tuple[str, int, dict[str, Any]]]:
