@@ -19,8 +19,8 @@ Example:
     'pool'
     >>> presets_from_arg("pool", None).name
     'presets.toml'
-    >>> default_choice("pool", "low_light@2"), default_choice(None, "dim:0.8")
-    ('pool', None)
+    >>> default_choice("pool", "low_light@2")  # given: as given (not given: $WEATHER_GYM_PRESETS, else resolved)
+    'pool'
 """
 
 from __future__ import annotations
