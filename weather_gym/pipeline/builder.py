@@ -139,7 +139,8 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
         detector = sc_detector if detector is None else detector
         perception_kwargs = {**sc_kwargs, **dict(perception_kwargs or {})}
     overrides = {**mode.env_overrides, **overrides}
-    env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
+    config = build_config(sc, overrides)
+    env: gym.Env = ConeTrackEnv(config, render_mode=render_mode)
     try:
         spec = _weather_spec(sc, weather, severity)
         if presets == "pool":
@@ -148,7 +149,7 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
             # the default: resolved for this env where its frames go through the weather (the surrogate's
             # table holds the pool presets' k's; ground truth and LiDAR see no camera weather)
             images = mode.renders_frames and mode.takes_weather
-            presets = default_presets(spec, env.unwrapped.config, detector if mode.runs_detector else None,
+            presets = default_presets(spec, config, detector if mode.runs_detector else None,
                                       force=presets == "resolved") if images else None
         if presets is not None and spec is not None:
             spec = WeatherSpec(spec, str(presets))

@@ -38,4 +38,5 @@ def default_presets(spec: Any, config: Any, detector: Any = None, *, force: bool
         return None
     module, _, name = RESOLVER.partition(":")
     resolver = getattr(importlib.import_module(module), name)
-    return resolver(spec, config, detector)
+    path = resolver(spec, config, detector)
+    return None if path is None else str(path)
