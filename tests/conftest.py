@@ -61,10 +61,13 @@ def real_dataset(real_frames_src, tmp_path_factory) -> Path:
 
 @pytest.fixture(autouse=True, scope="session")
 def _pool_presets_and_private_cache(tmp_path_factory):
-    """Every test reads the shipped pool presets (``CONDITION@SEVERITY`` does not resolve anything) and a
+    """The suite pins the shipped pool presets (``WEATHER_GYM_PRESETS=pool``): a ``CONDITION@SEVERITY`` in a
+    test that does not test resolution reads the pool's k and resolves nothing (the default, presets
+    resolved per scenario, costs about a minute per new scenario). The tests of the default unset it
+    themselves (tests/lab/calibration/test_resolve.py, tests/pipeline/test_presets_default.py). A
     resolution, where a test runs one, caches into a session folder, never the user's cache."""
     saved = {k: os.environ.get(k) for k in ("WEATHER_GYM_PRESETS", "WEATHER_GYM_CACHE")}
-    os.environ.pop("WEATHER_GYM_PRESETS", None)
+    os.environ["WEATHER_GYM_PRESETS"] = "pool"
     os.environ["WEATHER_GYM_CACHE"] = str(tmp_path_factory.mktemp("weather-gym-cache"))
     yield
     for k, v in saved.items():

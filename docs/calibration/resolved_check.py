@@ -7,6 +7,12 @@ mAP@0.5 over blue and yellow, mean and sd over seeds). Writes ``OUT/resolved_che
 each scenario's resolved presets and curve plot (``OUT/<scenario>.toml``, ``.png``).
 
     python docs/calibration/resolved_check.py --out docs/calibration/resolved skidpad random:90 realistic:small_track
+
+With a user's detector (``--detector yolov8:FILE``: the second detector of ``second_detector.py``), the
+presets are resolved for that detector and the check set is scored with it:
+
+    python docs/calibration/resolved_check.py --out docs/calibration/resolved_yolov8 \
+        --detector yolov8:docs/calibration/second_detector/yolov8_conenet_s4.onnx skidpad realistic:small_track
 """
 
 from __future__ import annotations
@@ -57,7 +63,7 @@ def main() -> None:
                            frames_per_episode=4, progress=False, overwrite=True)
         ds = load_coco(check, cache_images=True)
         det = load_detector(sc.detector)
-        clear = score_dataset(ds, det, None).map50_blue_yellow
+        clear = score_dataset(ds, det, None, batch_size=1, progress=False).map50_blue_yellow
         for r in res.rows:
             if r.severity == 0:
                 continue
@@ -66,7 +72,8 @@ def main() -> None:
                    "ref_frames": res.n_frames, "ref_achieved": round(r.achieved, 4), "ref_se": r.se}
             for which, k in (("pool", r.k_pool), ("resolved", r.k)):
                 table = dict(r.effect, k=k)
-                vals = [score_dataset(ds, det, [table], seed=s).map50_blue_yellow / clear for s in range(args.seeds)]
+                vals = [score_dataset(ds, det, [table], seed=s, batch_size=1, progress=False).map50_blue_yellow / clear
+                        for s in range(args.seeds)]
                 out[f"{which}_mean"], out[f"{which}_sd"] = round(float(np.mean(vals)), 4), round(float(np.std(vals, ddof=1)), 4)
             rows.append(out)
             print(out, flush=True)

@@ -1,14 +1,16 @@
 """``--presets pool|resolved|FILE``: which k a ``CONDITION@SEVERITY`` means, for every command that takes weather.
 
+* ``resolved`` - resolved for the command's own scenario (track, camera, world, detector): the k that makes
+  this scenario's detector lose what the study measured (``weather_gym.lab.calibration.resolve``; a minute
+  or so the first time a scenario is used, cached after);
 * ``pool`` - the shipped presets, calibrated once on the pool of tracks for the shipped detector (fast; the
   meaning of older results);
-* ``resolved`` - resolved for the command's own scenario (track, camera, world, detector): the k that makes
-  this scenario's detector lose what the study measured (``weather_gym.lab.calibration.resolve``; minutes the
-  first time, cached after);
 * ``FILE`` - a presets file (``weather-gym calibrate --track ... --out FILE`` writes one).
 
-Not given: ``$WEATHER_GYM_PRESETS`` when set (a file, or ``pool``), else ``pool``. Explicit ``NAME:K`` specs
-are never changed.
+Not given (:func:`default_choice`): ``$WEATHER_GYM_PRESETS`` when set (``pool``, ``resolved`` or a file),
+else ``resolved`` where the command has a scenario and its weather names a preset that resolution changes
+(``lap``, ``evaluate``, ``degrade --reference DIR``), else the pool presets. Explicit ``NAME:K`` specs are
+never changed.
 
 Example:
     >>> import argparse
@@ -17,6 +19,8 @@ Example:
     'pool'
     >>> presets_from_arg("pool", None).name
     'presets.toml'
+    >>> default_choice("pool", "low_light@2")  # given: as given (not given: $WEATHER_GYM_PRESETS, else resolved)
+    'pool'
 """
 
 from __future__ import annotations
@@ -29,19 +33,36 @@ from weather_gym.core._io import declare_inputs
 from weather_gym.core.errors import MissingInputError, ResolutionError
 from weather_gym.envs.registration import scenario_of
 from weather_gym.envs.scenario import build_config
-from weather_gym.lab.calibration.resolve import Resolution, Scenario, resolve_presets
-from weather_gym.weather.presets import DEFAULT_PRESETS, load_presets
+from weather_gym.lab.calibration.resolve import Resolution, Scenario, resolve_presets, resolves
+from weather_gym.weather.presets import DEFAULT_PRESETS, load_presets, presets_meaning
 
-__all__ = ["add_presets_arg", "env_scenario", "presets_from_arg", "resolution_lines"]
+__all__ = ["add_presets_arg", "default_choice", "env_scenario", "presets_from_arg", "resolution_lines"]
 
 
 def add_presets_arg(p: Any) -> None:
     """Add ``--presets`` to the parser ``p``."""
     p.add_argument("--presets", default=None, metavar="pool|resolved|FILE",
-                   help="what CONDITION@SEVERITY means: 'pool' (the shipped presets, calibrated on the pool of "
-                        "tracks), 'resolved' (k resolved for this run's track, camera, world and detector; "
-                        "minutes the first time, cached after; docs/calibration.md) or a presets FILE "
-                        "(default: $WEATHER_GYM_PRESETS, else pool)")
+                   help="what CONDITION@SEVERITY means: 'resolved' (k resolved for this run's track, camera, world "
+                        "and detector; about a minute the first time, cached after; docs/calibration.md), 'pool' "
+                        "(the shipped presets, calibrated on the pool of tracks) or a presets FILE (default: "
+                        "$WEATHER_GYM_PRESETS, else resolved where the run has a scenario)")
+
+
+def default_choice(value: str | None, weather: Any, mode: Any = None) -> str | None:
+    """``--presets`` as given, or its default for ``weather`` (any weather spec, or a list of
+    ``(condition, severity)``): ``$WEATHER_GYM_PRESETS``'s meaning, ``resolved`` when it is unset and
+    ``weather`` names a preset that resolution changes (a calibrated ``CONDITION@SEVERITY``, severity above 0),
+    else None (the weather layer's default: the pool presets, or the file ``$WEATHER_GYM_PRESETS`` names).
+    ``mode``: the perception mode of the run; one whose camera frames do not go through the weather (the
+    surrogate, whose table holds the pool presets' k's; ground truth; LiDAR) keeps the pool presets."""
+    if value is not None:
+        return value
+    if mode is not None and not (mode.renders_frames and mode.takes_weather):
+        return None
+    meaning = presets_meaning()
+    if meaning == "pool":
+        return "pool"
+    return "resolved" if meaning == "resolved" and resolves(weather) else None
 
 
 def env_scenario(env_id: str, track: str | None, detector: Any = None,

@@ -68,6 +68,7 @@ from weather_gym.ros.degrade import degrade_bag
 from weather_gym.viz.video import VideoWriter, check_free_space
 from weather_gym.weather import to_spec, weather_source
 from weather_gym.weather.option import add_weather_arg, weather_from_arg
+from weather_gym.weather.presets import presets_meaning
 
 IMAGE_EXTS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_EXTS = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm")
@@ -275,16 +276,26 @@ def _bag(weather, args) -> int:
     return 0
 
 
+def _presets(args):
+    """``--presets`` of degrade: resolved on ``--reference DIR`` (the default with one), else the pool or a file."""
+    choice = args.presets
+    if choice is None and args.reference is not None and presets_meaning() == "resolved":
+        choice = "resolved"  # the default: resolved on the clear recording given; without one (no scenario), the pool
+    if args.reference is not None and choice != "resolved":
+        raise InputError("--reference is the clear recording presets are resolved on; it goes with --presets resolved "
+                         "(the default unless WEATHER_GYM_PRESETS says otherwise)")
+    if choice == "resolved" and args.reference is None:
+        raise InputError("--presets resolved needs --reference DIR: a clear COCO recording of the scenario to resolve on")
+    presets = presets_from_arg(choice, None if args.reference is None else
+                               (lambda: Scenario(dataset=str(args.reference))), progress=not args.quiet)
+    return presets
+
+
 def _run(args) -> int:
     if args.weather is None:
         raise InputError("give the weather with --weather SPEC (e.g. droplets:0.55, low_light@2 or "
                          "droplets:0.55,dim:0.3)")
-    if args.reference is not None and args.presets != "resolved":
-        raise InputError("--reference is the clear recording presets are resolved on; it goes with --presets resolved")
-    if args.presets == "resolved" and args.reference is None:
-        raise InputError("--presets resolved needs --reference DIR: a clear COCO recording of the scenario to resolve on")
-    presets = presets_from_arg(args.presets, None if args.reference is None else
-                               (lambda: Scenario(dataset=str(args.reference))), progress=not args.quiet)
+    presets = _presets(args)
     weather = weather_from_arg(args.weather, presets=presets)
     source = weather_source(args.weather, presets)
     if source != "given" and weather is not None:

@@ -33,7 +33,7 @@ from pathlib import Path
 from weather_gym.agents import agent_observes
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
-from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
+from weather_gym.cli._presets_arg import add_presets_arg, default_choice, env_scenario, presets_from_arg
 from weather_gym.cli._runner_args import add_runner_args, check_runner_args
 from weather_gym.cli.lap import parse_agent_args
 from weather_gym.core._option_alias import OneDefaultFormatter, alias
@@ -52,6 +52,7 @@ from weather_gym.lab.evaluation.runner import check_results_path
 from weather_gym.lab.evaluation.sensors import write_sensor_report
 from weather_gym.pipeline.modes import PERCEPTION_MODES, auto_mode, modes_where, perception_mode
 from weather_gym.ros.episode_bag import BAG_IMAGES
+from weather_gym.weather.presets import ALIASES, CONDITIONS
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -170,10 +171,18 @@ def _agent_kwargs(args) -> dict:
     return given
 
 
+def _preset_cells(args) -> list[tuple[str, int]]:
+    """The ``(condition, severity)`` cells of the grid that read presets (effect names that are not conditions do not)."""
+    conds = [e for e in _names(args.effects) if e in CONDITIONS or e in ALIASES]
+    return [(c, s) for c in conds for s in _ints("--severities", args.severities)]
+
+
 def _presets(args) -> str | dict[str, str] | None:
     """``--presets``: a file (pool, FILE) for every track, or with ``resolved`` one per track, resolved for it."""
-    if args.presets != "resolved":
-        path = presets_from_arg(args.presets, None)
+    mode = None if args.perception == "auto" else perception_mode(args.perception)
+    choice = default_choice(args.presets, _preset_cells(args), mode)
+    if choice != "resolved":
+        path = presets_from_arg(choice, None)
         return None if path is None else str(path)
     detector = detector_spec_from_args(args) if perception_mode(args.perception).runs_detector else None
     env_kwargs = _json_arg("--env-kwargs", args.env_kwargs)

@@ -34,7 +34,7 @@ from weather_gym.agents import AGENTS, agent_factory, agent_observes
 from weather_gym.agents.mapper import MapperConfig
 from weather_gym.cli._detector_args import add_detector_args, detector_spec_from_args
 from weather_gym.cli._help import literal
-from weather_gym.cli._presets_arg import add_presets_arg, env_scenario, presets_from_arg
+from weather_gym.cli._presets_arg import add_presets_arg, default_choice, env_scenario, presets_from_arg
 from weather_gym.cli._seed_arg import seed_arg
 from weather_gym.core._io import atomic_write, check_output
 from weather_gym.core._option_alias import alias
@@ -185,7 +185,9 @@ def _run(args) -> int:
         check_output(args.json, overwrite=args.overwrite, suffixes=(".json",), what="--json")
     detector = detector_spec_from_args(args)
     agent_kwargs = parse_agent_args(args.agent_arg)
-    presets = presets_from_arg(args.presets, lambda: env_scenario(args.env, args.track, detector))
+    mode = auto_mode(agent_observes(args.agent)) if args.perception == AUTO else perception_mode(args.perception)
+    presets = presets_from_arg(default_choice(args.presets, args.weather, mode),
+                               lambda: env_scenario(args.env, args.track, detector))
     result = run_laps(
         env_id=args.env, track=args.track, agent=args.agent, agent_kwargs=agent_kwargs, weather=args.weather,
         perception=args.perception, detector=detector, laps=args.laps, seed=args.seed,
@@ -270,7 +272,8 @@ def run_laps(*, env_id: str = "WeatherGym/ConeTrack-v0", track: str | None = Non
 
     The env comes from :func:`weather_gym.pipeline.make_env` (its ``TimeLimit`` is ``max_steps``)
     and the episode from :func:`weather_gym.pipeline.run_episode`. ``presets``: the presets file a
-    ``CONDITION@SEVERITY`` reads (None: ``$WEATHER_GYM_PRESETS``, else the shipped pool presets); the
+    ``CONDITION@SEVERITY`` reads (None: resolved for the run's scenario, unless ``$WEATHER_GYM_PRESETS`` is
+    ``pool`` or a file: :mod:`weather_gym.pipeline.presets_default`); the
     result's ``weather_k`` and ``weather_source`` say which k was used and where it came from.
     """
 

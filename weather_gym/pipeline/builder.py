@@ -52,7 +52,9 @@ from weather_gym.pipeline.modes import (
     detector_mode,
     perception_mode,
 )
+from weather_gym.pipeline.presets_default import default_presets
 from weather_gym.weather import WeatherSpec
+from weather_gym.weather.presets import DEFAULT_PRESETS
 from weather_gym.wrappers import ConditionsWrapper, EpisodeStatistics
 
 __all__ = ["DEFAULT_ENV_ID", "PERCEPTION_MODES", "make_env", "make_scenario_env", "make_vec_env", "wrap_pipeline"]
@@ -112,7 +114,8 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
     Keywords: ``perception`` (a mode of :data:`PERCEPTION_MODES`; default: the scenario's, else
     ``camera``), ``weather`` (any weather spec, or a condition with ``severity``), ``detector`` and
     ``perception_kwargs`` (see :func:`wrap_pipeline`), ``presets`` (the presets file a ``CONDITION@SEVERITY``
-    reads: None is ``$WEATHER_GYM_PRESETS``, else the shipped pool presets; ``detector=True`` or a dict of
+    reads: None is the presets resolved for this env's scenario, :mod:`weather_gym.pipeline.presets_default`,
+    unless ``$WEATHER_GYM_PRESETS`` is ``pool`` or a file; ``detector=True`` or a dict of
     ``DetectorWrapper`` keywords, the older form, mean ``perception="detector"`` with those keywords);
     the rest override the scenario's ``EnvConfig`` (``track=``, ``camera={"width": 336, "height":
     188}``, ``laps=``...). ``env_checker=True`` (what the registered ids pass) puts Gymnasium's passive
@@ -137,9 +140,18 @@ def make_scenario_env(scenario: str, render_mode: str | None = None, *, percepti
         detector = sc_detector if detector is None else detector
         perception_kwargs = {**sc_kwargs, **dict(perception_kwargs or {})}
     overrides = {**mode.env_overrides, **overrides}
-    env: gym.Env = ConeTrackEnv(build_config(sc, overrides), render_mode=render_mode)
+    config = build_config(sc, overrides)
+    env: gym.Env = ConeTrackEnv(config, render_mode=render_mode)
     try:
         spec = _weather_spec(sc, weather, severity)
+        if presets == "pool":
+            presets = DEFAULT_PRESETS
+        elif presets in (None, "resolved") and not isinstance(spec, WeatherSpec):
+            # the default: resolved for this env where its frames go through the weather (the surrogate's
+            # table holds the pool presets' k's; ground truth and LiDAR see no camera weather)
+            images = mode.renders_frames and mode.takes_weather
+            presets = default_presets(spec, config, detector if mode.runs_detector else None,
+                                      force=presets == "resolved") if images else None
         if presets is not None and spec is not None:
             spec = WeatherSpec(spec, str(presets))
         env = wrap_pipeline(env, weather=spec, perception=perception, detector=detector,
@@ -186,10 +198,11 @@ def make_env(env_id: str = DEFAULT_ENV_ID, *, perception: str | None = None, wea
             ``TimeLimit`` is ``max_episode_s * control_hz`` steps, so ``sim={"control_hz": 60}`` gets
             twice the steps of 30 Hz. Give this or ``max_episode_steps``, not both.
         episode_statistics: add :class:`~weather_gym.wrappers.EpisodeStatistics`.
-        presets: the presets file that ``CONDITION@SEVERITY`` weather reads (default: ``$WEATHER_GYM_PRESETS``,
-            else the shipped pool presets): e.g. the file ``weather_gym.lab.calibration.resolve.resolve_presets``
-            resolved for this track, camera and detector (docs/calibration.md). ``info["weather_source"]`` says
-            which one a frame's k came from.
+        presets: the presets file that ``CONDITION@SEVERITY`` weather reads. Default: resolved for this
+            env's track, world, camera and detector (cached; minutes the first time a scenario is used;
+            :mod:`weather_gym.pipeline.presets_default`), unless ``$WEATHER_GYM_PRESETS`` is ``pool`` (the
+            shipped pool presets) or a file (docs/calibration.md). ``info["weather_source"]`` says which
+            one a frame's k came from.
         conditions: one physical weather state for the camera, the LiDAR and the tyres
             (``"rain:8mm/h+fog:60m"``, :mod:`weather_gym.conditions`): a
             :class:`~weather_gym.wrappers.ConditionsWrapper` on top; not with ``weather`` or a ``lidar_weather``.

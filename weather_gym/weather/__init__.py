@@ -62,13 +62,20 @@ from weather_gym.weather.presets import __getattr__ as __getattr__  # CONDITIONS
 from weather_gym.weather.rain import Rain
 from weather_gym.weather.registry import EFFECTS, make, register_effect
 from weather_gym.weather.schedule import Ramp
-from weather_gym.weather.spec import WeatherSpec, current_spec, parse_weather, to_spec, weather_source
+from weather_gym.weather.spec import (
+    WeatherSpec,
+    current_spec,
+    parse_weather,
+    preset_items,
+    to_spec,
+    weather_source,
+)
 from weather_gym.weather.vignette import Vignette
 
 __all__ = [
     "CONDITIONS", "DEFAULT_SEED", "EFFECTS", "PRESETS_ENV", "SEVERITIES", "STATE_KEYS",
     "Blur", "Compose", "Dim", "Droplets", "Effect", "EffectRun", "Exposure", "Fog", "Glare", "Jpeg", "KnobEffect",
     "MotionBlur", "Noise", "Rain", "Ramp", "Vignette", "WeatherSpec",
-    "current_spec", "load_presets", "make", "parse_weather", "preset_entry", "preset_source", "preset_spec",
+    "current_spec", "load_presets", "make", "parse_weather", "preset_entry", "preset_items", "preset_source", "preset_spec",
     "register_effect", "to_spec", "weather_source",
 ]

@@ -46,7 +46,7 @@ from weather_gym.weather.tables import effect_from_table
 
 __all__ = ["DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "STUDY_CONDITIONS", "aliases",
            "canonical_condition", "conditions", "load_presets", "nominal_rows", "preset_entry", "preset_source",
-           "preset_spec", "presets_path"]
+           "preset_spec", "presets_meaning", "presets_path"]
 
 #: The reference study's conditions (its Table 2), listed first.
 STUDY_CONDITIONS = ("droplets", "low_light")
@@ -54,9 +54,14 @@ SEVERITIES = (0, 1, 2, 3, 4)
 #: The shipped table.
 DEFAULT_PRESETS = Path(__file__).with_name("presets.toml")
 
-#: Environment variable that switches the presets every ``CONDITION@SEVERITY`` reads when none is given:
-#: a presets file (e.g. one ``weather-gym calibrate --track`` resolved), or ``pool`` / unset: the shipped one.
+#: Environment variable that switches what ``CONDITION@SEVERITY`` means when no presets file is given:
+#: unset or ``resolved`` - resolved for the scenario where one is known (an env, ``lap``, ``evaluate``,
+#: ``degrade --reference``; docs/calibration.md), the shipped pool presets where none is (a bare
+#: ``parse_weather``, a ``WeatherWrapper`` around another env); ``pool`` - the shipped pool presets
+#: everywhere; a presets file (e.g. one ``weather-gym calibrate --track`` resolved) - that file everywhere.
 PRESETS_ENV = "WEATHER_GYM_PRESETS"
+#: The values of :data:`PRESETS_ENV` that name a meaning, not a file.
+PRESETS_MEANINGS = ("resolved", "pool")
 
 _NOMINAL_NOTE = "nominal: k = severity / 4 over the effect's designed range [0, 1]; not measured"
 _NOMINAL_WORDS = ("", "light", "moderate", "heavy", "severe")
@@ -105,11 +110,24 @@ _CACHE: dict[tuple[str, int], dict[str, Any]] = {}
 
 
 def presets_path(path: str | os.PathLike | None = None) -> Path:
-    """The presets file in use: ``path``, else ``$WEATHER_GYM_PRESETS`` (a file), else the shipped pool presets."""
+    """The presets file in use: ``path``, else ``$WEATHER_GYM_PRESETS`` (a file), else the shipped pool presets
+    (this layer knows no scenario to resolve for: the env and the commands resolve, see :func:`presets_meaning`)."""
     if path is not None:
         return Path(path)
     env = os.environ.get(PRESETS_ENV, "").strip()
-    return DEFAULT_PRESETS if env in ("", "pool") else Path(env)
+    return DEFAULT_PRESETS if env in ("", *PRESETS_MEANINGS) else Path(env)
+
+
+def presets_meaning() -> str:
+    """What ``CONDITION@SEVERITY`` means where no presets file is given, from ``$WEATHER_GYM_PRESETS``:
+    ``"resolved"`` (unset or ``resolved``: the default), ``"pool"``, or ``"file"`` (it names a file).
+
+    Example:
+        >>> presets_meaning() in ("resolved", "pool", "file")
+        True
+    """
+    env = os.environ.get(PRESETS_ENV, "").strip()
+    return "resolved" if env in ("", "resolved") else "pool" if env == "pool" else "file"
 
 
 def preset_source(path: str | os.PathLike | None = None) -> str:

@@ -43,12 +43,13 @@ from typing import Any
 from weather_gym.core.errors import InputError
 from weather_gym.weather.base import Effect, EffectRun, KnobEffect
 from weather_gym.weather.compose import Compose
-from weather_gym.weather.presets import preset_source, preset_spec
+from weather_gym.weather.presets import canonical_condition, preset_source, preset_spec
 from weather_gym.weather.registry import RESERVED, make
 from weather_gym.weather.schedule import Ramp
 from weather_gym.weather.tables import effect_from_table
 
-__all__ = ["WeatherSpec", "current_spec", "parse_open_k", "parse_weather", "to_spec", "weather_source"]
+__all__ = ["WeatherSpec", "current_spec", "parse_open_k", "parse_weather", "preset_items", "to_spec",
+           "weather_source"]
 
 _CLEAR = ("clear", "none")
 
@@ -85,6 +86,31 @@ def _uses_preset(spec: Any) -> bool:
     if isinstance(spec, Sequence) and not isinstance(spec, str | bytes):
         return any(_uses_preset(x) for x in spec)
     return False
+
+
+def preset_items(spec: Any) -> list[tuple[str, int]]:
+    """The ``(condition, severity)`` items of ``spec`` that read a presets table (``CONDITION@SEVERITY``
+    strings, ``(condition, severity)`` tuples), canonical names; explicit ``NAME:K`` items and effects are not.
+
+    Example:
+        >>> preset_items("low_light@2,droplets:0.3"), preset_items({"dim": 0.5})
+        ([('low_light', 2)], [])
+    """
+    if isinstance(spec, WeatherSpec):
+        return preset_items(spec.spec)
+    if isinstance(spec, str):
+        out = []
+        for raw in spec.split(","):
+            cond, at, sev = raw.strip().partition("@")
+            if at and sev.strip().lstrip("-").isdigit():
+                out.append((canonical_condition(cond.strip()), int(sev)))
+        return out
+    if (isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str)
+            and isinstance(spec[1], numbers.Integral) and not isinstance(spec[1], bool)):
+        return [(canonical_condition(spec[0]), int(spec[1]))]
+    if isinstance(spec, Sequence) and not isinstance(spec, bytes | Mapping):
+        return [x for item in spec for x in preset_items(item)]
+    return []
 
 
 def weather_source(spec: Any, presets: str | os.PathLike | None = None) -> str:

@@ -16,6 +16,8 @@ Example:
     >>> m = frame_matches(gt, dt, groups=[0, 1], classes=("blue",), min_box_height=5.0)
     >>> round(m.map50(), 3), round(m.map50(np.array([1.0, 0.0])), 3)
     (0.505, 1.0)
+    >>> m.map50_many(np.array([[1.0, 1.0], [1.0, 0.0]])).round(3).tolist()
+    [0.505, 1.0]
 """
 
 from __future__ import annotations
@@ -71,6 +73,45 @@ class FrameMatches:
         idx = np.searchsorted(rc, _REC_THRS, side="left")
         q = np.where(idx < pr.size, pr[np.minimum(idx, pr.size - 1)], 0.0)
         return float(q.mean())
+
+    def ap50_many(self, c: int, weights: np.ndarray) -> np.ndarray:
+        """:meth:`ap50` of class index ``c`` for each row of ``weights`` ``(B, n_groups)`` at once (one sort;
+        a group of weight 0 adds nothing to the running sums, so the AP equals :meth:`ap50`'s)."""
+        w = np.asarray(weights, dtype=np.float64)
+        npos = w @ self.npos[c]
+        out = np.full(w.shape[0], math.nan)
+        has = npos > 0
+        groups = [g for g in range(self.n_groups) if self.scores[c][g].size]
+        if not groups:
+            out[has] = 0.0
+            return out
+        sc = np.concatenate([self.scores[c][g] for g in groups])
+        tp = np.concatenate([self.tp[c][g] for g in groups])
+        grp = np.concatenate([np.full(self.scores[c][g].size, g) for g in groups])
+        order = np.argsort(-sc, kind="mergesort")
+        tp, grp = tp[order], grp[order]
+        wd = w[:, grp]
+        tps = np.cumsum(wd * tp, axis=1)
+        fps = np.cumsum(wd * (1.0 - tp), axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rc = tps / npos[:, None]
+        pr = tps / (tps + fps + np.spacing(1))
+        pr = np.maximum.accumulate(pr[:, ::-1], axis=1)[:, ::-1]
+        for b in np.flatnonzero(has):
+            if not np.any(wd[b]):
+                out[b] = 0.0
+                continue
+            idx = np.searchsorted(rc[b], _REC_THRS, side="left")
+            out[b] = np.where(idx < pr.shape[1], pr[b, np.minimum(idx, pr.shape[1] - 1)], 0.0).mean()
+        return out
+
+    def map50_many(self, weights: np.ndarray) -> np.ndarray:
+        """:meth:`map50` for each row of ``weights`` ``(B, n_groups)``: a bootstrap's replicates in one pass."""
+        aps = np.stack([self.ap50_many(c, weights) for c in range(len(self.classes))])
+        cnt = np.sum(~np.isnan(aps), axis=0)
+        tot = np.nansum(aps, axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(cnt > 0, tot / np.maximum(cnt, 1), math.nan)
 
     def map50(self, weights: np.ndarray | None = None) -> float:
         """Mean AP@0.5 over the classes that have cones (NaN when none has)."""

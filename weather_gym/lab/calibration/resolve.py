@@ -67,9 +67,10 @@ from weather_gym.perception.detector_spec import DEFAULT_MODEL, load_detector, p
 from weather_gym.perception.scoring import small_rule
 from weather_gym.weather import make
 from weather_gym.weather.presets import DEFAULT_PRESETS, SEVERITIES, conditions, load_presets, nominal_rows
+from weather_gym.weather.spec import preset_items
 
 __all__ = ["CACHE_ENV", "MIN_CLEAR_MAP", "MIN_CONES", "Resolution", "ResolvedRow", "Scenario", "cache_dir",
-           "code_version", "resolution_key", "resolve_presets"]
+           "code_version", "presets_for_env", "resolution_key", "resolve_presets", "resolves"]
 
 CACHE_ENV = "WEATHER_GYM_CACHE"
 """Environment variable naming the cache folder (``off``: no cache); default ``$XDG_CACHE_HOME/weather-gym``
@@ -78,13 +79,16 @@ MIN_CONES = 100
 """Fewest blue and yellow cones (that count: not too small) a reference set needs to measure a drop."""
 MIN_CLEAR_MAP = 0.3
 """Lowest clear mAP@0.5 (blue and yellow) at which a relative drop is measured."""
-HIT = 0.005
-"""A measured point this close to the target ends a row's search."""
+HIT = 0.01
+"""A measured point this close to the target ends a row's search (half the ``tolerance`` the bootstrap
+holds the damage to: a closer search would chase the reference set's own sampling error)."""
 MAX_EVALS = 8
 """Most k values measured per row and set."""
 BOOTSTRAP = 200
 """Bootstrap replicates (over episodes) of the damage at the resolved k."""
-VERSION = 1
+DETECT_BATCH = 1
+"""Frames per detector call while resolving (CPU per frame grows with the batch: ``weather-gym bench resolve``)."""
+VERSION = 2
 """Version of this resolution method (part of the cache key)."""
 
 _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coco.py",
@@ -247,16 +251,34 @@ def _sha_cached(path: str, mtime_ns: int, size: int) -> str:
 @lru_cache(maxsize=1)
 def code_version() -> str:
     """16 hex digits of the source of the pieces a resolution depends on (renderer, effects, camera,
-    detector wrappers, scoring, this module) and the package version."""
+    detector wrappers, scoring, this module) and the package version.
+
+    The content hash is remembered in the cache folder under a hash of the files' names, sizes and
+    modification times, so a new process (an env, a worker) stats the files instead of reading them."""
     pkg = PACKAGE
-    h = hashlib.sha256(f"{__version__}/{VERSION}".encode())
+    files = []
     for part in _CODE:
         p = pkg / part
-        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
-        for f in files:
-            h.update(str(f.relative_to(pkg)).encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()[:16]
+        files += sorted(p.rglob("*.py")) if p.is_dir() else [p]
+    stats = [(str(f.relative_to(pkg)), f.stat().st_mtime_ns, f.stat().st_size) for f in files]
+    sig = hashlib.sha256(json.dumps([__version__, VERSION, stats]).encode()).hexdigest()[:16]
+    root = cache_dir()
+    memo = None if root is None else root / "code" / f"{sig}.txt"
+    if memo is not None and memo.is_file():
+        with contextlib.suppress(OSError):
+            text = memo.read_text().strip()
+            if len(text) == 16:
+                return text
+    h = hashlib.sha256(f"{__version__}/{VERSION}".encode())
+    for f in files:
+        h.update(str(f.relative_to(pkg)).encode())
+        h.update(f.read_bytes())
+    out = h.hexdigest()[:16]
+    if memo is not None:
+        with contextlib.suppress(OSError):
+            memo.parent.mkdir(exist_ok=True)
+            atomic_write(memo, out + "\n", overwrite=True)
+    return out
 
 
 def _targets(presets: str | os.PathLike | None) -> list[tuple[str, int, dict[str, Any]]]:
@@ -333,17 +355,37 @@ class _ReferenceSet:
         return sum(len(c["images"]) for c in self.chunks)
 
     def detections(self, label: str, effect: Any, k: float, chunk: int) -> list[Any]:
+        """The detector's detections on every frame of ``chunk`` degraded by ``effect`` at ``k`` (None: clear).
+
+        Frames go through the detector one at a time, as they are degraded (:data:`DETECT_BATCH`: a batch of
+        one costs the shipped detector about half the CPU per frame of a batch of 160, and no degraded set is
+        held in memory); a degraded frame whose bytes equal its clear frame (an effect that leaves it as it is,
+        e.g. at k = 0) reuses the clear frame's detections."""
         key = (label, round(float(k), 6), chunk)
         if key not in self._dets:
             c = self.chunks[chunk]
             ims = c["images"]
-            if effect is not None:
-                out = []
-                for im, d, st, sd in zip(ims, c["depths"], c["states"], c["seeds"], strict=True):
-                    effect.reset(int(sd))
-                    out.append(effect(im, depth=d, state=dict(st), rng=np.random.default_rng(int(sd))))
-                ims = out
-            self._dets[key] = self.detector.detect_batch(ims, score_threshold=0.05)
+            clear = self._dets.get(("clear", 0.0, chunk))
+            out: list[Any] = []
+            for i in range(0, len(ims), DETECT_BATCH):
+                part, todo = [], []
+                for j in range(i, min(i + DETECT_BATCH, len(ims))):
+                    im = ims[j]
+                    if effect is not None:
+                        sd = int(c["seeds"][j])
+                        effect.reset(sd)
+                        im = effect(im, depth=c["depths"][j], state=dict(c["states"][j]), rng=np.random.default_rng(sd))
+                        if clear is not None and im.shape == ims[j].shape and np.array_equal(im, ims[j]):
+                            part.append(clear[j])
+                            continue
+                    part.append(None)
+                    todo.append((len(part) - 1, im))
+                if todo:
+                    found = self.detector.detect_batch([im for _, im in todo], score_threshold=0.05)
+                    for (slot, _), d in zip(todo, found, strict=True):
+                        part[slot] = d
+                out += part
+            self._dets[key] = out
         return self._dets[key]
 
     def matches(self, label: str, effect: Any, k: float) -> FrameMatches:
@@ -409,16 +451,13 @@ def _next_k(points: dict[float, float], target: float, pool: tuple[np.ndarray, n
 
 
 def _bootstrap(clear: FrameMatches, hit: FrameMatches, seed: int) -> tuple[float, tuple[float, float]]:
-    """Standard error and 95 % interval of relative mAP over episodes (``BOOTSTRAP`` replicates)."""
+    """Standard error and 95 % interval of relative mAP over episodes (``BOOTSTRAP`` replicates, all at once)."""
     rng = np.random.default_rng(seed)
     n = clear.n_groups
-    vals = []
-    for _ in range(BOOTSTRAP):
-        w = rng.multinomial(n, np.full(n, 1.0 / n)).astype(np.float64)
-        c = clear.map50(w)
-        if c > 0:
-            vals.append(hit.map50(w) / c)
-    v = np.array(vals)
+    w = rng.multinomial(n, np.full(n, 1.0 / n), size=BOOTSTRAP).astype(np.float64)
+    c = clear.map50_many(w)
+    ok = c > 0
+    v = hit.map50_many(w[ok]) / c[ok]
     return float(np.std(v, ddof=1)), (float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5)))
 
 
@@ -644,3 +683,37 @@ def resolve_many(scenarios: Sequence[Scenario], **kwargs: Any) -> list[Resolutio
     """:func:`resolve_presets` of each scenario in turn (their frames and results cached as each one's)."""
     return [resolve_presets(s, **kwargs) for s in scenarios]
 
+
+
+def resolves(spec: Any, presets: str | os.PathLike | None = None) -> bool:
+    """Whether ``spec`` names a preset that resolution changes: a ``CONDITION@SEVERITY`` item (severity above
+    0) among the rows :func:`resolve_presets` resolves (calibrated, with a relative target).
+
+    Example:
+        >>> resolves("low_light@2"), resolves("low_light@0"), resolves("rain@2"), resolves("dim:0.8")
+        (True, False, False, False)
+    """
+    rows = {(c, s) for c, s, _ in _targets(presets)}
+    return any(sev > 0 and (cond, sev) in rows for cond, sev in preset_items(spec))
+
+
+def presets_for_env(spec: Any, config: EnvConfig, detector: Any = None, *, progress: bool = True) -> str | None:
+    """The presets file ``CONDITION@SEVERITY`` reads by default in an env of ``config`` with ``detector`` in
+    the loop (None: the shipped one, which also stands for an env whose agent sees the images): resolved for
+    its track, world, camera and camera model (cached), or None where ``spec`` names no preset that resolution
+    changes. ``weather_gym.pipeline`` calls it by name (``RESOLVER``), as Gymnasium's ids name their entry point.
+    A detector given as an object (not a spec or file) cannot be keyed: a ``ResolutionError`` says so."""
+    if not resolves(spec):
+        return None
+    if detector is not None and not isinstance(detector, str | os.PathLike):
+        raise ResolutionError(
+            f"presets cannot be resolved for a detector given as a {type(detector).__name__} object (its file is "
+            "what keys the cache): give the detector as a spec ('yolov8:model.onnx'), pass presets= (a file from "
+            "`weather-gym calibrate`), or set WEATHER_GYM_PRESETS=pool for the shipped pool presets")
+    sc = Scenario(tracks=(config.track,), scene=config.sim.scene, camera=config.camera,
+                  camera_model=config.camera_model, detector=None if detector is None else os.fspath(detector))
+    res = resolve_presets(sc, progress=progress)
+    if res.path is None:
+        raise ResolutionError(f"{res.scenario}: resolved, but there is no writable folder to keep the presets file "
+                              "in; set WEATHER_GYM_CACHE to a writable folder")
+    return str(res.path)

@@ -29,6 +29,7 @@ Example:
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import numbers
@@ -74,9 +75,10 @@ from weather_gym.pipeline.modes import (
     detector_mode,
     perception_mode,
 )
+from weather_gym.pipeline.presets_default import default_presets
 from weather_gym.ros.episode_bag import BAG_IMAGES, ConeNoise, EpisodeBag
 from weather_gym.tracks import load_track
-from weather_gym.weather.presets import canonical_condition, preset_source, preset_spec
+from weather_gym.weather.presets import ALIASES, CONDITIONS, canonical_condition, preset_source, preset_spec
 
 __all__ = [
     "CELL_KEY_FIELDS",
@@ -156,7 +158,7 @@ class EvalConfig:
             of ``gymnasium.make`` (e.g. ``{"camera": {"width": 336, "height": 188}}``) and of the
             perception wrapper (``DetectorWrapper``: ``score_threshold``, ``max_cones``...;
             ``GroundTruthConeWrapper``: ``OracleNoise`` fields such as ``miss_prob``).
-        presets: a presets TOML file (default: ``$WEATHER_GYM_PRESETS``, else the shipped ``presets.toml``), or
+        presets: a presets TOML file (default: resolved for each track, unless ``$WEATHER_GYM_PRESETS`` is ``pool`` or a file), or
             one per track (``{track: file}``, e.g. each resolved for its track: ``weather-gym evaluate
             --presets resolved``). ``results.csv`` has the k's in ``weather`` and their source in ``k_source``.
         conditions: physical weather states (``"rain:8mm/h"``, ``"fog:60m+dusk:20lux"``, ``"clear"``;
@@ -300,7 +302,7 @@ def make_cells(config: EvalConfig) -> list[EvalCell]:
         for a in agents:
             _check_agent_kwargs(a, load_track(tracks[0]), env_config.camera, dict(config.agent_kwargs))  # type: ignore[union-attr]  # None for an id without a scenario: AttributeError (a known gap)
 
-    weather, source = _cell_weather(config, mode, tracks, effects, severities)
+    weather, source = _cell_weather(config, mode, tracks, effects, severities, env_config)
     stacks = {a: stack_id(config, a, env_config=env_config) for a in agents}
     cells = [
         EvalCell(agent=a, effect=e, severity=int(s), seed=seed, track=t, env_id=config.env_id,
@@ -341,9 +343,12 @@ def _condition_cells(config: EvalConfig, agents: Sequence[str], tracks: Sequence
 
 
 def _cell_weather(config: EvalConfig, mode: Any, tracks: Sequence[str], effects: Sequence[str],
-                  severities: Sequence[int]) -> tuple[dict[tuple[str, str, int], str], dict[str, str]]:
+                  severities: Sequence[int], env_config: Any = None
+                  ) -> tuple[dict[tuple[str, str, int], str], dict[str, str]]:
     """Every cell's weather (JSON) by (track, effect, severity), and where each track's k come from:
-    the LiDAR's published grids (given), or the presets (per track where ``config.presets`` maps them)."""
+    the LiDAR's published grids (given), or the presets (per track where ``config.presets`` maps them;
+    none given: resolved for each track, the default meaning, where the mode's frames see the weather)."""
+    resolved: dict[str, str | None] = {}
 
     def presets_of(t: str) -> str | None:
         if isinstance(config.presets, Mapping):
@@ -351,6 +356,12 @@ def _cell_weather(config: EvalConfig, mode: Any, tracks: Sequence[str], effects:
                 raise InputError(f"presets per track: no presets file for track {t!r} (given for "
                                  f"{', '.join(map(repr, config.presets))})")
             return config.presets[t]
+        if config.presets is None and env_config is not None and mode.renders_frames and mode.takes_weather:
+            if t not in resolved:
+                cells = [(e, s) for e in effects for s in severities if e in CONDITIONS or e in ALIASES]
+                detector = config.perception_kwargs.get("detector") if mode.runs_detector else None
+                resolved[t] = default_presets(cells, dataclasses.replace(env_config, track=t), detector)
+            return resolved[t]
         return config.presets
 
     if mode.takes_lidar_weather:  # the LiDAR's own weather: effects fog, rain, snow, wet at severities 0-5
