@@ -31,9 +31,11 @@ def test_fused_cones_carry_lidar_positions_and_camera_colours():
 
 def test_a_teams_own_rule_is_used():
     calls = []
+    given = []
 
     def lidar_only(camera: SensorCones, lidar: SensorCones) -> SensorCones:
         calls.append((len(camera), len(lidar)))
+        given.append(lidar)
         return lidar
 
     env = make_env(perception="fused", camera=SMALL, max_episode_steps=10,
@@ -42,7 +44,13 @@ def test_a_teams_own_rule_is_used():
         obs, info = env.reset(seed=0)
         env.step(np.zeros(2, np.float32))
         assert len(calls) == 2 and info["fusion_sources"]["camera"] == 0
-        assert (obs["cones"][obs["mask"].astype(bool), :4] == 0).all()  # no colour: LiDAR only
+        onehot = obs["cones"][obs["mask"].astype(bool), :4]  # the colours are the LiDAR's (its stripes) only
+        lidar = given[-1]
+        assert len(onehot) == len(lidar)
+        expected = np.zeros_like(onehot)
+        known = lidar.classes >= 0
+        expected[np.flatnonzero(known), lidar.classes[known]] = 1.0
+        assert sorted(map(tuple, onehot)) == sorted(map(tuple, expected))
     finally:
         env.close()
     with pytest.raises(InputError, match="callable"):
