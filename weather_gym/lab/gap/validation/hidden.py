@@ -196,7 +196,10 @@ def apply_family(family: str, p: dict[str, Any], img: np.ndarray, depth: np.ndar
         ok, buf = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, p["quality"]])
         if not ok:
             raise RuntimeError("OpenCV could not encode a JPEG")
-        return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        dec = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        if dec is None:
+            raise RuntimeError("OpenCV could not decode its own JPEG")
+        return cv2.cvtColor(dec, cv2.COLOR_BGR2RGB)
     if family == "haze":
         d = _pseudo_depth(h, w) if depth is None else np.nan_to_num(
             cv2.resize(depth.astype(np.float32), (w, h), interpolation=cv2.INTER_NEAREST), nan=80.0, posinf=80.0)
@@ -217,10 +220,10 @@ def _pchip(xs: list[float], ys: list[float], grid: np.ndarray) -> np.ndarray:
         if dk[i - 1] * dk[i] > 0:
             w1, w2 = 2 * hk[i] + hk[i - 1], hk[i] + 2 * hk[i - 1]
             m[i] = (w1 + w2) / (w1 / dk[i - 1] + w2 / dk[i])
-    i = np.clip(np.searchsorted(x, grid, side="right") - 1, 0, len(x) - 2)
-    t = (grid - x[i]) / hk[i]
+    j = np.clip(np.searchsorted(x, grid, side="right") - 1, 0, len(x) - 2)
+    t = (grid - x[j]) / hk[j]
     h00, h10, h01, h11 = 2 * t ** 3 - 3 * t ** 2 + 1, t ** 3 - 2 * t ** 2 + t, -2 * t ** 3 + 3 * t ** 2, t ** 3 - t ** 2
-    return h00 * y[i] + h10 * hk[i] * m[i] + h01 * y[i + 1] + h11 * hk[i] * m[i + 1]
+    return h00 * y[j] + h10 * hk[j] * m[j] + h01 * y[j + 1] + h11 * hk[j] * m[j + 1]
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,6 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 
 from weather_gym.lab.gap.validation.hidden import FAMILIES, HiddenCase, draw_case
 
@@ -223,16 +222,17 @@ def run_validation(root: str | os.PathLike, *, split: str, settings: Sequence[st
                 if key in done:
                     out.append(done[key])
                     continue
-                r = run_case(root, split, setting, draw_case(family, seed), frames=frames, width=width, shared=shared)
-                if r is None:
+                got = run_case(root, split, setting, draw_case(family, seed), frames=frames, width=width,
+                               shared=shared)
+                if got is None:
                     if log:
                         log(f"{setting}: real frames absent, skipped")
                     break
-                out.append(r)
+                out.append(got)
                 with done_path.open("a") as f:
-                    f.write(json.dumps(asdict(r)) + "\n")
+                    f.write(json.dumps(asdict(got)) + "\n")
                 if log:
-                    log(json.dumps(asdict(r)))
+                    log(json.dumps(asdict(got)))
     return out
 
 
