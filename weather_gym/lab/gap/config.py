@@ -64,8 +64,9 @@ when the fall-off to the corners disagrees."""
 
 SECOND_SHARE = 0.15
 """A second (third, ...) effect is added only when, on its own, it cuts at least this share of the
-remaining held-out gap above the floor (:meth:`~weather_gym.lab.gap.session.GapSession.floor`);
-otherwise it is reported as a candidate (``candidates``), not added."""
+remaining held-out gap above the floor (:meth:`~weather_gym.lab.gap.session.GapSession.floor`) and
+cuts at least the floor itself (unpaired: less than two sets of clean frames differ by cannot be told
+from the scene); otherwise it is reported as a candidate (``candidates``), not added."""
 
 FLOOR_MARGIN = 1.0
 """Unpaired, the loop stops once the held-out gap is within this factor of the floor (clear against

@@ -119,10 +119,12 @@ class SearchSteps(SessionHost):
             self.candidates.append({"name": f.effect.name, "describe": describe(f.effect), "step": len(self.steps) + 1,
                                     "gap_before": test["gap_before"], "gap_after": test["gap_after"],
                                     "floor": floor, "share": share, "p_value": test["p_value"], "why": why})
-        elif ok and self.steps and not force and share < SECOND_SHARE:
+        elif ok and self.steps and not force and (share < SECOND_SHARE
+                                                  or test["gap_before"] - test["gap_after"] < floor):
             # a further effect must explain a real part of what is left above the floor on its own
             ok, why = False, (f"explains {max(share, 0.0):.0%} of the remaining gap above the floor "
-                              f"({test['gap_before']:.2f} - {floor:.2f}); needs {SECOND_SHARE:.0%}")
+                              f"({test['gap_before']:.2f} - {floor:.2f}): a further effect needs {SECOND_SHARE:.0%}, "
+                              "and a cut of at least the floor (clear against clear)")
             self.candidates.append({"name": f.effect.name, "describe": describe(f.effect), "step": len(self.steps) + 1,
                                     "gap_before": test["gap_before"], "gap_after": test["gap_after"],
                                     "floor": floor, "share": share, "p_value": test["p_value"], "why": why})

@@ -140,6 +140,10 @@ def _camera_model_of(ds: Any) -> CameraModel:
     return EnvConfig().camera_model
 
 
+RANDOM_LOOK_FRAMES = 3
+"""Frames per episode (per random look) of unpaired renders whose measured set drew random looks."""
+
+
 def _randomized(ds: Any) -> bool:
     """Whether the measured set says its looks were drawn at random (``info.randomize``, as
     ``weather-gym dataset render --randomize`` writes it)."""
@@ -153,8 +157,10 @@ def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: in
     key = _key({**spec, "randomize": True} if randomize else spec)
     out = cache_dir / f"unpaired-{key}"
     if not (out / ANNOTATIONS).is_file():
+        # random looks: a new one every few frames, so that the set spans them (not two or three)
+        episodes: dict[str, Any] = {"randomize": True, "frames_per_episode": RANDOM_LOOK_FRAMES} if randomize else {}
         render_dataset(out, tracks=tracks, frames=frames, seed=seed, camera=camera, progress=progress,
-                       resume=(out / JOURNAL).exists(), scene=scene, camera_model=camera_model, randomize=randomize)
+                       resume=(out / JOURNAL).exists(), scene=scene, camera_model=camera_model, **episodes)
     return out
 
 

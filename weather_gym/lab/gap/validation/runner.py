@@ -139,10 +139,10 @@ def _scene_dir(root: Path, scene: Scene, frames: int, width: int, seed: int) -> 
     from weather_gym.lab.datasets import render_dataset
 
     cam = CameraConfig().scaled(width, int(round(width * 9 / 16 / 2)) * 2)
-    out = root / "scenes" / f"{scene.name}-{frames}x{width}-s{seed}"
+    out = root / "scenes" / f"{scene.name}-{frames}x{width}-s{seed}-e3"
     if not (out / "annotations.json").is_file():
         render_dataset(out, tracks=[scene.track], frames=frames, seed=seed, randomize=True,
-                       frames_per_episode=max(frames // 4, 2), camera=cam, progress=False, scene=scene.world,
+                       frames_per_episode=3, camera=cam, progress=False, scene=scene.world,
                        camera_model=CameraModel.ideal() if scene.world == "plain" else None,
                        resume=(out / "journal.jsonl").exists())
     return out
