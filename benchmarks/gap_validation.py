@@ -20,7 +20,15 @@ import os
 import sys
 from pathlib import Path
 
-from weather_gym.lab.gap.validation import FAMILIES, SETTINGS, SPLITS, run_validation, summarize, table
+from weather_gym.lab.gap.validation import (
+    FAMILIES,
+    SETTINGS,
+    SPLITS,
+    CaseResult,
+    run_validation,
+    summarize,
+    table,
+)
 
 
 def main() -> None:
@@ -33,14 +41,18 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=24, help="simulated frames per recording")
     ap.add_argument("--width", type=int, default=224, help="simulated frame width (16:9)")
     ap.add_argument("--small", action="store_true", help="one case per family, paired only, 16 frames at 192")
+    ap.add_argument("--table-only", action="store_true", help="only the table of every case in OUT/results.jsonl")
     a = ap.parse_args()
     if a.small:
         a.per_family, a.frames, a.width, a.settings = 1, 16, 192, "paired"
     out = Path(a.out or f"scratch/gap_validation/{a.split}")
     shared = Path(os.environ.get("WEATHER_GYM_SHARED", "/work/shared"))
-    results = run_validation(out, split=a.split, settings=a.settings.split(","), families=a.families.split(","),
-                             per_family=a.per_family, frames=a.frames, width=a.width, shared=shared,
-                             log=lambda s: print(s, flush=True))
+    if a.table_only:
+        results = [CaseResult(**json.loads(line)) for line in (out / "results.jsonl").read_text().splitlines()]
+    else:
+        results = run_validation(out, split=a.split, settings=a.settings.split(","), families=a.families.split(","),
+                                 per_family=a.per_family, frames=a.frames, width=a.width, shared=shared,
+                                 log=lambda s: print(s, flush=True))
     rows = summarize(results)
     text = table(rows)
     print(text)
