@@ -72,6 +72,11 @@ def case_seeds(split: str, family: str, n: int) -> list[int]:
     return [_SEED_BASE[split] + FAMILIES.index(family) + len(FAMILIES) * j for j in range(n)]
 
 
+def scene_of(split: str, seed: int) -> Scene:
+    """The scene of a case: the cases of one family take the split's scenes in turn."""
+    return SCENES[split][(seed // len(FAMILIES)) % len(SCENES[split])]
+
+
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """Wilson score interval of a rate ``k / n`` (95 % by default), rounded to 4 places."""
     if n <= 0:
@@ -183,9 +188,9 @@ def run_case(root: Path, split: str, setting: str, case: HiddenCase, *, frames: 
         report = run_gap(measured, None, root / "runs" / tag, GapConfig(compare_width=256, **fast), reference=clear,
                          plots=False, overwrite=True)
     else:
-        sc = SCENES[split][case.seed % len(SCENES[split])]
+        sc = scene_of(split, case.seed)
         scene = sc.name
-        clean = _scene_dir(root, sc, frames, width, seed=case.seed % len(SCENES[split]) + 11)
+        clean = _scene_dir(root, sc, frames, width, seed=SCENES[split].index(sc) + 11)
         measured = hide_case(clean, root / "data" / tag, case, strip_poses=setting == "unpaired")
         report = run_gap(measured, None, root / "runs" / tag, GapConfig(**fast), cache_dir=root / "cache",
                          plots=False, overwrite=True)
