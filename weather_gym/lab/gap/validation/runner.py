@@ -142,6 +142,7 @@ def _scene_dir(root: Path, scene: Scene, frames: int, width: int, seed: int) -> 
     from weather_gym.camera.config import CameraConfig
     from weather_gym.camera.isp import CameraModel
     from weather_gym.lab.datasets import render_dataset
+    from weather_gym.lab.datasets.coco import JOURNAL
 
     cam = CameraConfig().scaled(width, int(round(width * 9 / 16 / 2)) * 2)
     out = root / "scenes" / f"{scene.name}-{frames}x{width}-s{seed}-e3"
@@ -149,7 +150,7 @@ def _scene_dir(root: Path, scene: Scene, frames: int, width: int, seed: int) -> 
         render_dataset(out, tracks=[scene.track], frames=frames, seed=seed, randomize=True,
                        frames_per_episode=3, camera=cam, progress=False, scene=scene.world,
                        camera_model=CameraModel.ideal() if scene.world == "plain" else None,
-                       resume=(out / "journal.jsonl").exists())
+                       resume=(out / JOURNAL).exists())
     return out
 
 
