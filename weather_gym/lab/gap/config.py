@@ -36,15 +36,18 @@ held-out gap to at most this fraction of what it was: the family is right, the m
 BEYOND_RANGE = "the measured effect goes beyond this family's range"
 
 #: the evidence an effect cannot be named without (its fingerprint): at least one of these signals or
-#: signal families must disagree (a second effect without it is not added at all, only reported as a
-#: candidate). ``dim`` darkens the frame, so noise alone (or noise that only moves
+#: signal families must disagree (a further effect without it is not added at all, only reported as
+#: a candidate). ``dim`` darkens the frame, so noise alone (or noise that only moves
 #: the extreme percentiles) is not dim; each kind's effects need their kind's signals; ``glare`` (a
 #: veil and bloom) is never a fix for the noise signals alone
 REQUIRES: dict[str, tuple[str, ...]] = {"dim": ("brightness", "tone_p50"), "exposure": ("tone",), "tone_curve": ("tone",),
                                         "noise": ("noise",), "noise_level": ("noise",), "vignette": ("vignette",),
                                         "radial_gain": ("vignette",), "glare": ("blobs", "tone", "haze"),
-                                        "blur_kernel": ("sharpness", "motion", "cones"),
-                                        "droplets": ("blobs",), "rain": ("blobs",)}
+                                        "blur_kernel": ("sharpness", "motion", "cones")}
+#: the evidence a further effect (after the first) cannot be added without, on top of :data:`REQUIRES`:
+#: drops and streaks leave bright featureless tiles (``droplets`` and ``rain`` as the first effect are
+#: ranked by their fit alone: on real frames their other signals name them)
+FURTHER_REQUIRES: dict[str, tuple[str, ...]] = {"droplets": ("blobs",), "rain": ("blobs",)}
 #: the parametric and measured effects of each kind
 KIND_EFFECTS: dict[str, tuple[str, ...]] = {"tone": ("exposure", "tone_curve"), "noise": ("noise", "noise_level"),
                                             "sharpness": ("blur", "blur_kernel"), "motion": ("motion_blur",),

@@ -23,6 +23,7 @@ from weather_gym.lab.gap.config import (
     BEYOND_RANGE,
     CLIP_EXPLAINS,
     EVIDENCE_MARGIN,
+    FURTHER_REQUIRES,
     GLOBAL_TONE,
     KIND_EFFECTS,
     MEASURED_KINDS,
@@ -114,8 +115,11 @@ class SearchSteps(SessionHost):
             ok, why = False, "fixes no significant disagreement"
         floor = self.floor()
         share = (test["gap_before"] - test["gap_after"]) / max(test["gap_before"] - floor, 1e-9)
-        if ok and self.steps and not force and not found.get("evidenced", True):
-            ok, why = False, f"its fingerprint ({', '.join(REQUIRES.get(f.effect.name, ()))}) does not disagree"
+        need = FURTHER_REQUIRES.get(f.effect.name, ())
+        if ok and self.steps and not force and (not found.get("evidenced", True) or need and not set(need) & (
+                set(self._disagreeing_kinds()) | set(before.significant))):
+            need = REQUIRES.get(f.effect.name, ()) + need
+            ok, why = False, f"its fingerprint ({', '.join(need)}) does not disagree"
             self.candidates.append({"name": f.effect.name, "describe": describe(f.effect), "step": len(self.steps) + 1,
                                     "gap_before": test["gap_before"], "gap_after": test["gap_after"],
                                     "floor": floor, "share": share, "p_value": test["p_value"], "why": why})
