@@ -36,7 +36,14 @@ from typing import Any
 
 import cv2
 
+from weather_gym.camera.config import CameraConfig
+from weather_gym.camera.isp import CameraModel
+from weather_gym.lab.datasets import render_dataset
+from weather_gym.lab.datasets.coco import JOURNAL, load_coco
+from weather_gym.lab.datasets.importers import import_dataset
+from weather_gym.lab.datasets.masks import propose_mask, set_dataset_mask, write_mask
 from weather_gym.lab.gap.validation.hidden import FAMILIES, HiddenCase, draw_case
+from weather_gym.lab.gap.workflow import GapConfig, run_gap
 
 __all__ = ["Scene", "SCENES", "SETTINGS", "SPLITS", "CaseResult", "case_seeds", "wilson", "hide_case",
            "run_case", "run_validation", "summarize", "table"]
@@ -111,8 +118,6 @@ class CaseResult:
 
 def hide_case(src: Path, dst: Path, case: HiddenCase, *, strip_poses: bool) -> Path:
     """Copy the COCO folder ``src`` to ``dst`` (PNG frames) with ``case`` applied to every frame."""
-    from weather_gym.lab.datasets.coco import load_coco
-
     if (dst / "annotations.json").is_file():
         return dst
     ds = load_coco(src)
@@ -139,11 +144,6 @@ def hide_case(src: Path, dst: Path, case: HiddenCase, *, strip_poses: bool) -> P
 
 
 def _scene_dir(root: Path, scene: Scene, frames: int, width: int, seed: int) -> Path:
-    from weather_gym.camera.config import CameraConfig
-    from weather_gym.camera.isp import CameraModel
-    from weather_gym.lab.datasets import render_dataset
-    from weather_gym.lab.datasets.coco import JOURNAL
-
     cam = CameraConfig().scaled(width, int(round(width * 9 / 16 / 2)) * 2)
     out = root / "scenes" / f"{scene.name}-{frames}x{width}-s{seed}-e3"
     if not (out / "annotations.json").is_file():
@@ -156,10 +156,6 @@ def _scene_dir(root: Path, scene: Scene, frames: int, width: int, seed: int) -> 
 
 def real_clear(root: Path, shared: Path) -> Path | None:
     """The shared real frames imported (labels, the proposed ego mask) into ``root``; None when absent."""
-    from weather_gym.lab.datasets.coco import load_coco
-    from weather_gym.lab.datasets.importers import import_dataset
-    from weather_gym.lab.datasets.masks import propose_mask, set_dataset_mask, write_mask
-
     src = shared / "data" / "real" / "fskitti_estoril_autox2"
     if not (src / "images").is_dir():
         return None
@@ -175,8 +171,6 @@ def real_clear(root: Path, shared: Path) -> Path | None:
 def run_case(root: Path, split: str, setting: str, case: HiddenCase, *, frames: int, width: int,
              shared: Path | None = None, fast: dict[str, Any] | None = None) -> CaseResult | None:
     """Hide ``case`` in a recording of ``setting`` and run the workflow on it (None: real frames absent)."""
-    from weather_gym.lab.gap.workflow import GapConfig, run_gap
-
     t0 = time.perf_counter()
     fast = dict(fit_frames=12, bootstrap=500, perception=False) if fast is None else fast
     tag = f"{split}-{setting}-{case.family}-{case.seed}"
