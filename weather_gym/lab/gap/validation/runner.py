@@ -242,8 +242,8 @@ def summarize(results: Sequence[CaseResult]) -> list[dict[str, Any]]:
     groups: dict[tuple[str, str], list[CaseResult]] = {}
     for r in results:
         groups.setdefault((r.setting, r.family), []).append(r)
-        groups.setdefault((r.setting, "all hidden" if r.family != "none" else "none"), []).append(r) \
-            if r.family != "none" else None
+        if r.family != "none":
+            groups.setdefault((r.setting, "all hidden"), []).append(r)
     rows = []
     for (setting, family), rs in sorted(groups.items(), key=lambda t: (SETTINGS.index(t[0][0]), _order(t[0][1]))):
         def rate(flags: list[bool]) -> list[float]:
