@@ -36,13 +36,18 @@ held-out gap to at most this fraction of what it was: the family is right, the m
 BEYOND_RANGE = "the measured effect goes beyond this family's range"
 
 #: the evidence an effect cannot be named without (its fingerprint): at least one of these signals or
-#: signal families must disagree. ``dim`` darkens the frame, so noise alone (or noise that only moves
+#: signal families must disagree (a further effect without it is not added at all, only reported as
+#: a candidate). ``dim`` darkens the frame, so noise alone (or noise that only moves
 #: the extreme percentiles) is not dim; each kind's effects need their kind's signals; ``glare`` (a
 #: veil and bloom) is never a fix for the noise signals alone
 REQUIRES: dict[str, tuple[str, ...]] = {"dim": ("brightness", "tone_p50"), "exposure": ("tone",), "tone_curve": ("tone",),
                                         "noise": ("noise",), "noise_level": ("noise",), "vignette": ("vignette",),
                                         "radial_gain": ("vignette",), "glare": ("blobs", "tone", "haze"),
                                         "blur_kernel": ("sharpness", "motion", "cones")}
+#: the evidence a further effect (after the first) cannot be added without, on top of :data:`REQUIRES`:
+#: drops and streaks leave bright featureless tiles (``droplets`` and ``rain`` as the first effect are
+#: ranked by their fit alone: on real frames their other signals name them)
+FURTHER_REQUIRES: dict[str, tuple[str, ...]] = {"droplets": ("blobs",), "rain": ("blobs",)}
 #: the parametric and measured effects of each kind
 KIND_EFFECTS: dict[str, tuple[str, ...]] = {"tone": ("exposure", "tone_curve"), "noise": ("noise", "noise_level"),
                                             "sharpness": ("blur", "blur_kernel"), "motion": ("motion_blur",),
@@ -59,6 +64,29 @@ GLOBAL_TONE = ("exposure", "dim", "tone_curve")
 EVIDENCE_MARGIN = 2.0
 """A radial candidate within this factor of a global tone change's penalised gap is named before it
 when the fall-off to the corners disagrees."""
+
+SECOND_SHARE = 0.15
+"""A second (third, ...) effect is added only when, on its own, it cuts at least this share of the
+remaining held-out gap above the floor (:meth:`~weather_gym.lab.gap.session.GapSession.floor`) and
+cuts at least the floor itself (unpaired: less than two sets of clean frames differ by cannot be told
+from the scene); otherwise it is reported as a candidate (``candidates``), not added."""
+
+FLOOR_MARGIN = 1.0
+"""Unpaired, the loop stops once the held-out gap is within this factor of the floor (clear against
+clear): what is left cannot be told from two sets of different frames."""
+
+#: what cannot be told without poses, and why (the unpaired report lists these)
+UNPAIRED_LIMITS: dict[str, str] = {
+    "blur": "without poses only the power spectrum of a blur is measurable (no per-frame phase): the kind "
+            "(sharpness, motion) is named, the kernel's shape (disc, box, Gaussian, a line's direction) is not",
+    "haze": "haze lifts far regions more than near ones; without poses the measured frames' depth is unknown "
+            "and the rendered frames' depth stands in, so a weak haze is read as a tone change",
+    "tone": "a tone curve is measured by matching distributions of other frames: scene differences between "
+            "the two sets (looks, route) shift it by up to the floor",
+    "falloff": "a radial fall-off is told from a tone curve by the corner / centre level at equal levels; "
+               "without poses scene content in the corners differs between the sets, so a weak fall-off is "
+               "within the floor",
+}
 
 PERCEPTION_MIN_MAP = 0.3
 """Below this mAP@0.5 on the measured clear frames the perception gap means nothing (the report says so)."""

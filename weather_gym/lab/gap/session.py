@@ -28,7 +28,7 @@ from weather_gym.lab.gap.compare import (
     gap_test,
     signal_scale,
 )
-from weather_gym.lab.gap.config import MIN_GAP_CUT, Comparison, GapConfig
+from weather_gym.lab.gap.config import FLOOR_MARGIN, MIN_GAP_CUT, Comparison, GapConfig
 from weather_gym.lab.gap.fit import PENALTY, Evaluator, refit, refit_joint
 from weather_gym.lab.gap.perception import detect_frames, match_frames, perception_stats
 from weather_gym.lab.gap.session_report import ReportSteps, perception_summary
@@ -57,6 +57,8 @@ class GapSession(SearchSteps, ReportSteps):
         self.pruned: list[dict[str, Any]] = []
         self.flagged: list[dict[str, Any]] = []
         self.attempts: list[dict[str, Any]] = []
+        self.candidates: list[dict[str, Any]] = []
+        self._floors: dict[tuple, float] = {}
         cfg = self.config
         t0 = time.perf_counter()
         m = data.measured
@@ -212,6 +214,11 @@ class GapSession(SearchSteps, ReportSteps):
             self._say("no significant disagreement on the held-out frames")
             return None
         self._say(f"held-out gap {comp.gap:.3f}; disagreeing: {', '.join(comp.significant[:6])}")
+        floor = self.floor()
+        if not self.data.paired and comp.gap <= FLOOR_MARGIN * floor:
+            self._say(f"held-out gap {comp.gap:.3f} at the unpaired floor {floor:.3f} (clear against clear): "
+                      "what is left cannot be told without poses")
+            return None
         self.refit()
         if not self.compare(perception=False).significant:
             return None

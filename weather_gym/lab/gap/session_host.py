@@ -38,6 +38,8 @@ class SessionHost:
         pruned: list[dict[str, Any]]
         flagged: list[dict[str, Any]]
         attempts: list[dict[str, Any]]
+        candidates: list[dict[str, Any]]
+        _floors: dict[tuple, float]
         measured_signals: np.ndarray
         reference_signals: np.ndarray | None
         scale: np.ndarray
@@ -50,6 +52,7 @@ class SessionHost:
         @property
         def detector(self) -> Any: ...
         def _say(self, msg: str) -> None: ...
+        def floor(self) -> float: ...
         def _match(self, images: Sequence[np.ndarray], gts: Sequence[dict]) -> Any: ...
         def _fixed(self, which: str) -> Any: ...
         def compare(self, model: Sequence[KnobEffect] | None = None, *, perception: bool | None = None

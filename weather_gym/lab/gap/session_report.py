@@ -21,8 +21,10 @@ from weather_gym.lab.gap.compare import GapMeter, compare_signals, signal_scale
 from weather_gym.lab.gap.config import (
     BEYOND_RANGE,
     EFFECT_FAMILY,
+    FLOOR_MARGIN,
     PERCEPTION_MIN_MAP,
     REPORT_VERSION,
+    UNPAIRED_LIMITS,
     Comparison,
 )
 from weather_gym.lab.gap.domain import clutter, compare_clutter, ego_vehicle, name_differences
@@ -140,6 +142,13 @@ class ReportSteps(SessionHost):
             if not missing:
                 return "no missing weather: the model explains the measured frames"
             return parts[0]
+        floor = self.floor()
+        if not self.data.paired and u["gap"] <= FLOOR_MARGIN * floor:
+            parts.append(f"{'the rest' if missing else 'nothing'} is beyond the unpaired floor: held-out gap "
+                         f"{u['gap']:.2f} spreads against {floor:.2f} between two sets of clean simulated frames "
+                         "(clear against clear); without poses what is left cannot be told from scene differences "
+                         "(see unpaired_limits)")
+            return "; ".join(parts) if missing else "no missing weather found without poses; " + parts[0]
         sigs = ", ".join(s["signal"] for s in u["signals"][:4])
         text = (f"{'still ' if missing else ''}unexplained: held-out gap {u['gap']:.2f} spreads, significantly above "
                 f"zero ({len(u['signals'])} signals disagree, strongest {sigs}: {', '.join(u['families'][:3])})")
@@ -188,6 +197,9 @@ class ReportSteps(SessionHost):
                              if st.get("beyond_range") and st["added"]["name"] in missing],
             "unexplained": self.unexplained(last),
             "attempts": self.attempts,
+            "candidates": self.candidates,
+            "floor": self.floor(),
+            "unpaired_limits": None if d.paired else [{"family": k, "why": v} for k, v in UNPAIRED_LIMITS.items()],
             "pruned": self.pruned,
             "notes": list(d.notes),
             "frames": {"measured": len(d.measured), "simulated": len(d.sim),

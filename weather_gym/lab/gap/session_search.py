@@ -18,16 +18,18 @@ from typing import Any
 
 from tqdm import tqdm
 
-from weather_gym.lab.gap.compare import gap_test
+from weather_gym.lab.gap.compare import GapMeter, gap_test
 from weather_gym.lab.gap.config import (
     BEYOND_RANGE,
     CLIP_EXPLAINS,
     EVIDENCE_MARGIN,
+    FURTHER_REQUIRES,
     GLOBAL_TONE,
     KIND_EFFECTS,
     MEASURED_KINDS,
     MIN_GAP_CUT,
     REQUIRES,
+    SECOND_SHARE,
 )
 from weather_gym.lab.gap.diagnose import evidence
 from weather_gym.lab.gap.fit import (
@@ -111,6 +113,25 @@ class SearchSteps(SessionHost):
         why = "added" if ok else "not significant"
         if ok and not (ev["fixed"] or ev["improved"]):
             ok, why = False, "fixes no significant disagreement"
+        floor = self.floor()
+        share = (test["gap_before"] - test["gap_after"]) / max(test["gap_before"] - floor, 1e-9)
+        need = FURTHER_REQUIRES.get(f.effect.name, ())
+        if ok and self.steps and not force and (not found.get("evidenced", True) or need and not set(need) & (
+                set(self._disagreeing_kinds()) | set(before.significant))):
+            need = REQUIRES.get(f.effect.name, ()) + need
+            ok, why = False, f"its fingerprint ({', '.join(need)}) does not disagree"
+            self.candidates.append({"name": f.effect.name, "describe": describe(f.effect), "step": len(self.steps) + 1,
+                                    "gap_before": test["gap_before"], "gap_after": test["gap_after"],
+                                    "floor": floor, "share": share, "p_value": test["p_value"], "why": why})
+        elif ok and self.steps and not force and (share < SECOND_SHARE
+                                                  or test["gap_before"] - test["gap_after"] < floor):
+            # a further effect must explain a real part of what is left above the floor on its own
+            ok, why = False, (f"explains {max(share, 0.0):.0%} of the remaining gap above the floor "
+                              f"({test['gap_before']:.2f} - {floor:.2f}): a further effect needs {SECOND_SHARE:.0%}, "
+                              "and a cut of at least the floor (clear against clear)")
+            self.candidates.append({"name": f.effect.name, "describe": describe(f.effect), "step": len(self.steps) + 1,
+                                    "gap_before": test["gap_before"], "gap_after": test["gap_after"],
+                                    "floor": floor, "share": share, "p_value": test["p_value"], "why": why})
         what = describe(f.effect)
         hit = bounds_hit(f.effect, f.extras)
         beyond = None
@@ -183,18 +204,66 @@ class SearchSteps(SessionHost):
         kinds = set(self._disagreeing_kinds())
         seen = kinds | set(self.compare(perception=False).significant)
 
+        radial = "vignette" in kinds and not self._level_explains_position()
+        level_from_noise = "noise" in kinds and self._noise_explains_level(found)
+
         def evidenced(e: dict[str, Any]) -> bool:
-            need = REQUIRES.get(e["fit"].effect.name, ())
+            name = e["fit"].effect.name
+            if name in KIND_EFFECTS["vignette"] and not radial:
+                return False  # the corners differ only as a function of their level: a global curve
+            if name in ("dim", "exposure") and level_from_noise:
+                return False  # noise keeps the mean level: the level change is the noise's clipping
+            need = REQUIRES.get(name, ())
             return not need or any(x in seen for x in need)
 
         best_radial = min((e["penalized"] for e in found if e["fit"].effect.name in KIND_EFFECTS["vignette"]
                            and evidenced(e)), default=math.inf)
 
         def demoted(e: dict[str, Any]) -> bool:
-            return (e["fit"].effect.name in GLOBAL_TONE and "vignette" in kinds
+            return (e["fit"].effect.name in GLOBAL_TONE and radial
                     and best_radial <= EVIDENCE_MARGIN * e["penalized"])
 
-        return sorted(found, key=lambda e: (not evidenced(e), demoted(e), e["penalized"], e["fit"].candidate.describe()))
+        for e in found:
+            e["evidenced"] = evidenced(e)
+        return sorted(found, key=lambda e: (not e["evidenced"], demoted(e), e["penalized"], e["fit"].candidate.describe()))
+
+    def floor(self) -> float:
+        """The gap a perfect model would still show on the held-out frames: 0 when the frames are
+        compared one to one; unpaired, clear against clear: the gap between the fitting and the
+        held-out simulated frames through the current model (two sets of different frames)."""
+        if self.data.paired:
+            return 0.0
+        key = tuple((e.name, tuple(sorted(e.params().items()))) for e in self.model)
+        cache = self._floors
+        if key not in cache:
+            meter = GapMeter(self.fit_ev.signals(self.model), scale=self.held_ev.meter.scale,
+                             weights=self.held_ev.meter.weights, paired=False)
+            cache[key] = meter.gap(self.held_ev.signals(self.model))
+        return float(cache[key])
+
+    def _level_explains_position(self) -> bool:
+        """Position and level tested jointly: True when a global curve (a measured ``tone_curve``
+        member: every pixel mapped by its own level, wherever it is) leaves no significant corner /
+        centre disagreement on the held-out frames; a radial gain is named only when it does not."""
+        pos = insert_position(self.model, "tone_curve")
+        d = self.data
+        sim_idx, meas_idx = self._fit_idx
+        sim_masks = d.signal_masks("sim")
+        member = estimate("tone_curve", self.fit_ev.prefix(self.model[:pos]), [d.measured.images[i] for i in meas_idx],
+                          sim_masks=[sim_masks[i] for i in sim_idx],
+                          meas_masks=[d.measured.masks[i] for i in meas_idx], paired=d.paired)
+        comp = self.compare(self.model[:pos] + [member] + self.model[pos:], perception=False)
+        return "vignette" not in comp.significant
+
+    def _noise_explains_level(self, found: Sequence[dict[str, Any]]) -> bool:
+        """True when the best noise candidate alone leaves the mean level and the median agreeing: noise
+        keeps the mean level, so a brightness change that goes with it is its clipping, not dimming."""
+        noisy = [e for e in found if e["fit"].effect.name in KIND_EFFECTS["noise"]]
+        if not noisy:
+            return False
+        best = min(noisy, key=lambda e: e["held_gap"])
+        sig = self.compare(best["model"], perception=False).significant
+        return not ({"brightness", "tone_p50"} & set(sig))
 
     def measure(self, found: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         """Measured members (:mod:`~weather_gym.lab.gap.measured`) of the kinds whose signals disagree and

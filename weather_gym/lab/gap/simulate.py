@@ -140,14 +140,27 @@ def _camera_model_of(ds: Any) -> CameraModel:
     return EnvConfig().camera_model
 
 
+RANDOM_LOOK_FRAMES = 3
+"""Frames per episode (per random look) of unpaired renders whose measured set drew random looks."""
+
+
+def _randomized(ds: Any) -> bool:
+    """Whether the measured set says its looks were drawn at random (``info.randomize``, as
+    ``weather-gym dataset render --randomize`` writes it)."""
+    return bool((getattr(ds, "info", None) or {}).get("randomize"))
+
+
 def _render_unpaired(camera: Any, cache_dir: Path, tracks: list[str], frames: int, seed: int,
-                     progress: bool, scene: str, camera_model: CameraModel) -> Path:
-    key = _key({"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict(),
-                "scene": scene, "camera_model": camera_model.to_dict()})
+                     progress: bool, scene: str, camera_model: CameraModel, randomize: bool = False) -> Path:
+    spec = {"v": _CACHE_VERSION, "tracks": tracks, "frames": frames, "seed": seed, "camera": camera.to_dict(),
+            "scene": scene, "camera_model": camera_model.to_dict()}
+    key = _key({**spec, "randomize": True} if randomize else spec)
     out = cache_dir / f"unpaired-{key}"
     if not (out / ANNOTATIONS).is_file():
+        # random looks: a new one every few frames, so that the set spans them (not two or three)
+        episodes: dict[str, Any] = {"randomize": True, "frames_per_episode": RANDOM_LOOK_FRAMES} if randomize else {}
         render_dataset(out, tracks=tracks, frames=frames, seed=seed, camera=camera, progress=progress,
-                       resume=(out / JOURNAL).exists(), scene=scene, camera_model=camera_model)
+                       resume=(out / JOURNAL).exists(), scene=scene, camera_model=camera_model, **episodes)
     return out
 
 
@@ -281,8 +294,12 @@ def simulate(measured: str | os.PathLike | Any, *, cache_dir: str | os.PathLike,
         tr = _tracks_of(ds, tracks)
         camera = _camera_of(ds).scaled(*measured_frames.size)
         n_sim = int(sim_frames or len(ds))
+        randomize = _randomized(ds)  # random looks measured: the rendered set draws its own (not one look)
+        if randomize:
+            notes.add("the measured set's looks were drawn at random (info.randomize): the unpaired renders draw "
+                      "random looks too, so that a look is not read as weather")
         sim_root = _render_unpaired(camera, cache, tr, n_sim, seed, progress, scene or _scene_of(ds),
-                                    camera_model or _camera_model_of(ds))
+                                    camera_model or _camera_model_of(ds), randomize=randomize)
         sim_ds = load_coco(sim_root)
         sim_frames_set = load_frames(sim_ds, progress=progress, desc="load sim")
         sim_fit, sim_held = split_indices(len(sim_ds), held_out=held_out, seed=seed + 1)
