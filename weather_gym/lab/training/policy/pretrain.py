@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import gymnasium as gym
 import numpy as np
@@ -198,7 +198,7 @@ def _actor_parameters(policy: Any) -> list[Any]:
 
 
 def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int,
-             progress: bool = True) -> dict[str, Any]:
+             progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Fit ``policy`` (an SB3 actor-critic policy) to ``config.expert`` on ``envs`` with DAgger.
 
     Returns the record written to ``run.json`` and ``model.json``: the settings, per round the
@@ -228,9 +228,9 @@ def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int
                        "expert_share": round(stats["expert_steps"] / max(n_steps, 1), 4),
                        "episodes": stats["episodes"], "laps": stats["laps"],
                        "loss_before": round(before, 6), "loss": round(after, 6)})
-        print(f"pretrain round {r}: {n_steps} steps ({rounds[-1]['expert_share']:.0%} expert-driven, "
+        log(f"pretrain round {r + 1} of {config.rounds}: {n_steps} steps ({rounds[-1]['expert_share']:.0%} expert-driven, "
               f"{stats['episodes']} episodes ended, {stats['laps']} laps), {len(data['action'])} samples, "
-              f"BC loss {before:.4f} -> {after:.4f}")
+              f"BC loss {before:.4f} -> {after:.4f}, {time.time() - started:.0f} s so far")
     with torch.no_grad():
         policy.log_std.fill_(float(config.log_std))
     return {**dataclasses.asdict(config), "rounds_log": rounds, "initial_loss": rounds[0]["loss_before"],

@@ -160,12 +160,14 @@ def model_metadata(settings: dict[str, Any], hp: dict[str, Any], seed: int, eval
             "cone_memory": settings.get("cone_memory", False)}
 
 
-RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png",
+RUN_FILES = ("model.zip", "model.json", "run.json", "train.log", "learning_curve.png", "pretrain_curve.png",
              "checkpoints/ppo_*_steps.zip", "checkpoints/ppo_*_steps.json", "checkpoints/ppo_vecnormalize_*_steps.pkl",
              "best/best_model.zip", "best/best_model.json", "logs/steps[0-9]*")
 """What a run writes in its folder, as glob patterns (a ``logs/steps<N>`` folder is one segment's SB3 logs:
 ``progress.csv``, TensorBoard events, ``evaluations.npz``). The one list ``--overwrite`` removes (then the
 folders ``checkpoints``, ``best`` and ``logs`` if that left them empty); nothing else in the folder is touched."""
+TRAIN_LOG = "train.log"
+"""The run's log: every progress line and statistic the run printed, with the time (appended by each segment)."""
 RUN_RECORD = "run.json"
 """The file that makes a folder a run: ``--resume`` continues it, ``--overwrite`` replaces it."""
 
