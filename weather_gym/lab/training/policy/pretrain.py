@@ -166,6 +166,25 @@ def collect(envs: list[gym.Env], experts: list[Any], policy: Any | None, steps: 
     return {"obs": _stack(obs_rows), "action": np.asarray(labels, np.float32)}, stats
 
 
+class _Ticker:
+    """A tqdm bar (on a terminal) that also logs a line every ``every_s`` seconds (for log files)."""
+
+    def __init__(self, bar: Any, log: Callable[[str], None], what: str, total: int, every_s: float = 60.0) -> None:
+        self.bar, self.log, self.what, self.total, self.every_s = bar, log, what, total, every_s
+        self.done, self.t0 = 0, time.time()
+        self.next = self.t0 + every_s
+
+    def update(self, n: int) -> None:
+        self.bar.update(n)
+        self.done += n
+        now = time.time()
+        if now >= self.next and self.done < self.total:
+            self.next = now + self.every_s
+            rate = self.done / max(now - self.t0, 1e-9)
+            self.log(f"{self.what}: {self.done}/{self.total} steps, {rate:.0f} steps/s, "
+                     f"about {(self.total - self.done) / max(rate, 1e-9) / 60:.1f} min left in this round")
+
+
 def _concat(parts: list[dict[str, Any]]) -> dict[str, Any]:
     return {"obs": {k: np.concatenate([p["obs"][k] for p in parts]) for k in parts[0]["obs"]},
             "action": np.concatenate([p["action"] for p in parts])}
@@ -218,7 +237,8 @@ def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int
     for r, n_steps in enumerate(config.steps_per_round()):
         beta = 1.0 if r == 0 else float(config.beta) ** r
         with tqdm(total=n_steps, desc=f"BC round {r}", unit="step", dynamic_ncols=True, disable=not progress) as bar:
-            part, stats = collect(envs, experts, None if r == 0 else policy, n_steps, beta, drive_rng, bar)
+            ticker = _Ticker(bar, log, f"pretrain round {r + 1} of {config.rounds}", n_steps)
+            part, stats = collect(envs, experts, None if r == 0 else policy, n_steps, beta, drive_rng, ticker)
         parts.append(part)
         data = _concat(parts)
         before = bc_loss(policy, data)
