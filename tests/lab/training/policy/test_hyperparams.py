@@ -207,7 +207,10 @@ def test_rl_md_quotes_the_code():
     assert [float(v) for v in setup[4:]] == [hp["ppo"]["learning_rate"], hp["ppo"]["gamma"]]
     assert f"`--log-std-init {hp['policy_kwargs']['log_std_init']}`" in text
     d = build_parser().parse_args(["--out", "x"])
-    assert f"every {d.eval_freq:,} steps\n  ({d.eval_episodes} episodes" in text and f"lap or {d.max_steps} steps" in text
+    assert f"every {d.eval_freq:,} steps (`--eval-freq`)" in text and f"lap or {d.max_steps} steps" in text
+    assert f"{d.eval_episodes} episode each (`--eval-episodes`" in text and f"{d.eval_max_steps} steps (`--eval-max" in text
+    assert d.eval_track == "small_track,mirror:hairpin" and "`small_track` and `mirror:hairpin`" in text
+    assert f"`--timesteps` ({hp['n_timesteps']:,})" in text and f"`--eval-freq` ({d.eval_freq:,})" in text
     assert f"(default {d.pretrain_steps:,})" in text and f"rounds (default {d.dagger_rounds})" in text
     assert f"(default {d.dagger_beta})" in text and f"default {d.pretrain_epochs})" in text
     assert f"`--pretrain-log-std` (default {d.pretrain_log_std}" in text

@@ -19,8 +19,9 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from weather_gym.core._io import atomic_path, atomic_write_json
 from weather_gym.lab.training.policy.selection import HeldOutResult

@@ -105,13 +105,14 @@ def plot_learning_curve(out: Path) -> Path | None:
             ax1.plot(x, y, marker="." if key.startswith("eval") else None, label=label)
     ax1.set_xlabel("environment steps")
     ax1.set_ylabel("episode reward (m of progress, penalties)")
-    ax1.legend(fontsize=8)
+    if ax1.lines:
+        ax1.legend(fontsize=8)
     ax1.grid(alpha=0.3)
     x, y = series("eval/success_rate")
     if len(x):
         ax2.plot(x, y, marker=".", color="tab:green")
     ax2.set_xlabel("environment steps")
-    ax2.set_ylabel("lap completion on the held-out track")
+    ax2.set_ylabel("held-out drives that were laps")
     ax2.set_ylim(-0.05, 1.05)
     ax2.grid(alpha=0.3)
     fig.suptitle(f"PPO on the cone list ({out.name})")

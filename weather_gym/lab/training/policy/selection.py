@@ -21,8 +21,9 @@ Example:
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -58,6 +59,12 @@ class HeldOutConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise InputError(f"{opt} must be an integer >= 1, got {v!r}")
+
+    @classmethod
+    def from_dict(cls, fields: dict[str, Any]) -> HeldOutConfig:
+        """The config a run recorded (``run.json``'s ``settings["held_out"]``, lists for tuples)."""
+        return cls(tracks=tuple(fields["tracks"]), weathers=tuple(fields["weathers"]), perception=fields["perception"],
+                   max_steps=int(fields["max_steps"]), episodes=int(fields["episodes"]))
 
     def drives(self) -> list[tuple[str, str | None, int]]:
         """(track, weather or None, seed) of every held-out episode, in order."""

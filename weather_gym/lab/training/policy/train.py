@@ -1,48 +1,54 @@
-"""``weather-gym train``: a stable-baselines3 PPO driver on the cone-list observation; logs,
-checkpoints, held-out evaluation, resume, and a usable model after Ctrl-C.
+"""``weather-gym train``: a driver on the cone-list observation, in three stages: a clone of a scripted
+driver (behaviour cloning with DAgger), PPO fine-tuning, and the policy that laps held-out tracks
+best kept as the model; logs, checkpoints, resume, and a usable model after Ctrl-C.
+
+**Warm start.** ``--pretrain EXPERT`` (default ``gt_pure_pursuit``, the scripted driver on the true
+pose; ``none``: PPO from scratch) is cloned with DAgger on the training envs
+(:mod:`weather_gym.lab.training.policy.pretrain`; ``--pretrain-steps``, ``--dagger-rounds``,
+``--pretrain-epochs``, ``--pretrain-log-std``); ``checkpoints/ppo_0_steps.zip`` holds the clone.
 
 **Observation.** The policy reads the cone list ``Dict(cones, mask, state)`` through
-``weather_gym.agents.sb3_features.ConeListPolicy`` (``ConeListExtractor``). It trains on ``gt_cones``
-by default: the cones the camera would see, computed from geometry with nothing rendered, degraded
-with ``OracleNoise`` (misses, range and bearing noise, phantom cones) so that it copes with a
-detector's mistakes. The detector on a weathered frame gives the same observation, so the trained
-policy is evaluated through weather and the detector (``examples/evaluate_policy.py``,
-``weather-gym evaluate --agent sb3``; ``docs/rl.md``). ``--perception surrogate`` trains on the
-detector's fitted statistics instead (env ``i`` in ``--surrogate-weathers[i % len]``); ``detector`` /
-``oracle`` render a frame per step (with ``--weather``: ``WeatherRandomizer`` fields).
+``weather_gym.agents.sb3_features.ConeListPolicy``, by default from the perception surrogate (the
+detector's fitted statistics, nothing rendered; env ``i`` in ``--surrogate-weathers[i % len]``) and
+through the cone memory (``--cone-memory``, ``--detection-range``). ``gt_cones`` is geometric ground
+truth degraded with ``--noise`` (``OracleNoise``); ``detector`` / ``oracle`` render a frame per step
+(with ``--weather``: ``WeatherRandomizer`` fields). The detector on a weathered frame gives the same
+observation, so the trained policy is evaluated through weather and the detector
+(``examples/evaluate_policy.py``, ``weather-gym evaluate --agent sb3``; ``docs/rl.md``).
 
 **Hyper-parameters** come from a file in rl-zoo3's YAML format (``--hyperparams``, default the
 shipped :data:`weather_gym.lab.training.policy.HYPERPARAMS`, section ``--hyperparams-key``): ``n_envs``,
-``n_timesteps``, ``policy``, ``normalize``, ``policy_kwargs`` and PPO's own keywords. The same file
-trains with ``python -m rl_zoo3.train --algo ppo --env WeatherGym/ConeTrackCones-v0 --gym-packages
-weather_gym -conf FILE``. Options given on the command line (``--n-envs``, ``--timesteps``,
-``--learning-rate``, ...) override single values.
+``n_timesteps``, ``policy``, ``normalize``, ``policy_kwargs`` and PPO's own keywords. Options given on
+the command line (``--n-envs``, ``--timesteps``, ``--learning-rate``, ...) override single values.
 
-**Tracks.** Env ``i`` drives ``--track[i % len]``, each episode from a random point of its track
-(drawn from the reset seed); the ``EvalCallback`` drives the held-out ``--eval-track`` (never trained
-on) from the start line and logs the mean reward and lap completion (``eval/success_rate``).
+**Tracks.** Env ``i`` drives ``--track[i % len]``; three quarters of the episodes start at a random
+point of the track (drawn from the reset seed), a quarter at the start line.
+
+**The model kept.** After the warm start, every ``--eval-freq`` PPO steps and at the end, the policy
+drives the held-out ``--eval-track`` tracks (never trained on) from the start line in each of
+``--eval-weathers`` through ``--eval-perception``
+(:mod:`weather_gym.lab.training.policy.selection`); the best (most laps, then fewest cones, then
+least time) goes to ``best/`` and, when the run ends, becomes ``model.zip``. Progress and the main
+statistics are printed as lines and appended to ``train.log``.
 
 **Outputs** in ``--out``: ``model.zip`` and ``model.json`` (the env it was trained on: what
 ``examples/evaluate_policy.py`` reads), ``checkpoints/ppo_<N>_steps.zip`` each with its
-``ppo_<N>_steps.json``, ``best/best_model.zip`` with ``best/best_model.json`` (every one of them
-evaluates with the same command as the final model), ``logs/<segment>/progress.csv`` and TensorBoard
-event files, ``learning_curve.png``, ``run.json`` (command, settings, segments, wall time).
-``--resume`` continues from the newest complete checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
-run in a non-empty folder (never without it), removing only the files a run writes (``RUN_FILES``); a
-folder holding no run is refused. One run writes a folder at a time (a lock on ``--out``).
-``--pretrain EXPERT`` first clones a registered agent (e.g.
-``gt_pure_pursuit``) with DAgger on the same envs (:mod:`weather_gym.lab.training.policy.pretrain`; ``--pretrain-steps``,
-``--dagger-rounds``, ``--pretrain-epochs``, ``--pretrain-log-std``), then PPO continues for
-``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C or SIGTERM** stops the run and still
-writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (its segment marked interrupted, with
-the signal; exit status 130 or 143); ``--resume`` continues from the newest checkpoint. Every hyper-parameter
-and option is checked first against its declared range (``weather_gym.lab.training.policy.hyperparams.Hyperparams``).
+``ppo_<N>_steps.json``, ``best/best_model.zip`` with ``best/best_model.json``, ``train.log``,
+``logs/<segment>/progress.csv`` and TensorBoard event files, ``learning_curve.png``,
+``pretrain_curve.png``, ``run.json`` (command, settings, segments, wall time). ``--resume`` continues
+from the newest complete checkpoint up to ``--timesteps``; ``--overwrite`` replaces the run in a
+non-empty folder (never without it), removing only the files a run writes (``RUN_FILES``); a folder
+holding no run is refused. One run writes a folder at a time (a lock on ``--out``). **Ctrl-C or
+SIGTERM** stops the run and still writes ``model.zip`` (the policy as it is), ``model.json``, the
+learning curve and ``run.json`` (its segment marked interrupted, with the signal; exit status 130 or
+143). Every hyper-parameter and option is checked first against its declared range
+(``weather_gym.lab.training.policy.hyperparams.Hyperparams``).
 
 Example:
     >>> args = build_parser().parse_args(["--out", "runs/x", "--n-envs", "2"])
     >>> hp = resolve_hyperparams(args)
-    >>> hp["n_envs"], hp["n_timesteps"], hp["ppo"]["n_steps"], hp["policy"].rsplit(".", 1)[-1]
-    (2, 300000, 256, 'ConeListPolicy')
+    >>> hp["n_envs"], hp["n_timesteps"], hp["ppo"]["n_steps"], hp["policy"].rsplit(".", 1)[-1], args.pretrain
+    (2, 100000, 256, 'ConeListPolicy', 'gt_pure_pursuit')
 """
 
 
@@ -84,8 +90,13 @@ from weather_gym.lab.training.policy.hyperparams import (
     resolve_hyperparams,
 )
 from weather_gym.lab.training.policy.pretrain import PretrainConfig, pretrain
-from weather_gym.lab.training.policy.progress import RunLog, Selector, echo_to_tty, ppo_callbacks, recorded_best
-from weather_gym.lab.training.policy.selection import HeldOutConfig, held_out_laps
+from weather_gym.lab.training.policy.progress import (
+    RunLog,
+    Selector,
+    echo_to_tty,
+    ppo_callbacks,
+    recorded_best,
+)
 from weather_gym.lab.training.policy.run_outputs import (
     RUN_FILES,
     RUN_RECORD,
@@ -99,6 +110,7 @@ from weather_gym.lab.training.policy.run_outputs import (
     plot_learning_curve,
     plot_pretrain_curve,
 )
+from weather_gym.lab.training.policy.selection import HeldOutConfig, held_out_laps
 from weather_gym.lab.training.policy.training_env import (
     LapSuccess,
     RandomStart,
@@ -300,10 +312,7 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
     tracks = [t.strip() for t in args.tracks.split(",") if t.strip()]
     if not tracks:
         raise InputError("--track is empty")
-    held_out = _held_out_config(args)
-    for t in held_out.tracks:
-        if t in tracks:
-            raise InputError(f"--eval-track {t} is also a training track: it would not be held out")
+    held_out = _held_out_config(args, tracks)
     mode = perception_mode(args.perception)
     if weather and not mode.renders_frames:
         raise InputError(f"--weather acts on camera images; {args.perception} renders none (use --perception detector, "
@@ -344,10 +353,19 @@ def _detection_range(args: argparse.Namespace) -> float | None:
     return out
 
 
-def _held_out_config(args: argparse.Namespace) -> HeldOutConfig:
-    split = (lambda text: tuple(t.strip() for t in str(text).split(",") if t.strip()))
-    return HeldOutConfig(tracks=split(args.eval_track), weathers=split(args.eval_weathers),
-                         perception=args.eval_perception, max_steps=args.eval_max_steps, episodes=args.eval_episodes)
+def _split(text: str) -> tuple[str, ...]:
+    return tuple(t.strip() for t in str(text).split(",") if t.strip())
+
+
+def _held_out_config(args: argparse.Namespace, training_tracks: list[str]) -> HeldOutConfig:
+    """The held-out drives of ``--eval-*``; a training track among them is refused."""
+    config = HeldOutConfig(tracks=_split(args.eval_track), weathers=_split(args.eval_weathers),
+                           perception=args.eval_perception, max_steps=args.eval_max_steps,
+                           episodes=args.eval_episodes)
+    for t in config.tracks:
+        if t in training_tracks:
+            raise InputError(f"--eval-track {t} is also a training track: it would not be held out")
+    return config
 
 
 def _pretrain_config(args: argparse.Namespace) -> PretrainConfig:
@@ -464,12 +482,7 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
     stopped: str | None = None  # the signal that stopped the run: "SIGINT" (Ctrl-C) or "SIGTERM"
     vec = logger = None
     sigterm = signal.getsignal(signal.SIGTERM)
-    selector = None
-    if "held_out" in s:
-        held_out = HeldOutConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in s["held_out"].items()})
-        selector = Selector(lambda m: held_out_laps(lambda o: m.predict(o, deterministic=True)[0], held_out,
-                                                    s["env_id"], s["env_kwargs"], s.get("cone_memory")),
-                            out / "best", meta, log, best=recorded_best(out / "best" / "best_model.json"))
+    selector = _selector(s, out, meta, log)
     log(_describe_run(args, hp, s, ckpt))
     try:
         vec = _vec_envs(args, hp, s, make, kind)
@@ -479,16 +492,7 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
         logger = configure(str(out / "logs" / segment), ["csv", "tensorboard"])
         model, vec = _model(args, hp, ckpt, vec)
         if ckpt is None and "pretrain" in s:
-            teach = [m(lean_info=False) for m in make]  # the same envs with the whole info (the expert's)
-            try:
-                run["pretrain"] = pretrain(model.policy, teach, _pretrain_config(args), args.seed,
-                                           progress=echo_to_tty(), log=log)
-            except (KeyboardInterrupt, Terminated) as exc:
-                stopped = _stop(exc)
-                print("interrupted while pretraining: saving the policy so far", file=sys.stderr)
-            finally:
-                for env in teach:
-                    env.close()
+            stopped = _warm_start(args, model, make, run, log)
             if stopped is None:  # a resume continues from the cloned policy, not from scratch
                 _save_checkpoint(model, checkpoints, meta)
                 atomic_write_json(run_file, run, indent=2, overwrite=True)
@@ -500,21 +504,10 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
         callbacks = CallbackList([*([progress] if progress else []), checkpoint_cb,
                                   *ppo_callbacks(total, log, selector, args.eval_freq)])
         start_steps = model.num_timesteps
-        remaining = total - start_steps
-        if remaining > 0 and stopped is None:
-            try:
-                model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=False)
-            except (KeyboardInterrupt, Terminated) as exc:
-                stopped = _stop(exc)
-                if progress is not None:
-                    progress.on_training_end()  # close the bar (its live display) that learn() left open
-                print(f"{'terminated (SIGTERM)' if stopped == 'SIGTERM' else 'interrupted'} after "
-                      f"{model.num_timesteps} steps: saving the model so far", file=sys.stderr)
+        if total - start_steps > 0 and stopped is None:
+            stopped = _learn(model, total - start_steps, callbacks, progress)
         if stopped is None and selector is not None and selector.last_steps != model.num_timesteps:
-            try:
-                selector.evaluate(model, logger)  # the last policy too (or the cloned one, with --timesteps 0)
-            except (KeyboardInterrupt, Terminated) as exc:
-                stopped = _stop(exc)
+            stopped = _last_drives(selector, model, logger)
         _save_final(out, model, meta, selector if stopped is None else None)
     except (KeyboardInterrupt, Terminated) as exc:  # before a model to save: the segment still says so
         stopped = _stop(exc)
@@ -535,19 +528,75 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
                 signal.signal(signal.SIGTERM, sigterm)
             except ValueError:  # not the main thread
                 pass
-    curve = plot_learning_curve(out)
-    warm = plot_pretrain_curve(out, run.get("pretrain"))
-    kept = json.loads((out / "model.json").read_text(encoding="utf-8"))
-    chosen = (f"; model.zip is the policy of {kept['timesteps']} PPO steps, the best on the held-out drives "
-              f"({kept['held_out']['laps']}/{kept['held_out']['episodes']} laps, {kept['held_out']['cones']} cones)"
-              if "held_out" in kept else "")
-    log(f"saved {out / 'model.zip'} after {model.num_timesteps} steps{chosen}; {run['wall_s_total']:.0f} s of training "
-        f"in {len(run['segments'])} segment(s); learning curve: {curve}" + (f"; warm start: {warm}" if warm else ""))
+    _log_end(out, run, int(model.num_timesteps), log)
     if stopped is not None:
         print(f"stopped early: continue with the same command and --resume (from the newest checkpoint in "
               f"{checkpoints}), or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
         return TERMINATED if stopped == "SIGTERM" else INTERRUPTED
     return 0
+
+
+def _selector(s: dict[str, Any], out: Path, meta: Any, log: Any) -> Selector | None:
+    """The held-out drives that pick the model (None with ``--eval-freq 0``), with the best a resumed run recorded."""
+    if "held_out" not in s:
+        return None
+    held_out = HeldOutConfig.from_dict(s["held_out"])
+
+    def drive(model: Any) -> Any:
+        return held_out_laps(lambda o: model.predict(o, deterministic=True)[0], held_out, s["env_id"],
+                             s["env_kwargs"], s.get("cone_memory"))
+
+    return Selector(drive, out / "best", meta, log, best=recorded_best(out / "best" / "best_model.json"))
+
+
+def _learn(model: Any, steps: int, callbacks: Any, progress: Any) -> str | None:
+    """PPO for ``steps`` more env steps; the signal that stopped it, or None."""
+    try:
+        model.learn(total_timesteps=steps, callback=callbacks, reset_num_timesteps=False)
+    except (KeyboardInterrupt, Terminated) as exc:
+        stopped = _stop(exc)
+        if progress is not None:
+            progress.on_training_end()  # close the bar (its live display) that learn() left open
+        print(f"{'terminated (SIGTERM)' if stopped == 'SIGTERM' else 'interrupted'} after "
+              f"{model.num_timesteps} steps: saving the model so far", file=sys.stderr)
+        return stopped
+    return None
+
+
+def _log_end(out: Path, run: dict[str, Any], steps: int, log: Any) -> None:
+    """The curves, and the run's last line: which policy ``model.zip`` is."""
+    curve = plot_learning_curve(out)
+    warm = plot_pretrain_curve(out, run.get("pretrain"))
+    kept = json.loads((out / "model.json").read_text(encoding="utf-8"))
+    held = kept.get("held_out")
+    chosen = (f"; model.zip is the policy of {kept['timesteps']} PPO steps, the best on the held-out drives "
+              f"({held['laps']}/{held['episodes']} laps, {held['cones']} cones)" if held else "")
+    log(f"saved {out / 'model.zip'} after {steps} steps{chosen}; {run['wall_s_total']:.0f} s of training "
+        f"in {len(run['segments'])} segment(s); learning curve: {curve}" + (f"; warm start: {warm}" if warm else ""))
+
+
+def _warm_start(args: argparse.Namespace, model: Any, make: list, run: dict[str, Any], log: Any) -> str | None:
+    """Clone ``--pretrain`` into ``model.policy`` (the record into ``run``); the signal that stopped it, or None."""
+    teach = [m(lean_info=False) for m in make]  # the same envs with the whole info (the expert's)
+    try:
+        run["pretrain"] = pretrain(model.policy, teach, _pretrain_config(args), args.seed, progress=echo_to_tty(),
+                                   log=log)
+    except (KeyboardInterrupt, Terminated) as exc:
+        print("interrupted while pretraining: saving the policy so far", file=sys.stderr)
+        return _stop(exc)
+    finally:
+        for env in teach:
+            env.close()
+    return None
+
+
+def _last_drives(selector: Selector, model: Any, logger: Any) -> str | None:
+    """The held-out drives of the last policy (or of the clone, with ``--timesteps 0``); a stop's signal or None."""
+    try:
+        selector.evaluate(model, logger)
+    except (KeyboardInterrupt, Terminated) as exc:
+        return _stop(exc)
+    return None
 
 
 def _describe_run(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], ckpt: Path | None) -> str:
