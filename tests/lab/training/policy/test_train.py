@@ -35,7 +35,7 @@ def test_the_shipped_file_is_rl_zoo3_format_and_builds_ppo():
     from weather_gym.pipeline import make_env
 
     hp = load_hyperparams(HYPERPARAMS, DEFAULT_HYPERPARAMS_KEY)
-    assert hp["n_envs"] == 8 and hp["n_timesteps"] == 300_000
+    assert hp["n_envs"] == 16 and hp["n_timesteps"] == 100_000 and hp["ppo"]["learning_rate"] == 1e-4
     assert hp["normalize"] == {"norm_obs": False, "norm_reward": True}
     assert hp["policy_kwargs"] == {"net_arch": {"pi": [128, 128], "vf": [128, 128]}, "log_std_init": -0.5}
     env = make_env(perception="gt_cones", max_episode_steps=10)
