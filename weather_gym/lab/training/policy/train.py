@@ -530,8 +530,10 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
                 pass
     _log_end(out, run, int(model.num_timesteps), log)
     if stopped is not None:
-        print(f"stopped early: continue with the same command and --resume (from the newest checkpoint in "
-              f"{checkpoints}), or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
+        again = (f"continue with the same command and --resume (from the newest checkpoint in {checkpoints})"
+                 if latest_checkpoint(checkpoints) is not None else
+                 "no checkpoint yet (stopped in the warm start): run the same command with --overwrite to start again")
+        print(f"stopped early: {again}, or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
         return TERMINATED if stopped == "SIGTERM" else INTERRUPTED
     return 0
 
