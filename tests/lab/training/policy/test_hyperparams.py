@@ -209,7 +209,8 @@ def test_rl_md_quotes_the_code():
     d = build_parser().parse_args(["--out", "x"])
     assert f"every {d.eval_freq:,} steps (`--eval-freq`)" in text and f"lap or {d.max_steps} steps" in text
     assert f"{d.eval_episodes} episode each (`--eval-episodes`" in text and f"{d.eval_max_steps} steps (`--eval-max" in text
-    assert d.eval_track == "small_track,mirror:hairpin" and "`small_track` and `mirror:hairpin`" in text
+    assert d.eval_track == "small_track,mirror:hairpin,mirror:peanut"
+    assert "`small_track`, `mirror:hairpin` and `mirror:peanut`" in text
     assert f"`--timesteps` ({hp['n_timesteps']:,})" in text and f"`--eval-freq` ({d.eval_freq:,})" in text
     assert f"(default {d.pretrain_steps:,})" in text and f"rounds (default {d.dagger_rounds})" in text
     assert f"(default {d.dagger_beta})" in text and f"default {d.pretrain_epochs})" in text
