@@ -6,9 +6,9 @@ Hyper-parameters come from ``weather_gym/lab/training/policy/ppo.yml`` (rl-zoo3'
 file); see ``docs/rl.md``.
 
 Usage:
-    python examples/train_ppo.py --timesteps 300000 --n-envs 8 --out runs/ppo_cones
-    python examples/train_ppo.py --timesteps 300000 --n-envs 8 --out runs/ppo_cones --resume   # after a stop
-    python examples/train_ppo.py --timesteps 4096 --n-envs 2 --out runs/ppo_smoke                # a smoke run
+    python examples/train_ppo.py --out runs/driver                 # warm start, PPO, the best held-out policy kept
+    python examples/train_ppo.py --out runs/driver --resume        # after a stop
+    python examples/train_ppo.py --out runs/ppo_smoke --timesteps 4096 --n-envs 2 --pretrain none --eval-freq 0
 """
 
 from __future__ import annotations

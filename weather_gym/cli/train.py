@@ -1,16 +1,16 @@
 """``weather-gym train``: train a PPO driver on the cone list (:mod:`weather_gym.lab.training.policy.train`).
 
 Examples:
-    weather-gym train --out runs/ppo                                   # the shipped ppo.yml, 300k steps
-    weather-gym train --out runs/ppo --resume                          # after a stop (Ctrl-C included)
-    weather-gym train --out runs/smoke --timesteps 4096 --n-envs 2     # a smoke run
-    weather-gym train --out runs/sur --perception surrogate --surrogate-weathers clear,droplets@2,low_light@1
+    weather-gym train --out runs/driver            # clone gt_pure_pursuit (DAgger), PPO 100k steps, best held-out kept
+    weather-gym train --out runs/driver --resume   # after a stop (Ctrl-C included)
+    weather-gym train --out runs/bc --timesteps 0  # the clone alone
+    weather-gym train --out runs/smoke --timesteps 4096 --n-envs 2 --pretrain none --eval-freq 0   # a smoke run
 
 The smoke run above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
     >>> args = build_parser().parse_args(['train', '--out', 'runs/smoke', '--timesteps', '4096', '--n-envs', '2'])
-    >>> str(args.out), args.timesteps, args.n_envs, args.perception
-    ('runs/smoke', 4096, 2, 'gt_cones')
+    >>> str(args.out), args.timesteps, args.n_envs, args.perception, args.pretrain
+    ('runs/smoke', 4096, 2, 'surrogate', 'gt_pure_pursuit')
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 Runs ``weather-gym train`` as a user does (a fresh process per run, in a temporary folder) with each
 ``--vecs`` kind in turn, ``--pairs`` times, the kinds alternating so that the machine's drift falls
 on all of them; the first kind is the baseline. Each run's speed is SB3's own ``time/fps`` at the end
-(env steps per second of wall time since the start of learning: rollouts, updates and the held-out
-evaluation included) and its wall time the whole command's. The table has one row per round, the
+(env steps per second of wall time since the start of learning: rollouts and updates; the runs
+skip the warm start and the held-out drives, ``--pretrain none --eval-freq 0``) and its wall time the whole command's. The table has one row per round, the
 median of each kind and the speed-up of each over the baseline, round by round.
 
 Example:
@@ -80,7 +80,8 @@ def final_fps(run: Path) -> float:
 def time_run(folder: Path, vec: str, args) -> tuple[float, float]:
     """``(fps, wall s)`` of one ``weather-gym train`` run with ``--vec vec``."""
     cmd = [sys.executable, "-m", "weather_gym.cli", "train", "--out", str(folder), "--perception", args.perception,
-           "--timesteps", str(args.timesteps), "--n-envs", str(args.n_envs), "--vec", vec, *args.train_args.split()]
+           "--timesteps", str(args.timesteps), "--n-envs", str(args.n_envs), "--vec", vec,
+           "--pretrain", "none", "--eval-freq", "0", *args.train_args.split()]  # PPO's env steps alone
     t0 = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0

@@ -14,7 +14,7 @@ pytest.importorskip("stable_baselines3")
 def test_bench_train_times_each_kind_against_the_baseline(tmp_path, capsys):
     out = tmp_path / "train.md"
     assert main(["bench", "train", "--vecs", "dummy,split", "--pairs", "1", "--timesteps", "64", "--n-envs", "2",
-                 "--train-args", "--n-steps 32 --batch-size 32 --track hairpin,oval --eval-freq 100000",
+                 "--train-args", "--n-steps 32 --batch-size 32 --track hairpin,oval",
                  "--out", str(out)]) == 0
     text = out.read_text()
     assert "baseline --vec dummy" in text and "| split vs dummy" in text.replace("|  ", "| ")

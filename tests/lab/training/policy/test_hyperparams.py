@@ -147,14 +147,14 @@ def test_subproc_starts_at_most_4_processes_per_core_as_make_vec_env():
 @pytest.mark.parametrize(("argv", "expected"), [
     (["--batch-size", "1"], r"--batch-size must be an integer in \[2, 1048576\] \(PPO normalises the advantage "
                             r"over each mini-batch\), got 1"),
-    (["--batch-size", "100"], r"--batch-size \(100\) must divide the rollout n_steps \* n_envs = 256 \* 8 = 2048"),
+    (["--batch-size", "100"], r"--batch-size \(100\) must divide the rollout n_steps \* n_envs = 256 \* 16 = 4096"),
     (["--n-envs", "100000"], rf"--n-envs must be an integer in \[1, {MAX_N_ENVS}\], got 100000"),
     (["--gamma", "5"], r"--gamma must be a number in \(0, 1\], got 5.0"),
     (["--learning-rate", "0"], r"--learning-rate must be a number in \(0, 1\]"),
     (["--ent-coef", "-1"], r"--ent-coef must be a number in \[0, 1\]"),
     (["--n-epochs", "0"], r"--n-epochs must be an integer in \[1, 1000\]"),
     (["--n-steps", "1", "--n-envs", "1"], r"--n-steps: the rollout n_steps \* n_envs = 1 \* 1 must be at least 2"),
-    (["--timesteps", "0"], r"--timesteps must be an integer >= 1 \(0 only with --pretrain\)"),
+    (["--timesteps", "0", "--pretrain", "none"], r"--timesteps must be an integer >= 1 \(0 only with --pretrain\)"),
     (["--timesteps", str(10**10)], r"--timesteps must be an integer in \[1, 1000000000\] or null"),
     (["--log-std-init", "50"], r"--log-std-init must be a number in \[-10, 2\], got 50.0"),
     (["--max-steps", "0"], r"--max-steps must be an integer in \[1, 1000000\], got 0"),
@@ -165,6 +165,10 @@ def test_subproc_starts_at_most_4_processes_per_core_as_make_vec_env():
     (["--init", "nosuch.zip"], r"--init nosuch.zip: no such model file"),
     (["--init", __file__], r"--init .*test_hyperparams.py: not a saved SB3 model"),
     (["--camera", "9999x10"], r"--camera 9999x10: each side must be at most 4096 pixels"),
+    (["--eval-max-steps", "0"], r"--eval-max-steps must be an integer in \[1, 1000000\], got 0"),
+    (["--eval-weathers", ""], r"--eval-weathers is empty"),
+    (["--eval-track", "small_track,hairpin"], r"--eval-track hairpin is also a training track"),
+    (["--detection-range", "-3"], r"--detection-range must be a distance in metres > 0 or 'none', got '-3'"),
 ])
 def test_every_option_is_checked_before_anything_is_written(tmp_path, capsys, monkeypatch, argv, expected):
     monkeypatch.setattr("weather_gym.lab.training.policy.train.os.cpu_count", lambda: 2)
@@ -203,7 +207,11 @@ def test_rl_md_quotes_the_code():
     assert [float(v) for v in setup[4:]] == [hp["ppo"]["learning_rate"], hp["ppo"]["gamma"]]
     assert f"`--log-std-init {hp['policy_kwargs']['log_std_init']}`" in text
     d = build_parser().parse_args(["--out", "x"])
-    assert f"every {d.eval_freq:,} steps\n  ({d.eval_episodes} episodes" in text and f"lap or {d.max_steps} steps" in text
+    assert f"every {d.eval_freq:,} steps (`--eval-freq`)" in text and f"lap or {d.max_steps} steps" in text
+    assert f"{d.eval_episodes} episode each (`--eval-episodes`" in text and f"{d.eval_max_steps} steps (`--eval-max" in text
+    assert d.eval_track == "small_track,mirror:hairpin,mirror:peanut"
+    assert "`small_track`, `mirror:hairpin` and `mirror:peanut`" in text
+    assert f"`--timesteps` ({hp['n_timesteps']:,})" in text and f"`--eval-freq` ({d.eval_freq:,})" in text
     assert f"(default {d.pretrain_steps:,})" in text and f"rounds (default {d.dagger_rounds})" in text
     assert f"(default {d.dagger_beta})" in text and f"default {d.pretrain_epochs})" in text
     assert f"`--pretrain-log-std` (default {d.pretrain_log_std}" in text

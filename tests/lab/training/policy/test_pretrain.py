@@ -18,7 +18,7 @@ pytest.importorskip("stable_baselines3")
 def _args(out, *extra):
     return ["train", "--out", str(out), "--n-envs", "2", "--track", "hairpin,peanut", "--perception", "gt_cones",
             "--pretrain", "gt_pure_pursuit", "--pretrain-steps", "600", "--dagger-rounds", "2",
-            "--pretrain-epochs", "4", "--timesteps", "0", *extra]
+            "--pretrain-epochs", "4", "--timesteps", "0", "--eval-freq", "0", *extra]
 
 
 def test_pretraining_clones_the_expert_and_saves_a_usable_model(tmp_path):
@@ -79,5 +79,35 @@ def test_bad_pretraining_options_are_refused(tmp_path, capsys, extra, message):
 
 
 def test_timesteps_zero_needs_pretraining(tmp_path, capsys):
-    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "0"]) == 2
+    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "0", "--pretrain", "none"]) == 2
     assert "--timesteps must be an integer >= 1 (0 only with --pretrain), got 0" in capsys.readouterr().err
+
+
+def test_a_stop_during_ppo_resumes_from_the_clone(tmp_path, monkeypatch):
+    """The clone is checkpointed (``ppo_0_steps``) and driven on the held-out drives once: a resume after a
+    stop in PPO continues from it, with its warm-start record and best score, not from scratch."""
+    from stable_baselines3 import PPO
+
+    out = tmp_path / "run"
+    args = ["train", "--out", str(out), "--n-envs", "1", "--track", "hairpin", "--perception", "gt_cones",
+            "--pretrain-steps", "200", "--dagger-rounds", "2", "--pretrain-epochs", "1", "--n-steps", "64",
+            "--batch-size", "64", "--n-epochs", "1", "--max-steps", "60", "--timesteps", "128",
+            "--checkpoint-freq", "1000", "--eval-freq", "1000", "--eval-track", "small_track",
+            "--eval-weathers", "clear", "--eval-max-steps", "20"]
+    real_train = PPO.train
+
+    def interrupted_train(self):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(PPO, "train", interrupted_train)
+    assert main(args) == 130
+    monkeypatch.setattr(PPO, "train", real_train)
+    assert (out / "checkpoints" / "ppo_0_steps.json").is_file() and (out / "best" / "best_model.json").is_file()
+    pre = json.loads((out / "run.json").read_text())["pretrain"]
+    assert [r["samples"] for r in pre["rounds_log"]] == [100, 200]
+    assert main([*args, "--resume"]) == 0
+    meta = json.loads((out / "model.json").read_text())
+    assert meta["pretrain"] == pre and meta["last_timesteps"] == 128 and "held_out" in meta
+    log = (out / "train.log").read_text()
+    assert log.count("pretrain round 2 of 2:") == 1 and log.count("held-out drives at 0 PPO steps") == 1
+    assert "resuming from ppo_0_steps.zip" in log and "held-out drives at 128 PPO steps" in log

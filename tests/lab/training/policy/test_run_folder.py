@@ -20,7 +20,8 @@ from weather_gym.lab.training.policy.run_outputs import RUN_FILES, _remove_run, 
 pytest.importorskip("stable_baselines3")
 ROOT = Path(__file__).resolve().parents[4]
 TINY = ["--n-envs", "1", "--vec", "dummy", "--track", "hairpin", "--n-steps", "64", "--batch-size", "64",
-        "--n-epochs", "1", "--max-steps", "60", "--eval-freq", "1000000", "--checkpoint-freq", "64"]
+        "--n-epochs", "1", "--max-steps", "60", "--eval-freq", "0", "--checkpoint-freq", "64", "--pretrain", "none",
+        "--perception", "gt_cones"]
 """A run that checkpoints every update of 64 steps and evaluates never (gt_cones: nothing rendered)."""
 
 
@@ -99,7 +100,7 @@ def test_overwrite_refuses_a_folder_that_holds_no_run(tmp_path, capsys):
 
 def test_overwrite_removes_only_what_a_run_wrote(tmp_path):
     out = tmp_path / "run"
-    written = ["model.zip", "model.json", "run.json", "learning_curve.png", "checkpoints/ppo_64_steps.zip",
+    written = ["model.zip", "model.json", "run.json", "train.log", "learning_curve.png", "checkpoints/ppo_64_steps.zip",
                "checkpoints/ppo_64_steps.json", "checkpoints/ppo_vecnormalize_64_steps.pkl", "best/best_model.zip",
                "best/best_model.json", "logs/steps000000000/progress.csv", "logs/steps000000064/evaluations.npz"]
     written += [".model.zip.x1y2.tmp.zip", "checkpoints/.ppo_64_steps.zip.ab12.tmp.zip"]  # cut short by kill -9
@@ -114,7 +115,7 @@ def test_overwrite_removes_only_what_a_run_wrote(tmp_path):
         "logs/steps000000000", "logs/steps000000064"}
     left = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
     assert left == sorted(mine) and not holds_run(out)
-    assert len(RUN_FILES) == 11  # the one list (docs/rl.md names each)
+    assert len(RUN_FILES) == 12  # the one list (docs/rl.md names each)
 
 
 @pytest.mark.slow

@@ -35,7 +35,7 @@ def test_the_shipped_file_is_rl_zoo3_format_and_builds_ppo():
     from weather_gym.pipeline import make_env
 
     hp = load_hyperparams(HYPERPARAMS, DEFAULT_HYPERPARAMS_KEY)
-    assert hp["n_envs"] == 8 and hp["n_timesteps"] == 300_000
+    assert hp["n_envs"] == 16 and hp["n_timesteps"] == 100_000 and hp["ppo"]["learning_rate"] == 1e-4
     assert hp["normalize"] == {"norm_obs": False, "norm_reward": True}
     assert hp["policy_kwargs"] == {"net_arch": {"pi": [128, 128], "vf": [128, 128]}, "log_std_init": -0.5}
     env = make_env(perception="gt_cones", max_episode_steps=10)
@@ -77,7 +77,9 @@ def test_tiny_run_ctrl_c_resume_and_every_saved_model_evaluates(tmp_path, monkey
     out = tmp_path / "run"
     args = ["train", "--out", str(out), "--n-envs", "1", "--track", "hairpin", "--n-steps", "64",
             "--batch-size", "64", "--n-epochs", "1", "--max-steps", "60", "--eval-freq", "64",
-            "--eval-episodes", "1", "--checkpoint-freq", "64", "--cone-memory"]
+            "--eval-episodes", "1", "--checkpoint-freq", "64", "--cone-memory", "--pretrain", "none",
+            "--perception", "gt_cones", "--eval-track", "small_track", "--eval-weathers", "clear",
+            "--eval-max-steps", "30"]
     updates = {"n": 0}
     real_train = PPO.train
 
@@ -92,14 +94,21 @@ def test_tiny_run_ctrl_c_resume_and_every_saved_model_evaluates(tmp_path, monkey
     monkeypatch.setattr(PPO, "train", real_train)
     meta = json.loads((out / "model.json").read_text())
     assert meta["timesteps"] == 192 and meta["env_id"] == "WeatherGym/ConeTrack-v0"
-    assert meta["cone_memory"] == ConeMemoryConfig().to_dict()  # the tuning it trained with, for the driver
+    memory = ConeMemoryConfig(detection_range=30.0)
+    assert meta["cone_memory"] == memory.to_dict()  # the tuning it trained with, for the driver
     assert (out / "model.zip").is_file() and (out / "learning_curve.png").stat().st_size > 0
     run = json.loads((out / "run.json").read_text())
     assert run["segments"][0]["interrupted"] is True and run["segments"][0]["to_steps"] == 192
     assert PPO.load(str(out / "model.zip"), device="cpu").num_timesteps == 192  # a usable model
 
     assert main([*args, "--timesteps", "256", "--resume"]) == 0
-    assert json.loads((out / "model.json").read_text())["timesteps"] == 256
+    meta = json.loads((out / "model.json").read_text())  # the best policy on the held-out drives
+    best = json.loads((out / "best" / "best_model.json").read_text())
+    assert meta["last_timesteps"] == 256 and meta["held_out"] == best["held_out"]
+    assert meta["timesteps"] == best["timesteps"] and meta["held_out"]["episodes"] == 1
+    log = (out / "train.log").read_text()  # progress and statistics in a file, both segments
+    assert log.count("PPO 64/256 steps") == 1 and "PPO 256/256 steps" in log and "resuming from" in log
+    assert "held-out drives at 256 PPO steps" in log
     checkpoints = sorted((out / "checkpoints").glob("ppo_*_steps.zip"), key=lambda p: int(p.stem.split("_")[1]))
     assert [p.name for p in checkpoints][-1] == "ppo_256_steps.zip"
     assert all(p.with_suffix(".json").is_file() for p in checkpoints)
@@ -115,7 +124,7 @@ def test_tiny_run_ctrl_c_resume_and_every_saved_model_evaluates(tmp_path, monkey
         assert config.env_id == "WeatherGym/ConeTrack-v0" and config.tracks == ("small_track",)
         rows = evaluate(config, tmp_path / f"eval{i}", backend="serial", progress=False)
         assert [r["status"] for r in rows] == ["ok"]
-        assert AGENTS.get("sb3")(None, None, path=model).memory.config == ConeMemoryConfig()  # drives as trained
+        assert AGENTS.get("sb3")(None, None, path=model).memory.config == memory  # drives as trained
     (checkpoints[0].with_suffix(".json")).unlink()  # no sidecar: the run folder's model.json is found
     assert evaluate_policy.find_sidecar(checkpoints[0]) == out / "model.json"
 
@@ -147,10 +156,8 @@ def test_random_starts_keep_a_share_at_the_start_line():
 
 def test_ppo_steps_render_free_envs_in_two_processes_with_lean_infos(tmp_path, monkeypatch):
     """The default vector env for render-free perception on 2 cores: SplitVecEnv (half the envs in a
-    second process, stepped at the same time; the held-out evaluation in one process), each env's
-    info cut to INFO_KEYS (DummyVecEnv deep-copies the infos every step)."""
+    second process, stepped at the same time), each env's info cut to INFO_KEYS (DummyVecEnv deep-copies the infos every step)."""
     from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import DummyVecEnv
 
     from weather_gym.lab.training.policy import train as train_module
     from weather_gym.lab.training.policy.split_vec_env import SplitVecEnv
@@ -159,20 +166,17 @@ def test_ppo_steps_render_free_envs_in_two_processes_with_lean_infos(tmp_path, m
     seen = {}
 
     def no_learning(self, total_timesteps, **kwargs):  # the envs as PPO would step them, nothing learnt
-        seen["vec"], seen["eval"] = self.env, kwargs["callback"].callbacks[-1].eval_env
+        seen["vec"] = self.env
         seen["wrapped"] = self.env.env_is_wrapped(LeanInfo)
         return self
 
     monkeypatch.setattr(PPO, "learn", no_learning)
     monkeypatch.setattr(train_module.os, "sched_getaffinity", lambda pid: {0, 1})
     assert main(["train", "--out", str(tmp_path / "run"), "--n-envs", "2", "--track", "hairpin,oval",
-                 "--perception", "surrogate", "--timesteps", "64", "--n-steps", "32", "--batch-size", "32"]) == 0
+                 "--perception", "surrogate", "--timesteps", "64", "--n-steps", "32", "--batch-size", "32",
+                 "--pretrain", "none", "--eval-freq", "0"]) == 0
     assert seen["wrapped"] == [True, True]
     vec = seen["vec"]
     while not isinstance(vec, SplitVecEnv):  # VecNormalize -> VecMonitor -> SplitVecEnv
         vec = vec.venv
     assert vec.num_envs == 2 and all(isinstance(env, LeanInfo) for env in vec._local.envs)
-    vec = seen["eval"]
-    while not isinstance(vec, DummyVecEnv):
-        vec = vec.venv
-    assert all(isinstance(env, LeanInfo) for env in vec.envs)

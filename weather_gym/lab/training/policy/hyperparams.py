@@ -12,7 +12,7 @@ Example:
     >>> from weather_gym.lab.training.policy import HYPERPARAMS
     >>> hp = load_hyperparams(HYPERPARAMS, "WeatherGym/ConeTrackCones-v0")
     >>> hp["n_envs"], hp["ppo"]["n_steps"]
-    (8, 256)
+    (16, 256)
     >>> Hyperparams(gamma=5)
     Traceback (most recent call last):
     ...

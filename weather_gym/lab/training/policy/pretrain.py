@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -166,6 +167,25 @@ def collect(envs: list[gym.Env], experts: list[Any], policy: Any | None, steps: 
     return {"obs": _stack(obs_rows), "action": np.asarray(labels, np.float32)}, stats
 
 
+class _Ticker:
+    """A tqdm bar (on a terminal) that also logs a line every ``every_s`` seconds (for log files)."""
+
+    def __init__(self, bar: Any, log: Callable[[str], None], what: str, total: int, every_s: float = 60.0) -> None:
+        self.bar, self.log, self.what, self.total, self.every_s = bar, log, what, total, every_s
+        self.done, self.t0 = 0, time.time()
+        self.next = self.t0 + every_s
+
+    def update(self, n: int) -> None:
+        self.bar.update(n)
+        self.done += n
+        now = time.time()
+        if now >= self.next and self.done < self.total:
+            self.next = now + self.every_s
+            rate = self.done / max(now - self.t0, 1e-9)
+            self.log(f"{self.what}: {self.done}/{self.total} steps, {rate:.0f} steps/s, "
+                     f"about {(self.total - self.done) / max(rate, 1e-9) / 60:.1f} min left in this round")
+
+
 def _concat(parts: list[dict[str, Any]]) -> dict[str, Any]:
     return {"obs": {k: np.concatenate([p["obs"][k] for p in parts]) for k in parts[0]["obs"]},
             "action": np.concatenate([p["action"] for p in parts])}
@@ -198,7 +218,7 @@ def _actor_parameters(policy: Any) -> list[Any]:
 
 
 def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int,
-             progress: bool = True) -> dict[str, Any]:
+             progress: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Fit ``policy`` (an SB3 actor-critic policy) to ``config.expert`` on ``envs`` with DAgger.
 
     Returns the record written to ``run.json`` and ``model.json``: the settings, per round the
@@ -218,7 +238,8 @@ def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int
     for r, n_steps in enumerate(config.steps_per_round()):
         beta = 1.0 if r == 0 else float(config.beta) ** r
         with tqdm(total=n_steps, desc=f"BC round {r}", unit="step", dynamic_ncols=True, disable=not progress) as bar:
-            part, stats = collect(envs, experts, None if r == 0 else policy, n_steps, beta, drive_rng, bar)
+            ticker = _Ticker(bar, log, f"pretrain round {r + 1} of {config.rounds}", n_steps)
+            part, stats = collect(envs, experts, None if r == 0 else policy, n_steps, beta, drive_rng, ticker)
         parts.append(part)
         data = _concat(parts)
         before = bc_loss(policy, data)
@@ -228,9 +249,9 @@ def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int
                        "expert_share": round(stats["expert_steps"] / max(n_steps, 1), 4),
                        "episodes": stats["episodes"], "laps": stats["laps"],
                        "loss_before": round(before, 6), "loss": round(after, 6)})
-        print(f"pretrain round {r}: {n_steps} steps ({rounds[-1]['expert_share']:.0%} expert-driven, "
+        log(f"pretrain round {r + 1} of {config.rounds}: {n_steps} steps ({rounds[-1]['expert_share']:.0%} expert-driven, "
               f"{stats['episodes']} episodes ended, {stats['laps']} laps), {len(data['action'])} samples, "
-              f"BC loss {before:.4f} -> {after:.4f}")
+              f"BC loss {before:.4f} -> {after:.4f}, {time.time() - started:.0f} s so far")
     with torch.no_grad():
         policy.log_std.fill_(float(config.log_std))
     return {**dataclasses.asdict(config), "rounds_log": rounds, "initial_loss": rounds[0]["loss_before"],

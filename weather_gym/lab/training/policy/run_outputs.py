@@ -105,13 +105,14 @@ def plot_learning_curve(out: Path) -> Path | None:
             ax1.plot(x, y, marker="." if key.startswith("eval") else None, label=label)
     ax1.set_xlabel("environment steps")
     ax1.set_ylabel("episode reward (m of progress, penalties)")
-    ax1.legend(fontsize=8)
+    if ax1.lines:
+        ax1.legend(fontsize=8)
     ax1.grid(alpha=0.3)
     x, y = series("eval/success_rate")
     if len(x):
         ax2.plot(x, y, marker=".", color="tab:green")
     ax2.set_xlabel("environment steps")
-    ax2.set_ylabel("lap completion on the held-out track")
+    ax2.set_ylabel("held-out drives that were laps")
     ax2.set_ylim(-0.05, 1.05)
     ax2.grid(alpha=0.3)
     fig.suptitle(f"PPO on the cone list ({out.name})")
@@ -160,12 +161,14 @@ def model_metadata(settings: dict[str, Any], hp: dict[str, Any], seed: int, eval
             "cone_memory": settings.get("cone_memory", False)}
 
 
-RUN_FILES = ("model.zip", "model.json", "run.json", "learning_curve.png", "pretrain_curve.png",
+RUN_FILES = ("model.zip", "model.json", "run.json", "train.log", "learning_curve.png", "pretrain_curve.png",
              "checkpoints/ppo_*_steps.zip", "checkpoints/ppo_*_steps.json", "checkpoints/ppo_vecnormalize_*_steps.pkl",
              "best/best_model.zip", "best/best_model.json", "logs/steps[0-9]*")
 """What a run writes in its folder, as glob patterns (a ``logs/steps<N>`` folder is one segment's SB3 logs:
 ``progress.csv``, TensorBoard events, ``evaluations.npz``). The one list ``--overwrite`` removes (then the
 folders ``checkpoints``, ``best`` and ``logs`` if that left them empty); nothing else in the folder is touched."""
+TRAIN_LOG = "train.log"
+"""The run's log: every progress line and statistic the run printed, with the time (appended by each segment)."""
 RUN_RECORD = "run.json"
 """The file that makes a folder a run: ``--resume`` continues it, ``--overwrite`` replaces it."""
 

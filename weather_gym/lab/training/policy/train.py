@@ -1,48 +1,54 @@
-"""``weather-gym train``: a stable-baselines3 PPO driver on the cone-list observation; logs,
-checkpoints, held-out evaluation, resume, and a usable model after Ctrl-C.
+"""``weather-gym train``: a driver on the cone-list observation, in three stages: a clone of a scripted
+driver (behaviour cloning with DAgger), PPO fine-tuning, and the policy that laps held-out tracks
+best kept as the model; logs, checkpoints, resume, and a usable model after Ctrl-C.
+
+**Warm start.** ``--pretrain EXPERT`` (default ``gt_pure_pursuit``, the scripted driver on the true
+pose; ``none``: PPO from scratch) is cloned with DAgger on the training envs
+(:mod:`weather_gym.lab.training.policy.pretrain`; ``--pretrain-steps``, ``--dagger-rounds``,
+``--pretrain-epochs``, ``--pretrain-log-std``); ``checkpoints/ppo_0_steps.zip`` holds the clone.
 
 **Observation.** The policy reads the cone list ``Dict(cones, mask, state)`` through
-``weather_gym.agents.sb3_features.ConeListPolicy`` (``ConeListExtractor``). It trains on ``gt_cones``
-by default: the cones the camera would see, computed from geometry with nothing rendered, degraded
-with ``OracleNoise`` (misses, range and bearing noise, phantom cones) so that it copes with a
-detector's mistakes. The detector on a weathered frame gives the same observation, so the trained
-policy is evaluated through weather and the detector (``examples/evaluate_policy.py``,
-``weather-gym evaluate --agent sb3``; ``docs/rl.md``). ``--perception surrogate`` trains on the
-detector's fitted statistics instead (env ``i`` in ``--surrogate-weathers[i % len]``); ``detector`` /
-``oracle`` render a frame per step (with ``--weather``: ``WeatherRandomizer`` fields).
+``weather_gym.agents.sb3_features.ConeListPolicy``, by default from the perception surrogate (the
+detector's fitted statistics, nothing rendered; env ``i`` in ``--surrogate-weathers[i % len]``) and
+through the cone memory (``--cone-memory``, ``--detection-range``). ``gt_cones`` is geometric ground
+truth degraded with ``--noise`` (``OracleNoise``); ``detector`` / ``oracle`` render a frame per step
+(with ``--weather``: ``WeatherRandomizer`` fields). The detector on a weathered frame gives the same
+observation, so the trained policy is evaluated through weather and the detector
+(``examples/evaluate_policy.py``, ``weather-gym evaluate --agent sb3``; ``docs/rl.md``).
 
 **Hyper-parameters** come from a file in rl-zoo3's YAML format (``--hyperparams``, default the
 shipped :data:`weather_gym.lab.training.policy.HYPERPARAMS`, section ``--hyperparams-key``): ``n_envs``,
-``n_timesteps``, ``policy``, ``normalize``, ``policy_kwargs`` and PPO's own keywords. The same file
-trains with ``python -m rl_zoo3.train --algo ppo --env WeatherGym/ConeTrackCones-v0 --gym-packages
-weather_gym -conf FILE``. Options given on the command line (``--n-envs``, ``--timesteps``,
-``--learning-rate``, ...) override single values.
+``n_timesteps``, ``policy``, ``normalize``, ``policy_kwargs`` and PPO's own keywords. Options given on
+the command line (``--n-envs``, ``--timesteps``, ``--learning-rate``, ...) override single values.
 
-**Tracks.** Env ``i`` drives ``--track[i % len]``, each episode from a random point of its track
-(drawn from the reset seed); the ``EvalCallback`` drives the held-out ``--eval-track`` (never trained
-on) from the start line and logs the mean reward and lap completion (``eval/success_rate``).
+**Tracks.** Env ``i`` drives ``--track[i % len]``; three quarters of the episodes start at a random
+point of the track (drawn from the reset seed), a quarter at the start line.
+
+**The model kept.** After the warm start, every ``--eval-freq`` PPO steps and at the end, the policy
+drives the held-out ``--eval-track`` tracks (never trained on) from the start line in each of
+``--eval-weathers`` through ``--eval-perception``
+(:mod:`weather_gym.lab.training.policy.selection`); the best (most laps, then fewest cones, then
+least time) goes to ``best/`` and, when the run ends, becomes ``model.zip``. Progress and the main
+statistics are printed as lines and appended to ``train.log``.
 
 **Outputs** in ``--out``: ``model.zip`` and ``model.json`` (the env it was trained on: what
 ``examples/evaluate_policy.py`` reads), ``checkpoints/ppo_<N>_steps.zip`` each with its
-``ppo_<N>_steps.json``, ``best/best_model.zip`` with ``best/best_model.json`` (every one of them
-evaluates with the same command as the final model), ``logs/<segment>/progress.csv`` and TensorBoard
-event files, ``learning_curve.png``, ``run.json`` (command, settings, segments, wall time).
-``--resume`` continues from the newest complete checkpoint up to ``--timesteps``; ``--overwrite`` replaces the
-run in a non-empty folder (never without it), removing only the files a run writes (``RUN_FILES``); a
-folder holding no run is refused. One run writes a folder at a time (a lock on ``--out``).
-``--pretrain EXPERT`` first clones a registered agent (e.g.
-``gt_pure_pursuit``) with DAgger on the same envs (:mod:`weather_gym.lab.training.policy.pretrain`; ``--pretrain-steps``,
-``--dagger-rounds``, ``--pretrain-epochs``, ``--pretrain-log-std``), then PPO continues for
-``--timesteps`` (0: the cloned policy is saved as the model). **Ctrl-C or SIGTERM** stops the run and still
-writes ``model.zip``, ``model.json``, the learning curve and ``run.json`` (its segment marked interrupted, with
-the signal; exit status 130 or 143); ``--resume`` continues from the newest checkpoint. Every hyper-parameter
-and option is checked first against its declared range (``weather_gym.lab.training.policy.hyperparams.Hyperparams``).
+``ppo_<N>_steps.json``, ``best/best_model.zip`` with ``best/best_model.json``, ``train.log``,
+``logs/<segment>/progress.csv`` and TensorBoard event files, ``learning_curve.png``,
+``pretrain_curve.png``, ``run.json`` (command, settings, segments, wall time). ``--resume`` continues
+from the newest complete checkpoint up to ``--timesteps``; ``--overwrite`` replaces the run in a
+non-empty folder (never without it), removing only the files a run writes (``RUN_FILES``); a folder
+holding no run is refused. One run writes a folder at a time (a lock on ``--out``). **Ctrl-C or
+SIGTERM** stops the run and still writes ``model.zip`` (the policy as it is), ``model.json``, the
+learning curve and ``run.json`` (its segment marked interrupted, with the signal; exit status 130 or
+143). Every hyper-parameter and option is checked first against its declared range
+(``weather_gym.lab.training.policy.hyperparams.Hyperparams``).
 
 Example:
     >>> args = build_parser().parse_args(["--out", "runs/x", "--n-envs", "2"])
     >>> hp = resolve_hyperparams(args)
-    >>> hp["n_envs"], hp["n_timesteps"], hp["ppo"]["n_steps"], hp["policy"].rsplit(".", 1)[-1]
-    (2, 300000, 256, 'ConeListPolicy')
+    >>> hp["n_envs"], hp["n_timesteps"], hp["ppo"]["n_steps"], hp["policy"].rsplit(".", 1)[-1], args.pretrain
+    (2, 100000, 256, 'ConeListPolicy', 'gt_pure_pursuit')
 """
 
 
@@ -53,6 +59,7 @@ import dataclasses
 import json
 import os
 import shlex
+import shutil
 import signal
 import sys
 import time
@@ -83,9 +90,17 @@ from weather_gym.lab.training.policy.hyperparams import (
     resolve_hyperparams,
 )
 from weather_gym.lab.training.policy.pretrain import PretrainConfig, pretrain
+from weather_gym.lab.training.policy.progress import (
+    RunLog,
+    Selector,
+    echo_to_tty,
+    ppo_callbacks,
+    recorded_best,
+)
 from weather_gym.lab.training.policy.run_outputs import (
     RUN_FILES,
     RUN_RECORD,
+    TRAIN_LOG,
     _checkpoint_steps,
     _metadata_callbacks,
     _remove_run,
@@ -95,6 +110,7 @@ from weather_gym.lab.training.policy.run_outputs import (
     plot_learning_curve,
     plot_pretrain_curve,
 )
+from weather_gym.lab.training.policy.selection import HeldOutConfig, held_out_laps
 from weather_gym.lab.training.policy.training_env import (
     LapSuccess,
     RandomStart,
@@ -107,8 +123,23 @@ __all__ = ["DEFAULT_TRACKS", "DEFAULT_NOISE", "LapSuccess", "RandomStart", "buil
            "load_hyperparams", "make_training_env", "model_metadata", "plot_learning_curve", "plot_pretrain_curve",
            "resolve_hyperparams", "train", "RUN_FILES"]
 
-DEFAULT_TRACKS = ("peanut", "fsds_training", "b_shape", "jellybean", "hairpin", "oval", "random:1", "random:2")
-DEFAULT_EVAL_TRACK = "small_track"
+_BASE_TRACKS = ("peanut", "fsds_training", "b_shape", "jellybean", "hairpin", "oval", "random:1", "random:2")
+DEFAULT_TRACKS = (*_BASE_TRACKS, *(f"reverse:{t}" for t in _BASE_TRACKS))
+"""The 8 training layouts and the same 8 driven the other way round (every turn both ways)."""
+DEFAULT_EVAL_TRACKS = ("small_track", "mirror:hairpin", "mirror:peanut")
+"""Held out: never driven in training (``small_track``; the mirror images of ``hairpin`` and of ``peanut``, the
+tightest layout: where a policy that cuts turns hits cones, docs/rl.md)."""
+DEFAULT_EVAL_TRACK = ",".join(DEFAULT_EVAL_TRACKS)
+DEFAULT_SURROGATE_WEATHERS = ("clear", "droplets@1", "droplets@2", "droplets@3", "droplets@4", "low_light@1",
+                              "low_light@2", "clear")
+"""Env ``i`` of ``--perception surrogate`` drives the ``i % 8``-th: every calibrated weather in which the detector
+still reports cones."""
+DEFAULT_EVAL_WEATHERS = ("clear", "droplets@1", "droplets@2", "droplets@3", "low_light@1")
+"""The weathers the shipped driver is held to (docs/rl.md): the held-out drives that pick the model."""
+DEFAULT_EXPERT = "gt_pure_pursuit"
+"""The warm start's teacher (``--pretrain``; ``none``: PPO from the network's initial weights)."""
+DEFAULT_DETECTION_RANGE = 30.0
+"""``--detection-range``: this frame's cones beyond it are left out of what the policy reads (m)."""
 DEFAULT_HYPERPARAMS_KEY = "WeatherGym/ConeTrackCones-v0"
 DEFAULT_NOISE = {"miss_prob": 0.15, "range_noise": 0.05, "bearing_noise": 0.01, "false_positives": 0.3,
                  "swap_prob": 0.02, "max_range": 22.0}
@@ -122,7 +153,8 @@ INTERRUPTED = 130
 TERMINATED = 143
 """Exit status after SIGTERM (the model so far is saved, as after Ctrl-C)."""
 RUN_OPTIONS = {"max_steps": Bound(int, 1, 1_000_000, option="--max-steps"),
-               "eval_freq": Bound(int, 1, 10**9, option="--eval-freq"),
+               "eval_freq": Bound(int, 0, 10**9, option="--eval-freq"),
+               "eval_max_steps": Bound(int, 1, 1_000_000, option="--eval-max-steps"),
                "eval_episodes": Bound(int, 1, 1000, option="--eval-episodes"),
                "checkpoint_freq": Bound(int, 1, 10**9, option="--checkpoint-freq"),
                "torch_threads": Bound(int, 1, 256, option="--torch-threads")}
@@ -177,10 +209,12 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
                    help="the scenario (an id with camera images, so the policy evaluates through the detector)")
     p.add_argument("--track", dest="tracks", default=",".join(DEFAULT_TRACKS), help="training tracks, comma-separated")
     alias(p, "--track", "--tracks")
-    p.add_argument("--eval-track", default=DEFAULT_EVAL_TRACK, help="held-out track of the EvalCallback")
-    p.add_argument("--perception", choices=PERCEPTIONS, default="gt_cones",
-                   help="gt_cones: geometry, nothing rendered (fast); surrogate: the detector's statistics, "
-                        "nothing rendered; oracle: rendered ground truth; detector")
+    p.add_argument("--eval-track", default=DEFAULT_EVAL_TRACK,
+                   help="held-out tracks (comma-separated, never trained on): driven from the start line to pick "
+                        "the model (see --eval-weathers)")
+    p.add_argument("--perception", choices=PERCEPTIONS, default="surrogate",
+                   help="surrogate: the detector's statistics in each env's weather, nothing rendered; gt_cones: "
+                        "geometry + --noise, nothing rendered; oracle: rendered ground truth; detector")
     p.add_argument("--noise", default=json.dumps(DEFAULT_NOISE),
                    help="OracleNoise fields (JSON) for gt_cones/oracle; '{}' for perfect cones")
     p.add_argument("--weather", default=None,
@@ -193,23 +227,37 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
         p.add_argument(f"--{opt}", type=typ, default=None, help="PPO's, overriding the file's")
     p.add_argument("--log-std-init", type=float, default=None,
                    help="initial log std of the actions (policy_kwargs; the file's -0.5: std 0.61 of [-1, 1])")
-    p.add_argument("--eval-freq", type=int, default=25_000, help="env steps between held-out evaluations")
-    p.add_argument("--eval-episodes", type=int, default=2, help="held-out episodes per evaluation")
+    p.add_argument("--eval-freq", type=int, default=25_000,
+                   help="PPO env steps between held-out evaluations (also one after the warm start and one at the "
+                        "end); 0: none, the last policy is the model")
+    p.add_argument("--eval-episodes", type=int, default=1, help="held-out episodes per track and weather (seeds)")
+    p.add_argument("--eval-weathers", default=",".join(DEFAULT_EVAL_WEATHERS),
+                   help="weathers of the held-out drives: every --eval-track in each, from the start line")
+    p.add_argument("--eval-perception", choices=PERCEPTIONS, default="surrogate",
+                   help="perception of the held-out drives (surrogate: the detector's statistics, nothing rendered; "
+                        "detector: rendered frames through the weather and the ONNX detector, slower)")
+    p.add_argument("--eval-max-steps", type=int, default=EVAL_MAX_STEPS,
+                   help="step limit of a held-out drive (30 = 1 s)")
     p.add_argument("--checkpoint-freq", type=int, default=25_000, help="env steps between checkpoints")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--surrogate-weathers", default="clear,droplets@2,droplets@4,low_light@1,low_light@2",
-                   help="--perception surrogate: weathers, env i drives the i-th (cycled); the eval env the first")
+    p.add_argument("--surrogate-weathers", default=",".join(DEFAULT_SURROGATE_WEATHERS),
+                   help="--perception surrogate: weathers, env i drives the i-th (cycled)")
     p.add_argument("--init", type=Path, default=None,
                    help="start from this saved PPO model (e.g. weather_gym/agents/models/ppo_cones.zip): fine-tuning")
     p.add_argument("--torch-threads", type=int, default=1, help="torch threads (1: the envs share the cores)")
-    p.add_argument("--cone-memory", action="store_true",
+    p.add_argument("--cone-memory", action=argparse.BooleanOptionalAction, default=True,
                    help="the policy reads the cone list with the confirmed cones seen in the last second added "
-                        "(RememberedCones; model.json records its settings, and the sb3 agent drives with the same)")
+                        "(RememberedCones; model.json records its settings, and the sb3 agent drives with the same; "
+                        "--no-cone-memory: this frame's list only)")
+    p.add_argument("--detection-range", default=str(DEFAULT_DETECTION_RANGE),
+                   help="with the cone memory: this frame's cones farther than this (m) are left out, in training "
+                        "and when the model drives; 'none': all")
     g = p.add_argument_group("warm start (behaviour cloning with DAgger before PPO; weather_gym.lab.training.policy.pretrain)")
-    g.add_argument("--pretrain", default=None, metavar="EXPERT",
+    g.add_argument("--pretrain", default=DEFAULT_EXPERT, metavar="EXPERT",
                    help="a registered agent that labels the training envs' observations, e.g. gt_pure_pursuit "
-                        "(the true pose) or mapper_pure_pursuit; the policy is cloned from it before PPO")
-    g.add_argument("--pretrain-steps", type=int, default=60_000, help="env steps of expert-labelled data, all rounds")
+                        "(the true pose) or mapper_pure_pursuit; the policy is cloned from it before PPO; "
+                        "none: no warm start, PPO from the network's initial weights")
+    g.add_argument("--pretrain-steps", type=int, default=120_000, help="env steps of expert-labelled data, all rounds")
     g.add_argument("--dagger-rounds", type=int, default=4,
                    help="round 0 drives with the expert, round r with the student but for a share beta**r")
     g.add_argument("--dagger-beta", type=float, default=0.5, help="expert-driven share base (see --dagger-rounds)")
@@ -226,6 +274,8 @@ def usable_cores() -> int:
 
 def _check_args(args: argparse.Namespace) -> None:
     """The options that are no hyper-parameter, against their declared bounds (:data:`RUN_OPTIONS`)."""
+    if getattr(args, "pretrain", None) in ("none", ""):
+        args.pretrain = None
     least = 0 if getattr(args, "pretrain", None) is not None else 1  # 0: the cloned policy is the model
     if args.timesteps is not None and args.timesteps < least:
         raise LimitError(f"--timesteps must be an integer >= 1 (0 only with --pretrain), got {args.timesteps}")
@@ -263,8 +313,7 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
     tracks = [t.strip() for t in args.tracks.split(",") if t.strip()]
     if not tracks:
         raise InputError("--track is empty")
-    if args.eval_track in tracks:
-        raise InputError(f"--eval-track {args.eval_track} is also a training track: it would not be held out")
+    held_out = _held_out_config(args, tracks)
     mode = perception_mode(args.perception)
     if weather and not mode.renders_frames:
         raise InputError(f"--weather acts on camera images; {args.perception} renders none (use --perception detector, "
@@ -283,11 +332,41 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
         if not zipfile.is_zipfile(args.init):
             raise FileFormatError(f"--init {args.init}: not a saved SB3 model (a .zip written by model.save)")
         out["init"] = str(args.init)
-    if getattr(args, "cone_memory", False):
-        out["cone_memory"] = ConeMemoryConfig().to_dict()  # the tuning, so a resume or a driver uses the same
+    if getattr(args, "cone_memory", False):  # the tuning, so a resume or a driver uses the same
+        out["cone_memory"] = ConeMemoryConfig(detection_range=_detection_range(args)).to_dict()
+    if args.eval_freq > 0:
+        out["held_out"] = dataclasses.asdict(held_out)
     if getattr(args, "pretrain", None) is not None:
         out["pretrain"] = dataclasses.asdict(_pretrain_config(args))
     return out
+
+
+def _detection_range(args: argparse.Namespace) -> float | None:
+    value = str(getattr(args, "detection_range", "none")).strip().lower()
+    if value in ("none", ""):
+        return None
+    try:
+        out = float(value)
+    except ValueError:
+        out = float("nan")
+    if not 0.0 < out < float("inf"):
+        raise InputError(f"--detection-range must be a distance in metres > 0 or 'none', got {value!r}")
+    return out
+
+
+def _split(text: str) -> tuple[str, ...]:
+    return tuple(t.strip() for t in str(text).split(",") if t.strip())
+
+
+def _held_out_config(args: argparse.Namespace, training_tracks: list[str]) -> HeldOutConfig:
+    """The held-out drives of ``--eval-*``; a training track among them is refused."""
+    config = HeldOutConfig(tracks=_split(args.eval_track), weathers=_split(args.eval_weathers),
+                           perception=args.eval_perception, max_steps=args.eval_max_steps,
+                           episodes=args.eval_episodes)
+    for t in config.tracks:
+        if t in training_tracks:
+            raise InputError(f"--eval-track {t} is also a training track: it would not be held out")
+    return config
 
 
 def _pretrain_config(args: argparse.Namespace) -> PretrainConfig:
@@ -383,7 +462,7 @@ def train(args: argparse.Namespace) -> int:
 
 def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make: list, kind: str) -> int:
     """The run in the locked ``--out``."""
-    from stable_baselines3.common.callbacks import CallbackList, EvalCallback, ProgressBarCallback
+    from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
     from stable_baselines3.common.logger import configure
 
     out: Path = args.out
@@ -391,64 +470,51 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
     run_file = out / RUN_RECORD
     ckpt, run = _start_run(args, s)
     atomic_write_json(run_file, run, indent=2, overwrite=True)  # the folder holds a run from now on (kill -9 too)
+    log = RunLog(out / TRAIN_LOG)
 
     def meta(steps: int) -> dict[str, Any]:
-        return model_metadata(s, hp, args.seed, args.eval_track, steps, run.get("pretrain"))
+        return model_metadata(s, hp, args.seed, s.get("held_out", {}).get("tracks", [args.eval_track])[0], steps,
+                              run.get("pretrain"))
 
     n_envs, total = hp["n_envs"], hp["n_timesteps"]
     started = time.time()
     model = None
     start_steps = 0
     stopped: str | None = None  # the signal that stopped the run: "SIGINT" (Ctrl-C) or "SIGTERM"
-    vec = eval_env = logger = None
+    vec = logger = None
     sigterm = signal.getsignal(signal.SIGTERM)
+    selector = _selector(s, out, meta, log)
+    log(_describe_run(args, hp, s, ckpt))
     try:
-        vec, eval_env = _vec_envs(args, hp, s, make, kind)
+        vec = _vec_envs(args, hp, s, make, kind)
         segment = f"steps{_checkpoint_steps(ckpt):09d}"
+        if (out / "logs" / segment).exists():  # a resume from the checkpoint written after the warm start
+            segment += f"-{len(run['segments'])}"
         logger = configure(str(out / "logs" / segment), ["csv", "tensorboard"])
         model, vec = _model(args, hp, ckpt, vec)
         if ckpt is None and "pretrain" in s:
-            teach = [m(lean_info=False) for m in make]  # the same envs with the whole info (the expert's)
-            try:
-                run["pretrain"] = pretrain(model.policy, teach, _pretrain_config(args), args.seed)
-            except (KeyboardInterrupt, Terminated) as exc:
-                stopped = _stop(exc)
-                print("interrupted while pretraining: saving the policy so far", file=sys.stderr)
-            finally:
-                for env in teach:
-                    env.close()
+            stopped = _warm_start(args, model, make, run, log)
+            if stopped is None:  # a resume continues from the cloned policy, not from scratch
+                _save_checkpoint(model, checkpoints, meta)
+                atomic_write_json(run_file, run, indent=2, overwrite=True)
         model.set_logger(logger)
-        eval_env.seed(10_000 + args.seed)
-        checkpoint_cb, best_cb = _metadata_callbacks(meta, checkpoints, max(args.checkpoint_freq // n_envs, 1),
-                                                     out / "best")
+        checkpoint_cb, _ = _metadata_callbacks(meta, checkpoints, max(args.checkpoint_freq // n_envs, 1), out / "best")
         # tqdm + rich (rl_zoo3's dependencies); tqdm marks its rich bar experimental on every run: not the user's concern
         warnings.filterwarnings("ignore", message="rich is experimental/alpha")
-        progress = ProgressBarCallback()
-        callbacks = CallbackList([
-            progress,
-            checkpoint_cb,
-            EvalCallback(eval_env, n_eval_episodes=args.eval_episodes, eval_freq=max(args.eval_freq // n_envs, 1),
-                         best_model_save_path=None, log_path=str(out / "logs" / segment),  # best_cb saves it
-                         deterministic=True, verbose=0, callback_on_new_best=best_cb),
-        ])
+        progress = ProgressBarCallback() if echo_to_tty() else None
+        callbacks = CallbackList([*([progress] if progress else []), checkpoint_cb,
+                                  *ppo_callbacks(total, log, selector, args.eval_freq)])
         start_steps = model.num_timesteps
-        remaining = total - start_steps
-        if remaining > 0 and stopped is None:
-            try:
-                model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=False)
-            except (KeyboardInterrupt, Terminated) as exc:
-                stopped = _stop(exc)
-                progress.on_training_end()  # close the bar (its live display) that learn() left open
-                print(f"{'terminated (SIGTERM)' if stopped == 'SIGTERM' else 'interrupted'} after "
-                      f"{model.num_timesteps} steps: saving the model so far", file=sys.stderr)
-        with atomic_path(out / "model.zip", overwrite=True) as tmp:  # this run's own file
-            model.save(str(tmp))
-        atomic_write_json(out / "model.json", meta(model.num_timesteps), indent=2, overwrite=True)
+        if total - start_steps > 0 and stopped is None:
+            stopped = _learn(model, total - start_steps, callbacks, progress)
+        if stopped is None and selector is not None and selector.last_steps != model.num_timesteps:
+            stopped = _last_drives(selector, model, logger)
+        _save_final(out, model, meta, selector if stopped is None else None)
     except (KeyboardInterrupt, Terminated) as exc:  # before a model to save: the segment still says so
         stopped = _stop(exc)
         raise
     finally:
-        for closing in (logger, vec, eval_env):
+        for closing in (logger, vec):
             if closing is not None:
                 _close(closing)
         run["segments"].append({"from_steps": int(start_steps),
@@ -463,38 +529,132 @@ def _train(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make
                 signal.signal(signal.SIGTERM, sigterm)
             except ValueError:  # not the main thread
                 pass
-    curve = plot_learning_curve(out)
-    warm = plot_pretrain_curve(out, run.get("pretrain"))
-    print(f"saved {out / 'model.zip'} after {model.num_timesteps} steps; {run['wall_s_total']:.0f} s of training "
-          f"in {len(run['segments'])} segment(s); learning curve: {curve}" + (f"; warm start: {warm}" if warm else ""))
+    _log_end(out, run, int(model.num_timesteps), log)
     if stopped is not None:
-        print(f"stopped early: continue with the same command and --resume (from the newest checkpoint in "
-              f"{checkpoints}), or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
+        again = (f"continue with the same command and --resume (from the newest checkpoint in {checkpoints})"
+                 if latest_checkpoint(checkpoints) is not None else
+                 "no checkpoint yet (stopped in the warm start): run the same command with --overwrite to start again")
+        print(f"stopped early: {again}, or evaluate {out / 'model.zip'} as it is", file=sys.stderr)
         return TERMINATED if stopped == "SIGTERM" else INTERRUPTED
     return 0
 
 
+def _selector(s: dict[str, Any], out: Path, meta: Any, log: Any) -> Selector | None:
+    """The held-out drives that pick the model (None with ``--eval-freq 0``), with the best a resumed run recorded."""
+    if "held_out" not in s:
+        return None
+    held_out = HeldOutConfig.from_dict(s["held_out"])
+
+    def drive(model: Any) -> Any:
+        return held_out_laps(lambda o: model.predict(o, deterministic=True)[0], held_out, s["env_id"],
+                             s["env_kwargs"], s.get("cone_memory"))
+
+    return Selector(drive, out / "best", meta, log, best=recorded_best(out / "best" / "best_model.json"))
+
+
+def _learn(model: Any, steps: int, callbacks: Any, progress: Any) -> str | None:
+    """PPO for ``steps`` more env steps; the signal that stopped it, or None."""
+    try:
+        model.learn(total_timesteps=steps, callback=callbacks, reset_num_timesteps=False)
+    except (KeyboardInterrupt, Terminated) as exc:
+        stopped = _stop(exc)
+        if progress is not None:
+            progress.on_training_end()  # close the bar (its live display) that learn() left open
+        print(f"{'terminated (SIGTERM)' if stopped == 'SIGTERM' else 'interrupted'} after "
+              f"{model.num_timesteps} steps: saving the model so far", file=sys.stderr)
+        return stopped
+    return None
+
+
+def _log_end(out: Path, run: dict[str, Any], steps: int, log: Any) -> None:
+    """The curves, and the run's last line: which policy ``model.zip`` is."""
+    curve = plot_learning_curve(out)
+    warm = plot_pretrain_curve(out, run.get("pretrain"))
+    kept = json.loads((out / "model.json").read_text(encoding="utf-8"))
+    held = kept.get("held_out")
+    chosen = (f"; model.zip is the policy of {kept['timesteps']} PPO steps, the best on the held-out drives "
+              f"({held['laps']}/{held['episodes']} laps, {held['cones']} cones)" if held else "")
+    log(f"saved {out / 'model.zip'} after {steps} steps{chosen}; {run['wall_s_total']:.0f} s of training "
+        f"in {len(run['segments'])} segment(s); learning curve: {curve}" + (f"; warm start: {warm}" if warm else ""))
+
+
+def _warm_start(args: argparse.Namespace, model: Any, make: list, run: dict[str, Any], log: Any) -> str | None:
+    """Clone ``--pretrain`` into ``model.policy`` (the record into ``run``); the signal that stopped it, or None."""
+    teach = [m(lean_info=False) for m in make]  # the same envs with the whole info (the expert's)
+    try:
+        run["pretrain"] = pretrain(model.policy, teach, _pretrain_config(args), args.seed, progress=echo_to_tty(),
+                                   log=log)
+    except (KeyboardInterrupt, Terminated) as exc:
+        print("interrupted while pretraining: saving the policy so far", file=sys.stderr)
+        return _stop(exc)
+    finally:
+        for env in teach:
+            env.close()
+    return None
+
+
+def _last_drives(selector: Selector, model: Any, logger: Any) -> str | None:
+    """The held-out drives of the last policy (or of the clone, with ``--timesteps 0``); a stop's signal or None."""
+    try:
+        selector.evaluate(model, logger)
+    except (KeyboardInterrupt, Terminated) as exc:
+        return _stop(exc)
+    return None
+
+
+def _describe_run(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], ckpt: Path | None) -> str:
+    """The run's first log line: what it trains on, how, and how the model is picked."""
+    warm = (f"warm start: {s['pretrain']['steps']} steps of behaviour cloning of {s['pretrain']['expert']} in "
+            f"{s['pretrain']['rounds']} DAgger rounds, then " if "pretrain" in s and ckpt is None else "")
+    ho = s.get("held_out")
+    pick = (f"the model kept: the most laps (then fewest cones, then fastest) from the start line on "
+            f"{', '.join(ho['tracks'])} in {', '.join(ho['weathers'])} ({ho['perception']}), after the warm start "
+            f"and every {args.eval_freq} PPO steps" if ho else "the model kept: the last policy (--eval-freq 0)")
+    start = f"resuming from {ckpt.name}; " if ckpt is not None else ""
+    return (f"{start}training {args.out}: {hp['n_envs']} envs on {len(s['tracks'])} tracks, perception "
+            f"{s['perception']}, {warm}PPO up to {hp['n_timesteps']} steps; {pick}; log: {args.out / TRAIN_LOG}")
+
+
+def _save_checkpoint(model: Any, checkpoints: Path, meta: Any) -> None:
+    """``ppo_<N>_steps.zip`` (with the reward normaliser's state and the ``.json`` that makes it complete)."""
+    steps = int(model.num_timesteps)
+    zip_path = checkpoints / f"ppo_{steps}_steps.zip"
+    with atomic_path(zip_path, overwrite=True) as tmp:
+        model.save(str(tmp))
+    stats = model.get_vec_normalize_env()
+    if stats is not None:
+        with atomic_path(checkpoints / f"ppo_vecnormalize_{steps}_steps.pkl", overwrite=True) as tmp:
+            stats.save(str(tmp))
+    atomic_write_json(zip_path.with_suffix(".json"), meta(steps), indent=2, overwrite=True)
+
+
+def _save_final(out: Path, model: Any, meta: Any, selector: Any) -> None:
+    """``model.zip`` and ``model.json``: the best held-out policy of a finished run (with the step count of the
+    last one), else (a stopped run, or no held-out drives) the policy as it is."""
+    best = out / "best" / "best_model.zip"
+    if selector is not None and selector.best is not None and best.is_file():
+        record = json.loads(best.with_suffix(".json").read_text(encoding="utf-8"))
+        with atomic_path(out / "model.zip", overwrite=True) as tmp:
+            shutil.copyfile(best, tmp)
+        atomic_write_json(out / "model.json", {**record, "last_timesteps": int(model.num_timesteps)}, indent=2,
+                          overwrite=True)
+        return
+    with atomic_path(out / "model.zip", overwrite=True) as tmp:  # this run's own file
+        model.save(str(tmp))
+    atomic_write_json(out / "model.json", meta(model.num_timesteps), indent=2, overwrite=True)
+
+
 def _vec_envs(args: argparse.Namespace, hp: dict[str, Any], s: dict[str, Any], make: list, kind: str):
-    """The training envs (``--vec`` ``kind``) and the held-out evaluation env, normalised as the file says."""
+    """The training envs (``--vec`` ``kind``), normalised as the file says."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
     from weather_gym.lab.training.policy.split_vec_env import SplitVecEnv
 
-    sw = s.get("surrogate_weathers") or ["clear"]
     vec: VecEnv = VecMonitor({"split": SplitVecEnv, "subproc": SubprocVecEnv, "dummy": DummyVecEnv}[kind](make))  # infos: INFO_KEYS only
     normalize = hp["normalize"]
     if normalize is not False:  # rl-zoo3's `normalize`: VecNormalize keywords; its state is saved with each checkpoint
         vec = VecNormalize(vec, **{"gamma": hp["ppo"].get("gamma", 0.99), **normalize})
-    try:
-        eval_env: VecEnv = VecMonitor(DummyVecEnv([lambda: make_training_env(
-            s["env_id"], args.eval_track, s["perception"], s["noise"], EVAL_MAX_STEPS, s["env_kwargs"], s["weather"],
-            random_start=False, surrogate_weather=sw[0], lean_info=True, cone_memory=s.get("cone_memory"))]))
-        if normalize is not False:
-            eval_env = VecNormalize(eval_env, **{**normalize, "norm_reward": False, "training": False})
-    except BaseException:
-        _close(vec)
-        raise
-    return vec, eval_env
+    return vec
 
 
 def _model(args: argparse.Namespace, hp: dict[str, Any], ckpt: Path | None, vec: Any) -> tuple[Any, Any]:
