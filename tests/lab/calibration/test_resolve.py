@@ -73,6 +73,34 @@ def test_search_finds_the_k_of_a_shifted_curve(shift):
         assert row.reachable and row.effect["mode"] == "night"
 
 
+@pytest.mark.parametrize(("k50", "steep"), [(0.80, 25.0), (0.80, 40.0), (0.82, 25.0), (0.82, 40.0)])
+def test_secant_steps_in_logit_land_an_s_curve_in_few_evaluations(k50, steep):
+    """A relative mAP that falls in an S (as low light's does), unlike the pool curve's straight pieces: the
+    four rows land within HIT in at most 10 k values together (the points of one row serve the next)."""
+    items = _items()
+
+    def f(k):
+        return float(1.0 / (1.0 + np.exp(steep * (k - k50))))
+
+    search = _Curve(f, items)
+    rows = [search.row("low_light", sev, t) for sev, t in items]
+    for row in rows:
+        assert abs(row.achieved - row.target) <= rs.HIT
+        assert abs(f(row.k) - row.target) <= rs.HIT
+    assert sum(r.evals for r in rows) <= 10
+    assert len(search.points) == sum(r.evals for r in rows)
+
+
+def test_logit_secant_and_pool_k():
+    assert rs._secant(0.5, 0.5, 0.6, 0.5, 0.3) is None  # flat: no step
+    # on a logistic curve the logit secant is exact
+    k = rs._secant(0.7, 1 / (1 + np.exp(3.0)), 0.8, 1 / (1 + np.exp(4.0)), 1 / (1 + np.exp(6.0)))
+    assert k == pytest.approx(1.0)
+    ks, rel = np.array([0.0, 0.5, 0.8]), np.array([1.0, 0.5, 0.1])
+    assert rs._pool_k(ks, rel, 0.5) == pytest.approx(0.5)
+    assert 0.5 < rs._pool_k(ks, rel, 0.3) < 0.8 and rs._pool_k(ks, rel, 0.05) > 0.8 and rs._pool_k(ks, rel, 1.0) == 0.0
+
+
 def test_target_out_of_reach_is_a_typed_error():
     items = _items()
     search = _Curve(lambda k: 1.0 - 0.3 * k, items)  # never below 0.7

@@ -10,10 +10,11 @@ recording, camera and camera model, world, detector, effect mode):
    short episodes from start points spread over the track) and shared by every row;
 2. the detector runs on the clear frames once (clear mAP; too few visible cones or a clear mAP too low
    to measure a drop is a :class:`~weather_gym.core.errors.ResolutionError`);
-3. per row, k is found by a secant/bisection search on the relative mAP (every frame degraded with its
-   own seed, the same at every k), started at the shipped k and stepped along the shipped presets' curve;
-   every point measured serves every row of its condition (:func:`weather_gym.lab.calibration.curve.invert`
-   reads the final k off them);
+3. per row, k is found by secant steps on the logit of the relative mAP (every frame degraded with its
+   own seed, the same at every k), started at the shipped k: off one side of the target through the two
+   nearest measured points (or along the shipped presets' curve), inside a bracket by regula falsi, until a
+   measured k is within :data:`HIT`; every point measured serves every row of its condition
+   (:func:`weather_gym.lab.calibration.curve.invert` reads the final k off them);
 4. the damage at the resolved k is bootstrapped over the set's episodes (frames of an episode are not
    independent): when its standard error exceeds ``tolerance`` (0.02) the set is widened by more episodes,
    up to ``scenario.max_frames``; still wider is a ``ResolutionError`` naming the rows and the fix.
@@ -84,11 +85,14 @@ HIT = 0.01
 holds the damage to: a closer search would chase the reference set's own sampling error)."""
 MAX_EVALS = 8
 """Most k values measured per row and set."""
+EXTRAPOLATE = 1.0
+"""A secant step off one side of the target reaches at most this many times the (logit) span of the two
+points it is drawn through; further, the step follows the pool curve's local slope instead."""
 BOOTSTRAP = 200
 """Bootstrap replicates (over episodes) of the damage at the resolved k."""
 DETECT_BATCH = 1
 """Frames per detector call while resolving (CPU per frame grows with the batch: ``weather-gym bench resolve``)."""
-VERSION = 2
+VERSION = 3
 """Version of this resolution method (part of the cache key)."""
 
 _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coco.py",
@@ -407,18 +411,40 @@ def _pool_curve(rows: list[tuple[int, float, float]]) -> tuple[np.ndarray, np.nd
     return ks, rel
 
 
+def _logit(r: float) -> float:
+    """log(r / (1 - r)), ``r`` held inside [0.002, 0.998]: a relative-mAP curve falls from 1 to 0 in an S, and
+    its logit is close to a straight line in k, so secant steps on it land closer than on the mAP itself."""
+    r = min(max(float(r), 0.002), 0.998)
+    return math.log(r / (1.0 - r))
+
+
 def _pool_k(ks: np.ndarray, rel: np.ndarray, r: float) -> float:
-    """k at which the shipped curve reaches relative ``r`` (extended linearly past its ends)."""
+    """k at which the shipped curve reaches relative ``r`` (linear in logit between its points, extended
+    linearly past its ends)."""
+    lg = np.array([_logit(x) for x in rel])
+    y = _logit(r)
     if r >= rel[0]:
         return float(ks[0])
-    if r <= rel[-1]:
-        slope = (rel[-1] - rel[-2]) / max(ks[-1] - ks[-2], 1e-6)
-        return float(ks[-1] + (r - rel[-1]) / min(slope, -1e-3))
-    return float(np.interp(-r, -rel, ks))
+    if y <= lg[-1]:
+        slope = (lg[-1] - lg[-2]) / max(ks[-1] - ks[-2], 1e-6)
+        return float(ks[-1] + (y - lg[-1]) / min(slope, -1e-3))
+    return float(np.interp(-y, -lg, ks))
+
+
+def _secant(k1: float, r1: float, k2: float, r2: float, target: float) -> float | None:
+    """k where the line through (k1, logit r1) and (k2, logit r2) reaches logit ``target`` (None: not falling)."""
+    y1, y2 = _logit(r1), _logit(r2)
+    if k1 == k2 or (y2 - y1) / (k2 - k1) >= 0:
+        return None
+    return k1 + (_logit(target) - y1) * (k2 - k1) / (y2 - y1)
 
 
 def _next_k(points: dict[float, float], target: float, pool: tuple[np.ndarray, np.ndarray], k0: float) -> float | None:
-    """The next k to measure (None: nothing new to learn), from the measured ``points`` {k: relative}."""
+    """The next k to measure (None: nothing new to learn), from the measured ``points`` {k: relative}.
+
+    No point yet: the pool k. One side of the target only: a secant step (in logit) through the two measured
+    points nearest the target, or with one point a step along the pool curve's local slope; bracketed:
+    regula falsi (in logit) between the bracket's ends."""
     if not points:
         return k0
     ks = sorted(points)
@@ -428,20 +454,24 @@ def _next_k(points: dict[float, float], target: float, pool: tuple[np.ndarray, n
         lo, hi = max(above), min(below)
         if hi - lo <= 0.0015:
             return None
-        k = lo + (points[lo] - target) / (points[lo] - points[hi]) * (hi - lo)
+        k = _secant(lo, points[lo], hi, points[hi], target)
+        k = lo + 0.5 * (hi - lo) if k is None else k
         k = min(max(k, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))  # keep the bracket shrinking
-    elif above and not below:
-        k_cur = max(above)
-        if k_cur >= 1.0:
+    elif above and not below or below and not above:
+        side = above if above else below
+        k_cur = max(side) if above else min(side)
+        if (above and k_cur >= 1.0) or (below and k_cur <= 0.0):
             return None
-        step = _pool_k(*pool, target) - _pool_k(*pool, points[k_cur])
-        k = min(1.0, k_cur + max(step, 0.01))
-    elif below and not above:
-        k_cur = min(below)
-        if k_cur <= 0.0:
-            return None
-        step = _pool_k(*pool, points[k_cur]) - _pool_k(*pool, target)
-        k = max(0.0, k_cur - max(step, 0.01))
+        pool_step = abs(_pool_k(*pool, target) - _pool_k(*pool, points[k_cur]))
+        k_far = (side[-2] if above else side[1]) if len(side) >= 2 else None
+        k = None
+        if k_far is not None and 0.002 < points[k_far] < 0.998:  # not a saturated point (k = 0 keeps 1)
+            span = abs(_logit(points[k_cur]) - _logit(points[k_far]))
+            if abs(_logit(target) - _logit(points[k_cur])) <= EXTRAPOLATE * span:  # no far leap off a short chord
+                k = _secant(k_far, points[k_far], k_cur, points[k_cur], target)
+        step = pool_step if k is None else abs(k - k_cur)
+        step = min(max(step, 0.002), 0.5)
+        k = min(1.0, k_cur + step) if above else max(0.0, k_cur - step)
     else:  # not monotone between the bracketing points: bisect the widest gap around the target
         lo = max(k for k in ks if points[k] >= target) if any(points[k] >= target for k in ks) else 0.0
         hi = min((k for k in ks if k > lo and points[k] < target), default=1.0)
