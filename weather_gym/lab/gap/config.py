@@ -40,7 +40,7 @@ BEYOND_RANGE = "the measured effect goes beyond this family's range"
 #: a candidate). ``dim`` darkens the frame, so noise alone (or noise that only moves
 #: the extreme percentiles) is not dim; each kind's effects need their kind's signals; ``glare`` (a
 #: veil and bloom) is never a fix for the noise signals alone
-REQUIRES: dict[str, tuple[str, ...]] = {"dim": ("brightness", "tone_p50"), "exposure": ("tone",), "tone_curve": ("tone",),
+REQUIRES: dict[str, tuple[str, ...]] = {"dim": ("brightness", "tone_p50"), "exposure": ("tone",), "tone_curve": ("tone", "colour"),
                                         "noise": ("noise",), "noise_level": ("noise",), "vignette": ("vignette",),
                                         "radial_gain": ("vignette",), "glare": ("blobs", "tone", "haze"),
                                         "blur_kernel": ("sharpness", "motion", "cones")}
@@ -58,7 +58,9 @@ EFFECT_FAMILY: dict[str, str] = {"blur": "sharpness", "motion_blur": "motion", "
                                  "vignette": "vignette", "radial_gain": "vignette", "jpeg": "block",
                                  "droplets": "blobs", "glare": "blobs", "rain": "blobs", "blur_kernel": "sharpness"}
 #: signal families whose disagreement lets a measured member be measured (default: its kind)
-MEASURED_KINDS: dict[str, tuple[str, ...]] = {"blur_kernel": ("sharpness", "motion")}
+MEASURED_KINDS: dict[str, tuple[str, ...]] = {"blur_kernel": ("sharpness", "motion"),
+                                              # a curve per channel (a colour cast) may move only the colour signals
+                                              "tone_curve": ("tone", "colour")}
 #: effects that change every pixel alike (no dependence on the distance from the centre)
 GLOBAL_TONE = ("exposure", "dim", "tone_curve")
 EVIDENCE_MARGIN = 2.0
