@@ -42,6 +42,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from weather_gym.core.errors import InputError
+
 __all__ = ["FAMILIES", "SINGLE", "ORDER", "ACCEPTED", "HiddenCase", "draw_case", "draw_params", "apply_family"]
 
 #: single families, in the order a camera meets them (a composition applies its two in this order)
@@ -121,7 +123,7 @@ def draw_params(family: str, rng: np.random.Generator) -> dict[str, Any]:
         tint = rng.uniform(-0.04, 0.04, 3)
         return {"airlight": [float(np.clip(a + t, 0.0, 1.0)) for t in tint],
                 "t20": float(rng.uniform(0.35, 0.85))}  # transmission at 20 m
-    raise ValueError(f"unknown single family {family!r}; expected one of {SINGLE}")
+    raise InputError(f"unknown single family {family!r}; expected one of {SINGLE}")
 
 
 def _radius(h: int, w: int) -> np.ndarray:
@@ -206,7 +208,7 @@ def apply_family(family: str, p: dict[str, Any], img: np.ndarray, depth: np.ndar
         beta = -math.log(p["t20"]) / 20.0
         t = np.exp(-beta * np.clip(d, 0.0, 200.0))[..., None]
         return _u8(_enc(_lin(v) * t + _lin(np.asarray(p["airlight"]))[None, None, :] * (1.0 - t)))
-    raise ValueError(f"unknown single family {family!r}; expected one of {SINGLE}")
+    raise InputError(f"unknown single family {family!r}; expected one of {SINGLE}")
 
 
 def _pchip(xs: list[float], ys: list[float], grid: np.ndarray) -> np.ndarray:
@@ -260,7 +262,7 @@ class HiddenCase:
 def draw_case(family: str, seed: int) -> HiddenCase:
     """The member of ``family`` (one of :data:`FAMILIES`) that ``seed`` draws."""
     if family not in FAMILIES:
-        raise ValueError(f"unknown family {family!r}; expected one of {FAMILIES}")
+        raise InputError(f"unknown family {family!r}; expected one of {FAMILIES}")
     rng = np.random.default_rng([seed, FAMILIES.index(family)])
     if family == "none":
         return HiddenCase("none", seed, ())

@@ -38,6 +38,7 @@ import cv2
 
 from weather_gym.camera.config import CameraConfig
 from weather_gym.camera.isp import CameraModel
+from weather_gym.core.errors import InputError
 from weather_gym.lab.datasets import render_dataset
 from weather_gym.lab.datasets.coco import JOURNAL, load_coco
 from weather_gym.lab.datasets.importers import import_dataset
@@ -75,7 +76,7 @@ SCENES: dict[str, tuple[Scene, ...]] = {
 def case_seeds(split: str, family: str, n: int) -> list[int]:
     """The seeds of the first ``n`` cases of ``family`` in ``split`` (disjoint between splits)."""
     if split not in SPLITS:
-        raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
+        raise InputError(f"unknown split {split!r}; expected one of {SPLITS}")
     return [_SEED_BASE[split] + FAMILIES.index(family) + len(FAMILIES) * j for j in range(n)]
 
 
@@ -215,7 +216,7 @@ def run_validation(root: str | os.PathLike, *, split: str, settings: Sequence[st
     out = []
     for setting in settings:
         if setting not in SETTINGS:
-            raise ValueError(f"unknown setting {setting!r}; expected one of {SETTINGS}")
+            raise InputError(f"unknown setting {setting!r}; expected one of {SETTINGS}")
         for family in families:
             for seed in case_seeds(split, family, per_family):
                 key = (split, setting, family, seed)
