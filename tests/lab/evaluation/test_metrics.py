@@ -20,8 +20,9 @@ TOY = Metric("mean_speed_mps", "distance driven along the centre line / simulate
 
 def test_the_report_columns_and_plots_come_from_the_registry():
     assert table_metrics() == ["completed", "progress", "lap_time_s", "cones_hit", "off_track_events", "cte_mean_m",
-                               "cte_max_m", "map_precision", "map_recall", "det_map50", "added_latency_ms"]
-    assert set(plot_metrics()) == set(table_metrics()) - {"cte_max_m"}
+                               "cte_max_m", "map_precision", "map_recall", "det_map50", "added_latency_ms",
+                               "cone_recall", "cone_precision"]
+    assert set(plot_metrics()) == set(table_metrics()) - {"cte_max_m", "cone_precision"}
     assert all(m.doc and m.label for m in METRICS.values())
 
 
