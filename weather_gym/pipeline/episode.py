@@ -33,6 +33,7 @@ import numpy as np
 
 from weather_gym.agents._checks import check_action
 from weather_gym.core.errors import InputError
+from weather_gym.wrappers._chain import find_wrapper
 from weather_gym.wrappers.episode_statistics import EpisodeStatistics, latencies
 
 __all__ = ["EpisodeResult", "run_episode"]
@@ -78,15 +79,6 @@ class EpisodeResult:
         return d
 
 
-def _find(env: gym.Env, cls: type) -> Any:
-    e: Any = env
-    while isinstance(e, gym.Wrapper):
-        if isinstance(e, cls):
-            return e
-        e = e.env
-    return None
-
-
 def run_episode(env: gym.Env, agent: Any, *, seed: int | None = None, options: dict[str, Any] | None = None,
                 on_step: Callable[[int, Any, dict, bool], None] | None = None,
                 agent_name: str | None = None) -> EpisodeResult:
@@ -97,10 +89,10 @@ def run_episode(env: gym.Env, agent: Any, *, seed: int | None = None, options: d
     ``weather_gym.make_env`` / ``gym.make`` of a weather-gym id has one).
     """
 
-    if _find(env, gym.wrappers.TimeLimit) is None:
+    if find_wrapper(env, gym.wrappers.TimeLimit) is None:
         raise InputError("run_episode needs an env with a time limit (gymnasium.wrappers.TimeLimit; "
                          "weather_gym.make_env(..., max_episode_steps=N) has one)")
-    stats = _find(env, EpisodeStatistics)
+    stats = find_wrapper(env, EpisodeStatistics)
     driven = env if stats is not None else EpisodeStatistics(env)
     stats = stats or cast(EpisodeStatistics, driven)  # None: driven is a new EpisodeStatistics
     who = f"agent {agent_name!r}" if agent_name else "agent"

@@ -32,6 +32,7 @@ import gymnasium as gym
 
 from weather_gym.conditions import WeatherState, camera_tables, lidar_weather, parse_state
 from weather_gym.core.errors import InputError
+from weather_gym.wrappers._chain import find_wrapper
 from weather_gym.wrappers.lidar import LidarConeWrapper
 from weather_gym.wrappers.weather import WeatherWrapper
 
@@ -54,15 +55,6 @@ def interpolate(a: WeatherState, b: WeatherState, t: float) -> WeatherState:
                         lens_wetness=(1 - t) * a.lens_wetness + t * b.lens_wetness, lens_wet_up_s=b.lens_wet_up_s)
 
 
-def _find(env: gym.Env, cls: type) -> Any:
-    e: Any = env
-    while isinstance(e, gym.Wrapper):
-        if isinstance(e, cls):
-            return e
-        e = e.env
-    return None
-
-
 class ConditionsWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """One weather state for every sensor and the tyres (see the module doc).
 
@@ -76,8 +68,8 @@ class ConditionsWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.Wrapper.__init__(self, env)
         self.state = parse_state(conditions)
         self._default = self.state
-        self._camera: WeatherWrapper | None = _find(env, WeatherWrapper)
-        self._lidar: LidarConeWrapper | None = _find(env, LidarConeWrapper)
+        self._camera: WeatherWrapper | None = find_wrapper(env, WeatherWrapper)
+        self._lidar: LidarConeWrapper | None = find_wrapper(env, LidarConeWrapper)
         self._hz = float(getattr(getattr(getattr(env.unwrapped, "config", None), "sim", None), "control_hz", 30.0))
         self._has_images = isinstance(env.observation_space, gym.spaces.Dict) and "image" in env.observation_space.spaces
         self._lens_step = 0
