@@ -55,7 +55,7 @@ from pydantic_core import core_schema
 
 from weather_gym.core.errors import InputError
 
-__all__ = ["ListAsTuple", "NonNegative", "NonNegativeInt", "OneOf", "Positive", "PositiveInt", "Share", "check_fields", "describe",
+__all__ = ["Interval", "ListAsTuple", "NonNegative", "NonNegativeInt", "OneOf", "Positive", "PositiveInt", "Share", "check_fields", "describe",
            "error_message", "schema_of", "validate_table"]
 
 #: the field kinds most configs need (any other constraint: ``Annotated[float, pydantic.Field(...)]``)
@@ -87,6 +87,33 @@ class OneOf:
 
     def __get_pydantic_core_schema__(self, source: Any, handler: pydantic.GetCoreSchemaHandler) -> Any:
         return core_schema.literal_schema(list(self.choices))
+
+
+@dataclasses.dataclass(frozen=True)
+class Interval:
+    """``Annotated[tuple[float, float], Interval(LO, HI)]``: a ``(low, high)`` range (a list too) with
+    ``LO <= low <= high <= HI``, as a tuple of floats.
+
+    Example:
+        >>> import pydantic
+        >>> pydantic.TypeAdapter(Annotated[tuple[float, float], Interval(0, 1)]).validate_python([0, 0.5])
+        (0.0, 0.5)
+    """
+
+    lo: float
+    hi: float
+
+    def __get_pydantic_core_schema__(self, source: Any, handler: pydantic.GetCoreSchemaHandler) -> Any:
+        side = core_schema.float_schema(ge=self.lo, le=self.hi, allow_inf_nan=False, strict=True)
+        pair = core_schema.tuple_schema([side, side], strict=True)
+        ordered = core_schema.no_info_after_validator_function(self._ordered, pair)
+        return core_schema.no_info_before_validator_function(
+            lambda v: tuple(v) if isinstance(v, list) else v, ordered)
+
+    def _ordered(self, pair: tuple[float, float]) -> tuple[float, float]:
+        if pair[0] > pair[1]:
+            raise InputError(f"{pair} must satisfy {self.lo:g} <= low <= high <= {self.hi:g}")
+        return pair
 
 
 _SCHEMAS: dict[type, type[pydantic.BaseModel]] = {}
