@@ -162,7 +162,7 @@ def validate_table(model: type[pydantic.BaseModel], table: Mapping[str, Any], *,
     try:
         return model.model_validate(dict(table))
     except pydantic.ValidationError as exc:
-        raise error(error_message(exc, model, who, dict(table), sep=" ")) from None
+        raise error(error_message(exc, model, who, dict(table), sep=": ")) from None
 
 
 def error_message(exc: pydantic.ValidationError, model: type[pydantic.BaseModel], who: str,
@@ -215,8 +215,9 @@ def describe(prop: Mapping[str, Any], defs: Mapping[str, Any] | None = None) -> 
             return f"{len(fixed)} values, each {fixed[0]}"
         if fixed:
             return f"{len(fixed)} values: " + "; ".join(fixed)
-        items = prop.get("items")
-        return "a list" + (f" of {_plural(describe(items, defs))}" if items else "")
+        items, least = prop.get("items"), prop.get("minItems", prop.get("minLength", 0))
+        return ("a list" + (f" of at least {least}" if least else "")
+                + (f" {'of ' if not least else ''}{_plural(describe(items, defs))}" if items else ""))
     text = words.get(kind, "a value") if isinstance(kind, str) else "a value"
     return text + _range(prop)
 
