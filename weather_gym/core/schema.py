@@ -55,7 +55,7 @@ from pydantic_core import core_schema
 
 from weather_gym.core.errors import InputError
 
-__all__ = ["Interval", "ListAsTuple", "NonNegative", "NonNegativeInt", "OneOf", "Positive", "PositiveInt", "Share", "check_fields", "describe",
+__all__ = ["option", "Interval", "ListAsTuple", "NonNegative", "NonNegativeInt", "OneOf", "Positive", "PositiveInt", "Share", "check_fields", "describe",
            "error_message", "schema_of", "validate_table"]
 
 #: the field kinds most configs need (any other constraint: ``Annotated[float, pydantic.Field(...)]``)
@@ -64,6 +64,14 @@ Positive = Annotated[float, pydantic.Field(gt=0)]
 Share = Annotated[float, pydantic.Field(ge=0, le=1)]
 NonNegativeInt = Annotated[int, pydantic.Field(ge=0)]
 PositiveInt = Annotated[int, pydantic.Field(ge=1)]
+
+
+def option(flag: str) -> Any:
+    """``Annotated[..., option("--lr")]``: the command-line option that sets the field, named beside the
+    key in its error message (``TrainConfig.lr (--lr) must be ...``) and in its JSON Schema."""
+    return pydantic.Field(json_schema_extra={"option": flag})
+
+
 #: ``Annotated[tuple[...], ListAsTuple]``: a list (a TOML array) is taken as the tuple it lists
 ListAsTuple = pydantic.BeforeValidator(lambda v: tuple(v) if isinstance(v, list) else v)
 
@@ -184,7 +192,8 @@ def error_message(exc: pydantic.ValidationError, model: type[pydantic.BaseModel]
     except pydantic.PydanticUserError:  # a field of a kind JSON Schema cannot say: pydantic's own words
         return f"{who}{sep}{key}: {err['msg']}, got {given.get(key)!r}"
     prop = schema.get("properties", {}).get(key, {})
-    return f"{who}{sep}{key} must be {describe(prop, schema.get('$defs', {}))}, got {given.get(key)!r}"
+    named = f"{key} ({prop['option']})" if "option" in prop else key
+    return f"{who}{sep}{named} must be {describe(prop, schema.get('$defs', {}))}, got {given.get(key)!r}"
 
 
 def describe(prop: Mapping[str, Any], defs: Mapping[str, Any] | None = None) -> str:
@@ -208,6 +217,8 @@ def describe(prop: Mapping[str, Any], defs: Mapping[str, Any] | None = None) -> 
     words = {"boolean": "true or false", "integer": "an integer", "number": "a finite number",
              "null": "None", "object": "a table"}
     if kind == "string":
+        if "pattern" in prop:
+            return f"a string matching {prop['pattern']}"
         return "a non-empty string" if prop.get("minLength") == 1 else "a string"
     if kind == "array":
         fixed = [describe(p, defs) for p in prop.get("prefixItems", [])]
@@ -231,9 +242,16 @@ def _range(prop: Mapping[str, Any]) -> str:
     lo, hi = prop.get("minimum", prop.get("exclusiveMinimum")), prop.get("maximum", prop.get("exclusiveMaximum"))
     open_lo, open_hi = "exclusiveMinimum" in prop, "exclusiveMaximum" in prop
     if lo is not None and hi is not None:
-        return f" in {'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}"
+        return f" in {'(' if open_lo else '['}{_num(lo)}, {_num(hi)}{')' if open_hi else ']'}"
     if lo is not None:
-        return f" {'>' if open_lo else '>='} {lo:g}"
+        return f" {'>' if open_lo else '>='} {_num(lo)}"
     if hi is not None:
-        return f" {'<' if open_hi else '<='} {hi:g}"
+        return f" {'<' if open_hi else '<='} {_num(hi)}"
     return ""
+
+
+def _num(x: float) -> str:
+    """A bound as written: whole numbers in full (9223372036854775807, not 9.22337e+18)."""
+    if isinstance(x, int):
+        return str(x)
+    return str(int(x)) if float(x).is_integer() else f"{x:g}"
