@@ -16,7 +16,9 @@ and :func:`check_fields` checks every field against the schema those annotations
 strict: ``True`` is not an integer, ``"1"`` not a number; numbers are finite unless a field says
 ``AllowInfNan(True)``), normalises the values (``1`` -> ``1.0`` for a float field) and raises
 :class:`~weather_gym.core.errors.InputError` naming the class, the key, the value and what was expected,
-the expected range read from the declaration itself. The class stays a plain frozen dataclass (equality,
+the expected range read from the declaration itself. A validator named in a class's annotation is a
+module-level function (a ``lambda`` written there is evaluated among the class's names and cannot see the
+module's). The class stays a plain frozen dataclass (equality,
 hashing, pickling and ``dataclasses.replace`` as before), and ``pydantic.TypeAdapter(cls).json_schema()``
 gives the JSON Schema of a file that holds one. A loader that reads a config from a file prefixes the file
 (``"scenario.toml: EnvConfig.laps must be ..."``); :func:`validate_table` checks a table read from a file
