@@ -138,10 +138,10 @@ def schema_of(cls: type) -> type[pydantic.BaseModel]:
     return _SCHEMAS[cls]
 
 
-def check_fields(obj: Any, *, who: str = "", error: type[InputError] = InputError) -> None:
+def check_fields(obj: Any, *, who: str = "", error: type[InputError] = InputError, by_option: bool = False) -> None:
     """Check every init field of the dataclass ``obj`` against its declared schema (:func:`schema_of`) and
     write back the normalised values; a failure raises ``error`` (:func:`error_message`; ``who`` names the
-    config there, default its class). A numpy number counts as the Python number it holds and is kept as
+    config there, default its class; ``by_option``: a field's option alone, :func:`error_message`). A numpy number counts as the Python number it holds and is kept as
     it is (a frame's arithmetic stays the same)."""
     cls = type(obj)
     given = {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj) if f.init}
@@ -149,7 +149,7 @@ def check_fields(obj: Any, *, who: str = "", error: type[InputError] = InputErro
     try:
         checked = model.model_validate({key: _plain(value) for key, value in given.items()})
     except pydantic.ValidationError as exc:
-        raise error(error_message(exc, model, who or cls.__name__, given)) from None
+        raise error(error_message(exc, model, who or cls.__name__, given, by_option=by_option)) from None
     for key, value in given.items():
         new = getattr(checked, key)
         if new is not value and not isinstance(value, np.generic):
@@ -176,26 +176,32 @@ def validate_table(model: type[pydantic.BaseModel], table: Mapping[str, Any], *,
 
 
 def error_message(exc: pydantic.ValidationError, model: type[pydantic.BaseModel], who: str,
-                  given: Mapping[str, Any], *, sep: str = ".") -> str:
-    """The message of the first failure: ``WHO.KEY must be EXPECTED, got VALUE`` (an ``InputError`` raised
-    inside a field's own validator: ``WHO.KEY: ITS MESSAGE``; an unknown key lists the known ones)."""
+                  given: Mapping[str, Any], *, sep: str = ".", by_option: bool = False) -> str:
+    """The message of the first failure: ``WHO.KEY must be EXPECTED, got VALUE`` (``WHO.KEY (--OPTION)`` for a
+    field declared with :func:`option`; only ``--OPTION`` with ``by_option``: a config a command builds from
+    its options); an ``InputError`` raised inside a field's own validator: ``WHO.KEY: ITS MESSAGE``; an
+    unknown key lists the known ones."""
     err = exc.errors()[0]
     key = str(err["loc"][0]) if err.get("loc") else "?"
-    raised = err.get("ctx", {}).get("error")
-    if isinstance(raised, InputError):  # a field's own validator: its message, with the key in front
-        text = str(raised)
-        return text if text.startswith(f"{who}{sep}{key}") else f"{who}{sep}{key}: {text}"
     if err["type"] == "extra_forbidden":
         return f"{who}: unknown key {key!r}; valid keys: {sorted(model.model_fields)}"
     if err["type"] == "missing" and len(err["loc"]) == 1:
         return f"{who}{sep}{key} is missing"
     try:
         schema = model.model_json_schema(mode="validation")
-    except pydantic.PydanticUserError:  # a field of a kind JSON Schema cannot say: pydantic's own words
-        return f"{who}{sep}{key}: {err['msg']}, got {given.get(key)!r}"
+    except pydantic.PydanticUserError:  # a field of a kind JSON Schema cannot say
+        schema = {}
     prop = schema.get("properties", {}).get(key, {})
-    named = f"{key} ({prop['option']})" if "option" in prop else key
-    return f"{who}{sep}{named} must be {describe(prop, schema.get('$defs', {}))}, got {given.get(key)!r}"
+    subject = f"{who}{sep}{key}" + (f" ({prop['option']})" if "option" in prop else "")
+    if by_option and "option" in prop:
+        subject = prop["option"]
+    raised = err.get("ctx", {}).get("error")
+    if isinstance(raised, InputError):  # a field's own validator: its message, with the key in front
+        text = str(raised)
+        return text if text.startswith(f"{who}{sep}{key}") else f"{subject}: {text}"
+    if not prop:
+        return f"{subject}: {err['msg']}, got {given.get(key)!r}"
+    return f"{subject} must be {describe(prop, schema.get('$defs', {}))}, got {given.get(key)!r}"
 
 
 def describe(prop: Mapping[str, Any], defs: Mapping[str, Any] | None = None) -> str:
