@@ -95,6 +95,23 @@ def test_sidecar_input_size_mismatch_is_rejected(tmp_path):
         ConeDetector(path)
 
 
+@pytest.mark.parametrize("change, message", [
+    ({"stride": 0}, r"stride must be an integer >= 1, got 0"),
+    ({"classes": []}, r"classes must be a list of at least 1 non-empty strings, got \[\]"),
+    ({"reference_camera": "672x376"}, r"reference_camera must be 2 values, each an integer >= 1, got '672x376'"),
+    ({"score_threshold": 1.5}, r"score_threshold must be a finite number in \[0, 1\], got 1.5"),
+])
+def test_a_bad_sidecar_key_names_the_file_key_value_and_range(tmp_path, change, message):
+    from weather_gym.core.errors import FileFormatError
+    from weather_gym.perception.onnx_detector import load_model_metadata
+
+    meta = {**json.loads(DEFAULT_MODEL.with_suffix(".json").read_text()), **change}
+    (tmp_path / "m.json").write_text(json.dumps(meta))
+    assert load_model_metadata(DEFAULT_MODEL) == json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
+    with pytest.raises(FileFormatError, match=r"model metadata .*m\.json: " + message):
+        load_model_metadata(tmp_path / "m.onnx")
+
+
 @pytest.mark.parametrize("bad", [np.zeros((376, 672), np.uint8), np.zeros((376, 672, 3), np.float32),
                                  np.zeros((0, 672, 3), np.uint8)])
 def test_bad_images_raise(detector, bad):

@@ -118,7 +118,7 @@ def test_random_weather_draws_everything_from_the_generator():
     ({"effects": {"fog": (0.6, 0.2)}}, "0 <= low <= high <= 1"),
     ({"effects": {"hail": 0.2}}, "unknown weather effect 'hail'"),
     ({"effects": {"fog": {"visibility": 3}}}, "needs 'k'"),
-    ({"p": 1.5}, "p must be a probability"),
+    ({"p": 1.5}, r"RandomWeather.p must be a finite number in \[0, 1\], got 1.5"),
     ({"schedule": "hourly"}, "schedule must be one of episode, step, ramp"),
     ({"every": 0}, "every must be an integer >= 1"),
     ({"presets": (), "effects": {}}, "give presets and/or effects"),

@@ -1,43 +1,22 @@
-"""Validation shared by the agents' frozen config dataclasses (errors name the field and value).
+"""The check of an agent's output (the agents' configs declare their fields' ranges:
+:mod:`weather_gym.core.schema`).
 
 Example:
-    >>> from dataclasses import dataclass
-    >>> from weather_gym.agents._checks import check_fields
-    >>> @dataclass(frozen=True)
-    ... class C:
-    ...     gain: float = -1.0
-    ...     def __post_init__(self): check_fields(self, positive=("gain",))
-    >>> C()
+    >>> check_action([0.5, -1.0]).tolist()
+    [0.5, -1.0]
+    >>> check_action([0.0, 2.0], "pure_pursuit")
     Traceback (most recent call last):
     ...
-    weather_gym.core.errors.InputError: C.gain must be a finite number > 0, got -1.0
+    weather_gym.core.errors.InputError: pure_pursuit returned [0.0, 2.0]; both components must be finite and in [-1, 1]
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 
 from weather_gym.core.errors import InputError
-
-
-def check_fields(obj, *, positive: Iterable[str] = (), non_negative: Iterable[str] = (),
-                 integers: Iterable[str] = ()) -> None:
-    """Raise ``ValueError`` unless the named fields are finite numbers > 0, >= 0, or integers >= 1."""
-    kind = type(obj).__name__
-    for names, ok, what in ((positive, lambda v: v > 0, "a finite number > 0"),
-                            (non_negative, lambda v: v >= 0, "a finite number >= 0")):
-        for name in names:
-            v = getattr(obj, name)
-            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and ok(v)):
-                raise InputError(f"{kind}.{name} must be {what}, got {v!r}")
-    for name in integers:
-        v = getattr(obj, name)
-        if not (isinstance(v, int) and not isinstance(v, bool) and v >= 1):
-            raise InputError(f"{kind}.{name} must be an integer >= 1, got {v!r}")
 
 
 def check_action(action: Any, who: str = "agent") -> np.ndarray:

@@ -37,11 +37,12 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import InstanceOf
 from scipy.spatial import cKDTree
 
-from weather_gym.agents._checks import check_fields
 from weather_gym.agents.mapper import ConeMap, ConeMapper, MapperConfig
 from weather_gym.core.errors import InputError, check_known
+from weather_gym.core.schema import NonNegative, Positive, PositiveInt, check_fields
 from weather_gym.perception.cones import FIELD
 
 __all__ = ["ConeMemory", "ConeMemoryConfig"]
@@ -65,19 +66,15 @@ class ConeMemoryConfig:
         mapper: the mapper's tuning (``hfov_deg`` and ``mount_x`` follow the camera when one is given).
     """
 
-    max_age: int = 30
-    max_behind: float = 0.0
-    max_range: float = 20.0
-    duplicate_dist: float = 1.0
-    detection_range: float | None = None
-    mapper: MapperConfig = MapperConfig()
+    max_age: PositiveInt = 30
+    max_behind: NonNegative = 0.0
+    max_range: Positive = 20.0
+    duplicate_dist: Positive = 1.0
+    detection_range: Positive | None = None
+    mapper: InstanceOf[MapperConfig] = MapperConfig()
 
     def __post_init__(self) -> None:
-        optional = ("detection_range",) if self.detection_range is not None else ()
-        check_fields(self, positive=("max_range", "duplicate_dist", *optional), non_negative=("max_behind",),
-                     integers=("max_age",))
-        if not isinstance(self.mapper, MapperConfig):
-            raise InputError(f"ConeMemoryConfig: mapper must be a MapperConfig, got {type(self.mapper).__name__}")
+        check_fields(self)
 
     def to_dict(self) -> dict:
         """Plain fields (JSON), the mapper's as a nested dict: what a model's ``model.json`` records."""

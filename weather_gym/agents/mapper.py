@@ -29,9 +29,9 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
-from weather_gym.agents._checks import check_fields
 from weather_gym.core.cone_spec import CONE_CLASSES, UNKNOWN_CLASS
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import NonNegative, Positive, PositiveInt, check_fields
 from weather_gym.perception.cones import unpack_cones
 
 __all__ = ["MapperConfig", "ConeMap", "ConeMapper"]
@@ -72,32 +72,28 @@ class MapperConfig:
             fresh cones instead of corrupting the old ones.
     """
 
-    range_std: float = 0.05
-    range_std_rel: float = 0.04
-    bearing_std: float = 0.01
-    process_std: float = 0.005
-    gate_chi2: float = 9.21
-    gate_max: float = 1.5
-    min_hits: int = 4
-    confirm_window: int = 15
-    max_misses: int = 4
-    ghost_ratio: float = 3.0
-    min_score: float = 0.0
-    max_range: float = 20.0
-    view_range: float = 12.0
-    hfov_deg: float = 90.0
+    range_std: Positive = 0.05
+    range_std_rel: NonNegative = 0.04
+    bearing_std: Positive = 0.01
+    process_std: NonNegative = 0.005
+    gate_chi2: Positive = 9.21
+    gate_max: Positive = 1.5
+    min_hits: PositiveInt = 4
+    confirm_window: PositiveInt = 15
+    max_misses: PositiveInt = 4
+    ghost_ratio: NonNegative = 3.0
+    min_score: NonNegative = 0.0
+    max_range: Positive = 20.0
+    view_range: Positive = 12.0
+    hfov_deg: Positive = 90.0
     mount_x: float = 0.6
-    spawn_dist: float = 1.0
-    spawn_chi2: float = 16.0
-    merge_dist: float = 0.3
-    assoc_max_age: int = 300
+    spawn_dist: NonNegative = 1.0
+    spawn_chi2: NonNegative = 16.0
+    merge_dist: NonNegative = 0.3
+    assoc_max_age: PositiveInt = 300
 
     def __post_init__(self) -> None:
-        check_fields(self, positive=("range_std", "bearing_std", "gate_chi2", "gate_max", "max_range", "view_range",
-                                     "hfov_deg"),
-                     non_negative=("range_std_rel", "process_std", "ghost_ratio", "min_score", "spawn_dist",
-                                   "spawn_chi2", "merge_dist"),
-                     integers=("min_hits", "confirm_window", "max_misses", "assoc_max_age"))
+        check_fields(self)
 
 
 @dataclass(frozen=True)

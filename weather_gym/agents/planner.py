@@ -32,9 +32,9 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial import Delaunay, QhullError
 
-from weather_gym.agents._checks import check_fields
 from weather_gym.core.cone_spec import CONE_CLASSES
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import Positive, check_fields
 
 __all__ = ["PlannerConfig", "Plan", "CenterlinePlanner"]
 
@@ -61,20 +61,20 @@ class PlannerConfig:
         smooth_sigma: Gaussian smoothing of the path (m).
     """
 
-    radius: float = 25.0
-    behind: float = 2.0
-    min_width: float = 2.5
-    max_width: float = 8.5
-    nominal_half_width: float = 1.75
-    boundary_step: float = 7.0
-    max_step: float = 7.0
-    max_turn_deg: float = 65.0
-    virtual_clearance: float = 2.5
-    horizon: float = 30.0
-    smooth_sigma: float = 1.0
+    radius: Positive = 25.0
+    behind: Positive = 2.0
+    min_width: Positive = 2.5
+    max_width: Positive = 8.5
+    nominal_half_width: Positive = 1.75
+    boundary_step: Positive = 7.0
+    max_step: Positive = 7.0
+    max_turn_deg: Positive = 65.0
+    virtual_clearance: Positive = 2.5
+    horizon: Positive = 30.0
+    smooth_sigma: Positive = 1.0
 
     def __post_init__(self) -> None:
-        check_fields(self, positive=tuple(self.__dataclass_fields__))
+        check_fields(self)
         if self.max_width <= self.min_width:
             raise InputError(f"PlannerConfig.max_width ({self.max_width}) must exceed min_width ({self.min_width})")
 

@@ -29,11 +29,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
 
-from weather_gym.agents._checks import check_fields
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import NonNegative, Positive, check_fields
 
 __all__ = ["PurePursuitConfig", "PurePursuit", "resample_path", "path_curvature", "speed_profile"]
 
@@ -61,37 +63,32 @@ class PurePursuitConfig:
             for, so a path that passes near itself (hairpins, figure eights) is followed in order.
     """
 
-    wheelbase: float = 1.55
-    max_steer: float = 0.45
-    max_accel: float = 6.0
-    max_brake: float = 10.0
-    dt: float = 1.0 / 30.0
-    v_max: float = 10.0
-    a_lat_max: float = 5.0
-    a_accel: float = 3.0
-    a_brake: float = 5.0
-    v_end: float = 0.0
-    lookahead_min: float = 2.5
-    lookahead_time: float = 0.3
-    lookahead_max: float = 10.0
-    speed_gain: float = 2.0
-    preview_time: float = 0.3
-    resample_step: float = 0.25
-    curvature_window: float = 1.5
-    search_back: float = 3.0
-    search_ahead: float = 12.0
+    wheelbase: Positive = 1.55
+    max_steer: Annotated[float, Field(gt=0, lt=math.pi / 2)] = 0.45  # below pi/2 rad
+    max_accel: Positive = 6.0
+    max_brake: Positive = 10.0
+    dt: Positive = 1.0 / 30.0
+    v_max: Positive = 10.0
+    a_lat_max: Positive = 5.0
+    a_accel: Positive = 3.0
+    a_brake: Positive = 5.0
+    v_end: NonNegative = 0.0
+    lookahead_min: Positive = 2.5
+    lookahead_time: NonNegative = 0.3
+    lookahead_max: Positive = 10.0
+    speed_gain: Positive = 2.0
+    preview_time: NonNegative = 0.3
+    resample_step: Positive = 0.25
+    curvature_window: Positive = 1.5
+    search_back: NonNegative = 3.0
+    search_ahead: Positive = 12.0
 
     def __post_init__(self) -> None:
-        check_fields(self, positive=("wheelbase", "max_steer", "max_accel", "max_brake", "dt", "v_max", "a_lat_max",
-                                     "a_accel", "a_brake", "lookahead_min", "lookahead_max", "speed_gain",
-                                     "resample_step", "curvature_window", "search_ahead"),
-                     non_negative=("v_end", "lookahead_time", "preview_time", "search_back"))
+        check_fields(self)
         if self.lookahead_max < self.lookahead_min:
             raise InputError(
                 f"PurePursuitConfig.lookahead_max ({self.lookahead_max}) must be >= lookahead_min ({self.lookahead_min})"
             )
-        if self.max_steer >= math.pi / 2:
-            raise InputError(f"PurePursuitConfig.max_steer must be below pi/2 rad, got {self.max_steer}")
 
 
 def _as_path(xy: np.ndarray) -> np.ndarray:

@@ -32,13 +32,15 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
 from scipy.optimize import least_squares
 
-from weather_gym.agents._checks import check_fields
 from weather_gym.core.cone_spec import CONE_CLASSES
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import Positive, PositiveInt, check_fields
 
 __all__ = ["SkidpadConfig", "SkidpadPlanner", "skidpad_cones"]
 
@@ -59,23 +61,20 @@ class SkidpadConfig:
         step: path point spacing (m).
     """
 
-    inner_radius: float = 7.625
-    outer_radius: float = 10.625
-    centre_distance: float = 18.25
-    laps_per_circle: int = 2
-    exit_length: float = 25.0
-    min_cones: int = 4
-    smoothing: float = 0.2
-    step: float = 0.25
+    inner_radius: Positive = 7.625
+    outer_radius: Positive = 10.625
+    centre_distance: Positive = 18.25
+    laps_per_circle: PositiveInt = 2
+    exit_length: Positive = 25.0
+    min_cones: PositiveInt = 4
+    smoothing: Annotated[float, Field(gt=0, le=1)] = 0.2
+    step: Positive = 0.25
 
     def __post_init__(self) -> None:
-        if not 0 < self.inner_radius < self.outer_radius:
+        check_fields(self)
+        if not self.inner_radius < self.outer_radius:
             raise InputError(f"SkidpadConfig: need 0 < inner_radius < outer_radius, got {self.inner_radius}, "
                              f"{self.outer_radius}")
-        if not 0 < self.smoothing <= 1:
-            raise InputError(f"SkidpadConfig.smoothing must be in (0, 1], got {self.smoothing}")
-        check_fields(self, positive=("centre_distance", "exit_length", "step"),
-                     integers=("laps_per_circle", "min_cones"))
 
 
 def skidpad_cones(junction: Sequence[float] = (0.0, 0.0), heading: float = math.pi / 2,

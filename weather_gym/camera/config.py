@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
 
 from weather_gym.core.errors import InputError, LimitError
 from weather_gym.core.limits import MAX_CAMERA_SIDE
+from weather_gym.core.schema import Positive, PositiveInt, check_fields
 
 
 @dataclass(frozen=True)
@@ -38,44 +41,28 @@ class CameraConfig:
     always follows from ``hfov_deg`` and ``width``.
     """
 
-    width: int = 672
-    height: int = 376
-    hfov_deg: float = 90.0
+    width: PositiveInt = 672
+    height: PositiveInt = 376
+    hfov_deg: Annotated[float, Field(ge=1.0, le=170.0)] = 90.0
     mount_x: float = 0.6
-    mount_height: float = 1.0
-    pitch_deg: float = 4.0
-    fps: float = 30.0
-    near: float = 0.1
-    far: float = 80.0
-    exposure_s: float = 0.004
-    fy_px: float | None = None
+    mount_height: Positive = 1.0
+    pitch_deg: Annotated[float, Field(gt=-89.0, lt=89.0)] = 4.0
+    fps: Positive = 30.0
+    near: Positive = 0.1
+    far: Positive = 80.0
+    exposure_s: Positive = 0.004
+    fy_px: Positive | None = None
     cx_px: float | None = None
     cy_px: float | None = None
 
     def __post_init__(self) -> None:
+        check_fields(self)  # each field against its annotation; then the size limit and near < far
         for name in ("width", "height"):
             v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise InputError(f"camera {name} must be a positive integer, got {v!r}")
             if v > MAX_CAMERA_SIDE:
                 raise LimitError(f"camera {name} = {v} px is too large; at most {MAX_CAMERA_SIDE} px are rendered")
-        checks = {
-            "hfov_deg": 1.0 <= self.hfov_deg <= 170.0,
-            "fps": self.fps > 0,
-            "near": 0 < self.near < self.far,
-            "far": math.isfinite(self.far),
-            "mount_height": math.isfinite(self.mount_height) and self.mount_height > 0,
-            "pitch_deg": -89.0 < self.pitch_deg < 89.0,
-            "mount_x": math.isfinite(self.mount_x),
-            "exposure_s": self.exposure_s > 0,
-        }
-        for name in ("fy_px", "cx_px", "cy_px"):
-            v = getattr(self, name)
-            checks[name] = v is None or (isinstance(v, (int, float)) and math.isfinite(v)
-                                         and (v > 0 if name == "fy_px" else True))
-        for name, ok in checks.items():
-            if not ok:
-                raise InputError(f"camera {name} has an invalid value {getattr(self, name)!r}")
+        if not self.near < self.far:
+            raise InputError(f"CameraConfig.near must be below far ({self.far}), got {self.near!r}")
 
     @classmethod
     def from_intrinsics(cls, width: int, height: int, fx: float, fy: float, cx: float, cy: float,

@@ -27,28 +27,20 @@ Example:
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields, replace
+from typing import Annotated
 
 import cv2
 import numpy as np
+from pydantic import Field
 
 from weather_gym.core.errors import InputError, check_known
+from weather_gym.core.schema import ListAsTuple, check_fields
 
 __all__ = ["CameraModel", "CameraPipeline"]
 
-# (lo, hi) allowed for each number (inclusive)
-_BOUNDS: dict[str, tuple[float, float]] = {
-    "exposure_ev": (-6.0, 6.0),
-    "contrast": (0.3, 3.0),
-    "vignetting": (0.0, 0.9),
-    "k1": (-0.5, 0.5),
-    "k2": (-0.5, 0.5),
-    "defocus_px": (0.0, 5.0),
-    "read_noise": (0.0, 30.0),
-    "shot_noise": (0.0, 10.0),
-    "jpeg_quality": (0, 100),
-}
+#: a white-balance gain of one channel
+Gain = Annotated[float, Field(ge=0.2, le=5.0)]
 
 
 @dataclass(frozen=True)
@@ -72,34 +64,20 @@ class CameraModel:
     """
 
     enabled: bool = True
-    exposure_ev: float = 0.6
-    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.04)
-    contrast: float = 1.15
-    vignetting: float = 0.25
-    k1: float = -0.06
-    k2: float = 0.0
-    defocus_px: float = 0.6
-    read_noise: float = 2.0
-    shot_noise: float = 3.0
+    exposure_ev: Annotated[float, Field(ge=-6.0, le=6.0)] = 0.6
+    white_balance: Annotated[tuple[Gain, Gain, Gain], ListAsTuple] = (1.0, 1.0, 1.04)  # R, G, B
+    contrast: Annotated[float, Field(ge=0.3, le=3.0)] = 1.15
+    vignetting: Annotated[float, Field(ge=0.0, le=0.9)] = 0.25
+    k1: Annotated[float, Field(ge=-0.5, le=0.5)] = -0.06
+    k2: Annotated[float, Field(ge=-0.5, le=0.5)] = 0.0
+    defocus_px: Annotated[float, Field(ge=0.0, le=5.0)] = 0.6
+    read_noise: Annotated[float, Field(ge=0.0, le=30.0)] = 2.0
+    shot_noise: Annotated[float, Field(ge=0.0, le=10.0)] = 3.0
     chroma_subsampling: bool = True
-    jpeg_quality: int = 90
+    jpeg_quality: Annotated[int, Field(ge=0, le=100)] = 90  # 0 = off
 
     def __post_init__(self) -> None:
-        for name in ("enabled", "chroma_subsampling"):
-            if not isinstance(getattr(self, name), bool):
-                raise InputError(f"camera_model.{name} must be true or false, got {getattr(self, name)!r}")
-        for name, (lo, hi) in _BOUNDS.items():
-            v = getattr(self, name)
-            if name == "jpeg_quality" and not (isinstance(v, (int, np.integer)) and not isinstance(v, bool)):
-                raise InputError(f"camera_model.jpeg_quality must be an integer 0-100 (0 = off), got {v!r}")
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (
-                    math.isfinite(v) and lo <= v <= hi):
-                raise InputError(f"camera_model.{name} must be a number in [{lo}, {hi}], got {v!r}")
-        wb = self.white_balance
-        if (not isinstance(wb, (tuple, list)) or len(wb) != 3
-                or not all(isinstance(g, (int, float)) and math.isfinite(g) and 0.2 <= g <= 5.0 for g in wb)):
-            raise InputError(f"camera_model.white_balance must be three gains in [0.2, 5] (R, G, B), got {wb!r}")
-        object.__setattr__(self, "white_balance", tuple(float(g) for g in wb))
+        check_fields(self, who="camera_model")
 
     @classmethod
     def realistic(cls) -> CameraModel:

@@ -11,21 +11,26 @@ Example:
 
 from __future__ import annotations
 
-import math
+import typing
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any, Literal
+
+from pydantic import BeforeValidator, Field, InstanceOf
 
 from weather_gym.camera.config import CameraConfig
 from weather_gym.camera.isp import CameraModel
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import NonNegative, NonNegativeInt, Share, check_fields
 from weather_gym.sim.config import CarConfig, OdometryConfig, SimConfig
 from weather_gym.sim.lidar_config import LidarConfig
 
-GROUND_TRUTH_MODES = ("segmentation", "geometry", "off")
+GroundTruth = Literal["segmentation", "geometry", "off"]
+GROUND_TRUTH_MODES: tuple[str, ...] = typing.get_args(GroundTruth)
 """Where ``info["gt"]`` comes from: the rendered segmentation (pixel exact), geometry (no rendering;
 :mod:`weather_gym.sim.visibility`), or nowhere (no ``info["gt"]``)."""
 
-RENDER_VIEWS = ("chase", "camera")
+RenderView = Literal["chase", "camera"]
+RENDER_VIEWS: tuple[str, ...] = typing.get_args(RenderView)
 """Views ``ConeTrackEnv.render()`` can return (``EnvConfig.render_view``)."""
 
 
@@ -42,10 +47,17 @@ class RewardConfig:
     stall: float = -10.0
 
     def __post_init__(self) -> None:
-        for name in ("progress", "cone_hit", "off_track", "time", "stall"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise InputError(f"RewardConfig.{name} must be a finite number, got {v!r}")
+        check_fields(self)
+
+
+def _lidar(value: Any) -> Any:
+    """``EnvConfig.lidar`` given as a dict of ``LidarConfig``'s fields (a scenario file's table) -> a ``LidarConfig``."""
+    if isinstance(value, dict):
+        try:
+            return LidarConfig(**value)
+        except TypeError as exc:
+            raise InputError(f"EnvConfig.lidar: {exc}") from None
+    return value
 
 
 @dataclass(frozen=True)
@@ -95,70 +107,33 @@ class EnvConfig:
     (``gym.make(id, max_episode_steps=...)``; each scenario registers its default).
     """
 
-    track: str = "small_track"
+    track: Annotated[str, Field(min_length=1)] = "small_track"
     track_seed: int | None = None
-    laps: int = 1
+    laps: NonNegativeInt = 1
     terminate_off_track: bool = True
-    off_track_margin: float = 0.6
-    stall_s: float = 0.0
-    stall_m: float = 1.0
-    random_start: float = 0.0
+    off_track_margin: NonNegative = 0.6
+    stall_s: NonNegative = 0.0
+    stall_m: NonNegative = 1.0
+    random_start: Share = 0.0
     randomize_look: bool = False
     camera_images: bool = True
-    ground_truth: str = "segmentation"
-    render_view: str = "chase"
-    sim: SimConfig = field(default_factory=SimConfig)
-    car: CarConfig = field(default_factory=CarConfig)
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    odometry: OdometryConfig = field(default_factory=OdometryConfig)
-    reward: RewardConfig = field(default_factory=RewardConfig)
-    camera_model: CameraModel = field(default_factory=CameraModel.realistic)
-    lidar: LidarConfig | None = None
+    ground_truth: GroundTruth = "segmentation"
+    render_view: RenderView = "chase"
+    sim: InstanceOf[SimConfig] = field(default_factory=SimConfig)
+    car: InstanceOf[CarConfig] = field(default_factory=CarConfig)
+    camera: InstanceOf[CameraConfig] = field(default_factory=CameraConfig)
+    odometry: InstanceOf[OdometryConfig] = field(default_factory=OdometryConfig)
+    reward: InstanceOf[RewardConfig] = field(default_factory=RewardConfig)
+    camera_model: InstanceOf[CameraModel] = field(default_factory=CameraModel.realistic)
+    lidar: Annotated[InstanceOf[LidarConfig] | None, BeforeValidator(_lidar)] = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.track, str) or not self.track:
-            raise InputError(f"EnvConfig.track must be a non-empty string, got {self.track!r}")
-        if not isinstance(self.laps, int) or isinstance(self.laps, bool) or self.laps < 0:
-            raise InputError(f"EnvConfig.laps must be an integer >= 0, got {self.laps!r}")
-        if not isinstance(self.camera_images, bool):
-            raise InputError(f"EnvConfig.camera_images must be true or false, got {self.camera_images!r}")
-        if self.ground_truth not in GROUND_TRUTH_MODES:
-            raise InputError(f"EnvConfig.ground_truth must be one of {', '.join(GROUND_TRUTH_MODES)}, "
-                             f"got {self.ground_truth!r}")
+        check_fields(self)  # each field against its annotation; then the relations between fields
         if not self.camera_images and self.ground_truth == "segmentation":
             raise InputError('EnvConfig.ground_truth="segmentation" needs rendered frames; with camera_images=False '
                              'take ground_truth="geometry" (or "off")')
-        if not (isinstance(self.off_track_margin, (int, float)) and math.isfinite(self.off_track_margin)
-                and self.off_track_margin >= 0):
-            raise InputError(f"EnvConfig.off_track_margin must be a finite number >= 0, got {self.off_track_margin!r}")
-        for name in ("stall_s", "stall_m"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise InputError(f"EnvConfig.{name} must be a finite number >= 0, got {v!r}")
-        rs = self.random_start
-        if isinstance(rs, bool) or not isinstance(rs, (int, float)) or not 0.0 <= rs <= 1.0:
-            raise InputError(f"EnvConfig.random_start must be a share in [0, 1], got {rs!r}")
-        if self.render_view not in RENDER_VIEWS:
-            raise InputError(f"EnvConfig.render_view must be one of {', '.join(RENDER_VIEWS)}, got {self.render_view!r}")
-        for name, cls in (("sim", SimConfig), ("car", CarConfig), ("camera", CameraConfig),
-                          ("odometry", OdometryConfig), ("reward", RewardConfig), ("camera_model", CameraModel)):
-            if not isinstance(getattr(self, name), cls):
-                raise InputError(f"EnvConfig.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
-        object.__setattr__(self, "lidar", _lidar(self.lidar))
         if self.camera_images and self.sim.renderer == "none":
             raise InputError('EnvConfig: sim.renderer="none" renders no camera frames; set camera_images=False '
                              '(or pick renderer "auto", "egl" or "tiny")')
         if self.render_view == "camera" and not self.camera_images:
             raise InputError('EnvConfig: render_view="camera" needs camera_images=True (nothing is rendered otherwise)')
-
-
-def _lidar(value: Any) -> LidarConfig | None:
-    """``EnvConfig.lidar`` checked: a ``LidarConfig``, a dict of its fields (a scenario file's table) or None."""
-    if isinstance(value, dict):
-        try:
-            return LidarConfig(**value)
-        except TypeError as exc:
-            raise InputError(f"EnvConfig.lidar: {exc}") from None
-    if value is not None and not isinstance(value, LidarConfig):
-        raise InputError(f"EnvConfig.lidar must be a LidarConfig, a dict of its fields or None, got {type(value).__name__}")
-    return value

@@ -5,13 +5,17 @@ keys (``EnvConfig``'s own fields and the time limit), one table per configuratio
 dataclass's fields and types (pydantic's ``TypeAdapter(...).json_schema()``), the ``[weather]`` keys
 with the preset conditions and severities, and ``[perception]``. Keys are optional as in the files
 (a missing key takes its default) and unknown keys are refused, as ``load_scenario`` refuses them.
-Ranges that a configuration checks in code (``CameraConfig``'s image size, ...) are not in the schema:
-``load_scenario`` still checks them, naming the file.
+The types, ranges and choices are the ones each configuration declares (:mod:`weather_gym.core.schema`);
+what relates two fields (``near < far``, a size limit) is not in the schema: ``load_scenario`` still checks
+it, naming the file.
 
-Write it where your editor finds it (a TOML editor such as taplo reads ``#:schema ./scenario.schema.json``
-at the top of a file)::
+The other files a user writes have one too (:data:`FILE_SCHEMAS`): a presets file
+(:func:`~weather_gym.weather.presets.presets_schema`), a ``--camera-model`` file (``CameraModel``'s fields)
+and a ``--randomize-ranges`` file (``RandomizeRanges``' fields). Write one where your editor finds it (a
+TOML editor such as taplo reads ``#:schema ./scenario.schema.json`` at the top of a file)::
 
     python -m weather_gym.envs.scenario_schema > scenario.schema.json
+    python -m weather_gym.envs.scenario_schema presets > presets.schema.json
 
 Example:
     >>> from weather_gym.envs.scenario_schema import scenario_schema
@@ -23,15 +27,19 @@ Example:
 from __future__ import annotations
 
 import json
+import sys
+from collections.abc import Callable
 from typing import Any
 
 from pydantic import TypeAdapter
 
+from weather_gym.camera.isp import CameraModel
 from weather_gym.envs.config import EnvConfig
 from weather_gym.envs.scenario import ENV_KEYS, SECTIONS
-from weather_gym.weather.presets import SEVERITIES, aliases, conditions
+from weather_gym.sim.randomize import RandomizeRanges
+from weather_gym.weather.presets import SEVERITIES, aliases, conditions, presets_schema
 
-__all__ = ["scenario_schema"]
+__all__ = ["FILE_SCHEMAS", "camera_model_schema", "randomize_schema", "scenario_schema"]
 
 SCHEMA_ID = "https://weather-gym.invalid/scenario.schema.json"
 
@@ -88,5 +96,32 @@ def scenario_schema() -> dict[str, Any]:
             "properties": properties, "additionalProperties": False, "$defs": defs}
 
 
+def _file(cls: type, title: str) -> dict[str, Any]:
+    """A TOML file that holds some of ``cls``'s fields at its top level (every key optional)."""
+    defs: dict[str, Any] = {}
+    table = _table(cls, None, defs)
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": title, **table,
+            **({"$defs": defs} if defs else {})}
+
+
+def camera_model_schema() -> dict[str, Any]:
+    """The JSON Schema of a ``--camera-model`` TOML file (``CameraModel``'s fields; the rest keep the default)."""
+    return _file(CameraModel, "weather-gym camera model (--camera-model FILE.toml)")
+
+
+def randomize_schema() -> dict[str, Any]:
+    """The JSON Schema of a ``--randomize-ranges`` TOML file (``RandomizeRanges``' fields)."""
+    return _file(RandomizeRanges, "weather-gym randomize ranges (--randomize-ranges FILE.toml)")
+
+
+FILE_SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
+    "scenario": scenario_schema, "presets": presets_schema, "camera-model": camera_model_schema,
+    "randomize": randomize_schema}
+"""Each kind of file a user writes -> its JSON Schema (``python -m weather_gym.envs.scenario_schema KIND``)."""
+
+
 if __name__ == "__main__":
-    print(json.dumps(scenario_schema(), indent=2))
+    kind = sys.argv[1] if len(sys.argv) > 1 else "scenario"
+    if kind not in FILE_SCHEMAS:
+        sys.exit(f"error: unknown kind {kind!r}; valid kinds: {', '.join(FILE_SCHEMAS)}")
+    print(json.dumps(FILE_SCHEMAS[kind](), indent=2))

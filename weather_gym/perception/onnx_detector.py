@@ -19,13 +19,15 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+import pydantic
 
 from weather_gym.core.cone_spec import CONE_CLASSES
-from weather_gym.core.errors import InputError, MissingInputError
+from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.core.limits import MAX_CAMERA_SIDE, check_image_size
+from weather_gym.core.schema import ListAsTuple, PositiveInt, Share, validate_table
 from weather_gym.perception.preprocess import decode, letterbox
 
 __all__ = ["ConeDetector", "Detections", "DEFAULT_MODEL", "NATIVE_INPUT", "REFERENCE_CAMERA", "INPUT_MULTIPLE",
@@ -136,8 +138,28 @@ def check_frame(image: Any, where: str) -> np.ndarray:
     return image
 
 
+Side = Annotated[tuple[PositiveInt, PositiveInt], ListAsTuple]
+
+
+class DetectorSidecar(pydantic.BaseModel):
+    """The keys of a detector's JSON sidecar that the runtime reads, declared (any other key, the model's
+    provenance, is free); a bad one is a ``FileFormatError`` naming the file, the key, the value and what
+    was expected."""
+
+    model_config = pydantic.ConfigDict(strict=True, extra="allow", allow_inf_nan=False)
+
+    classes: Annotated[tuple[Annotated[str, pydantic.Field(min_length=1)], ...], ListAsTuple,
+                       pydantic.Field(min_length=1)] = CONE_CLASSES
+    stride: PositiveInt = 4
+    score_threshold: Share = 0.3
+    input_size: Side | None = None
+    reference_camera: Side = REFERENCE_CAMERA
+    input_multiple: PositiveInt = INPUT_MULTIPLE
+
+
 def load_model_metadata(model_path: str | os.PathLike) -> dict[str, Any]:
-    """The sidecar JSON of ``model_path`` (``{}`` when there is none)."""
+    """The sidecar JSON of ``model_path`` (``{}`` when there is none), checked against
+    :class:`DetectorSidecar`; returned as written."""
     side = Path(model_path).with_suffix(".json")
     if not side.is_file():
         return {}
@@ -145,9 +167,10 @@ def load_model_metadata(model_path: str | os.PathLike) -> dict[str, Any]:
         with open(side) as f:
             meta = json.load(f)
     except json.JSONDecodeError as exc:
-        raise InputError(f"model metadata {side} is not valid JSON: {exc}") from None
+        raise FileFormatError(f"model metadata {side} is not valid JSON: {exc}") from None
     if not isinstance(meta, dict):
-        raise InputError(f"model metadata {side} must be a JSON object")
+        raise FileFormatError(f"model metadata {side} must be a JSON object")
+    validate_table(DetectorSidecar, meta, who=f"model metadata {side}", error=FileFormatError)
     return meta
 
 

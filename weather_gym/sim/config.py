@@ -15,9 +15,13 @@ Example:
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
+from typing import Annotated
+
+from pydantic import Field
 
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import NonNegative, OneOf, Positive, check_fields
 
 RENDERERS = ("auto", "egl", "tiny", "none")
 SCENES = ("plain", "realistic")
@@ -28,16 +32,6 @@ and distractors, a skyline, the ego car's nose in view: ``weather_gym.sim.scener
 ``weather_gym.sim.ego``; ``WeatherGym/ConeTrackRealistic-v0``). The realistic world is not the default
 because its clutter gives the shipped detector false positives that the mapping agent cannot yet
 handle: ``mapper_pure_pursuit`` leaves the track in clear weather there (docs/world.md)."""
-
-
-def _check_finite_positive(obj, names: tuple[str, ...], allow_zero: bool = False) -> None:
-    for name in names:
-        v = getattr(obj, name)
-        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-        ok = ok and (v >= 0 if allow_zero else v > 0)
-        if not ok:
-            kind = "a finite number >= 0" if allow_zero else "a finite number > 0"
-            raise InputError(f"{type(obj).__name__}.{name} must be {kind}, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -64,26 +58,18 @@ class SimConfig:
             frame after rendering (:mod:`weather_gym.sim.cast_shadows`); the plain scene has none.
     """
 
-    physics_hz: float = 240.0
-    control_hz: float = 30.0
-    renderer: str = "auto"
+    physics_hz: Positive = 240.0
+    control_hz: Positive = 30.0
+    renderer: Annotated[str, OneOf(RENDERERS)] = "auto"
     gui: bool = False
-    cone_mass: float = 0.6
+    cone_mass: Positive = 0.6
     shadows: bool | None = None
-    gravity: float = 9.81
-    scene: str = "plain"
+    gravity: Positive = 9.81
+    scene: Annotated[str, OneOf(SCENES)] = "plain"
     cast_shadows: bool = True
 
     def __post_init__(self) -> None:
-        _check_finite_positive(self, ("physics_hz", "control_hz", "cone_mass", "gravity"))
-        if self.scene not in SCENES:
-            raise InputError(f"SimConfig.scene must be one of {SCENES}, got {self.scene!r}")
-        if self.shadows is not None and not isinstance(self.shadows, bool):
-            raise InputError(f"SimConfig.shadows must be true, false or unset (None), got {self.shadows!r}")
-        if not isinstance(self.cast_shadows, bool):
-            raise InputError(f"SimConfig.cast_shadows must be true or false, got {self.cast_shadows!r}")
-        if self.renderer not in RENDERERS:
-            raise InputError(f"SimConfig.renderer must be one of {RENDERERS}, got {self.renderer!r}")
+        check_fields(self)  # each field against its annotation; then the rates against each other
         ratio = self.physics_hz / self.control_hz
         if ratio < 1 or abs(ratio - round(ratio)) > 1e-9:
             raise InputError(
@@ -107,32 +93,29 @@ class CarConfig:
     coefficient mu (dry asphalt ~1.0, wet ~0.6).
     """
 
-    mass: float = 230.0
-    yaw_inertia: float = 110.0
-    wheelbase: float = 1.55
-    cg_to_rear: float = 0.80
-    width: float = 1.2
-    length: float = 2.6
-    body_height: float = 0.55
-    max_steer: float = 0.45
-    steer_rate: float = 4.0
-    max_accel: float = 6.0
-    max_brake: float = 10.0
-    max_power: float = 40_000.0
-    max_speed: float = 25.0
-    cornering_stiffness_front: float = 18_000.0
-    cornering_stiffness_rear: float = 22_000.0
-    drag: float = 0.55  # 0.5 * rho * Cd * A, N / (m/s)^2
-    rolling_resistance: float = 0.015
-    friction: float = 1.0
+    mass: Positive = 230.0
+    yaw_inertia: Positive = 110.0
+    wheelbase: Positive = 1.55
+    cg_to_rear: Positive = 0.80
+    width: Positive = 1.2
+    length: Positive = 2.6
+    body_height: Positive = 0.55
+    max_steer: Annotated[float, Field(gt=0, lt=math.pi / 2)] = 0.45  # below pi/2 rad
+    steer_rate: Positive = 4.0
+    max_accel: Positive = 6.0
+    max_brake: Positive = 10.0
+    max_power: Positive = 40_000.0
+    max_speed: Positive = 25.0
+    cornering_stiffness_front: Positive = 18_000.0
+    cornering_stiffness_rear: Positive = 22_000.0
+    drag: NonNegative = 0.55  # 0.5 * rho * Cd * A, N / (m/s)^2
+    rolling_resistance: NonNegative = 0.015
+    friction: Positive = 1.0
 
     def __post_init__(self) -> None:
-        _check_finite_positive(self, tuple(f.name for f in fields(self) if f.name not in ("drag", "rolling_resistance")))
-        _check_finite_positive(self, ("drag", "rolling_resistance"), allow_zero=True)
-        if not 0 < self.cg_to_rear < self.wheelbase:
+        check_fields(self)
+        if not self.cg_to_rear < self.wheelbase:
             raise InputError(f"CarConfig.cg_to_rear must lie inside the wheelbase (0, {self.wheelbase}), got {self.cg_to_rear}")
-        if self.max_steer >= math.pi / 2:
-            raise InputError(f"CarConfig.max_steer must be below pi/2 rad, got {self.max_steer}")
 
     @property
     def cg_to_front(self) -> float:
@@ -146,13 +129,13 @@ class OdometryConfig:
     Per-episode errors are drawn from the env's RNG at reset. Set all to 0 for perfect odometry.
     """
 
-    speed_scale_std: float = 0.005
-    speed_noise_std: float = 0.02
-    gyro_bias_std: float = 0.002
-    gyro_noise_std: float = 0.005
+    speed_scale_std: NonNegative = 0.005
+    speed_noise_std: NonNegative = 0.02
+    gyro_bias_std: NonNegative = 0.002
+    gyro_noise_std: NonNegative = 0.005
 
     def __post_init__(self) -> None:
-        _check_finite_positive(self, tuple(f.name for f in fields(self)), allow_zero=True)
+        check_fields(self)
 
 
 def config_to_dict(cfg) -> dict:

@@ -24,17 +24,19 @@ Example:
     >>> LidarConfig(channels=0)
     Traceback (most recent call last):
     ...
-    weather_gym.core.errors.InputError: LidarConfig.channels must be an integer in 1..512, got 0
+    weather_gym.core.errors.InputError: LidarConfig.channels must be an integer in [1, 512], got 0
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
 
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import check_fields
 
 __all__ = ["LidarConfig", "MAX_RAYS"]
 
@@ -64,44 +66,26 @@ class LidarConfig:
     """
 
     name: str = "HDL-32E"
-    channels: int = 32
-    vfov_low_deg: float = -30.67
-    vfov_high_deg: float = 10.67
-    hfov_deg: float = 360.0
-    h_res_deg: float = 0.16
-    rate_hz: float = 10.0
-    max_range: float = 100.0
-    min_range: float = 1.0
-    range_noise_m: float = 0.02
-    ref_reflectivity: float = 0.1
+    channels: Annotated[int, Field(ge=1, le=512)] = 32
+    vfov_low_deg: Annotated[float, Field(ge=-90.0, le=90.0)] = -30.67
+    vfov_high_deg: Annotated[float, Field(ge=-90.0, le=90.0)] = 10.67  # and >= vfov_low_deg
+    hfov_deg: Annotated[float, Field(ge=1e-3, le=360.0)] = 360.0
+    h_res_deg: Annotated[float, Field(ge=1e-3, le=45.0)] = 0.16
+    rate_hz: Annotated[float, Field(ge=0.1, le=100.0)] = 10.0
+    max_range: Annotated[float, Field(ge=1.0, le=1000.0)] = 100.0
+    min_range: Annotated[float, Field(ge=0.0, le=1000.0)] = 1.0  # and <= max_range
+    range_noise_m: Annotated[float, Field(ge=0.0, le=1.0)] = 0.02
+    ref_reflectivity: Annotated[float, Field(ge=1e-4, le=1.0)] = 0.1
     mount_x: float = 2.25
     mount_y: float = 0.0
-    mount_z: float = 0.3
+    mount_z: Annotated[float, Field(ge=0.01, le=5.0)] = 0.3
     yaw_deg: float = 0.0
-    pitch_deg: float = 0.0
+    pitch_deg: Annotated[float, Field(ge=-45.0, le=45.0)] = 0.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str):
-            raise InputError(f"LidarConfig.name must be a string, got {self.name!r}")
-        if isinstance(self.channels, bool) or not isinstance(self.channels, int) or not 1 <= self.channels <= 512:
-            raise InputError(f"LidarConfig.channels must be an integer in 1..512, got {self.channels!r}")
-        for f in fields(self):
-            if f.name in ("name", "channels"):
-                continue
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise InputError(f"LidarConfig.{f.name} must be a finite number, got {v!r}")
-        _in_range(self, "vfov_low_deg", -90.0, 90.0)
+        check_fields(self)  # each field against its annotation; then the ranges that depend on another field
         _in_range(self, "vfov_high_deg", self.vfov_low_deg, 90.0)
-        _in_range(self, "hfov_deg", 1e-3, 360.0)
-        _in_range(self, "h_res_deg", 1e-3, 45.0)
-        _in_range(self, "rate_hz", 0.1, 100.0)
-        _in_range(self, "max_range", 1.0, 1000.0)
         _in_range(self, "min_range", 0.0, self.max_range)
-        _in_range(self, "range_noise_m", 0.0, 1.0)
-        _in_range(self, "ref_reflectivity", 1e-4, 1.0)
-        _in_range(self, "mount_z", 0.01, 5.0)
-        _in_range(self, "pitch_deg", -45.0, 45.0)
         if self.rays > MAX_RAYS:
             raise InputError(f"LidarConfig: {self.channels} channels x {self.columns} columns = {self.rays} beams per "
                              f"scan, more than {MAX_RAYS}; take fewer channels or a coarser h_res_deg")

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
@@ -28,22 +29,13 @@ from weather_gym.camera.config import CameraConfig
 from weather_gym.camera.isp import CameraModel
 from weather_gym.core._toml import read_toml
 from weather_gym.core.errors import FileFormatError, InputError, check_known
+from weather_gym.core.schema import Interval, Share, check_fields
 from weather_gym.sim.ego import EGO_VARIANTS
 from weather_gym.sim.look import Look
 from weather_gym.sim.scenery import CLUTTER_LAYOUTS
 
 Range = tuple[float, float]
 
-# the bounds every range must stay inside (a range outside makes no physical sense here)
-_LIMITS: dict[str, tuple[float, float]] = {
-    "sun_elevation_deg": (1.0, 90.0), "sun_azimuth_deg": (-360.0, 720.0), "light_warmth": (-1.0, 1.0),
-    "ambient": (0.0, 1.5), "diffuse": (0.0, 1.5), "specular": (0.0, 1.0), "cone_shade": (0.3, 1.0),
-    "cloud_cover": (0.0, 1.0), "sky_brightness": (0.5, 1.5),
-    "clutter_tint": (0.3, 1.5), "camera_height_offset": (-0.8, 1.0), "camera_pitch_offset_deg": (-15.0, 15.0),
-    "camera_yaw_offset_deg": (-10.0, 10.0), "hfov_deg": (30.0, 140.0), "exposure_ev": (-4.0, 4.0),
-    "white_balance": (0.5, 2.0), "contrast": (0.5, 2.0), "vignetting": (0.0, 0.8), "k1": (-0.3, 0.3),
-    "defocus_px": (0.0, 3.0), "read_noise": (0.0, 20.0), "shot_noise": (0.0, 8.0), "jpeg_quality": (10.0, 100.0),
-}
 _PROBABILITIES = ("p_ego", "p_grass", "p_jpeg")
 
 ASPHALT_PALETTE: tuple[tuple[float, float, float], ...] = (
@@ -59,49 +51,38 @@ LOT_PALETTE: tuple[tuple[float, float, float], ...] = (
 
 @dataclass(frozen=True)
 class RandomizeRanges:
-    """Ranges of the realistic world's domain randomisation (``(low, high)``, uniform)."""
+    """Ranges of the realistic world's domain randomisation (``(low, high)``, uniform), each inside the
+    bounds its annotation declares (a range outside makes no physical sense here)."""
 
-    sun_elevation_deg: Range = (15.0, 75.0)
-    sun_azimuth_deg: Range = (0.0, 360.0)
-    light_warmth: Range = (-1.0, 1.0)
-    ambient: Range = (0.45, 0.8)
-    diffuse: Range = (0.25, 0.7)
-    specular: Range = (0.0, 0.1)
-    cone_shade: Range = (0.75, 1.0)
-    cloud_cover: Range = (0.2, 1.0)
-    sky_brightness: Range = (0.85, 1.25)
-    clutter_tint: Range = (0.75, 1.1)
-    camera_height_offset: Range = (-0.1, 0.3)
-    camera_pitch_offset_deg: Range = (-2.0, 8.0)
-    camera_yaw_offset_deg: Range = (-2.0, 2.0)
-    hfov_deg: Range = (55.0, 95.0)
-    exposure_ev: Range = (-1.0, 2.0)
-    white_balance: Range = (0.88, 1.12)
-    contrast: Range = (0.85, 1.35)
-    vignetting: Range = (0.0, 0.4)
-    k1: Range = (-0.10, 0.02)
-    defocus_px: Range = (0.0, 1.0)
-    read_noise: Range = (0.5, 4.0)
-    shot_noise: Range = (0.5, 4.0)
-    jpeg_quality: Range = (70.0, 95.0)
-    p_ego: float = 0.7
-    p_grass: float = 0.35
-    p_jpeg: float = 0.7
+    sun_elevation_deg: Annotated[Range, Interval(1.0, 90.0)] = (15.0, 75.0)
+    sun_azimuth_deg: Annotated[Range, Interval(-360.0, 720.0)] = (0.0, 360.0)
+    light_warmth: Annotated[Range, Interval(-1.0, 1.0)] = (-1.0, 1.0)
+    ambient: Annotated[Range, Interval(0.0, 1.5)] = (0.45, 0.8)
+    diffuse: Annotated[Range, Interval(0.0, 1.5)] = (0.25, 0.7)
+    specular: Annotated[Range, Interval(0.0, 1.0)] = (0.0, 0.1)
+    cone_shade: Annotated[Range, Interval(0.3, 1.0)] = (0.75, 1.0)
+    cloud_cover: Annotated[Range, Interval(0.0, 1.0)] = (0.2, 1.0)
+    sky_brightness: Annotated[Range, Interval(0.5, 1.5)] = (0.85, 1.25)
+    clutter_tint: Annotated[Range, Interval(0.3, 1.5)] = (0.75, 1.1)
+    camera_height_offset: Annotated[Range, Interval(-0.8, 1.0)] = (-0.1, 0.3)
+    camera_pitch_offset_deg: Annotated[Range, Interval(-15.0, 15.0)] = (-2.0, 8.0)
+    camera_yaw_offset_deg: Annotated[Range, Interval(-10.0, 10.0)] = (-2.0, 2.0)
+    hfov_deg: Annotated[Range, Interval(30.0, 140.0)] = (55.0, 95.0)
+    exposure_ev: Annotated[Range, Interval(-4.0, 4.0)] = (-1.0, 2.0)
+    white_balance: Annotated[Range, Interval(0.5, 2.0)] = (0.88, 1.12)
+    contrast: Annotated[Range, Interval(0.5, 2.0)] = (0.85, 1.35)
+    vignetting: Annotated[Range, Interval(0.0, 0.8)] = (0.0, 0.4)
+    k1: Annotated[Range, Interval(-0.3, 0.3)] = (-0.10, 0.02)
+    defocus_px: Annotated[Range, Interval(0.0, 3.0)] = (0.0, 1.0)
+    read_noise: Annotated[Range, Interval(0.0, 20.0)] = (0.5, 4.0)
+    shot_noise: Annotated[Range, Interval(0.0, 8.0)] = (0.5, 4.0)
+    jpeg_quality: Annotated[Range, Interval(10.0, 100.0)] = (70.0, 95.0)
+    p_ego: Share = 0.7
+    p_grass: Share = 0.35
+    p_jpeg: Share = 0.7
 
     def __post_init__(self) -> None:
-        for name, (lo, hi) in _LIMITS.items():
-            v = getattr(self, name)
-            ok = (isinstance(v, (tuple, list)) and len(v) == 2
-                  and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v))
-            if not ok:
-                raise InputError(f"randomize.{name} must be a (low, high) pair of numbers, got {v!r}")
-            if not (lo <= v[0] <= v[1] <= hi):
-                raise InputError(f"randomize.{name} = {tuple(v)} must satisfy {lo} <= low <= high <= {hi}")
-            object.__setattr__(self, name, (float(v[0]), float(v[1])))
-        for name in _PROBABILITIES:
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
-                raise InputError(f"randomize.{name} must be a probability in [0, 1], got {v!r}")
+        check_fields(self, who="randomize")
 
     def override(self, values: dict) -> RandomizeRanges:
         """A copy with ``values`` replaced: ``{key: (lo, hi) | "lo,hi" | p}``; unknown keys name the valid ones."""

@@ -42,11 +42,11 @@ from typing import Any
 
 from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 from weather_gym.weather.registry import EFFECTS
-from weather_gym.weather.tables import effect_from_table
+from weather_gym.weather.tables import effect_from_table, effect_table_schema
 
 __all__ = ["DEFAULT_PRESETS", "PRESETS_ENV", "SEVERITIES", "STUDY_CONDITIONS", "aliases",
            "canonical_condition", "conditions", "load_presets", "nominal_rows", "preset_entry", "preset_source",
-           "preset_spec", "presets_meaning", "presets_path"]
+           "preset_spec", "presets_meaning", "presets_path", "presets_schema"]
 
 #: The reference study's conditions (its Table 2), listed first.
 STUDY_CONDITIONS = ("droplets", "low_light")
@@ -204,6 +204,29 @@ def _validate(data: dict[str, Any], path: Path) -> dict[str, Any]:
     meta = {k: v for k, v in data.items() if k not in ("presets", "calibrated")}
     calibrated = tuple(c for c, sevs in out.items() if all(t["calibrated"] for t in sevs.values()))
     return {**meta, "calibrated": bool(calibrated), "calibrated_conditions": calibrated, "presets": out}
+
+
+def presets_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a presets file: ``[[presets]]`` rows of a condition (or an alias), a
+    severity 0-4 and a list of effect tables (:func:`~weather_gym.weather.tables.effect_table_schema`), each
+    with an optional ``calibrated`` flag; every other key (a row's description and measured numbers, the
+    file's provenance) is free. What the schema cannot say (one row per condition and severity, all five
+    severities of a condition) :func:`load_presets` checks.
+
+    Example:
+        >>> presets_schema()["properties"]["presets"]["items"]["required"]
+        ['condition', 'severity', 'effects']
+    """
+    row = {"type": "object", "properties": {
+        "condition": {"enum": [*conditions(), *aliases()]},
+        "severity": {"type": "integer", "enum": list(SEVERITIES)},
+        "effects": {"type": "array", "items": effect_table_schema()},
+        "calibrated": {"type": "boolean"}},
+        "required": ["condition", "severity", "effects"]}
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "weather-gym presets file",
+            "type": "object", "properties": {"presets": {"type": "array", "items": row, "minItems": 1},
+                                             "calibrated": {"type": "boolean"}},
+            "required": ["presets"]}
 
 
 def load_presets(path: str | os.PathLike[str] | None = None) -> dict[str, Any]:

@@ -17,12 +17,12 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from weather_gym.core.errors import InputError, check_known
-from weather_gym.weather.base import Effect
+from weather_gym.weather.base import Effect, KnobEffect, param_schema
 from weather_gym.weather.compose import Compose
 from weather_gym.weather.registry import EFFECTS, make
 from weather_gym.weather.schedule import Ramp
 
-__all__ = ["effect_from_table"]
+__all__ = ["effect_from_table", "effect_table_schema"]
 
 
 def effect_from_table(table: Mapping[str, Any]) -> Effect:
@@ -47,3 +47,28 @@ def effect_from_table(table: Mapping[str, Any]) -> Effect:
     if "k" not in rest:
         raise InputError(f"weather table {dict(table)!r} needs 'k' (severity in [0, 1])")
     return make(name, **rest)
+
+
+def effect_table_schema(effects: Mapping[str, type[KnobEffect]] | None = None) -> dict[str, Any]:
+    """The JSON Schema of one effect table: one alternative per effect (its ``name`` and its parameters with
+    their types, ranges and choices, from :func:`~weather_gym.weather.base.param_schema`; ``k`` required),
+    plus ``ramp`` and ``compose`` tables. ``effects``: name -> class (default: every registered effect).
+
+    Example:
+        >>> alternatives = effect_table_schema()["oneOf"]
+        >>> dim = next(a for a in alternatives if a["properties"]["name"] == {"const": "dim"})
+        >>> dim["properties"]["k"]["maximum"], dim["required"]
+        (1.0, ['name', 'k'])
+    """
+    chosen = effects if effects is not None else {name: EFFECTS.get(name) for name in EFFECTS.names()}
+    tables: list[dict[str, Any]] = []
+    for name, cls in chosen.items():
+        params = param_schema(cls).model_json_schema()
+        tables.append({"type": "object", "title": name, "properties": {"name": {"const": name}, **params["properties"]},
+                       "required": ["name", "k"], "additionalProperties": False})
+    tables.append({"type": "object", "title": "ramp", "properties": {"name": {"const": "ramp"}},
+                   "required": ["name", "effect"]})
+    tables.append({"type": "object", "title": "compose",
+                   "properties": {"name": {"const": "compose"}, "effects": {"type": "array"}},
+                   "required": ["name"], "additionalProperties": False})
+    return {"oneOf": tables}

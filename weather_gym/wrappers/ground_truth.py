@@ -39,6 +39,7 @@ from gymnasium import spaces
 from weather_gym.camera.config import CameraConfig
 from weather_gym.core.cone_spec import CONE_CLASSES, cone_height
 from weather_gym.core.errors import InputError, check_known
+from weather_gym.core.schema import NonNegative, NonNegativeInt, Positive, Share, check_fields
 from weather_gym.perception.cones import DEFAULT_MAX_CONES, cone_list_space, pack_cones
 
 __all__ = ["GroundTruthConeWrapper", "OracleNoise", "oracle_cones"]
@@ -61,27 +62,16 @@ class OracleNoise:
         min_pixels: cones with fewer visible pixels are not reported (occluded or tiny).
     """
 
-    range_noise: float = 0.0
-    bearing_noise: float = 0.0
-    miss_prob: float = 0.0
-    false_positives: float = 0.0
-    swap_prob: float = 0.0
-    max_range: float | None = None
-    min_pixels: int = 0
+    range_noise: NonNegative = 0.0
+    bearing_noise: NonNegative = 0.0
+    miss_prob: Share = 0.0
+    false_positives: NonNegative = 0.0
+    swap_prob: Share = 0.0
+    max_range: Positive | None = None
+    min_pixels: NonNegativeInt = 0
 
     def __post_init__(self) -> None:
-        for name in ("range_noise", "bearing_noise", "false_positives"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InputError(f"oracle {name} must be a finite number >= 0, got {v!r}")
-        for name in ("miss_prob", "swap_prob"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 0 <= v <= 1):
-                raise InputError(f"oracle {name} must be a probability in [0, 1], got {v!r}")
-        if self.max_range is not None and not (math.isfinite(self.max_range) and self.max_range > 0):
-            raise InputError(f"oracle max_range must be a finite number > 0 or None, got {self.max_range!r}")
-        if not (isinstance(self.min_pixels, int) and self.min_pixels >= 0):
-            raise InputError(f"oracle min_pixels must be an integer >= 0, got {self.min_pixels!r}")
+        check_fields(self, who="oracle")
 
     @property
     def is_perfect(self) -> bool:

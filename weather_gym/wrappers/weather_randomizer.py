@@ -31,12 +31,13 @@ import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, SupportsFloat
+from typing import Annotated, Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 
 from weather_gym.core.errors import InputError, check_known
+from weather_gym.core.schema import OneOf, PositiveInt, Share, check_fields
 from weather_gym.weather import make
 from weather_gym.weather.presets import canonical_condition, preset_spec
 from weather_gym.wrappers.weather import WeatherWrapper
@@ -80,10 +81,10 @@ class RandomWeather:
     presets: tuple[str, ...] = ("droplets", "low_light")
     severities: tuple[int, ...] = (0, 1, 2, 3, 4)
     effects: Mapping[str, Any] = field(default_factory=dict)
-    p: float = 0.5
-    p_clear: float = 0.0
-    schedule: str = "episode"
-    every: int = 300
+    p: Share = 0.5
+    p_clear: Share = 0.0
+    schedule: Annotated[str, OneOf(SCHEDULES)] = "episode"
+    every: PositiveInt = 300  # steps
 
     @cached_property
     def _tables(self) -> dict[str, tuple[tuple[float, float], dict[str, Any]]]:
@@ -110,14 +111,7 @@ class RandomWeather:
         tables = self._tables  # checks every entry
         if not self.presets and not tables:
             raise InputError("RandomWeather: give presets and/or effects to draw from")
-        for name in ("p", "p_clear"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (0.0 <= float(v) <= 1.0):
-                raise InputError(f"RandomWeather: {name} must be a probability in [0, 1], got {v!r}")
-        if self.schedule not in SCHEDULES:
-            raise InputError(f"RandomWeather: schedule must be one of {', '.join(SCHEDULES)}, got {self.schedule!r}")
-        if isinstance(self.every, bool) or not isinstance(self.every, numbers.Integral) or self.every < 1:
-            raise InputError(f"RandomWeather: every must be an integer >= 1 (steps), got {self.every!r}")
+        check_fields(self, who="RandomWeather")  # p, p_clear, schedule, every
 
     def sample(self, rng: np.random.Generator) -> tuple[list[dict[str, Any]], str]:
         """One draw: ``(effect tables for parse_weather, a short label)``; ``([], "clear")`` when clear.

@@ -46,9 +46,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import BeforeValidator, InstanceOf
 from tqdm import tqdm
 
 from weather_gym.camera.config import CameraConfig
@@ -58,6 +59,7 @@ from weather_gym.core._lock import waiting_lock
 from weather_gym.core._toml import toml_document
 from weather_gym.core.errors import InputError, ResolutionError
 from weather_gym.core.paths import PACKAGE
+from weather_gym.core.schema import OneOf, PositiveInt, check_fields
 from weather_gym.core.version import __version__
 from weather_gym.envs.config import EnvConfig
 from weather_gym.lab.calibration.curve import invert
@@ -66,6 +68,7 @@ from weather_gym.lab.datasets.coco import load_coco
 from weather_gym.lab.datasets.render import render_dataset
 from weather_gym.perception.detector_spec import DEFAULT_MODEL, load_detector, parse_detector_spec
 from weather_gym.perception.scoring import small_rule
+from weather_gym.sim.config import SCENES
 from weather_gym.weather import make
 from weather_gym.weather.presets import DEFAULT_PRESETS, SEVERITIES, conditions, load_presets, nominal_rows
 from weather_gym.weather.spec import preset_items
@@ -102,6 +105,16 @@ _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coc
 
 
 # ------------------------------------------------------------------------------------------ scenario
+def _tracks(value: Any) -> Any:
+    """``Scenario.tracks``: one name or a list of names, as a tuple."""
+    return (value,) if isinstance(value, str) else tuple(value) if isinstance(value, list) else value
+
+
+def _path_text(value: Any) -> Any:
+    """``Scenario.dataset``: a path as its text."""
+    return os.fspath(value) if isinstance(value, os.PathLike) else value
+
+
 @dataclass(frozen=True)
 class Scenario:
     """What a preset is resolved for. ``dataset``: a clear COCO recording used as it is (no render);
@@ -110,33 +123,23 @@ class Scenario:
     widened by as many again up to ``max_frames`` while the damage is not known within the tolerance.
     ``detector``: a detector spec (None: the shipped one; ``"yolov8:model.onnx"``, ...)."""
 
-    tracks: tuple[str, ...] = ("small_track",)
-    scene: str = "plain"
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    camera_model: CameraModel | None = None
+    tracks: Annotated[tuple[str, ...], BeforeValidator(_tracks)] = ("small_track",)
+    scene: Annotated[str, OneOf(SCENES)] = "plain"
+    camera: InstanceOf[CameraConfig] = field(default_factory=CameraConfig)
+    camera_model: InstanceOf[CameraModel] | None = None
     detector: Any = None
-    dataset: str | None = None
-    frames: int = 160
-    max_frames: int = 480
+    dataset: Annotated[str | None, BeforeValidator(_path_text)] = None
+    frames: PositiveInt = 160
+    max_frames: PositiveInt = 480  # and >= frames
     seed: int = 0
-    frames_per_episode: int = 4
+    frames_per_episode: PositiveInt = 4
 
     def __post_init__(self) -> None:
-        if isinstance(self.tracks, str):
-            object.__setattr__(self, "tracks", (self.tracks,))
-        object.__setattr__(self, "tracks", tuple(self.tracks))
+        check_fields(self)  # each field against its annotation; then the relations
         if self.dataset is None and not self.tracks:
             raise InputError("a scenario needs a track (tracks=...) or a clear recording (dataset=...)")
-        for name in ("frames", "max_frames", "frames_per_episode"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise InputError(f"Scenario.{name} must be an integer >= 1, got {v!r}")
         if self.max_frames < self.frames:
             raise InputError(f"Scenario.max_frames ({self.max_frames}) is below frames ({self.frames})")
-        if not isinstance(self.camera, CameraConfig):
-            raise InputError(f"Scenario.camera must be a CameraConfig, got {type(self.camera).__name__}")
-        if self.camera_model is not None and not isinstance(self.camera_model, CameraModel):
-            raise InputError(f"Scenario.camera_model must be a CameraModel or None, got {type(self.camera_model).__name__}")
 
     @property
     def model(self) -> CameraModel:

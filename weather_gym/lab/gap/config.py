@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import AfterValidator, Field, InstanceOf
 
 from weather_gym.camera.isp import CameraModel
-from weather_gym.core.errors import InputError
+from weather_gym.core.schema import ListAsTuple, NonNegativeInt, OneOf, PositiveInt, check_fields
 from weather_gym.lab.gap.compare import ALPHA, MIN_EFFECT
 from weather_gym.lab.gap.diagnose import significant_signals
 from weather_gym.lab.gap.measured import MEASURED
@@ -95,6 +96,14 @@ PERCEPTION_MIN_MAP = 0.3
 
 
 
+def _known_effects(names: tuple[str, ...] | None) -> tuple[str, ...] | None:
+    """``GapConfig.candidates``: registered effects or measured members (an unknown name lists the valid ones)."""
+    for name in names or ():
+        if name not in MEASURED:
+            EFFECTS.get(name)
+    return names
+
+
 @dataclass(frozen=True)
 class GapConfig:
     """Settings of a gap run (all have defaults; the CLI exposes the common ones).
@@ -127,52 +136,27 @@ class GapConfig:
     """
 
     seed: int = 0
-    mode: str = "auto"
-    tracks: tuple[str, ...] | None = None
-    sim_frames: int | None = None
-    scene: str | None = None
-    camera_model: CameraModel | None = None
-    held_out: float = 0.5
-    fit_frames: int = 32
-    max_steps: int = 4
-    candidates: tuple[str, ...] | None = None
-    top: int = 2
-    alpha: float = ALPHA
+    mode: Annotated[str, OneOf(MODES)] = "auto"
+    tracks: Annotated[tuple[str, ...] | None, ListAsTuple] = None
+    sim_frames: Annotated[int, Field(ge=MIN_FRAMES)] | None = None
+    scene: Annotated[str, OneOf(SCENES)] | None = None
+    camera_model: InstanceOf[CameraModel] | None = None
+    held_out: Annotated[float, Field(gt=0, lt=1)] = 0.5
+    fit_frames: Annotated[int, Field(ge=4)] = 32
+    max_steps: NonNegativeInt = 4
+    candidates: Annotated[tuple[str, ...] | None, ListAsTuple, AfterValidator(_known_effects)] = None
+    top: PositiveInt = 2
+    alpha: Annotated[float, Field(gt=0, lt=1)] = ALPHA
     min_effect: float = MIN_EFFECT
-    bootstrap: int = 1000
+    bootstrap: Annotated[int, Field(ge=100)] = 1000
     perception: bool = True
     detector: Any = None
     prune: bool = True
-    compare_width: int | None = COMPARE_WIDTH
+    compare_width: Annotated[int, Field(ge=64)] | None = COMPARE_WIDTH
     progress: bool = False
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.held_out < 1.0:
-            raise InputError(f"held_out must be a fraction in (0, 1), got {self.held_out}")
-        if self.mode not in MODES:
-            raise InputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
-        if self.scene is not None and self.scene not in SCENES:
-            raise InputError(f"scene must be one of {SCENES} (or None: from the records), got {self.scene!r}")
-        if self.camera_model is not None and not isinstance(self.camera_model, CameraModel):
-            raise InputError(f"camera_model must be a CameraModel (or None: from the records), "
-                             f"got {type(self.camera_model).__name__}")
-        if self.sim_frames is not None and self.sim_frames < MIN_FRAMES:
-            raise InputError(f"sim_frames must be >= {MIN_FRAMES}, got {self.sim_frames}")
-        if self.compare_width is not None and self.compare_width < 64:
-            raise InputError(f"compare_width must be >= 64 pixels (or None), got {self.compare_width}")
-        if self.fit_frames < 4:
-            raise InputError(f"fit_frames must be >= 4, got {self.fit_frames}")
-        if self.max_steps < 0:
-            raise InputError(f"max_steps must be >= 0, got {self.max_steps}")
-        if self.top < 1:
-            raise InputError(f"top must be >= 1, got {self.top}")
-        if not 0.0 < self.alpha < 1.0:
-            raise InputError(f"alpha must be in (0, 1), got {self.alpha}")
-        if self.bootstrap < 100:
-            raise InputError(f"bootstrap must be >= 100 resamples, got {self.bootstrap}")
-        for name in self.candidates or ():
-            if name not in MEASURED:
-                EFFECTS.get(name)  # unknown names: ValueError listing the valid ones
+        check_fields(self)
 
 
 @dataclass

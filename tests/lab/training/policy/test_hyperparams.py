@@ -166,7 +166,7 @@ def test_subproc_starts_at_most_4_processes_per_core_as_make_vec_env():
     (["--init", __file__], r"--init .*test_hyperparams.py: not a saved SB3 model"),
     (["--camera", "9999x10"], r"--camera 9999x10: each side must be at most 4096 pixels"),
     (["--eval-max-steps", "0"], r"--eval-max-steps must be an integer in \[1, 1000000\], got 0"),
-    (["--eval-weathers", ""], r"--eval-weathers is empty"),
+    (["--eval-weathers", ""], r"--eval-weathers must be a list of at least 1 strings, got \(\)"),
     (["--eval-track", "small_track,hairpin"], r"--eval-track hairpin is also a training track"),
     (["--detection-range", "-3"], r"--detection-range must be a distance in metres > 0 or 'none', got '-3'"),
 ])

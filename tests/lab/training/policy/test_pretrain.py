@@ -66,9 +66,9 @@ def test_pretraining_is_repeatable(tmp_path):
 
 @pytest.mark.parametrize(("extra", "message"), [
     (["--pretrain", "no_such_driver"], r"unknown agent 'no_such_driver'; valid names: gt_pure_pursuit"),
-    (["--pretrain-steps", "-5"], r"--pretrain-steps must be >= 1, got -5"),
-    (["--dagger-rounds", "0"], r"--dagger-rounds must be >= 1, got 0"),
-    (["--dagger-beta", "1.5"], r"--dagger-beta must be in \[0, 1\]"),
+    (["--pretrain-steps", "-5"], r"--pretrain-steps must be an integer >= 1, got -5"),
+    (["--dagger-rounds", "0"], r"--dagger-rounds must be an integer >= 1, got 0"),
+    (["--dagger-beta", "1.5"], r"--dagger-beta must be a finite number in \[0, 1\], got 1.5"),
 ])
 def test_bad_pretraining_options_are_refused(tmp_path, capsys, extra, message):
     assert main(_args(tmp_path / "run", *extra)) == 2

@@ -34,8 +34,8 @@ def test_every_track_in_every_weather_with_fixed_seeds():
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"tracks": ()}, "--eval-track is empty"),
-    ({"weathers": ()}, "--eval-weathers is empty"),
+    ({"tracks": ()}, r"--eval-track must be a list of at least 1 strings, got \(\)"),
+    ({"weathers": ()}, r"--eval-weathers must be a list of at least 1 strings, got \(\)"),
     ({"max_steps": 0}, "--eval-max-steps must be an integer >= 1, got 0"),
     ({"episodes": True}, "--eval-episodes must be an integer >= 1, got True"),
     ({"perception": "telepathy"}, "telepathy"),

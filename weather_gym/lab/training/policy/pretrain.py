@@ -19,7 +19,7 @@ Example:
     >>> PretrainConfig(expert="gt_pure_pursuit", steps=-1)
     Traceback (most recent call last):
     ...
-    weather_gym.core.errors.InputError: --pretrain-steps must be >= 1, got -1
+    weather_gym.core.errors.InputError: --pretrain-steps must be an integer >= 1, got -1
 """
 
 from __future__ import annotations
@@ -28,19 +28,26 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import gymnasium as gym
 import numpy as np
+from pydantic import AfterValidator
 from tqdm.auto import tqdm
 
 from weather_gym.agents import AGENTS, make_agent
 from weather_gym.core.errors import InputError
+from weather_gym.core.schema import Positive, PositiveInt, Share, check_fields, option
 
 __all__ = ["PretrainConfig", "bc_loss", "collect", "policy_mean", "pretrain"]
 
 _SEED_KEY = (0xBC0,)  # the pretraining's own streams, apart from PPO's and the envs' for the same seed
 _EVAL_CHUNK = 4096
+
+
+def _known_agent(name: str) -> str:
+    AGENTS.get(name)  # InputError naming the valid agents
+    return name
 
 
 @dataclass(frozen=True)
@@ -57,31 +64,20 @@ class PretrainConfig:
         log_std: the policy's log std after pretraining (PPO's exploration noise from there).
     """
 
-    expert: str
-    steps: int = 60_000
-    rounds: int = 4
-    epochs: int = 20
-    beta: float = 0.5
-    batch_size: int = 256
-    learning_rate: float = 1e-3
-    log_std: float = -1.6
+    expert: Annotated[str, AfterValidator(_known_agent), option("--pretrain")]
+    steps: Annotated[PositiveInt, option("--pretrain-steps")] = 60_000
+    rounds: Annotated[PositiveInt, option("--dagger-rounds")] = 4
+    epochs: Annotated[PositiveInt, option("--pretrain-epochs")] = 20
+    beta: Annotated[Share, option("--dagger-beta")] = 0.5
+    batch_size: PositiveInt = 256
+    learning_rate: Positive = 1e-3
+    log_std: Annotated[float, option("--pretrain-log-std")] = -1.6
 
     def __post_init__(self) -> None:
-        AGENTS.get(self.expert)  # InputError naming the valid agents
-        for name, opt in (("steps", "--pretrain-steps"), ("rounds", "--dagger-rounds"),
-                          ("epochs", "--pretrain-epochs"), ("batch_size", "batch_size")):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise InputError(f"{opt} must be >= 1, got {v!r}")
+        check_fields(self, by_option=True)  # each field against its annotation, named by its option
         if self.steps < self.rounds:
             raise InputError(f"--pretrain-steps {self.steps} is fewer than one step per DAgger round "
                              f"(--dagger-rounds {self.rounds})")
-        if not 0.0 <= float(self.beta) <= 1.0:
-            raise InputError(f"--dagger-beta must be in [0, 1], got {self.beta!r}")
-        if not float(self.learning_rate) > 0.0:
-            raise InputError(f"pretraining learning_rate must be > 0, got {self.learning_rate!r}")
-        if not np.isfinite(self.log_std):
-            raise InputError(f"--pretrain-log-std must be a finite number, got {self.log_std!r}")
 
     def steps_per_round(self) -> list[int]:
         """Env steps of each round (the remainder goes to the first rounds)."""

@@ -23,12 +23,13 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import AfterValidator, Field
 
 from weather_gym.agents.cone_memory import ConeMemoryConfig
-from weather_gym.core.errors import InputError
+from weather_gym.core.schema import ListAsTuple, PositiveInt, check_fields, option
 from weather_gym.pipeline import make_env
 from weather_gym.pipeline.modes import perception_mode
 
@@ -37,28 +38,30 @@ __all__ = ["EpisodeRow", "HeldOutConfig", "HeldOutResult", "held_out_laps"]
 _SEED = 20_000  # episode seeds of the held-out drives: the same every evaluation, apart from training's
 
 
+#: one or more names (a list is taken as the tuple it lists)
+Names = Annotated[Annotated[tuple[str, ...], Field(min_length=1)], ListAsTuple]
+
+
+def _known_mode(name: str) -> str:
+    perception_mode(name)  # InputError naming the modes
+    return name
+
+
 @dataclass(frozen=True)
 class HeldOutConfig:
     """The held-out drives (``--eval-track``, ``--eval-weathers``, ``--eval-perception``,
     ``--eval-max-steps``, ``--eval-episodes``): every track in every weather (one drive per track in a
     perception that takes no weather), ``episodes`` seeds each."""
 
-    tracks: tuple[str, ...]
-    weathers: tuple[str, ...] = ("clear", "droplets@1", "droplets@2", "droplets@3", "low_light@1")
-    perception: str = "surrogate"
-    max_steps: int = 1800
-    episodes: int = 1
+    tracks: Annotated[Names, option("--eval-track")]
+    weathers: Annotated[Names, option("--eval-weathers")] = ("clear", "droplets@1", "droplets@2", "droplets@3",
+                                                            "low_light@1")
+    perception: Annotated[str, AfterValidator(_known_mode), option("--eval-perception")] = "surrogate"
+    max_steps: Annotated[PositiveInt, option("--eval-max-steps")] = 1800
+    episodes: Annotated[PositiveInt, option("--eval-episodes")] = 1
 
     def __post_init__(self) -> None:
-        if not self.tracks:
-            raise InputError("--eval-track is empty: give at least one held-out track")
-        if not self.weathers:
-            raise InputError("--eval-weathers is empty: give at least one weather (e.g. clear)")
-        perception_mode(self.perception)  # InputError naming the modes
-        for name, opt in (("max_steps", "--eval-max-steps"), ("episodes", "--eval-episodes")):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise InputError(f"{opt} must be an integer >= 1, got {v!r}")
+        check_fields(self, by_option=True)  # each field against its annotation, named by its option
 
     @classmethod
     def from_dict(cls, fields: dict[str, Any]) -> HeldOutConfig:
