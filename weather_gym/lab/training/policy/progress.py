@@ -113,13 +113,15 @@ def ppo_callbacks(total: int, log: Callable[[str], None], selector: Selector | N
             steps = self.model.num_timesteps
             dt = max(time.time() - self.t0, 1e-9)
             rate = (steps - self.steps0) / dt
+            # PPO collects whole rollouts (n_envs x n_steps), so the last one may end past ``total``.
             left = (total - steps) / rate if rate > 0 else float("nan")
+            eta = f"about {left / 60:.1f} min left" if steps < total else "the last rollout ended past the target"
             rewards = [e["r"] for e in self.model.ep_info_buffer] if self.model.ep_info_buffer else []
             mean_r = f"{sum(rewards) / len(rewards):.1f}" if rewards else "-"
             episodes = (f"{self.ended} training episodes ended, {self.laps / self.ended:.0%} laps, "
                         f"{self.cones / self.ended:.2f} cones each" if self.ended else "no training episode ended")
             log(f"PPO {steps}/{total} steps ({steps / max(total, 1):.0%}), {rate:.0f} steps/s, "
-                f"{dt / 60:.1f} min, about {left / 60:.1f} min left; {episodes}; mean episode reward {mean_r}")
+                f"{dt / 60:.1f} min, {eta}; {episodes}; mean episode reward {mean_r}")
             self.ended = self.laps = self.cones = 0
 
     class HeldOutSelection(BaseCallback):
