@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, is_dataclass
 from pathlib import Path
@@ -262,6 +263,8 @@ def write_report(rows: Sequence[Mapping[str, Any]], out_dir: str | Path, *, conf
     md += [summary + ". Raw rows: [results.csv](results.csv).", ""]
     if config is not None:
         cfg = asdict(config) if is_dataclass(config) else dict(config)  # type: ignore[arg-type]  # an EvalConfig instance or a mapping
+        if isinstance(cfg.get("presets"), (str, os.PathLike)) and preset_source(cfg["presets"]) == "pool":
+            cfg["presets"] = "pool"  # the shipped presets: their name, not this machine's install path
         settings = [(k, (", ".join(map(str, v)) if isinstance(v, (list, tuple)) else json.dumps(v, default=str))
                      .replace("|", "/")) for k, v in cfg.items()]
         md += [*markdown_table(["setting", "value"], settings), ""]
