@@ -278,12 +278,17 @@ class SearchSteps(SessionHost):
         return not {"haze_lift", "haze_contrast"} & set(self._after_level())
 
     def _noise_explains_level(self, found: Sequence[dict[str, Any]]) -> bool:
-        """True when the best noise candidate alone leaves the mean level and the median agreeing: noise
-        keeps the mean level, so a brightness change that goes with it is its clipping, not dimming."""
+        """True when the best noise candidate explains a share of the held-out gap (at least
+        :data:`SECOND_SHARE`) and alone leaves the mean level and the median agreeing: noise keeps the
+        mean level, so a brightness change that goes with it is its clipping, not dimming. A noise
+        candidate that explains little (a colour curve also moves the noise signals of bright regions)
+        explains no level change."""
         noisy = [e for e in found if e["fit"].effect.name in KIND_EFFECTS["noise"]]
         if not noisy:
             return False
         best = min(noisy, key=lambda e: e["held_gap"])
+        if best["held_gap"] > (1.0 - SECOND_SHARE) * self.held_ev.gap(self.model):
+            return False
         sig = self.compare(best["model"], perception=False).significant
         return not ({"brightness", "tone_p50"} & set(sig))
 
