@@ -38,7 +38,7 @@ def main() -> None:
     ap.add_argument("--settings", default=",".join(SETTINGS))
     ap.add_argument("--families", default=",".join(FAMILIES))
     ap.add_argument("--per-family", type=int, default=4, help="cases per family and setting")
-    ap.add_argument("--frames", type=int, default=24, help="simulated frames per recording")
+    ap.add_argument("--frames", type=int, default=80, help="simulated frames per recording (the issue's recordings: 80)")
     ap.add_argument("--width", type=int, default=224, help="simulated frame width (16:9)")
     ap.add_argument("--small", action="store_true", help="one case per family, paired only, 16 frames at 192")
     ap.add_argument("--table-only", action="store_true", help="only the table of every case in OUT/results.jsonl")

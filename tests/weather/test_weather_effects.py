@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from weather_gym.core.errors import InputError
 from weather_gym.weather import make
 from weather_gym.weather._common import gauss_lut, ground_depth, noise_bank, smooth, srgb_decode, srgb_encode
 from weather_gym.weather.dim import _physical_luts
@@ -34,6 +35,21 @@ def test_fog_follows_koschmieder_with_depth():
     expected = 255 * (1 - np.exp(-e.beta * depth))
     assert np.abs(out[..., 0].astype(float) - expected).max() <= 2.0
     assert np.all(np.diff(out[5, :, 0].astype(int)) >= 0)  # farther, foggier
+
+
+def test_fog_airlight_tint_colours_the_haze_and_keeps_its_level():
+    """A sky-coloured airlight: bluish at t > 0 (red (1 - t) of blue), warm at t < 0; grey at 0."""
+    img = np.zeros((6, 8, 3), np.uint8)
+    depth = np.full((6, 8), 500.0, np.float32)  # far: all airlight
+    grey = make("fog", k=1.0, airlight=0.8)(img, depth=depth)[3, 4].astype(int)
+    blue = make("fog", k=1.0, airlight=0.8, airlight_tint=0.1)(img, depth=depth)[3, 4].astype(int)
+    warm = make("fog", k=1.0, airlight=0.8, airlight_tint=-0.1)(img, depth=depth)[3, 4].astype(int)
+    assert grey[0] == grey[1] == grey[2] == 204
+    assert blue[2] == 204 and abs(blue[0] - 0.9 * 204) <= 1 and blue[0] < blue[1] < blue[2]
+    assert warm[0] == 204 and abs(warm[2] - 0.9 * 204) <= 1 and warm[2] < warm[1] < warm[0]
+    np.testing.assert_array_equal(make("fog", k=0.4, airlight_tint=0.0)(img), make("fog", k=0.4)(img))
+    with pytest.raises(InputError, match="airlight_tint"):
+        make("fog", k=0.4, airlight_tint=0.5)
 
 
 def test_fog_without_depth_uses_the_ground_plane():

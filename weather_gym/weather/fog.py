@@ -1,7 +1,9 @@
 """Fog and haze by Koschmieder's law: contrast fades with distance towards a bright airlight.
 
 ``I = J * t + A * (1 - t)`` with transmittance ``t = exp(-beta * range)``, ``range`` the distance
-along each pixel's ray (z-depth times the ray's obliquity) and ``A = airlight * 255``.
+along each pixel's ray (z-depth times the ray's obliquity) and ``A = airlight * 255``; ``airlight_tint``
+colours it as a sky does: at ``t > 0`` the red channel of ``A`` is ``(1 - t)`` of the blue (a bluish
+haze), at ``t < 0`` the blue is ``(1 + t)`` of the red (a warm one), green half-way; 0 (the default) is grey.
 
 **Meaning of k**: the extinction coefficient as a fraction of the densest fog:
 ``beta = k * 3.912 / min_visibility_m`` (meteorological visibility ``3.912 / beta``), so k = 1 is
@@ -58,7 +60,8 @@ def _fog_weights(z: np.ndarray, ray: np.ndarray, beta: float) -> np.ndarray:
 
 @lru_cache(maxsize=16)
 def _fallback_terms(h: int, w: int, fx: float, beta: float, camera_height_m: float,
-                    horizon_frac: float, far_m: float, gray: float) -> tuple[np.ndarray, np.ndarray]:
+                    horizon_frac: float, far_m: float,
+                    gray: float | tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
     z = ground_depth(h, w, fx, camera_height_m, horizon_frac, far_m)
     a, b = blend_terms(_fog_weights(z, ray_factor(h, w, fx), beta), gray)
     return readonly(a), readonly(b)
@@ -75,8 +78,10 @@ class Fog(CameraGeometry):
 
     min_visibility_m: float = 15.0
     airlight: float = 0.85
+    airlight_tint: float = 0.0
 
-    PARAM_BOUNDS: ClassVar = {"min_visibility_m": (2.0, 500.0), "airlight": (0.3, 1.0)}
+    PARAM_BOUNDS: ClassVar = {"min_visibility_m": (2.0, 500.0), "airlight": (0.3, 1.0),
+                              "airlight_tint": (-0.2, 0.2)}
 
     @property
     def beta(self) -> float:
@@ -87,7 +92,11 @@ class Fog(CameraGeometry):
                      out: np.ndarray) -> None:
         h, w = img.shape[:2]
         fx = focal_px(state, w, self.hfov_deg)
-        gray = 255.0 * self.airlight
+        a = 255.0 * self.airlight
+        gray: float | tuple[float, float, float] = a
+        if self.airlight_tint:  # the brightest channel keeps the airlight level (RGB order)
+            t = self.airlight_tint
+            gray = (a * (1.0 - max(t, 0.0)), a * (1.0 - abs(t) / 2.0), a * (1.0 + min(t, 0.0)))
         if depth is None:  # cached per size and k
             terms = _fallback_terms(h, w, fx, self.beta, self.camera_height_m, self.horizon_frac,
                                     self.far_m, gray)

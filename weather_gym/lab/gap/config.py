@@ -64,9 +64,13 @@ MEASURED_KINDS: dict[str, tuple[str, ...]] = {"blur_kernel": ("sharpness", "moti
                                               "tone_curve": ("tone", "colour")}
 #: effects that change every pixel alike (no dependence on the distance from the centre)
 GLOBAL_TONE = ("exposure", "dim", "tone_curve")
+#: effects that a radial one goes before when the fall-off to the corners disagrees: the global tone
+#: changes, and the local bright-tile effects (a fall-off darkens the bright sky tiles of the corners,
+#: which drops, streaks and a veil also change)
+RADIAL_FIRST = (*GLOBAL_TONE, "droplets", "rain", "glare")
 EVIDENCE_MARGIN = 2.0
-"""A radial candidate within this factor of a global tone change's penalised gap is named before it
-when the fall-off to the corners disagrees."""
+"""A radial candidate within this factor of the penalised gap of a global tone change or a bright-tile
+effect (:data:`RADIAL_FIRST`) is named before it when the fall-off to the corners disagrees."""
 
 SECOND_SHARE = 0.15
 """A second (third, ...) effect is added only when, on its own, it cuts at least this share of the

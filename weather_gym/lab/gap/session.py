@@ -59,6 +59,7 @@ class GapSession(SearchSteps, ReportSteps):
         self.attempts: list[dict[str, Any]] = []
         self.candidates: list[dict[str, Any]] = []
         self._floors: dict[tuple, float] = {}
+        self._after_level_cache: dict[tuple, list[str]] = {}
         cfg = self.config
         t0 = time.perf_counter()
         m = data.measured

@@ -40,6 +40,7 @@ class SessionHost:
         attempts: list[dict[str, Any]]
         candidates: list[dict[str, Any]]
         _floors: dict[tuple, float]
+        _after_level_cache: dict[tuple, list[str]]
         measured_signals: np.ndarray
         reference_signals: np.ndarray | None
         scale: np.ndarray

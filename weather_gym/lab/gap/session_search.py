@@ -28,6 +28,7 @@ from weather_gym.lab.gap.config import (
     KIND_EFFECTS,
     MEASURED_KINDS,
     MIN_GAP_CUT,
+    RADIAL_FIRST,
     REQUIRES,
     SECOND_SHARE,
 )
@@ -199,12 +200,15 @@ class SearchSteps(SessionHost):
         """Candidates best first, by the evidence each family leaves, then by penalised held-out gap: an
         effect whose fingerprint (:data:`REQUIRES`: ``dim`` changes the brightness) does not disagree
         goes behind those whose does (noise without a brightness change is ``noise``, not
-        ``dim``); a global tone change goes behind a radial one when the fall-off to the corners
-        disagrees and a radial candidate comes within :data:`EVIDENCE_MARGIN` of it."""
+        ``dim``); a global tone change or a bright-tile effect (:data:`RADIAL_FIRST`) goes behind a radial
+        one when the fall-off to the corners disagrees and a radial candidate comes within
+        :data:`EVIDENCE_MARGIN` of it; a global tone change goes behind ``fog`` when the far / near
+        signals disagree beyond what a global curve explains and ``fog`` comes within that margin."""
         kinds = set(self._disagreeing_kinds())
         seen = kinds | set(self.compare(perception=False).significant)
 
         radial = "vignette" in kinds and not self._level_explains_position()
+        hazy = "haze" in kinds and not self._level_explains_depth()
         level_from_noise = "noise" in kinds and self._noise_explains_level(found)
 
         def evidenced(e: dict[str, Any]) -> bool:
@@ -219,9 +223,13 @@ class SearchSteps(SessionHost):
         best_radial = min((e["penalized"] for e in found if e["fit"].effect.name in KIND_EFFECTS["vignette"]
                            and evidenced(e)), default=math.inf)
 
+        best_haze = min((e["penalized"] for e in found if e["fit"].effect.name == "fog" and evidenced(e)),
+                        default=math.inf)
+
         def demoted(e: dict[str, Any]) -> bool:
-            return (e["fit"].effect.name in GLOBAL_TONE and radial
-                    and best_radial <= EVIDENCE_MARGIN * e["penalized"])
+            name = e["fit"].effect.name
+            return ((name in RADIAL_FIRST and radial and best_radial <= EVIDENCE_MARGIN * e["penalized"])
+                    or (name in GLOBAL_TONE and hazy and best_haze <= EVIDENCE_MARGIN * e["penalized"]))
 
         for e in found:
             e["evidenced"] = evidenced(e)
@@ -241,27 +249,46 @@ class SearchSteps(SessionHost):
             cache[key] = meter.gap(self.held_ev.signals(self.model))
         return float(cache[key])
 
+    def _after_level(self) -> list[str]:
+        """The held-out signals that still disagree once a global curve (a measured ``tone_curve``
+        member: every pixel mapped by its own level, wherever it is and however far) is applied."""
+        key = tuple((e.name, tuple(sorted(e.params().items()))) for e in self.model)
+        cache = self._after_level_cache
+        if key not in cache:
+            pos = insert_position(self.model, "tone_curve")
+            d = self.data
+            sim_idx, meas_idx = self._fit_idx
+            sim_masks = d.signal_masks("sim")
+            member = estimate("tone_curve", self.fit_ev.prefix(self.model[:pos]),
+                              [d.measured.images[i] for i in meas_idx],
+                              sim_masks=[sim_masks[i] for i in sim_idx],
+                              meas_masks=[d.measured.masks[i] for i in meas_idx], paired=d.paired)
+            cache[key] = list(self.compare(self.model[:pos] + [member] + self.model[pos:], perception=False).significant)
+        return list(cache[key])
+
     def _level_explains_position(self) -> bool:
-        """Position and level tested jointly: True when a global curve (a measured ``tone_curve``
-        member: every pixel mapped by its own level, wherever it is) leaves no significant corner /
+        """Position and level tested jointly: True when a global curve leaves no significant corner /
         centre disagreement on the held-out frames; a radial gain is named only when it does not."""
-        pos = insert_position(self.model, "tone_curve")
-        d = self.data
-        sim_idx, meas_idx = self._fit_idx
-        sim_masks = d.signal_masks("sim")
-        member = estimate("tone_curve", self.fit_ev.prefix(self.model[:pos]), [d.measured.images[i] for i in meas_idx],
-                          sim_masks=[sim_masks[i] for i in sim_idx],
-                          meas_masks=[d.measured.masks[i] for i in meas_idx], paired=d.paired)
-        comp = self.compare(self.model[:pos] + [member] + self.model[pos:], perception=False)
-        return "vignette" not in comp.significant
+        return "vignette" not in self._after_level()
+
+    def _level_explains_depth(self) -> bool:
+        """Depth and level tested jointly: True when a global curve leaves the far / near signals
+        (``haze_lift``, ``haze_contrast``) agreeing; a haze lifts far regions more than near ones at
+        equal levels, so when they still disagree a haze goes before a global tone change."""
+        return not {"haze_lift", "haze_contrast"} & set(self._after_level())
 
     def _noise_explains_level(self, found: Sequence[dict[str, Any]]) -> bool:
-        """True when the best noise candidate alone leaves the mean level and the median agreeing: noise
-        keeps the mean level, so a brightness change that goes with it is its clipping, not dimming."""
+        """True when the best noise candidate explains a share of the held-out gap (at least
+        :data:`SECOND_SHARE`) and alone leaves the mean level and the median agreeing: noise keeps the
+        mean level, so a brightness change that goes with it is its clipping, not dimming. A noise
+        candidate that explains little (a colour curve also moves the noise signals of bright regions)
+        explains no level change."""
         noisy = [e for e in found if e["fit"].effect.name in KIND_EFFECTS["noise"]]
         if not noisy:
             return False
         best = min(noisy, key=lambda e: e["held_gap"])
+        if best["held_gap"] > (1.0 - SECOND_SHARE) * self.held_ev.gap(self.model):
+            return False
         sig = self.compare(best["model"], perception=False).significant
         return not ({"brightness", "tone_p50"} & set(sig))
 

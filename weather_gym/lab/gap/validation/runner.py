@@ -201,7 +201,7 @@ def run_case(root: Path, split: str, setting: str, case: HiddenCase, *, frames: 
 
 
 def run_validation(root: str | os.PathLike, *, split: str, settings: Sequence[str] = SETTINGS,
-                   families: Sequence[str] = FAMILIES, per_family: int = 4, frames: int = 24, width: int = 224,
+                   families: Sequence[str] = FAMILIES, per_family: int = 4, frames: int = 80, width: int = 224,
                    shared: Path | None = None, log: Callable[[str], None] | None = None) -> list[CaseResult]:
     """Run every case of ``split`` (``per_family`` per family) in every setting; resumes from
     ``root/results.jsonl`` (a case already there is not run again)."""
