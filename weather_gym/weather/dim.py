@@ -64,6 +64,7 @@ import numpy as np
 from weather_gym.weather._common import (
     add_sensor_noise,
     flat,
+    focal_px,
     gauss_lut,
     into,
     linear_of_code,
@@ -73,11 +74,12 @@ from weather_gym.weather._common import (
     srgb_encode,
     srgb_slope,
 )
+from weather_gym.weather._night_isp import chroma_plane, combine, half_size
 from weather_gym.weather.geometry import EgoMotion
 from weather_gym.weather.registry import register_effect
 
 __all__ = ["Dim", "add_chroma_blotches", "auto_exposure", "black_level_lut", "brightness_lut", "chroma_draw",
-           "chroma_grid"]
+           "chroma_grid", "chroma_offsets"]
 
 
 @lru_cache(maxsize=256)
@@ -137,18 +139,12 @@ def chroma_draw(rng: np.random.Generator, shape: tuple[int, ...], cell_px: float
     return rng.bit_generator.random_raw(-(-n // 8)).view(np.uint8)[:n]
 
 
-def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.ndarray | np.random.Generator,
-                        weight: np.ndarray | None = None) -> None:
-    """Add low-frequency colour noise in place: zero-luma RGB offsets of std ``sigma`` (code values)
-    drawn on a grid of ``cell_px`` cells and enlarged smoothly (what a denoiser leaves of colour noise).
-
-    ``raw``: the random bytes, :func:`chroma_draw` (or a generator to draw them from);
-    ``weight``: optional float32 ``(rows, cols)`` factor per cell (:func:`chroma_grid`).
-    """
-    if isinstance(raw, np.random.Generator):
-        raw = chroma_draw(raw, img.shape, cell_px)
-    h, w = img.shape[:2]
-    gh, gw = chroma_grid(img.shape, cell_px)
+def chroma_offsets(raw: np.ndarray, grid: tuple[int, int], sigma: float,
+                   weight: np.ndarray | None = None) -> np.ndarray:
+    """The colour blotches on their grid: float32 ``rows x cols x 3`` zero-luma RGB offsets of std
+    ``sigma`` (code values), times ``weight`` per cell when given, from the random bytes ``raw``
+    (:func:`chroma_draw`)."""
+    gh, gw = grid
     # standard normals as random bytes through 256 equiprobable quantiles
     z = gauss_lut()[raw].reshape(gh, gw, 3)
     mean = z[:, :, 0] + z[:, :, 1]  # colour only: the three offsets sum to zero (the float32 mean over the
@@ -158,6 +154,22 @@ def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.n
     z *= np.float32(sigma * math.sqrt(1.5))
     if weight is not None:
         z *= weight[:, :, None]
+    return z
+
+
+def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.ndarray | np.random.Generator,
+                        weight: np.ndarray | None = None) -> None:
+    """Add low-frequency colour noise in place: zero-luma RGB offsets of std ``sigma`` (code values)
+    drawn on a grid of ``cell_px`` cells and enlarged smoothly (what a denoiser leaves of colour noise).
+
+    ``raw``: the random bytes, :func:`chroma_draw` (or a generator to draw them from);
+    ``weight``: optional float32 ``(rows, cols)`` factor per cell (:func:`chroma_grid`). (The night
+    camera adds its blotches to its half-resolution colour instead: :mod:`~weather_gym.weather._night_isp`.)
+    """
+    if isinstance(raw, np.random.Generator):
+        raw = chroma_draw(raw, img.shape, cell_px)
+    h, w = img.shape[:2]
+    z = chroma_offsets(raw, chroma_grid(img.shape, cell_px), sigma, weight)
     z += 128.0
     grid = np.clip(np.rint(z, out=z), 0, 255, out=z).astype(np.uint8)
     big = cv2.resize(grid, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -169,6 +181,9 @@ def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.n
 
 #: Code value at which ``chroma_noise`` is the colour noise's sigma (18 % grey).
 _CHROMA_REF_CODE = 118
+#: The luma's share of independent noise of the same sigma in R, G and B (Rec. 601 weights):
+#: ``sqrt(0.299^2 + 0.587^2 + 0.114^2)``.
+_LUMA_NOISE = math.sqrt(0.299 ** 2 + 0.587 ** 2 + 0.114 ** 2)
 
 
 @lru_cache(maxsize=64)
@@ -264,23 +279,36 @@ class Dim(EgoMotion):
 
     def _night(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
                out: np.ndarray) -> None:
-        smeared = self._physical(img, draw, depth, state, out)
+        t, gain, residual = self.exposure()
         sigma, chroma, black, desat = self.isp()
+        mean, noise = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)
+        h, w = img.shape[:2]
+        # luma (Rec. 601) at full resolution: motion smear, sensor noise, the denoiser
+        luma = self.smear(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), depth, state, t - self.exposure_s)
+        noisy = np.empty((h, w), np.uint8)
+        add_sensor_noise(luma.reshape(h, w, 1), mean, noise * np.float32(_LUMA_NOISE), draw[0],
+                         noisy.reshape(h, w, 1))
         if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
-            into(smooth(out, sigma, out, exact=True), out)  # in place
+            smooth(noisy, sigma, noisy, exact=True)
+        # colour at half resolution: the same motion smear, the blotches, the chroma suppression
+        hh, hw = half_size(h, w)
+        half = cv2.resize(img, (hw, hh), interpolation=cv2.INTER_AREA)
+        half_depth = None if depth is None else cv2.resize(depth, (hw, hh), interpolation=cv2.INTER_NEAREST)
+        half_state = {**state, "fx": focal_px(state, w, self.hfov_deg) * hw / w}
+        half = self.smear(half, half_depth, half_state, t - self.exposure_s)
+        blotches = None
         if chroma > 0:  # colour noise follows the sensor noise of each cell's level
-            _, gain, residual = self.exposure()
-            noise = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)[1]
             gh, gw = chroma_grid(img.shape, self.chroma_cell_px)
-            level = cv2.cvtColor(cv2.resize(smeared, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
+            level = cv2.cvtColor(cv2.resize(half, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
             weight = np.minimum(noise[level] / max(float(noise[_CHROMA_REF_CODE]), 1e-6), 4.0)
-            add_chroma_blotches(out, chroma, self.chroma_cell_px, draw[1], weight)
-        if black > 0:
-            f = flat(out)
-            into(cv2.LUT(f, black_level_lut(black), dst=f), f)
-        if desat > 0:  # chroma suppression: towards the pixel's grey (Rec. 601 luma)
-            grey = cv2.cvtColor(cv2.cvtColor(out, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
-            into(cv2.addWeighted(out, 1.0 - desat, grey, desat, 0.0, dst=out), out)  # in place
+            blotches = cv2.resize(chroma_offsets(draw[1], (gh, gw), chroma, weight), (hw, hh),
+                                  interpolation=cv2.INTER_LINEAR)
+        if black > 0:  # crushed shadows: in the luma, and in the colour's tone curve (black in every channel)
+            crush = black_level_lut(black)
+            cv2.LUT(noisy, crush, dst=noisy)
+            mean = crush[np.clip(np.rint(mean), 0, 255).astype(np.uint8)].astype(np.float32)
+        colour = chroma_plane(half, mean, blotches, 1.0 - desat)
+        combine(noisy, colour, out)
 
     # -- sampling and rendering ------------------------------------------------------------------
     def _sample_frame(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any) -> Any:
