@@ -64,7 +64,6 @@ import numpy as np
 from weather_gym.weather._common import (
     add_sensor_noise,
     flat,
-    focal_px,
     gauss_lut,
     into,
     linear_of_code,
@@ -74,7 +73,6 @@ from weather_gym.weather._common import (
     srgb_encode,
     srgb_slope,
 )
-from weather_gym.weather._night_isp import chroma_plane, combine, half_size
 from weather_gym.weather.geometry import EgoMotion
 from weather_gym.weather.registry import register_effect
 
@@ -199,6 +197,21 @@ def _physical_luts(residual: float, gain: float, full_well_e: float,
     return readonly(mean.astype(np.float32)), readonly(sigma.astype(np.float32))
 
 
+@lru_cache(maxsize=64)
+def _night_luts(residual: float, gain: float, full_well_e: float, read_noise_e: float,
+                black: float) -> tuple[np.ndarray, ...]:
+    """``(tone, luma noise sigma, colour tone, black-level table, sensor noise sigma)`` of the night camera.
+
+    ``tone`` and ``sigma`` are :func:`_physical_luts` (the luma's sigma scaled by :data:`_LUMA_NOISE`);
+    the colour's tone is the tone followed by the black level (float32), so the colour of crushed
+    shadows goes with them.
+    """
+    tone, sigma = _physical_luts(residual, gain, full_well_e, read_noise_e)
+    crush = black_level_lut(black) if black > 0 else readonly(np.arange(256, dtype=np.uint8))
+    colour = crush[np.clip(np.rint(tone), 0, 255).astype(np.uint8)].astype(np.float32)
+    return tone, readonly(sigma * np.float32(_LUMA_NOISE)), readonly(colour), crush, sigma
+
+
 @register_effect
 @dataclass(frozen=True)
 class Dim(EgoMotion):
@@ -279,42 +292,37 @@ class Dim(EgoMotion):
 
     def _night(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
                out: np.ndarray) -> None:
+        from weather_gym.weather._night_isp import blotch_grid, chroma_plane, combine  # numba loads here
+
         t, gain, residual = self.exposure()
         sigma, chroma, black, desat = self.isp()
-        mean, noise = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)
+        tone, luma_noise, colour_tone, crush, noise = _night_luts(residual, gain, self.full_well_e, self.read_noise_e,
+                                                                  black)
         h, w = img.shape[:2]
-        # luma (Rec. 601) at full resolution: motion smear, sensor noise, the denoiser
-        luma = self.smear(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), depth, state, t - self.exposure_s)
+        # luma (Rec. 601) at full resolution, colour at half: the motion smear of the longer exposure
+        luma, half = self.smear_split(img, depth, state, t - self.exposure_s)
+        # sensor noise on the luma, then the ISP's denoiser (a spatial smoothing that grows with the gain)
         noisy = np.empty((h, w), np.uint8)
-        add_sensor_noise(luma.reshape(h, w, 1), mean, noise * np.float32(_LUMA_NOISE), draw[0],
-                         noisy.reshape(h, w, 1))
-        if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
+        add_sensor_noise(luma.reshape(h, w, 1), tone, luma_noise, draw[0], noisy.reshape(h, w, 1))
+        if sigma >= 0.3:
             smooth(noisy, sigma, noisy, exact=True)
-        # colour at half resolution: the same motion smear, the blotches, the chroma suppression
-        hh, hw = half_size(h, w)
-        half = cv2.resize(img, (hw, hh), interpolation=cv2.INTER_AREA)
-        half_depth = None if depth is None else cv2.resize(depth, (hw, hh), interpolation=cv2.INTER_NEAREST)
-        half_state = {**state, "fx": focal_px(state, w, self.hfov_deg) * hw / w}
-        half = self.smear(half, half_depth, half_state, t - self.exposure_s)
         blotches = None
         if chroma > 0:  # colour noise follows the sensor noise of each cell's level
             gh, gw = chroma_grid(img.shape, self.chroma_cell_px)
             level = cv2.cvtColor(cv2.resize(half, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
-            weight = np.minimum(noise[level] / max(float(noise[_CHROMA_REF_CODE]), 1e-6), 4.0)
-            blotches = cv2.resize(chroma_offsets(draw[1], (gh, gw), chroma, weight), (hw, hh),
-                                  interpolation=cv2.INTER_LINEAR)
-        if black > 0:  # crushed shadows: in the luma, and in the colour's tone curve (black in every channel)
-            crush = black_level_lut(black)
-            cv2.LUT(noisy, crush, dst=noisy)
-            mean = crush[np.clip(np.rint(mean), 0, 255).astype(np.uint8)].astype(np.float32)
-        colour = chroma_plane(half, mean, blotches, 1.0 - desat)
-        combine(noisy, colour, out)
+            grid = blotch_grid(draw[1], gauss_lut(), level, noise, float(noise[_CHROMA_REF_CODE]), chroma)
+            blotches = cv2.resize(grid, (half.shape[1], half.shape[0]), interpolation=cv2.INTER_LINEAR)
+        # colour offsets through the tone curve and the black level, suppressed; the luma's black level
+        combine(noisy, crush, chroma_plane(half, colour_tone, blotches, 1.0 - desat), out)
 
     # -- sampling and rendering ------------------------------------------------------------------
     def _sample_frame(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any) -> Any:
-        """``(sensor noise words, chroma bytes or None)``; nothing in the faithful mode."""
+        """``(sensor noise words, chroma bytes or None)``; nothing in the faithful mode. The night
+        camera's sensor noise is drawn for its luma only (one value per pixel)."""
         if self.mode == "faithful":
             return None
+        if self.mode == "night":
+            shape = (*shape[:-1], 1)
         noise = sensor_noise_draw(rng, shape)
         if self.mode == "night" and self.isp()[1] > 0:
             return noise, chroma_draw(rng, shape, self.chroma_cell_px)
