@@ -19,19 +19,25 @@ left out (its discussion names blur and the camera raising its ISO gain):
 
 **Night mode** (``mode="night"``): the physical camera (same exposure, gain, motion blur and
 sensor noise, same parameters) followed by what its ISP does at high gain, so that the damage keeps
-growing over the whole range of k, from a light dusk to night:
+growing over the whole range of k, from a light dusk to night. It works as a YUV 4:2:0 ISP does:
+the luma (Rec. 601) at full resolution, the colour (each channel's offset from the luma) at half
+resolution in each direction (:mod:`~weather_gym.weather._night_isp`):
 
-* a denoiser that smears fine detail (small, far cones first): a spatial smoothing of sigma
-  ``denoise_px * sqrt((gain - 1) / 15)`` px, growing like the noise it must hide;
-* the colour noise the denoiser leaves: low-frequency zero-luma RGB blotches on a grid of
-  ``chroma_cell_px`` cells, sigma ``chroma_noise * log2(gain) / 4`` code values on an 18 % grey,
+* the motion smear of the longer exposure on both (one zoom blur serves the two);
+* the sensor noise on the luma: 0.67 times the physical mode's sigma, what the luma of independent
+  R, G and B noise has; the colour noise is what the denoiser leaves of it, the blotches below;
+* a denoiser that smears fine detail (small, far cones first): a spatial smoothing of the luma of
+  sigma ``denoise_px * sqrt((gain - 1) / 15)`` px, growing like the noise it must hide;
+* the colour noise the denoiser leaves: low-frequency RGB blotches (zero mean over R, G, B) on a grid
+  of ``chroma_cell_px`` cells, sigma ``chroma_noise * log2(gain) / 4`` code values on an 18 % grey,
   following the sensor noise of each cell's level elsewhere (stronger in shadows, weaker in highlights);
 * crushed shadows: the black level set above the sensor's, ``black_level * log2(gain) / 4`` of
-  full scale in linear light, taken as black;
+  full scale in linear light, taken as black (on the luma, and on each channel before its colour
+  offset is taken, so crushed shadows are black in every channel);
 * chroma suppression: the ISP pulls colour towards grey at high gain to hide the colour noise,
-  ``desaturate * log2(gain) / 4`` of the saturation removed (the blotches with it): colour is what
-  tells a blue cone from a yellow one, and it fades the same way on every track, so the damage
-  depends little on the scene (how many cones, how far);
+  ``desaturate * log2(gain) / 4`` of the colour offsets removed (the blotches' colour with them,
+  their luma kept): colour is what tells a blue cone from a yellow one, and it fades the same way on
+  every track, so the damage depends little on the scene (how many cones, how far);
 * and, once the gain is at ``max_gain``, the remaining darkening of the physical mode.
 
 The ISP is tuned per gain (ISO), as real ones are: its four stages stop growing once the gain is
