@@ -150,7 +150,7 @@ def chroma_offsets(raw: np.ndarray, grid: tuple[int, int], sigma: float,
     (:func:`chroma_draw`)."""
     gh, gw = grid
     # standard normals as random bytes through 256 equiprobable quantiles
-    z = gauss_lut()[raw].reshape(gh, gw, 3)
+    z: np.ndarray = gauss_lut()[raw].reshape(gh, gw, 3)
     mean = z[:, :, 0] + z[:, :, 1]  # colour only: the three offsets sum to zero (the float32 mean over the
     mean += z[:, :, 2]              # three, as numpy's z.mean(axis=2) sums and divides, in a third of its time)
     mean /= 3
