@@ -1,10 +1,12 @@
-"""The motion smear's blend, compiled: the zoom blur weighted by nearness, in one pass over the frame.
+"""The motion smear's blend, compiled: the zoom blur weighted by nearness, in one pass over the values.
 
 :func:`~weather_gym.weather.geometry.motion_smear` blends the zoom-blurred frame into the frame by
 ``w = 255 min(near / Z, 1)`` per pixel: ``round(img (255 - w) / 255) + round(blurred w / 255)``,
 saturated. That was eight OpenCV passes with temporary frames (a division of the depth map, its
 conversion to bytes, its complement, both spread to three channels, two multiplies and an add);
-:func:`near_blend` does the same arithmetic, byte for byte, in one pass:
+:func:`near_blend` does the same arithmetic, byte for byte: the weights (one compiled pass over the
+depth map, or given), spread to the channels, then one compiled pass over the values that numba
+vectorises:
 
 * ``w = cv2.convertScaleAbs(float32(255 near) / Z)``: the float32 quotient rounded half to even,
   saturated to 255, with ``Z`` raised to 1 mm first where the map has nearer values
@@ -27,6 +29,7 @@ Example:
 
 from __future__ import annotations
 
+import cv2
 import numba
 import numpy as np
 
@@ -47,19 +50,21 @@ def near_weight(depth: np.ndarray, near_m: float) -> np.ndarray:
 
 
 def near_blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, near_m: float | None, out: np.ndarray) -> None:
-    """``round(img (255 - w) / 255) + round(blurred w / 255)`` into ``out`` (uint8 ``H x W x 3``, all three).
+    """``round(img (255 - w) / 255) + round(blurred w / 255)`` into ``out`` (uint8 ``H x W x C`` or ``H x W``).
 
     ``near``: the depth map (float32 metres, ``H x W``) with ``near_m``, or the weights ``w`` themselves
     (uint8 ``H x W``, :func:`near_weight`) with ``near_m`` None. ``out`` may be ``img`` or ``blurred``.
     """
     target = out if out.flags.c_contiguous else np.empty_like(out)
     h, w = img.shape[:2]
-    rows = (np.ascontiguousarray(img).reshape(h, w * 3), np.ascontiguousarray(blurred).reshape(h, w * 3))
-    if near_m is None:
-        _blend(*rows, np.ascontiguousarray(near, np.uint8), np.float32(0.0), False, target.reshape(h, w * 3))
-    else:
-        _blend(*rows, np.ascontiguousarray(near, np.float32), np.float32(255.0 * near_m), True,
-               target.reshape(h, w * 3))
+    ch = img.shape[2] if img.ndim == 3 else 1
+    wts = near_weight(near, near_m) if near_m is not None else np.ascontiguousarray(near, np.uint8)
+    if ch == 3:  # the weight of each value: cvtColor spreads them fastest
+        wts = cv2.cvtColor(wts, cv2.COLOR_GRAY2RGB)
+    elif ch > 1:
+        wts = np.repeat(wts, ch, axis=1)
+    _blend(np.ascontiguousarray(img).reshape(h, w * ch), np.ascontiguousarray(blurred).reshape(h, w * ch),
+           wts.reshape(h, w * ch), target.reshape(h, w * ch))
     into(target, out)
 
 
@@ -81,27 +86,15 @@ def _weights(depth: np.ndarray, c: np.float32, out: np.ndarray) -> None:
             out[r, x] = _weight(depth[r, x], c)
 
 
-@numba.njit(cache=jit_cache(__file__), nogil=True)
-def _blend(img: np.ndarray, blurred: np.ndarray, near: np.ndarray, c: np.float32, from_depth: bool,
-           out: np.ndarray) -> None:
-    """:func:`near_blend` on rows of bytes: each row's weights spread to its bytes, then one pass over
-    them. Indices are unsigned or slices, so that numba leaves out its negative-index checks."""
-    rows, cols = img.shape
-    wb = np.empty(cols, np.int32)
+@numba.njit(cache=jit_cache(__file__), nogil=True, boundscheck=False)
+def _blend(img: np.ndarray, blurred: np.ndarray, wts: np.ndarray, out: np.ndarray) -> None:
+    """:func:`near_blend` on rows of values with a weight per value: one pass numba vectorises."""
     c1, c8, c127, c255 = np.int32(1), np.int32(8), np.int32(127), np.int32(255)
-    for r in range(rows):
-        nr = near[r]
-        for x in range(cols // 3):
-            w = _weight(nr[np.uint64(x)], c) if from_depth else np.int32(nr[np.uint64(x)])
-            i = np.uint64(3 * x)
-            wb[i] = w
-            wb[i + np.uint64(1)] = w
-            wb[i + np.uint64(2)] = w
-        a, b, o = img[r], blurred[r], out[r]
-        for j in range(cols):
-            k = np.uint64(j)
-            w = wb[k]
-            p = np.int32(np.int32(a[k]) * (c255 - w) + c127)
-            q = np.int32(np.int32(b[k]) * w + c127)
-            v = np.int32((p + c1 + (p >> c8)) >> c8) + np.int32((q + c1 + (q >> c8)) >> c8)
-            o[k] = min(v, c255)
+    for r in range(img.shape[0]):
+        a, b, wr, o = img[r], blurred[r], wts[r], out[r]
+        for j in range(img.shape[1]):
+            w = np.int32(wr[j])
+            p = np.int32(a[j]) * (c255 - w) + c127
+            q = np.int32(b[j]) * w + c127
+            v = ((p + c1 + (p >> c8)) >> c8) + ((q + c1 + (q >> c8)) >> c8)
+            o[j] = np.uint8(min(v, c255))

@@ -19,19 +19,25 @@ left out (its discussion names blur and the camera raising its ISO gain):
 
 **Night mode** (``mode="night"``): the physical camera (same exposure, gain, motion blur and
 sensor noise, same parameters) followed by what its ISP does at high gain, so that the damage keeps
-growing over the whole range of k, from a light dusk to night:
+growing over the whole range of k, from a light dusk to night. It works as a YUV 4:2:0 ISP does:
+the luma (Rec. 601) at full resolution, the colour (each channel's offset from the luma) at half
+resolution in each direction (:mod:`~weather_gym.weather._night_isp`):
 
-* a denoiser that smears fine detail (small, far cones first): a spatial smoothing of sigma
-  ``denoise_px * sqrt((gain - 1) / 15)`` px, growing like the noise it must hide;
-* the colour noise the denoiser leaves: low-frequency zero-luma RGB blotches on a grid of
-  ``chroma_cell_px`` cells, sigma ``chroma_noise * log2(gain) / 4`` code values on an 18 % grey,
+* the motion smear of the longer exposure on both (one zoom blur serves the two);
+* the sensor noise on the luma: 0.67 times the physical mode's sigma, what the luma of independent
+  R, G and B noise has; the colour noise is what the denoiser leaves of it, the blotches below;
+* a denoiser that smears fine detail (small, far cones first): a spatial smoothing of the luma of
+  sigma ``denoise_px * sqrt((gain - 1) / 15)`` px, growing like the noise it must hide;
+* the colour noise the denoiser leaves: low-frequency RGB blotches (zero mean over R, G, B) on a grid
+  of ``chroma_cell_px`` cells, sigma ``chroma_noise * log2(gain) / 4`` code values on an 18 % grey,
   following the sensor noise of each cell's level elsewhere (stronger in shadows, weaker in highlights);
 * crushed shadows: the black level set above the sensor's, ``black_level * log2(gain) / 4`` of
-  full scale in linear light, taken as black;
+  full scale in linear light, taken as black (on the luma, and on each channel before its colour
+  offset is taken, so crushed shadows are black in every channel);
 * chroma suppression: the ISP pulls colour towards grey at high gain to hide the colour noise,
-  ``desaturate * log2(gain) / 4`` of the saturation removed (the blotches with it): colour is what
-  tells a blue cone from a yellow one, and it fades the same way on every track, so the damage
-  depends little on the scene (how many cones, how far);
+  ``desaturate * log2(gain) / 4`` of the colour offsets removed (the blotches' colour with them,
+  their luma kept): colour is what tells a blue cone from a yellow one, and it fades the same way on
+  every track, so the damage depends little on the scene (how many cones, how far);
 * and, once the gain is at ``max_gain``, the remaining darkening of the physical mode.
 
 The ISP is tuned per gain (ISO), as real ones are: its four stages stop growing once the gain is
@@ -77,7 +83,7 @@ from weather_gym.weather.geometry import EgoMotion
 from weather_gym.weather.registry import register_effect
 
 __all__ = ["Dim", "add_chroma_blotches", "auto_exposure", "black_level_lut", "brightness_lut", "chroma_draw",
-           "chroma_grid"]
+           "chroma_grid", "chroma_offsets"]
 
 
 @lru_cache(maxsize=256)
@@ -137,20 +143,14 @@ def chroma_draw(rng: np.random.Generator, shape: tuple[int, ...], cell_px: float
     return rng.bit_generator.random_raw(-(-n // 8)).view(np.uint8)[:n]
 
 
-def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.ndarray | np.random.Generator,
-                        weight: np.ndarray | None = None) -> None:
-    """Add low-frequency colour noise in place: zero-luma RGB offsets of std ``sigma`` (code values)
-    drawn on a grid of ``cell_px`` cells and enlarged smoothly (what a denoiser leaves of colour noise).
-
-    ``raw``: the random bytes, :func:`chroma_draw` (or a generator to draw them from);
-    ``weight``: optional float32 ``(rows, cols)`` factor per cell (:func:`chroma_grid`).
-    """
-    if isinstance(raw, np.random.Generator):
-        raw = chroma_draw(raw, img.shape, cell_px)
-    h, w = img.shape[:2]
-    gh, gw = chroma_grid(img.shape, cell_px)
+def chroma_offsets(raw: np.ndarray, grid: tuple[int, int], sigma: float,
+                   weight: np.ndarray | None = None) -> np.ndarray:
+    """The colour blotches on their grid: float32 ``rows x cols x 3`` zero-luma RGB offsets of std
+    ``sigma`` (code values), times ``weight`` per cell when given, from the random bytes ``raw``
+    (:func:`chroma_draw`)."""
+    gh, gw = grid
     # standard normals as random bytes through 256 equiprobable quantiles
-    z = gauss_lut()[raw].reshape(gh, gw, 3)
+    z: np.ndarray = gauss_lut()[raw].reshape(gh, gw, 3)
     mean = z[:, :, 0] + z[:, :, 1]  # colour only: the three offsets sum to zero (the float32 mean over the
     mean += z[:, :, 2]              # three, as numpy's z.mean(axis=2) sums and divides, in a third of its time)
     mean /= 3
@@ -158,6 +158,22 @@ def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.n
     z *= np.float32(sigma * math.sqrt(1.5))
     if weight is not None:
         z *= weight[:, :, None]
+    return z
+
+
+def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.ndarray | np.random.Generator,
+                        weight: np.ndarray | None = None) -> None:
+    """Add low-frequency colour noise in place: zero-luma RGB offsets of std ``sigma`` (code values)
+    drawn on a grid of ``cell_px`` cells and enlarged smoothly (what a denoiser leaves of colour noise).
+
+    ``raw``: the random bytes, :func:`chroma_draw` (or a generator to draw them from);
+    ``weight``: optional float32 ``(rows, cols)`` factor per cell (:func:`chroma_grid`). (The night
+    camera adds its blotches to its half-resolution colour instead: :mod:`~weather_gym.weather._night_isp`.)
+    """
+    if isinstance(raw, np.random.Generator):
+        raw = chroma_draw(raw, img.shape, cell_px)
+    h, w = img.shape[:2]
+    z = chroma_offsets(raw, chroma_grid(img.shape, cell_px), sigma, weight)
     z += 128.0
     grid = np.clip(np.rint(z, out=z), 0, 255, out=z).astype(np.uint8)
     big = cv2.resize(grid, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -169,6 +185,9 @@ def add_chroma_blotches(img: np.ndarray, sigma: float, cell_px: float, raw: np.n
 
 #: Code value at which ``chroma_noise`` is the colour noise's sigma (18 % grey).
 _CHROMA_REF_CODE = 118
+#: The luma's share of independent noise of the same sigma in R, G and B (Rec. 601 weights):
+#: ``sqrt(0.299^2 + 0.587^2 + 0.114^2)``.
+_LUMA_NOISE = math.sqrt(0.299 ** 2 + 0.587 ** 2 + 0.114 ** 2)
 
 
 @lru_cache(maxsize=64)
@@ -182,6 +201,21 @@ def _physical_luts(residual: float, gain: float, full_well_e: float,
     sigma = 255.0 * srgb_slope(y) * np.sqrt(np.maximum(var_now - var_clean, 0.0))
     mean = 255.0 * srgb_encode(y)
     return readonly(mean.astype(np.float32)), readonly(sigma.astype(np.float32))
+
+
+@lru_cache(maxsize=64)
+def _night_luts(residual: float, gain: float, full_well_e: float, read_noise_e: float,
+                black: float) -> tuple[np.ndarray, ...]:
+    """``(tone, luma noise sigma, colour tone, black-level table, sensor noise sigma)`` of the night camera.
+
+    ``tone`` and ``sigma`` are :func:`_physical_luts` (the luma's sigma scaled by :data:`_LUMA_NOISE`);
+    the colour's tone is the tone followed by the black level (float32), so the colour of crushed
+    shadows goes with them.
+    """
+    tone, sigma = _physical_luts(residual, gain, full_well_e, read_noise_e)
+    crush = black_level_lut(black) if black > 0 else readonly(np.arange(256, dtype=np.uint8))
+    colour = crush[np.clip(np.rint(tone), 0, 255).astype(np.uint8)].astype(np.float32)
+    return tone, readonly(sigma * np.float32(_LUMA_NOISE)), readonly(colour), crush, sigma
 
 
 @register_effect
@@ -264,29 +298,37 @@ class Dim(EgoMotion):
 
     def _night(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
                out: np.ndarray) -> None:
-        smeared = self._physical(img, draw, depth, state, out)
+        from weather_gym.weather._night_isp import blotch_grid, chroma_plane, combine  # numba loads here
+
+        t, gain, residual = self.exposure()
         sigma, chroma, black, desat = self.isp()
-        if sigma >= 0.3:  # the ISP's denoiser: a spatial smoothing that grows with the gain
-            into(smooth(out, sigma, out, exact=True), out)  # in place
+        tone, luma_noise, colour_tone, crush, noise = _night_luts(residual, gain, self.full_well_e, self.read_noise_e,
+                                                                  black)
+        h, w = img.shape[:2]
+        # luma (Rec. 601) at full resolution, colour at half: the motion smear of the longer exposure
+        luma, half = self.smear_split(img, depth, state, t - self.exposure_s)
+        # sensor noise on the luma, then the ISP's denoiser (a spatial smoothing that grows with the gain)
+        noisy = np.empty((h, w), np.uint8)
+        add_sensor_noise(luma.reshape(h, w, 1), tone, luma_noise, draw[0], noisy.reshape(h, w, 1))
+        if sigma >= 0.3:
+            smooth(noisy, sigma, noisy, exact=True)
+        blotches = None
         if chroma > 0:  # colour noise follows the sensor noise of each cell's level
-            _, gain, residual = self.exposure()
-            noise = _physical_luts(residual, gain, self.full_well_e, self.read_noise_e)[1]
             gh, gw = chroma_grid(img.shape, self.chroma_cell_px)
-            level = cv2.cvtColor(cv2.resize(smeared, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
-            weight = np.minimum(noise[level] / max(float(noise[_CHROMA_REF_CODE]), 1e-6), 4.0)
-            add_chroma_blotches(out, chroma, self.chroma_cell_px, draw[1], weight)
-        if black > 0:
-            f = flat(out)
-            into(cv2.LUT(f, black_level_lut(black), dst=f), f)
-        if desat > 0:  # chroma suppression: towards the pixel's grey (Rec. 601 luma)
-            grey = cv2.cvtColor(cv2.cvtColor(out, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
-            into(cv2.addWeighted(out, 1.0 - desat, grey, desat, 0.0, dst=out), out)  # in place
+            level = cv2.cvtColor(cv2.resize(half, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
+            grid = blotch_grid(draw[1], gauss_lut(), level, noise, float(noise[_CHROMA_REF_CODE]), chroma)
+            blotches = cv2.resize(grid, (half.shape[1], half.shape[0]), interpolation=cv2.INTER_LINEAR)
+        # colour offsets through the tone curve and the black level, suppressed; the luma's black level
+        combine(noisy, crush, chroma_plane(half, colour_tone, blotches, 1.0 - desat), out)
 
     # -- sampling and rendering ------------------------------------------------------------------
     def _sample_frame(self, rng: np.random.Generator, shape: tuple[int, ...], episode: Any) -> Any:
-        """``(sensor noise words, chroma bytes or None)``; nothing in the faithful mode."""
+        """``(sensor noise words, chroma bytes or None)``; nothing in the faithful mode. The night
+        camera's sensor noise is drawn for its luma only (one value per pixel)."""
         if self.mode == "faithful":
             return None
+        if self.mode == "night":
+            shape = (*shape[:-1], 1)
         noise = sensor_noise_draw(rng, shape)
         if self.mode == "night" and self.isp()[1] > 0:
             return noise, chroma_draw(rng, shape, self.chroma_cell_px)

@@ -30,7 +30,7 @@ from weather_gym.weather._common import (
 )
 from weather_gym.weather.base import KnobEffect
 
-__all__ = ["CameraGeometry", "EgoMotion", "motion_smear"]
+__all__ = ["CameraGeometry", "EgoMotion", "motion_smear", "smear_split"]
 
 
 def _zoom(img: np.ndarray, c: float) -> np.ndarray:
@@ -145,6 +145,63 @@ def motion_smear(img: np.ndarray, depth: np.ndarray | None, state: dict[str, flo
     return src
 
 
+def smear_split(img: np.ndarray, depth: np.ndarray | None, state: dict[str, float], exposure_s: float, *,
+                speed_mps: float, yaw_rate_rps: float, hfov_deg: float, camera_height_m: float,
+                horizon_frac: float, near_depth_m: float, far_m: float, who: str) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`motion_smear` of ``img``'s luma at full resolution and of ``img`` at half resolution.
+
+    Returns ``(luma, half)``: uint8 ``H x W`` (Rec. 601 luma) and ``ceil(H/2) x ceil(W/2) x 3``, both
+    blurred by the car's motion during ``exposure_s`` (new arrays). One zoom blur serves both (made
+    from the half-resolution frame at the resolution :func:`motion_smear` uses, its luma enlarged
+    for the full-resolution blend); the yaw box is as long in each frame's own pixels.
+    """
+    h, w = img.shape[:2]
+    hh, hw = (h + 1) // 2, (w + 1) // 2
+    luma = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    half = cv2.resize(img, (hw, hh), interpolation=cv2.INTER_AREA)
+    fx = focal_px(state, w, hfov_deg)
+    speed = abs(state.get("speed", speed_mps))
+    yaw = abs(state.get("yaw_rate", yaw_rate_rps))
+    scale = speed * exposure_s / near_depth_m
+    length = fx * yaw * exposure_s
+    if length > MAX_SMEAR_WIDTHS * w:
+        raise LimitError(f"{who}: the yaw smear would be {length:.3g} px (fx {fx:.4g} px x yaw rate {yaw:.3g} rad/s "
+                         f"x exposure {exposure_s:.3g} s) on a {w} px wide frame; at most {MAX_SMEAR_WIDTHS} frame "
+                         "widths are supported")
+    if scale * 0.5 * math.hypot(w, h) >= 1.0:  # the zoom blur, blended by nearness
+        from weather_gym.weather._near_blend import near_blend, near_weight
+
+        disp = scale * 0.5 * math.hypot(w, h)
+        f = 4 if disp > 16 and min(h, w) >= 16 else 2
+        small = _shrink(half, f // 2) if f == 4 else half
+        m = min(max(math.ceil(math.log2(disp / f + 1)), 1), 3)
+        c = (1.0 + scale) ** (1.0 / (2 ** m - 1))
+        acc = small
+        for j in range(m):
+            acc = cv2.addWeighted(acc, 0.5, _zoom(acc, c ** (2 ** j)), 0.5, 0)
+        blurred_half = cv2.resize(acc, (hw, hh), interpolation=cv2.INTER_LINEAR) if acc.shape[:2] != (hh, hw) else acc
+        blurred_luma = cv2.resize(cv2.cvtColor(acc, cv2.COLOR_RGB2GRAY), (w, h), interpolation=cv2.INTER_LINEAR)
+        if depth is None:
+            wt = _fallback_weight((h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m), who)
+            wt_half = _fallback_weight((hh, hw, fx * hw / w, camera_height_m, horizon_frac, near_depth_m, far_m), who)
+        else:
+            depth_min(depth, who)
+            wt = near_weight(depth, near_depth_m)
+            wt_half = near_weight(cv2.resize(np.ascontiguousarray(depth, np.float32), (hw, hh),
+                                             interpolation=cv2.INTER_NEAREST), near_depth_m)
+        luma_out, half_out = np.empty_like(luma), np.empty_like(half)  # (new frames: numba vectorises the
+        near_blend(luma, blurred_luma, wt, None, luma_out)              # blend only when out is not an input)
+        near_blend(half, blurred_half, wt_half, None, half_out)
+        luma, half = luma_out, half_out
+    n = int(round(length)) if length >= 1.5 else 0
+    if n:
+        luma = _hbox(luma, n, np.empty_like(luma))
+        n2 = int(round(length * hw / w)) if length * hw / w >= 1.5 else 0
+        if n2:
+            half = _hbox(half, n2, np.empty_like(half))
+    return luma, half
+
+
 @dataclass(frozen=True)
 class CameraGeometry(KnobEffect):
     """Camera parameters used when the state or the depth map does not give them (not registered).
@@ -189,3 +246,12 @@ class EgoMotion(CameraGeometry):
                             yaw_rate_rps=self.yaw_rate_rps, hfov_deg=self.hfov_deg,
                             camera_height_m=self.camera_height_m, horizon_frac=self.horizon_frac,
                             near_depth_m=self.near_depth_m, far_m=self.far_m, who=self.name, out=out)
+
+    def smear_split(self, img: np.ndarray, depth: np.ndarray | None, state: dict[str, float],
+                    exposure_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Motion blur of ``exposure_s`` seconds of the luma at full and the frame at half resolution
+        (:func:`smear_split`)."""
+        return smear_split(img, depth, state, exposure_s, speed_mps=self.speed_mps,
+                           yaw_rate_rps=self.yaw_rate_rps, hfov_deg=self.hfov_deg,
+                           camera_height_m=self.camera_height_m, horizon_frac=self.horizon_frac,
+                           near_depth_m=self.near_depth_m, far_m=self.far_m, who=self.name)

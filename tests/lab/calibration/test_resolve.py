@@ -189,7 +189,7 @@ def test_presets_switch_and_sources(monkeypatch, tmp_path):
     assert preset_spec("low_light", 2)[0]["k"] == 0.86 and weather_source("low_light@2") == "resolved"
     assert preset_spec("droplets", 3) == load_presets(DEFAULT_PRESETS)["presets"]["droplets"][3]["effects"]
     monkeypatch.setenv("WEATHER_GYM_PRESETS", "pool")
-    assert preset_spec("low_light", 2)[0]["k"] == 0.843
+    assert preset_spec("low_light", 2)[0]["k"] == 0.87
     monkeypatch.setenv("WEATHER_GYM_PRESETS", str(tmp_path / "missing.toml"))
     with pytest.raises(FileNotFoundError, match="WEATHER_GYM_PRESETS"):
         preset_spec("low_light", 2)
@@ -247,7 +247,7 @@ def test_evaluate_cells_take_presets_per_track_and_record_their_source(tmp_path)
                      presets={"small_track": str(path), "peanut": str(DEFAULT_PRESETS)})
     cells = {(c.track, c.severity): c for c in make_cells(cfg)}
     assert json.loads(cells["small_track", 2].weather)[0]["k"] == 0.86
-    assert json.loads(cells["peanut", 2].weather)[0]["k"] == 0.843
+    assert json.loads(cells["peanut", 2].weather)[0]["k"] == 0.87
     assert (cells["small_track", 2].k_source, cells["peanut", 2].k_source, cells["peanut", 0].k_source) == \
         ("resolved", "pool", "given")
     assert "k_source" not in CELL_KEY_FIELDS  # the k itself is in `weather`: old results.csv files still resume
