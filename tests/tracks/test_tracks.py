@@ -382,3 +382,13 @@ def test_a_csv_track_is_shown_by_its_name_not_this_machines_path(tmp_path, monke
     assert source_label(load_track("peanut").source) == "tracks/eufs/peanut.csv"
     assert source_label(str(csv)) == "test_day.csv"
     assert source_label(load_track("oval").source).startswith("generated:oval(")
+
+
+def test_a_track_list_keeps_a_random_tracks_arguments_with_it():
+    from weather_gym.tracks import split_track_specs
+
+    specs = split_track_specs("peanut,random:1,width=2.5,reverse:random:2,width=2.8,length=200, mirror:hairpin")
+    assert specs == ("peanut", "random:1,width=2.5", "reverse:random:2,width=2.8,length=200", "mirror:hairpin")
+    narrow = load_track(specs[1])
+    assert min(narrow.half_width_left.min(), narrow.half_width_right.min()) < 1.3  # 2.5 m wide
+    assert split_track_specs(" , ") == ()

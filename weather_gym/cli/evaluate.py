@@ -52,6 +52,7 @@ from weather_gym.lab.evaluation.runner import check_results_path
 from weather_gym.lab.evaluation.sensors import write_sensor_report
 from weather_gym.pipeline.modes import PERCEPTION_MODES, auto_mode, modes_where, perception_mode
 from weather_gym.ros.episode_bag import BAG_IMAGES
+from weather_gym.tracks import split_track_specs
 from weather_gym.weather.presets import ALIASES, CONDITIONS
 
 
@@ -150,7 +151,7 @@ def build_config(args):
         seeds = tuple(range(args.seeds))
     return EvalConfig(
         agents=_names(args.agents), effects=_names(args.effects), severities=_ints("--severities", args.severities),
-        seeds=seeds, tracks=_names(args.tracks), env_id=args.env_id, perception=args.perception, laps=args.laps,
+        seeds=seeds, tracks=split_track_specs(args.tracks), env_id=args.env_id, perception=args.perception, laps=args.laps,
         max_steps=args.max_steps, agent_kwargs=_agent_kwargs(args),
         env_kwargs=_json_arg("--env-kwargs", args.env_kwargs),
         perception_kwargs=_perception_kwargs(args),
@@ -188,7 +189,7 @@ def _presets(args) -> str | dict[str, str] | None:
     env_kwargs = _json_arg("--env-kwargs", args.env_kwargs)
     return {t: str(presets_from_arg("resolved", partial(env_scenario, args.env_id, t, detector, env_kwargs),
                                     progress=not args.no_progress))
-            for t in _names(args.tracks)}
+            for t in split_track_specs(args.tracks)}
 
 
 def _perception_kwargs(args) -> dict:

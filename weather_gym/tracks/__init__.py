@@ -48,7 +48,7 @@ __all__ = [
     "CONE_CLASSES", "CSV_HEADER", "DUPLICATE_TOL_M", "EVENTS", "MAX_CONES", "MAX_COORDINATE_M", "MAX_TRACK_FILE_BYTES",
     "MIN_RADIUS_M", "MIRROR_PREFIX", "REVERSE_PREFIX", "TRACKS", "Projection", "StartPose", "Track",
     "generate_random_track", "is_track_file", "load_track", "mirror_track", "oval", "read_cone_csv", "reverse_track",
-    "source_label", "track_file_part", "track_from_csv", "track_label",
+    "source_label", "split_track_specs", "track_file_part", "track_from_csv", "track_label",
 ]
 
 
@@ -291,6 +291,25 @@ def source_label(source: str) -> str:
 
 RANDOM_TRACK_ARGS = ("length", "width", "spacing", "start_pair")
 """Keyword arguments of :func:`generate_random_track` a ``random:SEED,KEY=VALUE,...`` spec may set."""
+
+
+def split_track_specs(text: str) -> tuple[str, ...]:
+    """A comma-separated list of track specs (``--track``), keeping a random track's ``KEY=VALUE``
+    arguments with their spec: an item that holds ``=`` belongs to the spec before it.
+
+    Example:
+        >>> split_track_specs("peanut, random:1,width=2.5,length=200 ,reverse:random:2,width=2.8")
+        ('peanut', 'random:1,width=2.5,length=200', 'reverse:random:2,width=2.8')
+    """
+    out: list[str] = []
+    for item in (part.strip() for part in str(text).split(",")):
+        if not item:
+            continue
+        if "=" in item and out:
+            out[-1] = f"{out[-1]},{item}"
+        else:
+            out.append(item)
+    return tuple(out)
 
 
 def _random_args(spec: str, args: list[str]) -> dict[str, float]:

@@ -168,6 +168,8 @@ def test_subproc_starts_at_most_4_processes_per_core_as_make_vec_env():
     (["--eval-max-steps", "0"], r"--eval-max-steps must be an integer in \[1, 1000000\], got 0"),
     (["--eval-weathers", ""], r"--eval-weathers must be a list of at least 1 strings, got \(\)"),
     (["--eval-track", "small_track,hairpin"], r"--eval-track hairpin is also a training track"),
+    (["--track", "peanut,random:1,width=2.5", "--eval-track", "random:1,width=2.5"],  # one spec, arguments and all
+     r"--eval-track random:1,width=2.5 is also a training track"),
     (["--detection-range", "-3"], r"--detection-range must be a distance in metres > 0 or 'none', got '-3'"),
 ])
 def test_every_option_is_checked_before_anything_is_written(tmp_path, capsys, monkeypatch, argv, expected):

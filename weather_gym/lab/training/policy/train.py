@@ -118,6 +118,7 @@ from weather_gym.lab.training.policy.training_env import (
     takes_oracle_noise,
 )
 from weather_gym.pipeline.modes import CONES, modes_where, perception_mode
+from weather_gym.tracks import split_track_specs
 
 __all__ = ["DEFAULT_TRACKS", "DEFAULT_NOISE", "LapSuccess", "RandomStart", "build_parser", "latest_checkpoint",
            "load_hyperparams", "make_training_env", "model_metadata", "plot_learning_curve", "plot_pretrain_curve",
@@ -310,7 +311,7 @@ def _settings(args: argparse.Namespace, hp: dict[str, Any]) -> dict[str, Any]:
     for opt, value in (("--noise", noise), ("--weather", weather)):
         if value is not None and not isinstance(value, dict):
             raise InputError(f"{opt} must be a JSON object of fields, got {value!r}")
-    tracks = [t.strip() for t in args.tracks.split(",") if t.strip()]
+    tracks = list(split_track_specs(args.tracks))
     if not tracks:
         raise InputError("--track is empty")
     held_out = _held_out_config(args, tracks)
@@ -360,7 +361,7 @@ def _split(text: str) -> tuple[str, ...]:
 
 def _held_out_config(args: argparse.Namespace, training_tracks: list[str]) -> HeldOutConfig:
     """The held-out drives of ``--eval-*``; a training track among them is refused."""
-    config = HeldOutConfig(tracks=_split(args.eval_track), weathers=_split(args.eval_weathers),
+    config = HeldOutConfig(tracks=split_track_specs(args.eval_track), weathers=_split(args.eval_weathers),
                            perception=args.eval_perception, max_steps=args.eval_max_steps,
                            episodes=args.eval_episodes)
     for t in config.tracks:
