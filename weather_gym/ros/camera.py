@@ -43,8 +43,8 @@ class Window:
 
     def bounds(self, bag_start_ns: int) -> tuple[int | None, int | None]:
         """The window in bag receive time (ns): ``start`` inclusive, ``stop`` exclusive."""
-        return tuple(None if s is None else bag_start_ns + round(s * 1e9)  # type: ignore[return-value]
-                     for s in (self.start_s, self.end_s))
+        start, end = (None if s is None else bag_start_ns + round(s * 1e9) for s in (self.start_s, self.end_s))
+        return start, end
 
 
 @dataclass(frozen=True)

@@ -127,12 +127,12 @@ def ppo_callbacks(total: int, log: Callable[[str], None], selector: Selector | N
     class HeldOutSelection(BaseCallback):
         def _on_training_start(self) -> None:
             if selector.best is None:  # type: ignore[union-attr]  # built only with a selector
-                selector.evaluate(self.model, self.logger)  # type: ignore[union-attr]
+                selector.evaluate(self.model, self.logger)  # type: ignore[union-attr]  # as above
             self.last = self.model.num_timesteps
 
         def _on_step(self) -> bool:
             if self.model.num_timesteps - self.last >= eval_freq:
-                selector.evaluate(self.model, self.logger)  # type: ignore[union-attr]
+                selector.evaluate(self.model, self.logger)  # type: ignore[union-attr]  # as above
                 self.last = self.model.num_timesteps
             return True
 
