@@ -98,6 +98,9 @@ def register(sub) -> None:
                    help="widen the reference set up to this many frames while a damage is not known within --tolerance")
     r.add_argument("--tolerance", type=float, default=0.02,
                    help="largest bootstrap standard error (over episodes) of a resolved damage")
+    r.add_argument("--workers", type=int, default=None,
+                   help="processes sharing the render and the detector runs (default: the usable cores, at most 4; "
+                        "the result does not depend on it)")
     r.add_argument("--plot", type=Path, default=None, help="curve plot PNG (default: next to --out, OUT_STEM.png)")
     p.add_argument("--seeds", type=int, default=5, help="weather realisations per preset when re-measuring")
     add_detector_args(p, what="scores the measured image sets and re-measures", legacy_model=True)
@@ -214,7 +217,8 @@ def _run_resolve(args) -> int:
     check_output(plot, overwrite=args.overwrite, suffixes=(".png",), what="--plot")
     detector = detector_spec_from_args(args)
     scenario = _scenario_from_args(args, detector)
-    res = resolve_presets(scenario, presets=args.base, tolerance=args.tolerance, progress=not args.no_progress)
+    res = resolve_presets(scenario, presets=args.base, tolerance=args.tolerance, progress=not args.no_progress,
+                          workers=args.workers)
     for line in resolution_lines(res):
         print(line)
     path = write_resolved(res, args.out, presets=args.base, scenario=scenario, overwrite=args.overwrite)

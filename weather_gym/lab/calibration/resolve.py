@@ -40,6 +40,9 @@ import hashlib
 import json
 import math
 import os
+import pickle
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
@@ -60,18 +63,17 @@ from weather_gym.core.errors import InputError, ResolutionError
 from weather_gym.core.paths import PACKAGE
 from weather_gym.core.version import __version__
 from weather_gym.envs.config import EnvConfig
+from weather_gym.lab.calibration._resolve_worker import FrameBlock, render_part
 from weather_gym.lab.calibration.curve import invert
 from weather_gym.lab.calibration.frame_ap import FrameMatches, frame_matches
 from weather_gym.lab.datasets.coco import load_coco
-from weather_gym.lab.datasets.render import render_dataset
 from weather_gym.perception.detector_spec import DEFAULT_MODEL, load_detector, parse_detector_spec
 from weather_gym.perception.scoring import small_rule
-from weather_gym.weather import make
 from weather_gym.weather.presets import DEFAULT_PRESETS, SEVERITIES, conditions, load_presets, nominal_rows
 from weather_gym.weather.spec import preset_items
 
 __all__ = ["CACHE_ENV", "MIN_CLEAR_MAP", "MIN_CONES", "Resolution", "ResolvedRow", "Scenario", "cache_dir",
-           "code_version", "presets_for_env", "resolution_key", "resolve_presets", "resolves"]
+           "code_version", "default_workers", "presets_for_env", "resolution_key", "resolve_presets", "resolves"]
 
 CACHE_ENV = "WEATHER_GYM_CACHE"
 """Environment variable naming the cache folder (``off``: no cache); default ``$XDG_CACHE_HOME/weather-gym``
@@ -92,13 +94,17 @@ BOOTSTRAP = 200
 """Bootstrap replicates (over episodes) of the damage at the resolved k."""
 DETECT_BATCH = 1
 """Frames per detector call while resolving (CPU per frame grows with the batch: ``weather-gym bench resolve``)."""
-VERSION = 3
+PARTS = 2
+"""Parts a chunk of the reference set is rendered in (each from its own seed; helper processes render
+parts at the same time). Fixed, so the frames do not depend on the number of processes."""
+VERSION = 4
 """Version of this resolution method (part of the cache key)."""
 
 _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coco.py",
          "lab/datasets/coco_writer.py", "perception/scoring.py", "perception/onnx_detector.py", "perception/yolo.py",
          "perception/preprocess.py", "perception/cones.py", "lab/calibration/resolve.py", "lab/calibration/frame_ap.py",
-         "lab/calibration/curve.py")
+         "lab/calibration/curve.py",
+         "lab/calibration/_resolve_worker.py")
 
 
 # ------------------------------------------------------------------------------------------ scenario
@@ -312,54 +318,123 @@ def resolution_key(scenario: Scenario, presets: str | os.PathLike | None = None,
 
 
 # ------------------------------------------------------------------------------------ the reference set
-class _ReferenceSet:
-    """The scenario's frames (rendered in chunks of ``scenario.frames``, each chunk once), the detector's
-    clear detections and every degraded frame's detections, kept per (effect, k, chunk)."""
+class _Helper:
+    """A helper process (:mod:`weather_gym.lab.calibration._resolve_worker`) taking a share of the frames."""
 
-    def __init__(self, scenario: Scenario, root: Path, detector: Any, progress: bool) -> None:
+    def __init__(self, detector: Any, threads: int) -> None:
+        pkg_parent = str(PACKAGE.parent)
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([pkg_parent, *filter(None, [env.get("PYTHONPATH")])])
+        self.proc = subprocess.Popen([sys.executable, "-m", "weather_gym.lab.calibration._resolve_worker"],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        self.send("init", detector, threads)  # its answer is read before the first other one (it starts meanwhile)
+        self._init_unread = True
+
+    def send(self, *msg: Any) -> None:
+        assert self.proc.stdin is not None
+        pickle.dump(msg, self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+        self.proc.stdin.flush()
+
+    def recv(self) -> Any:
+        if self._init_unread:
+            self._init_unread = False
+            self.recv()
+        assert self.proc.stdout is not None
+        try:
+            status, result = pickle.load(self.proc.stdout)
+        except EOFError:
+            raise RuntimeError(f"a resolution helper process ended (exit status {self.proc.wait()}); "
+                               "its error is above on stderr") from None
+        if status != "ok":
+            raise RuntimeError(f"a resolution helper process failed: {result}")
+        return result
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            if self.proc.stdin is not None:
+                self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        if self.proc.stdout is not None:
+            self.proc.stdout.close()
+
+
+class _ReferenceSet:
+    """The scenario's frames (rendered in chunks of ``scenario.frames``, each chunk once, in :data:`PARTS`
+    parts), the detector's clear detections and every degraded frame's detections, kept per (effect, k, chunk).
+
+    With ``workers`` above 1, helper processes render parts of a chunk and degrade and detect their share
+    of its frames while this process does its own (:mod:`weather_gym.lab.calibration._resolve_worker`);
+    the frames and every detection are the same as with one process."""
+
+    def __init__(self, scenario: Scenario, root: Path, detector: Any, progress: bool, workers: int = 1,
+                 threads: int = 1) -> None:
         self.scenario, self.root, self.detector, self.progress = scenario, root, detector, progress
         self.chunks: list[dict[str, Any]] = []
         self._dets: dict[tuple[str, float, int], list[Any]] = {}
+        self.helpers = [_Helper(scenario.detector, threads) for _ in range(max(int(workers), 1) - 1)]
+
+    def close(self) -> None:
+        for h in self.helpers:
+            h.close()
+        self.helpers = []
+
+    def _render(self, i: int) -> list[Path]:
+        """Render chunk ``i``'s parts (each once; helpers render a part each), return their folders."""
+        s = self.scenario
+        sizes = [s.frames // PARTS + (1 if p < s.frames % PARTS else 0) for p in range(PARTS)]
+        folders = [self.root / f"chunk{i}" / f"part{p}" for p in range(PARTS)]
+        jobs = [dict(out=folders[p], tracks=list(s.tracks), frames=sizes[p], seed=s.seed + 7919 * i + 104729 * p,
+                     camera=s.camera, camera_model=s.model, scene=s.scene, frames_per_episode=s.frames_per_episode,
+                     progress=self.progress, resume=folders[p].exists()) for p in range(PARTS) if sizes[p] > 0]
+
+        (self.root / f"chunk{i}").mkdir(parents=True, exist_ok=True)
+        todo = [j for j in jobs if not (Path(j["out"]) / "annotations.json").is_file()]
+        given = []
+        for h, job in zip(self.helpers, todo[1:], strict=False):  # helpers render the later parts
+            h.send("render", {**job, "progress": False})
+            given.append(h)
+        for job in todo[len(given) + 1:] + todo[:1]:
+            render_part(job)
+        for h in given:
+            h.recv()
+        return [Path(j["out"]) for j in jobs]
 
     def widen(self) -> None:
         i = len(self.chunks)
         s = self.scenario
         if s.dataset is not None:
-            ds = load_coco(s.dataset, cache_images=True)
+            sets = [load_coco(s.dataset)]
         else:
-            folder = self.root / f"chunk{i}"
-            with waiting_lock(str(self.root / f".chunk{i}.lock")):
-                if not (folder / "annotations.json").is_file():
-                    render_dataset(folder, tracks=list(s.tracks), frames=s.frames, seed=s.seed + 7919 * i,
-                                   camera=s.camera, camera_model=s.model, scene=s.scene,
-                                   frames_per_episode=s.frames_per_episode, progress=self.progress,
-                                   resume=folder.exists())
-            ds = load_coco(folder, cache_images=True)
-        n = len(ds)
-        records = [ds.record(j) for j in range(n)]
-        states = []
-        for rec in records:
-            st = {"speed": float(rec.get("speed", 0.0)), "yaw_rate": float(rec.get("yaw_rate", 0.0))}
-            if rec.get("camera"):
-                c = CameraConfig(**rec["camera"])
-                st.update(exposure_s=c.exposure_s, fx=c.fx)
-            states.append(st)
-        rule = small_rule(ds, self.detector)
+            sets = [load_coco(f) for f in self._render(i)]
+        frames = [(str(ds.root), j) for ds in sets for j in range(len(ds))]
+        n = len(frames)
+        seeds = np.random.SeedSequence([s.seed, i]).generate_state(max(n, 1), dtype=np.uint32)
+        cuts = np.linspace(0, n, len(self.helpers) + 2).round().astype(int)
+        for b, h in enumerate(self.helpers, start=1):
+            h.send("frames", i, frames[cuts[b]:cuts[b + 1]], seeds[cuts[b]:cuts[b + 1]])
+        own = FrameBlock.load(frames[:cuts[1]], seeds[:cuts[1]])
+        for h in self.helpers:
+            h.recv()
+        rule = small_rule(sets[0], self.detector)
         self.chunks.append({
-            "images": [ds.image(j) for j in range(n)],
-            "depths": [ds.depth(j) if rec.get("depth_file") else None for j, rec in enumerate(records)],
-            "states": states, "gts": [ds.gt(j) for j in range(n)],
-            "groups": [(i, rec.get("episode", j)) for j, rec in enumerate(records)],
-            "seeds": np.random.SeedSequence([s.seed, i]).generate_state(max(n, 1), dtype=np.uint32),
+            "block": own, "cuts": cuts, "n": n,
+            "gts": [ds.gt(j) for ds in sets for j in range(len(ds))],
+            "groups": [(i, str(ds.root), rec.get("episode", j)) for ds in sets
+                       for j, rec in ((j, ds.record(j)) for j in range(len(ds)))],
             "min_box_height": None if rule is None else rule.min_height_px,
         })
 
     @property
     def n_frames(self) -> int:
-        return sum(len(c["images"]) for c in self.chunks)
+        return sum(c["n"] for c in self.chunks)
 
-    def detections(self, label: str, effect: Any, k: float, chunk: int) -> list[Any]:
-        """The detector's detections on every frame of ``chunk`` degraded by ``effect`` at ``k`` (None: clear).
+    def detections(self, label: str, table: dict[str, Any] | None, k: float, chunk: int) -> list[Any]:
+        """The detector's detections on every frame of ``chunk`` degraded by the effect ``table`` at ``k``
+        (None: clear), this process's share and the helpers' at the same time.
 
         Frames go through the detector one at a time, as they are degraded (:data:`DETECT_BATCH`: a batch of
         one costs the shipped detector about half the CPU per frame of a batch of 160, and no degraded set is
@@ -368,37 +443,21 @@ class _ReferenceSet:
         key = (label, round(float(k), 6), chunk)
         if key not in self._dets:
             c = self.chunks[chunk]
-            ims = c["images"]
-            clear = self._dets.get(("clear", 0.0, chunk))
-            out: list[Any] = []
-            for i in range(0, len(ims), DETECT_BATCH):
-                part, todo = [], []
-                for j in range(i, min(i + DETECT_BATCH, len(ims))):
-                    im = ims[j]
-                    if effect is not None:
-                        sd = int(c["seeds"][j])
-                        effect.reset(sd)
-                        im = effect(im, depth=c["depths"][j], state=dict(c["states"][j]), rng=np.random.default_rng(sd))
-                        if clear is not None and im.shape == ims[j].shape and np.array_equal(im, ims[j]):
-                            part.append(clear[j])
-                            continue
-                    part.append(None)
-                    todo.append((len(part) - 1, im))
-                if todo:
-                    found = self.detector.detect_batch([im for _, im in todo], score_threshold=0.05)
-                    for (slot, _), d in zip(todo, found, strict=True):
-                        part[slot] = d
-                out += part
+            for h in self.helpers:
+                h.send("detect", chunk, table)
+            out = list(c["block"].detect(self.detector.detect_batch, table))
+            for h in self.helpers:
+                out += h.recv()
             self._dets[key] = out
         return self._dets[key]
 
-    def matches(self, label: str, effect: Any, k: float) -> FrameMatches:
+    def matches(self, label: str, table: dict[str, Any] | None, k: float) -> FrameMatches:
         gts, dets, groups = [], [], []
         rules = {c["min_box_height"] for c in self.chunks}
         for i, c in enumerate(self.chunks):
             gts += c["gts"]
             groups += c["groups"]
-            dets += self.detections(label, effect, k, i)
+            dets += self.detections(label, table, k, i)
         return frame_matches(gts, dets, groups=groups, min_box_height=rules.pop() if len(rules) == 1 else None)
 
 
@@ -505,7 +564,7 @@ class _Search:
         self.matches: dict[float, FrameMatches] = {}
 
     def measure(self, k: float) -> None:
-        m = self.ref.matches(self.label, make(self.name, k=k, **self.params), k)
+        m = self.ref.matches(self.label, {"name": self.name, "k": k, **self.params}, k)
         self.matches[k] = m
         self.points[k] = m.map50() / self.clear_map
         self.tick()
@@ -580,15 +639,19 @@ def _row(cond, sev, target, k, k_pool, points, matches, clear, name, params, eva
 # ------------------------------------------------------------------------------------------- resolving
 def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathLike | None = None,
                     tolerance: float = 0.02, cache: bool = True, progress: bool = True,
-                    threads: int = 1) -> Resolution:
+                    threads: int = 1, workers: int | None = None) -> Resolution:
     """The shipped (or ``presets``) calibrated rows resolved for ``scenario`` (see module doc).
 
     Cached: a second call with the same key reads the result (tens of ms); ``cache=False`` or no cache
     folder (:func:`cache_dir`) resolves anew, in a temporary folder. ``tolerance``: the largest bootstrap
-    standard error of a row's damage that is accepted. Raises :class:`~weather_gym.core.errors.ResolutionError`
+    standard error of a row's damage that is accepted. ``workers``: processes that share the frames (None:
+    :func:`default_workers`; the result does not depend on it). Raises :class:`~weather_gym.core.errors.ResolutionError`
     where the scenario does not allow it.
     """
     scenario = scenario or Scenario()
+    workers = default_workers() if workers is None else workers
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"workers must be an integer >= 1, got {workers!r}")
     if not (isinstance(tolerance, float | int) and 0 < tolerance < 1):
         raise InputError(f"tolerance must be a number in (0, 1), got {tolerance!r}")
     key = resolution_key(scenario, presets, tolerance)
@@ -596,7 +659,7 @@ def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathL
     if root is None:  # frames in a temporary folder; the presets file beside them in the temp dir, if it is writable
         out = Path(tempfile.gettempdir()) / f"weather-gym-resolved-{key}.toml"
         with tempfile.TemporaryDirectory(prefix="weather-gym-resolve-") as tmp:
-            res = _compute(scenario, presets, tolerance, key, Path(tmp), None, progress, threads)
+            res = _compute(scenario, presets, tolerance, key, Path(tmp), None, progress, threads, workers)
         with contextlib.suppress(OSError):
             res.path = write_resolved(res, out, presets=presets, scenario=scenario, overwrite=True)
         res.note = ("no cache folder (set WEATHER_GYM_CACHE to a writable folder to keep resolutions)" if cache
@@ -613,9 +676,19 @@ def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathL
         frames = root / "frames" / hashlib.sha256(json.dumps(scenario.identity(), sort_keys=True,
                                                              default=str).encode()).hexdigest()[:16]
         frames.mkdir(parents=True, exist_ok=True)
-        res = _compute(scenario, presets, tolerance, key, frames, root / "resolved" / f"{key}.toml", progress, threads)
+        res = _compute(scenario, presets, tolerance, key, frames, root / "resolved" / f"{key}.toml", progress, threads,
+                       workers)
         atomic_write_json(entry, res.to_dict(), indent=1, overwrite=True)
     return res
+
+
+def default_workers() -> int:
+    """Processes a resolution uses by default: the cores this process may run on, at most 4."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        n = os.cpu_count() or 1
+    return max(1, min(4, n))
 
 
 def _read_entry(entry: Path) -> Resolution | None:
@@ -632,13 +705,13 @@ def _read_entry(entry: Path) -> Resolution | None:
 
 
 def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_root: Path, out: Path | None,
-             progress: bool, threads: int) -> Resolution:
+             progress: bool, threads: int, workers: int = 1) -> Resolution:
     t0 = time.perf_counter()
     targets = _targets(presets)
     if not targets:
         raise InputError(f"presets file {presets or DEFAULT_PRESETS} has no calibrated rows with a relative target to resolve")
     detector = load_detector(scenario.detector, threads=threads)
-    ref = _ReferenceSet(scenario, frames_root, detector, progress)
+    ref = _ReferenceSet(scenario, frames_root, detector, progress, workers, threads)
     bar = tqdm(desc="resolve presets", unit="k", disable=not progress)
     try:
         while True:
@@ -670,6 +743,7 @@ def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_roo
                     f"would do: raise max_frames (--max-frames), record a longer clear set, or loosen --tolerance")
     finally:
         bar.close()
+        ref.close()
     res = Resolution(scenario=scenario.describe(), key=key, rows=rows, clear_map=round(clear_map, 4), n_cones=n_cones,
                      n_frames=ref.n_frames, seconds=round(time.perf_counter() - t0, 1), path=None, points=points)
     if out is not None:
