@@ -2,7 +2,7 @@
 
 For each scenario: resolve the presets (``weather_gym.lab.calibration.resolve.resolve_presets``; its own
 reference set, cached), render a *different* set of the same scenario (``--frames``, default 320; render seed
-4242, episodes of 4 frames), and score the detector there at the pool k and at the resolved k of every study
+4242, one frame per episode as the reference set draws them: ``--frames-per-episode``), and score the detector there at the pool k and at the resolved k of every study
 row, 5 weather seeds each (relative mAP@0.5 over blue and yellow: mean and sd over the seeds, and the check
 set's own standard error: a bootstrap over its episodes of the 5-seed mean, 200 replicates). Writes
 ``OUT/resolved_check.csv`` and ``.md``, and each scenario's resolved presets and curve plot
@@ -112,6 +112,7 @@ def main() -> None:
     ap.add_argument("--detector", default=None)
     ap.add_argument("--frames", type=int, default=320, help="check-set frames (default %(default)s)")
     ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--frames-per-episode", type=int, default=1, help="frames per episode of the check set")
     ap.add_argument("--sets", type=Path, default=Path("scratch/resolved_check_sets"),
                     help="where the check sets are rendered (large; not in the repository)")
     args = ap.parse_args()
@@ -125,10 +126,10 @@ def main() -> None:
         stem = args.out / text.replace(":", "_")
         write_resolved(res, stem.with_suffix(".toml"), scenario=sc, overwrite=True)
         plot_resolution(res, stem.with_suffix(".png"), overwrite=True)
-        check = args.sets / f"{text.replace(':', '_')}_{args.frames}"
+        check = args.sets / f"{text.replace(':', '_')}_{args.frames}x{args.frames_per_episode}"
         if not (check / "annotations.json").is_file():
             render_dataset(check, tracks=list(sc.tracks), frames=args.frames, seed=4242, scene=sc.scene,
-                           frames_per_episode=4, progress=False, overwrite=True)
+                           frames_per_episode=args.frames_per_episode, progress=False, overwrite=True)
         cs = CheckSet(check, load_detector(sc.detector))
         for r in res.rows:
             if r.severity == 0:

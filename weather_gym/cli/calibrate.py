@@ -97,7 +97,7 @@ def register(sub) -> None:
     r.add_argument("--max-frames", type=int, default=Scenario.max_frames,
                    help="widen the reference set up to this many frames while a damage is not known within --tolerance")
     r.add_argument("--tolerance", type=float, default=0.02,
-                   help="largest bootstrap standard error (over episodes) of a resolved damage")
+                   help="half-width of the 95 %% interval (bootstrap over episodes) a resolved damage must be known within")
     r.add_argument("--workers", type=int, default=None,
                    help="processes sharing the render and the detector runs (default: the usable cores, at most 4; "
                         "the result does not depend on it)")

@@ -42,7 +42,7 @@ def register(targets) -> None:
     p.add_argument("--world", default="plain", choices=("plain", "realistic"), help="world (default %(default)s)")
     p.add_argument("--frames", type=int, default=Scenario.frames, help="reference frames (default %(default)s)")
     p.add_argument("--max-frames", type=int, default=Scenario.max_frames, help="widening limit (default %(default)s)")
-    p.add_argument("--tolerance", type=float, default=0.02, help="bootstrap standard error accepted (default %(default)s)")
+    p.add_argument("--tolerance", type=float, default=0.02, help="half-width of the damage's 95 %% interval accepted (default %(default)s)")
     p.add_argument("--cache", type=Path, default=None,
                    help="cache folder (default: a fresh temporary one, so the first call is a first use)")
     p.add_argument("--repeats", type=int, default=200, help="cached calls timed (default %(default)s)")

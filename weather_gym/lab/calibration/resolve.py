@@ -7,7 +7,7 @@ The shipped k (``presets.toml``) met it on the calibration pool of tracks for th
 recording, camera and camera model, world, detector, effect mode):
 
 1. a deterministic reference set of the scenario is rendered once (``weather_gym.lab.datasets.render``;
-   short episodes from start points spread over the track) and shared by every row;
+   one frame from each of many start points drawn over the track) and shared by every row;
 2. the detector runs on the clear frames once (clear mAP; too few visible cones or a clear mAP too low
    to measure a drop is a :class:`~weather_gym.core.errors.ResolutionError`);
 3. per row, k is found by secant steps on the logit of the relative mAP (every frame degraded with its
@@ -16,8 +16,11 @@ recording, camera and camera model, world, detector, effect mode):
    measured k is within :data:`HIT`; every point measured serves every row of its condition
    (:func:`weather_gym.lab.calibration.curve.invert` reads the final k off them);
 4. the damage at the resolved k is bootstrapped over the set's episodes (frames of an episode are not
-   independent): when its standard error exceeds ``tolerance`` (0.02) the set is widened by more episodes,
-   up to ``scenario.max_frames``; still wider is a ``ResolutionError`` naming the rows and the fix.
+   independent; each frame has its own weather draw, so the draws are resampled with them): when its 95 %
+   interval is wider than ± ``tolerance`` (0.02: a standard error above 0.0102) the set is widened, in chunks
+   of ``scenario.frames``, to about the frames the worst row needs (:func:`frames_needed`), up to
+   ``scenario.max_frames``, and the search goes on from the k's found; still wider is a ``ResolutionError``
+   naming the rows and the fix.
 
 The result is written once to a disk cache (:func:`cache_dir`, ``$WEATHER_GYM_CACHE``) keyed by
 everything that changes it (:func:`resolution_key`); concurrent processes computing the same key wait
@@ -73,7 +76,7 @@ from weather_gym.weather.presets import DEFAULT_PRESETS, SEVERITIES, conditions,
 from weather_gym.weather.spec import preset_items
 
 __all__ = ["CACHE_ENV", "MIN_CLEAR_MAP", "MIN_CONES", "Resolution", "ResolvedRow", "Scenario", "cache_dir",
-           "code_version", "default_workers", "presets_for_env", "resolution_key", "resolve_presets", "resolves"]
+           "code_version", "default_workers", "frames_needed", "presets_for_env", "resolution_key", "resolve_presets", "resolves"]
 
 CACHE_ENV = "WEATHER_GYM_CACHE"
 """Environment variable naming the cache folder (``off``: no cache); default ``$XDG_CACHE_HOME/weather-gym``
@@ -83,13 +86,17 @@ MIN_CONES = 100
 MIN_CLEAR_MAP = 0.3
 """Lowest clear mAP@0.5 (blue and yellow) at which a relative drop is measured."""
 HIT = 0.01
-"""A measured point this close to the target ends a row's search (half the ``tolerance`` the bootstrap
-holds the damage to: a closer search would chase the reference set's own sampling error)."""
+"""A measured point this close to the target ends a row's search (about one standard error of the damage
+the bootstrap accepts, half the ``tolerance``: a closer search would chase the reference set's own sampling
+error)."""
 MAX_EVALS = 8
 """Most k values measured per row and set."""
 EXTRAPOLATE = 1.0
 """A secant step off one side of the target reaches at most this many times the (logit) span of the two
 points it is drawn through; further, the step follows the pool curve's local slope instead."""
+Z95 = 1.959964
+"""A damage is known within ``tolerance`` when its 95 % interval, ``Z95`` bootstrap standard errors either
+side, is within ± ``tolerance``."""
 BOOTSTRAP = 200
 """Bootstrap replicates (over episodes) of the damage at the resolved k."""
 DETECT_BATCH = 1
@@ -112,8 +119,10 @@ _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coc
 class Scenario:
     """What a preset is resolved for. ``dataset``: a clear COCO recording used as it is (no render);
     otherwise ``frames`` frames are rendered over ``tracks`` in ``scene`` through ``camera`` and
-    ``camera_model`` (None: the env's default), in episodes of ``frames_per_episode``, from ``seed``,
-    widened by as many again up to ``max_frames`` while the damage is not known within the tolerance.
+    ``camera_model`` (None: the env's default), in episodes of ``frames_per_episode`` (1: every frame from
+    its own start point; frames of one episode, 0.1 s apart, tell about half as much as frames of different
+    episodes), from ``seed``, widened in chunks of ``frames`` up to ``max_frames`` while a damage is not known
+    within the tolerance.
     ``detector``: a detector spec (None: the shipped one; ``"yolov8:model.onnx"``, ...)."""
 
     tracks: tuple[str, ...] = ("small_track",)
@@ -123,9 +132,9 @@ class Scenario:
     detector: Any = None
     dataset: str | None = None
     frames: int = 160
-    max_frames: int = 480
+    max_frames: int = 1600
     seed: int = 0
-    frames_per_episode: int = 4
+    frames_per_episode: int = 1
 
     def __post_init__(self) -> None:
         if isinstance(self.tracks, str):
@@ -572,14 +581,15 @@ class _Search:
     def _hit(self, target: float) -> bool:
         return any(abs(v - target) <= HIT for v in self.points.values())
 
-    def row(self, cond: str, sev: int, t: dict[str, Any]) -> ResolvedRow:
+    def row(self, cond: str, sev: int, t: dict[str, Any], k_start: float | None = None) -> ResolvedRow:
         target, k_pool = float(t["measured_relative"]), float(t["effects"][0]["k"])
+        k0 = k_pool if k_start is None else k_start
         points, evals, note, reachable = self.points, 0, "", True
         if target >= 1.0 and 0.0 not in points:
             self.measure(0.0)
             evals += 1
         while evals < MAX_EVALS and not self._hit(target):
-            k = _next_k(points, target, self.pool, k_pool)
+            k = _next_k(points, target, self.pool, k0)
             if k is None:
                 break
             self.measure(k)
@@ -608,7 +618,10 @@ class _Search:
 
 
 def _resolve_rows(ref: _ReferenceSet, targets, clear: FrameMatches, clear_map: float, scenario: Scenario,
-                  tick: Callable[[], None]) -> tuple[list[ResolvedRow], dict[str, list[list[float]]]]:
+                  tick: Callable[[], None], start: dict[tuple[str, int], float] | None = None,
+                  ) -> tuple[list[ResolvedRow], dict[str, list[list[float]]]]:
+    """Every row searched on the set as it is now; ``start``: the k each row starts from (a smaller set's
+    resolved k; default the pool k)."""
     by_cond: dict[str, list] = {}
     for cond, sev, t in targets:
         by_cond.setdefault(cond, []).append((sev, t))
@@ -616,7 +629,7 @@ def _resolve_rows(ref: _ReferenceSet, targets, clear: FrameMatches, clear_map: f
     points_out: dict[str, list[list[float]]] = {}
     for cond, items in by_cond.items():
         search = _Search(ref, items, clear, clear_map, scenario, tick)
-        rows += [search.row(cond, sev, t) for sev, t in items]
+        rows += [search.row(cond, sev, t, (start or {}).get((cond, sev))) for sev, t in items]
         points_out[cond] = [[k, search.points[k]] for k in sorted(search.points)]
     return rows, points_out
 
@@ -643,8 +656,8 @@ def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathL
     """The shipped (or ``presets``) calibrated rows resolved for ``scenario`` (see module doc).
 
     Cached: a second call with the same key reads the result (tens of ms); ``cache=False`` or no cache
-    folder (:func:`cache_dir`) resolves anew, in a temporary folder. ``tolerance``: the largest bootstrap
-    standard error of a row's damage that is accepted. ``workers``: processes that share the frames (None:
+    folder (:func:`cache_dir`) resolves anew, in a temporary folder. ``tolerance``: the half-width of the
+    95 % interval (bootstrap) within which a row's damage must be known. ``workers``: processes that share the frames (None:
     :func:`default_workers`; the result does not depend on it). Raises :class:`~weather_gym.core.errors.ResolutionError`
     where the scenario does not allow it.
     """
@@ -682,6 +695,17 @@ def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathL
     return res
 
 
+def frames_needed(n_frames: int, se: float, tolerance: float) -> int:
+    """Frames at which a damage with standard error ``se`` on ``n_frames`` frames is known within
+    ``tolerance`` (95 %), with a tenth to spare: the error falls as one over the square root of the frames.
+
+    Example:
+        >>> frames_needed(160, 0.019, 0.02)
+        610
+    """
+    return int(math.ceil(n_frames * (Z95 * se / tolerance) ** 2 * 1.1))
+
+
 def default_workers() -> int:
     """Processes a resolution uses by default: the cores this process may run on, at most 4."""
     try:
@@ -714,8 +738,9 @@ def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_roo
     ref = _ReferenceSet(scenario, frames_root, detector, progress, workers, threads)
     bar = tqdm(desc="resolve presets", unit="k", disable=not progress)
     try:
+        ref.widen()
+        start: dict[tuple[str, int], float] = {}
         while True:
-            ref.widen()
             clear = ref.matches("clear", None, 0.0)
             n_cones = int(clear.npos.sum())
             if n_cones < MIN_CONES:
@@ -729,18 +754,22 @@ def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_roo
                     f"{scenario.describe()}: the detector's clear mAP@0.5 (blue and yellow) is {clear_map:.3f}, "
                     f"below {MIN_CLEAR_MAP} at which a relative drop is measured; check the detector spec "
                     f"(classes, input size) or use the shipped pool presets (--presets pool)")
-            rows, points = _resolve_rows(ref, targets, clear, clear_map, scenario, bar.update)
-            wide = [r for r in rows if r.se > tolerance]
+            rows, points = _resolve_rows(ref, targets, clear, clear_map, scenario, bar.update, start)
+            wide = [r for r in rows if Z95 * r.se > tolerance]
             if not wide:
                 break
+            worst = max(wide, key=lambda r: r.se)
+            need = frames_needed(ref.n_frames, worst.se, tolerance)
             if scenario.dataset is not None or ref.n_frames + scenario.frames > scenario.max_frames:
-                worst = max(wide, key=lambda r: r.se)
-                need = int(math.ceil(ref.n_frames * (worst.se / tolerance) ** 2))
                 raise ResolutionError(
                     f"{scenario.describe()}: the damage of {', '.join(f'{r.condition}@{r.severity}' for r in wide)} is "
-                    f"not known within {tolerance:g} on {ref.n_frames} frames ({worst.condition}@{worst.severity}: "
+                    f"not known within ±{tolerance:g} (95 %) on {ref.n_frames} frames ({worst.condition}@{worst.severity}: "
                     f"relative mAP {worst.achieved:.3f}, bootstrap standard error {worst.se:.3f}); about {need} frames "
                     f"would do: raise max_frames (--max-frames), record a longer clear set, or loosen --tolerance")
+            start = {(r.condition, r.severity): r.k for r in rows}
+            ref.widen()  # straight to about what the worst row needs, in chunks, up to max_frames
+            while ref.n_frames < need and ref.n_frames + scenario.frames <= scenario.max_frames:
+                ref.widen()
     finally:
         bar.close()
         ref.close()
