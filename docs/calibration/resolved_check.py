@@ -16,7 +16,7 @@ presets are resolved for that detector and the check set is scored with it:
     python docs/calibration/resolved_check.py --out docs/calibration/resolved_yolov8/skidpad \
         --detector yolov8:docs/calibration/second_detector/yolov8_conenet_s4.onnx skidpad
 
-The check set's frames go through the detector one at a time, as in the resolver; a degraded frame whose
+The check set's frames go through the detector one at a time, shared by the resolver's helper processes; a degraded frame whose
 bytes equal its clear frame (droplets at k = 0) reuses the clear detections, and a row whose pool and
 resolved k are equal is scored once. The weather seeds are those of ``score_dataset(..., seed=s)``.
 """
@@ -31,15 +31,20 @@ from typing import Any
 
 import numpy as np
 
-from weather_gym.camera.config import CameraConfig
+from weather_gym.lab.calibration._resolve_worker import FrameBlock
 from weather_gym.lab.calibration.frame_ap import FrameMatches, frame_matches
-from weather_gym.lab.calibration.resolve import Scenario, resolve_presets, write_resolved
+from weather_gym.lab.calibration.resolve import (
+    Helper,
+    Scenario,
+    default_workers,
+    resolve_presets,
+    write_resolved,
+)
 from weather_gym.lab.calibration.resolve_plot import plot_resolution
 from weather_gym.lab.datasets.coco import load_coco
 from weather_gym.lab.datasets.render import render_dataset
 from weather_gym.perception.detector_spec import load_detector
 from weather_gym.perception.scoring import small_rule
-from weather_gym.weather import make
 
 BOOTSTRAP = 200
 
@@ -50,48 +55,48 @@ def scenario_of(text: str, detector: str | None) -> Scenario:
 
 
 class CheckSet:
-    """A rendered check set in memory with the detector's clear detections."""
+    """A rendered check set in memory with the detector's clear detections; ``workers`` processes share its
+    frames (the resolver's helper processes: every detection is the same as in one process)."""
 
-    def __init__(self, folder: Path, det: Any) -> None:
-        ds = load_coco(folder, cache_images=True)
+    def __init__(self, folder: Path, spec: str | None, workers: int) -> None:
+        ds = load_coco(folder)
         self.n = len(ds)
-        recs = [ds.record(j) for j in range(self.n)]
-        self.images = [ds.image(j) for j in range(self.n)]
-        self.depths = [ds.depth(j) if r.get("depth_file") else None for j, r in enumerate(recs)]
         self.gts = [ds.gt(j) for j in range(self.n)]
-        self.groups = [r.get("episode", j) for j, r in enumerate(recs)]
-        self.states = []
-        for r in recs:
-            st = {"speed": float(r.get("speed", 0.0)), "yaw_rate": float(r.get("yaw_rate", 0.0))}
-            if r.get("camera"):
-                c = CameraConfig(**r["camera"])
-                st.update(exposure_s=c.exposure_s, fx=c.fx)
-            self.states.append(st)
-        rule = small_rule(ds, det)
+        self.groups = [ds.record(j).get("episode", j) for j in range(self.n)]
+        self.det = load_detector(spec)
+        rule = small_rule(ds, self.det)
         self.min_h = None if rule is None else rule.min_height_px
-        self.det = det
-        self.clear_dets = [det.detect_batch([im], score_threshold=0.05)[0] for im in self.images]
-        self.clear = self.matches(self.clear_dets)
+        frames = [(str(folder), j) for j in range(self.n)]
+        self.helpers = [Helper(spec, 1) for _ in range(workers - 1)]
+        self.cuts = np.linspace(0, self.n, workers + 1).round().astype(int)
+        zero = np.zeros(self.n, np.uint32)
+        for b, h in enumerate(self.helpers, start=1):
+            h.send("frames", 0, frames[self.cuts[b]:self.cuts[b + 1]], zero[self.cuts[b]:self.cuts[b + 1]])
+        self.own = FrameBlock.load(frames[:self.cuts[1]], zero[:self.cuts[1]])
+        for h in self.helpers:
+            h.recv()
+        self.clear = self.matches(self._detect(None, zero))
+
+    def close(self) -> None:
+        for h in self.helpers:
+            h.close()
+
+    def _detect(self, table: dict[str, Any] | None, seeds: np.ndarray) -> list[Any]:
+        for b, h in enumerate(self.helpers, start=1):
+            h.send("detect", 0, table, seeds[self.cuts[b]:self.cuts[b + 1]])
+        out = list(self.own.detect(self.det.detect_batch, table, seeds[:self.cuts[1]]))
+        for h in self.helpers:
+            out += h.recv()
+        return out
 
     def matches(self, dets: list[Any]) -> FrameMatches:
         return frame_matches(self.gts, dets, groups=self.groups, min_box_height=self.min_h)
 
-    def degraded(self, table: dict[str, Any], seed: int) -> FrameMatches:
-        eff = make(table["name"], **{k: v for k, v in table.items() if k != "name"})
-        seeds = np.random.SeedSequence(seed).generate_state(self.n, dtype=np.uint32)
-        dets = []
-        for j, im0 in enumerate(self.images):
-            sd = int(seeds[j])
-            if hasattr(eff, "reset"):
-                eff.reset(sd)
-            im = eff(im0, depth=self.depths[j], state=dict(self.states[j]), rng=np.random.default_rng(sd))
-            same = im.shape == im0.shape and np.array_equal(im, im0)
-            dets.append(self.clear_dets[j] if same else self.det.detect_batch([im], score_threshold=0.05)[0])
-        return self.matches(dets)
-
     def score(self, table: dict[str, Any], seeds: int) -> dict[str, float]:
-        """Relative mAP per seed (mean, sd) and the bootstrap se (over episodes) of the seeds' mean."""
-        ms = [self.degraded(table, s) for s in range(seeds)]
+        """Relative mAP per seed (mean, sd) and the bootstrap se (over episodes) of the seeds' mean; the
+        weather seeds of ``score_dataset(..., seed=s)``."""
+        ms = [self.matches(self._detect(table, np.random.SeedSequence(s).generate_state(self.n, dtype=np.uint32)))
+              for s in range(seeds)]
         cm = self.clear.map50()
         vals = [m.map50() / cm for m in ms]
         rng = np.random.default_rng(12345)
@@ -111,7 +116,9 @@ def main() -> None:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--detector", default=None)
     ap.add_argument("--frames", type=int, default=320, help="check-set frames (default %(default)s)")
-    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--seeds", type=int, default=5, help="weather seeds at the resolved k (default %(default)s)")
+    ap.add_argument("--pool-seeds", type=int, default=5, help="weather seeds at the pool k (default %(default)s)")
+    ap.add_argument("--workers", type=int, default=None, help="processes (default: as resolve_presets)")
     ap.add_argument("--frames-per-episode", type=int, default=1, help="frames per episode of the check set")
     ap.add_argument("--sets", type=Path, default=Path("scratch/resolved_check_sets"),
                     help="where the check sets are rendered (large; not in the repository)")
@@ -121,7 +128,7 @@ def main() -> None:
     for text in args.scenarios:
         sc = scenario_of(text, args.detector)
         t0 = time.perf_counter()
-        res = resolve_presets(sc, progress=False)
+        res = resolve_presets(sc, progress=False, workers=args.workers)
         t_res = time.perf_counter() - t0
         stem = args.out / text.replace(":", "_")
         write_resolved(res, stem.with_suffix(".toml"), scenario=sc, overwrite=True)
@@ -130,7 +137,7 @@ def main() -> None:
         if not (check / "annotations.json").is_file():
             render_dataset(check, tracks=list(sc.tracks), frames=args.frames, seed=4242, scene=sc.scene,
                            frames_per_episode=args.frames_per_episode, progress=False, overwrite=True)
-        cs = CheckSet(check, load_detector(sc.detector))
+        cs = CheckSet(check, sc.detector, args.workers or default_workers())
         for r in res.rows:
             if r.severity == 0:
                 continue
@@ -138,14 +145,15 @@ def main() -> None:
                    "k_pool": r.k_pool, "k_resolved": r.k, "resolve_s": round(t_res, 1), "cached": res.cached,
                    "ref_frames": res.n_frames, "ref_achieved": round(r.achieved, 4), "ref_se": r.se,
                    "check_frames": cs.n}
-            done: dict[float, dict[str, float]] = {}
-            for which, k in (("pool", r.k_pool), ("resolved", r.k)):
-                if k not in done:
-                    done[k] = cs.score(dict(r.effect, k=k), args.seeds)
-                for q, v in done[k].items():
+            done: dict[tuple[float, int], dict[str, float]] = {}
+            for which, k, n in (("pool", r.k_pool, args.pool_seeds), ("resolved", r.k, args.seeds)):
+                if (k, n) not in done:
+                    done[k, n] = cs.score(dict(r.effect, k=k), n)
+                for q, v in done[k, n].items():
                     out[f"{which}_{q}"] = v
             rows.append(out)
             print(out, flush=True)
+        cs.close()
         with open(args.out / "resolved_check.csv", "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
             w.writeheader()

@@ -74,17 +74,20 @@ class FrameBlock:
     def __len__(self) -> int:
         return len(self.images)
 
-    def detect(self, detect_batch: Callable[..., list[Any]], table: dict[str, Any] | None) -> list[Any]:
+    def detect(self, detect_batch: Callable[..., list[Any]], table: dict[str, Any] | None,
+               seeds: np.ndarray | None = None) -> list[Any]:
         """Detections on every frame, clear (``table`` None) or degraded by the effect ``table``
-        (``{"name": ..., "k": ..., **params}``), each frame with ``reset(seed)`` and ``rng=default_rng(seed)``."""
+        (``{"name": ..., "k": ..., **params}``), each frame with ``reset(seed)`` and ``rng=default_rng(seed)``
+        (the block's own weather seeds, or ``seeds``: one per frame)."""
         if table is None:
             if self.clear is None:
                 self.clear = [detect_batch([im], score_threshold=KEEP_THRESHOLD)[0] for im in self.images]
             return self.clear
         effect = make(table["name"], **{k: v for k, v in table.items() if k != "name"})
+        seeds = self.seeds if seeds is None else seeds
         out = []
         for j, im0 in enumerate(self.images):
-            sd = int(self.seeds[j])
+            sd = int(seeds[j])
             effect.reset(sd)
             im = effect(im0, depth=self.depths[j], state=dict(self.states[j]), rng=np.random.default_rng(sd))
             if self.clear is not None and im.shape == im0.shape and np.array_equal(im, im0):
@@ -127,7 +130,7 @@ def _serve(inp: Any, out: Any) -> None:
                 blocks[args[0]] = FrameBlock.load(args[1], args[2])
                 result = len(blocks[args[0]])
             elif op == "detect":
-                result = blocks[args[0]].detect(detector.detect_batch, args[1])
+                result = blocks[args[0]].detect(detector.detect_batch, *args[1:])
             else:
                 raise ValueError(f"unknown request {op!r}")
             reply = ("ok", result)

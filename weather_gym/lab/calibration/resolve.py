@@ -327,8 +327,9 @@ def resolution_key(scenario: Scenario, presets: str | os.PathLike | None = None,
 
 
 # ------------------------------------------------------------------------------------ the reference set
-class _Helper:
-    """A helper process (:mod:`weather_gym.lab.calibration._resolve_worker`) taking a share of the frames."""
+class Helper:
+    """A helper process (:mod:`weather_gym.lab.calibration._resolve_worker`) taking a share of the frames:
+    ``send(request...)`` then ``recv()`` its answer; ``close()`` ends it."""
 
     def __init__(self, detector: Any, threads: int) -> None:
         pkg_parent = str(PACKAGE.parent)
@@ -384,7 +385,7 @@ class _ReferenceSet:
         self.scenario, self.root, self.detector, self.progress = scenario, root, detector, progress
         self.chunks: list[dict[str, Any]] = []
         self._dets: dict[tuple[str, float, int], list[Any]] = {}
-        self.helpers = [_Helper(scenario.detector, threads) for _ in range(max(int(workers), 1) - 1)]
+        self.helpers = [Helper(scenario.detector, threads) for _ in range(max(int(workers), 1) - 1)]
 
     def close(self) -> None:
         for h in self.helpers:
