@@ -397,7 +397,7 @@ class _ReferenceSet:
         s = self.scenario
         sizes = [s.frames // PARTS + (1 if p < s.frames % PARTS else 0) for p in range(PARTS)]
         folders = [self.root / f"chunk{i}" / f"part{p}" for p in range(PARTS)]
-        jobs = [dict(out=folders[p], tracks=list(s.tracks), frames=sizes[p], seed=s.seed + 7919 * i + 104729 * p,
+        jobs: list[dict[str, Any]] = [dict(out=folders[p], tracks=list(s.tracks), frames=sizes[p], seed=s.seed + 7919 * i + 104729 * p,
                      camera=s.camera, camera_model=s.model, scene=s.scene, frames_per_episode=s.frames_per_episode,
                      progress=self.progress, resume=folders[p].exists()) for p in range(PARTS) if sizes[p] > 0]
 
