@@ -97,7 +97,7 @@ def register(sub) -> None:
     r.add_argument("--max-frames", type=int, default=Scenario.max_frames,
                    help="widen the reference set up to this many frames while a damage is not known within --tolerance")
     r.add_argument("--tolerance", type=float, default=0.02,
-                   help="largest bootstrap standard error (over episodes) of a resolved damage")
+                   help="half-width of the 95 %% interval (bootstrap over episodes) a resolved damage must be known within")
     r.add_argument("--plot", type=Path, default=None, help="curve plot PNG (default: next to --out, OUT_STEM.png)")
     p.add_argument("--seeds", type=int, default=5, help="weather realisations per preset when re-measuring")
     add_detector_args(p, what="scores the measured image sets and re-measures", legacy_model=True)
@@ -108,7 +108,8 @@ def register(sub) -> None:
     p.add_argument("--study-points", type=Path, default=None,
                    help="the study's Figure-7 points (effect,k,map) to draw beside our curves in the report")
     p.add_argument("--source", default=None, help="text for the presets' 'source' field (default: this command)")
-    add_runner_args(p, what="re-measurement cells", resumable=False)
+    add_runner_args(p, what="re-measurement cells (or, resolving, processes sharing the render and the detector)",
+                    resumable=False)
     p.set_defaults(func=_run)
 
 
@@ -214,7 +215,8 @@ def _run_resolve(args) -> int:
     check_output(plot, overwrite=args.overwrite, suffixes=(".png",), what="--plot")
     detector = detector_spec_from_args(args)
     scenario = _scenario_from_args(args, detector)
-    res = resolve_presets(scenario, presets=args.base, tolerance=args.tolerance, progress=not args.no_progress)
+    res = resolve_presets(scenario, presets=args.base, tolerance=args.tolerance, progress=not args.no_progress,
+                          workers=args.workers)  # --workers: one process per CPU unless given (same k's)
     for line in resolution_lines(res):
         print(line)
     path = write_resolved(res, args.out, presets=args.base, scenario=scenario, overwrite=args.overwrite)

@@ -262,7 +262,7 @@ def _resolve_in_child(cache: str, marker_dir: str, q) -> None:
 
     _os.environ[rs.CACHE_ENV] = cache
 
-    def fake_compute(scenario, presets, tolerance, key, frames_root, out, progress, threads):
+    def fake_compute(scenario, presets, tolerance, key, frames_root, out, progress, threads, workers=1):
         (Path(marker_dir) / f"computed-{_os.getpid()}").write_text("x")
         _time.sleep(1.5)  # long enough for the other process to arrive and wait
         row = ResolvedRow("low_light", 2, 0.344, 0.85, 0.843, 0.345, 0.01, (0.33, 0.36), (0.849, 0.851), True,
@@ -304,3 +304,25 @@ def test_code_version_is_remembered_by_file_stats(monkeypatch, tmp_path):
     rs.code_version.cache_clear()
     assert rs.code_version() == "0123456789abcdef"
     rs.code_version.cache_clear()
+
+
+def test_helper_processes_give_the_same_detections(calib_set_8, tmp_path):
+    """A helper process degrades and detects its share of the frames; the result is the one-process one."""
+    sc = Scenario(dataset=str(calib_set_8))
+    table = {"name": "dim", "k": 0.8, "mode": "night"}
+    one = rs._ReferenceSet(sc, tmp_path, rs.load_detector(None), progress=False, workers=1)
+    two = rs._ReferenceSet(sc, tmp_path, rs.load_detector(None), progress=False, workers=2)
+    try:
+        for ref in (one, two):
+            ref.widen()
+        assert len(two.helpers) == 1 and two.chunks[0]["cuts"].tolist() == [0, 4, 8]
+        for label, t, k in (("clear", None, 0.0), ("dim", table, 0.8)):
+            a, b = one.matches(label, t, k), two.matches(label, t, k)
+            assert a.map50() == b.map50()
+            for c in range(len(a.classes)):
+                for g in range(a.n_groups):
+                    np.testing.assert_array_equal(a.scores[c][g], b.scores[c][g])
+        assert one.matches("dim", table, 0.8).map50() < one.matches("clear", None, 0.0).map50()
+    finally:
+        two.close()
+    assert two.helpers == []

@@ -2,7 +2,9 @@
 
 First use: :func:`weather_gym.lab.calibration.resolve.resolve_presets` of one scenario into an empty cache
 (``--cache``, default a fresh temporary folder): render the reference set, the clear detections, the
-search on k, the bootstrap, the presets file. One run (minutes), wall and CPU seconds both: on a shared
+search on k, the bootstrap, the presets file. One run (minutes) with ``--workers`` processes (default: the
+usable cores, at most 4) beside the baseline in the same run: one process (``--baseline-workers``, 0 to
+skip it), into its own empty cache; wall and CPU seconds (this process and its helpers) both: on a shared
 machine the wall time is what others' processes leave. Cached use: the same call again, the median of
 ``--repeats`` calls (key: the detector file's and the code's hashes; reading the entry), beside the
 baseline in the same run: a ``CONDITION@SEVERITY`` read from the shipped pool presets.
@@ -13,8 +15,8 @@ Example:
 The command line above, parsed (nothing runs):
     >>> from weather_gym.cli import build_parser
     >>> args = build_parser().parse_args(['bench', 'resolve', '--track', 'small_track'])
-    >>> args.target, args.track, args.repeats
-    ('resolve', 'small_track', 200)
+    >>> args.target, args.track, args.repeats, args.baseline_workers
+    ('resolve', 'small_track', 200, 1)
 """
 
 from __future__ import annotations
@@ -40,10 +42,13 @@ def register(targets) -> None:
     p.add_argument("--world", default="plain", choices=("plain", "realistic"), help="world (default %(default)s)")
     p.add_argument("--frames", type=int, default=Scenario.frames, help="reference frames (default %(default)s)")
     p.add_argument("--max-frames", type=int, default=Scenario.max_frames, help="widening limit (default %(default)s)")
-    p.add_argument("--tolerance", type=float, default=0.02, help="bootstrap standard error accepted (default %(default)s)")
+    p.add_argument("--tolerance", type=float, default=0.02, help="half-width of the damage's 95 %% interval accepted (default %(default)s)")
     p.add_argument("--cache", type=Path, default=None,
                    help="cache folder (default: a fresh temporary one, so the first call is a first use)")
     p.add_argument("--repeats", type=int, default=200, help="cached calls timed (default %(default)s)")
+    p.add_argument("--workers", type=int, default=None, help="processes of the first use (default: the usable cores, at most 4)")
+    p.add_argument("--baseline-workers", type=int, default=1,
+                   help="processes of the baseline first use (default %(default)s; 0: no baseline run)")
     p.set_defaults(func=run)
 
 
@@ -56,9 +61,30 @@ def _median_ms(fn, repeats: int) -> float:
     return statistics.median(times)
 
 
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its finished child processes (the resolution's helpers)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def _first_use(sc: Scenario, tolerance: float, workers: int, cache: Path) -> tuple[Any, str]:
+    os.environ[rs.CACHE_ENV] = str(cache)
+    load = os.getloadavg()[0]
+    w0, c0 = time.perf_counter(), _cpu_s()
+    res = resolve_presets(sc, tolerance=tolerance, progress=False, workers=workers)
+    wall, cpu = time.perf_counter() - w0, _cpu_s() - c0
+    if res.cached:
+        return res, "(already cached)"
+    return res, (f"{wall:.1f} s wall, {cpu:.1f} s CPU ({workers} process{'es' if workers > 1 else ''}, "
+                 f"load average {load:.1f} at the start)")
+
+
 def run(args) -> int:
     if args.repeats < 1:
         raise InputError(f"--repeats must be >= 1, got {args.repeats}")
+    workers = rs.default_workers() if args.workers is None else args.workers
+    if workers < 1 or args.baseline_workers < 0:
+        raise InputError(f"--workers must be >= 1 and --baseline-workers >= 0, got {workers}, {args.baseline_workers}")
     tmp = None
     if args.cache is None:
         tmp = tempfile.TemporaryDirectory(prefix="weather-gym-bench-resolve-")
@@ -69,10 +95,13 @@ def run(args) -> int:
         sc = Scenario(tracks=(args.track,), scene=args.world, frames=args.frames, max_frames=args.max_frames)
         print(machine_line())
         print(f"load average {os.getloadavg()[0]:.2f} (other processes on the same cores slow every number)")
-        w0, c0 = time.perf_counter(), time.process_time()
-        res = resolve_presets(sc, tolerance=args.tolerance, progress=False)
-        wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-        first = "(already cached)" if res.cached else f"{wall:.1f} s wall, {cpu:.1f} s CPU (this process)"
+        base = None
+        if args.baseline_workers:
+            with tempfile.TemporaryDirectory(prefix="weather-gym-bench-resolve-base-") as tmp_base:
+                base_res, base = _first_use(sc, args.tolerance, args.baseline_workers, Path(tmp_base))
+        res, first = _first_use(sc, args.tolerance, workers, args.cache)
+        if base is not None and [r.k for r in base_res.rows] != [r.k for r in res.rows]:
+            raise RuntimeError("the baseline and the timed first use resolved different k's")  # they must not
         cached = _median_ms(lambda: resolve_presets(sc, tolerance=args.tolerance, progress=False), args.repeats)
         rs.code_version.cache_clear()
         rs._sha_cached.cache_clear()
@@ -85,6 +114,8 @@ def run(args) -> int:
         pool = _median_ms(lambda: parse_weather("low_light@2"), args.repeats)
         resolved = _median_ms(lambda: parse_weather("low_light@2", res.path), args.repeats)
         rows = [["first use (render, search, bootstrap, write)", first],
+                *([["baseline: first use in one process" if args.baseline_workers == 1 else
+                    f"baseline: first use in {args.baseline_workers} processes", base]] if base else []),
                 ["cached use, median (key + read)", f"{cached:.2f} ms"],
                 ["cached use, median, hashes recomputed (a new process)", f"{cold:.2f} ms"],
                 ["parse 'low_light@2' from the resolved presets file, median", f"{resolved:.3f} ms"],

@@ -7,7 +7,7 @@ The shipped k (``presets.toml``) met it on the calibration pool of tracks for th
 recording, camera and camera model, world, detector, effect mode):
 
 1. a deterministic reference set of the scenario is rendered once (``weather_gym.lab.datasets.render``;
-   short episodes from start points spread over the track) and shared by every row;
+   one frame from each of many start points drawn over the track) and shared by every row;
 2. the detector runs on the clear frames once (clear mAP; too few visible cones or a clear mAP too low
    to measure a drop is a :class:`~weather_gym.core.errors.ResolutionError`);
 3. per row, k is found by secant steps on the logit of the relative mAP (every frame degraded with its
@@ -16,8 +16,11 @@ recording, camera and camera model, world, detector, effect mode):
    measured k is within :data:`HIT`; every point measured serves every row of its condition
    (:func:`weather_gym.lab.calibration.curve.invert` reads the final k off them);
 4. the damage at the resolved k is bootstrapped over the set's episodes (frames of an episode are not
-   independent): when its standard error exceeds ``tolerance`` (0.02) the set is widened by more episodes,
-   up to ``scenario.max_frames``; still wider is a ``ResolutionError`` naming the rows and the fix.
+   independent; each frame has its own weather draw, so the draws are resampled with them): when its 95 %
+   interval is wider than ± ``tolerance`` (0.02: a standard error above 0.0102) the set is widened, in chunks
+   of ``scenario.frames``, to about the frames the worst row needs (:func:`frames_needed`), up to
+   ``scenario.max_frames``, and the search goes on from the k's found; still wider is a ``ResolutionError``
+   naming the rows and the fix.
 
 The result is written once to a disk cache (:func:`cache_dir`, ``$WEATHER_GYM_CACHE``) keyed by
 everything that changes it (:func:`resolution_key`); concurrent processes computing the same key wait
@@ -40,6 +43,9 @@ import hashlib
 import json
 import math
 import os
+import pickle
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable, Sequence
@@ -62,19 +68,18 @@ from weather_gym.core.paths import PACKAGE
 from weather_gym.core.schema import OneOf, PositiveInt, check_fields
 from weather_gym.core.version import __version__
 from weather_gym.envs.config import EnvConfig
+from weather_gym.lab.calibration._resolve_worker import FrameBlock, render_part
 from weather_gym.lab.calibration.curve import invert
 from weather_gym.lab.calibration.frame_ap import FrameMatches, frame_matches
 from weather_gym.lab.datasets.coco import load_coco
-from weather_gym.lab.datasets.render import render_dataset
 from weather_gym.perception.detector_spec import DEFAULT_MODEL, load_detector, parse_detector_spec
 from weather_gym.perception.scoring import small_rule
 from weather_gym.sim.config import SCENES
-from weather_gym.weather import make
 from weather_gym.weather.presets import DEFAULT_PRESETS, SEVERITIES, conditions, load_presets, nominal_rows
 from weather_gym.weather.spec import preset_items
 
 __all__ = ["CACHE_ENV", "MIN_CLEAR_MAP", "MIN_CONES", "Resolution", "ResolvedRow", "Scenario", "cache_dir",
-           "code_version", "presets_for_env", "resolution_key", "resolve_presets", "resolves"]
+           "code_version", "default_workers", "frames_needed", "presets_for_env", "resolution_key", "resolve_presets", "resolves"]
 
 CACHE_ENV = "WEATHER_GYM_CACHE"
 """Environment variable naming the cache folder (``off``: no cache); default ``$XDG_CACHE_HOME/weather-gym``
@@ -84,24 +89,32 @@ MIN_CONES = 100
 MIN_CLEAR_MAP = 0.3
 """Lowest clear mAP@0.5 (blue and yellow) at which a relative drop is measured."""
 HIT = 0.01
-"""A measured point this close to the target ends a row's search (half the ``tolerance`` the bootstrap
-holds the damage to: a closer search would chase the reference set's own sampling error)."""
+"""A measured point this close to the target ends a row's search (about one standard error of the damage
+the bootstrap accepts, half the ``tolerance``: a closer search would chase the reference set's own sampling
+error)."""
 MAX_EVALS = 8
 """Most k values measured per row and set."""
 EXTRAPOLATE = 1.0
 """A secant step off one side of the target reaches at most this many times the (logit) span of the two
 points it is drawn through; further, the step follows the pool curve's local slope instead."""
+Z95 = 1.959964
+"""A damage is known within ``tolerance`` when its 95 % interval, ``Z95`` bootstrap standard errors either
+side, is within ± ``tolerance``."""
 BOOTSTRAP = 200
 """Bootstrap replicates (over episodes) of the damage at the resolved k."""
 DETECT_BATCH = 1
 """Frames per detector call while resolving (CPU per frame grows with the batch: ``weather-gym bench resolve``)."""
-VERSION = 3
+PARTS = 2
+"""Parts a chunk of the reference set is rendered in (each from its own seed; helper processes render
+parts at the same time). Fixed, so the frames do not depend on the number of processes."""
+VERSION = 4
 """Version of this resolution method (part of the cache key)."""
 
 _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coco.py",
          "lab/datasets/coco_writer.py", "perception/scoring.py", "perception/onnx_detector.py", "perception/yolo.py",
          "perception/preprocess.py", "perception/cones.py", "lab/calibration/resolve.py", "lab/calibration/frame_ap.py",
-         "lab/calibration/curve.py")
+         "lab/calibration/curve.py",
+         "lab/calibration/_resolve_worker.py")
 
 
 # ------------------------------------------------------------------------------------------ scenario
@@ -119,8 +132,10 @@ def _path_text(value: Any) -> Any:
 class Scenario:
     """What a preset is resolved for. ``dataset``: a clear COCO recording used as it is (no render);
     otherwise ``frames`` frames are rendered over ``tracks`` in ``scene`` through ``camera`` and
-    ``camera_model`` (None: the env's default), in episodes of ``frames_per_episode``, from ``seed``,
-    widened by as many again up to ``max_frames`` while the damage is not known within the tolerance.
+    ``camera_model`` (None: the env's default), in episodes of ``frames_per_episode`` (1: every frame from
+    its own start point; frames of one episode, 0.1 s apart, tell about half as much as frames of different
+    episodes), from ``seed``, widened in chunks of ``frames`` up to ``max_frames`` while a damage is not known
+    within the tolerance.
     ``detector``: a detector spec (None: the shipped one; ``"yolov8:model.onnx"``, ...)."""
 
     tracks: Annotated[tuple[str, ...], BeforeValidator(_tracks)] = ("small_track",)
@@ -130,9 +145,9 @@ class Scenario:
     detector: Any = None
     dataset: Annotated[str | None, BeforeValidator(_path_text)] = None
     frames: PositiveInt = 160
-    max_frames: PositiveInt = 480  # and >= frames
+    max_frames: PositiveInt = 1600  # and >= frames
     seed: int = 0
-    frames_per_episode: PositiveInt = 4
+    frames_per_episode: PositiveInt = 1
 
     def __post_init__(self) -> None:
         check_fields(self)  # each field against its annotation; then the relations
@@ -315,54 +330,124 @@ def resolution_key(scenario: Scenario, presets: str | os.PathLike | None = None,
 
 
 # ------------------------------------------------------------------------------------ the reference set
-class _ReferenceSet:
-    """The scenario's frames (rendered in chunks of ``scenario.frames``, each chunk once), the detector's
-    clear detections and every degraded frame's detections, kept per (effect, k, chunk)."""
+class Helper:
+    """A helper process (:mod:`weather_gym.lab.calibration._resolve_worker`) taking a share of the frames:
+    ``send(request...)`` then ``recv()`` its answer; ``close()`` ends it."""
 
-    def __init__(self, scenario: Scenario, root: Path, detector: Any, progress: bool) -> None:
+    def __init__(self, detector: Any, threads: int) -> None:
+        pkg_parent = str(PACKAGE.parent)
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([pkg_parent, *filter(None, [env.get("PYTHONPATH")])])
+        self.proc = subprocess.Popen([sys.executable, "-m", "weather_gym.lab.calibration._resolve_worker"],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        self.send("init", detector, threads)  # its answer is read before the first other one (it starts meanwhile)
+        self._init_unread = True
+
+    def send(self, *msg: Any) -> None:
+        assert self.proc.stdin is not None
+        pickle.dump(msg, self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+        self.proc.stdin.flush()
+
+    def recv(self) -> Any:
+        if self._init_unread:
+            self._init_unread = False
+            self.recv()
+        assert self.proc.stdout is not None
+        try:
+            status, result = pickle.load(self.proc.stdout)
+        except EOFError:
+            raise RuntimeError(f"a resolution helper process ended (exit status {self.proc.wait()}); "
+                               "its error is above on stderr") from None
+        if status != "ok":
+            raise RuntimeError(f"a resolution helper process failed: {result}")
+        return result
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            if self.proc.stdin is not None:
+                self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        if self.proc.stdout is not None:
+            self.proc.stdout.close()
+
+
+class _ReferenceSet:
+    """The scenario's frames (rendered in chunks of ``scenario.frames``, each chunk once, in :data:`PARTS`
+    parts), the detector's clear detections and every degraded frame's detections, kept per (effect, k, chunk).
+
+    With ``workers`` above 1, helper processes render parts of a chunk and degrade and detect their share
+    of its frames while this process does its own (:mod:`weather_gym.lab.calibration._resolve_worker`);
+    the frames and every detection are the same as with one process."""
+
+    def __init__(self, scenario: Scenario, root: Path, detector: Any, progress: bool, workers: int = 1,
+                 threads: int = 1) -> None:
         self.scenario, self.root, self.detector, self.progress = scenario, root, detector, progress
         self.chunks: list[dict[str, Any]] = []
         self._dets: dict[tuple[str, float, int], list[Any]] = {}
+        self.helpers = [Helper(scenario.detector, threads) for _ in range(max(int(workers), 1) - 1)]
+
+    def close(self) -> None:
+        for h in self.helpers:
+            h.close()
+        self.helpers = []
+
+    def _render(self, i: int) -> list[Path]:
+        """Render chunk ``i``'s parts (each once; helpers render a part each), return their folders."""
+        s = self.scenario
+        sizes = [s.frames // PARTS + (1 if p < s.frames % PARTS else 0) for p in range(PARTS)]
+        folders = [self.root / f"chunk{i}" / f"part{p}" for p in range(PARTS)]
+        jobs: list[dict[str, Any]] = [dict(out=folders[p], tracks=list(s.tracks), frames=sizes[p], seed=s.seed + 7919 * i + 104729 * p,
+                     camera=s.camera, camera_model=s.model, scene=s.scene, frames_per_episode=s.frames_per_episode,
+                     progress=self.progress, resume=folders[p].exists()) for p in range(PARTS) if sizes[p] > 0]
+
+        (self.root / f"chunk{i}").mkdir(parents=True, exist_ok=True)
+        todo = [j for j in jobs if not (Path(j["out"]) / "annotations.json").is_file()]
+        given = []
+        for h, job in zip(self.helpers, todo[1:], strict=False):  # helpers render the later parts
+            h.send("render", {**job, "progress": False})
+            given.append(h)
+        for job in todo[len(given) + 1:] + todo[:1]:
+            render_part(job)
+        for h in given:
+            h.recv()
+        return [Path(j["out"]) for j in jobs]
 
     def widen(self) -> None:
         i = len(self.chunks)
         s = self.scenario
         if s.dataset is not None:
-            ds = load_coco(s.dataset, cache_images=True)
+            sets = [load_coco(s.dataset)]
         else:
-            folder = self.root / f"chunk{i}"
-            with waiting_lock(str(self.root / f".chunk{i}.lock")):
-                if not (folder / "annotations.json").is_file():
-                    render_dataset(folder, tracks=list(s.tracks), frames=s.frames, seed=s.seed + 7919 * i,
-                                   camera=s.camera, camera_model=s.model, scene=s.scene,
-                                   frames_per_episode=s.frames_per_episode, progress=self.progress,
-                                   resume=folder.exists())
-            ds = load_coco(folder, cache_images=True)
-        n = len(ds)
-        records = [ds.record(j) for j in range(n)]
-        states = []
-        for rec in records:
-            st = {"speed": float(rec.get("speed", 0.0)), "yaw_rate": float(rec.get("yaw_rate", 0.0))}
-            if rec.get("camera"):
-                c = CameraConfig(**rec["camera"])
-                st.update(exposure_s=c.exposure_s, fx=c.fx)
-            states.append(st)
-        rule = small_rule(ds, self.detector)
+            sets = [load_coco(f) for f in self._render(i)]
+        frames = [(str(ds.root), j) for ds in sets for j in range(len(ds))]
+        n = len(frames)
+        seeds = np.random.SeedSequence([s.seed, i]).generate_state(max(n, 1), dtype=np.uint32)
+        cuts = np.linspace(0, n, len(self.helpers) + 2).round().astype(int)
+        for b, h in enumerate(self.helpers, start=1):
+            h.send("frames", i, frames[cuts[b]:cuts[b + 1]], seeds[cuts[b]:cuts[b + 1]])
+        own = FrameBlock.load(frames[:cuts[1]], seeds[:cuts[1]])
+        for h in self.helpers:
+            h.recv()
+        rule = small_rule(sets[0], self.detector)
         self.chunks.append({
-            "images": [ds.image(j) for j in range(n)],
-            "depths": [ds.depth(j) if rec.get("depth_file") else None for j, rec in enumerate(records)],
-            "states": states, "gts": [ds.gt(j) for j in range(n)],
-            "groups": [(i, rec.get("episode", j)) for j, rec in enumerate(records)],
-            "seeds": np.random.SeedSequence([s.seed, i]).generate_state(max(n, 1), dtype=np.uint32),
+            "block": own, "cuts": cuts, "n": n,
+            "gts": [ds.gt(j) for ds in sets for j in range(len(ds))],
+            "groups": [(i, str(ds.root), rec.get("episode", j)) for ds in sets
+                       for j, rec in ((j, ds.record(j)) for j in range(len(ds)))],
             "min_box_height": None if rule is None else rule.min_height_px,
         })
 
     @property
     def n_frames(self) -> int:
-        return sum(len(c["images"]) for c in self.chunks)
+        return sum(c["n"] for c in self.chunks)
 
-    def detections(self, label: str, effect: Any, k: float, chunk: int) -> list[Any]:
-        """The detector's detections on every frame of ``chunk`` degraded by ``effect`` at ``k`` (None: clear).
+    def detections(self, label: str, table: dict[str, Any] | None, k: float, chunk: int) -> list[Any]:
+        """The detector's detections on every frame of ``chunk`` degraded by the effect ``table`` at ``k``
+        (None: clear), this process's share and the helpers' at the same time.
 
         Frames go through the detector one at a time, as they are degraded (:data:`DETECT_BATCH`: a batch of
         one costs the shipped detector about half the CPU per frame of a batch of 160, and no degraded set is
@@ -371,37 +456,21 @@ class _ReferenceSet:
         key = (label, round(float(k), 6), chunk)
         if key not in self._dets:
             c = self.chunks[chunk]
-            ims = c["images"]
-            clear = self._dets.get(("clear", 0.0, chunk))
-            out: list[Any] = []
-            for i in range(0, len(ims), DETECT_BATCH):
-                part, todo = [], []
-                for j in range(i, min(i + DETECT_BATCH, len(ims))):
-                    im = ims[j]
-                    if effect is not None:
-                        sd = int(c["seeds"][j])
-                        effect.reset(sd)
-                        im = effect(im, depth=c["depths"][j], state=dict(c["states"][j]), rng=np.random.default_rng(sd))
-                        if clear is not None and im.shape == ims[j].shape and np.array_equal(im, ims[j]):
-                            part.append(clear[j])
-                            continue
-                    part.append(None)
-                    todo.append((len(part) - 1, im))
-                if todo:
-                    found = self.detector.detect_batch([im for _, im in todo], score_threshold=0.05)
-                    for (slot, _), d in zip(todo, found, strict=True):
-                        part[slot] = d
-                out += part
+            for h in self.helpers:
+                h.send("detect", chunk, table)
+            out = list(c["block"].detect(self.detector.detect_batch, table))
+            for h in self.helpers:
+                out += h.recv()
             self._dets[key] = out
         return self._dets[key]
 
-    def matches(self, label: str, effect: Any, k: float) -> FrameMatches:
+    def matches(self, label: str, table: dict[str, Any] | None, k: float) -> FrameMatches:
         gts, dets, groups = [], [], []
         rules = {c["min_box_height"] for c in self.chunks}
         for i, c in enumerate(self.chunks):
             gts += c["gts"]
             groups += c["groups"]
-            dets += self.detections(label, effect, k, i)
+            dets += self.detections(label, table, k, i)
         return frame_matches(gts, dets, groups=groups, min_box_height=rules.pop() if len(rules) == 1 else None)
 
 
@@ -508,7 +577,7 @@ class _Search:
         self.matches: dict[float, FrameMatches] = {}
 
     def measure(self, k: float) -> None:
-        m = self.ref.matches(self.label, make(self.name, k=k, **self.params), k)
+        m = self.ref.matches(self.label, {"name": self.name, "k": k, **self.params}, k)
         self.matches[k] = m
         self.points[k] = m.map50() / self.clear_map
         self.tick()
@@ -516,14 +585,15 @@ class _Search:
     def _hit(self, target: float) -> bool:
         return any(abs(v - target) <= HIT for v in self.points.values())
 
-    def row(self, cond: str, sev: int, t: dict[str, Any]) -> ResolvedRow:
+    def row(self, cond: str, sev: int, t: dict[str, Any], k_start: float | None = None) -> ResolvedRow:
         target, k_pool = float(t["measured_relative"]), float(t["effects"][0]["k"])
+        k0 = k_pool if k_start is None else k_start
         points, evals, note, reachable = self.points, 0, "", True
         if target >= 1.0 and 0.0 not in points:
             self.measure(0.0)
             evals += 1
         while evals < MAX_EVALS and not self._hit(target):
-            k = _next_k(points, target, self.pool, k_pool)
+            k = _next_k(points, target, self.pool, k0)
             if k is None:
                 break
             self.measure(k)
@@ -552,7 +622,10 @@ class _Search:
 
 
 def _resolve_rows(ref: _ReferenceSet, targets, clear: FrameMatches, clear_map: float, scenario: Scenario,
-                  tick: Callable[[], None]) -> tuple[list[ResolvedRow], dict[str, list[list[float]]]]:
+                  tick: Callable[[], None], start: dict[tuple[str, int], float] | None = None,
+                  ) -> tuple[list[ResolvedRow], dict[str, list[list[float]]]]:
+    """Every row searched on the set as it is now; ``start``: the k each row starts from (a smaller set's
+    resolved k; default the pool k)."""
     by_cond: dict[str, list] = {}
     for cond, sev, t in targets:
         by_cond.setdefault(cond, []).append((sev, t))
@@ -560,7 +633,7 @@ def _resolve_rows(ref: _ReferenceSet, targets, clear: FrameMatches, clear_map: f
     points_out: dict[str, list[list[float]]] = {}
     for cond, items in by_cond.items():
         search = _Search(ref, items, clear, clear_map, scenario, tick)
-        rows += [search.row(cond, sev, t) for sev, t in items]
+        rows += [search.row(cond, sev, t, (start or {}).get((cond, sev))) for sev, t in items]
         points_out[cond] = [[k, search.points[k]] for k in sorted(search.points)]
     return rows, points_out
 
@@ -583,15 +656,19 @@ def _row(cond, sev, target, k, k_pool, points, matches, clear, name, params, eva
 # ------------------------------------------------------------------------------------------- resolving
 def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathLike | None = None,
                     tolerance: float = 0.02, cache: bool = True, progress: bool = True,
-                    threads: int = 1) -> Resolution:
+                    threads: int = 1, workers: int | None = None) -> Resolution:
     """The shipped (or ``presets``) calibrated rows resolved for ``scenario`` (see module doc).
 
     Cached: a second call with the same key reads the result (tens of ms); ``cache=False`` or no cache
-    folder (:func:`cache_dir`) resolves anew, in a temporary folder. ``tolerance``: the largest bootstrap
-    standard error of a row's damage that is accepted. Raises :class:`~weather_gym.core.errors.ResolutionError`
+    folder (:func:`cache_dir`) resolves anew, in a temporary folder. ``tolerance``: the half-width of the
+    95 % interval (bootstrap) within which a row's damage must be known. ``workers``: processes that share the frames (None:
+    :func:`default_workers`; the result does not depend on it). Raises :class:`~weather_gym.core.errors.ResolutionError`
     where the scenario does not allow it.
     """
     scenario = scenario or Scenario()
+    workers = default_workers() if workers is None else workers
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"workers must be an integer >= 1, got {workers!r}")
     if not (isinstance(tolerance, float | int) and 0 < tolerance < 1):
         raise InputError(f"tolerance must be a number in (0, 1), got {tolerance!r}")
     key = resolution_key(scenario, presets, tolerance)
@@ -599,7 +676,7 @@ def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathL
     if root is None:  # frames in a temporary folder; the presets file beside them in the temp dir, if it is writable
         out = Path(tempfile.gettempdir()) / f"weather-gym-resolved-{key}.toml"
         with tempfile.TemporaryDirectory(prefix="weather-gym-resolve-") as tmp:
-            res = _compute(scenario, presets, tolerance, key, Path(tmp), None, progress, threads)
+            res = _compute(scenario, presets, tolerance, key, Path(tmp), None, progress, threads, workers)
         with contextlib.suppress(OSError):
             res.path = write_resolved(res, out, presets=presets, scenario=scenario, overwrite=True)
         res.note = ("no cache folder (set WEATHER_GYM_CACHE to a writable folder to keep resolutions)" if cache
@@ -616,9 +693,30 @@ def resolve_presets(scenario: Scenario | None = None, *, presets: str | os.PathL
         frames = root / "frames" / hashlib.sha256(json.dumps(scenario.identity(), sort_keys=True,
                                                              default=str).encode()).hexdigest()[:16]
         frames.mkdir(parents=True, exist_ok=True)
-        res = _compute(scenario, presets, tolerance, key, frames, root / "resolved" / f"{key}.toml", progress, threads)
+        res = _compute(scenario, presets, tolerance, key, frames, root / "resolved" / f"{key}.toml", progress, threads,
+                       workers)
         atomic_write_json(entry, res.to_dict(), indent=1, overwrite=True)
     return res
+
+
+def frames_needed(n_frames: int, se: float, tolerance: float) -> int:
+    """Frames at which a damage with standard error ``se`` on ``n_frames`` frames is known within
+    ``tolerance`` (95 %), with a tenth to spare: the error falls as one over the square root of the frames.
+
+    Example:
+        >>> frames_needed(160, 0.019, 0.02)
+        610
+    """
+    return int(math.ceil(n_frames * (Z95 * se / tolerance) ** 2 * 1.1))
+
+
+def default_workers() -> int:
+    """Processes a resolution uses by default: the cores this process may run on, at most 4."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        n = os.cpu_count() or 1
+    return max(1, min(4, n))
 
 
 def _read_entry(entry: Path) -> Resolution | None:
@@ -635,17 +733,18 @@ def _read_entry(entry: Path) -> Resolution | None:
 
 
 def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_root: Path, out: Path | None,
-             progress: bool, threads: int) -> Resolution:
+             progress: bool, threads: int, workers: int = 1) -> Resolution:
     t0 = time.perf_counter()
     targets = _targets(presets)
     if not targets:
         raise InputError(f"presets file {presets or DEFAULT_PRESETS} has no calibrated rows with a relative target to resolve")
     detector = load_detector(scenario.detector, threads=threads)
-    ref = _ReferenceSet(scenario, frames_root, detector, progress)
+    ref = _ReferenceSet(scenario, frames_root, detector, progress, workers, threads)
     bar = tqdm(desc="resolve presets", unit="k", disable=not progress)
     try:
+        ref.widen()
+        start: dict[tuple[str, int], float] = {}
         while True:
-            ref.widen()
             clear = ref.matches("clear", None, 0.0)
             n_cones = int(clear.npos.sum())
             if n_cones < MIN_CONES:
@@ -659,20 +758,25 @@ def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_roo
                     f"{scenario.describe()}: the detector's clear mAP@0.5 (blue and yellow) is {clear_map:.3f}, "
                     f"below {MIN_CLEAR_MAP} at which a relative drop is measured; check the detector spec "
                     f"(classes, input size) or use the shipped pool presets (--presets pool)")
-            rows, points = _resolve_rows(ref, targets, clear, clear_map, scenario, bar.update)
-            wide = [r for r in rows if r.se > tolerance]
+            rows, points = _resolve_rows(ref, targets, clear, clear_map, scenario, bar.update, start)
+            wide = [r for r in rows if Z95 * r.se > tolerance]
             if not wide:
                 break
+            worst = max(wide, key=lambda r: r.se)
+            need = frames_needed(ref.n_frames, worst.se, tolerance)
             if scenario.dataset is not None or ref.n_frames + scenario.frames > scenario.max_frames:
-                worst = max(wide, key=lambda r: r.se)
-                need = int(math.ceil(ref.n_frames * (worst.se / tolerance) ** 2))
                 raise ResolutionError(
                     f"{scenario.describe()}: the damage of {', '.join(f'{r.condition}@{r.severity}' for r in wide)} is "
-                    f"not known within {tolerance:g} on {ref.n_frames} frames ({worst.condition}@{worst.severity}: "
+                    f"not known within ±{tolerance:g} (95 %) on {ref.n_frames} frames ({worst.condition}@{worst.severity}: "
                     f"relative mAP {worst.achieved:.3f}, bootstrap standard error {worst.se:.3f}); about {need} frames "
                     f"would do: raise max_frames (--max-frames), record a longer clear set, or loosen --tolerance")
+            start = {(r.condition, r.severity): r.k for r in rows}
+            ref.widen()  # straight to about what the worst row needs, in chunks, up to max_frames
+            while ref.n_frames < need and ref.n_frames + scenario.frames <= scenario.max_frames:
+                ref.widen()
     finally:
         bar.close()
+        ref.close()
     res = Resolution(scenario=scenario.describe(), key=key, rows=rows, clear_map=round(clear_map, 4), n_cones=n_cones,
                      n_frames=ref.n_frames, seconds=round(time.perf_counter() - t0, 1), path=None, points=points)
     if out is not None:
