@@ -4,6 +4,8 @@
 along each pixel's ray (z-depth times the ray's obliquity) and ``A = airlight * 255``; ``airlight_tint``
 colours it as a sky does: at ``t > 0`` the red channel of ``A`` is ``(1 - t)`` of the blue (a bluish
 haze), at ``t < 0`` the blue is ``(1 + t)`` of the red (a warm one), green half-way; 0 (the default) is grey.
+``airlight_green`` is the other axis of a white balance (its "tint"): at ``g > 0`` red and blue are
+``(1 - g)`` of what they were (a greenish airlight), at ``g < 0`` green is ``(1 + g)`` of it (magenta).
 
 **Where it mixes** (``space``): ``"srgb"`` (the default, what the presets are calibrated with) mixes the
 8-bit code values; ``"linear"`` mixes scene radiance, as the law is stated: the image and the airlight
@@ -133,10 +135,11 @@ class Fog(CameraGeometry):
     min_visibility_m: float = 15.0
     airlight: float = 0.85
     airlight_tint: float = 0.0
+    airlight_green: float = 0.0
     space: str = "srgb"
 
     PARAM_BOUNDS: ClassVar = {"min_visibility_m": (2.0, 500.0), "airlight": (0.3, 1.0),
-                              "airlight_tint": (-0.2, 0.2)}
+                              "airlight_tint": (-0.2, 0.2), "airlight_green": (-0.2, 0.2)}
     CHOICES: ClassVar = {"space": ("srgb", "linear")}
 
     @property
@@ -153,6 +156,10 @@ class Fog(CameraGeometry):
         if self.airlight_tint:  # the brightest channel keeps the airlight level (RGB order)
             t = self.airlight_tint
             gray = (a * (1.0 - max(t, 0.0)), a * (1.0 - abs(t) / 2.0), a * (1.0 + min(t, 0.0)))
+        if self.airlight_green:
+            g = self.airlight_green
+            r0, g0, b0 = gray if isinstance(gray, tuple) else (a, a, a)
+            gray = (r0 * (1.0 - max(g, 0.0)), g0 * (1.0 + min(g, 0.0)), b0 * (1.0 - max(g, 0.0)))
         if self.space == "linear":
             if depth is None:  # cached per size and k
                 lterms = _fallback_linear_terms(h, w, fx, self.beta, self.camera_height_m, self.horizon_frac,
