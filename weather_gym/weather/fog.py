@@ -35,6 +35,7 @@ Example:
 from __future__ import annotations
 
 from dataclasses import dataclass
+import threading
 from functools import lru_cache
 from typing import Any, ClassVar
 
@@ -93,22 +94,42 @@ def _code_of_u16() -> np.ndarray:
     return readonly(np.rint(255.0 * srgb_encode(np.arange(65536) / 65535.0)).astype(np.uint8))
 
 
-def _linear_terms(t: np.ndarray, gray: float | tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """uint16 RGB ``65535 t`` and ``65535 A_lin (1 - t)`` from the float32 transmittance ``t``."""
+_SCRATCH = threading.local()  # per-thread work arrays of the linear blend: fresh 1.5 MB arrays per frame cost page faults
+
+
+def _scratch(name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """This thread's uint16 work array ``name`` of ``shape`` (reused from frame to frame)."""
+    buf = getattr(_SCRATCH, name, None)
+    if buf is None or buf.shape != shape:
+        buf = np.empty(shape, np.uint16)
+        setattr(_SCRATCH, name, buf)
+    return buf
+
+
+def _linear_terms(t: np.ndarray, gray: float | tuple[float, float, float],
+                  scratch: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """uint16 RGB ``65535 t`` and ``65535 A_lin (1 - t)`` from the float32 transmittance ``t``
+    (in this thread's work arrays with ``scratch``: valid until its next call)."""
     codes = gray if isinstance(gray, tuple) else (gray, gray, gray)
-    lin = _linear_u16()
-    a_lin = [float(np.interp(c, np.arange(256), lin)) for c in codes]  # airlight code -> linear (x 65535)
-    t16 = np.rint(t * 65535.0).astype(np.uint16)
-    t3 = cv2.cvtColor(t16, cv2.COLOR_GRAY2RGB)
-    one_minus = cv2.subtract(np.full_like(t16, 65535), t16)
-    add3 = cv2.merge([cv2.multiply(one_minus, np.full_like(t16, 1), scale=a / 65535.0) for a in a_lin])
+    a_lin = [float(v) for v in np.interp(codes, np.arange(256), _linear_u16())]  # airlight code -> linear
+    shape = (*t.shape, 3)
+    t3 = _scratch("t3", shape) if scratch else np.empty(shape, np.uint16)
+    add3 = _scratch("add3", shape) if scratch else np.empty(shape, np.uint16)
+    t16 = _scratch("t16", t.shape) if scratch else np.empty(t.shape, np.uint16)
+    np.copyto(t16, cv2.add(cv2.multiply(t, 65535.0), 0.5), casting="unsafe")  # rounded
+    cv2.cvtColor(t16, cv2.COLOR_GRAY2RGB, dst=t3)
+    inv = cv2.bitwise_not(t16)  # 65535 (1 - t)
+    if a_lin[0] == a_lin[1] == a_lin[2]:
+        cv2.cvtColor(cv2.multiply(inv, a_lin[0], scale=1 / 65535), cv2.COLOR_GRAY2RGB, dst=add3)
+    else:  # per plane: OpenCV's multiply by a 3-channel scalar is several times slower
+        cv2.merge([cv2.multiply(inv, a, scale=1 / 65535) for a in a_lin], dst=add3)
     return t3, add3
 
 
 def _blend_linear(img: np.ndarray, terms: tuple[np.ndarray, np.ndarray], out: np.ndarray) -> np.ndarray:
     """``out = enc(dec(img) * t + A_lin * (1 - t))`` with the tables of :func:`_linear_u16` / :func:`_code_of_u16`."""
     t3, add3 = terms
-    x = cv2.LUT(img, _linear_u16())
+    x = cv2.LUT(img, _linear_u16(), dst=_scratch("x", img.shape))
     cv2.multiply(x, t3, dst=x, scale=1 / 65535)
     cv2.add(x, add3, dst=x)
     return np.take(_code_of_u16(), x, out=out, mode="clip")  # "clip": unbuffered (all indices are valid)
@@ -166,7 +187,7 @@ class Fog(CameraGeometry):
                                                 self.far_m, gray)
             else:
                 z = scene_depth(depth, h, w, fx, self.camera_height_m, self.horizon_frac, self.far_m, self.name)
-                lterms = _linear_terms(_transmittance(z, ray_factor(h, w, fx), self.beta), gray)
+                lterms = _linear_terms(_transmittance(z, ray_factor(h, w, fx), self.beta), gray, scratch=True)
             _blend_linear(img, lterms, out)
             return
         if depth is None:  # cached per size and k
