@@ -34,8 +34,8 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import threading
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, ClassVar
 
@@ -129,10 +129,12 @@ def _linear_terms(t: np.ndarray, gray: float | tuple[float, float, float],
 def _blend_linear(img: np.ndarray, terms: tuple[np.ndarray, np.ndarray], out: np.ndarray) -> np.ndarray:
     """``out = enc(dec(img) * t + A_lin * (1 - t))`` with the tables of :func:`_linear_u16` / :func:`_code_of_u16`."""
     t3, add3 = terms
-    x = cv2.LUT(img, _linear_u16(), dst=_scratch("x", img.shape))
+    x: np.ndarray = _scratch("x", img.shape)
+    cv2.LUT(img, _linear_u16(), dst=x)
     cv2.multiply(x, t3, dst=x, scale=1 / 65535)
     cv2.add(x, add3, dst=x)
-    return np.take(_code_of_u16(), x, out=out, mode="clip")  # "clip": unbuffered (all indices are valid)
+    np.take(_code_of_u16(), x, out=out, mode="clip")  # "clip": unbuffered (all indices are valid)
+    return out
 
 
 @lru_cache(maxsize=16)
