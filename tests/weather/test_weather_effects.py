@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pytest
 
@@ -50,6 +52,58 @@ def test_fog_airlight_tint_colours_the_haze_and_keeps_its_level():
     np.testing.assert_array_equal(make("fog", k=0.4, airlight_tint=0.0)(img), make("fog", k=0.4)(img))
     with pytest.raises(InputError, match="airlight_tint"):
         make("fog", k=0.4, airlight_tint=0.5)
+
+
+def test_fog_default_space_keeps_its_bytes():
+    """The presets are calibrated on the code-value mix: its output must not move (digest from before
+    ``space`` existed); ``space="srgb"`` spelled out is the same effect."""
+    rng = np.random.default_rng(7)
+    img = rng.integers(0, 256, (48, 80, 3), dtype=np.uint8)
+    depth = rng.uniform(0.5, 120.0, (48, 80)).astype(np.float32)
+    h = hashlib.sha256()
+    for kw in ({"k": 0.3}, {"k": 0.9, "airlight": 0.7, "airlight_tint": 0.1}, {"k": 0.5, "airlight_tint": -0.15}):
+        h.update(make("fog", **kw)(img).tobytes())
+        h.update(make("fog", **kw)(img, depth=depth).tobytes())
+        np.testing.assert_array_equal(make("fog", space="srgb", **kw)(img, depth=depth), make("fog", **kw)(img, depth=depth))
+    assert h.hexdigest() == "0d901a471f4d4e7794bd39e14e752d5a3ef24eb347624244236c4d648ccf1de2"
+
+
+def test_fog_linear_mixes_radiance():
+    """``space="linear"``: Koschmieder on decoded light, within a code of the exact curve; monotone in
+    density, the same airlight far away, the image itself at k -> 0; it differs from the code-value mix."""
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, (20, 40, 3), dtype=np.uint8)
+    depth = np.tile(np.linspace(1, 60, 40, dtype=np.float32), (20, 1))
+    e = make("fog", k=0.5, airlight=0.8, airlight_tint=0.05, space="linear")
+    out = e(img, depth=depth, state={"fx": 1e6})  # range = depth
+    t = np.exp(-e.beta * depth)[..., None]
+    a = np.array([0.8 * 0.95, 0.8 * 0.975, 0.8])  # tint 0.05: red 0.95 of blue, green half-way
+    a_lin = srgb_decode(np.rint(255 * a) / 255)  # the airlight is a code value, decoded
+    exact = 255 * srgb_encode(srgb_decode(img / 255.0) * t + a_lin * (1 - t))
+    assert np.abs(out.astype(float) - exact).max() <= 1.01
+    srgb = make("fog", k=0.5, airlight=0.8, airlight_tint=0.05)(img, depth=depth, state={"fx": 1e6})
+    assert np.abs(out.astype(int) - srgb).mean() > 2.0
+    grey = rng.integers(0, 256, (1, 64, 3), dtype=np.uint8)
+    mids = [make("fog", k=k, space="linear")(grey, depth=np.full((1, 64), 20.0, np.float32)).astype(int)
+            for k in (0.1, 0.3, 0.6, 1.0)]
+    airlight = 217  # 0.85 * 255
+    for near, far in zip(mids, mids[1:]):  # denser: every pixel moves towards the airlight, never past it
+        assert np.all(np.abs(far - airlight) <= np.abs(near - airlight))
+    far_out = make("fog", k=1.0, space="linear")(img, depth=np.full((20, 40), 500.0, np.float32))
+    assert np.all(far_out == airlight)
+    np.testing.assert_array_equal(make("fog", k=1e-7, space="linear")(img, depth=depth), img)
+    assert make("fog", k=0.5, space="linear")(img).shape == img.shape  # the ground-plane fallback
+    with pytest.raises(InputError, match="space"):
+        make("fog", k=0.5, space="log")
+
+
+def test_fog_airlight_green_is_the_other_white_balance_axis():
+    img = np.zeros((6, 8, 3), np.uint8)
+    depth = np.full((6, 8), 500.0, np.float32)
+    green = make("fog", k=1.0, airlight=0.8, airlight_green=0.1)(img, depth=depth)[3, 4].astype(int)
+    magenta = make("fog", k=1.0, airlight=0.8, airlight_green=-0.1)(img, depth=depth)[3, 4].astype(int)
+    assert green[1] == 204 and green[0] == green[2] and abs(green[0] - 0.9 * 204) <= 1
+    assert magenta[0] == magenta[2] == 204 and abs(magenta[1] - 0.9 * 204) <= 1
 
 
 def test_fog_without_depth_uses_the_ground_plane():

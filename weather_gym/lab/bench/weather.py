@@ -95,6 +95,8 @@ def _cases(names: list[str]) -> list[tuple[str, Any]]:
             cases.append((f"dim physical (k={k})", make(name, k=k, mode="physical")))
             cases.append((f"dim night (k={k})", make(name, k=k, mode="night")))
             cases += _preset_cases("low_light")
+        if name == "fog":
+            cases.append((f"fog linear (k={k})", make(name, k=k, space="linear")))
     return cases
 
 
