@@ -29,6 +29,10 @@ from typing import Any
 import numpy as np
 
 from weather_gym.camera.config import CameraConfig
+from weather_gym.core._lock import waiting_lock
+from weather_gym.core.errors import InputError
+from weather_gym.lab.datasets.coco import load_coco
+from weather_gym.perception.detector_spec import load_detector
 from weather_gym.weather import make
 
 __all__ = ["FrameBlock", "frame_state", "main", "render_part"]
@@ -57,8 +61,6 @@ class FrameBlock:
     @classmethod
     def load(cls, frames: Sequence[tuple[str, int]], seeds: np.ndarray) -> FrameBlock:
         """Frames ``(folder, index)`` of rendered COCO sets, with their weather seeds."""
-        from weather_gym.lab.datasets.coco import load_coco
-
         sets: dict[str, Any] = {}
         images, depths, states = [], [], []
         for folder, j in frames:
@@ -100,7 +102,6 @@ class FrameBlock:
 def render_part(job: dict[str, Any]) -> None:
     """``render_dataset(**job)`` into ``job["out"]`` unless a finished set is there; processes rendering the
     same folder wait for the first (an interrupted render resumes)."""
-    from weather_gym.core._lock import waiting_lock
     from weather_gym.lab.datasets.render import render_dataset
 
     out = Path(job["out"])
@@ -110,8 +111,6 @@ def render_part(job: dict[str, Any]) -> None:
 
 
 def _serve(inp: Any, out: Any) -> None:
-    from weather_gym.perception.detector_spec import load_detector
-
     detector: Any = None
     blocks: dict[Any, FrameBlock] = {}
     while True:
@@ -132,7 +131,7 @@ def _serve(inp: Any, out: Any) -> None:
             elif op == "detect":
                 result = blocks[args[0]].detect(detector.detect_batch, *args[1:])
             else:
-                raise ValueError(f"unknown request {op!r}")
+                raise InputError(f"resolve worker: unknown request {op!r} (expected init, render, frames or detect)")
             reply = ("ok", result)
         except Exception as e:  # reported to the parent, which raises it there
             reply = ("error", f"{type(e).__name__}: {e}")

@@ -705,7 +705,7 @@ def frames_needed(n_frames: int, se: float, tolerance: float) -> int:
 
     Example:
         >>> frames_needed(160, 0.019, 0.02)
-        610
+        611
     """
     return int(math.ceil(n_frames * (Z95 * se / tolerance) ** 2 * 1.1))
 
