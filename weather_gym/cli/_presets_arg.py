@@ -43,7 +43,7 @@ def add_presets_arg(p: Any) -> None:
     """Add ``--presets`` to the parser ``p``."""
     p.add_argument("--presets", default=None, metavar="pool|resolved|FILE",
                    help="what CONDITION@SEVERITY means: 'resolved' (k resolved for this run's track, camera, world "
-                        "and detector; about a minute the first time, cached after; docs/calibration.md), 'pool' "
+                        "and detector; minutes the first time, cached after; docs/calibration.md), 'pool' "
                         "(the shipped presets, calibrated on the pool of tracks) or a presets FILE (default: "
                         "$WEATHER_GYM_PRESETS, else resolved where the run has a scenario)")
 
