@@ -38,8 +38,8 @@ def _clear() -> FrameMatches:
 class _Curve(rs._Search):
     """The search on a known curve: relative mAP = f(k), no frames."""
 
-    def __init__(self, f, items):
-        super().__init__(None, items, _clear(), 1.0, Scenario(tracks=("demo",)), lambda: None)
+    def __init__(self, f, items, curve=None):
+        super().__init__(None, items, _clear(), 1.0, Scenario(tracks=("demo",)), lambda: None, curve)
         self.f = f
 
     def measure(self, k):
@@ -89,6 +89,50 @@ def test_secant_steps_in_logit_land_an_s_curve_in_few_evaluations(k50, steep):
         assert abs(f(row.k) - row.target) <= rs.HIT
     assert sum(r.evals for r in rows) <= 10
     assert len(search.points) == sum(r.evals for r in rows)
+
+
+def _plateau(k):
+    """A detector's low-light curve with a plateau (the second detector's on the skidpad, calibration.md):
+    steep to 0.13, flat at 0.13-0.11 from k 0.62 to 0.72, steep again."""
+    ks = [0.0, 0.45, 0.499, 0.551, 0.619, 0.72, 0.736, 0.774, 0.85, 1.0]
+    rel = [1.0, 0.85, 0.62, 0.35, 0.13, 0.11, 0.086, 0.032, 0.013, 0.0]
+    return float(np.interp(k, ks, rel))
+
+
+def test_a_plateau_does_not_stop_the_search():
+    """Regula falsi creeps from one end of a bracket where the curve bends (in logit); the search bisects when
+    the same end moved twice, so every row lands within HIT before MAX_EVALS."""
+    items = _items()
+    search = _Curve(_plateau, items)
+    for sev, t in items:
+        row = search.row("low_light", sev, t)
+        assert abs(row.achieved - row.target) <= rs.HIT, (sev, row.note, sorted(search.points.items()))
+        assert not row.note
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.015, -0.02])
+def test_a_smaller_sets_curve_sizes_the_first_step(shift):
+    """After a widening, the rows step along the smaller set's measured curve, not the pool presets': on a curve
+    moved a little from the smaller set's, the four rows land in fewer k's together (at most 6)."""
+    items = _items()
+
+    def f_small(k):
+        return float(1.0 / (1.0 + np.exp(30.0 * (k - 0.60))))
+
+    def f_big(k):
+        return f_small(k - shift)
+
+    small = _Curve(f_small, items)
+    starts = {sev: small.row("low_light", sev, t).k for sev, t in items}
+    curve = [[k, v] for k, v in sorted(small.points.items())]
+    evals = {}
+    for name, c in (("smaller set's curve", curve), ("pool curve", None)):
+        big = _Curve(f_big, items, c)
+        rows = [big.row("low_light", sev, t, starts[sev]) for sev, t in items]
+        assert all(abs(r.achieved - r.target) <= rs.HIT for r in rows)
+        evals[name] = sum(r.evals for r in rows)
+    assert evals["smaller set's curve"] <= 6
+    assert evals["smaller set's curve"] < evals["pool curve"]
 
 
 def test_logit_secant_and_pool_k():

@@ -107,7 +107,10 @@ DETECT_BATCH = 1
 PARTS = 2
 """Parts a chunk of the reference set is rendered in (each from its own seed; helper processes render
 parts at the same time). Fixed, so the frames do not depend on the number of processes."""
-VERSION = 4
+RENDER_EVERY = 1
+"""Env steps from a reference frame's start point to the frame (one: the car has moved 1/30 s, so its speed
+and yaw rate are those of driving; each step renders the camera, so fewer steps render the set faster)."""
+VERSION = 5
 """Version of this resolution method (part of the cache key)."""
 
 _CODE = ("weather", "sim", "camera", "lab/datasets/render.py", "lab/datasets/coco.py",
@@ -133,7 +136,7 @@ class Scenario:
     """What a preset is resolved for. ``dataset``: a clear COCO recording used as it is (no render);
     otherwise ``frames`` frames are rendered over ``tracks`` in ``scene`` through ``camera`` and
     ``camera_model`` (None: the env's default), in episodes of ``frames_per_episode`` (1: every frame from
-    its own start point; frames of one episode, 0.1 s apart, tell about half as much as frames of different
+    its own start point; frames of one episode, 1/30 s apart, tell about half as much as frames of different
     episodes), from ``seed``, widened in chunks of ``frames`` up to ``max_frames`` while a damage is not known
     within the tolerance.
     ``detector``: a detector spec (None: the shipped one; ``"yolov8:model.onnx"``, ...)."""
@@ -167,7 +170,7 @@ class Scenario:
             return {"dataset": str(Path(self.dataset).resolve()), "annotations_sha256": _file_sha(ann)}
         return {"tracks": list(self.tracks), "scene": self.scene, "camera": self.camera.to_dict(),
                 "camera_model": self.model.to_dict(), "frames": self.frames, "max_frames": self.max_frames,
-                "seed": self.seed, "frames_per_episode": self.frames_per_episode}
+                "seed": self.seed, "frames_per_episode": self.frames_per_episode, "every": RENDER_EVERY}
 
     def describe(self) -> str:
         spec = parse_detector_spec(self.detector) if self.detector is not None else None
@@ -175,7 +178,7 @@ class Scenario:
         det = "shipped detector" if shipped else f"detector {spec}"
         if self.dataset is not None:
             return f"recording {self.dataset}, {det}"
-        cam = "default camera" if self.camera == CameraConfig() and self.camera_model is None else "given camera"
+        cam = "default camera" if self.camera == CameraConfig() and self.model == EnvConfig().camera_model else "given camera"
         return (f"track {'+'.join(self.tracks)}, {self.scene} world, {cam}, {det}, {self.frames} frames "
                 f"(seed {self.seed})")
 
@@ -402,7 +405,7 @@ class _ReferenceSet:
         folders = [self.root / f"chunk{i}" / f"part{p}" for p in range(PARTS)]
         jobs: list[dict[str, Any]] = [dict(out=folders[p], tracks=list(s.tracks), frames=sizes[p], seed=s.seed + 7919 * i + 104729 * p,
                      camera=s.camera, camera_model=s.model, scene=s.scene, frames_per_episode=s.frames_per_episode,
-                     progress=self.progress, resume=folders[p].exists()) for p in range(PARTS) if sizes[p] > 0]
+                     every=RENDER_EVERY, progress=self.progress, resume=folders[p].exists()) for p in range(PARTS) if sizes[p] > 0]
 
         (self.root / f"chunk{i}").mkdir(parents=True, exist_ok=True)
         todo = [j for j in jobs if not (Path(j["out"]) / "annotations.json").is_file()]
@@ -511,12 +514,15 @@ def _secant(k1: float, r1: float, k2: float, r2: float, target: float) -> float 
     return k1 + (_logit(target) - y1) * (k2 - k1) / (y2 - y1)
 
 
-def _next_k(points: dict[float, float], target: float, pool: tuple[np.ndarray, np.ndarray], k0: float) -> float | None:
+def _next_k(points: dict[float, float], target: float, pool: tuple[np.ndarray, np.ndarray], k0: float,
+            recent: Sequence[float] = ()) -> float | None:
     """The next k to measure (None: nothing new to learn), from the measured ``points`` {k: relative}.
 
     No point yet: the pool k. One side of the target only: a secant step (in logit) through the two measured
     points nearest the target, or with one point a step along the pool curve's local slope; bracketed:
-    regula falsi (in logit) between the bracket's ends."""
+    regula falsi (in logit) between the bracket's ends, or the bracket's middle when the last two k's this
+    row measured (``recent``, in order) fell on the same side of the target (regula falsi creeps from one end
+    where the curve bends)."""
     if not points:
         return k0
     ks = sorted(points)
@@ -527,7 +533,9 @@ def _next_k(points: dict[float, float], target: float, pool: tuple[np.ndarray, n
         if hi - lo <= 0.0015:
             return None
         k = _secant(lo, points[lo], hi, points[hi], target)
-        k = lo + 0.5 * (hi - lo) if k is None else k
+        last = [points[x] for x in recent[-2:]]
+        if k is None or (len(last) == 2 and (last[0] > target) == (last[1] > target)):
+            k = lo + 0.5 * (hi - lo)  # the same end moved twice (a curve bent in logit): bisect (Illinois' cure)
         k = min(max(k, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))  # keep the bracket shrinking
     elif above and not below or below and not above:
         side = above if above else below
@@ -567,11 +575,13 @@ class _Search:
     """The measured points of one condition's effect (shared by its rows) and the search for each row's k."""
 
     def __init__(self, ref: _ReferenceSet, items, clear: FrameMatches, clear_map: float, scenario: Scenario,
-                 tick: Callable[[], None]) -> None:
+                 tick: Callable[[], None], curve: Sequence[Sequence[float]] | None = None) -> None:
         table = {k: v for k, v in items[0][1]["effects"][0].items() if k != "k"}
         self.name, self.params = table.pop("name"), table
         self.label = json.dumps([self.name, self.params], sort_keys=True)
-        self.pool = _pool_curve([(s, float(t["effects"][0]["k"]), float(t["measured_relative"])) for s, t in items])
+        # the curve a first step follows: the points a smaller set measured, else the shipped presets'
+        self.pool = _pool_curve([(0, float(k), float(r)) for k, r in curve] if curve
+                                else [(s, float(t["effects"][0]["k"]), float(t["measured_relative"])) for s, t in items])
         self.ref, self.clear, self.clear_map, self.scenario, self.tick = ref, clear, clear_map, scenario, tick
         self.points: dict[float, float] = {}
         self.matches: dict[float, FrameMatches] = {}
@@ -592,11 +602,13 @@ class _Search:
         if target >= 1.0 and 0.0 not in points:
             self.measure(0.0)
             evals += 1
+        recent: list[float] = []
         while evals < MAX_EVALS and not self._hit(target):
-            k = _next_k(points, target, self.pool, k0)
+            k = _next_k(points, target, self.pool, k0, recent)
             if k is None:
                 break
             self.measure(k)
+            recent.append(k)
             evals += 1
         ks = sorted(points)
         if all(points[k] > target for k in ks) and max(ks) >= 1.0:
@@ -623,16 +635,18 @@ class _Search:
 
 def _resolve_rows(ref: _ReferenceSet, targets, clear: FrameMatches, clear_map: float, scenario: Scenario,
                   tick: Callable[[], None], start: dict[tuple[str, int], float] | None = None,
+                  curves: dict[str, list[list[float]]] | None = None,
                   ) -> tuple[list[ResolvedRow], dict[str, list[list[float]]]]:
     """Every row searched on the set as it is now; ``start``: the k each row starts from (a smaller set's
-    resolved k; default the pool k)."""
+    resolved k; default the pool k); ``curves``: per condition, the (k, relative) points a smaller set measured,
+    whose local slope sizes a row's first step (default the shipped presets' curve)."""
     by_cond: dict[str, list] = {}
     for cond, sev, t in targets:
         by_cond.setdefault(cond, []).append((sev, t))
     rows: list[ResolvedRow] = []
     points_out: dict[str, list[list[float]]] = {}
     for cond, items in by_cond.items():
-        search = _Search(ref, items, clear, clear_map, scenario, tick)
+        search = _Search(ref, items, clear, clear_map, scenario, tick, (curves or {}).get(cond))
         rows += [search.row(cond, sev, t, (start or {}).get((cond, sev))) for sev, t in items]
         points_out[cond] = [[k, search.points[k]] for k in sorted(search.points)]
     return rows, points_out
@@ -744,6 +758,7 @@ def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_roo
     try:
         ref.widen()
         start: dict[tuple[str, int], float] = {}
+        curves: dict[str, list[list[float]]] = {}
         while True:
             clear = ref.matches("clear", None, 0.0)
             n_cones = int(clear.npos.sum())
@@ -758,7 +773,7 @@ def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_roo
                     f"{scenario.describe()}: the detector's clear mAP@0.5 (blue and yellow) is {clear_map:.3f}, "
                     f"below {MIN_CLEAR_MAP} at which a relative drop is measured; check the detector spec "
                     f"(classes, input size) or use the shipped pool presets (--presets pool)")
-            rows, points = _resolve_rows(ref, targets, clear, clear_map, scenario, bar.update, start)
+            rows, points = _resolve_rows(ref, targets, clear, clear_map, scenario, bar.update, start, curves)
             wide = [r for r in rows if Z95 * r.se > tolerance]
             if not wide:
                 break
@@ -770,7 +785,7 @@ def _compute(scenario: Scenario, presets, tolerance: float, key: str, frames_roo
                     f"not known within ±{tolerance:g} (95 %) on {ref.n_frames} frames ({worst.condition}@{worst.severity}: "
                     f"relative mAP {worst.achieved:.3f}, bootstrap standard error {worst.se:.3f}); about {need} frames "
                     f"would do: raise max_frames (--max-frames), record a longer clear set, or loosen --tolerance")
-            start = {(r.condition, r.severity): r.k for r in rows}
+            start, curves = {(r.condition, r.severity): r.k for r in rows}, points
             ref.widen()  # straight to about what the worst row needs, in chunks, up to max_frames
             while ref.n_frames < need and ref.n_frames + scenario.frames <= scenario.max_frames:
                 ref.widen()
