@@ -88,13 +88,14 @@ def _weights(depth: np.ndarray, c: np.float32, out: np.ndarray) -> None:
 
 @numba.njit(cache=jit_cache(__file__), nogil=True, boundscheck=False)
 def _blend(img: np.ndarray, blurred: np.ndarray, wts: np.ndarray, out: np.ndarray) -> None:
-    """:func:`near_blend` on rows of values with a weight per value: one pass numba vectorises."""
-    c1, c8, c127, c255 = np.int32(1), np.int32(8), np.int32(127), np.int32(255)
+    """:func:`near_blend` on rows of values with a weight per value: one pass numba vectorises, in
+    16-bit lanes (exact: ``p <= 255 * 255 + 127`` and ``p + 1 + (p >> 8) < 2**16``)."""
+    c1, c8, c127, c255 = np.uint16(1), np.uint16(8), np.uint16(127), np.uint16(255)
     for r in range(img.shape[0]):
         a, b, wr, o = img[r], blurred[r], wts[r], out[r]
         for j in range(img.shape[1]):
-            w = np.int32(wr[j])
-            p = np.int32(a[j]) * (c255 - w) + c127
-            q = np.int32(b[j]) * w + c127
-            v = ((p + c1 + (p >> c8)) >> c8) + ((q + c1 + (q >> c8)) >> c8)
+            w = np.uint16(wr[j])
+            p = np.uint16(np.uint16(a[j]) * (c255 - w) + c127)
+            q = np.uint16(np.uint16(b[j]) * w + c127)
+            v = np.uint16(((p + c1 + (p >> c8)) >> c8) + ((q + c1 + (q >> c8)) >> c8))
             o[j] = np.uint8(min(v, c255))
