@@ -36,29 +36,12 @@ import numpy as np
 
 from weather_gym.core._jit_cache import jit_cache
 
-__all__ = ["area_shrink", "blotch_grid", "chroma_plane", "combine", "half_size"]
+__all__ = ["blotch_grid", "chroma_plane", "combine", "half_size"]
 
 
 def half_size(h: int, w: int) -> tuple[int, int]:
     """``(rows, cols)`` of the half-resolution colour of an ``h x w`` frame (rounded up)."""
     return (h + 1) // 2, (w + 1) // 2
-
-
-def area_shrink(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """``cv2.resize(img, size, interpolation=cv2.INTER_AREA)`` of a uint8 ``H x W x 3`` frame, byte for byte.
-
-    At exactly 4x in each direction (the night camera's colour at half resolution to its grid of
-    8 px cells) OpenCV averages each 4 x 4 block, the sum times 1/16 rounded half to even (its own
-    code and Intel IPP's, at every IPP level): one compiled pass here, five times faster; OpenCV
-    itself at any other size.
-    """
-    w, h = size
-    if img.shape[0] != 4 * h or img.shape[1] != 4 * w or img.ndim != 3 or img.dtype != np.uint8:
-        return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
-    out = np.empty((h, w, img.shape[2]), np.uint8)
-    src = np.ascontiguousarray(img)
-    _area4(src.reshape(src.shape[0], -1), out.reshape(h, -1), img.shape[2])
-    return out
 
 
 def blotch_grid(raw: np.ndarray, gauss: np.ndarray, level: np.ndarray, noise: np.ndarray, ref: float,
@@ -104,26 +87,6 @@ def combine(luma: np.ndarray, tone: np.ndarray, chroma: np.ndarray, out: np.ndar
     _add(cv2.LUT(luma, np.ascontiguousarray(tone, np.uint8)), big.reshape(h, w * 3), target.reshape(h, w * 3))
     if target is not out:
         np.copyto(out, target)
-
-
-@numba.njit(cache=jit_cache(__file__), nogil=True, boundscheck=False)
-def _area4(src: np.ndarray, out: np.ndarray, ch: int) -> None:
-    """:func:`area_shrink` at 4x on rows of values: each source row quadruple summed, then each
-    block of 4 pixels per channel, rounded half to even (all in 16 bits: at most 16 x 255)."""
-    n = src.shape[1]
-    step = 4 * ch
-    acc = np.empty(n, np.uint16)
-    c1, c4, c7 = np.uint16(1), np.uint16(4), np.uint16(7)
-    for r in range(out.shape[0]):
-        s0, s1, s2, s3 = src[4 * r], src[4 * r + 1], src[4 * r + 2], src[4 * r + 3]
-        for k in range(n):
-            acc[k] = np.uint16(s0[k]) + np.uint16(s1[k]) + np.uint16(s2[k]) + np.uint16(s3[k])
-        o = out[r]
-        for x in range(n // step):
-            i = step * x
-            for c in range(ch):
-                v = np.uint16(acc[i + c] + acc[i + ch + c] + acc[i + 2 * ch + c] + acc[i + 3 * ch + c])
-                o[ch * x + c] = np.uint8((v + c7 + ((v >> c4) & c1)) >> c4)
 
 
 @numba.njit(cache=jit_cache(__file__), nogil=True)

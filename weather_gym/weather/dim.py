@@ -298,7 +298,8 @@ class Dim(EgoMotion):
 
     def _night(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
                out: np.ndarray) -> None:
-        from weather_gym.weather._night_isp import area_shrink, blotch_grid, chroma_plane, combine  # numba loads here
+        from weather_gym.weather._area import area_shrink  # numba loads here
+        from weather_gym.weather._night_isp import blotch_grid, chroma_plane, combine
 
         t, gain, residual = self.exposure()
         sigma, chroma, black, desat = self.isp()
