@@ -189,10 +189,12 @@ def smear_split(img: np.ndarray, depth: np.ndarray | None, state: dict[str, floa
             wt = _fallback_weight((h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m), who)
             wt_half = _fallback_weight((hh, hw, fx * hw / w, camera_height_m, horizon_frac, near_depth_m, far_m), who)
         else:
-            depth_min(depth, who)
-            wt = near_weight(depth, near_depth_m)
-            wt_half = near_weight(cv2.resize(np.ascontiguousarray(depth, np.float32), (hw, hh),
-                                             interpolation=cv2.INTER_NEAREST), near_depth_m)
+            wt = near_weight(depth, near_depth_m, who)  # checks the depths too (finite metres >= 0)
+            if (h, w) == (2 * hh, 2 * hw):  # the nearest depth at exactly half is every other one's
+                wt_half = np.ascontiguousarray(wt[::2, ::2])
+            else:
+                wt_half = near_weight(cv2.resize(np.ascontiguousarray(depth, np.float32), (hw, hh),
+                                                 interpolation=cv2.INTER_NEAREST), near_depth_m)
         luma_out, half_out = np.empty_like(luma), np.empty_like(half)  # (new frames: numba vectorises the
         near_blend(luma, blurred_luma, wt, None, luma_out)              # blend only when out is not an input)
         near_blend(half, blurred_half, wt_half, None, half_out)
