@@ -18,8 +18,8 @@ Example:
     >>> img = np.arange(4 * 4 * 3, dtype=np.uint8).reshape(4, 4, 3)
     >>> area_shrink(img, (2, 2))[0, 0].tolist()        # (0 + 3 + 12 + 15 + 2) >> 2, per channel
     [8, 9, 10]
-    >>> area_shrink(img, (1, 1))[0, 0].tolist()        # the mean of all 16, rounded half to even
-    [22, 23, 24]
+    >>> area_shrink(img, (1, 1))[0, 0].tolist()        # means 22.5, 23.5, 24.5, rounded half to even
+    [22, 24, 24]
 """
 
 from __future__ import annotations
