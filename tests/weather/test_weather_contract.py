@@ -222,7 +222,7 @@ def test_the_weather_layer_imports_only_numpy_opencv_and_the_stdlib():
 
     allowed = {"numpy", "cv2", "weather_gym", "PIL", "__future__", "tomli"}
     kernels = {name: {"numba"} for name in ("_drop_blend.py", "_noise_pass.py", "_near_blend.py",
-                                            "_night_isp.py")}  # compiled passes, each loaded with the first
+                                            "_night_isp.py", "_area.py")}  # compiled passes, each loaded with the first
     # frame that needs it
     kernels["augment.py"] = {"albumentations"}  # the optional Albumentations adapter: imported only by its users
     kernels["base.py"] = {"pydantic", "pydantic_core"}  # the effects' declared parameter schemas (param_schema)

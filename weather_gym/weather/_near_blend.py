@@ -34,6 +34,7 @@ import numba
 import numpy as np
 
 from weather_gym.core._jit_cache import jit_cache
+from weather_gym.core.errors import InputError
 from weather_gym.weather._common import into
 
 __all__ = ["near_blend", "near_weight"]
@@ -42,10 +43,19 @@ __all__ = ["near_blend", "near_weight"]
 _NEAREST_M = np.float32(1e-3)
 
 
-def near_weight(depth: np.ndarray, near_m: float) -> np.ndarray:
-    """``w = 255 min(near / Z, 1)`` as uint8 (``H x W``), rounded as :func:`near_blend` does."""
+def near_weight(depth: np.ndarray, near_m: float, who: str | None = None) -> np.ndarray:
+    """``w = 255 min(near / Z, 1)`` as uint8 (``H x W``), rounded as :func:`near_blend` does.
+
+    ``who`` (an effect's name): also check, in the same pass, that the depths are finite metres
+    >= 0, else an :class:`~weather_gym.core.errors.InputError` naming it (as
+    :func:`~weather_gym.weather._common.depth_min`).
+    """
     out = np.empty(depth.shape, np.uint8)
-    _weights(np.ascontiguousarray(depth, np.float32), np.float32(255.0 * near_m), out)
+    z = np.ascontiguousarray(depth, np.float32)
+    if who is None:
+        _weights(z, np.float32(255.0 * near_m), out)
+    elif not _weights_checked(z, np.float32(255.0 * near_m), out):
+        raise InputError(f"{who}: depth must be finite metres >= 0 (got NaN, inf or negative values)")
     return out
 
 
@@ -86,15 +96,29 @@ def _weights(depth: np.ndarray, c: np.float32, out: np.ndarray) -> None:
             out[r, x] = _weight(depth[r, x], c)
 
 
+@numba.njit(cache=jit_cache(__file__), nogil=True)
+def _weights_checked(depth: np.ndarray, c: np.float32, out: np.ndarray) -> bool:
+    """:func:`_weights`, and whether every depth is finite and >= 0 (NaN is not)."""
+    ok = True
+    inf = np.float32(np.inf)
+    for r in range(depth.shape[0]):
+        for x in range(depth.shape[1]):
+            z = depth[r, x]
+            ok &= (z >= np.float32(0.0)) & (z < inf)
+            out[r, x] = _weight(z, c)
+    return ok
+
+
 @numba.njit(cache=jit_cache(__file__), nogil=True, boundscheck=False)
 def _blend(img: np.ndarray, blurred: np.ndarray, wts: np.ndarray, out: np.ndarray) -> None:
-    """:func:`near_blend` on rows of values with a weight per value: one pass numba vectorises."""
-    c1, c8, c127, c255 = np.int32(1), np.int32(8), np.int32(127), np.int32(255)
+    """:func:`near_blend` on rows of values with a weight per value: one pass numba vectorises, in
+    16-bit lanes (exact: ``p <= 255 * 255 + 127`` and ``p + 1 + (p >> 8) < 2**16``)."""
+    c1, c8, c127, c255 = np.uint16(1), np.uint16(8), np.uint16(127), np.uint16(255)
     for r in range(img.shape[0]):
         a, b, wr, o = img[r], blurred[r], wts[r], out[r]
         for j in range(img.shape[1]):
-            w = np.int32(wr[j])
-            p = np.int32(a[j]) * (c255 - w) + c127
-            q = np.int32(b[j]) * w + c127
-            v = ((p + c1 + (p >> c8)) >> c8) + ((q + c1 + (q >> c8)) >> c8)
+            w = np.uint16(wr[j])
+            p = np.uint16(np.uint16(a[j]) * (c255 - w) + c127)
+            q = np.uint16(np.uint16(b[j]) * w + c127)
+            v = np.uint16(((p + c1 + (p >> c8)) >> c8) + ((q + c1 + (q >> c8)) >> c8))
             o[j] = np.uint8(min(v, c255))

@@ -66,9 +66,11 @@ def chroma_plane(half: np.ndarray, tone: np.ndarray, blotches: np.ndarray | None
     a pixel's grey), ``keep`` the fraction of the colour the chroma suppression leaves.
     """
     out = np.empty(half.shape, np.int16)
-    b = np.zeros((1, 1, 3), np.float32) if blotches is None else np.ascontiguousarray(blotches, np.float32)
-    _chroma(np.ascontiguousarray(half), np.ascontiguousarray(tone, np.float32), b, blotches is not None,
-            np.float32(keep), out)
+    rows = half.shape[0]
+    flat = np.ascontiguousarray(half).reshape(rows, -1)
+    b = np.zeros((1, flat.shape[1]), np.float32) if blotches is None else np.ascontiguousarray(blotches, np.float32)
+    _chroma(flat, np.ascontiguousarray(tone, np.float32), b.reshape(b.shape[0], -1), blotches is not None,
+            np.float32(keep), out.reshape(rows, -1))
     return out
 
 
@@ -102,24 +104,49 @@ def _blotches(raw: np.ndarray, gauss: np.ndarray, level: np.ndarray, noise: np.n
             out[r, x, 2] = (c - m) * f
 
 
-@numba.njit(cache=jit_cache(__file__), nogil=True)
+@numba.njit(cache=jit_cache(__file__), nogil=True, boundscheck=False)
 def _chroma(half: np.ndarray, tone: np.ndarray, blot: np.ndarray, with_blot: bool, keep: np.float32,
             out: np.ndarray) -> None:
-    rows, cols = half.shape[0], half.shape[1]
+    """:func:`chroma_plane` on rows of values (``3 cols`` each). Per row the table look-ups come first
+    (each value's and each pixel's luma's), then the arithmetic with the channels written out, a loop
+    numba vectorises (it does not with a look-up inside)."""
+    rows, n = half.shape[0], half.shape[1]
+    ta = np.empty(n, np.float32)
+    tl = np.empty(n // 3, np.float32)
+    zero = np.float32(0.0)  # (+ 0.0: what the blotches' luma adds without blotches)
     for r in range(rows):
-        for x in range(cols):
-            red, green, blue = np.int32(half[r, x, 0]), np.int32(half[r, x, 1]), np.int32(half[r, x, 2])
-            luma = (red * np.int32(4899) + green * np.int32(9617) + blue * np.int32(1868) + np.int32(8192)) >> 14
-            t = tone[luma]
-            bl = np.float32(0.0)
-            if with_blot:
-                bl = (np.float32(0.299) * blot[r, x, 0] + np.float32(0.587) * blot[r, x, 1]
-                      + np.float32(0.114) * blot[r, x, 2])
-            for c in range(3):
-                v = tone[half[r, x, c]] - t
-                if with_blot:
-                    v += blot[r, x, c] - bl
-                out[r, x, c] = np.int16(np.rint(keep * v + bl))
+        h, o = half[r], out[r]
+        for i in range(n):
+            ta[i] = tone[h[i]]
+        for x in range(n // 3):
+            i = 3 * x
+            tl[x] = tone[(np.int32(h[i]) * np.int32(4899) + np.int32(h[i + 1]) * np.int32(9617)
+                          + np.int32(h[i + 2]) * np.int32(1868) + np.int32(8192)) >> 14]
+        if with_blot:
+            _blend_blotches(ta, tl, blot[r], keep, o)
+        else:
+            for x in range(n // 3):
+                i = 3 * x
+                t = tl[x]
+                o[i] = np.int16(np.rint(keep * (ta[i] - t) + zero))
+                o[i + 1] = np.int16(np.rint(keep * (ta[i + 1] - t) + zero))
+                o[i + 2] = np.int16(np.rint(keep * (ta[i + 2] - t) + zero))
+
+
+@numba.njit(cache=jit_cache(__file__), nogil=True, boundscheck=False, inline="always")
+def _blend_blotches(ta: np.ndarray, tl: np.ndarray, b: np.ndarray, keep: np.float32, o: np.ndarray) -> None:
+    for x in range(tl.shape[0]):
+        i = 3 * x
+        t = tl[x]
+        b0, b1, b2 = b[i], b[i + 1], b[i + 2]
+        bl = np.float32(0.299) * b0 + np.float32(0.587) * b1 + np.float32(0.114) * b2
+        v0, v1, v2 = ta[i] - t, ta[i + 1] - t, ta[i + 2] - t
+        v0 += b0 - bl
+        v1 += b1 - bl
+        v2 += b2 - bl
+        o[i] = np.int16(np.rint(keep * v0 + bl))
+        o[i + 1] = np.int16(np.rint(keep * v1 + bl))
+        o[i + 2] = np.int16(np.rint(keep * v2 + bl))
 
 
 @numba.njit(cache=jit_cache(__file__), nogil=True, boundscheck=False)

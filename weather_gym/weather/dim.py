@@ -298,7 +298,8 @@ class Dim(EgoMotion):
 
     def _night(self, img: np.ndarray, draw: Any, depth: np.ndarray | None, state: dict[str, float],
                out: np.ndarray) -> None:
-        from weather_gym.weather._night_isp import blotch_grid, chroma_plane, combine  # numba loads here
+        from weather_gym.weather._area import area_shrink  # numba loads here
+        from weather_gym.weather._night_isp import blotch_grid, chroma_plane, combine
 
         t, gain, residual = self.exposure()
         sigma, chroma, black, desat = self.isp()
@@ -315,7 +316,7 @@ class Dim(EgoMotion):
         blotches = None
         if chroma > 0:  # colour noise follows the sensor noise of each cell's level
             gh, gw = chroma_grid(img.shape, self.chroma_cell_px)
-            level = cv2.cvtColor(cv2.resize(half, (gw, gh), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY)
+            level = cv2.cvtColor(area_shrink(half, (gw, gh)), cv2.COLOR_RGB2GRAY)
             grid = blotch_grid(draw[1], gauss_lut(), level, noise, float(noise[_CHROMA_REF_CODE]), chroma)
             blotches = cv2.resize(grid, (half.shape[1], half.shape[0]), interpolation=cv2.INTER_LINEAR)
         # colour offsets through the tone curve and the black level, suppressed; the luma's black level

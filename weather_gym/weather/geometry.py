@@ -46,9 +46,11 @@ def _zoom(img: np.ndarray, c: float) -> np.ndarray:
 
 def _shrink(img: np.ndarray, f: int) -> np.ndarray:
     """``img`` reduced ``f`` times (2 or 4) by area averaging, in halving steps (OpenCV's fast path)."""
+    from weather_gym.weather._area import area_shrink  # numba loads here
+
     for _ in range(f // 2):
         h, w = img.shape[:2]
-        img = cv2.resize(img, (max(w // 2, 1), max(h // 2, 1)), interpolation=cv2.INTER_AREA)
+        img = area_shrink(img, (max(w // 2, 1), max(h // 2, 1)))
     return img
 
 
@@ -157,8 +159,10 @@ def smear_split(img: np.ndarray, depth: np.ndarray | None, state: dict[str, floa
     """
     h, w = img.shape[:2]
     hh, hw = (h + 1) // 2, (w + 1) // 2
+    from weather_gym.weather._area import area_shrink  # numba loads here
+
     luma = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
-    half = cv2.resize(img, (hw, hh), interpolation=cv2.INTER_AREA)
+    half = area_shrink(img, (hw, hh))
     fx = focal_px(state, w, hfov_deg)
     speed = abs(state.get("speed", speed_mps))
     yaw = abs(state.get("yaw_rate", yaw_rate_rps))
@@ -185,10 +189,12 @@ def smear_split(img: np.ndarray, depth: np.ndarray | None, state: dict[str, floa
             wt = _fallback_weight((h, w, fx, camera_height_m, horizon_frac, near_depth_m, far_m), who)
             wt_half = _fallback_weight((hh, hw, fx * hw / w, camera_height_m, horizon_frac, near_depth_m, far_m), who)
         else:
-            depth_min(depth, who)
-            wt = near_weight(depth, near_depth_m)
-            wt_half = near_weight(cv2.resize(np.ascontiguousarray(depth, np.float32), (hw, hh),
-                                             interpolation=cv2.INTER_NEAREST), near_depth_m)
+            wt = near_weight(depth, near_depth_m, who)  # checks the depths too (finite metres >= 0)
+            if (h, w) == (2 * hh, 2 * hw):  # the nearest depth at exactly half is every other one's
+                wt_half = np.ascontiguousarray(wt[::2, ::2])
+            else:
+                wt_half = near_weight(cv2.resize(np.ascontiguousarray(depth, np.float32), (hw, hh),
+                                                 interpolation=cv2.INTER_NEAREST), near_depth_m)
         luma_out, half_out = np.empty_like(luma), np.empty_like(half)  # (new frames: numba vectorises the
         near_blend(luma, blurred_luma, wt, None, luma_out)              # blend only when out is not an input)
         near_blend(half, blurred_half, wt_half, None, half_out)
