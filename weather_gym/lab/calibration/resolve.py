@@ -321,15 +321,36 @@ def _targets(presets: str | os.PathLike | None) -> list[tuple[str, int, dict[str
 
 def resolution_key(scenario: Scenario, presets: str | os.PathLike | None = None, tolerance: float = 0.02) -> str:
     """16 hex digits naming a resolution: scenario, detector file and options, the rows' targets and
-    effects, the tolerance and :func:`code_version`."""
+    effects, the tolerance, :func:`code_version` and the versions of the libraries that compute frames and
+    detections (OpenCV, numpy, onnxruntime, PyBullet)."""
     spec = parse_detector_spec(scenario.detector)
     rows = [[c, s, t["measured_relative"], {k: v for k, v in t["effects"][0].items() if k != "k"}]
             for c, s, t in _targets(presets)]
     model = Path(spec.path) if spec.path is not None else DEFAULT_MODEL  # its SHA-256, as detector_id, cached
     detector = [_file_sha(model), spec.kind, spec.classes, spec.resize, spec.input_size, spec.score_threshold]
     doc = {"scenario": scenario.identity(), "detector": detector, "detector_spec": str(spec),
-           "rows": rows, "tolerance": float(tolerance), "code": code_version()}
+           "rows": rows, "tolerance": float(tolerance), "code": code_version(), "libraries": _libraries()}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+@lru_cache(maxsize=1)
+def _libraries() -> list[str]:
+    """Versions of the libraries whose arithmetic is in the frames and detections (OpenCV's, with its
+    optimised paths on or off: the night camera's bytes differ between its builds), and the machine type."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    import cv2
+
+    def dist(name: str) -> str:  # from the installed metadata: importing pybullet prints a banner
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "?"
+
+    return [f"opencv {cv2.__version__} optimized={cv2.useOptimized()} ipp={os.environ.get('OPENCV_IPP', '')}",
+            f"numpy {np.__version__}", f"onnxruntime {dist('onnxruntime')}", f"pybullet {dist('pybullet')}",
+            platform.machine()]
 
 
 # ------------------------------------------------------------------------------------ the reference set
