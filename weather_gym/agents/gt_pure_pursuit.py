@@ -27,9 +27,8 @@ on layouts tighter than those).
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any
-
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
