@@ -20,8 +20,8 @@ Example:
 ``narrow_width`` (m, 0 = off) makes it slow where the road is tight: at a point where the track is
 narrower than ``narrow_width`` (left plus right half width, the narrowest within 1.5 m either side),
 the corner limit ``a_lat_max`` is scaled by ``(width / narrow_width) ** 2``; wider roads drive as
-before. The shipped driver's teacher uses 3.0 m (every shipped layout is wider, so it slows only
-on layouts tighter than those).
+before. 3.0 m leaves every shipped layout as it was (all are wider); ``weather-gym train
+--teacher-narrow-width`` hands it to the cloned teacher (default 0: off).
 """
 
 from __future__ import annotations
