@@ -17,6 +17,7 @@ from weather_gym.agents.pure_pursuit import (
     speed_profile,
 )
 from weather_gym.camera.config import CameraConfig
+from weather_gym.core.errors import InputError
 from weather_gym.tracks import TRACKS, load_track
 
 
@@ -108,3 +109,21 @@ def test_gt_pure_pursuit_is_deterministic():
             acts.append(a)
         runs.append(np.array(acts))
     assert np.array_equal(runs[0], runs[1])
+
+
+def test_gt_pure_pursuit_slows_only_where_the_track_is_narrow():
+    wide, narrow = load_track("peanut"), load_track("random:3,width=2.5")  # 3.8-4.2 m; about 2.5 m
+    make = AGENTS.get("gt_pure_pursuit")
+    # every shipped layout is wider than 3 m: the same speed profile, to the bit
+    assert np.array_equal(make(wide, CameraConfig(), narrow_width=3.0).controller.profile,
+                          make(wide, CameraConfig()).controller.profile)
+    slow, fast = make(narrow, CameraConfig(), narrow_width=3.0), make(narrow, CameraConfig())
+    assert np.all(slow.controller.profile <= fast.controller.profile + 1e-12)
+    # in the corners the limit is a_lat_max * (2.5 / 3)**2: speeds about 0.83x
+    corner = int(np.argmin(fast.controller.profile))
+    assert slow.controller.profile[corner] == pytest.approx(fast.controller.profile[corner] * 2.5 / 3.0, rel=0.06)
+    r = drive(narrow, slow, friction=1.0, max_t=120.0)
+    assert r["completed"] and r["min_margin"] > 0.3
+    for bad in (-1.0, float("nan"), "3"):
+        with pytest.raises(InputError, match="narrow_width"):
+            make(wide, CameraConfig(), narrow_width=bad)

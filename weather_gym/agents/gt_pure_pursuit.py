@@ -16,27 +16,62 @@ Example:
     >>> a = agent.act(None, {"pose": (0.0, 0.5, 0.0), "speed": 0.0})
     >>> bool(a[0] < 0), bool(a[1] > 0)      # 0.5 m left of the line: steer right, accelerate
     (True, True)
+
+``narrow_width`` (m, 0 = off) makes it slow where the road is tight: at a point where the track is
+narrower than ``narrow_width`` (left plus right half width, the narrowest within 1.5 m either side),
+the corner limit ``a_lat_max`` is scaled by ``(width / narrow_width) ** 2``; wider roads drive as
+before. 3.0 m leaves every shipped layout as it was (all are wider); ``weather-gym train
+--teacher-narrow-width`` hands it to the cloned teacher (default 0: off).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig
+from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig, speed_profile
 from weather_gym.core.errors import InputError, check_known
 
 if TYPE_CHECKING:  # pragma: no cover
     from weather_gym.camera.config import CameraConfig
     from weather_gym.tracks import Track
 
-__all__ = ["GroundTruthPurePursuit", "config_with"]
+__all__ = ["GroundTruthPurePursuit", "config_with", "narrow_lateral_limit"]
 
 GT_DEFAULTS = {"v_max": 10.0, "a_lat_max": 4.0, "a_accel": 2.0}
 """The ground-truth driver is a steady, safe driver, not a racer: it must never leave the track, even
 on a wet surface (mu 0.6: a rear-driven car has only ~2.8 m/s^2 of traction, hence a_accel 2)."""
+
+
+NARROW_WINDOW_M = 1.5
+"""The width at a point is the narrowest within this distance (m) along the line either side."""
+
+
+def narrow_lateral_limit(width: np.ndarray, a_lat_max: float, narrow_width: float, step: float,
+                         closed: bool) -> np.ndarray:
+    """Per-point corner limit (m/s^2): ``a_lat_max`` scaled by ``(w / narrow_width) ** 2`` below
+    ``narrow_width``, ``w`` the narrowest ``width`` within ``NARROW_WINDOW_M`` either side (points
+    ``step`` m apart).
+
+    Example:
+        >>> import numpy as np
+        >>> w = np.array([3.5, 3.5, 2.4, 3.5, 3.5, 3.5, 3.5, 3.5])
+        >>> narrow_lateral_limit(w, 4.0, 3.0, 1.0, closed=False).round(2).tolist()
+        [2.56, 2.56, 2.56, 2.56, 2.56, 4.0, 4.0, 4.0]
+    """
+    w = np.asarray(width, dtype=np.float64)
+    h = int(round(NARROW_WINDOW_M / step))
+    low = w.copy()
+    for d in range(1, h + 1):
+        if closed:
+            low = np.minimum(low, np.minimum(np.roll(w, d), np.roll(w, -d)))
+        else:
+            low[d:] = np.minimum(low[d:], w[:-d])
+            low[:-d] = np.minimum(low[:-d], w[d:])
+    return a_lat_max * np.minimum(low / narrow_width, 1.0) ** 2
 
 
 def config_with(base: PurePursuitConfig | None, overrides: dict[str, Any], who: str) -> PurePursuitConfig:
@@ -52,14 +87,35 @@ class GroundTruthPurePursuit:
         track: a ``weather_gym.tracks.Track`` (only ``centerline`` and ``closed`` are used).
         camera: unused (part of the factory signature).
         config: a ``PurePursuitConfig``; keyword overrides (``v_max=...``, ``a_lat_max=...``) apply on top.
+        narrow_width: slow where the track is narrower than this (m; 0: never); the track then needs
+            ``half_width_left`` and ``half_width_right``.
     """
 
     def __init__(self, track: Track, camera: CameraConfig | None = None,
-                 config: PurePursuitConfig | None = None, **overrides: Any) -> None:
+                 config: PurePursuitConfig | None = None, narrow_width: float = 0.0, **overrides: Any) -> None:
+        if isinstance(narrow_width, bool) or not isinstance(narrow_width, (int, float)) \
+                or not math.isfinite(narrow_width) or narrow_width < 0:
+            raise InputError(f"gt_pure_pursuit: narrow_width must be a number of metres >= 0 (0: off), got {narrow_width!r}")
         self.track = track
+        self.narrow_width = float(narrow_width)
         merged = {**GT_DEFAULTS, **overrides} if config is None else overrides
         self.controller = PurePursuit(config_with(config, merged, "gt_pure_pursuit"))
         self.controller.set_path(np.asarray(track.centerline, dtype=np.float64), bool(track.closed))
+        if self.narrow_width > 0:
+            self._slow_where_narrow()
+
+    def _slow_where_narrow(self) -> None:
+        """Recompute the speed profile with the corner limit lowered where the road is narrow."""
+        if not hasattr(self.track, "half_widths_at"):
+            raise InputError("gt_pure_pursuit: narrow_width needs a track with half widths (a weather_gym Track)")
+        pp, cfg = self.controller, self.controller.config
+        assert pp.path is not None and pp.curvature is not None  # set_path came first
+        s = np.arange(len(pp.path)) * cfg.resample_step  # the resampled line keeps the centre line's arc length
+        left, right = self.track.half_widths_at(s)
+        a_lat = narrow_lateral_limit(np.asarray(left) + np.asarray(right), cfg.a_lat_max, self.narrow_width,
+                                     cfg.resample_step, pp.closed)
+        pp.profile = speed_profile(pp.curvature, cfg.resample_step, closed=pp.closed, v_max=cfg.v_max,
+                                   a_lat_max=a_lat, a_accel=cfg.a_accel, a_brake=cfg.a_brake, v_end=cfg.v_end)
 
     def reset(self, seed: int | None = None, info: dict | None = None) -> None:
         self.controller.reset()

@@ -159,7 +159,7 @@ def speed_profile(
     *,
     closed: bool,
     v_max: float,
-    a_lat_max: float,
+    a_lat_max: float | np.ndarray,
     a_accel: float,
     a_brake: float,
     v_start: float | None = None,
@@ -167,6 +167,7 @@ def speed_profile(
 ) -> np.ndarray:
     """Speed (m/s) along a uniformly spaced path: corner limit, then acceleration and braking passes.
 
+    ``a_lat_max`` is one limit or one per point (a driver that slows where the road is narrow);
     ``v_start`` (open paths) caps the first point's speed (e.g. the car's current speed); ``v_end``
     is the speed the car must be down to at the end of an open path.
     """

@@ -217,6 +217,7 @@ def test_rl_md_quotes_the_code():
     assert f"(default {d.pretrain_steps:,})" in text and f"rounds (default {d.dagger_rounds})" in text
     assert f"(default {d.dagger_beta})" in text and f"default {d.pretrain_epochs})" in text
     assert f"`--pretrain-log-std` (default {d.pretrain_log_std}" in text
+    assert f"`--teacher-narrow-width M` (default\n{d.teacher_narrow_width}: off)" in text
     for pattern in RUN_FILES:  # the list --overwrite removes, as the page names it
         assert pattern.split("/")[-1].split("_*")[0].replace("[0-9]*", "<N>") in text, pattern
 

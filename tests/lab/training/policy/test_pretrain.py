@@ -69,6 +69,7 @@ def test_pretraining_is_repeatable(tmp_path):
     (["--pretrain-steps", "-5"], r"--pretrain-steps must be an integer >= 1, got -5"),
     (["--dagger-rounds", "0"], r"--dagger-rounds must be an integer >= 1, got 0"),
     (["--dagger-beta", "1.5"], r"--dagger-beta must be a finite number in \[0, 1\], got 1.5"),
+    (["--teacher-narrow-width", "-1"], r"--teacher-narrow-width must be .*>= 0.*got -1"),
 ])
 def test_bad_pretraining_options_are_refused(tmp_path, capsys, extra, message):
     assert main(_args(tmp_path / "run", *extra)) == 2
@@ -76,6 +77,26 @@ def test_bad_pretraining_options_are_refused(tmp_path, capsys, extra, message):
     assert not (tmp_path / "run").exists()
     with pytest.raises(InputError):
         PretrainConfig(expert="gt_pure_pursuit", steps=0)
+
+
+def test_the_teacher_narrow_width_reaches_the_teacher(tmp_path, monkeypatch):
+    from weather_gym.lab.training.policy import pretrain as pretrain_module
+
+    seen: list[dict] = []
+    real = pretrain_module.make_agent
+
+    def spy(name, track, camera, **kwargs):
+        seen.append(kwargs)
+        return real(name, track, camera, **kwargs)
+
+    monkeypatch.setattr(pretrain_module, "make_agent", spy)
+    out = tmp_path / "run"
+    assert main(_args(out, "--pretrain-steps", "200", "--teacher-narrow-width", "3.0")) == 0
+    assert seen == [{"narrow_width": 3.0}] * 2  # one teacher per env
+    assert json.loads((out / "model.json").read_text())["pretrain"]["teacher_narrow_width"] == 3.0
+    seen.clear()
+    assert main(_args(tmp_path / "off", "--pretrain-steps", "200")) == 0
+    assert seen == [{}] * 2  # 0 (the default): the teacher as it always was
 
 
 def test_timesteps_zero_needs_pretraining(tmp_path, capsys):

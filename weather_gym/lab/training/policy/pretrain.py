@@ -37,7 +37,7 @@ from tqdm.auto import tqdm
 
 from weather_gym.agents import AGENTS, make_agent
 from weather_gym.core.errors import InputError
-from weather_gym.core.schema import Positive, PositiveInt, Share, check_fields, option
+from weather_gym.core.schema import NonNegative, Positive, PositiveInt, Share, check_fields, option
 
 __all__ = ["PretrainConfig", "bc_loss", "collect", "policy_mean", "pretrain"]
 
@@ -62,6 +62,8 @@ class PretrainConfig:
         beta: share of expert-driven steps in round ``r`` is ``beta**r``.
         batch_size, learning_rate: Adam minibatches of the fit.
         log_std: the policy's log std after pretraining (PPO's exploration noise from there).
+        teacher_narrow_width: the expert slows where the track is narrower than this (m; 0: off;
+            ``gt_pure_pursuit``'s ``narrow_width``, passed to the expert only when above 0).
     """
 
     expert: Annotated[str, AfterValidator(_known_agent), option("--pretrain")]
@@ -72,6 +74,7 @@ class PretrainConfig:
     batch_size: PositiveInt = 256
     learning_rate: Positive = 1e-3
     log_std: Annotated[float, option("--pretrain-log-std")] = -1.6
+    teacher_narrow_width: Annotated[NonNegative, option("--teacher-narrow-width")] = 0.0
 
     def __post_init__(self) -> None:
         check_fields(self, by_option=True)  # each field against its annotation, named by its option
@@ -226,7 +229,9 @@ def pretrain(policy: Any, envs: list[gym.Env], config: PretrainConfig, seed: int
     started = time.time()
     ss = np.random.SeedSequence(seed, spawn_key=_SEED_KEY)
     drive_rng, fit_rng = (np.random.default_rng(s) for s in ss.spawn(2))
-    experts = [make_agent(config.expert, env.unwrapped.track, env.unwrapped.config.camera) for env in envs]  # type: ignore[attr-defined]  # ConeTrackEnvs
+    teacher = {"narrow_width": config.teacher_narrow_width} if config.teacher_narrow_width > 0 else {}
+    experts = [make_agent(config.expert, env.unwrapped.track, env.unwrapped.config.camera, **teacher)  # type: ignore[attr-defined]  # ConeTrackEnvs
+               for env in envs]
     optimizer = torch.optim.Adam(_actor_parameters(policy), lr=config.learning_rate)
     parts: list[dict[str, Any]] = []
     rounds: list[dict[str, Any]] = []

@@ -265,6 +265,9 @@ def build_parser(p: argparse.ArgumentParser | None = None) -> argparse.ArgumentP
     g.add_argument("--pretrain-epochs", type=int, default=20, help="passes over all the data after each round")
     g.add_argument("--pretrain-log-std", type=float, default=-1.6,
                    help="the policy's log std after pretraining, PPO's exploration from there (-1.6: std 0.2)")
+    g.add_argument("--teacher-narrow-width", type=float, default=0.0, metavar="M",
+                   help="the teacher (gt_pure_pursuit) slows where the track is narrower than this many metres, "
+                        "its corner limit scaled by (width / M)**2; 0: off")
     return p
 
 
@@ -372,7 +375,8 @@ def _held_out_config(args: argparse.Namespace, training_tracks: list[str]) -> He
 
 def _pretrain_config(args: argparse.Namespace) -> PretrainConfig:
     return PretrainConfig(expert=args.pretrain, steps=args.pretrain_steps, rounds=args.dagger_rounds,
-                          epochs=args.pretrain_epochs, beta=args.dagger_beta, log_std=args.pretrain_log_std)
+                          epochs=args.pretrain_epochs, beta=args.dagger_beta, log_std=args.pretrain_log_std,
+                          teacher_narrow_width=args.teacher_narrow_width)
 
 
 def _close(env: Any) -> None:
