@@ -44,6 +44,7 @@ import json
 import math
 import os
 import pickle
+import platform
 import subprocess
 import sys
 import tempfile
@@ -51,9 +52,11 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Annotated, Any
 
+import cv2
 import numpy as np
 from pydantic import BeforeValidator, InstanceOf
 from tqdm import tqdm
@@ -337,11 +340,6 @@ def resolution_key(scenario: Scenario, presets: str | os.PathLike | None = None,
 def _libraries() -> list[str]:
     """Versions of the libraries whose arithmetic is in the frames and detections (OpenCV's, with its
     optimised paths on or off: the night camera's bytes differ between its builds), and the machine type."""
-    import platform
-    from importlib.metadata import PackageNotFoundError, version
-
-    import cv2
-
     def dist(name: str) -> str:  # from the installed metadata: importing pybullet prints a banner
         try:
             return version(name)
