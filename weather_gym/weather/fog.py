@@ -62,21 +62,6 @@ __all__ = ["Fog", "KOSCHMIEDER"]
 KOSCHMIEDER = 3.912
 
 
-def _fog_weights(z: np.ndarray, ray: np.ndarray, beta: float) -> np.ndarray:
-    """uint8 ``255 (1 - exp(-beta * z * ray))``, single channel."""
-    t = cv2.exp(cv2.multiply(z, ray, scale=-beta))
-    return cv2.convertScaleAbs(t, alpha=-255.0, beta=255.0)
-
-
-@lru_cache(maxsize=16)
-def _fallback_terms(h: int, w: int, fx: float, beta: float, camera_height_m: float,
-                    horizon_frac: float, far_m: float,
-                    gray: float | tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    z = ground_depth(h, w, fx, camera_height_m, horizon_frac, far_m)
-    a, b = blend_terms(_fog_weights(z, ray_factor(h, w, fx), beta), gray)
-    return readonly(a), readonly(b)
-
-
 def _transmittance(z: np.ndarray, ray: np.ndarray, beta: float) -> np.ndarray:
     """float32 ``exp(-beta * z * ray)``, single channel."""
     return cv2.exp(cv2.multiply(z, ray, scale=-beta))
@@ -137,12 +122,23 @@ def _blend_linear(img: np.ndarray, terms: tuple[np.ndarray, np.ndarray], out: np
     return out
 
 
-@lru_cache(maxsize=16)
-def _fallback_linear_terms(h: int, w: int, fx: float, beta: float, camera_height_m: float,
-                           horizon_frac: float, far_m: float,
-                           gray: float | tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+def _terms(space: str, z: np.ndarray, ray: np.ndarray, beta: float, gray: float | tuple[float, float, float],
+           scratch: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The blend terms of fog ``beta`` over depth ``z`` in ``space``: ``blend_terms`` of the uint8 weight
+    ``255 (1 - t)`` (``"srgb"``) or :func:`_linear_terms` of ``t`` (``"linear"``; ``scratch`` as there)."""
+    t = _transmittance(z, ray, beta)
+    if space == "linear":
+        return _linear_terms(t, gray, scratch=scratch)
+    return blend_terms(cv2.convertScaleAbs(t, alpha=-255.0, beta=255.0), gray)
+
+
+@lru_cache(maxsize=32)
+def _fallback_terms(space: str, h: int, w: int, fx: float, beta: float, camera_height_m: float,
+                    horizon_frac: float, far_m: float,
+                    gray: float | tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_terms` over the flat ground's depth (no depth map), read-only: cached per size and k."""
     z = ground_depth(h, w, fx, camera_height_m, horizon_frac, far_m)
-    a, b = _linear_terms(_transmittance(z, ray_factor(h, w, fx), beta), gray)
+    a, b = _terms(space, z, ray_factor(h, w, fx), beta, gray)
     return readonly(a), readonly(b)
 
 
@@ -183,19 +179,13 @@ class Fog(CameraGeometry):
             g = self.airlight_green
             r0, g0, b0 = gray if isinstance(gray, tuple) else (a, a, a)
             gray = (r0 * (1.0 - max(g, 0.0)), g0 * (1.0 + min(g, 0.0)), b0 * (1.0 - max(g, 0.0)))
-        if self.space == "linear":
-            if depth is None:  # cached per size and k
-                lterms = _fallback_linear_terms(h, w, fx, self.beta, self.camera_height_m, self.horizon_frac,
-                                                self.far_m, gray)
-            else:
-                z = scene_depth(depth, h, w, fx, self.camera_height_m, self.horizon_frac, self.far_m, self.name)
-                lterms = _linear_terms(_transmittance(z, ray_factor(h, w, fx), self.beta), gray, scratch=True)
-            _blend_linear(img, lterms, out)
-            return
         if depth is None:  # cached per size and k
-            terms = _fallback_terms(h, w, fx, self.beta, self.camera_height_m, self.horizon_frac,
+            terms = _fallback_terms(self.space, h, w, fx, self.beta, self.camera_height_m, self.horizon_frac,
                                     self.far_m, gray)
         else:
             z = scene_depth(depth, h, w, fx, self.camera_height_m, self.horizon_frac, self.far_m, self.name)
-            terms = blend_terms(_fog_weights(z, ray_factor(h, w, fx), self.beta), gray)
-        blend_into(img, terms, out)
+            terms = _terms(self.space, z, ray_factor(h, w, fx), self.beta, gray, scratch=True)
+        if self.space == "linear":
+            _blend_linear(img, terms, out)
+        else:
+            blend_into(img, terms, out)
