@@ -31,6 +31,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from scipy.ndimage import minimum_filter1d
 
 from weather_gym.agents.pure_pursuit import PurePursuit, PurePursuitConfig, speed_profile
 from weather_gym.core.errors import InputError, check_known
@@ -62,15 +63,8 @@ def narrow_lateral_limit(width: np.ndarray, a_lat_max: float, narrow_width: floa
         >>> narrow_lateral_limit(w, 4.0, 3.0, 1.0, closed=False).round(2).tolist()
         [2.56, 2.56, 2.56, 2.56, 2.56, 4.0, 4.0, 4.0]
     """
-    w = np.asarray(width, dtype=np.float64)
     h = int(round(NARROW_WINDOW_M / step))
-    low = w.copy()
-    for d in range(1, h + 1):
-        if closed:
-            low = np.minimum(low, np.minimum(np.roll(w, d), np.roll(w, -d)))
-        else:
-            low[d:] = np.minimum(low[d:], w[:-d])
-            low[:-d] = np.minimum(low[:-d], w[d:])
+    low = minimum_filter1d(np.asarray(width, dtype=np.float64), 2 * h + 1, mode="wrap" if closed else "nearest")
     return a_lat_max * np.minimum(low / narrow_width, 1.0) ** 2
 
 
