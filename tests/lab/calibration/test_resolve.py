@@ -56,7 +56,7 @@ def _items(cond="low_light"):
 def test_search_finds_the_k_of_a_shifted_curve(shift):
     """A scenario whose curve is the pool's moved along k: every row lands on its target, in few steps."""
     items = _items()
-    ks, rel = rs._pool_curve([(s, float(t["effects"][0]["k"]), float(t["measured_relative"])) for s, t in items])
+    ks, rel = rs._pool_curve([(t["effects"][0]["k"], t["measured_relative"]) for _, t in items])
 
     def f(k):
         return float(np.interp(k - shift, ks, rel, left=1.0, right=rel[-1] * 0.5))

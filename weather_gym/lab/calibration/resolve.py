@@ -497,9 +497,10 @@ class _ReferenceSet:
 
 
 # ------------------------------------------------------------------------------------------ the search
-def _pool_curve(rows: list[tuple[int, float, float]]) -> tuple[np.ndarray, np.ndarray]:
-    """The shipped presets' (k, relative) points of a condition, from k = 0 (relative 1), made a usable curve."""
-    pts = sorted({(0.0, 1.0), *((k, t) for _, k, t in rows if k > 0)})
+def _pool_curve(points: Sequence[Sequence[float]]) -> tuple[np.ndarray, np.ndarray]:
+    """``(k, relative)`` points of a condition (the shipped presets' or a smaller set's), from k = 0
+    (relative 1), made a usable curve: sorted, never rising."""
+    pts = sorted({(0.0, 1.0), *((float(k), float(r)) for k, r in points if k > 0)})
     ks = np.array([p[0] for p in pts])
     rel = np.minimum.accumulate(np.array([p[1] for p in pts]))
     return ks, rel
@@ -599,8 +600,7 @@ class _Search:
         self.name, self.params = table.pop("name"), table
         self.label = json.dumps([self.name, self.params], sort_keys=True)
         # the curve a first step follows: the points a smaller set measured, else the shipped presets'
-        self.pool = _pool_curve([(0, float(k), float(r)) for k, r in curve] if curve
-                                else [(s, float(t["effects"][0]["k"]), float(t["measured_relative"])) for s, t in items])
+        self.pool = _pool_curve(curve or [(t["effects"][0]["k"], t["measured_relative"]) for _, t in items])
         self.ref, self.clear, self.clear_map, self.scenario, self.tick = ref, clear, clear_map, scenario, tick
         self.points: dict[float, float] = {}
         self.matches: dict[float, FrameMatches] = {}
