@@ -70,6 +70,26 @@ def test_a_saved_model_drives_with_the_cone_memory_its_sidecar_records(tmp_path)
         AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_memory="yes")
 
 
+def test_a_saved_model_drives_with_the_cone_shield_its_sidecar_records(tmp_path):
+    sb3 = pytest.importorskip("stable_baselines3")
+    env = ConeListEnv()
+    sb3.PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, seed=0, device="cpu").save(tmp_path / "m")
+    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip").shield is None  # no sidecar: none
+    (tmp_path / "m.json").write_text(json.dumps({"env_id": "x", "cone_shield": {"margin": 0.25}}))
+    agent = AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
+    assert agent.shield.config.margin == 0.25
+    obs, _ = env.reset(seed=0)
+    agent.reset(seed=0)
+    assert agent.act(obs).shape == (2,) and agent.shield.interventions >= 0
+    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_shield=False).shield is None
+    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_shield=True).shield.config.margin == 0.15
+    (tmp_path / "m.json").write_text(json.dumps({"cone_shield": {"marginn": 0.2}}))
+    with pytest.raises(ValueError, match=r"m\.json: cone_shield: unknown .*marginn"):
+        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
+    with pytest.raises(ValueError, match="cone_shield must be"):
+        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_shield="yes")
+
+
 def test_sb3_adapter_errors(tmp_path):
     with pytest.raises(ValueError, match="exactly one"):
         AGENTS.get("sb3")(None, None)

@@ -31,6 +31,7 @@ import numpy as np
 
 from weather_gym.agents._checks import check_action
 from weather_gym.agents.cone_memory import ConeMemory, ConeMemoryConfig
+from weather_gym.agents.cone_shield import ConeShield, ConeShieldConfig
 from weather_gym.core.errors import FileFormatError, InputError, MissingInputError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -54,8 +55,9 @@ def model_sidecar(model: str | Path) -> Path | None:
     return None
 
 
-def _recorded_memory(model: Path) -> bool | ConeMemoryConfig:
-    """The cone memory a saved model was trained with, from its sidecar (False without one)."""
+def _recorded(model: Path, key: str, kind: type) -> bool | ConeMemoryConfig | ConeShieldConfig:
+    """What a saved model's sidecar records under ``key`` (``cone_memory``, ``cone_shield``): False
+    without a sidecar or the key, else True/False or a ``kind`` (ConeMemoryConfig, ConeShieldConfig)."""
     sidecar = model_sidecar(model)
     if sidecar is None:
         return False
@@ -63,13 +65,26 @@ def _recorded_memory(model: Path) -> bool | ConeMemoryConfig:
         meta = json.loads(sidecar.read_text())
     except (OSError, ValueError) as exc:
         raise FileFormatError(f"{sidecar}: the model's JSON sidecar could not be read ({exc})") from None
-    recorded = meta.get("cone_memory", False) if isinstance(meta, dict) else False
+    recorded = meta.get(key, False) if isinstance(meta, dict) else False
     if isinstance(recorded, bool):
         return recorded
     try:
-        return ConeMemoryConfig.from_dict(recorded)
+        return kind.from_dict(recorded)
     except InputError as exc:
-        raise FileFormatError(f"{sidecar}: {exc}") from None  # the message names cone_memory
+        raise FileFormatError(f"{sidecar}: {exc}") from None  # the message names the key
+
+
+def _config(value: object, kind: type, name: str) -> ConeMemoryConfig | ConeShieldConfig | None:
+    """``cone_memory=`` / ``cone_shield=`` as given (None/False, True, a config or its dict) -> a config or None."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return kind()
+    if isinstance(value, dict):
+        return kind.from_dict(value)
+    if isinstance(value, kind):
+        return value
+    raise InputError(f"sb3 agent: {name} must be true, false, a {kind.__name__} or its fields, got {value!r}")
 
 
 class SB3Agent:
@@ -84,11 +99,15 @@ class SB3Agent:
             first (``True`` for the default tuning, or a ``ConeMemoryConfig`` or its dict), as for a
             policy trained with ``weather-gym train --cone-memory``; ``None`` (default): as the saved
             model's JSON sidecar (:func:`model_sidecar`) records under ``"cone_memory"``, none without one.
+        cone_shield: pass each action through a :class:`~weather_gym.agents.cone_shield.ConeShield`,
+            which steers it off the cones in the (remembered) cone list (``True``, a ``ConeShieldConfig``
+            or its dict); ``None`` (default): as the sidecar records under ``"cone_shield"``, none without one.
     """
 
     def __init__(self, track: Track | None = None, camera: CameraConfig | None = None, *, model: Any = None,
                  path: str | Path | None = None, algo: str = "PPO", device: str = "cpu",
-                 cone_memory: bool | dict | ConeMemoryConfig | None = None) -> None:
+                 cone_memory: bool | dict | ConeMemoryConfig | None = None,
+                 cone_shield: bool | dict | ConeShieldConfig | None = None) -> None:
         if (model is None) == (path is None):
             raise InputError("sb3 agent: give exactly one of model= (a stable-baselines3 model) or path= (a saved .zip)")
         if model is None:
@@ -102,27 +121,27 @@ class SB3Agent:
             cls = getattr(importlib.import_module("stable_baselines3"), algo)
             model = cls.load(str(p), device=device)
             if cone_memory is None:
-                cone_memory = _recorded_memory(p)
+                cone_memory = _recorded(p, "cone_memory", ConeMemoryConfig)
+            if cone_shield is None:
+                cone_shield = _recorded(p, "cone_shield", ConeShieldConfig)
         if not callable(getattr(model, "predict", None)):
             raise InputError(f"sb3 agent: model {type(model).__name__} has no predict(obs, deterministic=...) method")
         self.model = model
-        cone_memory = False if cone_memory is None else cone_memory
-        if not isinstance(cone_memory, (bool, dict, ConeMemoryConfig)):
-            raise InputError(f"sb3 agent: cone_memory must be true, false, a ConeMemoryConfig or its fields, "
-                             f"got {cone_memory!r}")
-        if cone_memory is True:
-            cone_memory = ConeMemoryConfig()
-        elif isinstance(cone_memory, dict):
-            cone_memory = ConeMemoryConfig.from_dict(cone_memory)
-        self.memory = ConeMemory(cone_memory, camera=camera) if isinstance(cone_memory, ConeMemoryConfig) else None
+        memory = _config(cone_memory, ConeMemoryConfig, "cone_memory")
+        shield = _config(cone_shield, ConeShieldConfig, "cone_shield")
+        self.memory = ConeMemory(memory, camera=camera) if isinstance(memory, ConeMemoryConfig) else None
+        self.shield = ConeShield(shield) if isinstance(shield, ConeShieldConfig) else None
 
     def reset(self, seed: int | None = None, info: dict | None = None) -> None:
         self._state = None  # recurrent policies keep a hidden state between steps
         if self.memory is not None:
             self.memory.reset()
+        if self.shield is not None:
+            self.shield.reset()
 
     def act(self, obs: Any, info: dict | None = None) -> np.ndarray:
         if self.memory is not None:
             obs = self.memory(obs)
         action, self._state = self.model.predict(obs, state=getattr(self, "_state", None), deterministic=True)
-        return check_action(np.asarray(action, dtype=np.float32).reshape(-1), "sb3 model")
+        action = check_action(np.asarray(action, dtype=np.float32).reshape(-1), "sb3 model")
+        return action if self.shield is None else self.shield(obs, action)
