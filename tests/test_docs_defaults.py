@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from weather_gym.agents.cone_shield import ConeShieldConfig
 from weather_gym.cli import COMMANDS, build_parser
 from weather_gym.envs.config import EnvConfig, RewardConfig
 from weather_gym.sim.config import SimConfig
@@ -113,7 +114,8 @@ def test_the_effects_table_quotes_each_effects_default(effect, param, quoted):
         assert value == pytest.approx(number(quoted)), f"weather.md: {effect}.{param} quoted {quoted}, code {value!r}"
 
 
-CONFIGS = {"RewardConfig": RewardConfig, "EnvConfig": EnvConfig, "SimConfig": SimConfig, "LidarConfig": LidarConfig}
+CONFIGS = {"RewardConfig": RewardConfig, "EnvConfig": EnvConfig, "SimConfig": SimConfig, "LidarConfig": LidarConfig,
+           "ConeShieldConfig": ConeShieldConfig}
 FIELD_QUOTE = re.compile(rf"`(\w+) ?= ?({NUMBER}|True|False)`")
 
 

@@ -46,6 +46,15 @@ def test_a_gap_narrower_than_the_car_brakes():
     assert pedal == ConeShieldConfig().brake and abs(steer) <= ConeShieldConfig().max_change
 
 
+def test_a_crawling_car_keeps_its_pedal_where_nothing_clears():
+    """Stopped against cones it cannot steer clear of, braking would hold the car there for good."""
+    stuck = _obs((2.3, 0.2), (2.3, -0.2), speed=0.3)
+    steer, pedal = ConeShield()(stuck, np.array([0.1, 0.4], np.float32))
+    assert pedal == pytest.approx(0.4) and abs(steer - 0.1) <= ConeShieldConfig().max_change + 1e-6
+    _, pedal = ConeShield()(_obs((3.3, 0.2), (3.3, -0.2), speed=3.0), np.array([0.1, 0.4], np.float32))
+    assert pedal == ConeShieldConfig().brake
+
+
 def test_a_cone_already_close_may_stay_close_but_not_come_closer():
     """Beside the car inside the margin: driving straight on passes, steering into it does not."""
     shield = ConeShield()

@@ -14,8 +14,9 @@ rollout keeps ``margin`` metres from every cone (or, for a cone already closer t
 come any closer). Otherwise the shield steers with the steering value nearest the policy's that
 does, at most ``max_change`` away from it (a short look ahead can call a swerve the wrong way safe,
 which leaves the road a second later), and keeps the policy's pedal; when none within
-``max_change`` does, it takes the one of those that comes least close and brakes (``brake``). It
-reads only the cone list and the state, never ground truth.
+``max_change`` does, it takes the one of those that comes least close and brakes (``brake``),
+unless the car is crawling (``crawl_speed``). It reads only the cone list and the state, never
+ground truth.
 
 The shipped ``ppo_cones`` driver drives with it (its JSON records ``cone_shield``; the ``sb3`` agent
 applies what a saved model's JSON records, or ``cone_shield=``).
@@ -70,7 +71,10 @@ class ConeShieldConfig:
         cone_radius: a cone's base radius (m; the small FS cone's base is 0.228 m wide).
         max_change: the most the shield moves the policy's steering (in action units, of 2 from full
             left to full right): a turn is mended, not swapped for one the other way.
-        brake: the pedal (in [-1, 0]) when no steering value within ``max_change`` keeps the margin.
+        brake: the pedal (in [-1, 0]) when no steering value within ``max_change`` keeps the margin
+            and the car is faster than ``crawl_speed``.
+        crawl_speed: at this speed (m/s) or slower the shield leaves the pedal to the driver (a car
+            stopped among cones it cannot steer clear of would otherwise wait there for good).
         min_speed: the speed (m/s) a rollout assumes at least, so a car at rest still looks ahead.
     """
 
@@ -81,6 +85,7 @@ class ConeShieldConfig:
     cone_radius: NonNegative = 0.114
     max_change: Annotated[float, Field(gt=0.0, le=2.0)] = 0.3
     brake: Annotated[float, Field(ge=-1.0, le=0.0)] = -0.3
+    crawl_speed: NonNegative = 2.0
     min_speed: Positive = 1.0
 
     def __post_init__(self) -> None:
@@ -150,7 +155,8 @@ class ConeShield:
             pick = np.flatnonzero(safe)[np.argmin(np.abs(self._targets[safe] - action[0]))]
             return np.array([self._targets[pick], action[1]], np.float32)
         pick = np.flatnonzero(near)[np.argmin(shortfall[1:][near])]
-        return np.array([self._targets[pick], min(float(action[1]), cfg.brake)], np.float32)
+        pedal = float(action[1]) if float(state[0]) <= cfg.crawl_speed else min(float(action[1]), cfg.brake)
+        return np.array([self._targets[pick], pedal], np.float32)
 
     def _gaps(self, targets: np.ndarray, cones: np.ndarray, speed: float, yaw_rate: float) -> np.ndarray:
         """Gap (m) between body and each cone's base along each steering target's rollout."""
