@@ -25,7 +25,7 @@ from __future__ import annotations
 import importlib
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -55,7 +55,10 @@ def model_sidecar(model: str | Path) -> Path | None:
     return None
 
 
-def _recorded(model: Path, key: str, kind: type) -> bool | ConeMemoryConfig | ConeShieldConfig:
+_Config = TypeVar("_Config", ConeMemoryConfig, ConeShieldConfig)
+
+
+def _recorded(model: Path, key: str, kind: type[_Config]) -> bool | _Config:
     """What a saved model's sidecar records under ``key`` (``cone_memory``, ``cone_shield``): False
     without a sidecar or the key, else True/False or a ``kind`` (ConeMemoryConfig, ConeShieldConfig)."""
     sidecar = model_sidecar(model)
@@ -74,7 +77,7 @@ def _recorded(model: Path, key: str, kind: type) -> bool | ConeMemoryConfig | Co
         raise FileFormatError(f"{sidecar}: {exc}") from None  # the message names the key
 
 
-def _config(value: object, kind: type, name: str) -> ConeMemoryConfig | ConeShieldConfig | None:
+def _config(value: object, kind: type[_Config], name: str) -> _Config | None:
     """``cone_memory=`` / ``cone_shield=`` as given (None/False, True, a config or its dict) -> a config or None."""
     if value is None or value is False:
         return None
@@ -129,8 +132,8 @@ class SB3Agent:
         self.model = model
         memory = _config(cone_memory, ConeMemoryConfig, "cone_memory")
         shield = _config(cone_shield, ConeShieldConfig, "cone_shield")
-        self.memory = ConeMemory(memory, camera=camera) if isinstance(memory, ConeMemoryConfig) else None
-        self.shield = ConeShield(shield) if isinstance(shield, ConeShieldConfig) else None
+        self.memory = ConeMemory(memory, camera=camera) if memory is not None else None
+        self.shield = ConeShield(shield) if shield is not None else None
 
     def reset(self, seed: int | None = None, info: dict | None = None) -> None:
         self._state = None  # recurrent policies keep a hidden state between steps
