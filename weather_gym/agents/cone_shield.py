@@ -52,7 +52,6 @@ from weather_gym.core.errors import InputError, check_known
 from weather_gym.core.schema import NonNegative, Positive, check_fields
 from weather_gym.perception.cones import FIELD
 from weather_gym.sim.config import CarConfig
-from weather_gym.sim.world import REAR_OVERHANG_M
 
 __all__ = ["ConeShield", "ConeShieldConfig"]
 
@@ -122,7 +121,7 @@ class ConeShield:
         self._targets = np.linspace(-1.0, 1.0, cfg.candidates)
         self._n_steps = max(1, math.ceil(cfg.horizon / cfg.step - 1e-9))
         self._half = (car.length / 2, car.width / 2)
-        self._body_dx = car.length / 2 - REAR_OVERHANG_M  # body centre ahead of the rear axle
+        self._body_dx = car.body_center_x
         self.interventions = 0
 
     def reset(self) -> None:

@@ -85,6 +85,10 @@ class SimConfig:
         return 1.0 / self.control_hz
 
 
+REAR_OVERHANG_M = 0.45
+"""How far (m) the car's body reaches behind the rear axle (the pose's reference point)."""
+
+
 @dataclass(frozen=True)
 class CarConfig:
     """A Formula Student car as a dynamic bicycle model with a friction-limited (Fiala) tyre.
@@ -120,6 +124,11 @@ class CarConfig:
     @property
     def cg_to_front(self) -> float:
         return self.wheelbase - self.cg_to_rear
+
+    @property
+    def body_center_x(self) -> float:
+        """How far (m) the body's centre sits ahead of the rear axle (``REAR_OVERHANG_M`` behind it)."""
+        return self.length / 2 - REAR_OVERHANG_M
 
 
 @dataclass(frozen=True)

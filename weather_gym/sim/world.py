@@ -57,7 +57,6 @@ from weather_gym.sim.world_views import WorldViews
 CAR_BODY_HEIGHT_M = 0.35  # the car's body box (collision and chase-view visual)
 SHADOW_DISC_SCALE = 0.75  # a cone's contact shadow: a disc of this many base widths' radius
 GROUND_MARGIN_M = 90.0  # ground beyond the track; more than the camera's far plane
-REAR_OVERHANG_M = 0.45
 CONE_REACH_M = 0.35
 """Margin (m) around the car's body within which cones get contact physics: a big cone's base
 half-diagonal (0.2 m) plus safety (the motion during the control period is added to it)."""
@@ -180,7 +179,7 @@ class World(WorldViews):
         # the car's body: a dynamic box (collision only) that the bicycle model teleports every
         # physics step, and a separate visual-only body shown in the chase view, never to the car camera
         cfg = self.car_config
-        self._car_body_dx = cfg.length / 2 - REAR_OVERHANG_M
+        self._car_body_dx = cfg.body_center_x
         body_h = CAR_BODY_HEIGHT_M
         self._car_body_z = 0.15 + body_h / 2
         half = [cfg.length / 2, cfg.width / 2, body_h / 2]
