@@ -44,50 +44,34 @@ def test_sb3_model_and_saved_zip_drive_through_the_protocol(tmp_path):
     assert np.array_equal(loaded.act(obs), a)  # deterministic: same weights, same action
 
 
-def test_a_saved_model_drives_with_the_cone_memory_its_sidecar_records(tmp_path):
+@pytest.mark.parametrize(("key", "attr", "field", "recorded", "default"),
+                         [("cone_memory", "memory", "max_age", 7, 30), ("cone_shield", "shield", "margin", 0.25, 0.15)])
+def test_a_saved_model_drives_with_what_its_sidecar_records(tmp_path, key, attr, field, recorded, default):
+    """The cone memory and the cone shield: read from the model's JSON, overridden by the keyword."""
     sb3 = pytest.importorskip("stable_baselines3")
     env = ConeListEnv()
     sb3.PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, seed=0, device="cpu").save(tmp_path / "m")
-    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip").memory is None  # no sidecar: none
-    (tmp_path / "m.json").write_text(json.dumps({"env_id": "x", "cone_memory": {"max_age": 7}}))
-    agent = AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
-    assert agent.memory.config.max_age == 7
+    model = tmp_path / "m.zip"
+    assert getattr(AGENTS.get("sb3")(None, None, path=model), attr) is None  # no sidecar: none
+    (tmp_path / "m.json").write_text(json.dumps({"env_id": "x", key: {field: recorded}}))
+    agent = AGENTS.get("sb3")(None, None, path=model)
+    assert getattr(getattr(agent, attr).config, field) == recorded
     obs, _ = env.reset(seed=0)
     agent.reset(seed=0)
     assert agent.act(obs).shape == (2,)
-    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_memory=False).memory is None
-    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_memory=True).memory.config.max_age == 30
+    assert getattr(AGENTS.get("sb3")(None, None, path=model, **{key: False}), attr) is None
+    assert getattr(getattr(AGENTS.get("sb3")(None, None, path=model, **{key: True}), attr).config, field) == default
     (tmp_path / "m.json").write_text("{")
     with pytest.raises(ValueError, match=r"m\.json"):
-        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
-    (tmp_path / "m.json").write_text(json.dumps({"cone_memory": {"max_agee": 7}}))
-    with pytest.raises(ValueError, match=r"m\.json: cone_memory: unknown .*max_agee"):
-        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
-    (tmp_path / "m.json").write_text(json.dumps({"cone_memory": "yes"}))
-    with pytest.raises(ValueError, match=r"m\.json: cone_memory must be a table"):
-        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
-    with pytest.raises(ValueError, match="cone_memory must be"):
-        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_memory="yes")
-
-
-def test_a_saved_model_drives_with_the_cone_shield_its_sidecar_records(tmp_path):
-    sb3 = pytest.importorskip("stable_baselines3")
-    env = ConeListEnv()
-    sb3.PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, seed=0, device="cpu").save(tmp_path / "m")
-    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip").shield is None  # no sidecar: none
-    (tmp_path / "m.json").write_text(json.dumps({"env_id": "x", "cone_shield": {"margin": 0.25}}))
-    agent = AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
-    assert agent.shield.config.margin == 0.25
-    obs, _ = env.reset(seed=0)
-    agent.reset(seed=0)
-    assert agent.act(obs).shape == (2,) and agent.shield.interventions >= 0
-    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_shield=False).shield is None
-    assert AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_shield=True).shield.config.margin == 0.15
-    (tmp_path / "m.json").write_text(json.dumps({"cone_shield": {"marginn": 0.2}}))
-    with pytest.raises(ValueError, match=r"m\.json: cone_shield: unknown .*marginn"):
-        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip")
-    with pytest.raises(ValueError, match="cone_shield must be"):
-        AGENTS.get("sb3")(None, None, path=tmp_path / "m.zip", cone_shield="yes")
+        AGENTS.get("sb3")(None, None, path=model)
+    (tmp_path / "m.json").write_text(json.dumps({key: {field + "x": recorded}}))
+    with pytest.raises(ValueError, match=rf"m\.json: {key}: unknown .*{field}x"):
+        AGENTS.get("sb3")(None, None, path=model)
+    (tmp_path / "m.json").write_text(json.dumps({key: "yes"}))
+    with pytest.raises(ValueError, match=rf"m\.json: {key} must be a table"):
+        AGENTS.get("sb3")(None, None, path=model)
+    with pytest.raises(ValueError, match=f"{key} must be"):
+        AGENTS.get("sb3")(None, None, path=model, **{key: "yes"})
 
 
 def test_sb3_adapter_errors(tmp_path):

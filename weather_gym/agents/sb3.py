@@ -58,17 +58,22 @@ def model_sidecar(model: str | Path) -> Path | None:
 _Config = TypeVar("_Config", ConeMemoryConfig, ConeShieldConfig)
 
 
-def _recorded(model: Path, key: str, kind: type[_Config]) -> bool | _Config:
-    """What a saved model's sidecar records under ``key`` (``cone_memory``, ``cone_shield``): False
-    without a sidecar or the key, else True/False or a ``kind`` (ConeMemoryConfig, ConeShieldConfig)."""
+def _read_sidecar(model: Path) -> tuple[Path | None, dict]:
+    """A saved model's sidecar (:func:`model_sidecar`) and what it records ({} without one)."""
     sidecar = model_sidecar(model)
     if sidecar is None:
-        return False
+        return None, {}
     try:
         meta = json.loads(sidecar.read_text())
     except (OSError, ValueError) as exc:
         raise FileFormatError(f"{sidecar}: the model's JSON sidecar could not be read ({exc})") from None
-    recorded = meta.get(key, False) if isinstance(meta, dict) else False
+    return sidecar, meta if isinstance(meta, dict) else {}
+
+
+def _recorded(sidecar: Path | None, meta: dict, key: str, kind: type[_Config]) -> bool | _Config:
+    """What the sidecar's ``meta`` records under ``key`` (``cone_memory``, ``cone_shield``): False
+    without the key, else True/False or a ``kind`` (ConeMemoryConfig, ConeShieldConfig)."""
+    recorded = meta.get(key, False)
     if isinstance(recorded, bool):
         return recorded
     try:
@@ -123,10 +128,12 @@ class SB3Agent:
                 raise InputError(f"sb3 agent: unknown algo {algo!r}; expected one of {', '.join(SB3_ALGOS)}")
             cls = getattr(importlib.import_module("stable_baselines3"), algo)
             model = cls.load(str(p), device=device)
-            if cone_memory is None:
-                cone_memory = _recorded(p, "cone_memory", ConeMemoryConfig)
-            if cone_shield is None:
-                cone_shield = _recorded(p, "cone_shield", ConeShieldConfig)
+            if cone_memory is None or cone_shield is None:
+                sidecar, meta = _read_sidecar(p)
+                if cone_memory is None:
+                    cone_memory = _recorded(sidecar, meta, "cone_memory", ConeMemoryConfig)
+                if cone_shield is None:
+                    cone_shield = _recorded(sidecar, meta, "cone_shield", ConeShieldConfig)
         if not callable(getattr(model, "predict", None)):
             raise InputError(f"sb3 agent: model {type(model).__name__} has no predict(obs, deterministic=...) method")
         self.model = model
