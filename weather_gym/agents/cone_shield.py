@@ -161,8 +161,8 @@ class ConeShield:
         """Gap (m) between body and each cone's base along each steering target's rollout."""
         cfg, car = self.config, self.car
         dt, wb = cfg.step, car.wheelbase
-        delta = np.full(len(targets), math.atan(np.clip(yaw_rate * wb / speed, -10, 10)))
-        delta = np.clip(delta, -car.max_steer, car.max_steer)
+        now = min(max(math.atan(yaw_rate * wb / speed), -car.max_steer), car.max_steer)  # from the yaw rate
+        delta = np.full(len(targets), now)
         goal = targets * car.max_steer
         x = np.zeros(len(targets))
         y = np.zeros(len(targets))
